@@ -1,0 +1,67 @@
+!> mrsim: run a pymr scene from a namelist file.
+!>
+!>   mrsim SCENE.nml [-o OUT.csv] [--set GROUP.KEY=VALUE ...] [--quiet]
+!>
+!> Exit status 0 on success; otherwise one line on stderr,
+!> "mrsim: error: <message>", and status 1 (bad input) or 2 (failed run).
+program mrsim
+  use, intrinsic :: iso_fortran_env, only : error_unit, output_unit
+  use pymr_error, only : error_type
+  use pymr_run, only : run_scene
+  implicit none
+  character(len=:), allocatable :: scene, out, overrides, summary, arg
+  type(error_type), allocatable :: error
+  integer :: i, nargs
+  logical :: quiet
+
+  scene = ''; out = ''; overrides = ''; quiet = .false.
+  nargs = command_argument_count()
+  i = 1
+  do while (i <= nargs)
+    arg = get_arg(i)
+    select case (arg)
+    case ('-h', '--help')
+      write(output_unit, '(a)') 'usage: mrsim SCENE.nml [-o OUT.csv] [--set GROUP.KEY=VALUE ...] [--quiet]'
+      stop
+    case ('-o', '--output')
+      if (i == nargs) call usage_error(arg // ' needs a file name')
+      i = i + 1; out = get_arg(i)
+    case ('--set')
+      if (i == nargs) call usage_error('--set needs GROUP.KEY=VALUE')
+      i = i + 1; overrides = overrides // get_arg(i) // achar(10)
+    case ('-q', '--quiet')
+      quiet = .true.
+    case default
+      if (arg(1:1) == '-') call usage_error('unknown option ' // arg)
+      if (len(scene) > 0) call usage_error('one scene file at a time (got ' // scene // ' and ' // arg // ')')
+      scene = arg
+    end select
+    i = i + 1
+  end do
+  if (len(scene) == 0) call usage_error('no scene file (usage: mrsim SCENE.nml [-o OUT.csv] [--set G.K=V ...])')
+
+  call run_scene(scene, overrides, out, summary, error)
+  if (allocated(error)) then
+    write(error_unit, '(a)') 'mrsim: error: ' // error%message
+    if (error%stat == 1) error stop 1, quiet=.true.
+    error stop 2, quiet=.true.
+  end if
+  if (.not. quiet) write(output_unit, '(a)') summary
+
+contains
+
+  function get_arg(k) result(a)
+    integer, intent(in) :: k
+    character(len=:), allocatable :: a
+    integer :: l
+    call get_command_argument(k, length=l)
+    allocate(character(len=l) :: a)
+    call get_command_argument(k, a)
+  end function get_arg
+
+  subroutine usage_error(msg)
+    character(len=*), intent(in) :: msg
+    write(error_unit, '(a)') 'mrsim: error: ' // msg
+    error stop 1, quiet=.true.
+  end subroutine usage_error
+end program mrsim

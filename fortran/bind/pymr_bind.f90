@@ -1,0 +1,207 @@
+!> Flat binding layer for f2py: plain external subroutines with explicit-shape
+!> `double precision` arrays and scalars only. Each call reports `stat` (0 ok,
+!> 1 bad input, 2 failed run) and a one-line `message`; Python raises on stat /= 0.
+
+!> Run a scene to result files (see pymr_run%run_scene).
+subroutine pymr_run_scene(scene, overrides, out, stat, message, summary)
+  use pymr_error, only : error_type
+  use pymr_bind_support, only : report
+  use pymr_run, only : run_scene
+  implicit none
+  character(len=*), intent(in) :: scene, overrides, out
+  integer, intent(out) :: stat
+  character(len=1024), intent(out) :: message
+  character(len=4096), intent(out) :: summary
+  type(error_type), allocatable :: error
+  character(len=:), allocatable :: text
+  call run_scene(scene, overrides, out, text, error)
+  call report(error, stat, message)
+  summary = ''
+  if (stat == 0) summary = text
+end subroutine pymr_run_scene
+
+!> Sizes of a scene's model: coordinates, bodies (with ground), markers.
+subroutine pymr_model_size(scene, overrides, n, nb, n_markers, stat, message)
+  use pymr_error, only : error_type
+  use pymr_bind_support, only : report
+  use pymr_model_scene, only : scene_t
+  use pymr_model, only : model_t
+  use pymr_run, only : load_model
+  implicit none
+  character(len=*), intent(in) :: scene, overrides
+  integer, intent(out) :: n, nb, n_markers, stat
+  character(len=1024), intent(out) :: message
+  type(error_type), allocatable :: error
+  type(scene_t) :: sc
+  type(model_t) :: model
+  n = 0; nb = 0; n_markers = 0
+  call load_model(scene, overrides, sc, model, error)
+  call report(error, stat, message)
+  if (stat /= 0) return
+  n = model%d%n; nb = model%d%nb; n_markers = model%d%n_markers
+end subroutine pymr_model_size
+
+!> Mass matrix mm(n,n) and right-hand side p(n) of M qdd = P at (t, q, qd).
+subroutine pymr_model_terms(scene, overrides, n, t, q, qd, mm, p, stat, message)
+  use pymr_error, only : error_type, fatal_error
+  use pymr_bind_support, only : report
+  use pymr_model_scene, only : scene_t
+  use pymr_model, only : model_t
+  use pymr_run, only : load_model
+  implicit none
+  character(len=*), intent(in) :: scene, overrides
+  integer, intent(in) :: n
+  double precision, intent(in) :: t, q(n), qd(n)
+  double precision, intent(out) :: mm(n, n), p(n)
+  integer, intent(out) :: stat
+  character(len=1024), intent(out) :: message
+  !f2py integer intent(hide), depend(q) :: n = len(q)
+  type(error_type), allocatable :: error
+  type(scene_t) :: sc
+  type(model_t) :: model
+  mm = 0.0d0; p = 0.0d0
+  call load_model(scene, overrides, sc, model, error)
+  if (.not. allocated(error) .and. model%d%n /= n) call fatal_error(error, 'q has the wrong length')
+  call report(error, stat, message)
+  if (stat /= 0) return
+  call model%terms(t, q, qd)
+  mm = model%d%mm; p = model%d%p
+end subroutine pymr_model_terms
+
+!> Accelerations qdd(n, m) for m states (t(m), q(n,m), qd(n,m)) of one model.
+subroutine pymr_model_accelerations(scene, overrides, n, m, t, q, qd, qdd, stat, message)
+  use pymr_error, only : error_type, fatal_error
+  use pymr_bind_support, only : report
+  use pymr_model_scene, only : scene_t
+  use pymr_model, only : model_t
+  use pymr_run, only : load_model
+  implicit none
+  character(len=*), intent(in) :: scene, overrides
+  integer, intent(in) :: n, m
+  double precision, intent(in) :: t(m), q(n, m), qd(n, m)
+  double precision, intent(out) :: qdd(n, m)
+  integer, intent(out) :: stat
+  character(len=1024), intent(out) :: message
+  !f2py integer intent(hide), depend(q) :: n = shape(q, 0)
+  !f2py integer intent(hide), depend(q) :: m = shape(q, 1)
+  type(error_type), allocatable :: error
+  type(scene_t) :: sc
+  type(model_t) :: model
+  integer :: k
+  qdd = 0.0d0
+  call load_model(scene, overrides, sc, model, error)
+  if (.not. allocated(error) .and. model%d%n /= n) call fatal_error(error, 'q has the wrong length')
+  do k = 1, m
+    if (allocated(error)) exit
+    call model%accelerations(t(k), q(:, k), qd(:, k), qdd(:, k), error)
+  end do
+  call report(error, stat, message)
+end subroutine pymr_model_accelerations
+
+!> Kinetic and potential energy (J) for m states q(n,m), qd(n,m) of one model.
+subroutine pymr_model_energy(scene, overrides, n, m, q, qd, kinetic, potential, stat, message)
+  use pymr_error, only : error_type, fatal_error
+  use pymr_bind_support, only : report
+  use pymr_model_scene, only : scene_t
+  use pymr_model, only : model_t
+  use pymr_run, only : load_model
+  implicit none
+  character(len=*), intent(in) :: scene, overrides
+  integer, intent(in) :: n, m
+  double precision, intent(in) :: q(n, m), qd(n, m)
+  double precision, intent(out) :: kinetic(m), potential(m)
+  integer, intent(out) :: stat
+  character(len=1024), intent(out) :: message
+  !f2py integer intent(hide), depend(q) :: n = shape(q, 0)
+  !f2py integer intent(hide), depend(q) :: m = shape(q, 1)
+  type(error_type), allocatable :: error
+  type(scene_t) :: sc
+  type(model_t) :: model
+  integer :: k
+  kinetic = 0.0d0; potential = 0.0d0
+  call load_model(scene, overrides, sc, model, error)
+  if (.not. allocated(error) .and. model%d%n /= n) call fatal_error(error, 'q has the wrong length')
+  call report(error, stat, message)
+  if (stat /= 0) return
+  do k = 1, m
+    call model%energy(q(:, k), qd(:, k), kinetic(k), potential(k))
+  end do
+end subroutine pymr_model_energy
+
+!> Timing helper: CPU seconds per model evaluation over `reps` evaluations at
+!> the state (q, qd); the model is built once. Python takes medians over several calls.
+subroutine pymr_time_evaluation(scene, overrides, n, q, qd, reps, seconds, stat, message)
+  use pymr_error, only : error_type, fatal_error
+  use pymr_bind_support, only : report
+  use pymr_model_scene, only : scene_t
+  use pymr_model, only : model_t
+  use pymr_run, only : load_model
+  implicit none
+  character(len=*), intent(in) :: scene, overrides
+  integer, intent(in) :: n, reps
+  double precision, intent(in) :: q(n), qd(n)
+  double precision, intent(out) :: seconds
+  integer, intent(out) :: stat
+  character(len=1024), intent(out) :: message
+  !f2py integer intent(hide), depend(q) :: n = len(q)
+  type(error_type), allocatable :: error
+  type(scene_t) :: sc
+  type(model_t) :: model
+  double precision, allocatable :: qdd(:)
+  double precision :: c0, c1
+  integer :: k
+  seconds = 0.0d0
+  call load_model(scene, overrides, sc, model, error)
+  if (.not. allocated(error) .and. model%d%n /= n) call fatal_error(error, 'q has the wrong length')
+  if (.not. allocated(error)) then
+    allocate(qdd(n))
+    call cpu_time(c0)
+    do k = 1, reps
+      call model%accelerations(0.0d0, q, qd, qdd, error)
+      if (allocated(error)) exit
+    end do
+    call cpu_time(c1)
+    seconds = (c1 - c0)/max(reps, 1)
+  end if
+  call report(error, stat, message)
+end subroutine pymr_time_evaluation
+
+!> Integrate a built-in test ODE with known solution (for the integrator's tests).
+!> problem 1: harmonic oscillator x'' = -x, x(0) = 1, x'(0) = 0 (state [x, x']).
+!> problem 2: y' = -2 t y^2, y(0) = 1 (solution 1/(1+t^2)).
+!> problem 3: Kepler orbit, eccentricity 0.5 (state [x, y, vx, vy]).
+subroutine pymr_ode_test(problem, t_end, h, adaptive, rtol, atol, n_corr, nx, x, steps, evals, rejected, &
+    & stat, message)
+  use pymr_error, only : error_type
+  use pymr_bind_support, only : report
+  use pymr_test_odes, only : integrate_test_ode
+  implicit none
+  integer, intent(in) :: problem, adaptive, n_corr, nx
+  double precision, intent(in) :: t_end, h, rtol, atol
+  double precision, intent(out) :: x(nx)
+  integer, intent(out) :: steps, evals, rejected, stat
+  character(len=1024), intent(out) :: message
+  type(error_type), allocatable :: error
+  call integrate_test_ode(problem, t_end, h, adaptive /= 0, rtol, atol, n_corr, x, steps, evals, rejected, error)
+  call report(error, stat, message)
+end subroutine pymr_ode_test
+
+!> Nordsieck kernels for tests: predict (op 1), rescale by alpha (op 2), value at s (op 3).
+subroutine pymr_nordsieck_op(op, n, z, alpha, out)
+  use pymr_integrator_nordsieck, only : nordsieck_predict, nordsieck_rescale, nordsieck_value
+  implicit none
+  integer, intent(in) :: op, n
+  double precision, intent(in) :: z(n, 4), alpha
+  double precision, intent(out) :: out(n, 4)
+  !f2py integer intent(hide), depend(z) :: n = shape(z, 0)
+  out = 0.0d0
+  select case (op)
+  case (1)
+    call nordsieck_predict(z, out)
+  case (2)
+    out = z
+    call nordsieck_rescale(out, alpha)
+  case (3)
+    call nordsieck_value(z, alpha, out(:, 1))
+  end select
+end subroutine pymr_nordsieck_op

@@ -1,0 +1,223 @@
+!> Single-rate Nordsieck Adams-Bashforth-Moulton integrator (fixed step or adaptive).
+!>
+!> The integrator owns its Nordsieck arrays and work vectors (allocated once in `init`)
+!> and reaches the model only through `ode_system%eval`.
+module pymr_integrator_abm
+  use pymr_kinds, only : dp
+  use pymr_error, only : error_type, fatal_error, stat_solver
+  use pymr_integrator_ode, only : ode_system
+  use pymr_integrator_nordsieck, only : nq, corrector_l, nordsieck_predict, nordsieck_correct, &
+    & nordsieck_rescale, nordsieck_value, nordsieck_from_history
+  use pymr_integrator_control, only : step_control, error_weights, wrms_norm
+  implicit none
+  private
+  public :: abm_integrator, rk4_step, check_finite, hinit
+
+  !> Nordsieck ABM integrator state.
+  type :: abm_integrator
+    !> Number of state components.
+    integer :: n = 0
+    !> Time of the Nordsieck array (s) and current step (s).
+    real(dp) :: t = 0.0_dp, h = 0.0_dp
+    !> Nordsieck array z(n, 0:3) at time t, scaled with h.
+    real(dp), allocatable :: z(:, :)
+    !> Number of corrector evaluations per step (1 = PECE).
+    integer :: n_corr = 1
+    !> Adaptive step control on or off, and its settings.
+    logical :: adaptive = .false.
+    type(step_control) :: ctl
+    !> Counters: accepted steps, rejected steps, evaluations of f.
+    integer :: steps = 0, rejected = 0, evals = 0
+    !> Work arrays.
+    real(dp), allocatable :: zp(:, :), zn(:, :), f(:), g(:), x(:), w(:)
+  contains
+    procedure :: init => abm_init
+    procedure :: start => abm_start
+    procedure :: step => abm_step
+    procedure :: value_at => abm_value_at
+  end type abm_integrator
+
+contains
+
+  !> Allocate the arrays for `n` components and set the options.
+  subroutine abm_init(self, n, adaptive, ctl, n_corr)
+    class(abm_integrator), intent(inout) :: self
+    integer, intent(in) :: n
+    logical, intent(in) :: adaptive
+    type(step_control), intent(in) :: ctl
+    integer, intent(in) :: n_corr
+    self%n = n
+    self%adaptive = adaptive
+    self%ctl = ctl
+    self%n_corr = max(1, n_corr)
+    if (allocated(self%z)) deallocate(self%z, self%zp, self%zn, self%f, self%g, self%x, self%w)
+    allocate(self%z(n, 0:nq), self%zp(n, 0:nq), self%zn(n, 0:nq), self%f(n), self%g(n), self%x(n), self%w(n))
+    self%steps = 0; self%rejected = 0; self%evals = 0
+  end subroutine abm_init
+
+  !> Start at (t0, x0): two classical Runge-Kutta steps of size h (local error O(h^5),
+  !> so the global order 4 is kept), then the Nordsieck array from f at the three points.
+  !> An adaptive run first bounds h by a starting-step estimate from the tolerances.
+  subroutine abm_start(self, sys, t0, x0, h, error)
+    class(abm_integrator), intent(inout) :: self
+    class(ode_system), intent(inout) :: sys
+    real(dp), intent(in) :: t0, x0(:), h
+    type(error_type), allocatable, intent(out) :: error
+    real(dp), allocatable :: f0(:), f1(:), f2(:), x(:)
+    real(dp) :: hs
+    allocate(f0(self%n), f1(self%n), f2(self%n), x(self%n))
+    x = x0
+    call sys%eval(t0, x, f0, error); self%evals = self%evals + 1
+    if (allocated(error)) return
+    call check_finite(sys, t0, f0, 'derivative', error); if (allocated(error)) return
+    hs = h
+    if (self%adaptive) then
+      call hinit(self, sys, t0, x0, f0, hs, error); if (allocated(error)) return
+      hs = min(h, hs)
+    end if
+    call rk4_step(sys, t0, hs, x, f0, self%evals, error); if (allocated(error)) return
+    call sys%eval(t0 + hs, x, f1, error); self%evals = self%evals + 1
+    if (allocated(error)) return
+    call rk4_step(sys, t0 + hs, hs, x, f1, self%evals, error); if (allocated(error)) return
+    call sys%eval(t0 + 2*hs, x, f2, error); self%evals = self%evals + 1
+    if (allocated(error)) return
+    call check_finite(sys, t0 + 2*hs, x, 'state', error); if (allocated(error)) return
+    call nordsieck_from_history(x, f2, f1, f0, hs, self%z)
+    self%t = t0 + 2*hs
+    self%h = hs
+    self%steps = 2
+  end subroutine abm_start
+
+  !> Starting step from the tolerances (Hairer, Norsett and Wanner, order 4), capped by h_max.
+  subroutine hinit(self, sys, t0, x0, f0, h, error)
+    class(abm_integrator), intent(inout) :: self
+    class(ode_system), intent(inout) :: sys
+    real(dp), intent(in) :: t0, x0(:), f0(:)
+    real(dp), intent(out) :: h
+    type(error_type), allocatable, intent(out) :: error
+    real(dp) :: d0, d1, d2, h0, h1
+    real(dp), allocatable :: x1(:), f1(:)
+    allocate(x1(size(x0)), f1(size(x0)))
+    call error_weights(self%ctl, x0, self%w)
+    d0 = wrms_norm(x0, self%w); d1 = wrms_norm(f0, self%w)
+    if (d0 < 1.0e-5_dp .or. d1 < 1.0e-5_dp) then
+      h0 = 1.0e-6_dp
+    else
+      h0 = 0.01_dp*d0/d1
+    end if
+    h0 = min(h0, self%ctl%h_max)
+    x1 = x0 + h0*f0
+    call sys%eval(t0 + h0, x1, f1, error); self%evals = self%evals + 1
+    if (allocated(error)) return
+    d2 = wrms_norm(f1 - f0, self%w)/h0
+    if (max(d1, d2) <= 1.0e-15_dp) then
+      h1 = max(1.0e-6_dp, h0*1.0e-3_dp)
+    else
+      h1 = (0.01_dp/max(d1, d2))**0.2_dp
+    end if
+    h = min(100*h0, h1, self%ctl%h_max)
+  end subroutine hinit
+
+  !> One step of the classical 4th-order Runge-Kutta method; x is advanced in place.
+  !> `f0` is f(t, x) on entry; `evals` counts evaluations.
+  subroutine rk4_step(sys, t, h, x, f0, evals, error)
+    class(ode_system), intent(inout) :: sys
+    real(dp), intent(in) :: t, h
+    real(dp), intent(inout) :: x(:)
+    real(dp), intent(in) :: f0(:)
+    integer, intent(inout) :: evals
+    type(error_type), allocatable, intent(out) :: error
+    real(dp), allocatable :: k2(:), k3(:), k4(:)
+    allocate(k2(size(x)), k3(size(x)), k4(size(x)))
+    call sys%eval(t + 0.5_dp*h, x + 0.5_dp*h*f0, k2, error); if (allocated(error)) return
+    call sys%eval(t + 0.5_dp*h, x + 0.5_dp*h*k2, k3, error); if (allocated(error)) return
+    call sys%eval(t + h, x + h*k3, k4, error); if (allocated(error)) return
+    evals = evals + 3
+    x = x + h*(f0 + 2*k2 + 2*k3 + k4)/6.0_dp
+  end subroutine rk4_step
+
+  !> Advance one accepted step. Fixed step: one predictor, `n_corr` evaluations and
+  !> corrections. Adaptive: the corrector-predictor difference is the local error
+  !> estimate; a rejected step is retried smaller, an accepted one may change h next time.
+  subroutine abm_step(self, sys, error)
+    class(abm_integrator), intent(inout) :: self
+    class(ode_system), intent(inout) :: sys
+    type(error_type), allocatable, intent(out) :: error
+    real(dp) :: err, eta, tn
+    character(len=96) :: buf
+    do
+      tn = self%t + self%h
+      call try_step(self, sys, tn, error); if (allocated(error)) return
+      if (.not. self%adaptive) exit
+      call error_weights(self%ctl, self%z(:, 0), self%w)
+      err = wrms_norm(corrector_l(0)*self%g, self%w)
+      if (err <= 1.0_dp) then
+        eta = self%ctl%ratio(err, .true.)
+        eta = min(eta, self%ctl%h_max/self%h)
+        exit
+      end if
+      self%rejected = self%rejected + 1
+      eta = self%ctl%ratio(err, .false.)
+      if (eta*self%h < self%ctl%h_min) then
+        write(buf, '(a,es10.3,a,es10.3,a)') 'step size underflow at t = ', self%t, ' s (step ', &
+          & eta*self%h, ' s below h_min)'
+        call fatal_error(error, trim(buf), stat_solver)
+        return
+      end if
+      call nordsieck_rescale(self%z, eta)
+      self%h = eta*self%h
+    end do
+    self%z = self%zn
+    self%t = tn
+    self%steps = self%steps + 1
+    call check_finite(sys, tn, self%z(:, 0), 'state', error); if (allocated(error)) return
+    if (self%adaptive .and. eta /= 1.0_dp) then
+      call nordsieck_rescale(self%z, eta)
+      self%h = eta*self%h
+    end if
+  end subroutine abm_step
+
+  !> Predict from z, evaluate and correct n_corr times; result in zn and g.
+  subroutine try_step(self, sys, tn, error)
+    class(abm_integrator), intent(inout) :: self
+    class(ode_system), intent(inout) :: sys
+    real(dp), intent(in) :: tn
+    type(error_type), allocatable, intent(out) :: error
+    integer :: m
+    call nordsieck_predict(self%z, self%zp)
+    self%x = self%zp(:, 0)
+    do m = 1, self%n_corr
+      call sys%eval(tn, self%x, self%f, error); self%evals = self%evals + 1
+      if (allocated(error)) return
+      call check_finite(sys, tn, self%f, 'derivative', error); if (allocated(error)) return
+      call nordsieck_correct(self%zp, self%h*self%f, self%zn, self%g)
+      self%x = self%zn(:, 0)
+    end do
+  end subroutine try_step
+
+  !> State at time t from the Nordsieck polynomial of the last step (dense output).
+  pure subroutine abm_value_at(self, t, x)
+    class(abm_integrator), intent(in) :: self
+    real(dp), intent(in) :: t
+    real(dp), intent(out) :: x(:)
+    call nordsieck_value(self%z, (t - self%t)/self%h, x)
+  end subroutine abm_value_at
+
+  !> Error naming the first non-finite component of v.
+  subroutine check_finite(sys, t, v, what, error)
+    class(ode_system), intent(in) :: sys
+    real(dp), intent(in) :: t, v(:)
+    character(len=*), intent(in) :: what
+    type(error_type), allocatable, intent(out) :: error
+    integer :: i
+    character(len=40) :: buf
+    do i = 1, size(v)
+      if (v(i) /= v(i) .or. abs(v(i)) > huge(1.0_dp)) then
+        write(buf, '(es12.5)') t
+        call fatal_error(error, 'non-finite ' // what // ' of ' // sys%component_name(i) // &
+          & ' at t = ' // trim(adjustl(buf)) // ' s', stat_solver)
+        return
+      end if
+    end do
+  end subroutine check_finite
+end module pymr_integrator_abm

@@ -1,0 +1,83 @@
+!> ODEs with known solutions, used by the tests of the integrators.
+module pymr_test_odes
+  use pymr_kinds, only : dp
+  use pymr_error, only : error_type, fatal_error
+  use pymr_integrator_ode, only : ode_system
+  use pymr_integrator_abm, only : abm_integrator
+  use pymr_integrator_control, only : step_control
+  implicit none
+  private
+  public :: test_ode, integrate_test_ode
+
+  !> Problem 1: oscillator; 2: y' = -2 t y^2; 3: Kepler orbit (e = 0.5).
+  type, extends(ode_system) :: test_ode
+    integer :: problem = 1
+  contains
+    procedure :: eval => test_eval
+    procedure :: component_name => test_name
+  end type test_ode
+
+contains
+
+  subroutine test_eval(self, t, x, f, error)
+    class(test_ode), intent(inout) :: self
+    real(dp), intent(in) :: t
+    real(dp), intent(in), contiguous :: x(:)
+    real(dp), intent(out), contiguous :: f(:)
+    type(error_type), allocatable, intent(out) :: error
+    real(dp) :: r3
+    select case (self%problem)
+    case (1)
+      f = [x(2), -x(1)]
+    case (2)
+      f(1) = -2.0_dp*t*x(1)**2
+    case (3)
+      r3 = norm2(x(1:2))**3
+      f = [x(3), x(4), -x(1)/r3, -x(2)/r3]
+    end select
+  end subroutine test_eval
+
+  function test_name(self, i) result(name)
+    class(test_ode), intent(in) :: self
+    integer, intent(in) :: i
+    character(len=:), allocatable :: name
+    character(len=8) :: buf
+    write(buf, '(a,i0)') 'x', i
+    name = trim(buf)
+  end function test_name
+
+  !> Integrate problem from 0 to t_end (exactly, fixed step h must divide t_end; adaptive
+  !> runs end by interpolation) and return the final state.
+  subroutine integrate_test_ode(problem, t_end, h, adaptive, rtol, atol, n_corr, x, steps, evals, rejected, error)
+    integer, intent(in) :: problem, n_corr
+    real(dp), intent(in) :: t_end, h, rtol, atol
+    logical, intent(in) :: adaptive
+    real(dp), intent(out) :: x(:)
+    integer, intent(out) :: steps, evals, rejected
+    type(error_type), allocatable, intent(out) :: error
+    type(test_ode) :: sys
+    type(abm_integrator) :: integ
+    type(step_control) :: ctl
+    real(dp), allocatable :: x0(:)
+    integer :: nx
+    steps = 0; evals = 0; rejected = 0; x = 0.0_dp
+    nx = merge(2, merge(1, 4, problem == 2), problem == 1)
+    if (problem < 1 .or. problem > 3 .or. size(x) /= nx) then
+      call fatal_error(error, 'unknown test problem or wrong state size'); return
+    end if
+    sys%problem = problem
+    select case (problem)
+    case (1); x0 = [1.0_dp, 0.0_dp]
+    case (2); x0 = [1.0_dp]
+    case (3); x0 = [0.5_dp, 0.0_dp, 0.0_dp, sqrt(3.0_dp)]
+    end select
+    ctl%rtol = rtol; ctl%atol = atol
+    call integ%init(nx, adaptive, ctl, n_corr)
+    call integ%start(sys, 0.0_dp, x0, h, error); if (allocated(error)) return
+    do while (integ%t < t_end - 1.0e-9_dp*integ%h)
+      call integ%step(sys, error); if (allocated(error)) return
+    end do
+    call integ%value_at(t_end, x)
+    steps = integ%steps; evals = integ%evals; rejected = integ%rejected
+  end subroutine integrate_test_ode
+end module pymr_test_odes

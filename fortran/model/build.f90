@@ -1,0 +1,477 @@
+!> Validate a scene and build the model from it: bodies in parent-before-child order,
+!> joints expanded into one-coordinate primitives, the effect plan, work arrays.
+module pymr_model_build
+  use pymr_kinds, only : dp, name_len
+  use pymr_error, only : error_type, fatal_error
+  use pymr_model_scene, only : scene_t, body_spec, joint_spec, joint_ndof, unset
+  use pymr_model_types, only : model_data, prim_revolute, prim_prismatic, effect_gravity, effect_joint_drives
+  use pymr_model_spatial, only : unit_axes
+  use pymr_model, only : model_t
+  use pymr_io_namelist_scan, only : itoa
+  implicit none
+  private
+  public :: build_model, check_scene
+
+contains
+
+  !> Check the scene, then build `model`; errors name file, group and item.
+  subroutine build_model(sc, model, error)
+    type(scene_t), intent(in) :: sc
+    type(model_t), intent(out) :: model
+    type(error_type), allocatable, intent(out) :: error
+    integer, allocatable :: order(:), inboard(:)
+    call check_scene(sc, error); if (allocated(error)) return
+    call tree_order(sc, order, inboard, error); if (allocated(error)) return
+    call fill_model(sc, order, inboard, model%d)
+  end subroutine build_model
+
+  !> "&body 'turret' (line 12)" for messages.
+  function where_body(sc, i) result(s)
+    type(scene_t), intent(in) :: sc
+    integer, intent(in) :: i
+    character(len=:), allocatable :: s
+    s = sc%file // ': &body ''' // trim(sc%bodies(i)%name) // ''' (line ' // itoa(sc%bodies(i)%line) // ')'
+  end function where_body
+
+  function where_joint(sc, i) result(s)
+    type(scene_t), intent(in) :: sc
+    integer, intent(in) :: i
+    character(len=:), allocatable :: s
+    s = sc%file // ': &joint ''' // trim(sc%joints(i)%name) // ''' (line ' // itoa(sc%joints(i)%line) // ')'
+  end function where_joint
+
+  function fmt(x) result(s)
+    real(dp), intent(in) :: x
+    character(len=:), allocatable :: s
+    character(len=32) :: buf
+    write(buf, '(g0.6)') x
+    s = trim(adjustl(buf))
+  end function fmt
+
+  !> Index of the body called `name`, 0 if none.
+  integer function body_index(sc, name)
+    type(scene_t), intent(in) :: sc
+    character(len=*), intent(in) :: name
+    integer :: i
+    body_index = 0
+    do i = 1, size(sc%bodies)
+      if (sc%bodies(i)%name == name) then
+        body_index = i; return
+      end if
+    end do
+  end function body_index
+
+  !> Every check that needs no tree: values, names, kinds, integrator and output settings.
+  subroutine check_scene(sc, error)
+    type(scene_t), intent(in) :: sc
+    type(error_type), allocatable, intent(out) :: error
+    call check_settings(sc, error); if (allocated(error)) return
+    call check_bodies(sc, error); if (allocated(error)) return
+    call check_joints(sc, error); if (allocated(error)) return
+    call check_loads_markers(sc, error); if (allocated(error)) return
+  end subroutine check_scene
+
+  subroutine check_settings(sc, error)
+    type(scene_t), intent(in) :: sc
+    type(error_type), allocatable, intent(out) :: error
+    real(dp) :: hf, hs, r
+    character(len=:), allocatable :: w
+    w = sc%file // ': &integrator: '
+    if (sc%t_end == unset) then
+      call fatal_error(error, sc%file // ': &scene: t_end: missing (the end time of the run in s)'); return
+    end if
+    if (.not. (sc%t_end > 0.0_dp)) then
+      call fatal_error(error, sc%file // ': &scene: t_end: must be positive, got ' // fmt(sc%t_end)); return
+    end if
+    associate(s => sc%integrator)
+      select case (trim(s%method))
+      case ('single')
+      case ('multirate')
+        call fatal_error(error, w // "method: 'multirate' is not available in this version (use 'single')")
+        return
+      case default
+        call fatal_error(error, w // "method: '" // trim(s%method) // "' is not a method ('single' or 'multirate')")
+        return
+      end select
+      hf = s%h_fast; hs = s%h_slow
+      if (hf == unset .and. hs == unset) then
+        call fatal_error(error, w // 'h_slow: missing (the step in s; h_fast for the modal coordinates)'); return
+      end if
+      if (hf == unset) hf = hs
+      if (hs == unset) hs = hf
+      if (.not. (hf > 0.0_dp)) then
+        call fatal_error(error, w // 'h_fast: must be positive, got ' // fmt(hf)); return
+      end if
+      if (.not. (hs > 0.0_dp)) then
+        call fatal_error(error, w // 'h_slow: must be positive, got ' // fmt(hs)); return
+      end if
+      r = hs/hf
+      if (r < 1.0_dp - 1.0e-9_dp .or. abs(r - nint(r)) > 1.0e-9_dp*r) then
+        call fatal_error(error, w // 'h_slow: must be an integer multiple of h_fast, got h_slow/h_fast = ' // fmt(r))
+        return
+      end if
+      if (trim(s%method) == 'single' .and. nint(r) /= 1) then
+        call fatal_error(error, w // "h_slow: method 'single' takes one step for all coordinates: set h_fast = " &
+          & // "h_slow, or method = 'multirate'"); return
+      end if
+      if (s%adaptive .and. .not. (s%rtol > 0.0_dp)) then
+        call fatal_error(error, w // 'rtol: must be positive, got ' // fmt(s%rtol)); return
+      end if
+      if (s%adaptive .and. .not. (s%atol > 0.0_dp)) then
+        call fatal_error(error, w // 'atol: must be positive, got ' // fmt(s%atol)); return
+      end if
+      if (s%h_min < 0.0_dp .or. s%h_max < 0.0_dp) then
+        call fatal_error(error, w // 'h_min, h_max: must not be negative (0 = automatic)'); return
+      end if
+      if (s%n_corrector < 1 .or. s%n_corrector > 10) then
+        call fatal_error(error, w // 'n_corrector: must be 1 (PECE) to 10, got ' // itoa(s%n_corrector)); return
+      end if
+      if (sc%output_dt < 0.0_dp) then
+        call fatal_error(error, sc%file // ': &output: dt: must not be negative, got ' // fmt(sc%output_dt)); return
+      end if
+      if (.not. s%adaptive .and. sc%output_dt > 0.0_dp) then
+        r = sc%output_dt/hs
+        if (abs(r - nint(r)) > 1.0e-9_dp*r .or. nint(r) < 1) then
+          call fatal_error(error, sc%file // ': &output: dt: must be a multiple of the step h_slow = ' // fmt(hs) &
+            & // ' s, got ' // fmt(sc%output_dt)); return
+        end if
+      end if
+    end associate
+  end subroutine check_settings
+
+  subroutine check_bodies(sc, error)
+    type(scene_t), intent(in) :: sc
+    type(error_type), allocatable, intent(out) :: error
+    integer :: i, j, ng, info
+    real(dp) :: a(3, 3), e(3)
+    ng = 0
+    do i = 1, size(sc%bodies)
+      associate(b => sc%bodies(i))
+        if (len_trim(b%name) == 0) then
+          call fatal_error(error, sc%file // ': &body #' // itoa(i) // ' (line ' // itoa(b%line) // &
+            & '): name: missing'); return
+        end if
+        do j = 1, i - 1
+          if (sc%bodies(j)%name == b%name) then
+            call fatal_error(error, where_body(sc, i) // ': name: used by another &body too (line ' // &
+              & itoa(sc%bodies(j)%line) // ')'); return
+          end if
+        end do
+        select case (trim(b%kind))
+        case ('ground')
+          ng = ng + 1
+        case ('rigid')
+          if (b%mass == unset) then
+            call fatal_error(error, where_body(sc, i) // ': mass: missing (kg)'); return
+          end if
+          if (.not. (b%mass > 0.0_dp)) then
+            call fatal_error(error, where_body(sc, i) // ': mass: must be positive, got ' // fmt(b%mass)); return
+          end if
+          if (any(b%inertia == unset)) then
+            call fatal_error(error, where_body(sc, i) // ': inertia: missing (6 values: Ixx Iyy Izz Ixy Ixz Iyz)')
+            return
+          end if
+          a = inertia_matrix(b%inertia)
+          call eig3(a, e, info)
+          if (minval(e) <= 0.0_dp) then
+            call fatal_error(error, where_body(sc, i) // ': inertia: not positive definite (smallest principal ' // &
+              & 'moment ' // fmt(minval(e)) // ' kg m^2)'); return
+          end if
+          if (2*maxval(e) > sum(e)*(1.0_dp + 1.0e-12_dp)) then
+            call fatal_error(error, where_body(sc, i) // ': inertia: principal moments ' // fmt(e(1)) // ', ' // &
+              & fmt(e(2)) // ', ' // fmt(e(3)) // ' break the triangle inequality (no real body has them)'); return
+          end if
+        case ('beam', 'modal')
+          call fatal_error(error, where_body(sc, i) // ": kind: '" // trim(b%kind) // &
+            & "' (flexible bodies) is not available in this version (use 'ground' or 'rigid')"); return
+        case ('')
+          call fatal_error(error, where_body(sc, i) // ": kind: missing ('ground', 'rigid', 'beam' or 'modal')")
+          return
+        case default
+          call fatal_error(error, where_body(sc, i) // ": kind: '" // trim(b%kind) // &
+            & "' is not a body kind ('ground', 'rigid', 'beam' or 'modal')"); return
+        end select
+      end associate
+    end do
+    if (ng == 0) then
+      call fatal_error(error, sc%file // ": &body: no body has kind = 'ground' (the fixed base of the tree)"); return
+    end if
+    if (ng > 1) then
+      call fatal_error(error, sc%file // ": &body: " // itoa(ng) // " bodies have kind = 'ground'; " // &
+        & 'give one and join the others to it with fixed joints'); return
+    end if
+    if (size(sc%bodies) < 2) then
+      call fatal_error(error, sc%file // ': &body: the scene has only the ground: add a moving body'); return
+    end if
+  end subroutine check_bodies
+
+  subroutine check_joints(sc, error)
+    type(scene_t), intent(in) :: sc
+    type(error_type), allocatable, intent(out) :: error
+    integer :: i, j, ip, ic
+    do i = 1, size(sc%joints)
+      associate(jt => sc%joints(i))
+        if (len_trim(jt%name) == 0) then
+          call fatal_error(error, sc%file // ': &joint #' // itoa(i) // ' (line ' // itoa(jt%line) // &
+            & '): name: missing'); return
+        end if
+        do j = 1, i - 1
+          if (sc%joints(j)%name == jt%name) then
+            call fatal_error(error, where_joint(sc, i) // ': name: used by another &joint too (line ' // &
+              & itoa(sc%joints(j)%line) // ')'); return
+          end if
+        end do
+        if (joint_ndof(jt%kind) < 0) then
+          call fatal_error(error, where_joint(sc, i) // ": kind: '" // trim(jt%kind) // "' is not a joint kind " // &
+            & "('revolute', 'prismatic', 'fixed', 'spherical' or 'free')"); return
+        end if
+        ip = body_index(sc, jt%parent); ic = body_index(sc, jt%child)
+        if (ip == 0) then
+          call fatal_error(error, where_joint(sc, i) // ": parent: no &body named '" // trim(jt%parent) // "'")
+          return
+        end if
+        if (ic == 0) then
+          call fatal_error(error, where_joint(sc, i) // ": child: no &body named '" // trim(jt%child) // "'")
+          return
+        end if
+        if (ip == ic) then
+          call fatal_error(error, where_joint(sc, i) // ": child: the joint joins body '" // trim(jt%child) // &
+            & "' to itself (a cycle)"); return
+        end if
+        if (sc%bodies(ic)%kind == 'ground') then
+          call fatal_error(error, where_joint(sc, i) // ": child: '" // trim(jt%child) // &
+            & "' is the ground; the ground can only be a parent"); return
+        end if
+        do j = 1, i - 1
+          if (sc%joints(j)%child == jt%child) then
+            call fatal_error(error, where_joint(sc, i) // ": child: body '" // trim(jt%child) // &
+              & "' has two parents (also joint '" // trim(sc%joints(j)%name) // "'); a tree allows one"); return
+          end if
+        end do
+        if (jt%kind == 'revolute' .or. jt%kind == 'prismatic') then
+          if (norm2(jt%axis) < 1.0e-12_dp) then
+            call fatal_error(error, where_joint(sc, i) // ': axis: zero length; give a direction in the parent frame')
+            return
+          end if
+        end if
+      end associate
+    end do
+  end subroutine check_joints
+
+  subroutine check_loads_markers(sc, error)
+    type(scene_t), intent(in) :: sc
+    type(error_type), allocatable, intent(out) :: error
+    integer :: i, j, k, nd
+    character(len=:), allocatable :: w
+    do i = 1, size(sc%drives)
+      w = sc%file // ': &drive #' // itoa(i) // ' (line ' // itoa(sc%drives(i)%line) // ')'
+      k = 0
+      do j = 1, size(sc%joints)
+        if (sc%joints(j)%name == sc%drives(i)%joint) k = j
+      end do
+      if (k == 0) then
+        call fatal_error(error, w // ": joint: no &joint named '" // trim(sc%drives(i)%joint) // "'"); return
+      end if
+      nd = joint_ndof(sc%joints(k)%kind)
+      if (sc%drives(i)%coordinate < 1 .or. sc%drives(i)%coordinate > nd) then
+        call fatal_error(error, w // ': coordinate: joint ''' // trim(sc%joints(k)%name) // ''' has ' // itoa(nd) // &
+          & ' coordinates, got ' // itoa(sc%drives(i)%coordinate)); return
+      end if
+      if (.not. sc%effects%joint_drives) then
+        call fatal_error(error, w // ': the scene gives drives but &effects joint_drives is off: set ' // &
+          & 'joint_drives = .true. in &effects, or remove the &drive groups'); return
+      end if
+    end do
+    do i = 1, size(sc%markers)
+      w = sc%file // ': &marker ''' // trim(sc%markers(i)%name) // ''' (line ' // itoa(sc%markers(i)%line) // ')'
+      if (len_trim(sc%markers(i)%name) == 0) then
+        call fatal_error(error, w // ': name: missing'); return
+      end if
+      if (body_index(sc, sc%markers(i)%body) == 0) then
+        call fatal_error(error, w // ": body: no &body named '" // trim(sc%markers(i)%body) // "'"); return
+      end if
+      do j = 1, i - 1
+        if (sc%markers(j)%name == sc%markers(i)%name) then
+          call fatal_error(error, w // ': name: used by another &marker too'); return
+        end if
+      end do
+    end do
+  end subroutine check_loads_markers
+
+  !> Bodies in parent-before-child order (order(1) = ground) and each body's inboard joint.
+  subroutine tree_order(sc, order, inboard, error)
+    type(scene_t), intent(in) :: sc
+    integer, allocatable, intent(out) :: order(:), inboard(:)
+    type(error_type), allocatable, intent(out) :: error
+    integer :: nb, i, j, k, a, steps
+    integer, allocatable :: parent(:)
+    logical, allocatable :: placed(:)
+    nb = size(sc%bodies)
+    allocate(parent(nb), inboard(nb), placed(nb), order(0))
+    parent = 0; inboard = 0
+    do j = 1, size(sc%joints)
+      i = body_index(sc, sc%joints(j)%child)
+      parent(i) = body_index(sc, sc%joints(j)%parent); inboard(i) = j
+    end do
+    do i = 1, nb
+      if (sc%bodies(i)%kind == 'ground') cycle
+      a = i; steps = 0
+      do while (a /= 0 .and. sc%bodies(max(a, 1))%kind /= 'ground')
+        a = parent(a); steps = steps + 1
+        if (steps > nb) then
+          call fatal_error(error, where_body(sc, i) // ': the joints form a cycle through this body; ' // &
+            & 'a tree needs every body to reach the ground'); return
+        end if
+      end do
+      if (a == 0) then
+        call fatal_error(error, where_body(sc, i) // ': not connected to the ground by joints (add a &joint ' // &
+          & 'with this body as child)'); return
+      end if
+    end do
+    placed = .false.
+    do i = 1, nb
+      if (sc%bodies(i)%kind == 'ground') then
+        order = [order, i]; placed(i) = .true.
+      end if
+    end do
+    do k = 1, nb
+      do i = 1, nb
+        if (.not. placed(i) .and. parent(i) > 0) then
+          if (placed(parent(i))) then
+            order = [order, i]; placed(i) = .true.
+          end if
+        end if
+      end do
+    end do
+  end subroutine tree_order
+
+  !> Fill model data from a checked scene in tree order.
+  subroutine fill_model(sc, order, inboard, d)
+    type(scene_t), intent(in) :: sc
+    integer, intent(in) :: order(:), inboard(:)
+    type(model_data), intent(out) :: d
+    integer :: nb, b, i, j, n, k, m, pos_in(size(order))
+    character(len=:), allocatable :: kind
+    nb = size(order)
+    do b = 1, nb
+      pos_in(order(b)) = b
+    end do
+    n = 0
+    do b = 2, nb
+      n = n + joint_ndof(sc%joints(inboard(order(b)))%kind)
+    end do
+    d%nb = nb; d%n = n
+    allocate(d%body_name(nb), d%joint_name(nb), d%parent(nb), d%c0(nb), d%nc(nb), d%mass(nb), d%com(3, nb), &
+      & d%inertia(3, 3, nb), d%at(3, nb), d%prim(n), d%cbody(n), d%axis(3, n), d%qname(n), d%qdname(n))
+    d%parent = 0; d%c0 = 1; d%nc = 0; d%mass = 0.0_dp; d%com = 0.0_dp; d%inertia = 0.0_dp; d%at = 0.0_dp
+    d%joint_name = ''
+    d%body_name(1) = sc%bodies(order(1))%name
+    k = 0
+    do b = 2, nb
+      i = order(b); j = inboard(i)
+      d%body_name(b) = sc%bodies(i)%name
+      d%joint_name(b) = sc%joints(j)%name
+      d%parent(b) = pos_in(body_index(sc, sc%joints(j)%parent))
+      d%mass(b) = sc%bodies(i)%mass
+      d%com(:, b) = sc%bodies(i)%com
+      d%inertia(:, :, b) = inertia_matrix(sc%bodies(i)%inertia)
+      d%at(:, b) = sc%joints(j)%at
+      kind = trim(sc%joints(j)%kind)
+      d%c0(b) = k + 1
+      d%nc(b) = joint_ndof(kind)
+      select case (kind)
+      case ('revolute', 'prismatic')
+        k = k + 1
+        d%axis(:, k) = sc%joints(j)%axis/norm2(sc%joints(j)%axis)
+        d%prim(k) = merge(prim_revolute, prim_prismatic, kind == 'revolute')
+      case ('spherical')
+        do m = 1, 3
+          d%axis(:, k + m) = unit_axes(:, m); d%prim(k + m) = prim_revolute
+        end do
+        k = k + 3
+      case ('free')
+        do m = 1, 3
+          d%axis(:, k + m) = unit_axes(:, m); d%prim(k + m) = prim_prismatic
+          d%axis(:, k + 3 + m) = unit_axes(:, m); d%prim(k + 3 + m) = prim_revolute
+        end do
+        k = k + 6
+      end select
+      do m = 1, d%nc(b)
+        d%cbody(d%c0(b) + m - 1) = b
+        if (d%nc(b) == 1) then
+          d%qname(k) = trim(sc%joints(j)%name) // '.q'
+          d%qdname(k) = trim(sc%joints(j)%name) // '.qd'
+        else
+          d%qname(d%c0(b) + m - 1) = trim(sc%joints(j)%name) // '.q' // itoa(m)
+          d%qdname(d%c0(b) + m - 1) = trim(sc%joints(j)%name) // '.qd' // itoa(m)
+        end if
+      end do
+    end do
+    call fill_loads_markers(sc, pos_in, d)
+    allocate(d%rot(3, 3, nb), d%pos(3, nb), d%vel(6, nb), d%acc(6, nb), d%s(6, n), d%i6(6, 6, nb), d%w(6, nb), &
+      & d%ic(6, 6, nb), d%wc(6, nb), d%mm(n, n), d%lf(n, n), d%p(n), d%tau(n))
+    d%i6 = 0.0_dp; d%w = 0.0_dp; d%ic = 0.0_dp; d%wc = 0.0_dp; d%mm = 0.0_dp; d%tau = 0.0_dp
+  end subroutine fill_model
+
+  subroutine fill_loads_markers(sc, pos_in, d)
+    type(scene_t), intent(in) :: sc
+    integer, intent(in) :: pos_in(:)
+    type(model_data), intent(inout) :: d
+    integer :: i, j, b
+    d%effect_on(effect_gravity) = sc%effects%gravity
+    d%effect_on(effect_joint_drives) = sc%effects%joint_drives .and. size(sc%drives) > 0
+    d%gravity = sc%gravity
+    d%n_drives = size(sc%drives)
+    allocate(d%drive_coord(d%n_drives), d%drive_par(4, d%n_drives))
+    do i = 1, d%n_drives
+      do j = 1, size(sc%joints)
+        if (sc%joints(j)%name /= sc%drives(i)%joint) cycle
+        b = pos_in(body_index(sc, sc%joints(j)%child))
+        d%drive_coord(i) = d%c0(b) + sc%drives(i)%coordinate - 1
+      end do
+      d%drive_par(:, i) = [sc%drives(i)%offset, sc%drives(i)%amplitude, sc%drives(i)%frequency, sc%drives(i)%phase]
+    end do
+    d%n_markers = size(sc%markers)
+    allocate(d%marker_name(d%n_markers), d%marker_body(d%n_markers), d%marker_at(3, d%n_markers))
+    do i = 1, d%n_markers
+      d%marker_name(i) = sc%markers(i)%name
+      d%marker_body(i) = pos_in(body_index(sc, sc%markers(i)%body))
+      d%marker_at(:, i) = sc%markers(i)%at
+    end do
+  end subroutine fill_loads_markers
+
+  !> 3x3 inertia from Ixx Iyy Izz Ixy Ixz Iyz (products enter as given: I(1,2) = Ixy).
+  pure function inertia_matrix(v) result(a)
+    real(dp), intent(in) :: v(6)
+    real(dp) :: a(3, 3)
+    a = reshape([v(1), v(4), v(5), v(4), v(2), v(6), v(5), v(6), v(3)], [3, 3])
+  end function inertia_matrix
+
+  !> Eigenvalues of a symmetric 3x3 matrix (Jacobi sweeps; enough for input checks).
+  pure subroutine eig3(a0, e, info)
+    real(dp), intent(in) :: a0(3, 3)
+    real(dp), intent(out) :: e(3)
+    integer, intent(out) :: info
+    real(dp) :: a(3, 3), th, c, s, t, g(3, 3)
+    integer :: sweep, p, q, i
+    a = a0; info = 0
+    do sweep = 1, 50
+      if (abs(a(1, 2)) + abs(a(1, 3)) + abs(a(2, 3)) <= 1.0e-15_dp*sum(abs(a))) exit
+      do p = 1, 2
+        do q = p + 1, 3
+          if (a(p, q) == 0.0_dp) cycle
+          th = (a(q, q) - a(p, p))/(2*a(p, q))
+          t = sign(1.0_dp, th)/(abs(th) + sqrt(th*th + 1))
+          c = 1/sqrt(t*t + 1); s = t*c
+          g = 0.0_dp
+          do i = 1, 3
+            g(i, i) = 1.0_dp
+          end do
+          g(p, p) = c; g(q, q) = c; g(p, q) = s; g(q, p) = -s
+          a = matmul(transpose(g), matmul(a, g))
+        end do
+      end do
+    end do
+    e = [a(1, 1), a(2, 2), a(3, 3)]
+  end subroutine eig3
+end module pymr_model_build

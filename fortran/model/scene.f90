@@ -1,0 +1,105 @@
+!> The scene as read from a namelist file: plain data, validated, not yet a model.
+module pymr_model_scene
+  use pymr_kinds, only : dp, name_len
+  implicit none
+  private
+  public :: scene_t, body_spec, joint_spec, drive_spec, marker_spec, integrator_spec, effects_spec
+  public :: joint_ndof, unset
+
+  !> Marker for "item not given" in real-valued namelist items.
+  real(dp), parameter :: unset = -huge(1.0_dp)
+
+  !> Settings of the time integrator (&integrator).
+  type :: integrator_spec
+    !> 'single' or 'multirate'.
+    character(len=16) :: method = 'single'
+    !> Fast (modal) and slow (joint) steps (s); single-rate uses one step.
+    real(dp) :: h_fast = unset, h_slow = unset
+    !> Adaptive step control and its tolerances.
+    logical :: adaptive = .false.
+    real(dp) :: rtol = 1.0e-6_dp, atol = 1.0e-8_dp
+    !> Smallest and largest adaptive step (s); 0 = automatic.
+    real(dp) :: h_min = 0.0_dp, h_max = 0.0_dp
+    !> Corrector evaluations per step (1 = PECE).
+    integer :: n_corrector = 1
+  end type integrator_spec
+
+  !> Optional physics (&effects); every effect is off unless turned on.
+  type :: effects_spec
+    logical :: gravity = .false.
+    logical :: joint_drives = .false.
+  end type effects_spec
+
+  !> One &body group.
+  type :: body_spec
+    character(len=name_len) :: name = ''
+    !> 'ground', 'rigid' (later: 'beam', 'modal').
+    character(len=16) :: kind = ''
+    !> Mass (kg), centre of mass in the body frame (m), inertia about the centre of
+    !> mass in body axes: Ixx Iyy Izz Ixy Ixz Iyz (kg m^2).
+    real(dp) :: mass = unset, com(3) = 0.0_dp, inertia(6) = unset
+    !> Line of the group in the file (for messages).
+    integer :: line = 0
+  end type body_spec
+
+  !> One &joint group.
+  type :: joint_spec
+    character(len=name_len) :: name = '', parent = '', child = ''
+    !> 'revolute', 'prismatic', 'fixed', 'spherical', 'free'.
+    character(len=16) :: kind = ''
+    !> Joint point in the parent frame (m) and axis in the parent frame.
+    real(dp) :: at(3) = 0.0_dp, axis(3) = [0.0_dp, 0.0_dp, 1.0_dp]
+    !> Initial coordinates and rates (as many as the joint has).
+    real(dp) :: q0(6) = 0.0_dp, qd0(6) = 0.0_dp
+    integer :: line = 0
+  end type joint_spec
+
+  !> One &drive group: a generalised force offset + amplitude*sin(2 pi frequency t + phase).
+  type :: drive_spec
+    character(len=name_len) :: joint = ''
+    !> Which coordinate of the joint (1 for one-coordinate joints).
+    integer :: coordinate = 1
+    real(dp) :: offset = 0.0_dp, amplitude = 0.0_dp, frequency = 0.0_dp, phase = 0.0_dp
+    integer :: line = 0
+  end type drive_spec
+
+  !> One &marker group: a point of a body whose motion is written out.
+  type :: marker_spec
+    character(len=name_len) :: name = '', body = ''
+    real(dp) :: at(3) = 0.0_dp
+    integer :: line = 0
+  end type marker_spec
+
+  !> The whole scene.
+  type :: scene_t
+    !> File the scene came from (for messages).
+    character(len=:), allocatable :: file
+    character(len=256) :: title = ''
+    !> End time (s) and gravity (m/s^2, inertial frame).
+    real(dp) :: t_end = unset, gravity(3) = [0.0_dp, -9.81_dp, 0.0_dp]
+    type(integrator_spec) :: integrator
+    type(effects_spec) :: effects
+    type(body_spec), allocatable :: bodies(:)
+    type(joint_spec), allocatable :: joints(:)
+    type(drive_spec), allocatable :: drives(:)
+    type(marker_spec), allocatable :: markers(:)
+    !> CSV output file and output interval (s; 0 = every slow step).
+    character(len=512) :: output_file = ''
+    real(dp) :: output_dt = 0.0_dp
+  end type scene_t
+
+contains
+
+  !> Number of coordinates of a joint kind (-1 for an unknown kind).
+  pure function joint_ndof(kind) result(n)
+    character(len=*), intent(in) :: kind
+    integer :: n
+    select case (trim(kind))
+    case ('revolute', 'prismatic'); n = 1
+    case ('fixed'); n = 0
+    case ('spherical'); n = 3
+    case ('free'); n = 6
+    case default; n = -1
+    end select
+  end function joint_ndof
+end module pymr_model_scene

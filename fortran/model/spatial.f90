@@ -1,0 +1,78 @@
+!> Small 3-D and spatial-vector helpers.
+!>
+!> Spatial vectors are Pluecker vectors in inertial coordinates, ordered as in the
+!> paper's state vector Yhat = [rd + r~ w; w]: motion [v_O; w] (velocity of the body
+!> point at the inertial origin, angular velocity) and force [f; n_O] (force, moment
+!> about the inertial origin), so that power is the plain dot product.
+module pymr_model_spatial
+  use pymr_kinds, only : dp
+  implicit none
+  private
+  public :: cross, skew, rot_axis, motion_cross, force_cross, rigid_inertia, unit_axes
+
+  !> Unit vectors e_x, e_y, e_z as columns.
+  real(dp), parameter :: unit_axes(3, 3) = reshape([1.0_dp, 0.0_dp, 0.0_dp, 0.0_dp, 1.0_dp, 0.0_dp, &
+    & 0.0_dp, 0.0_dp, 1.0_dp], [3, 3])
+
+contains
+
+  !> Cross product a x b.
+  pure function cross(a, b) result(c)
+    real(dp), intent(in) :: a(3), b(3)
+    real(dp) :: c(3)
+    c = [a(2)*b(3) - a(3)*b(2), a(3)*b(1) - a(1)*b(3), a(1)*b(2) - a(2)*b(1)]
+  end function cross
+
+  !> Skew matrix a~ with a~ b = a x b.
+  pure function skew(a) result(s)
+    real(dp), intent(in) :: a(3)
+    real(dp) :: s(3, 3)
+    s = reshape([0.0_dp, a(3), -a(2), -a(3), 0.0_dp, a(1), a(2), -a(1), 0.0_dp], [3, 3])
+  end function skew
+
+  !> Rotation matrix by `angle` (rad) about the unit vector `u` (Rodrigues).
+  pure function rot_axis(u, angle) result(r)
+    real(dp), intent(in) :: u(3), angle
+    real(dp) :: r(3, 3), s(3, 3)
+    integer :: i
+    s = skew(u)
+    r = sin(angle)*s + (1.0_dp - cos(angle))*matmul(s, s)
+    do i = 1, 3
+      r(i, i) = r(i, i) + 1.0_dp
+    end do
+  end function rot_axis
+
+  !> Spatial motion cross product v x s for v = [v_O; w], s = [s_v; s_w]:
+  !> [w x s_v + v_O x s_w; w x s_w] (rate of a motion vector fixed in a frame moving with v).
+  pure function motion_cross(v, s) result(r)
+    real(dp), intent(in) :: v(6), s(6)
+    real(dp) :: r(6)
+    r(1:3) = cross(v(4:6), s(1:3)) + cross(v(1:3), s(4:6))
+    r(4:6) = cross(v(4:6), s(4:6))
+  end function motion_cross
+
+  !> Spatial force cross product v x* f for v = [v_O; w], f = [f; n]:
+  !> [w x f; v_O x f + w x n].
+  pure function force_cross(v, f) result(r)
+    real(dp), intent(in) :: v(6), f(6)
+    real(dp) :: r(6)
+    r(1:3) = cross(v(4:6), f(1:3))
+    r(4:6) = cross(v(1:3), f(1:3)) + cross(v(4:6), f(4:6))
+  end function force_cross
+
+  !> Spatial inertia (6x6) about the inertial origin of a rigid body of mass m with
+  !> centre of mass c (inertial) and inertia ic (3x3 about the centre of mass, inertial axes).
+  pure function rigid_inertia(m, c, ic) result(i6)
+    real(dp), intent(in) :: m, c(3), ic(3, 3)
+    real(dp) :: i6(6, 6), cx(3, 3)
+    integer :: k
+    cx = skew(c)
+    i6 = 0.0_dp
+    do k = 1, 3
+      i6(k, k) = m
+    end do
+    i6(1:3, 4:6) = -m*cx
+    i6(4:6, 1:3) = m*cx
+    i6(4:6, 4:6) = ic - m*matmul(cx, cx)
+  end function rigid_inertia
+end module pymr_model_spatial

@@ -1,0 +1,56 @@
+!> The model's data: the body tree in parent-before-child order, its coordinates, the
+!> effect plan and the work arrays of one evaluation (allocated once at build).
+module pymr_model_types
+  use pymr_kinds, only : dp, name_len
+  implicit none
+  private
+  public :: model_data, prim_revolute, prim_prismatic
+  public :: effect_gravity, effect_joint_drives, n_effects, effect_names
+
+  !> Kinds of one-coordinate joint primitives: every joint is a chain of them.
+  integer, parameter :: prim_revolute = 1, prim_prismatic = 2
+
+  !> Effect identifiers (index into counters and names).
+  integer, parameter :: effect_gravity = 1, effect_joint_drives = 2, n_effects = 2
+  character(len=*), parameter :: effect_names(n_effects) = [character(len=16) :: 'gravity', 'joint_drives']
+
+  !> Everything one model evaluation needs.
+  type :: model_data
+    !> Bodies (1 = ground), coordinates.
+    integer :: nb = 0, n = 0
+    character(len=name_len), allocatable :: body_name(:), joint_name(:)
+    !> Parent body, first coordinate and number of coordinates of each body's inboard joint.
+    integer, allocatable :: parent(:), c0(:), nc(:)
+    !> Mass (kg), centre of mass (body frame, m), inertia about the centre of mass (body axes).
+    real(dp), allocatable :: mass(:), com(:, :), inertia(:, :, :)
+    !> Joint point (parent frame, m).
+    real(dp), allocatable :: at(:, :)
+    !> Per coordinate: primitive kind, axis in the frame before the primitive, owning body.
+    integer, allocatable :: prim(:), cbody(:)
+    real(dp), allocatable :: axis(:, :)
+    !> Coordinate names for output (joint.q, joint.q1, ...).
+    character(len=name_len+4), allocatable :: qname(:), qdname(:)
+    !> Markers: body and point (body frame).
+    integer :: n_markers = 0
+    character(len=name_len), allocatable :: marker_name(:)
+    integer, allocatable :: marker_body(:)
+    real(dp), allocatable :: marker_at(:, :)
+    !> Effect plan: which effects are on, and their evaluation counters.
+    logical :: effect_on(n_effects) = .false.
+    integer :: effect_evals(n_effects) = 0
+    !> Gravity (m/s^2, inertial).
+    real(dp) :: gravity(3) = 0.0_dp
+    !> Drives: coordinate and offset, amplitude, frequency (Hz), phase (rad).
+    integer :: n_drives = 0
+    integer, allocatable :: drive_coord(:)
+    real(dp), allocatable :: drive_par(:, :)
+    !> Kinematic state of one evaluation (inertial frame).
+    real(dp), allocatable :: rot(:, :, :), pos(:, :), vel(:, :), acc(:, :), s(:, :)
+    !> Spatial inertia, bias wrench, composite inertia and composite wrench per body.
+    real(dp), allocatable :: i6(:, :, :), w(:, :), ic(:, :, :), wc(:, :)
+    !> Mass matrix, its Cholesky factor, right-hand side, generalised applied forces.
+    real(dp), allocatable :: mm(:, :), lf(:, :), p(:), tau(:)
+    !> Evaluation counter.
+    integer :: evals = 0
+  end type model_data
+end module pymr_model_types

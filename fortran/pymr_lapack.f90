@@ -1,0 +1,141 @@
+!> LAPACK wrappers: each routine is called once here, sizes come from the
+!> arrays, and a non-zero `info` becomes a sentence naming the matrix.
+module pymr_lapack
+  use pymr_kinds, only : dp
+  use pymr_error, only : error_type, fatal_error, stat_solver
+  implicit none
+  private
+  public :: potrf, potrs, sygvd
+
+  !> Cholesky solve for one (vector) or several (matrix) right-hand sides.
+  interface potrs
+    module procedure potrs_mat, potrs_vec
+  end interface potrs
+
+  interface
+    subroutine dpotrf(uplo, n, a, lda, info)
+      import :: dp
+      character(len=1), intent(in) :: uplo
+      integer, intent(in) :: n, lda
+      real(dp), intent(inout) :: a(lda, *)
+      integer, intent(out) :: info
+    end subroutine dpotrf
+    subroutine dpotrs(uplo, n, nrhs, a, lda, b, ldb, info)
+      import :: dp
+      character(len=1), intent(in) :: uplo
+      integer, intent(in) :: n, nrhs, lda, ldb
+      real(dp), intent(in) :: a(lda, *)
+      real(dp), intent(inout) :: b(*)
+      integer, intent(out) :: info
+    end subroutine dpotrs
+    subroutine dsygvd(itype, jobz, uplo, n, a, lda, b, ldb, w, work, lwork, iwork, liwork, info)
+      import :: dp
+      integer, intent(in) :: itype, n, lda, ldb, lwork, liwork
+      character(len=1), intent(in) :: jobz, uplo
+      real(dp), intent(inout) :: a(lda, *), b(ldb, *)
+      real(dp), intent(out) :: w(*), work(*)
+      integer, intent(out) :: iwork(*), info
+    end subroutine dsygvd
+  end interface
+
+contains
+
+  !> Cholesky factorisation (lower triangle) of the symmetric positive definite `a`.
+  !> `what` names the matrix in the error message ("the mass matrix at t = 0.5 s").
+  subroutine potrf(a, what, error, minor)
+    !> Matrix to factor; on return its lower triangle holds L with A = L L^T.
+    real(dp), intent(inout) :: a(:, :)
+    !> Name of the matrix for messages.
+    character(len=*), intent(in) :: what
+    type(error_type), allocatable, intent(out) :: error
+    !> Leading minor that is not positive definite (0 on success).
+    integer, intent(out), optional :: minor
+    integer :: info
+    character(len=24) :: buf
+    if (present(minor)) minor = 0
+    if (size(a, 1) == 0) return
+    call dpotrf('L', size(a, 1), a, size(a, 1), info)
+    if (info == 0) return
+    if (present(minor)) minor = max(info, 0)
+    write(buf, '(i0)') abs(info)
+    if (info > 0) then
+      call fatal_error(error, 'leading minor ' // trim(buf) // ' of ' // what // &
+        & ' is not positive definite (Cholesky dpotrf failed)', stat_solver)
+    else
+      call fatal_error(error, 'dpotrf: argument ' // trim(buf) // ' had an illegal value for ' &
+        & // what, stat_solver)
+    end if
+  end subroutine potrf
+
+  !> Solve A x = b in place with the Cholesky factor from `potrf` (one right-hand side).
+  subroutine potrs_vec(a, b, what, error)
+    real(dp), intent(in) :: a(:, :)
+    real(dp), intent(inout), contiguous :: b(:)
+    character(len=*), intent(in) :: what
+    type(error_type), allocatable, intent(out) :: error
+    integer :: info
+    character(len=24) :: buf
+    if (size(a, 1) == 0) return
+    call dpotrs('L', size(a, 1), 1, a, size(a, 1), b, size(b), info)
+    if (info /= 0) then
+      write(buf, '(i0)') -info
+      call fatal_error(error, 'dpotrs: argument ' // trim(buf) // ' had an illegal value for ' &
+        & // what, stat_solver)
+    end if
+  end subroutine potrs_vec
+
+  !> Solve A X = B in place with the Cholesky factor from `potrf`.
+  subroutine potrs_mat(a, b, what, error)
+    !> Factor from potrf (lower triangle).
+    real(dp), intent(in) :: a(:, :)
+    !> Right-hand sides on entry, solutions on return.
+    real(dp), intent(inout), contiguous :: b(:, :)
+    character(len=*), intent(in) :: what
+    type(error_type), allocatable, intent(out) :: error
+    integer :: info
+    character(len=24) :: buf
+    if (size(a, 1) == 0) return
+    call dpotrs('L', size(a, 1), size(b, 2), a, size(a, 1), b, size(b, 1), info)
+    if (info /= 0) then
+      write(buf, '(i0)') -info
+      call fatal_error(error, 'dpotrs: argument ' // trim(buf) // ' had an illegal value for ' &
+        & // what, stat_solver)
+    end if
+  end subroutine potrs_mat
+
+  !> Generalised symmetric-definite eigenproblem K v = lambda M v (all eigenpairs,
+  !> ascending). On return `k` holds the M-normalised eigenvectors in its columns.
+  subroutine sygvd(k, m, lambda, what, error)
+    real(dp), intent(inout) :: k(:, :)
+    real(dp), intent(inout) :: m(:, :)
+    real(dp), intent(out) :: lambda(:)
+    character(len=*), intent(in) :: what
+    type(error_type), allocatable, intent(out) :: error
+    integer :: n, info, lwork, liwork, iwq(1)
+    real(dp) :: wq(1)
+    real(dp), allocatable :: work(:)
+    integer, allocatable :: iwork(:)
+    character(len=24) :: buf
+    n = size(k, 1)
+    if (n == 0) return
+    call dsygvd(1, 'V', 'L', n, k, n, m, n, lambda, wq, -1, iwq, -1, info)
+    lwork = int(wq(1)); liwork = iwq(1)
+    allocate(work(lwork), iwork(liwork))
+    call dsygvd(1, 'V', 'L', n, k, n, m, n, lambda, work, lwork, iwork, liwork, info)
+    if (info == 0) return
+    write(buf, '(i0)') info
+    if (info > n) then
+      call fatal_error(error, 'leading minor ' // trim(adjustl(itoa(info - n))) // ' of the mass matrix of ' &
+        & // what // ' is not positive definite (dsygvd)', stat_solver)
+    else
+      call fatal_error(error, 'eigenvalue solver dsygvd failed for ' // what // ' (info ' // trim(buf) // ')', &
+        & stat_solver)
+    end if
+  contains
+    pure function itoa(i) result(s)
+      integer, intent(in) :: i
+      character(len=24) :: s
+      write(s, '(i0)') i
+    end function itoa
+  end subroutine sygvd
+end module pymr_lapack

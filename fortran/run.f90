@@ -1,0 +1,187 @@
+!> One run from a scene file to result files: read, build, integrate, write.
+!> Shared by the `mrsim` program and the Python binding.
+module pymr_run
+  use pymr_kinds, only : dp
+  use pymr_error, only : error_type, fatal_error
+  use pymr_model_scene, only : scene_t
+  use pymr_io_namelist_input, only : read_scene
+  use pymr_model_build, only : build_model
+  use pymr_model, only : model_t
+  use pymr_integrator_abm, only : abm_integrator
+  use pymr_integrator_control, only : step_control
+  use pymr_io_results_output, only : csv_writer, json_path, write_json, run_stats
+  use pymr_model_kinematics, only : forward_kinematics, marker_motion
+  implicit none
+  private
+  public :: run_scene, load_model, default_output
+
+contains
+
+  !> Read and build the model of a scene (with overrides).
+  subroutine load_model(file, overrides, sc, model, error)
+    character(len=*), intent(in) :: file, overrides
+    type(scene_t), intent(out) :: sc
+    type(model_t), intent(out) :: model
+    type(error_type), allocatable, intent(out) :: error
+    call read_scene(file, overrides, sc, error); if (allocated(error)) return
+    call build_model(sc, model, error)
+  end subroutine load_model
+
+  !> Output path: the command line's, else &output file, else the scene's name with .csv.
+  function default_output(sc, out) result(path)
+    type(scene_t), intent(in) :: sc
+    character(len=*), intent(in) :: out
+    character(len=:), allocatable :: path
+    integer :: k, s
+    if (len_trim(out) > 0) then
+      path = trim(out)
+    else if (len_trim(sc%output_file) > 0) then
+      path = trim(sc%output_file)
+    else
+      s = index(sc%file, '/', back=.true.)
+      k = index(sc%file, '.', back=.true.)
+      if (k <= s) k = len(sc%file) + 1
+      path = sc%file(s+1:k-1) // '.csv'
+    end if
+  end function default_output
+
+  !> Run a scene: results to `out` (or the default), statistics beside it; `summary`
+  !> receives a few human-readable lines.
+  subroutine run_scene(file, overrides, out, summary, error)
+    character(len=*), intent(in) :: file, overrides, out
+    character(len=:), allocatable, intent(out) :: summary
+    type(error_type), allocatable, intent(out) :: error
+    type(scene_t) :: sc
+    type(model_t) :: model
+    type(abm_integrator) :: integ
+    type(step_control) :: ctl
+    type(csv_writer) :: csv
+    type(run_stats) :: st
+    real(dp), allocatable :: x(:)
+    real(dp) :: h, dt_out, t_next, eps, cpu0, cpu1
+    integer :: n, k_out
+    integer(8) :: c0, c1, rate
+    character(len=:), allocatable :: path
+
+    call load_model(file, overrides, sc, model, error); if (allocated(error)) return
+    n = model%d%n
+    path = default_output(sc, out)
+    call cpu_time(cpu0); call system_clock(c0, rate)
+
+    h = sc%integrator%h_slow
+    if (h <= 0.0_dp) h = sc%integrator%h_fast
+    ctl%rtol = sc%integrator%rtol; ctl%atol = sc%integrator%atol
+    if (sc%integrator%h_min > 0.0_dp) ctl%h_min = sc%integrator%h_min
+    if (sc%integrator%h_max > 0.0_dp) ctl%h_max = sc%integrator%h_max
+    call integ%init(2*n, sc%integrator%adaptive, ctl, sc%integrator%n_corrector)
+    allocate(x(2*n))
+    call initial_state(sc, model, x)
+
+    call csv%open(path, model%d, sc%title, method_label(sc), error); if (allocated(error)) return
+    call csv%write_row(model%d, 0.0_dp, x(1:n), x(n+1:)); st%rows = 1
+    dt_out = sc%output_dt
+    if (dt_out <= 0.0_dp .and. .not. sc%integrator%adaptive) dt_out = h
+    eps = 1.0e-9_dp*h
+    k_out = 1
+    t_next = dt_out
+    call integ%start(model, 0.0_dp, x, h, error); if (allocated(error)) goto 90
+    do
+      if (dt_out > 0.0_dp) then
+        do while (t_next <= min(integ%t, sc%t_end) + eps)
+          call integ%value_at(t_next, x)
+          call csv%write_row(model%d, t_next, x(1:n), x(n+1:)); st%rows = st%rows + 1
+          k_out = k_out + 1; t_next = k_out*dt_out
+        end do
+      else if (integ%t < sc%t_end - eps) then
+        call csv%write_row(model%d, integ%t, integ%z(1:n, 0), integ%z(n+1:, 0)); st%rows = st%rows + 1
+      end if
+      if (integ%t >= sc%t_end - eps) exit
+      call integ%step(model, error); if (allocated(error)) goto 90
+    end do
+    if (dt_out <= 0.0_dp .or. abs(t_next - dt_out - sc%t_end) > eps) then
+      call integ%value_at(sc%t_end, x)
+      call csv%write_row(model%d, sc%t_end, x(1:n), x(n+1:)); st%rows = st%rows + 1
+    end if
+    call integ%value_at(sc%t_end, x)
+90  continue
+    call csv%close()
+    if (allocated(error)) return
+    call cpu_time(cpu1); call system_clock(c1)
+    st%cpu_time_s = cpu1 - cpu0; st%wall_time_s = real(c1 - c0, dp)/real(rate, dp)
+    st%steps_slow = integ%steps; st%steps_fast = integ%steps
+    st%rhs_full = integ%evals; st%rhs_fast = 0; st%rejected_steps = integ%rejected; st%h_last = integ%h
+    call write_json(json_path(path), file, sc%title, settings_json(sc), model%d, st, error)
+    if (allocated(error)) return
+    summary = summary_text(sc, model, st, path, x)
+  end subroutine run_scene
+
+  !> [q0; qd0] from the joints' q0 and qd0 in model coordinate order.
+  subroutine initial_state(sc, model, x)
+    type(scene_t), intent(in) :: sc
+    type(model_t), intent(in) :: model
+    real(dp), intent(out) :: x(:)
+    integer :: b, j, m, n
+    n = model%d%n
+    do b = 2, model%d%nb
+      do j = 1, size(sc%joints)
+        if (sc%joints(j)%name /= model%d%joint_name(b)) cycle
+        do m = 1, model%d%nc(b)
+          x(model%d%c0(b) + m - 1) = sc%joints(j)%q0(m)
+          x(n + model%d%c0(b) + m - 1) = sc%joints(j)%qd0(m)
+        end do
+      end do
+    end do
+  end subroutine initial_state
+
+  function method_label(sc) result(s)
+    type(scene_t), intent(in) :: sc
+    character(len=:), allocatable :: s
+    character(len=64) :: buf
+    if (sc%integrator%adaptive) then
+      write(buf, '(a,es9.2,a,es9.2)') ' adaptive rtol=', sc%integrator%rtol, ' atol=', sc%integrator%atol
+    else
+      write(buf, '(a,es10.3)') ' fixed h=', sc%integrator%h_slow
+    end if
+    s = trim(sc%integrator%method) // trim(buf)
+  end function method_label
+
+  !> Integrator settings as JSON members.
+  function settings_json(sc) result(s)
+    type(scene_t), intent(in) :: sc
+    character(len=:), allocatable :: s
+    character(len=512) :: buf
+    associate(g => sc%integrator)
+      write(buf, '(a,g0.10,a,g0.10,a,g0.10,a,g0.10,a,g0.10,a,g0.10,a,i0,a,g0.10)') &
+        & '", "h_fast": ', g%h_fast, ', "h_slow": ', g%h_slow, ', "rtol": ', g%rtol, ', "atol": ', g%atol, &
+        & ', "h_min": ', g%h_min, ', "h_max": ', g%h_max, ', "n_corrector": ', g%n_corrector, ', "t_end": ', sc%t_end
+      s = '"method": "' // trim(g%method) // trim(buf) // ', "adaptive": ' // trim(merge('true ', 'false', g%adaptive))
+    end associate
+  end function settings_json
+
+  function summary_text(sc, model, st, path, x) result(s)
+    type(scene_t), intent(in) :: sc
+    type(model_t), intent(inout) :: model
+    type(run_stats), intent(in) :: st
+    character(len=*), intent(in) :: path
+    real(dp), intent(in) :: x(:)
+    character(len=:), allocatable :: s
+    character(len=256) :: buf
+    real(dp) :: r(3), v(3)
+    integer :: i, n
+    n = model%d%n
+    s = 'scene: ' // trim(sc%title) // new_line('a')
+    write(buf, '(a,g0.6,a,i0,a,i0,a,i0,a)') 'simulated 0 to ', sc%t_end, ' s: ', st%steps_slow, ' steps, ', &
+      & st%rejected_steps, ' rejected, ', st%rhs_full, ' model evaluations'
+    s = s // trim(buf) // new_line('a')
+    write(buf, '(a,f10.4,a,f10.4,a)') 'cpu time ', st%cpu_time_s, ' s, wall time ', st%wall_time_s, ' s'
+    s = s // trim(buf) // new_line('a')
+    call forward_kinematics(model%d, x(1:n), x(n+1:))
+    do i = 1, model%d%n_markers
+      call marker_motion(model%d, i, r, v)
+      write(buf, '(a,3f12.6,a,3f12.6,a)') 'final ' // trim(model%d%marker_name(i)) // ': position', r, &
+        & ' m, velocity', v, ' m/s'
+      s = s // trim(buf) // new_line('a')
+    end do
+    s = s // 'results: ' // path // ', ' // json_path(path)
+  end function summary_text
+end module pymr_run

@@ -1,0 +1,15 @@
+"""pymr: flexible multibody dynamics with multirate Nordsieck Adams integration.
+
+The numerical kernel is Fortran (``pymr._core``, built by meson-python with f2py);
+this package runs scenes, loads results and drives studies and benchmarks.
+"""
+from __future__ import annotations
+
+from .results import Results, load_results
+from .api import (PymrError, SceneError, SolverError, run, model_terms, model_accelerations,
+                  model_energy, model_size)
+
+__version__ = "0.1.0"
+
+__all__ = ["PymrError", "SceneError", "SolverError", "Results", "load_results", "run",
+           "model_terms", "model_accelerations", "model_energy", "model_size", "__version__"]

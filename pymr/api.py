@@ -1,0 +1,131 @@
+"""Python entry points into the Fortran kernel (one call per run, never per step)."""
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+from typing import Iterable, Mapping
+
+import numpy as np
+
+from . import _core
+from .results import Results, load_results
+
+
+class PymrError(RuntimeError):
+    """Base class of pymr's errors."""
+
+
+class SceneError(PymrError, ValueError):
+    """Bad input: the scene file, a group or an item is wrong (mrsim exit status 1)."""
+
+
+class SolverError(PymrError):
+    """A run that failed: singular mass matrix, step size underflow, non-finite state."""
+
+
+def _raise(stat: int, message: bytes | str) -> None:
+    if stat == 0:
+        return
+    text = message.decode() if isinstance(message, bytes) else message
+    text = text.strip()
+    raise (SceneError if stat == 1 else SolverError)(text)
+
+
+def format_overrides(overrides: Mapping[str, object] | Iterable[str] | None) -> str:
+    """Turn ``{"integrator.h_slow": 5e-4}`` or ``["integrator.h_slow=5e-4"]`` into the
+    kernel's override text (one ``GROUP.KEY=VALUE`` per line, values in namelist syntax)."""
+    if not overrides:
+        return ""
+    if isinstance(overrides, Mapping):
+        items = [f"{k}={_nml_value(v)}" for k, v in overrides.items()]
+    else:
+        items = [str(s) for s in overrides]
+    for s in items:
+        if "=" not in s:
+            raise SceneError(f"--set {s}: expected GROUP.KEY=VALUE")
+    return "\n".join(items)
+
+
+def _nml_value(v: object) -> str:
+    if isinstance(v, bool):
+        return ".true." if v else ".false."
+    if isinstance(v, str):
+        return "'" + v.replace("'", "''") + "'"
+    if isinstance(v, (list, tuple, np.ndarray)):
+        return ", ".join(_nml_value(x) for x in v)
+    return repr(float(v)) if isinstance(v, float) else str(v)
+
+
+def _scene_arg(scene: str | os.PathLike) -> str:
+    return os.fspath(scene)
+
+
+def run(scene: str | os.PathLike, output: str | os.PathLike | None = None,
+        overrides: Mapping[str, object] | Iterable[str] | None = None) -> Results:
+    """Run a scene in the Fortran kernel and return its results as numpy arrays.
+
+    ``output`` is the CSV path (the JSON statistics go beside it); ``""`` lets the kernel
+    choose (``&output file``, else SCENE.csv); ``None`` writes to a temporary folder,
+    loads the results and removes the files.
+    ``overrides`` changes namelist values for this run, as ``pymr run --set`` does.
+    Raises :class:`SceneError` for bad input and :class:`SolverError` for a failed run.
+    """
+    text = format_overrides(overrides)
+    if output == "":
+        # let the kernel choose: &output file, else SCENE.csv in the working folder
+        stat, msg, summary = _core.pymr_run_scene(_scene_arg(scene), text, "")
+        _raise(stat, msg)
+        summary = summary.decode() if isinstance(summary, bytes) else str(summary)
+        out = summary.strip().splitlines()[-1].split("results: ", 1)[1].split(", ")[0]
+        res = load_results(out)
+    elif output is None:
+        with tempfile.TemporaryDirectory(prefix="pymr-") as tmp:
+            out = str(Path(tmp) / "results.csv")
+            stat, msg, summary = _core.pymr_run_scene(_scene_arg(scene), text, out)
+            _raise(stat, msg)
+            res = load_results(out)
+    else:
+        out = os.fspath(output)
+        stat, msg, summary = _core.pymr_run_scene(_scene_arg(scene), text, out)
+        _raise(stat, msg)
+        res = load_results(out)
+    res.summary = summary.decode().strip() if isinstance(summary, bytes) else str(summary).strip()
+    return res
+
+
+def model_size(scene: str | os.PathLike, overrides=None) -> tuple[int, int, int]:
+    """(coordinates, bodies including the ground, markers) of a scene's model."""
+    n, nb, nm, stat, msg = _core.pymr_model_size(_scene_arg(scene), format_overrides(overrides))
+    _raise(stat, msg)
+    return int(n), int(nb), int(nm)
+
+
+def model_terms(scene: str | os.PathLike, q, qd, t: float = 0.0, overrides=None):
+    """Mass matrix M and right-hand side P of ``M qdd = P`` at (t, q, qd)."""
+    q = np.ascontiguousarray(q, dtype=float)
+    qd = np.ascontiguousarray(qd, dtype=float)
+    mm, p, stat, msg = _core.pymr_model_terms(_scene_arg(scene), format_overrides(overrides), t, q, qd)
+    _raise(stat, msg)
+    return mm, p
+
+
+def model_accelerations(scene: str | os.PathLike, t, q, qd, overrides=None) -> np.ndarray:
+    """Accelerations for one state (q of shape (n,)) or many (shape (m, n), t of shape (m,))."""
+    q = np.asarray(q, dtype=float)
+    single = q.ndim == 1
+    q2 = np.asfortranarray(np.atleast_2d(q).T)
+    qd2 = np.asfortranarray(np.atleast_2d(np.asarray(qd, dtype=float)).T)
+    t1 = np.atleast_1d(np.asarray(t, dtype=float))
+    qdd, stat, msg = _core.pymr_model_accelerations(_scene_arg(scene), format_overrides(overrides), t1, q2, qd2)
+    _raise(stat, msg)
+    return qdd[:, 0].copy() if single else qdd.T.copy()
+
+
+def model_energy(scene: str | os.PathLike, q, qd, overrides=None) -> tuple[np.ndarray, np.ndarray]:
+    """Kinetic and potential (gravity, when on) energy for states q, qd of shape (m, n)."""
+    q2 = np.asfortranarray(np.atleast_2d(np.asarray(q, dtype=float)).T)
+    qd2 = np.asfortranarray(np.atleast_2d(np.asarray(qd, dtype=float)).T)
+    ke, pe, stat, msg = _core.pymr_model_energy(_scene_arg(scene), format_overrides(overrides), q2, qd2)
+    _raise(stat, msg)
+    return ke, pe

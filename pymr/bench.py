@@ -1,0 +1,68 @@
+"""Benchmarks that print figures (``pymr bench ...``). Medians of repeated timings in one
+process; ratios are formed within the same run. Tests never assert wall time."""
+from __future__ import annotations
+
+import json
+import statistics
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from . import _core
+from .api import _raise, model_size
+from .scenes import spatial_chain
+
+
+def time_evaluation(scene: str, q: np.ndarray, qd: np.ndarray, repeats: int = 7,
+                    min_time: float = 0.05) -> float:
+    """Median CPU seconds of one model evaluation (kinematics, assembly, Cholesky solve)."""
+    reps = 1
+    while True:
+        sec, stat, msg = _core.pymr_time_evaluation(scene, "", q, qd, reps)
+        _raise(stat, msg)
+        if sec * reps >= min_time or reps >= 1 << 20:
+            break
+        reps *= 4
+    samples = []
+    for _ in range(repeats):
+        sec, stat, msg = _core.pymr_time_evaluation(scene, "", q, qd, reps)
+        _raise(stat, msg)
+        samples.append(sec)
+    return statistics.median(samples)
+
+
+def bench_rhs(sizes=(5, 20, 100), repeats: int = 7) -> list[dict]:
+    """Cost of one evaluation of the spatial chain (free base) for several lengths."""
+    rows = []
+    rng = np.random.default_rng(0)
+    with tempfile.TemporaryDirectory(prefix="pymr-bench-") as tmp:
+        for nb in sizes:
+            path = Path(tmp) / f"chain{nb}.nml"
+            path.write_text(spatial_chain(nb))
+            n, _, _ = model_size(path)
+            q = 0.3 * rng.standard_normal(n)
+            qd = 0.3 * rng.standard_normal(n)
+            sec = time_evaluation(str(path), q, qd, repeats=repeats)
+            rows.append({"scene": f"chain-{nb}", "bodies": nb, "coordinates": n, "median_us": sec * 1e6})
+    return rows
+
+
+def main(what: str, repeats: int = 7, json_path: str | None = None) -> int:
+    if what == "rhs":
+        rows = bench_rhs(repeats=repeats)
+        print(f"pymr bench rhs: median CPU time of one model evaluation ({repeats} repeats)")
+        print(f"{'scene':>12} {'bodies':>7} {'coords':>7} {'median us':>11} {'us/body':>9} {'growth':>8}")
+        prev = None
+        for r in rows:
+            growth = ""
+            if prev is not None:
+                # exponent p in cost ~ bodies^p between consecutive sizes
+                growth = "n^%.2f" % (np.log(r["median_us"] / prev["median_us"]) / np.log(r["bodies"] / prev["bodies"]))
+            print(f"{r['scene']:>12} {r['bodies']:>7} {r['coordinates']:>7} {r['median_us']:>11.2f} "
+                  f"{r['median_us'] / r['bodies']:>9.3f} {growth:>8}")
+            prev = r
+        if json_path:
+            Path(json_path).write_text(json.dumps(rows, indent=2))
+        return 0
+    raise ValueError(what)

@@ -1,0 +1,37 @@
+"""Scene generators for tests and benchmarks (namelist text)."""
+from __future__ import annotations
+
+import numpy as np
+
+
+def spatial_chain(n_bodies: int, *, free_base: bool = True, gravity: bool = True, t_end: float = 1.0,
+                  h: float = 1e-3, adaptive: bool = False, rtol: float = 1e-8, seed: int = 1) -> str:
+    """A chain of ``n_bodies`` rigid bodies with non-parallel revolute axes, on a free
+    (floating) base when ``free_base``; masses, inertias and joint points vary along it."""
+    rng = np.random.default_rng(seed)
+    lines = ["&scene title='spatial chain of %d bodies', t_end=%r, gravity=0.0, -9.81, 0.0 /" % (n_bodies, t_end),
+             "&integrator method='single', h_slow=%r, adaptive=%s, rtol=%r, atol=%r /"
+             % (h, ".true." if adaptive else ".false.", rtol, rtol * 1e-2),
+             "&effects gravity=%s /" % (".true." if gravity else ".false."),
+             "&body name='ground', kind='ground' /"]
+    for i in range(n_bodies):
+        m = 1.0 + 0.5 * rng.random()
+        a, b, c = 0.05 + 0.05 * rng.random(3)
+        lines.append("&body name='b%d', kind='rigid', mass=%r, com=%r, %r, %r, inertia=%r, %r, %r, %r, %r, %r /" % (
+            i + 1, m, 0.25 + 0.1 * rng.random(), 0.05 * rng.standard_normal(), 0.05 * rng.standard_normal(),
+            b + c, a + c, a + b, 0.01 * rng.standard_normal(), 0.01 * rng.standard_normal(),
+            0.01 * rng.standard_normal()))
+    axes = [(0, 0, 1), (0, 1, 0), (1, 0, 1), (1, 1, 0), (0, 1, 1)]
+    for i in range(n_bodies):
+        parent = "ground" if i == 0 else "b%d" % i
+        if i == 0 and free_base:
+            lines.append("&joint name='j1', kind='free', parent='ground', child='b1', at=0.0, 1.0, 0.0, "
+                         "q0=0.1, -0.2, 0.05, 0.3, -0.2, 0.4, qd0=0.2, 0.1, -0.3, 0.5, -0.4, 0.3 /")
+            continue
+        ax = axes[i % len(axes)]
+        q0 = 0.4 * rng.standard_normal()
+        qd0 = 0.8 * rng.standard_normal()
+        at = (0.5, 0.02 * rng.standard_normal(), 0.02 * rng.standard_normal()) if i else (0.0, 1.0, 0.0)
+        lines.append("&joint name='j%d', kind='revolute', parent='%s', child='b%d', at=%r, %r, %r, "
+                     "axis=%r, %r, %r, q0=%r, qd0=%r /" % (i + 1, parent, i + 1, *at, *ax, q0, qd0))
+    return "\n".join(lines) + "\n"
