@@ -122,6 +122,7 @@ contains
     real(dp), intent(out) :: x(:)
     integer :: b, j, m, n
     n = model%d%n
+    x = 0.0_dp
     do b = 2, model%d%nb
       do j = 1, size(sc%joints)
         if (sc%joints(j)%name /= model%d%joint_name(b)) cycle
@@ -177,7 +178,7 @@ contains
     s = s // trim(buf) // new_line('a')
     call forward_kinematics(model%d, x(1:n), x(n+1:))
     do i = 1, model%d%n_markers
-      call marker_motion(model%d, i, r, v)
+      call marker_motion(model%d, i, x(1:n), x(n+1:), r, v)
       write(buf, '(a,3f12.6,a,3f12.6,a)') 'final ' // trim(model%d%marker_name(i)) // ': position', r, &
         & ' m, velocity', v, ' m/s'
       s = s // trim(buf) // new_line('a')

@@ -3,10 +3,14 @@ from __future__ import annotations
 
 import json
 import os
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+
+_Q = re.compile(r"\.(q\d*|a\d+)$")
+_QD = re.compile(r"\.(qd\d*|ad\d+)$")
 
 
 @dataclass
@@ -40,9 +44,10 @@ class Results:
         return pos, vel
 
     def coordinates(self) -> tuple[np.ndarray, np.ndarray]:
-        """All joint coordinates q and rates qd (rows, n) in model order."""
-        qcols = [c for c in self.columns if ".q" in c and ".qd" not in c]
-        qdcols = [c for c in self.columns if ".qd" in c]
+        """All generalised coordinates and rates (rows, n) in model order: joint
+        coordinates (``j.q``, ``j.q1`` ...) first, then modal ones (``body.a1`` ...)."""
+        qcols = [c for c in self.columns if _Q.search(c)]
+        qdcols = [c for c in self.columns if _QD.search(c)]
         return (np.column_stack([self[c] for c in qcols]) if qcols else np.zeros((len(self.t), 0)),
                 np.column_stack([self[c] for c in qdcols]) if qdcols else np.zeros((len(self.t), 0)))
 

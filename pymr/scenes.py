@@ -9,18 +9,21 @@ def spatial_chain(n_bodies: int, *, free_base: bool = True, gravity: bool = True
     """A chain of ``n_bodies`` rigid bodies with non-parallel revolute axes, on a free
     (floating) base when ``free_base``; masses, inertias and joint points vary along it."""
     rng = np.random.default_rng(seed)
+
+    def f(*vals: float) -> str:
+        return ", ".join("%.6g" % float(v) for v in vals)
+
     lines = ["&scene title='spatial chain of %d bodies', t_end=%r, gravity=0.0, -9.81, 0.0 /" % (n_bodies, t_end),
-             "&integrator method='single', h_slow=%r, adaptive=%s, rtol=%r, atol=%r /"
+             "&integrator method='single', h_slow=%g, adaptive=%s, rtol=%g, atol=%g /"
              % (h, ".true." if adaptive else ".false.", rtol, rtol * 1e-2),
              "&effects gravity=%s /" % (".true." if gravity else ".false."),
              "&body name='ground', kind='ground' /"]
     for i in range(n_bodies):
         m = 1.0 + 0.5 * rng.random()
         a, b, c = 0.05 + 0.05 * rng.random(3)
-        lines.append("&body name='b%d', kind='rigid', mass=%r, com=%r, %r, %r, inertia=%r, %r, %r, %r, %r, %r /" % (
-            i + 1, m, 0.25 + 0.1 * rng.random(), 0.05 * rng.standard_normal(), 0.05 * rng.standard_normal(),
-            b + c, a + c, a + b, 0.01 * rng.standard_normal(), 0.01 * rng.standard_normal(),
-            0.01 * rng.standard_normal()))
+        com = f(0.25 + 0.1 * rng.random(), 0.05 * rng.standard_normal(), 0.05 * rng.standard_normal())
+        inertia = f(b + c, a + c, a + b, *(0.01 * rng.standard_normal(3)))
+        lines.append("&body name='b%d', kind='rigid', mass=%s, com=%s, inertia=%s /" % (i + 1, f(m), com, inertia))
     axes = [(0, 0, 1), (0, 1, 0), (1, 0, 1), (1, 1, 0), (0, 1, 1)]
     for i in range(n_bodies):
         parent = "ground" if i == 0 else "b%d" % i
@@ -32,6 +35,6 @@ def spatial_chain(n_bodies: int, *, free_base: bool = True, gravity: bool = True
         q0 = 0.4 * rng.standard_normal()
         qd0 = 0.8 * rng.standard_normal()
         at = (0.5, 0.02 * rng.standard_normal(), 0.02 * rng.standard_normal()) if i else (0.0, 1.0, 0.0)
-        lines.append("&joint name='j%d', kind='revolute', parent='%s', child='b%d', at=%r, %r, %r, "
-                     "axis=%r, %r, %r, q0=%r, qd0=%r /" % (i + 1, parent, i + 1, *at, *ax, q0, qd0))
+        lines.append("&joint name='j%d', kind='revolute', parent='%s', child='b%d', at=%s, axis=%s, q0=%s, "
+                     "qd0=%s /" % (i + 1, parent, i + 1, f(*at), f(*ax), f(q0), f(qd0)))
     return "\n".join(lines) + "\n"

@@ -20,19 +20,22 @@ module pymr_io_namelist_input
     logical :: used = .false.
   end type override_t
 
-  character(len=*), parameter :: known_groups(8) = [character(len=12) :: 'scene', 'integrator', &
+  character(len=*), parameter :: known_groups(8) = [character(len=16) :: 'scene', 'integrator', &
     & 'effects', 'body', 'joint', 'drive', 'marker', 'output']
-  character(len=*), parameter :: items_scene(3) = [character(len=12) :: 'title', 't_end', 'gravity']
-  character(len=*), parameter :: items_integrator(9) = [character(len=12) :: 'method', 'h_fast', 'h_slow', &
+  character(len=*), parameter :: items_scene(3) = [character(len=16) :: 'title', 't_end', 'gravity']
+  character(len=*), parameter :: items_integrator(9) = [character(len=16) :: 'method', 'h_fast', 'h_slow', &
     & 'adaptive', 'rtol', 'atol', 'h_min', 'h_max', 'n_corrector']
-  character(len=*), parameter :: items_effects(2) = [character(len=12) :: 'gravity', 'joint_drives']
-  character(len=*), parameter :: items_body(5) = [character(len=12) :: 'name', 'kind', 'mass', 'com', 'inertia']
-  character(len=*), parameter :: items_joint(8) = [character(len=12) :: 'name', 'kind', 'parent', 'child', &
+  character(len=*), parameter :: items_effects(3) = [character(len=16) :: 'gravity', 'joint_drives', &
+    & 'modal_damping']
+  character(len=*), parameter :: items_body(17) = [character(len=16) :: 'name', 'kind', 'mass', 'com', 'inertia', &
+    & 'length', 'youngs_modulus', 'density', 'r_outer', 'r_inner', 'area', 'iy', 'iz', 'n_elements', 'modes_y', &
+    & 'modes_z', 'modal_damping']
+  character(len=*), parameter :: items_joint(8) = [character(len=16) :: 'name', 'kind', 'parent', 'child', &
     & 'at', 'axis', 'q0', 'qd0']
-  character(len=*), parameter :: items_drive(6) = [character(len=12) :: 'joint', 'coordinate', 'offset', &
+  character(len=*), parameter :: items_drive(6) = [character(len=16) :: 'joint', 'coordinate', 'offset', &
     & 'amplitude', 'frequency', 'phase']
-  character(len=*), parameter :: items_marker(3) = [character(len=12) :: 'name', 'body', 'at']
-  character(len=*), parameter :: items_output(2) = [character(len=12) :: 'file', 'dt']
+  character(len=*), parameter :: items_marker(3) = [character(len=16) :: 'name', 'body', 'at']
+  character(len=*), parameter :: items_output(2) = [character(len=16) :: 'file', 'dt']
 
 contains
 
@@ -308,11 +311,12 @@ contains
     type(override_t), intent(inout) :: ovs(:)
     type(scene_t), intent(inout) :: sc
     type(error_type), allocatable, intent(out) :: error
-    logical :: gravity, joint_drives
+    logical :: gravity, joint_drives, modal_damping
     integer :: ios, i
     character(len=256) :: msg
-    namelist /effects/ gravity, joint_drives
+    namelist /effects/ gravity, joint_drives, modal_damping
     gravity = sc%effects%gravity; joint_drives = sc%effects%joint_drives
+    modal_damping = sc%effects%modal_damping
     if (any(groups%name == 'effects')) then
       rewind(u)
       read(u, nml=effects, iostat=ios, iomsg=msg)
@@ -329,6 +333,7 @@ contains
       ovs(i)%used = .true.
     end do
     sc%effects%gravity = gravity; sc%effects%joint_drives = joint_drives
+    sc%effects%modal_damping = modal_damping
   end subroutine read_effects
 
   subroutine read_output(path, u, groups, ovs, sc, error)
@@ -371,16 +376,22 @@ contains
     type(error_type), allocatable, intent(out) :: error
     character(len=name_len) :: name
     character(len=16) :: kind
-    real(dp) :: mass, com(3), inertia(6)
+    real(dp) :: mass, com(3), inertia(6), length, youngs_modulus, density, r_outer, r_inner, area, iy, iz
+    real(dp) :: modal_damping
+    integer :: n_elements, modes_y, modes_z
     integer :: ios, i, k, n
     character(len=256) :: msg
     type(body_spec) :: d
-    namelist /body/ name, kind, mass, com, inertia
+    namelist /body/ name, kind, mass, com, inertia, length, youngs_modulus, density, r_outer, r_inner, area, &
+      & iy, iz, n_elements, modes_y, modes_z, modal_damping
     n = count(groups%name == 'body')
     allocate(sc%bodies(n))
     rewind(u)
     do k = 1, n
       name = d%name; kind = d%kind; mass = d%mass; com = d%com; inertia = d%inertia
+      length = d%length; youngs_modulus = d%youngs_modulus; density = d%density; r_outer = d%r_outer
+      r_inner = d%r_inner; area = d%area; iy = d%iy; iz = d%iz; n_elements = d%n_elements
+      modes_y = d%modes_y; modes_z = d%modes_z; modal_damping = d%modal_damping
       read(u, nml=body, iostat=ios, iomsg=msg)
       if (ios /= 0) then
         call read_failed(file, 'body', groups, k, msg, error); return
@@ -393,7 +404,9 @@ contains
         end if
         ovs(i)%used = .true.
       end do
-      sc%bodies(k) = body_spec(name=name, kind=lower(kind), mass=mass, com=com, inertia=inertia, &
+      sc%bodies(k) = body_spec(name=name, kind=lower(kind), mass=mass, com=com, inertia=inertia, length=length, &
+        & youngs_modulus=youngs_modulus, density=density, r_outer=r_outer, r_inner=r_inner, area=area, iy=iy, &
+        & iz=iz, n_elements=n_elements, modes_y=modes_y, modes_z=modes_z, modal_damping=modal_damping, &
         & line=group_line(groups, 'body', k))
     end do
   end subroutine read_bodies

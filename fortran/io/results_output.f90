@@ -66,7 +66,7 @@ contains
     header = 't'
     do i = 1, d%n
       header = header // ',' // trim(d%qname(i))
-      if (i == d%n .or. d%cbody(min(i + 1, d%n)) /= d%cbody(i)) call add_rates(i)
+      if (i == d%n .or. d%cgrp(min(i + 1, d%n)) /= d%cgrp(i)) call add_rates(i)
     end do
     do i = 1, d%n_markers
       m = trim(d%marker_name(i))
@@ -79,7 +79,7 @@ contains
       integer, intent(in) :: last
       integer :: j
       do j = 1, last
-        if (d%cbody(j) == d%cbody(last)) header = header // ',' // trim(d%qdname(j))
+        if (d%cgrp(j) == d%cgrp(last)) header = header // ',' // trim(d%qdname(j))
       end do
     end subroutine add_rates
   end subroutine csv_open
@@ -95,13 +95,13 @@ contains
     k = 1; b0 = 1
     do i = 1, d%n
       k = k + 1; self%row(k) = q(i)
-      if (i == d%n .or. d%cbody(min(i + 1, d%n)) /= d%cbody(i)) then
+      if (i == d%n .or. d%cgrp(min(i + 1, d%n)) /= d%cgrp(i)) then
         self%row(k+1:k+i-b0+1) = qd(b0:i); k = k + i - b0 + 1; b0 = i + 1
       end if
     end do
     if (d%n_markers > 0) call forward_kinematics(d, q, qd)
     do i = 1, d%n_markers
-      call marker_motion(d, i, r, v)
+      call marker_motion(d, i, q, qd, r, v)
       self%row(k+1:k+3) = r; self%row(k+4:k+6) = v; k = k + 6
     end do
     write(self%unit, '(*(es24.16e3,:,","))') self%row

@@ -1,24 +1,36 @@
-!> Recursive assembly of M qdd = P in joint coordinates (paper eqs. 16-18).
+!> Recursive assembly of M qdd = P in joint and modal coordinates (paper eqs. 16-18).
 !>
 !> Body terms are spatial (inertial coordinates), so composite inertias and wrenches add
-!> up the tree without transformation. M(j,k) = s_j . (Ic_b s_k) for every coordinate j
-!> on the path from body b (owner of k) to the base; P_k = tau_k - s_k . Wc_b.
+!> up the tree without transformation. A coordinate's column (a joint's s_k, or a
+!> flexible parent's modal column cm at its child's joint point) applies to a whole
+!> subtree; M(j,k) = column_j . f_k for every column j on the path from the owner of k to
+!> the base, with f_k the spatial momentum of k's motion. P_k = tau_k - column_k . Wc.
 module pymr_model_assembly
   use pymr_kinds, only : dp
   use pymr_model_types, only : model_data
   use pymr_model_spatial, only : force_cross, rigid_inertia
+  use pymr_model_flexbody, only : flex_body_terms
   implicit none
   private
   public :: body_terms, composite_terms, assemble_mass, assemble_rhs, kinetic_energy
 
 contains
 
-  !> Spatial inertia and bias wrench I a_bias + v x* I v of every body (no applied loads).
-  pure subroutine body_terms(d)
+  !> Spatial inertia and bias wrench I a_bias + v x* I v of every body (no applied
+  !> loads); flexible bodies add their modal coupling, modal bias and elastic forces.
+  pure subroutine body_terms(d, q, qd)
     type(model_data), intent(inout) :: d
-    integer :: b
+    real(dp), intent(in) :: q(:), qd(:)
+    integer :: b, m
     real(dp) :: c(3), icw(3, 3)
     do b = 2, d%nb
+      if (d%flexible(b)) then
+        m = d%nm(b)
+        call flex_body_terms(d%flex(b), d%fwork(b), d%rot(:, :, b), d%pos(:, b), d%vel(:, b), d%acc(:, b), &
+          & q(d%a0(b):d%a0(b) + m - 1), qd(d%a0(b):d%a0(b) + m - 1), d%i6(:, :, b), d%mva(:, 1:m, b), &
+          & d%w(:, b), d%wam(1:m, b))
+        cycle
+      end if
       c = d%pos(:, b) + matmul(d%rot(:, :, b), d%com(:, b))
       icw = matmul(d%rot(:, :, b), matmul(d%inertia(:, :, b), transpose(d%rot(:, :, b))))
       d%i6(:, :, b) = rigid_inertia(d%mass(b), c, icw)
@@ -42,45 +54,102 @@ contains
     end do
   end subroutine composite_terms
 
-  !> Mass matrix (composite-rigid-body recursion; O(n * depth)).
+  !> Mass matrix (generalised composite-rigid-body recursion; O(n * depth)).
   pure subroutine assemble_mass(d)
-    type(model_data), intent(inout) :: d
-    integer :: b, a, k, j
-    real(dp) :: f(6)
-    do b = 2, d%nb
-      do k = d%c0(b), d%c0(b) + d%nc(b) - 1
-        f = matmul(d%ic(:, :, b), d%s(:, k))
-        a = b
-        do while (a > 1)
-          do j = d%c0(a), d%c0(a) + d%nc(a) - 1
-            d%mm(j, k) = dot_product(d%s(:, j), f)
-            d%mm(k, j) = d%mm(j, k)
-          end do
-          a = d%parent(a)
-        end do
-      end do
-    end do
-  end subroutine assemble_mass
-
-  !> Right-hand side P = tau - s_k . Wc_b.
-  pure subroutine assemble_rhs(d)
     type(model_data), intent(inout) :: d
     integer :: b, k
     do b = 2, d%nb
       do k = d%c0(b), d%c0(b) + d%nc(b) - 1
+        call walk_up(d, b, k, matmul(d%ic(:, :, b), d%s(:, k)))
+      end do
+      if (d%nm(b) > 0) call modal_block(d, b)
+    end do
+  end subroutine assemble_mass
+
+  !> Entries of a flexible body's modal coordinates: their own block (modal mass plus the
+  !> children carried by the modes) and their coupling to every column above them.
+  pure subroutine modal_block(d, b)
+    type(model_data), intent(inout) :: d
+    integer, intent(in) :: b
+    integer :: m, k, l, i, c, ck, cl
+    real(dp) :: f(6), g(6)
+    m = d%nm(b)
+    do k = 1, m
+      ck = d%a0(b) + k - 1
+      f = d%mva(:, k, b)
+      do l = 1, m
+        d%mm(d%a0(b) + l - 1, ck) = d%flex(b)%mmm(l, k)
+      end do
+      do i = d%child_ptr(b), d%child_ptr(b + 1) - 1
+        c = d%child_idx(i)
+        g = matmul(d%ic(:, :, c), d%cm(:, k, c))
+        f = f + g
+        do l = 1, m
+          cl = d%a0(b) + l - 1
+          d%mm(cl, ck) = d%mm(cl, ck) + dot_product(d%cm(:, l, c), g)
+        end do
+      end do
+      call walk_up(d, b, ck, f)
+    end do
+  end subroutine modal_block
+
+  !> Fill M(j, col) = column_j . f (and its mirror) for every column on the path from
+  !> body b to the base: joint columns of each body and its parent's modal columns.
+  pure subroutine walk_up(d, b, col, f)
+    type(model_data), intent(inout) :: d
+    integer, intent(in) :: b, col
+    real(dp), intent(in) :: f(6)
+    integer :: a, j, l, pa
+    a = b
+    do while (a > 1)
+      do j = d%c0(a), d%c0(a) + d%nc(a) - 1
+        d%mm(j, col) = dot_product(d%s(:, j), f)
+        d%mm(col, j) = d%mm(j, col)
+      end do
+      pa = d%parent(a)
+      do l = 1, d%nm(pa)
+        j = d%a0(pa) + l - 1
+        d%mm(j, col) = dot_product(d%cm(:, l, a), f)
+        d%mm(col, j) = d%mm(j, col)
+      end do
+      a = pa
+    end do
+  end subroutine walk_up
+
+  !> Right-hand side P = tau - column . Wc (modal: minus the body's modal bias and the
+  !> children's composite wrenches through the modal columns).
+  pure subroutine assemble_rhs(d)
+    type(model_data), intent(inout) :: d
+    integer :: b, k, i, c
+    do b = 2, d%nb
+      do k = d%c0(b), d%c0(b) + d%nc(b) - 1
         d%p(k) = d%tau(k) - dot_product(d%s(:, k), d%wc(:, b))
+      end do
+      do k = 1, d%nm(b)
+        d%p(d%a0(b) + k - 1) = d%tau(d%a0(b) + k - 1) - d%wam(k, b)
+        do i = d%child_ptr(b), d%child_ptr(b + 1) - 1
+          c = d%child_idx(i)
+          d%p(d%a0(b) + k - 1) = d%p(d%a0(b) + k - 1) - dot_product(d%cm(:, k, c), d%wc(:, c))
+        end do
       end do
     end do
   end subroutine assemble_rhs
 
-  !> Kinetic energy 1/2 sum v^T I v (after body_terms).
-  pure function kinetic_energy(d) result(e)
+  !> Kinetic energy 1/2 u^T M_b u summed over bodies (after body_terms); qd gives modal rates.
+  pure function kinetic_energy(d, qd) result(e)
     type(model_data), intent(in) :: d
+    real(dp), intent(in) :: qd(:)
     real(dp) :: e
-    integer :: b
+    integer :: b, m
     e = 0.0_dp
     do b = 2, d%nb
       e = e + 0.5_dp*dot_product(d%vel(:, b), matmul(d%i6(:, :, b), d%vel(:, b)))
+      m = d%nm(b)
+      if (m == 0) cycle
+      associate(ad => qd(d%a0(b):d%a0(b) + m - 1))
+        e = e + dot_product(d%vel(:, b), matmul(d%mva(:, 1:m, b), ad)) + &
+          & 0.5_dp*dot_product(ad, matmul(d%flex(b)%mmm, ad))
+      end associate
     end do
   end function kinetic_energy
 end module pymr_model_assembly

@@ -1,10 +1,12 @@
 !> Validate a scene and build the model from it: bodies in parent-before-child order,
 !> joints expanded into one-coordinate primitives, the effect plan, work arrays.
 module pymr_model_build
-  use pymr_kinds, only : dp, name_len
+  use pymr_kinds, only : dp, name_len, pi
   use pymr_error, only : error_type, fatal_error
   use pymr_model_scene, only : scene_t, body_spec, joint_spec, joint_ndof, unset
-  use pymr_model_types, only : model_data, prim_revolute, prim_prismatic, effect_gravity, effect_joint_drives
+  use pymr_model_types, only : model_data, prim_revolute, prim_prismatic, effect_gravity, effect_joint_drives, &
+    & effect_modal_damping
+  use pymr_model_beam_modes, only : build_beam, beam_point_shapes
   use pymr_model_spatial, only : unit_axes
   use pymr_model, only : model_t
   use pymr_io_namelist_scan, only : itoa
@@ -22,7 +24,7 @@ contains
     integer, allocatable :: order(:), inboard(:)
     call check_scene(sc, error); if (allocated(error)) return
     call tree_order(sc, order, inboard, error); if (allocated(error)) return
-    call fill_model(sc, order, inboard, model%d)
+    call fill_model(sc, order, inboard, model%d, error)
   end subroutine build_model
 
   !> "&body 'turret' (line 12)" for messages.
@@ -181,9 +183,11 @@ contains
             call fatal_error(error, where_body(sc, i) // ': inertia: principal moments ' // fmt(e(1)) // ', ' // &
               & fmt(e(2)) // ', ' // fmt(e(3)) // ' break the triangle inequality (no real body has them)'); return
           end if
-        case ('beam', 'modal')
-          call fatal_error(error, where_body(sc, i) // ": kind: '" // trim(b%kind) // &
-            & "' (flexible bodies) is not available in this version (use 'ground' or 'rigid')"); return
+        case ('beam')
+          call check_beam(sc, i, error); if (allocated(error)) return
+        case ('modal')
+          call fatal_error(error, where_body(sc, i) // ": kind: 'modal' (mode data from a file) is not " // &
+            & "available in this version (use 'beam', 'rigid' or 'ground')"); return
         case ('')
           call fatal_error(error, where_body(sc, i) // ": kind: missing ('ground', 'rigid', 'beam' or 'modal')")
           return
@@ -204,6 +208,65 @@ contains
       call fatal_error(error, sc%file // ': &body: the scene has only the ground: add a moving body'); return
     end if
   end subroutine check_bodies
+
+  !> Items of a built-in beam.
+  subroutine check_beam(sc, i, error)
+    type(scene_t), intent(in) :: sc
+    integer, intent(in) :: i
+    type(error_type), allocatable, intent(out) :: error
+    character(len=:), allocatable :: w
+    w = where_body(sc, i)
+    associate(b => sc%bodies(i))
+      if (b%mass /= unset .or. any(b%inertia /= unset)) then
+        call fatal_error(error, w // ': mass, inertia: not items of a beam (its mass follows from density and ' // &
+          & 'section); remove them'); return
+      end if
+      call positive(b%length, 'length', '(m)'); if (allocated(error)) return
+      call positive(b%youngs_modulus, 'youngs_modulus', '(Pa)'); if (allocated(error)) return
+      call positive(b%density, 'density', '(kg/m^3)'); if (allocated(error)) return
+      if (b%r_outer /= unset) then
+        call positive(b%r_outer, 'r_outer', '(m)'); if (allocated(error)) return
+        if (b%r_inner < 0.0_dp .or. b%r_inner >= b%r_outer) then
+          call fatal_error(error, w // ': r_inner: must be in [0, r_outer), got ' // fmt(b%r_inner)); return
+        end if
+        if (b%area /= unset .or. b%iy /= unset .or. b%iz /= unset) then
+          call fatal_error(error, w // ': area, iy, iz: give either r_outer (and r_inner) or area, iy and iz'); return
+        end if
+      else
+        if (b%area == unset .and. b%iy == unset .and. b%iz == unset) then
+          call fatal_error(error, w // ': r_outer: missing (or give area, iy and iz for the section)'); return
+        end if
+        call positive(b%area, 'area', '(m^2)'); if (allocated(error)) return
+        call positive(b%iy, 'iy', '(m^4)'); if (allocated(error)) return
+        call positive(b%iz, 'iz', '(m^4)'); if (allocated(error)) return
+      end if
+      if (b%n_elements < 1 .or. b%n_elements > 5000) then
+        call fatal_error(error, w // ': n_elements: must be 1 to 5000, got ' // itoa(b%n_elements)); return
+      end if
+      if (b%modes_y < 0 .or. b%modes_y > 2*b%n_elements) then
+        call fatal_error(error, w // ': modes_y: must be 0 to 2*n_elements = ' // itoa(2*b%n_elements) // &
+          & ', got ' // itoa(b%modes_y)); return
+      end if
+      if (b%modes_z < 0 .or. b%modes_z > 2*b%n_elements) then
+        call fatal_error(error, w // ': modes_z: must be 0 to 2*n_elements = ' // itoa(2*b%n_elements) // &
+          & ', got ' // itoa(b%modes_z)); return
+      end if
+      if (b%modal_damping < 0.0_dp .or. b%modal_damping >= 1.0_dp) then
+        call fatal_error(error, w // ': modal_damping: must be a fraction of critical in [0, 1), got ' // &
+          & fmt(b%modal_damping)); return
+      end if
+    end associate
+  contains
+    subroutine positive(x, item, unit)
+      real(dp), intent(in) :: x
+      character(len=*), intent(in) :: item, unit
+      if (x == unset) then
+        call fatal_error(error, w // ': ' // item // ': missing ' // unit)
+      else if (.not. (x > 0.0_dp)) then
+        call fatal_error(error, w // ': ' // item // ': must be positive, got ' // fmt(x))
+      end if
+    end subroutine positive
+  end subroutine check_beam
 
   subroutine check_joints(sc, error)
     type(scene_t), intent(in) :: sc
@@ -346,80 +409,186 @@ contains
   end subroutine tree_order
 
   !> Fill model data from a checked scene in tree order.
-  subroutine fill_model(sc, order, inboard, d)
+  subroutine fill_model(sc, order, inboard, d, error)
     type(scene_t), intent(in) :: sc
     integer, intent(in) :: order(:), inboard(:)
     type(model_data), intent(out) :: d
-    integer :: nb, b, i, j, n, k, m, pos_in(size(order))
-    character(len=:), allocatable :: kind
+    type(error_type), allocatable, intent(out) :: error
+    integer :: nb, b, i, j, k, m, nmod, pos_in(size(order))
     nb = size(order)
     do b = 1, nb
       pos_in(order(b)) = b
     end do
-    n = 0
+    d%nb = nb
+    d%nj = 0; nmod = 0; d%mmax = 0
     do b = 2, nb
-      n = n + joint_ndof(sc%joints(inboard(order(b)))%kind)
+      d%nj = d%nj + joint_ndof(sc%joints(inboard(order(b)))%kind)
+      associate(bs => sc%bodies(order(b)))
+        if (bs%kind == 'beam') then
+          nmod = nmod + bs%modes_y + bs%modes_z
+          d%mmax = max(d%mmax, bs%modes_y + bs%modes_z)
+        end if
+      end associate
     end do
-    d%nb = nb; d%n = n
-    allocate(d%body_name(nb), d%joint_name(nb), d%parent(nb), d%c0(nb), d%nc(nb), d%mass(nb), d%com(3, nb), &
-      & d%inertia(3, 3, nb), d%at(3, nb), d%prim(n), d%cbody(n), d%axis(3, n), d%qname(n), d%qdname(n))
+    d%n = d%nj + nmod
+    associate(n => d%n, mx => d%mmax)
+      allocate(d%body_name(nb), d%joint_name(nb), d%parent(nb), d%c0(nb), d%nc(nb), d%mass(nb), d%com(3, nb), &
+        & d%inertia(3, 3, nb), d%at(3, nb), d%prim(n), d%cbody(n), d%cgrp(n), d%axis(3, n), d%qname(n), &
+        & d%qdname(n), d%flexible(nb), d%nm(nb), d%a0(nb), d%flex(nb), d%fwork(nb), d%bshape(nb), &
+        & d%att_psi(3, mx, nb), d%att_phi(3, mx, nb), d%cm(6, mx, nb), d%mva(6, mx, nb), d%wam(mx, nb))
+    end associate
     d%parent = 0; d%c0 = 1; d%nc = 0; d%mass = 0.0_dp; d%com = 0.0_dp; d%inertia = 0.0_dp; d%at = 0.0_dp
-    d%joint_name = ''
+    d%joint_name = ''; d%flexible = .false.; d%nm = 0; d%a0 = d%n + 1
+    d%att_psi = 0.0_dp; d%att_phi = 0.0_dp; d%cm = 0.0_dp; d%mva = 0.0_dp; d%wam = 0.0_dp
     d%body_name(1) = sc%bodies(order(1))%name
-    k = 0
+    k = 0; m = d%nj
     do b = 2, nb
       i = order(b); j = inboard(i)
       d%body_name(b) = sc%bodies(i)%name
       d%joint_name(b) = sc%joints(j)%name
       d%parent(b) = pos_in(body_index(sc, sc%joints(j)%parent))
-      d%mass(b) = sc%bodies(i)%mass
-      d%com(:, b) = sc%bodies(i)%com
-      d%inertia(:, :, b) = inertia_matrix(sc%bodies(i)%inertia)
       d%at(:, b) = sc%joints(j)%at
-      kind = trim(sc%joints(j)%kind)
-      d%c0(b) = k + 1
-      d%nc(b) = joint_ndof(kind)
-      select case (kind)
-      case ('revolute', 'prismatic')
-        k = k + 1
-        d%axis(:, k) = sc%joints(j)%axis/norm2(sc%joints(j)%axis)
-        d%prim(k) = merge(prim_revolute, prim_prismatic, kind == 'revolute')
-      case ('spherical')
-        do m = 1, 3
-          d%axis(:, k + m) = unit_axes(:, m); d%prim(k + m) = prim_revolute
-        end do
-        k = k + 3
-      case ('free')
-        do m = 1, 3
-          d%axis(:, k + m) = unit_axes(:, m); d%prim(k + m) = prim_prismatic
-          d%axis(:, k + 3 + m) = unit_axes(:, m); d%prim(k + 3 + m) = prim_revolute
-        end do
-        k = k + 6
-      end select
-      do m = 1, d%nc(b)
-        d%cbody(d%c0(b) + m - 1) = b
-        if (d%nc(b) == 1) then
-          d%qname(k) = trim(sc%joints(j)%name) // '.q'
-          d%qdname(k) = trim(sc%joints(j)%name) // '.qd'
-        else
-          d%qname(d%c0(b) + m - 1) = trim(sc%joints(j)%name) // '.q' // itoa(m)
-          d%qdname(d%c0(b) + m - 1) = trim(sc%joints(j)%name) // '.qd' // itoa(m)
+      call add_joint(sc%joints(j), b, k, d)
+      if (sc%bodies(i)%kind == 'beam') then
+        call add_beam(sc, i, b, m, d, error); if (allocated(error)) return
+      else
+        d%mass(b) = sc%bodies(i)%mass
+        d%com(:, b) = sc%bodies(i)%com
+        d%inertia(:, :, b) = inertia_matrix(sc%bodies(i)%inertia)
+      end if
+    end do
+    call fill_children(d)
+    do b = 2, nb
+      if (d%nm(d%parent(b)) > 0) then
+        call flexible_point(sc, d, d%parent(b), d%at(:, b), "joint '" // trim(d%joint_name(b)) // "'", &
+          & d%att_psi(:, :, b), d%att_phi(:, :, b), error); if (allocated(error)) return
+      end if
+    end do
+    call fill_loads_markers(sc, pos_in, d, error); if (allocated(error)) return
+    allocate(d%rot(3, 3, nb), d%pos(3, nb), d%vel(6, nb), d%acc(6, nb), d%s(6, d%n), d%i6(6, 6, nb), &
+      & d%w(6, nb), d%ic(6, 6, nb), d%wc(6, nb), d%mm(d%n, d%n), d%lf(d%n, d%n), d%p(d%n), d%tau(d%n))
+    d%i6 = 0.0_dp; d%w = 0.0_dp; d%ic = 0.0_dp; d%wc = 0.0_dp; d%mm = 0.0_dp; d%tau = 0.0_dp; d%s = 0.0_dp
+  end subroutine fill_model
+
+  !> Expand joint jt of body b into primitives, coordinates k+1 ... (k is advanced).
+  subroutine add_joint(jt, b, k, d)
+    type(joint_spec), intent(in) :: jt
+    integer, intent(in) :: b
+    integer, intent(inout) :: k
+    type(model_data), intent(inout) :: d
+    integer :: m
+    d%c0(b) = k + 1
+    d%nc(b) = joint_ndof(jt%kind)
+    select case (trim(jt%kind))
+    case ('revolute', 'prismatic')
+      d%axis(:, k + 1) = jt%axis/norm2(jt%axis)
+      d%prim(k + 1) = merge(prim_revolute, prim_prismatic, jt%kind == 'revolute')
+    case ('spherical')
+      do m = 1, 3
+        d%axis(:, k + m) = unit_axes(:, m); d%prim(k + m) = prim_revolute
+      end do
+    case ('free')
+      do m = 1, 3
+        d%axis(:, k + m) = unit_axes(:, m); d%prim(k + m) = prim_prismatic
+        d%axis(:, k + 3 + m) = unit_axes(:, m); d%prim(k + 3 + m) = prim_revolute
+      end do
+    end select
+    do m = 1, d%nc(b)
+      d%cbody(k + m) = b; d%cgrp(k + m) = b
+      if (d%nc(b) == 1) then
+        d%qname(k + m) = trim(jt%name) // '.q'
+        d%qdname(k + m) = trim(jt%name) // '.qd'
+      else
+        d%qname(k + m) = trim(jt%name) // '.q' // itoa(m)
+        d%qdname(k + m) = trim(jt%name) // '.qd' // itoa(m)
+      end if
+    end do
+    k = k + d%nc(b)
+  end subroutine add_joint
+
+  !> Build beam i of the scene as model body b; its modal coordinates follow index m.
+  subroutine add_beam(sc, i, b, m, d, error)
+    type(scene_t), intent(in) :: sc
+    integer, intent(in) :: i, b
+    integer, intent(inout) :: m
+    type(model_data), intent(inout) :: d
+    type(error_type), allocatable, intent(out) :: error
+    real(dp) :: area, iy, iz
+    integer :: k, nmb
+    associate(bs => sc%bodies(i))
+      if (bs%r_outer /= unset) then
+        area = pi*(bs%r_outer**2 - bs%r_inner**2)
+        iy = pi/4.0_dp*(bs%r_outer**4 - bs%r_inner**4); iz = iy
+      else
+        area = bs%area; iy = bs%iy; iz = bs%iz
+      end if
+      call build_beam(bs%length, bs%youngs_modulus, bs%density, area, iy, iz, bs%n_elements, bs%modes_y, &
+        & bs%modes_z, bs%modal_damping, "beam '" // trim(bs%name) // "'", d%flex(b), d%bshape(b), error)
+      if (allocated(error)) then
+        error%message = where_body(sc, i) // ': ' // error%message; return
+      end if
+      nmb = bs%modes_y + bs%modes_z
+      d%flexible(b) = .true.
+      d%nm(b) = nmb
+      d%a0(b) = m + 1
+      d%mass(b) = d%flex(b)%mass
+      allocate(d%fwork(b)%wa(3, 3, 0:nmb), d%fwork(b)%cr(3, nmb))
+      do k = 1, nmb
+        d%cbody(m + k) = b; d%cgrp(m + k) = d%nb + b
+        d%qname(m + k) = trim(bs%name) // '.a' // itoa(k)
+        d%qdname(m + k) = trim(bs%name) // '.ad' // itoa(k)
+        d%prim(m + k) = 0; d%axis(:, m + k) = 0.0_dp
+      end do
+      m = m + nmb
+    end associate
+  end subroutine add_beam
+
+  !> Children lists of every body.
+  subroutine fill_children(d)
+    type(model_data), intent(inout) :: d
+    integer :: b, k, c
+    allocate(d%child_ptr(d%nb + 1), d%child_idx(max(d%nb - 1, 1)))
+    k = 0
+    do b = 1, d%nb
+      d%child_ptr(b) = k + 1
+      do c = 2, d%nb
+        if (d%parent(c) == b) then
+          k = k + 1; d%child_idx(k) = c
         end if
       end do
     end do
-    call fill_loads_markers(sc, pos_in, d)
-    allocate(d%rot(3, 3, nb), d%pos(3, nb), d%vel(6, nb), d%acc(6, nb), d%s(6, n), d%i6(6, 6, nb), d%w(6, nb), &
-      & d%ic(6, 6, nb), d%wc(6, nb), d%mm(n, n), d%lf(n, n), d%p(n), d%tau(n))
-    d%i6 = 0.0_dp; d%w = 0.0_dp; d%ic = 0.0_dp; d%wc = 0.0_dp; d%mm = 0.0_dp; d%tau = 0.0_dp
-  end subroutine fill_model
+    d%child_ptr(d%nb + 1) = k + 1
+  end subroutine fill_children
 
-  subroutine fill_loads_markers(sc, pos_in, d)
+  !> Mode shapes at point r (body frame) of flexible body b; the point must lie on the beam.
+  subroutine flexible_point(sc, d, b, r, what, psi, phi, error)
+    type(scene_t), intent(in) :: sc
+    type(model_data), intent(in) :: d
+    integer, intent(in) :: b
+    real(dp), intent(in) :: r(3)
+    character(len=*), intent(in) :: what
+    real(dp), intent(out) :: psi(:, :), phi(:, :)
+    type(error_type), allocatable, intent(out) :: error
+    real(dp) :: len_b
+    len_b = d%bshape(b)%length
+    if (r(1) < -1.0e-9_dp*len_b .or. r(1) > len_b*(1.0_dp + 1.0e-9_dp)) then
+      call fatal_error(error, sc%file // ': ' // what // ': at: x = ' // fmt(r(1)) // " lies outside beam '" // &
+        & trim(d%body_name(b)) // "' (0 to " // fmt(len_b) // ' m along its x axis)'); return
+    end if
+    psi = 0.0_dp; phi = 0.0_dp
+    call beam_point_shapes(d%bshape(b), r, psi(:, 1:d%nm(b)), phi(:, 1:d%nm(b)))
+  end subroutine flexible_point
+
+  subroutine fill_loads_markers(sc, pos_in, d, error)
     type(scene_t), intent(in) :: sc
     integer, intent(in) :: pos_in(:)
     type(model_data), intent(inout) :: d
+    type(error_type), allocatable, intent(out) :: error
     integer :: i, j, b
+    real(dp), allocatable :: phi(:, :)
     d%effect_on(effect_gravity) = sc%effects%gravity
     d%effect_on(effect_joint_drives) = sc%effects%joint_drives .and. size(sc%drives) > 0
+    d%effect_on(effect_modal_damping) = sc%effects%modal_damping .and. any(d%nm > 0)
     d%gravity = sc%gravity
     d%n_drives = size(sc%drives)
     allocate(d%drive_coord(d%n_drives), d%drive_par(4, d%n_drives))
@@ -432,11 +601,18 @@ contains
       d%drive_par(:, i) = [sc%drives(i)%offset, sc%drives(i)%amplitude, sc%drives(i)%frequency, sc%drives(i)%phase]
     end do
     d%n_markers = size(sc%markers)
-    allocate(d%marker_name(d%n_markers), d%marker_body(d%n_markers), d%marker_at(3, d%n_markers))
+    allocate(d%marker_name(d%n_markers), d%marker_body(d%n_markers), d%marker_at(3, d%n_markers), &
+      & d%marker_psi(3, d%mmax, d%n_markers), phi(3, d%mmax))
+    d%marker_psi = 0.0_dp
     do i = 1, d%n_markers
       d%marker_name(i) = sc%markers(i)%name
-      d%marker_body(i) = pos_in(body_index(sc, sc%markers(i)%body))
+      b = pos_in(body_index(sc, sc%markers(i)%body))
+      d%marker_body(i) = b
       d%marker_at(:, i) = sc%markers(i)%at
+      if (d%nm(b) > 0) then
+        call flexible_point(sc, d, b, sc%markers(i)%at, "marker '" // trim(sc%markers(i)%name) // "'", &
+          & d%marker_psi(:, :, i), phi, error); if (allocated(error)) return
+      end if
     end do
   end subroutine fill_loads_markers
 

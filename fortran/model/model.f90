@@ -4,10 +4,11 @@ module pymr_model
   use pymr_error, only : error_type, prefix_error
   use pymr_lapack, only : potrf, potrs
   use pymr_integrator_ode, only : ode_system
-  use pymr_model_types, only : model_data, effect_gravity, effect_joint_drives
+  use pymr_model_types, only : model_data, effect_gravity, effect_joint_drives, effect_modal_damping
   use pymr_model_kinematics, only : forward_kinematics
   use pymr_model_assembly, only : body_terms, composite_terms, assemble_mass, assemble_rhs, kinetic_energy
-  use pymr_model_effects, only : add_gravity, add_joint_drives, gravity_potential
+  use pymr_model_effects, only : add_gravity, add_joint_drives, add_modal_damping, gravity_potential, &
+    & elastic_potential
   implicit none
   private
   public :: model_t
@@ -31,8 +32,9 @@ contains
     real(dp), intent(in) :: t, q(:), qd(:)
     associate(d => self%d)
       call forward_kinematics(d, q, qd)
-      call body_terms(d)
+      call body_terms(d, q, qd)
       if (d%effect_on(effect_gravity)) call add_gravity(d)
+      if (d%effect_on(effect_modal_damping)) call add_modal_damping(d, qd)
       d%tau = 0.0_dp
       if (d%effect_on(effect_joint_drives)) call add_joint_drives(d, t)
       call composite_terms(d)
@@ -90,15 +92,15 @@ contains
     end if
   end function model_component_name
 
-  !> Kinetic and potential (gravity, when on) energy (J) at (q, qd).
+  !> Kinetic and potential (elastic, and gravity when on) energy (J) at (q, qd).
   subroutine model_energy(self, q, qd, kinetic, potential)
     class(model_t), intent(inout) :: self
     real(dp), intent(in) :: q(:), qd(:)
     real(dp), intent(out) :: kinetic, potential
     call forward_kinematics(self%d, q, qd)
-    call body_terms(self%d)
-    kinetic = kinetic_energy(self%d)
-    potential = 0.0_dp
-    if (self%d%effect_on(effect_gravity)) potential = gravity_potential(self%d)
+    call body_terms(self%d, q, qd)
+    kinetic = kinetic_energy(self%d, qd)
+    potential = elastic_potential(self%d, q)
+    if (self%d%effect_on(effect_gravity)) potential = potential + gravity_potential(self%d)
   end subroutine model_energy
 end module pymr_model

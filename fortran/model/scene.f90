@@ -28,16 +28,24 @@ module pymr_model_scene
   type :: effects_spec
     logical :: gravity = .false.
     logical :: joint_drives = .false.
+    logical :: modal_damping = .false.
   end type effects_spec
 
   !> One &body group.
   type :: body_spec
     character(len=name_len) :: name = ''
-    !> 'ground', 'rigid' (later: 'beam', 'modal').
+    !> 'ground', 'rigid', 'beam' (later: 'modal').
     character(len=16) :: kind = ''
     !> Mass (kg), centre of mass in the body frame (m), inertia about the centre of
     !> mass in body axes: Ixx Iyy Izz Ixy Ixz Iyz (kg m^2).
     real(dp) :: mass = unset, com(3) = 0.0_dp, inertia(6) = unset
+    !> Beam: length (m), Young's modulus (Pa), density (kg/m^3), tube radii (m) or section
+    !> area (m^2) and second moments iy, iz (m^4), elements, modes per plane.
+    real(dp) :: length = unset, youngs_modulus = unset, density = unset
+    real(dp) :: r_outer = unset, r_inner = 0.0_dp, area = unset, iy = unset, iz = unset
+    integer :: n_elements = 20, modes_y = 0, modes_z = 0
+    !> Modal damping, fraction of critical (used when &effects modal_damping is on).
+    real(dp) :: modal_damping = 0.0_dp
     !> Line of the group in the file (for messages).
     integer :: line = 0
   end type body_spec

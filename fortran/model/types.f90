@@ -2,22 +2,26 @@
 !> effect plan and the work arrays of one evaluation (allocated once at build).
 module pymr_model_types
   use pymr_kinds, only : dp, name_len
+  use pymr_model_flexbody, only : flex_data, flex_work
+  use pymr_model_beam_modes, only : beam_shape
   implicit none
   private
   public :: model_data, prim_revolute, prim_prismatic
-  public :: effect_gravity, effect_joint_drives, n_effects, effect_names
+  public :: effect_gravity, effect_joint_drives, effect_modal_damping, n_effects, effect_names
 
   !> Kinds of one-coordinate joint primitives: every joint is a chain of them.
   integer, parameter :: prim_revolute = 1, prim_prismatic = 2
 
   !> Effect identifiers (index into counters and names).
-  integer, parameter :: effect_gravity = 1, effect_joint_drives = 2, n_effects = 2
-  character(len=*), parameter :: effect_names(n_effects) = [character(len=16) :: 'gravity', 'joint_drives']
+  integer, parameter :: effect_gravity = 1, effect_joint_drives = 2, effect_modal_damping = 3, n_effects = 3
+  character(len=*), parameter :: effect_names(n_effects) = [character(len=16) :: 'gravity', 'joint_drives', &
+    & 'modal_damping']
 
   !> Everything one model evaluation needs.
   type :: model_data
-    !> Bodies (1 = ground), coordinates.
-    integer :: nb = 0, n = 0
+    !> Bodies (1 = ground), coordinates (joint coordinates 1..nj first, then modal ones),
+    !> the largest number of modes of one body.
+    integer :: nb = 0, n = 0, nj = 0, mmax = 0
     character(len=name_len), allocatable :: body_name(:), joint_name(:)
     !> Parent body, first coordinate and number of coordinates of each body's inboard joint.
     integer, allocatable :: parent(:), c0(:), nc(:)
@@ -25,6 +29,23 @@ module pymr_model_types
     real(dp), allocatable :: mass(:), com(:, :), inertia(:, :, :)
     !> Joint point (parent frame, m).
     real(dp), allocatable :: at(:, :)
+    !> Flexible bodies: flag, modes of each body and index of its first modal coordinate.
+    logical, allocatable :: flexible(:)
+    integer, allocatable :: nm(:), a0(:)
+    !> Children of each body: child_idx(child_ptr(b):child_ptr(b+1)-1).
+    integer, allocatable :: child_ptr(:), child_idx(:)
+    !> Output group of each coordinate (the joint's body, or nb + body for modal ones).
+    integer, allocatable :: cgrp(:)
+    !> Invariants, evaluation work and (beams) mode shapes of each flexible body.
+    type(flex_data), allocatable :: flex(:)
+    type(flex_work), allocatable :: fwork(:)
+    type(beam_shape), allocatable :: bshape(:)
+    !> Mode shapes of the parent at each body's joint point: translation, rotation (3, mmax, nb).
+    real(dp), allocatable :: att_psi(:, :, :), att_phi(:, :, :)
+    !> Spatial columns of the parent's modal rates at each body's joint point (6, mmax, nb).
+    real(dp), allocatable :: cm(:, :, :)
+    !> Flexible bodies' coupling columns (6, mmax, nb) and modal bias forces (mmax, nb).
+    real(dp), allocatable :: mva(:, :, :), wam(:, :)
     !> Per coordinate: primitive kind, axis in the frame before the primitive, owning body.
     integer, allocatable :: prim(:), cbody(:)
     real(dp), allocatable :: axis(:, :)
@@ -35,6 +56,8 @@ module pymr_model_types
     character(len=name_len), allocatable :: marker_name(:)
     integer, allocatable :: marker_body(:)
     real(dp), allocatable :: marker_at(:, :)
+    !> Mode shapes at markers on flexible bodies (3, mmax, n_markers).
+    real(dp), allocatable :: marker_psi(:, :, :)
     !> Effect plan: which effects are on, and their evaluation counters.
     logical :: effect_on(n_effects) = .false.
     integer :: effect_evals(n_effects) = 0

@@ -1,0 +1,152 @@
+!> Built-in Euler-Bernoulli beam: cubic Hermite elements along the body x axis, clamped
+!> at the body frame origin, bending in the x-y plane (v, rotation dv/dx about z) and the
+!> x-z plane (w, rotation -dw/dx about y); line mass (no rotary inertia of the section).
+!> Modes from K v = lambda M v per plane with LAPACK dsygvd, mass-normalised.
+module pymr_model_beam_modes
+  use pymr_kinds, only : dp, pi
+  use pymr_error, only : error_type
+  use pymr_lapack, only : sygvd
+  use pymr_model_flexbody, only : flex_data, flex_invariants
+  implicit none
+  private
+  public :: beam_shape, build_beam, beam_point_shapes, gauss4
+
+  !> Gauss-Legendre points and weights on [0, 1] (exact for degree 7).
+  real(dp), parameter :: gauss4(2, 4) = reshape([ &
+    & 0.5_dp - 0.4305681557970262_dp, 0.1739274225687269_dp, &
+    & 0.5_dp - 0.1699905127001435_dp, 0.3260725774312731_dp, &
+    & 0.5_dp + 0.1699905127001435_dp, 0.3260725774312731_dp, &
+    & 0.5_dp + 0.4305681557970262_dp, 0.1739274225687269_dp], [2, 4])
+
+  !> Mode shapes of a beam at its nodes, for interpolation at attachments and markers.
+  type :: beam_shape
+    real(dp) :: length = 0.0_dp
+    integer :: ne = 0, my = 0, mz = 0
+    !> Nodal [v_0, v'_0, v_1, v'_1, ...] per mode (node 0 clamped): vy(2*(ne+1), my), vz(..., mz).
+    real(dp), allocatable :: vy(:, :), vz(:, :)
+  end type beam_shape
+
+contains
+
+  !> Hermite shape functions and their x-derivatives at xi in [0,1], element length le.
+  pure subroutine hermite(xi, le, n, dn)
+    real(dp), intent(in) :: xi, le
+    real(dp), intent(out) :: n(4), dn(4)
+    n = [1.0_dp - 3*xi**2 + 2*xi**3, le*(xi - 2*xi**2 + xi**3), 3*xi**2 - 2*xi**3, le*(-xi**2 + xi**3)]
+    dn = [(-6*xi + 6*xi**2)/le, 1.0_dp - 4*xi + 3*xi**2, (6*xi - 6*xi**2)/le, -2*xi + 3*xi**2]
+  end subroutine hermite
+
+  !> Build a beam: modes of each plane, mass points at the Gauss points, invariants.
+  subroutine build_beam(length, e, rho, area, iy, iz, ne, my, mz, zeta, what, fd, bs, error)
+    real(dp), intent(in) :: length, e, rho, area, iy, iz, zeta
+    integer, intent(in) :: ne, my, mz
+    !> Name of the body for messages.
+    character(len=*), intent(in) :: what
+    type(flex_data), intent(out) :: fd
+    type(beam_shape), intent(out) :: bs
+    type(error_type), allocatable, intent(out) :: error
+    real(dp), allocatable :: lam_y(:), lam_z(:), s(:, :), mp(:), psi(:, :, :)
+    integer :: np, el, g, k, m
+    real(dp) :: le, xi, nn(4), dn(4)
+    bs%length = length; bs%ne = ne; bs%my = my; bs%mz = mz
+    le = length/ne
+    call plane_modes(e*iz, rho*area, le, ne, my, what // ' (bending in the x-y plane)', bs%vy, lam_y, error)
+    if (allocated(error)) return
+    call plane_modes(e*iy, rho*area, le, ne, mz, what // ' (bending in the x-z plane)', bs%vz, lam_z, error)
+    if (allocated(error)) return
+    m = my + mz
+    np = 4*ne
+    allocate(s(3, np), mp(np), psi(3, m, np))
+    s = 0.0_dp; psi = 0.0_dp
+    do el = 1, ne
+      do g = 1, 4
+        xi = gauss4(1, g)
+        k = 4*(el - 1) + g
+        s(1, k) = (el - 1 + xi)*le
+        mp(k) = rho*area*le*gauss4(2, g)
+        call hermite(xi, le, nn, dn)
+        psi(2, 1:my, k) = matmul(nn, bs%vy(2*el-1:2*el+2, :))
+        psi(3, my+1:m, k) = matmul(nn, bs%vz(2*el-1:2*el+2, :))
+      end do
+    end do
+    call flex_invariants(s, mp, psi, fd)
+    fd%omega2 = [lam_y, lam_z]
+    fd%damp = 2.0_dp*zeta*sqrt(max(fd%omega2, 0.0_dp))
+  end subroutine build_beam
+
+  !> Lowest `nm` modes of one bending plane: nodal vectors (with the clamped node 0 as zeros),
+  !> M-normalised, signed so that the tip displacement is positive.
+  subroutine plane_modes(ei, rhoa, le, ne, nm, what, v, lam, error)
+    real(dp), intent(in) :: ei, rhoa, le
+    integer, intent(in) :: ne, nm
+    character(len=*), intent(in) :: what
+    real(dp), allocatable, intent(out) :: v(:, :), lam(:)
+    type(error_type), allocatable, intent(out) :: error
+    real(dp), allocatable :: kk(:, :), mm(:, :), w(:)
+    real(dp) :: ke(4, 4), me(4, 4), nn(4), dn(4)
+    integer :: nd, el, g, i0, i, j, k
+    nd = 2*ne
+    allocate(kk(nd, nd), mm(nd, nd), w(nd), v(nd + 2, nm), lam(nm))
+    kk = 0.0_dp; mm = 0.0_dp
+    ke = reshape([12.0_dp, 6*le, -12.0_dp, 6*le, 6*le, 4*le**2, -6*le, 2*le**2, &
+      & -12.0_dp, -6*le, 12.0_dp, -6*le, 6*le, 2*le**2, -6*le, 4*le**2], [4, 4])*ei/le**3
+    me = 0.0_dp
+    do g = 1, 4
+      call hermite(gauss4(1, g), le, nn, dn)
+      do j = 1, 4
+        me(:, j) = me(:, j) + rhoa*le*gauss4(2, g)*nn*nn(j)
+      end do
+    end do
+    do el = 1, ne
+      i0 = 2*(el - 1) - 2        ! global index offset (node 0 removed)
+      do j = 1, 4
+        if (i0 + j < 1) cycle
+        do i = 1, 4
+          if (i0 + i < 1) cycle
+          kk(i0 + i, i0 + j) = kk(i0 + i, i0 + j) + ke(i, j)
+          mm(i0 + i, i0 + j) = mm(i0 + i, i0 + j) + me(i, j)
+        end do
+      end do
+    end do
+    call sygvd(kk, mm, w, what, error); if (allocated(error)) return
+    v = 0.0_dp
+    do k = 1, nm
+      v(3:, k) = kk(:, k)
+      if (kk(nd - 1, k) < 0.0_dp) v(3:, k) = -v(3:, k)
+      lam(k) = w(k)
+    end do
+  end subroutine plane_modes
+
+  !> Translational and rotational mode shapes (3 x m) at point r of the body frame:
+  !> Hermite interpolation at x = r(1); the section's small rotation carries the offset
+  !> (0, r(2), r(3)).
+  pure subroutine beam_point_shapes(bs, r, psi, phi)
+    type(beam_shape), intent(in) :: bs
+    real(dp), intent(in) :: r(3)
+    real(dp), intent(out) :: psi(:, :), phi(:, :)
+    real(dp) :: le, x, xi, nn(4), dn(4), off(3), dv, dw
+    integer :: el, k, m
+    m = bs%my + bs%mz
+    le = bs%length/bs%ne
+    x = min(max(r(1), 0.0_dp), bs%length)
+    el = min(int(x/le) + 1, bs%ne)
+    xi = x/le - (el - 1)
+    call hermite(xi, le, nn, dn)
+    psi = 0.0_dp; phi = 0.0_dp
+    off = [0.0_dp, r(2), r(3)]
+    do k = 1, bs%my
+      dv = dot_product(dn, bs%vy(2*el-1:2*el+2, k))
+      psi(2, k) = dot_product(nn, bs%vy(2*el-1:2*el+2, k))
+      phi(3, k) = dv
+    end do
+    do k = 1, bs%mz
+      dw = dot_product(dn, bs%vz(2*el-1:2*el+2, k))
+      psi(3, bs%my + k) = dot_product(nn, bs%vz(2*el-1:2*el+2, k))
+      phi(2, bs%my + k) = -dw
+    end do
+    do k = 1, m
+      psi(:, k) = psi(:, k) + [phi(2, k)*off(3) - phi(3, k)*off(2), phi(3, k)*off(1) - phi(1, k)*off(3), &
+        & phi(1, k)*off(2) - phi(2, k)*off(1)]
+    end do
+  end subroutine beam_point_shapes
+end module pymr_model_beam_modes

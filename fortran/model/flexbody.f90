@@ -1,0 +1,208 @@
+!> Modal flexible bodies in the floating frame of reference (METHOD.md section 1).
+!>
+!> A flexible body is described by mass points: position s_p (body frame), mass m_p and
+!> translational mode shapes Psi_p (3 x m). For a built-in beam the points are the Gauss
+!> points of its Hermite elements, so sums over them reproduce the consistent
+!> finite-element mass matrix exactly. With Z_p = [s_p, Psi_p] (3 x (1+m)) all inertia
+!> invariants follow from the first moment F = sum m_p Z_p and the second-moment tensor
+!> W(i,alpha,j,beta) = sum m_p Z_p(i,alpha) Z_p(j,beta), computed once. The deformed
+!> point is c_p = Z_p [1; a].
+module pymr_model_flexbody
+  use pymr_kinds, only : dp
+  use pymr_model_spatial, only : cross, skew, rigid_inertia
+  implicit none
+  private
+  public :: flex_data, flex_invariants, flex_body_terms, flex_work, small_rotation, point_shapes
+
+  !> Invariants and modal properties of one flexible body.
+  type :: flex_data
+    !> Number of modes.
+    integer :: m = 0
+    !> Total mass (kg).
+    real(dp) :: mass = 0.0_dp
+    !> First moments F(3, 0:m) and second moments W(3, 0:m, 3, 0:m).
+    real(dp), allocatable :: first(:, :), w(:, :, :, :)
+    !> Modal mass matrix sum m_p Psi_p^T Psi_p (identity for mass-normalised modes).
+    real(dp), allocatable :: mmm(:, :)
+    !> Squared circular frequencies (rad^2/s^2) and modal damping 2 zeta omega (1/s).
+    real(dp), allocatable :: omega2(:), damp(:)
+    !> Mode data at the mass points (kept for the modal file writer): s(3,np), mp(np), psi(3,m,np)
+    real(dp), allocatable :: ps(:, :), pm(:), ppsi(:, :, :)
+  end type flex_data
+
+  !> Work arrays of one evaluation of a flexible body.
+  type :: flex_work
+    !> Wa(i,j,beta) = sum m_p c_p(i) Z_p(j,beta).
+    real(dp), allocatable :: wa(:, :, :)
+    !> Deformed first moment S (3), rotational-modal coupling Cr(3,m), inertia J about the origin.
+    real(dp), allocatable :: cr(:, :)
+    real(dp) :: s(3) = 0.0_dp, j(3, 3) = 0.0_dp
+  end type flex_work
+
+contains
+
+  !> Invariants from mass points: s(3,np) positions, mp(np) masses, psi(3,m,np) mode shapes.
+  subroutine flex_invariants(s, mp, psi, fd)
+    real(dp), intent(in) :: s(:, :), mp(:), psi(:, :, :)
+    type(flex_data), intent(inout) :: fd
+    integer :: p, m, i, j, al, be
+    real(dp) :: z(3, 0:size(psi, 2))
+    m = size(psi, 2)
+    fd%m = m
+    allocate(fd%first(3, 0:m), fd%w(3, 0:m, 3, 0:m), fd%mmm(m, m))
+    fd%first = 0.0_dp; fd%w = 0.0_dp
+    fd%mass = sum(mp)
+    do p = 1, size(mp)
+      z(:, 0) = s(:, p)
+      z(:, 1:m) = psi(:, :, p)
+      fd%first = fd%first + mp(p)*z
+      do be = 0, m
+        do j = 1, 3
+          do al = 0, m
+            do i = 1, 3
+              fd%w(i, al, j, be) = fd%w(i, al, j, be) + mp(p)*z(i, al)*z(j, be)
+            end do
+          end do
+        end do
+      end do
+    end do
+    do al = 1, m
+      do be = 1, m
+        fd%mmm(al, be) = fd%w(1, al, 1, be) + fd%w(2, al, 2, be) + fd%w(3, al, 3, be)
+      end do
+    end do
+    fd%ps = s; fd%pm = mp; fd%ppsi = psi
+  end subroutine flex_invariants
+
+  !> Mode shapes of a point at `x` of the body frame: translation psi = psi0 + phi0 x r
+  !> for a point offset r from a node with shapes psi0, phi0 (small rotation of the section).
+  pure subroutine point_shapes(psi0, phi0, r, psi)
+    real(dp), intent(in) :: psi0(:, :), phi0(:, :), r(3)
+    real(dp), intent(out) :: psi(:, :)
+    integer :: k
+    do k = 1, size(psi0, 2)
+      psi(:, k) = psi0(:, k) + cross(phi0(:, k), r)
+    end do
+  end subroutine point_shapes
+
+  !> Spatial mass matrix blocks and bias of a flexible body.
+  !>
+  !> Inputs: pose (rot, pos), spatial velocity vel = [v_O; w] and bias acceleration acc
+  !> (inertial Pluecker), modal coordinates a and rates ad.
+  !> Outputs: i6 (6x6, the deformed body's spatial inertia about the origin),
+  !> mva (6 x m, coupling of frame motion and modal rates), and the bias terms
+  !> wv (6, spatial wrench) and wam (m): inertia forces at zero joint and modal
+  !> accelerations plus the elastic forces omega^2 a. Gravity and damping are effects.
+  pure subroutine flex_body_terms(fd, wk, rot, pos, vel, acc, a, ad, i6, mva, wv, wam)
+    type(flex_data), intent(in) :: fd
+    type(flex_work), intent(inout) :: wk
+    real(dp), intent(in) :: rot(3, 3), pos(3), vel(6), acc(6), a(:), ad(:)
+    real(dp), intent(out) :: i6(6, 6), mva(:, :), wv(6), wam(:)
+    integer :: m, k, l, al, be
+    real(dp) :: ah(0:size(a)), d(3), jc(3, 3), cm(3, 3), pd(3), wb(3), alv(3), alw(3)
+    real(dp) :: f(3), n(3), psiad(3), tr, tmp(3)
+    m = fd%m
+    ah(0) = 1.0_dp; ah(1:m) = a
+    ! Wa(i,j,beta) = sum_alpha ah(alpha) W(i,alpha,j,beta); S = F ah; C = sum m c c^T
+    do be = 0, m
+      wk%wa(:, :, be) = 0.0_dp
+      do al = 0, m
+        wk%wa(:, :, be) = wk%wa(:, :, be) + ah(al)*fd%w(:, al, :, be)
+      end do
+    end do
+    wk%s = matmul(fd%first, ah)
+    cm = 0.0_dp
+    do be = 0, m
+      cm = cm + ah(be)*wk%wa(:, :, be)
+    end do
+    tr = cm(1, 1) + cm(2, 2) + cm(3, 3)
+    wk%j = -cm
+    do k = 1, 3
+      wk%j(k, k) = wk%j(k, k) + tr
+    end do
+    ! Cr(:,k) = sum m_p c_p x Psi_p(:,k)
+    do k = 1, m
+      wk%cr(:, k) = [wk%wa(2, 3, k) - wk%wa(3, 2, k), wk%wa(3, 1, k) - wk%wa(1, 3, k), &
+        & wk%wa(1, 2, k) - wk%wa(2, 1, k)]
+    end do
+    ! spatial inertia of the deformed body about the inertial origin
+    d = wk%s/fd%mass
+    jc = wk%j + fd%mass*matmul(skew(d), skew(d))
+    i6 = rigid_inertia(fd%mass, pos + matmul(rot, d), matmul(rot, matmul(jc, transpose(rot))))
+    ! coupling columns [R S1; p x R S1 + R Cr]
+    do k = 1, m
+      tmp = matmul(rot, fd%first(:, k))
+      mva(1:3, k) = tmp
+      mva(4:6, k) = cross(pos, tmp) + matmul(rot, wk%cr(:, k))
+    end do
+    ! body-frame velocities and accelerations of the body origin
+    pd = vel(1:3) + cross(vel(4:6), pos)
+    wb = matmul(transpose(rot), vel(4:6))
+    alv = matmul(transpose(rot), acc(1:3) + cross(acc(4:6), pos) + cross(vel(4:6), pd))
+    alw = matmul(transpose(rot), acc(4:6))
+    ! inertia forces M_bb [alv; alw; 0] + quadratic velocity terms (body frame)
+    psiad = matmul(fd%first(:, 1:m), ad)
+    f = fd%mass*alv + cross(alw, wk%s) + cross(wb, cross(wb, wk%s)) + 2.0_dp*cross(wb, psiad)
+    n = cross(wk%s, alv) + matmul(wk%j, alw) + cross(wb, matmul(wk%j, wb))
+    do l = 1, m
+      tr = wk%wa(1, 1, l) + wk%wa(2, 2, l) + wk%wa(3, 3, l)
+      n = n + 2.0_dp*ad(l)*(wb*tr - matmul(transpose(wk%wa(:, :, l)), wb))
+    end do
+    do k = 1, m
+      tr = wk%wa(1, 1, k) + wk%wa(2, 2, k) + wk%wa(3, 3, k)
+      wam(k) = dot_product(fd%first(:, k), alv) + dot_product(wk%cr(:, k), alw) &
+        & + dot_product(wb, matmul(wk%wa(:, :, k), wb)) - dot_product(wb, wb)*tr
+      do l = 1, m
+        ! 2 sum_p m_p Psi_k . (w x Psi_l) ad_l
+        wam(k) = wam(k) + 2.0_dp*ad(l)*dot_product(wb, gyro(l, k))
+      end do
+      wam(k) = wam(k) + fd%omega2(k)*a(k)
+    end do
+    ! to inertial Pluecker: [R f; R n + p x R f]
+    wv(1:3) = matmul(rot, f)
+    wv(4:6) = matmul(rot, n) + cross(pos, wv(1:3))
+  contains
+    !> sum_p m_p Psi_l x Psi_k (so that Psi_k . (w x Psi_l) summed = w . gyro(l,k))
+    pure function gyro(l, k) result(v)
+      integer, intent(in) :: l, k
+      real(dp) :: v(3)
+      v = [fd%w(2, l, 3, k) - fd%w(3, l, 2, k), fd%w(3, l, 1, k) - fd%w(1, l, 3, k), &
+        & fd%w(1, l, 2, k) - fd%w(2, l, 1, k)]
+    end function gyro
+  end subroutine flex_body_terms
+
+  !> Small rotation of an attachment: R = exp(theta~) (Rodrigues), the left Jacobian
+  !> jl (angular velocity = jl theta_dot) and jd = d(jl)/dt theta_dot.
+  pure subroutine small_rotation(th, thd, r, jl, jd)
+    real(dp), intent(in) :: th(3), thd(3)
+    real(dp), intent(out) :: r(3, 3), jl(3, 3), jd(3)
+    real(dp) :: t, t2, al, be, a1, b1, s(3, 3), c1(3), c2(3), sn, cs, tt
+    integer :: i
+    t2 = dot_product(th, th); t = sqrt(t2)
+    if (t < 0.1_dp) then
+      al = 0.5_dp - t2/24.0_dp + t2**2/720.0_dp - t2**3/40320.0_dp + t2**4/3628800.0_dp
+      be = 1.0_dp/6.0_dp - t2/120.0_dp + t2**2/5040.0_dp - t2**3/362880.0_dp + t2**4/39916800.0_dp
+      a1 = -1.0_dp/12.0_dp + t2/180.0_dp - t2**2/6720.0_dp + t2**3/453600.0_dp - t2**4/47900160.0_dp
+      b1 = -1.0_dp/60.0_dp + t2/1260.0_dp - t2**2/60480.0_dp + t2**3/4989600.0_dp - t2**4/622702080.0_dp
+      sn = t*(1.0_dp - t2/6.0_dp*(1.0_dp - t2/20.0_dp*(1.0_dp - t2/42.0_dp*(1.0_dp - t2/72.0_dp))))
+    else
+      sn = sin(t); cs = cos(t)
+      al = (1.0_dp - cs)/t2
+      be = (t - sn)/(t2*t)
+      a1 = (t*sn - 2.0_dp*(1.0_dp - cs))/(t2*t2)
+      b1 = (1.0_dp - cs)/(t2*t2) - 3.0_dp*(t - sn)/(t2*t2*t)
+    end if
+    s = skew(th)
+    ! R = I + sin(t)/t th~ + (1-cos t)/t^2 th~^2 ; sin(t)/t = 1 - t^2 be
+    tt = 1.0_dp - t2*be
+    r = tt*s + al*matmul(s, s)
+    jl = al*s + be*matmul(s, s)
+    do i = 1, 3
+      r(i, i) = r(i, i) + 1.0_dp
+      jl(i, i) = jl(i, i) + 1.0_dp
+    end do
+    ! d/dt(jl) thd = (a1 th.thd) th x thd + (b1 th.thd) th x (th x thd) + be thd x (th x thd)
+    c1 = cross(th, thd); c2 = cross(th, c1)
+    jd = a1*dot_product(th, thd)*c1 + b1*dot_product(th, thd)*c2 + be*cross(thd, c1)
+  end subroutine small_rotation
+end module pymr_model_flexbody

@@ -1,0 +1,453 @@
+"""Brute-force reference for the equations of motion ``M qdd = P`` of rigid-body scenes.
+
+Independent of the kernel's method (spatial vectors, composite-rigid-body recursion):
+
+* the scene is read by a small namelist parser of its own;
+* every rigid body is replaced by 6 point masses m/6 at com +- d_i e_i along the principal
+  axes of the second-moment matrix J = tr(I)/2 Id - I (d_i = sqrt(3 J_i / m)), which
+  reproduces the body's mass, centre of mass and inertia exactly;
+* the inertial position r_p(q) of every point comes from plain forward kinematics with
+  rotation matrices (Rodrigues' formula), evaluated in a second-order Taylor arithmetic
+  ("jets") along the path q + s qd, with complex entries;
+* the Jacobians J_p = dr_p/dq come from the complex step (q + i h e_k, h = 1e-30: exact to
+  rounding), the velocity-product accelerations (dJ_p/dt) qd = d^2 r_p(q + s qd)/ds^2 at
+  s = 0 from the jets' second coefficient (exact, no differencing);
+* then  M = sum_p m_p J_p^T J_p  and
+        P = sum_p m_p J_p^T g [gravity on] + drive loads - sum_p m_p J_p^T (dJ_p/dt) qd.
+
+Conventions (from the project's design): a body frame coincides with its parent's frame
+shifted to the joint point ``at`` (parent frame) when all coordinates are zero;
+revolute R = R_par Rot(u, q); prismatic p = p_par + R_par (at + u q);
+spherical R = R_par Rx(q1) Ry(q2) Rz(q3); free p = p_par + R_par (at + q[1:3]),
+R = R_par Rx(q4) Ry(q5) Rz(q6); fixed: no coordinates. Coordinates are ordered by bodies
+in tree order, each joint's coordinates in the order above.
+
+Flexible bodies (kind='beam'): an Euler-Bernoulli beam along the body x axis, clamped at the
+body origin, cubic Hermite elements, bending in x-y (v along y, stiffness E Iz) and x-z
+(w along z, stiffness E Iy), line mass rho A only. Its modes (generalised symmetric
+eigenproblem per plane, mass-normalised, tip displacement positive) give the deformed axis
+r(x) = p + R (x e_x + [0, v(x), w(x)]); the beam's kinetic energy is represented exactly by
+point masses rho A le w_g at the 4 Gauss-Legendre points of every element (|r_dot|^2 is a
+polynomial of degree 6 in x on an element). Elastic forces -omega_k^2 a_k, modal damping
+-2 zeta omega_k a_k' when &effects modal_damping is on. A joint on a beam parent sits on the
+deformed axis at ``at`` and turns with the section: joint frame origin p + R (at + Psi a),
+orientation R expm([Phi a]x) (small rotation theta_z = v', theta_y = -w'), evaluated in
+the jets by power series (analytic, so complex steps stay exact). Modal coordinates follow
+all joint coordinates, flexible bodies in tree order, x-y modes before x-z modes.
+"""
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["parse_namelist", "Scene", "point_masses", "point_kinematics", "reference_terms",
+           "reference_energy", "reference_terms_lagrange"]
+
+# ----------------------------------------------------------------------------------------
+# namelist text
+# ----------------------------------------------------------------------------------------
+
+_TOKEN = re.compile(r"""\s*(?:('(?:[^']|'')*'|"(?:[^"]|"")*")|(=)|(,)|(/)|([^\s=,/'"]+))""")
+
+
+def _strip_comments(text: str) -> str:
+    out, quote = [], None
+    for line in text.splitlines():
+        buf = []
+        for c in line:
+            if quote:
+                if c == quote:
+                    quote = None
+            elif c in "'\"":
+                quote = c
+            elif c == "!":
+                break
+            buf.append(c)
+        out.append("".join(buf))
+    return "\n".join(out)
+
+
+def _value(tok: str):
+    if tok[0] in "'\"":
+        return tok[1:-1].replace(tok[0] * 2, tok[0])
+    low = tok.lower()
+    if low in (".true.", ".t.", "t", "true"):
+        return True
+    if low in (".false.", ".f.", "f", "false"):
+        return False
+    if "*" in tok:  # repeat count r*value
+        r, v = tok.split("*", 1)
+        return [_value(v)] * int(r)
+    return float(low.replace("d", "e"))
+
+
+def parse_namelist(text: str) -> list[tuple[str, dict]]:
+    """Groups of a namelist text, in file order: [(group name, {item: value or list})].
+    Scalars stay scalars, several values become a list; names are lower case."""
+    text = _strip_comments(text)
+    groups: list[tuple[str, dict]] = []
+    i = 0
+    while True:
+        m = re.compile(r"[&$](\w+)").search(text, i)
+        if not m:
+            return groups
+        name, i = m.group(1).lower(), m.end()
+        items: dict = {}
+        key, vals, prev = None, [], None
+        while True:
+            t = _TOKEN.match(text, i)
+            if t is None or t.end() == i:
+                raise ValueError(f"&{name}: unterminated group")
+            i = t.end()
+            s, eq, comma, slash, word = t.groups()
+            if slash:
+                break
+            if eq:
+                # the previous word was the item's name, not a value
+                if key is not None:
+                    vals.pop()
+                    items[key] = vals[0] if len(vals) == 1 else vals
+                key, vals = prev.lower(), []
+                continue
+            if comma:
+                continue
+            tok = s or word
+            prev = tok
+            vals.append(tok)
+        if key is not None:
+            items[key] = vals[0] if len(vals) == 1 else vals
+        for k, v in items.items():
+            if isinstance(v, list):
+                flat = []
+                for x in v:
+                    y = _value(x)
+                    flat.extend(y if isinstance(y, list) else [y])
+                items[k] = flat if len(flat) > 1 else flat[0]
+            else:
+                items[k] = _value(v)
+        groups.append((name, items))
+
+
+# ----------------------------------------------------------------------------------------
+# the scene
+# ----------------------------------------------------------------------------------------
+
+NDOF = {"revolute": 1, "prismatic": 1, "fixed": 0, "spherical": 3, "free": 6}
+
+
+def _vec(v, n):
+    a = np.atleast_1d(np.asarray(v, dtype=float))
+    if a.size != n:
+        raise ValueError(f"expected {n} values, got {a.size}")
+    return a
+
+
+@dataclass
+class Body:
+    name: str
+    kind: str
+    mass: float = 0.0
+    com: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    inertia: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
+
+
+@dataclass
+class Joint:
+    name: str
+    kind: str
+    parent: str
+    child: str
+    at: np.ndarray
+    axis: np.ndarray
+    q0: np.ndarray
+    qd0: np.ndarray
+    first: int = 0  # index of the joint's first coordinate
+
+    @property
+    def ndof(self) -> int:
+        return NDOF[self.kind]
+
+
+@dataclass
+class Drive:
+    joint: str
+    coordinate: int
+    offset: float
+    amplitude: float
+    frequency: float
+    phase: float
+
+
+@dataclass
+class Scene:
+    bodies: dict
+    joints: list  # in tree order
+    drives: list
+    gravity: np.ndarray
+    gravity_on: bool
+    drives_on: bool
+    n: int
+
+    @classmethod
+    def from_file(cls, path) -> "Scene":
+        return cls.from_text(Path(path).read_text())
+
+    @classmethod
+    def from_text(cls, text: str) -> "Scene":
+        groups = parse_namelist(text)
+        gravity, gravity_on, drives_on = np.array([0.0, -9.81, 0.0]), False, False
+        bodies: dict[str, Body] = {}
+        joints: list[Joint] = []
+        drives: list[Drive] = []
+        for name, it in groups:
+            if name == "scene" and "gravity" in it:
+                gravity = _vec(it["gravity"], 3)
+            elif name == "effects":
+                gravity_on = bool(it.get("gravity", False))
+                drives_on = bool(it.get("joint_drives", False))
+            elif name == "body":
+                kind = it["kind"].lower()
+                b = Body(it["name"], kind)
+                if kind == "rigid":
+                    b.mass = float(it["mass"])
+                    b.com = _vec(it.get("com", [0, 0, 0]), 3)
+                    ixx, iyy, izz, ixy, ixz, iyz = _vec(it["inertia"], 6)
+                    b.inertia = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+                elif kind != "ground":
+                    raise ValueError(f"body kind {kind!r} not supported by the reference")
+                bodies[b.name] = b
+            elif name == "joint":
+                kind = it["kind"].lower()
+                nd = NDOF[kind]
+                q0 = np.zeros(6)
+                qd0 = np.zeros(6)
+                if "q0" in it:
+                    v = np.atleast_1d(np.asarray(it["q0"], dtype=float)); q0[:v.size] = v
+                if "qd0" in it:
+                    v = np.atleast_1d(np.asarray(it["qd0"], dtype=float)); qd0[:v.size] = v
+                axis = _vec(it.get("axis", [0, 0, 1]), 3)
+                joints.append(Joint(it["name"], kind, it["parent"], it["child"],
+                                    _vec(it.get("at", [0, 0, 0]), 3), axis / np.linalg.norm(axis),
+                                    q0[:nd], qd0[:nd]))
+            elif name == "drive":
+                drives.append(Drive(it["joint"], int(it.get("coordinate", 1)), float(it.get("offset", 0.0)),
+                                    float(it.get("amplitude", 0.0)), float(it.get("frequency", 0.0)),
+                                    float(it.get("phase", 0.0))))
+        # tree order: parents before children, otherwise file order
+        placed = {n for n, b in bodies.items() if b.kind == "ground"}
+        ordered, rest = [], list(joints)
+        while rest:
+            for j in rest:
+                if j.parent in placed:
+                    ordered.append(j); placed.add(j.child); rest.remove(j)
+                    break
+            else:
+                raise ValueError("joints do not form a tree rooted at the ground")
+        n = 0
+        for j in ordered:
+            j.first = n
+            n += j.ndof
+        return cls(bodies, ordered, drives, gravity, gravity_on, drives_on, n)
+
+    def initial_state(self) -> tuple[np.ndarray, np.ndarray]:
+        q = np.concatenate([j.q0 for j in self.joints]) if self.joints else np.zeros(0)
+        qd = np.concatenate([j.qd0 for j in self.joints]) if self.joints else np.zeros(0)
+        return q, qd
+
+    def generalised_drive_forces(self, t: float) -> np.ndarray:
+        f = np.zeros(self.n)
+        if not self.drives_on:
+            return f
+        by_name = {j.name: j for j in self.joints}
+        for d in self.drives:
+            j = by_name[d.joint]
+            f[j.first + d.coordinate - 1] += d.offset + d.amplitude * math.sin(2 * math.pi * d.frequency * t + d.phase)
+        return f
+
+
+def point_masses(mass: float, com: np.ndarray, inertia: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Six point masses (masses (6,), body-frame positions (6, 3)) with the body's mass,
+    centre of mass and inertia tensor about the centre of mass."""
+    second = 0.5 * np.trace(inertia) * np.eye(3) - inertia  # J = sum m r r^T about the com
+    lam, vec = np.linalg.eigh(second)
+    if lam.min() < -1e-14 * max(1.0, abs(lam).max()):
+        raise ValueError("inertia violates the triangle inequality")
+    d = np.sqrt(np.maximum(lam, 0.0) * 3.0 / mass)
+    pts = []
+    for i in range(3):
+        pts.append(com + d[i] * vec[:, i])
+        pts.append(com - d[i] * vec[:, i])
+    return np.full(6, mass / 6.0), np.array(pts)
+
+
+# ----------------------------------------------------------------------------------------
+# second-order Taylor jets: arrays with a leading axis [value, d/ds, d^2/ds^2 / 2]
+# ----------------------------------------------------------------------------------------
+
+def _jmul(a, b, op):
+    return np.stack([op(a[0], b[0]),
+                     op(a[0], b[1]) + op(a[1], b[0]),
+                     op(a[0], b[2]) + op(a[1], b[1]) + op(a[2], b[0])])
+
+
+def _mm(a, b):
+    return np.matmul(a, b)
+
+
+def _mv(a, b):
+    return np.einsum("...ij,...j->...i", a, b)
+
+
+def _jsincos(x):
+    """sin and cos of a scalar jet x (3, B)."""
+    s0, c0 = np.sin(x[0]), np.cos(x[0])
+    s = np.stack([s0, c0 * x[1], c0 * x[2] - 0.5 * s0 * x[1] ** 2])
+    c = np.stack([c0, -s0 * x[1], -s0 * x[2] - 0.5 * c0 * x[1] ** 2])
+    return s, c
+
+
+def _jrot(u, x):
+    """Rotation by the jet angle x (3, B) about the constant unit axis u: jet (3, B, 3, 3),
+    Rodrigues: cos x Id + sin x [u]x + (1 - cos x) u u^T."""
+    s, c = _jsincos(x)
+    kx = np.array([[0.0, -u[2], u[1]], [u[2], 0.0, -u[0]], [-u[1], u[0], 0.0]])
+    uu = np.outer(u, u)
+    one = np.zeros_like(c)
+    one[0] = 1.0
+    return (c[..., None, None] * np.eye(3) + s[..., None, None] * kx
+            + (one - c)[..., None, None] * uu)
+
+
+_EX, _EY, _EZ = np.eye(3)
+
+
+def point_kinematics(scene: Scene, q: np.ndarray, qd: np.ndarray):
+    """Point masses (NP,) and jets of their inertial positions (3, B, NP, 3) along q + s qd,
+    for a batch of states q (B, n) (real or complex) and rates qd (n,) or (B, n)."""
+    q = np.atleast_2d(q)
+    B = q.shape[0]
+    qd = np.broadcast_to(np.asarray(qd), q.shape)
+    dtype = np.result_type(q.dtype, qd.dtype, float)
+
+    def coord(k):
+        x = np.zeros((3, B), dtype=dtype)
+        x[0], x[1] = q[:, k], qd[:, k]
+        return x
+
+    def const_vec(v):
+        x = np.zeros((3, B, 3), dtype=dtype)
+        x[0] = v
+        return x
+
+    R = {}
+    p = {}
+    for name, b in scene.bodies.items():
+        if b.kind == "ground":
+            R[name] = np.zeros((3, B, 3, 3), dtype=dtype); R[name][0] = np.eye(3)
+            p[name] = np.zeros((3, B, 3), dtype=dtype)
+    for j in scene.joints:
+        Rp, pp = R[j.parent], p[j.parent]
+        k = j.first
+        local = const_vec(j.at)  # joint translation in the parent frame
+        Rrel = None
+        if j.kind == "revolute":
+            Rrel = _jrot(j.axis, coord(k))
+        elif j.kind == "prismatic":
+            local = local + coord(k)[..., None] * j.axis
+        elif j.kind == "spherical":
+            Rrel = _jmul(_jmul(_jrot(_EX, coord(k)), _jrot(_EY, coord(k + 1)), _mm), _jrot(_EZ, coord(k + 2)), _mm)
+        elif j.kind == "free":
+            local = local + np.stack([coord(k), coord(k + 1), coord(k + 2)], axis=-1)
+            Rrel = _jmul(_jmul(_jrot(_EX, coord(k + 3)), _jrot(_EY, coord(k + 4)), _mm), _jrot(_EZ, coord(k + 5)), _mm)
+        elif j.kind != "fixed":
+            raise ValueError(j.kind)
+        p[j.child] = pp + _jmul(Rp, local, _mv)
+        R[j.child] = Rp if Rrel is None else _jmul(Rp, Rrel, _mm)
+    masses, positions = [], []
+    for j in scene.joints:
+        b = scene.bodies[j.child]
+        if b.kind != "rigid":
+            continue
+        m, x = point_masses(b.mass, b.com, b.inertia)
+        masses.append(m)
+        # r = p + R x for the 6 points: (3, B, 6, 3)
+        positions.append(p[j.child][:, :, None, :] + np.einsum("kbij,pj->kbpi", R[j.child], x))
+    return np.concatenate(masses), np.concatenate(positions, axis=2)
+
+
+def _jacobians(scene: Scene, q, qd, h=1e-30):
+    """Masses (NP,), positions (NP, 3), velocities (NP, 3), Jacobians (NP, 3, n) and
+    velocity-product accelerations (NP, 3) at (q, qd)."""
+    q = np.asarray(q, dtype=float)
+    qd = np.asarray(qd, dtype=float)
+    n = scene.n
+    qc = np.tile(q.astype(complex), (n, 1)) + 1j * h * np.eye(n)
+    m, r = point_kinematics(scene, qc, qd)
+    jac = np.moveaxis(r[0].imag / h, 0, -1)  # (NP, 3, n)
+    pos = r[0, 0].real
+    vel = r[1, 0].real
+    acc = 2.0 * r[2, 0].real
+    return m, pos, vel, jac, acc
+
+
+def reference_terms(scene: Scene, q, qd, t: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """Mass matrix M (n, n) and right-hand side P (n,) of M qdd = P by brute force."""
+    m, pos, vel, jac, acc = _jacobians(scene, q, qd)
+    M = np.einsum("p,pik,pil->kl", m, jac, jac)
+    P = -np.einsum("p,pik,pi->k", m, jac, acc)
+    if scene.gravity_on:
+        P = P + np.einsum("p,pik,i->k", m, jac, scene.gravity)
+    P = P + scene.generalised_drive_forces(t)
+    return M, P
+
+
+def reference_energy(scene: Scene, q, qd) -> tuple[float, float]:
+    """Kinetic energy sum m |v|^2 / 2 and gravity potential -sum m g.r (zero at the
+    inertial origin; 0 when gravity is off)."""
+    m, r = point_kinematics(scene, np.asarray(q, dtype=float), np.asarray(qd, dtype=float))
+    vel = r[1, 0]
+    ke = 0.5 * float(np.einsum("p,pi,pi->", m, vel, vel))
+    pe = -float(np.einsum("p,pi,i->", m, r[0, 0], scene.gravity)) if scene.gravity_on else 0.0
+    return ke, pe
+
+
+# ----------------------------------------------------------------------------------------
+# a second route to the same terms (Lagrange), to check the reference against itself
+# ----------------------------------------------------------------------------------------
+
+def _mass_matrices(scene: Scene, qs: np.ndarray) -> np.ndarray:
+    """M(q) (S, n, n) for states qs (S, n), real or complex, from the jets' velocity
+    coefficient with unit rates (J_p e_k = dr_p/ds along q + s e_k): no complex step inside,
+    so M is a complex-analytic function of q."""
+    n = scene.n
+    S = qs.shape[0]
+    qb = np.repeat(qs, n, axis=0)                    # (S n, n)
+    qdb = np.tile(np.eye(n), (S, 1))                 # unit rates
+    m, r = point_kinematics(scene, qb, qdb)
+    jac = r[1].reshape(S, n, -1, 3)                  # [state, k, point, xyz]
+    return np.einsum("p,skpi,slpi->skl", m, jac, jac)
+
+
+def reference_terms_lagrange(scene: Scene, q, qd, t: float = 0.0, h: float = 1e-30):
+    """M and P from Lagrange's equations: P_k = Q_k - (dM/dt qd)_k + qd^T (dM/dq_k) qd / 2,
+    with dM/dt = dM/dq . qd and dM/dq_k by complex steps of M(q), gravity forces as -dV/dq
+    of V = -sum m g.r by complex steps of the positions."""
+    q = np.asarray(q, dtype=float)
+    qd = np.asarray(qd, dtype=float)
+    n = scene.n
+    qs = np.vstack([q + 1j * h * qd, q + 1j * h * np.eye(n)]).astype(complex)
+    Ms = _mass_matrices(scene, qs)
+    M = Ms[0].real
+    mdot_qd = (Ms[0].imag / h) @ qd
+    dmdq = Ms[1:].imag / h                           # [k, i, j]
+    P = -mdot_qd + 0.5 * np.einsum("i,kij,j->k", qd, dmdq, qd)
+    if scene.gravity_on:
+        m, r = point_kinematics(scene, qs[1:], np.zeros(n))
+        V = -np.einsum("p,spi,i->s", m, r[0], scene.gravity)
+        P = P - V.imag / h
+    P = P + scene.generalised_drive_forces(t)
+    return M, P

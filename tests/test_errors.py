@@ -1,0 +1,453 @@
+"""Bad input gives one clear line, never a traceback: mrsim, pymr.run and the pymr CLI.
+
+Contract (ARCHITECTURE.md, "Command line" and "Errors"):
+
+* ``mrsim SCENE.nml [-o OUT.csv] [--set GROUP.KEY=VALUE ...]`` on bad input exits with
+  status 1 and writes exactly one line on stderr,
+  ``mrsim: error: SCENE.nml: <group or item>: <what is wrong>``; a failed run (solver
+  error) exits with status 2, also with one line. Never a Fortran runtime traceback.
+* ``pymr.run(scene, output=..., overrides=...)`` raises ``pymr.SceneError`` (bad input) or
+  ``pymr.SolverError`` (failed run) with the same message.
+* ``pymr run SCENE.nml --set ...`` (console script and ``python -m pymr``) prints
+  ``pymr: error: ...`` and exits with status 1 (2 for a failed run).
+
+Every case below is a small valid scene with one thing broken, written to ``tmp_path``.
+"""
+from __future__ import annotations
+
+import re
+import shutil
+import subprocess
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+import pymr
+
+TIMEOUT = 120
+
+# A valid scene: the pendulum of input/pendulum.nml, run for a short time. No &output
+# group, so the result file is always the one given with -o / output=.
+BASE = """\
+! pendulum for the error tests
+&scene
+  title = 'pendulum for error tests'
+  t_end = 0.05
+  gravity = 0.0, -9.81, 0.0
+/
+&integrator
+  method = 'single'
+  h_slow = 1.0e-3
+/
+&effects
+  gravity = .true.
+/
+&body name = 'ground', kind = 'ground' /
+&body
+  name = 'bob', kind = 'rigid', mass = 1.0
+  com = 0.0, -1.0, 0.0
+  inertia = 4.0e-5, 4.0e-5, 4.0e-5, 0.0, 0.0, 0.0
+/
+&joint
+  name = 'pivot', kind = 'revolute', parent = 'ground', child = 'bob'
+  at = 0.0, 0.0, 0.0, axis = 0.0, 0.0, 1.0, q0 = 1.0
+/
+&marker name = 'tip', body = 'bob', at = 0.0, -1.0, 0.0 /
+"""
+
+SCENE_GROUP = BASE[BASE.index("&scene"):BASE.index("&integrator")]
+INTEGRATOR_GROUP = BASE[BASE.index("&integrator"):BASE.index("&effects")]
+BODY_GROUP = BASE[BASE.index("&body name = 'ground'"):BASE.index("&joint")]
+
+
+def replaced(old: str, new: str) -> str:
+    """BASE with the first `old` replaced by `new` (which must be there)."""
+    assert old in BASE, old
+    return BASE.replace(old, new, 1)
+
+
+def line_of(text: str, needle: str) -> int:
+    """1-based line number of the first `needle` in `text`."""
+    return text[:text.index(needle)].count("\n") + 1
+
+
+def rigid(name: str) -> str:
+    return (f"&body name = '{name}', kind = 'rigid', mass = 1.0, "
+            "inertia = 1.0, 1.0, 1.0, 0.0, 0.0, 0.0 /\n")
+
+
+def revolute(name: str, parent: str, child: str) -> str:
+    return (f"&joint name = '{name}', kind = 'revolute', parent = '{parent}', "
+            f"child = '{child}', axis = 0.0, 0.0, 1.0 /\n")
+
+
+DIRECTORY = "<directory>"          # the scene path is a directory
+GARBAGE = bytes(range(256)) * 16   # binary garbage (no '&name' anywhere)
+
+
+@dataclass(frozen=True)
+class Case:
+    """One bad input: a scene file (or none), --set entries and the expected message parts."""
+    id: str
+    scene: str | bytes | None      # text or bytes written to <id>.nml; None: no file
+    expect: tuple[str, ...]        # parts the message must contain (besides the file name)
+    sets: tuple[str, ...] = ()     # --set GROUP.KEY=VALUE entries
+    pattern: str | None = None     # a regular expression the message must match too
+
+    @property
+    def file(self) -> str:
+        return f"{self.id}.nml"
+
+
+_UNKNOWN_ITEM = replaced("mass = 1.0", "masss = 1.0")
+_UNKNOWN_GROUP = BASE + "&bodyy name = 'extra', kind = 'rigid' /\n"
+# a value that cannot be read is reported at the line where its group starts
+BOB_GROUP_START = "&body\n  name = 'bob'"
+_MASS_TEXT = replaced("mass = 1.0", "mass = 'abc'")
+_MASS_TWO = replaced("mass = 1.0", "mass = 1.0, 2.0")
+
+CASES = [
+    # 1. unknown item in a group
+    Case("unknown_item", _UNKNOWN_ITEM,
+         ("&body", "'masss'", "unknown item", f"line {line_of(_UNKNOWN_ITEM, 'masss')}")),
+    # 2. unknown group
+    Case("unknown_group", _UNKNOWN_GROUP,
+         ("&bodyy", "unknown group", f"line {line_of(_UNKNOWN_GROUP, '&bodyy')}")),
+    # 3. missing required groups; a single group given twice
+    Case("missing_scene", BASE.replace(SCENE_GROUP, ""), ("&scene", "missing group")),
+    Case("missing_integrator", BASE.replace(INTEGRATOR_GROUP, ""), ("&integrator", "missing group")),
+    Case("missing_body", BASE.replace(BODY_GROUP, "").replace(
+        "&marker name = 'tip', body = 'bob', at = 0.0, -1.0, 0.0 /\n", ""), ("&body", "missing group")),
+    Case("scene_twice", BASE + SCENE_GROUP, ("&scene", "twice")),
+    # 4. unknown body name in a joint
+    Case("unknown_parent", replaced("parent = 'ground'", "parent = 'nobody'"),
+         ("&joint", "'pivot'", "parent", "'nobody'")),
+    Case("unknown_child", replaced("child = 'bob'", "child = 'nobody'"),
+         ("&joint", "'pivot'", "child", "'nobody'")),
+    # 5. two parents for one body
+    Case("two_parents", BASE + rigid("other") + revolute("j_other", "ground", "other")
+         + revolute("second", "other", "bob"),
+         ("&joint", "'bob'", "two parents")),
+    # 6. a cycle a -> b -> a (the ground reaches 'bob' only), and a body joined to itself
+    Case("cycle", BASE + rigid("a") + rigid("b") + revolute("ab", "a", "b") + revolute("ba", "b", "a"),
+         ("cycle",), pattern=r"&(body|joint) '(a|b|ab|ba)'"),
+    Case("self_joint", BASE + revolute("self", "bob", "bob"),
+         ("&joint", "'self'", "'bob'", "itself")),
+    # 7. bad joint kind
+    Case("bad_joint_kind", replaced("kind = 'revolute'", "kind = 'hinge'"),
+         ("&joint", "'pivot'", "kind", "'hinge'")),
+    # 8. mass and inertia
+    Case("mass_negative", replaced("mass = 1.0", "mass = -1.0"), ("&body", "'bob'", "mass", "positive")),
+    Case("mass_zero", replaced("mass = 1.0", "mass = 0.0"), ("&body", "'bob'", "mass", "positive")),
+    Case("inertia_not_positive_definite",
+         replaced("inertia = 4.0e-5, 4.0e-5, 4.0e-5", "inertia = 1.0, 1.0, -1.0"),
+         ("&body", "'bob'", "inertia", "positive definite")),
+    Case("inertia_triangle",
+         replaced("inertia = 4.0e-5, 4.0e-5, 4.0e-5", "inertia = 1.0, 1.0, 5.0"),
+         ("&body", "'bob'", "inertia", "triangle inequality")),
+    # 9. h_slow not an integer multiple of h_fast
+    Case("h_slow_not_multiple", replaced("h_slow = 1.0e-3", "h_fast = 1.0e-4, h_slow = 2.5e-4"),
+         ("&integrator", "h_slow", "h_fast", "integer multiple")),
+    # 10. missing file, a directory, binary garbage
+    Case("missing_file", None, ("not found",)),
+    Case("directory", DIRECTORY, ("cannot read",)),
+    Case("garbage", GARBAGE, ("&scene", "missing group")),
+    # 11. zero-length axis
+    Case("zero_axis", replaced("axis = 0.0, 0.0, 1.0", "axis = 0.0, 0.0, 0.0"),
+         ("&joint", "'pivot'", "axis", "zero length")),
+    # 12. a value of the wrong type, too many values
+    Case("mass_text", _MASS_TEXT,
+         ("&body", "cannot read a value", f"line {line_of(_MASS_TEXT, BOB_GROUP_START)}")),
+    Case("mass_two_values", _MASS_TWO, ("&body", "cannot read a value")),
+    # 13. --set errors
+    Case("set_unknown_group", BASE, ("--set", "bodyy.mass=2", "unknown group", "'bodyy'"),
+         sets=("bodyy.mass=2",)),
+    Case("set_unknown_item", BASE, ("--set", "&body", "unknown item", "'masss'"),
+         sets=("body[bob].masss=2",)),
+    Case("set_repeated_group_without_name", BASE, ("--set", "&body", "repeated", "body[NAME].mass"),
+         sets=("body.mass=2",)),
+    Case("set_name_matches_no_group", BASE, ("--set", "&body", "'nobody'"),
+         sets=("body[nobody].mass=2",)),
+    Case("set_malformed", BASE, ("--set", "body[bob].mass", "GROUP.KEY=VALUE"),
+         sets=("body[bob].mass",)),
+    Case("set_single_group_with_name", BASE, ("--set", "&scene", "scene.t_end"),
+         sets=("scene[x].t_end=1",)),
+    Case("set_bad_value", BASE, ("--set", "body[bob].mass=abc", "cannot read"),
+         sets=("body[bob].mass=abc",)),
+    Case("set_invalid_value", BASE, ("&body", "'bob'", "mass", "positive"),
+         sets=("body[bob].mass=-1",)),
+    # 14. drives given, &effects joint_drives off
+    Case("drive_without_joint_drives", BASE + "&drive joint = 'pivot', offset = 1.0 /\n",
+         ("&drive", "joint_drives")),
+]
+
+CASE_PARAMS = [pytest.param(c, id=c.id) for c in CASES]
+
+
+def write_case(case: Case, folder: Path) -> str:
+    """Create the case's scene in `folder`; return its (relative) file name."""
+    path = folder / case.file
+    if case.scene is None:
+        pass
+    elif case.scene == DIRECTORY:
+        path.mkdir()
+    elif isinstance(case.scene, bytes):
+        path.write_bytes(case.scene)
+    else:
+        path.write_text(case.scene)
+    return case.file
+
+
+def set_args(sets) -> list[str]:
+    args: list[str] = []
+    for s in sets:
+        args += ["--set", s]
+    return args
+
+
+def check_message(message: str, case: Case) -> None:
+    """`message` (without the program prefix) names the file first, then the case's parts."""
+    assert message.startswith(f"{case.file}: "), \
+        f"message does not start with the scene file name {case.file!r}: {message!r}"
+    for part in case.expect:
+        assert part in message, f"{part!r} not in message {message!r}"
+    if case.pattern:
+        assert re.search(case.pattern, message), f"{case.pattern!r} does not match {message!r}"
+
+
+def error_line(stderr: str, prefix: str) -> str:
+    """The line of stderr that starts with `prefix` (checked for being the only one later)."""
+    for line in stderr.splitlines():
+        if line.startswith(prefix):
+            return line
+    pytest.fail(f"no line starting with {prefix!r} on stderr:\n{stderr}")
+
+
+def check_single_line(stderr: str, prefix: str) -> None:
+    """stderr is exactly one line starting with `prefix`: no traceback, no ERROR STOP."""
+    assert "Backtrace" not in stderr and "ERROR STOP" not in stderr and "Traceback" not in stderr, \
+        f"traceback on stderr:\n{stderr}"
+    lines = stderr.splitlines()
+    assert len(lines) == 1, f"expected one line on stderr, got {len(lines)}:\n{stderr}"
+    assert lines[0].startswith(prefix)
+
+
+def run_mrsim(mrsim: str, args: list[str], cwd: Path) -> subprocess.CompletedProcess:
+    return subprocess.run([mrsim, *args], cwd=cwd, capture_output=True, text=True, timeout=TIMEOUT)
+
+
+def run_cli(command: list[str], args: list[str], cwd: Path) -> subprocess.CompletedProcess:
+    return subprocess.run([*command, *args], cwd=cwd, capture_output=True, text=True, timeout=TIMEOUT)
+
+
+def console_script() -> str:
+    cand = Path(sys.executable).parent / "pymr"
+    if cand.exists():
+        return str(cand)
+    found = shutil.which("pymr")
+    if not found:
+        pytest.fail("the pymr console script is not installed")
+    return found
+
+
+def read_csv(path: Path) -> tuple[list[str], list[list[float]]]:
+    lines = [ln for ln in path.read_text().splitlines() if ln.strip() and not ln.startswith("#")]
+    header = [h.strip() for h in lines[0].split(",")]
+    rows = [[float(x) for x in ln.split(",")] for ln in lines[1:]]
+    return header, rows
+
+
+# ---------------------------------------------------------------------------------- mrsim
+
+@pytest.mark.parametrize("case", CASE_PARAMS)
+def test_mrsim_bad_input(mrsim, tmp_path, case):
+    name = write_case(case, tmp_path)
+    r = run_mrsim(mrsim, [name, "-o", "out.csv", *set_args(case.sets)], tmp_path)
+    assert r.returncode == 1, f"exit status {r.returncode}, stderr:\n{r.stderr}"
+    line = error_line(r.stderr, "mrsim: error: ")
+    check_message(line[len("mrsim: error: "):], case)
+    check_single_line(r.stderr, "mrsim: error: ")
+    assert r.stdout == "", f"stdout not empty on bad input:\n{r.stdout}"
+
+
+@pytest.mark.parametrize("args, expect", [
+    pytest.param([], "no scene file", id="no_arguments"),
+    pytest.param(["--bogus"], "--bogus", id="unknown_option"),
+    pytest.param(["a.nml", "b.nml"], "one scene file", id="two_scenes"),
+    pytest.param(["a.nml", "-o"], "-o", id="output_without_name"),
+    pytest.param(["a.nml", "--set"], "--set", id="set_without_value"),
+])
+def test_mrsim_usage_error(mrsim, tmp_path, args, expect):
+    r = run_mrsim(mrsim, args, tmp_path)
+    assert r.returncode == 1, f"exit status {r.returncode}, stderr:\n{r.stderr}"
+    line = error_line(r.stderr, "mrsim: error: ")
+    assert expect in line
+    check_single_line(r.stderr, "mrsim: error: ")
+    assert r.stdout == ""
+
+
+# ------------------------------------------------------------------------------ pymr.run
+
+@pytest.mark.parametrize("case", CASE_PARAMS)
+def test_run_raises_scene_error(tmp_path, monkeypatch, case):
+    monkeypatch.chdir(tmp_path)
+    name = write_case(case, tmp_path)
+    with pytest.raises(pymr.SceneError) as info:
+        pymr.run(name, output=tmp_path / "out.csv", overrides=list(case.sets) or None)
+    message = str(info.value)
+    assert "\n" not in message.strip(), f"message has several lines: {message!r}"
+    check_message(message, case)
+
+
+@pytest.mark.parametrize("case", CASE_PARAMS)
+def test_run_message_same_as_mrsim(mrsim, tmp_path, monkeypatch, case):
+    """pymr.run raises with the very message mrsim prints."""
+    monkeypatch.chdir(tmp_path)
+    name = write_case(case, tmp_path)
+    r = run_mrsim(mrsim, [name, "-o", "out.csv", *set_args(case.sets)], tmp_path)
+    line = error_line(r.stderr, "mrsim: error: ")
+    with pytest.raises(pymr.SceneError) as info:
+        pymr.run(name, output=tmp_path / "out.csv", overrides=list(case.sets) or None)
+    assert "mrsim: error: " + str(info.value) == line
+
+
+def test_run_overrides_mapping_errors(tmp_path, monkeypatch):
+    """The mapping form of overrides reports the same errors as the list form."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "base.nml").write_text(BASE)
+    with pytest.raises(pymr.SceneError, match=r"&body: unknown item 'masss'"):
+        pymr.run("base.nml", output=tmp_path / "out.csv", overrides={"body[bob].masss": 2.0})
+    with pytest.raises(pymr.SceneError, match=r"no &body group named 'nobody'"):
+        pymr.run("base.nml", output=tmp_path / "out.csv", overrides={"body[nobody].mass": 2.0})
+    with pytest.raises(pymr.SceneError, match=r"repeated group"):
+        pymr.run("base.nml", output=tmp_path / "out.csv", overrides={"body.mass": 2.0})
+
+
+# ----------------------------------------------------------------------------- pymr CLI
+
+@pytest.mark.parametrize("case", CASE_PARAMS)
+def test_python_m_pymr_bad_input(tmp_path, case):
+    name = write_case(case, tmp_path)
+    r = run_cli([sys.executable, "-m", "pymr"], ["run", name, "-o", "out.csv", *set_args(case.sets)],
+                tmp_path)
+    assert r.returncode == 1, f"exit status {r.returncode}, stderr:\n{r.stderr}"
+    line = error_line(r.stderr, "pymr: error: ")
+    check_message(line[len("pymr: error: "):], case)
+    check_single_line(r.stderr, "pymr: error: ")
+    assert r.stdout == ""
+
+
+@pytest.mark.parametrize("case", [c for c in CASE_PARAMS
+                                  if c.id in ("unknown_item", "missing_file", "set_unknown_item")])
+def test_console_script_bad_input(tmp_path, case):
+    name = write_case(case, tmp_path)
+    r = run_cli([console_script()], ["run", name, "-o", "out.csv", *set_args(case.sets)], tmp_path)
+    assert r.returncode == 1, f"exit status {r.returncode}, stderr:\n{r.stderr}"
+    line = error_line(r.stderr, "pymr: error: ")
+    check_message(line[len("pymr: error: "):], case)
+    check_single_line(r.stderr, "pymr: error: ")
+    assert r.stdout == ""
+
+
+# ---------------------------------------------------------------- overrides take effect
+
+def test_mrsim_without_overrides(mrsim, tmp_path):
+    """The base scene runs: q0 = 1, ends at t_end = 0.05 (the reference for the tests below)."""
+    (tmp_path / "base.nml").write_text(BASE)
+    r = run_mrsim(mrsim, ["base.nml", "-o", "out.csv"], tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert r.stderr == ""
+    header, rows = read_csv(tmp_path / "out.csv")
+    assert rows[0][header.index("pivot.q")] == pytest.approx(1.0, abs=1e-12)
+    assert rows[-1][header.index("t")] == pytest.approx(0.05, abs=1e-9)
+
+
+def test_mrsim_set_q0(mrsim, tmp_path):
+    (tmp_path / "base.nml").write_text(BASE)
+    r = run_mrsim(mrsim, ["base.nml", "-o", "out.csv", "--set", "joint[pivot].q0=0.5"], tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert r.stderr == ""
+    header, rows = read_csv(tmp_path / "out.csv")
+    assert rows[0][header.index("t")] == 0.0
+    assert rows[0][header.index("pivot.q")] == pytest.approx(0.5, abs=1e-12)
+
+
+def test_mrsim_set_t_end(mrsim, tmp_path):
+    (tmp_path / "base.nml").write_text(BASE)
+    r = run_mrsim(mrsim, ["base.nml", "-o", "out.csv", "--set", "scene.t_end=0.5"], tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert r.stderr == ""
+    header, rows = read_csv(tmp_path / "out.csv")
+    assert rows[-1][header.index("t")] == pytest.approx(0.5, abs=1e-9)
+
+
+def test_mrsim_quiet_success_prints_nothing(mrsim, tmp_path):
+    (tmp_path / "base.nml").write_text(BASE)
+    r = run_mrsim(mrsim, ["base.nml", "-o", "out.csv", "--quiet"], tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout == "" and r.stderr == ""
+
+
+@pytest.mark.parametrize("overrides", [
+    pytest.param({"joint[pivot].q0": 0.5, "scene.t_end": 0.5}, id="mapping"),
+    pytest.param(["joint[pivot].q0=0.5", "scene.t_end=0.5"], id="list"),
+])
+def test_run_overrides_take_effect(tmp_path, monkeypatch, overrides):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "base.nml").write_text(BASE)
+    res = pymr.run("base.nml", output=tmp_path / "out.csv", overrides=overrides)
+    assert res["pivot.q"][0] == pytest.approx(0.5, abs=1e-12)
+    assert res.t[-1] == pytest.approx(0.5, abs=1e-9)
+
+
+def test_python_m_pymr_overrides_take_effect(tmp_path):
+    (tmp_path / "base.nml").write_text(BASE)
+    r = run_cli([sys.executable, "-m", "pymr"],
+                ["run", "base.nml", "-o", "out.csv", "--set", "joint[pivot].q0=0.5",
+                 "--set", "scene.t_end=0.5"], tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert r.stderr == ""
+    header, rows = read_csv(tmp_path / "out.csv")
+    assert rows[0][header.index("pivot.q")] == pytest.approx(0.5, abs=1e-12)
+    assert rows[-1][header.index("t")] == pytest.approx(0.5, abs=1e-9)
+
+
+# ------------------------------------------------------------- a failed run: exit status 2
+
+# Adaptive steps with h_min equal to the first step and a tolerance no step can meet:
+# the first step is rejected and the next would be below h_min (step size underflow).
+UNDERFLOW = replaced("h_slow = 1.0e-3",
+                     "h_slow = 1.0e-3, adaptive = .true., h_min = 1.0e-3, rtol = 1.0e-14, atol = 1.0e-16")
+
+
+def test_mrsim_solver_failure_exit_2(mrsim, tmp_path):
+    (tmp_path / "underflow.nml").write_text(UNDERFLOW)
+    r = run_mrsim(mrsim, ["underflow.nml", "-o", "out.csv"], tmp_path)
+    assert r.returncode == 2, f"exit status {r.returncode}, stderr:\n{r.stderr}"
+    line = error_line(r.stderr, "mrsim: error: ")
+    assert "step size underflow" in line
+    assert line.startswith("mrsim: error: underflow.nml: "), f"the scene file is not named: {line!r}"
+    check_single_line(r.stderr, "mrsim: error: ")
+
+
+def test_run_solver_failure_raises_solver_error(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "underflow.nml").write_text(UNDERFLOW)
+    with pytest.raises(pymr.SolverError) as info:
+        pymr.run("underflow.nml", output=tmp_path / "out.csv")
+    assert not isinstance(info.value, pymr.SceneError)
+    message = str(info.value)
+    assert "step size underflow" in message
+    assert "\n" not in message.strip()
+    assert message.startswith("underflow.nml: "), f"the scene file is not named: {message!r}"
+
+
+def test_python_m_pymr_solver_failure_exit_2(tmp_path):
+    (tmp_path / "underflow.nml").write_text(UNDERFLOW)
+    r = run_cli([sys.executable, "-m", "pymr"], ["run", "underflow.nml", "-o", "out.csv"], tmp_path)
+    assert r.returncode == 2, f"exit status {r.returncode}, stderr:\n{r.stderr}"
+    line = error_line(r.stderr, "pymr: error: ")
+    assert "step size underflow" in line
+    check_single_line(r.stderr, "pymr: error: ")

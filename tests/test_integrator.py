@@ -1,0 +1,218 @@
+"""Nordsieck Adams-Bashforth-Moulton integrator (METHOD.md section 3).
+
+Every test compares the kernel against an independent expectation: analytic ODE solutions
+(measured convergence order, tolerance proportionality) and exact polynomial identities of the
+Nordsieck representation (Pascal predictor, step rescaling C(alpha)).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from pymr import _core
+
+# ---------------------------------------------------------------------------------------------
+# Built-in test problems of pymr_ode_test and their exact solutions at t_end
+# ---------------------------------------------------------------------------------------------
+KEPLER_X0 = np.array([0.5, 0.0, 0.0, math.sqrt(3.0)])
+
+
+def exact(problem: int, t: float) -> np.ndarray:
+    if problem == 1:  # x'' = -x, x(0) = 1, x'(0) = 0
+        return np.array([math.cos(t), -math.sin(t)])
+    if problem == 2:  # y' = -2 t y^2, y(0) = 1
+        return np.array([1.0 / (1.0 + t * t)])
+    if problem == 3:  # Kepler, e = 0.5, a = 1, GM = 1: period 2 pi, only t = k 2 pi is used
+        k = t / (2.0 * math.pi)
+        assert abs(k - round(k)) < 1e-12
+        return KEPLER_X0.copy()
+    raise ValueError(problem)
+
+
+NX = {1: 2, 2: 1, 3: 4}
+
+
+def integrate(problem, t_end, h, adaptive=False, rtol=1e-6, atol=1e-8, n_corr=1):
+    x, steps, evals, rejected, stat, message = _core.pymr_ode_test(
+        problem, t_end, h, 1 if adaptive else 0, rtol, atol, n_corr, NX[problem])
+    assert stat == 0, message.decode(errors="replace").strip() if isinstance(message, bytes) else message
+    return np.array(x, dtype=float), int(steps), int(evals), int(rejected)
+
+
+def global_error(problem, t_end, **kw):
+    x, steps, evals, rejected = integrate(problem, t_end, **kw)
+    return float(np.max(np.abs(x - exact(problem, t_end)))), steps, evals, rejected
+
+
+# ---------------------------------------------------------------------------------------------
+# 1. Measured global order of the fixed-step PECE and PE(CE)^2 schemes
+# ---------------------------------------------------------------------------------------------
+# (problem, t_end, coarsest h, n_corr). The coarsest h is chosen in the asymptotic range
+# (above it the order is still pre-asymptotic, e.g. problem 2 with n_corr=2 shows an error
+# cancellation near h=0.05); the finest error stays >= ~1e-12, well above roundoff.
+ORDER_CASES = [
+    (1, 10.0, 0.1, 1),
+    (1, 10.0, 0.1, 2),
+    (2, 1.0, 0.05, 1),
+    (2, 1.0, 0.0125, 2),
+    (3, 2.0 * math.pi, 2.0 * math.pi / 400, 1),
+    (3, 2.0 * math.pi, 2.0 * math.pi / 400, 2),
+]
+
+
+@pytest.mark.parametrize("problem,t_end,h0,n_corr", ORDER_CASES,
+                         ids=[f"p{c[0]}-ncorr{c[3]}" for c in ORDER_CASES])
+def test_fixed_step_global_order_is_four(problem, t_end, h0, n_corr):
+    hs = [h0 / 2**k for k in range(4)]
+    errs = []
+    for h in hs:
+        err, steps, evals, rejected = global_error(problem, t_end, h=h, n_corr=n_corr)
+        # fixed step: exactly t_end/h steps, no rejections, n_corr evaluations per step
+        # plus a bounded start-up
+        assert steps == round(t_end / h)
+        assert rejected == 0
+        assert n_corr * steps <= evals <= n_corr * steps + 20
+        errs.append(err)
+    errs = np.array(errs)
+    orders = np.log2(errs[:-1] / errs[1:])
+    assert np.all(np.abs(orders - 4.0) < 0.3), f"errors {errs}, orders {orders}"
+
+
+def test_second_corrector_iteration_reduces_the_error():
+    # PE(CE)^2 has the same order but a smaller error constant than PECE on the oscillator
+    # (the corrector is iterated towards the implicit Adams-Moulton solution).
+    e1, *_ = global_error(1, 10.0, h=0.05, n_corr=1)
+    e2, *_ = global_error(1, 10.0, h=0.05, n_corr=2)
+    assert e2 < 0.5 * e1
+
+
+# ---------------------------------------------------------------------------------------------
+# 2. Adaptive step: error proportional to the tolerance
+# ---------------------------------------------------------------------------------------------
+RTOLS = 10.0 ** -np.arange(5, 11)  # 1e-5 ... 1e-10
+ADAPTIVE_CASES = [(p, nc) for p in (1, 2, 3) for nc in (1, 2)]
+ADAPTIVE_T_END = {1: 10.0, 2: 3.0, 3: 2.0 * math.pi}
+
+
+@pytest.mark.parametrize("problem,n_corr", ADAPTIVE_CASES,
+                         ids=[f"p{p}-ncorr{nc}" for p, nc in ADAPTIVE_CASES])
+def test_adaptive_error_is_proportional_to_tolerance(problem, n_corr):
+    t_end = ADAPTIVE_T_END[problem]
+    scale = max(1.0, float(np.max(np.abs(exact(problem, t_end)))))
+    errs, steps = [], []
+    for rtol in RTOLS:
+        err, n, _, _ = global_error(problem, t_end, h=0.1, adaptive=True, rtol=rtol,
+                                    atol=rtol * 1e-2, n_corr=n_corr)
+        errs.append(err)
+        steps.append(n)
+    errs = np.array(errs)
+    # over 5 decades of rtol the error falls by well over 1e3, every decade by at least 3x
+    assert errs[0] / errs[-1] > 1e3, errs
+    assert np.all(errs[:-1] / errs[1:] > 3.0), errs
+    # tolerance proportionality: slope of log(err) against log(rtol)
+    slope = np.polyfit(np.log10(RTOLS), np.log10(errs), 1)[0]
+    assert 0.7 < slope < 1.3, (slope, errs)
+    # and the global error stays within a modest factor of the requested tolerance
+    assert np.all(errs < 100.0 * RTOLS * scale), errs / RTOLS
+    # a 4th-order method needs ~10^(1/4) = 1.78x more steps per decade of rtol
+    step_ratio = (steps[-1] / steps[0]) ** (1.0 / (len(RTOLS) - 1))
+    assert 1.5 < step_ratio < 2.1, steps
+
+
+# ---------------------------------------------------------------------------------------------
+# 3. Nordsieck array operations: Pascal predictor and C(alpha) rescaling
+# ---------------------------------------------------------------------------------------------
+PASCAL, RESCALE, VALUE = 1, 2, 3
+
+
+def nordsieck_op(op, z, alpha=1.0):
+    z = np.asfortranarray(z, dtype=float)
+    return np.array(_core.pymr_nordsieck_op(op, z, float(alpha)))
+
+
+def poly(z, s):
+    """Nordsieck polynomial p(s) = sum_j z_j s^j, s = (t - t_n) / h, per row of z."""
+    return z @ (s ** np.arange(4))
+
+
+def dpoly(z, s):
+    """h dp/dt = dp/ds."""
+    return z[:, 1:] @ (np.arange(1, 4) * s ** np.arange(3))
+
+
+@pytest.fixture
+def zrand():
+    return np.random.default_rng(12345).standard_normal((7, 4))
+
+
+def test_rescale_is_column_power_and_round_trips(zrand):
+    for alpha in (0.5, 2.0, 0.3, 1.7, 1e-2):
+        zs = nordsieck_op(RESCALE, zrand, alpha)
+        np.testing.assert_allclose(zs, zrand * alpha ** np.arange(4), rtol=1e-15, atol=0)
+        back = nordsieck_op(RESCALE, zs, 1.0 / alpha)
+        assert np.max(np.abs(back - zrand) / np.abs(zrand)) < 1e-15
+
+
+def test_value_is_the_nordsieck_polynomial(zrand):
+    for s in (0.0, 1.0, -1.0, 0.37, 2.5):
+        out = nordsieck_op(VALUE, zrand, s)
+        np.testing.assert_allclose(out[:, 0], poly(zrand, s), rtol=1e-14, atol=1e-14)
+
+
+def test_rescaled_polynomial_describes_the_same_physical_time(zrand):
+    # The array for step h evaluated at s equals the array rescaled to alpha*h at s/alpha.
+    for alpha in (0.5, 2.0, 0.3):
+        zs = nordsieck_op(RESCALE, zrand, alpha)
+        for s in (-1.0, 0.4, 1.0, 1.6):
+            a = nordsieck_op(VALUE, zrand, s)[:, 0]
+            b = nordsieck_op(VALUE, zs, s / alpha)[:, 0]
+            np.testing.assert_allclose(b, a, rtol=1e-13, atol=1e-13)
+
+
+def test_pascal_predictor_shifts_the_polynomial_by_one_step(zrand):
+    zp = nordsieck_op(PASCAL, zrand)
+    pascal = np.array([[1, 1, 1, 1], [0, 1, 2, 3], [0, 0, 1, 3], [0, 0, 0, 1]], float)
+    np.testing.assert_allclose(zp, zrand @ pascal.T, rtol=1e-14, atol=1e-14)
+    # column 0: value at s = 1; column 1: h x' at s = 1; column 2: h^2 x''/2; column 3: h^3 x'''/6
+    np.testing.assert_allclose(zp[:, 0], poly(zrand, 1.0), rtol=1e-14, atol=1e-14)
+    np.testing.assert_allclose(zp[:, 1], dpoly(zrand, 1.0), rtol=1e-14, atol=1e-14)
+    np.testing.assert_allclose(zp[:, 2], zrand[:, 2] + 3 * zrand[:, 3], rtol=1e-14, atol=1e-14)
+    np.testing.assert_allclose(zp[:, 3], zrand[:, 3], rtol=1e-14, atol=1e-14)
+    # the shifted polynomial at s equals the old one at s + 1
+    for s in (-2.0, -0.5, 0.0, 0.8):
+        np.testing.assert_allclose(poly(zp, s), poly(zrand, s + 1.0), rtol=1e-13, atol=1e-13)
+
+
+# ---------------------------------------------------------------------------------------------
+# 4. Cubic solutions are reproduced exactly; the predictor error for a quartic is h^4 c4
+# ---------------------------------------------------------------------------------------------
+def nordsieck_of(coeffs, t, h):
+    """Exact Nordsieck array [x, h x', h^2 x''/2, h^3 x'''/6] of x(t) = sum_k c_k t^k."""
+    p = np.polynomial.Polynomial(coeffs)
+    return np.array([p(t), h * p.deriv(1)(t), h**2 * p.deriv(2)(t) / 2, h**3 * p.deriv(3)(t) / 6])
+
+
+def test_cubic_is_propagated_exactly_with_step_changes():
+    c = np.array([[0.7, -1.3, 0.4, 2.1], [-2.0, 0.5, 3.0, -0.25], [1.0, 0.0, 0.0, 0.0]])
+    t, h = 0.3, 0.05
+    z = np.stack([nordsieck_of(ci, t, h) for ci in c])
+    rng = np.random.default_rng(7)
+    for _ in range(200):
+        z = nordsieck_op(PASCAL, z)
+        t += h
+        alpha = rng.uniform(0.5, 2.0)
+        z = nordsieck_op(RESCALE, z, alpha)
+        h *= alpha
+    ref = np.stack([nordsieck_of(ci, t, h) for ci in c])
+    np.testing.assert_allclose(z, ref, rtol=1e-11, atol=1e-11 * np.max(np.abs(ref)))
+
+
+def test_predictor_local_error_for_a_quartic_is_binomial_h4():
+    # x = t^4: the cubic Nordsieck predictor misses exactly h^4 * [1, 4, 6, 4] (Pascal row 4)
+    h, t = 0.1, 0.6
+    z = nordsieck_of([0, 0, 0, 0, 1.0], t, h)[None, :]
+    zp = nordsieck_op(PASCAL, z)
+    ref = nordsieck_of([0, 0, 0, 0, 1.0], t + h, h)
+    np.testing.assert_allclose(ref - zp[0], h**4 * np.array([1.0, 4.0, 6.0, 4.0]), rtol=1e-10)
