@@ -129,3 +129,10 @@ def model_energy(scene: str | os.PathLike, q, qd, overrides=None) -> tuple[np.nd
     ke, pe, stat, msg = _core.pymr_model_energy(_scene_arg(scene), format_overrides(overrides), q2, qd2)
     _raise(stat, msg)
     return ke, pe
+
+
+def write_modal_file(scene: str | os.PathLike, body: str, path: str | os.PathLike, overrides=None) -> None:
+    """Write the modes of beam ``body`` of a scene to a modal data file, which a
+    ``kind='modal'`` body can read back (``modal_file=...``)."""
+    stat, msg = _core.pymr_write_modal(_scene_arg(scene), format_overrides(overrides), body, os.fspath(path))
+    _raise(stat, msg)

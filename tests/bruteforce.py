@@ -43,9 +43,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+import scipy.linalg
 
-__all__ = ["parse_namelist", "Scene", "point_masses", "point_kinematics", "reference_terms",
-           "reference_energy", "reference_terms_lagrange"]
+__all__ = ["parse_namelist", "Scene", "BeamModes", "beam_modes", "point_masses", "point_kinematics",
+           "reference_terms", "reference_energy", "reference_terms_lagrange", "hermite_row",
+           "gauss_points"]
 
 # ----------------------------------------------------------------------------------------
 # namelist text
@@ -153,6 +155,29 @@ class Body:
     mass: float = 0.0
     com: np.ndarray = field(default_factory=lambda: np.zeros(3))
     inertia: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
+    # beams
+    length: float = 0.0
+    youngs_modulus: float = 0.0
+    density: float = 0.0
+    area: float = 0.0
+    iy: float = 0.0
+    iz: float = 0.0
+    n_elements: int = 20
+    modes_y: int = 0
+    modes_z: int = 0
+    modal_damping: float = 0.0
+    first_mode: int = 0  # index of the body's first modal coordinate
+    _modes: "BeamModes | None" = None
+
+    @property
+    def n_modes(self) -> int:
+        return self.modes_y + self.modes_z if self.kind == "beam" else 0
+
+    @property
+    def modes(self) -> "BeamModes":
+        if self._modes is None:
+            self._modes = beam_modes(self)
+        return self._modes
 
 
 @dataclass
@@ -191,6 +216,12 @@ class Scene:
     gravity_on: bool
     drives_on: bool
     n: int
+    damping_on: bool = False
+    n_joint: int = 0  # joint coordinates; modal coordinates follow
+
+    def beams(self) -> list:
+        """Flexible bodies in tree order."""
+        return [self.bodies[j.child] for j in self.joints if self.bodies[j.child].kind == "beam"]
 
     @classmethod
     def from_file(cls, path) -> "Scene":
@@ -199,7 +230,7 @@ class Scene:
     @classmethod
     def from_text(cls, text: str) -> "Scene":
         groups = parse_namelist(text)
-        gravity, gravity_on, drives_on = np.array([0.0, -9.81, 0.0]), False, False
+        gravity, gravity_on, drives_on, damping_on = np.array([0.0, -9.81, 0.0]), False, False, False
         bodies: dict[str, Body] = {}
         joints: list[Joint] = []
         drives: list[Drive] = []
@@ -209,6 +240,7 @@ class Scene:
             elif name == "effects":
                 gravity_on = bool(it.get("gravity", False))
                 drives_on = bool(it.get("joint_drives", False))
+                damping_on = bool(it.get("modal_damping", False))
             elif name == "body":
                 kind = it["kind"].lower()
                 b = Body(it["name"], kind)
@@ -217,6 +249,20 @@ class Scene:
                     b.com = _vec(it.get("com", [0, 0, 0]), 3)
                     ixx, iyy, izz, ixy, ixz, iyz = _vec(it["inertia"], 6)
                     b.inertia = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+                elif kind == "beam":
+                    b.length = float(it["length"])
+                    b.youngs_modulus = float(it["youngs_modulus"])
+                    b.density = float(it["density"])
+                    if "r_outer" in it:
+                        ro, ri = float(it["r_outer"]), float(it.get("r_inner", 0.0))
+                        b.area = math.pi * (ro ** 2 - ri ** 2)
+                        b.iy = b.iz = math.pi / 4.0 * (ro ** 4 - ri ** 4)
+                    else:
+                        b.area, b.iy, b.iz = float(it["area"]), float(it["iy"]), float(it["iz"])
+                    b.n_elements = int(it.get("n_elements", 20))
+                    b.modes_y = int(it.get("modes_y", 0))
+                    b.modes_z = int(it.get("modes_z", 0))
+                    b.modal_damping = float(it.get("modal_damping", 0.0))
                 elif kind != "ground":
                     raise ValueError(f"body kind {kind!r} not supported by the reference")
                 bodies[b.name] = b
@@ -251,12 +297,38 @@ class Scene:
         for j in ordered:
             j.first = n
             n += j.ndof
-        return cls(bodies, ordered, drives, gravity, gravity_on, drives_on, n)
+        n_joint = n
+        for j in ordered:
+            b = bodies[j.child]
+            if b.kind == "beam":
+                b.first_mode = n
+                n += b.n_modes
+        return cls(bodies, ordered, drives, gravity, gravity_on, drives_on, n, damping_on, n_joint)
 
     def initial_state(self) -> tuple[np.ndarray, np.ndarray]:
-        q = np.concatenate([j.q0 for j in self.joints]) if self.joints else np.zeros(0)
-        qd = np.concatenate([j.qd0 for j in self.joints]) if self.joints else np.zeros(0)
+        """Joint coordinates and rates from q0, qd0; modal coordinates and rates zero."""
+        q, qd = np.zeros(self.n), np.zeros(self.n)
+        for j in self.joints:
+            q[j.first:j.first + j.ndof] = j.q0
+            qd[j.first:j.first + j.ndof] = j.qd0
         return q, qd
+
+    def modal_slices(self) -> list:
+        """(body, slice of its modal coordinates) in tree order."""
+        return [(b, slice(b.first_mode, b.first_mode + b.n_modes)) for b in self.beams()]
+
+    def elastic_forces(self, q, qd) -> np.ndarray:
+        """-omega^2 a, and -2 zeta omega a' when modal damping is on (zero on joint rows)."""
+        f = np.zeros(self.n, dtype=np.result_type(np.asarray(q).dtype, float))
+        for b, s in self.modal_slices():
+            w2 = b.modes.omega2
+            f[s] = -w2 * q[s]
+            if self.damping_on:
+                f[s] = f[s] - 2.0 * b.modal_damping * np.sqrt(w2) * qd[s]
+        return f
+
+    def elastic_energy(self, q) -> float:
+        return float(sum(0.5 * np.sum(b.modes.omega2 * np.asarray(q)[s] ** 2) for b, s in self.modal_slices()))
 
     def generalised_drive_forces(self, t: float) -> np.ndarray:
         f = np.zeros(self.n)
@@ -282,6 +354,119 @@ def point_masses(mass: float, com: np.ndarray, inertia: np.ndarray) -> tuple[np.
         pts.append(com + d[i] * vec[:, i])
         pts.append(com - d[i] * vec[:, i])
     return np.full(6, mass / 6.0), np.array(pts)
+
+
+# ----------------------------------------------------------------------------------------
+# beams: cubic Hermite elements, clamped at x = 0, modes per bending plane
+# ----------------------------------------------------------------------------------------
+
+def gauss_points(n: int = 4) -> tuple[np.ndarray, np.ndarray]:
+    """Gauss-Legendre points and weights on [0, 1]."""
+    x, w = np.polynomial.legendre.leggauss(n)
+    return 0.5 * (x + 1.0), 0.5 * w
+
+
+def _hermite(xi: float, le: float):
+    """Hermite shape functions N(xi) (4,) and dN/dx (4,) on an element of length le."""
+    n = np.array([1 - 3 * xi ** 2 + 2 * xi ** 3, le * (xi - 2 * xi ** 2 + xi ** 3),
+                  3 * xi ** 2 - 2 * xi ** 3, le * (-xi ** 2 + xi ** 3)])
+    dn = np.array([-6 * xi + 6 * xi ** 2, le * (1 - 4 * xi + 3 * xi ** 2),
+                   6 * xi - 6 * xi ** 2, le * (-2 * xi + 3 * xi ** 2)]) / le
+    return n, dn
+
+
+def hermite_row(x: float, length: float, n_el: int):
+    """Rows (2 n_el,) that map the free nodal DOFs (v1, v1', ..., v_n, v_n') of a clamped
+    beam to v(x) and dv/dx(x)."""
+    le = length / n_el
+    e = min(int(math.floor(x / le)), n_el - 1)
+    e = max(e, 0)
+    xi = (x - e * le) / le
+    n, dn = _hermite(xi, le)
+    full_n = np.zeros(2 * (n_el + 1))
+    full_d = np.zeros(2 * (n_el + 1))
+    full_n[2 * e:2 * e + 4] = n
+    full_d[2 * e:2 * e + 4] = dn
+    return full_n[2:], full_d[2:]
+
+
+def _beam_matrices(length: float, n_el: int, ei: float, rho_a: float):
+    """Stiffness and consistent mass of the clamped beam (2 n_el, 2 n_el); the element mass
+    by Gauss quadrature of rho A N^T N (exact: degree 6)."""
+    le = length / n_el
+    ke = ei / le ** 3 * np.array([[12, 6 * le, -12, 6 * le],
+                                  [6 * le, 4 * le ** 2, -6 * le, 2 * le ** 2],
+                                  [-12, -6 * le, 12, -6 * le],
+                                  [6 * le, 2 * le ** 2, -6 * le, 4 * le ** 2]])
+    xg, wg = gauss_points(4)
+    me = np.zeros((4, 4))
+    for x, w in zip(xg, wg):
+        n, _ = _hermite(x, le)
+        me += rho_a * le * w * np.outer(n, n)
+    nd = 2 * (n_el + 1)
+    K, M = np.zeros((nd, nd)), np.zeros((nd, nd))
+    for e in range(n_el):
+        s = slice(2 * e, 2 * e + 4)
+        K[s, s] += ke
+        M[s, s] += me
+    return K[2:, 2:], M[2:, 2:], ke, me
+
+
+@dataclass
+class BeamModes:
+    length: float
+    n_el: int
+    omega2: np.ndarray       # (nm,) eigenvalues, x-y modes then x-z modes
+    vectors_y: np.ndarray    # (2 n_el, my) mass-normalised nodal mode vectors
+    vectors_z: np.ndarray    # (2 n_el, mz)
+    omega2_y_all: np.ndarray  # every eigenvalue of each plane
+    omega2_z_all: np.ndarray
+    x_points: np.ndarray     # (NP,) Gauss points along the beam
+    m_points: np.ndarray     # (NP,) their masses
+    psi_points: np.ndarray   # (NP, 3, nm) displacement per unit modal coordinate
+
+    def shapes(self, x: float) -> tuple[np.ndarray, np.ndarray]:
+        """Psi (3, nm): displacement of the axis point x per unit modal coordinate; Phi (3, nm):
+        small rotation of its section (x-y mode: about z by v'; x-z mode: about y by -w')."""
+        hn, hd = hermite_row(x, self.length, self.n_el)
+        my, mz = self.vectors_y.shape[1], self.vectors_z.shape[1]
+        psi = np.zeros((3, my + mz))
+        phi = np.zeros((3, my + mz))
+        psi[1, :my] = hn @ self.vectors_y
+        phi[2, :my] = hd @ self.vectors_y
+        psi[2, my:] = hn @ self.vectors_z
+        phi[1, my:] = -(hd @ self.vectors_z)
+        return psi, phi
+
+
+def _plane_modes(K, M, count):
+    """All eigenvalues (ascending) and the lowest `count` mass-normalised mode vectors of
+    K v = lambda M v. Solved as the flexibility problem M v = mu K v (mu = 1/lambda): the
+    stiffness matrix's condition number (~ lambda_max / lambda_1, 1e8 and more) then does
+    not spoil the lowest modes (relative error ~ eps instead of ~ eps lambda_max / lambda_1)."""
+    mu, vec = scipy.linalg.eigh(M, K)
+    mu, vec = mu[::-1], vec[:, ::-1]
+    lam = 1.0 / mu
+    vec = vec / np.sqrt(np.einsum("ik,ij,jk->k", vec, M, vec))  # v^T M v = 1
+    vec = vec * np.where(vec[-2] < 0.0, -1.0, 1.0)                # tip displacement positive
+    return lam, vec[:, :count]
+
+
+def beam_modes(b: Body) -> BeamModes:
+    rho_a = b.density * b.area
+    ky, mmy, _, _ = _beam_matrices(b.length, b.n_elements, b.youngs_modulus * b.iz, rho_a)
+    kz, mmz, _, _ = _beam_matrices(b.length, b.n_elements, b.youngs_modulus * b.iy, rho_a)
+    lam_y, vy = _plane_modes(ky, mmy, b.modes_y)
+    lam_z, vz = _plane_modes(kz, mmz, b.modes_z)
+    le = b.length / b.n_elements
+    xg, wg = gauss_points(4)
+    xs = np.concatenate([(e + xg) * le for e in range(b.n_elements)])
+    ms = np.tile(rho_a * le * wg, b.n_elements)
+    bm = BeamModes(b.length, b.n_elements, np.concatenate([lam_y[:b.modes_y], lam_z[:b.modes_z]]),
+                   vy, vz, lam_y, lam_z, xs, ms, np.zeros((xs.size, 3, b.modes_y + b.modes_z)))
+    for i, x in enumerate(xs):
+        bm.psi_points[i] = bm.shapes(x)[0]
+    return bm
 
 
 # ----------------------------------------------------------------------------------------
@@ -323,6 +508,33 @@ def _jrot(u, x):
 
 
 _EX, _EY, _EZ = np.eye(3)
+_SERIES = 18  # terms of the power series of sin(t)/t and (1 - cos t)/t^2 in t^2 (|t| < 1.5)
+
+
+def _jexp_skew(theta):
+    """expm([theta]x) for a jet vector theta (3, B, 3): Id + f1(s) [theta]x + f2(s) [theta]x^2,
+    s = |theta|^2, f1 = sum (-s)^k / (2k+1)!, f2 = sum (-s)^k / (2k+2)! (entire functions of s,
+    so the jets and complex steps stay exact, also at theta = 0)."""
+    s = _jmul(theta, theta, lambda a, b: np.sum(a * b, axis=-1))
+    kx = np.zeros(theta.shape + (3,), dtype=theta.dtype)
+    kx[..., 0, 1], kx[..., 0, 2] = -theta[..., 2], theta[..., 1]
+    kx[..., 1, 0], kx[..., 1, 2] = theta[..., 2], -theta[..., 0]
+    kx[..., 2, 0], kx[..., 2, 1] = -theta[..., 1], theta[..., 0]
+
+    def series(c):
+        f = np.zeros_like(s)
+        f[0] = c[-1]
+        for ck in c[-2::-1]:
+            f = _jmul(f, s, lambda a, b: a * b)
+            f[0] = f[0] + ck
+        return f
+
+    f1 = series([(-1) ** k / math.factorial(2 * k + 1) for k in range(_SERIES)])
+    f2 = series([(-1) ** k / math.factorial(2 * k + 2) for k in range(_SERIES)])
+    scal = lambda a, b: a[..., None, None] * b  # noqa: E731
+    out = _jmul(f1, kx, scal) + _jmul(f2, _jmul(kx, kx, _mm), scal)
+    out[0] = out[0] + np.eye(3)
+    return out
 
 
 def point_kinematics(scene: Scene, q: np.ndarray, qd: np.ndarray):
@@ -349,33 +561,54 @@ def point_kinematics(scene: Scene, q: np.ndarray, qd: np.ndarray):
         if b.kind == "ground":
             R[name] = np.zeros((3, B, 3, 3), dtype=dtype); R[name][0] = np.eye(3)
             p[name] = np.zeros((3, B, 3), dtype=dtype)
+    def modal(b):
+        return np.stack([coord(b.first_mode + i) for i in range(b.n_modes)], axis=-1)  # (3, B, nm)
+
     for j in scene.joints:
         Rp, pp = R[j.parent], p[j.parent]
+        par = scene.bodies[j.parent]
         k = j.first
-        local = const_vec(j.at)  # joint translation in the parent frame
+        # joint frame (before the joint's own motion): origin o, orientation Rj
+        if par.kind == "beam" and par.n_modes:
+            psi, phi = par.modes.shapes(j.at[0])
+            a = modal(par)
+            o = pp + _jmul(Rp, const_vec(j.at) + np.einsum("in,kbn->kbi", psi, a), _mv)
+            Rj = _jmul(Rp, _jexp_skew(np.einsum("in,kbn->kbi", phi, a)), _mm)
+        else:
+            o = pp + _jmul(Rp, const_vec(j.at), _mv)
+            Rj = Rp
+        local = None  # joint translation in the joint frame
         Rrel = None
         if j.kind == "revolute":
             Rrel = _jrot(j.axis, coord(k))
         elif j.kind == "prismatic":
-            local = local + coord(k)[..., None] * j.axis
+            local = coord(k)[..., None] * j.axis
         elif j.kind == "spherical":
             Rrel = _jmul(_jmul(_jrot(_EX, coord(k)), _jrot(_EY, coord(k + 1)), _mm), _jrot(_EZ, coord(k + 2)), _mm)
         elif j.kind == "free":
-            local = local + np.stack([coord(k), coord(k + 1), coord(k + 2)], axis=-1)
+            local = np.stack([coord(k), coord(k + 1), coord(k + 2)], axis=-1)
             Rrel = _jmul(_jmul(_jrot(_EX, coord(k + 3)), _jrot(_EY, coord(k + 4)), _mm), _jrot(_EZ, coord(k + 5)), _mm)
         elif j.kind != "fixed":
             raise ValueError(j.kind)
-        p[j.child] = pp + _jmul(Rp, local, _mv)
-        R[j.child] = Rp if Rrel is None else _jmul(Rp, Rrel, _mm)
+        p[j.child] = o if local is None else o + _jmul(Rj, local, _mv)
+        R[j.child] = Rj if Rrel is None else _jmul(Rj, Rrel, _mm)
     masses, positions = [], []
     for j in scene.joints:
         b = scene.bodies[j.child]
-        if b.kind != "rigid":
-            continue
-        m, x = point_masses(b.mass, b.com, b.inertia)
-        masses.append(m)
-        # r = p + R x for the 6 points: (3, B, 6, 3)
-        positions.append(p[j.child][:, :, None, :] + np.einsum("kbij,pj->kbpi", R[j.child], x))
+        if b.kind == "rigid":
+            m, x = point_masses(b.mass, b.com, b.inertia)
+            masses.append(m)
+            # r = p + R x for the 6 points: (3, B, 6, 3)
+            positions.append(p[j.child][:, :, None, :] + np.einsum("kbij,pj->kbpi", R[j.child], x))
+        elif b.kind == "beam":
+            bm = b.modes
+            # body-frame positions of the Gauss points on the deformed axis: (3, B, NP, 3)
+            x = np.zeros((3, B, bm.x_points.size, 3), dtype=dtype)
+            x[0, :, :, 0] = bm.x_points
+            if b.n_modes:
+                x = x + np.einsum("pin,kbn->kbpi", bm.psi_points, modal(b))
+            masses.append(bm.m_points)
+            positions.append(p[j.child][:, :, None, :] + _jmul(R[j.child], x, lambda a, c: np.einsum("bij,bpj->bpi", a, c)))
     return np.concatenate(masses), np.concatenate(positions, axis=2)
 
 
@@ -401,18 +634,18 @@ def reference_terms(scene: Scene, q, qd, t: float = 0.0) -> tuple[np.ndarray, np
     P = -np.einsum("p,pik,pi->k", m, jac, acc)
     if scene.gravity_on:
         P = P + np.einsum("p,pik,i->k", m, jac, scene.gravity)
-    P = P + scene.generalised_drive_forces(t)
+    P = P + scene.generalised_drive_forces(t) + scene.elastic_forces(q, qd)
     return M, P
 
 
 def reference_energy(scene: Scene, q, qd) -> tuple[float, float]:
-    """Kinetic energy sum m |v|^2 / 2 and gravity potential -sum m g.r (zero at the
-    inertial origin; 0 when gravity is off)."""
+    """Kinetic energy sum m |v|^2 / 2 and potential: elastic 1/2 sum omega^2 a^2 plus, with
+    gravity on, -sum m g.r (zero at the inertial origin)."""
     m, r = point_kinematics(scene, np.asarray(q, dtype=float), np.asarray(qd, dtype=float))
     vel = r[1, 0]
     ke = 0.5 * float(np.einsum("p,pi,pi->", m, vel, vel))
     pe = -float(np.einsum("p,pi,i->", m, r[0, 0], scene.gravity)) if scene.gravity_on else 0.0
-    return ke, pe
+    return ke, pe + scene.elastic_energy(q)
 
 
 # ----------------------------------------------------------------------------------------
@@ -449,5 +682,12 @@ def reference_terms_lagrange(scene: Scene, q, qd, t: float = 0.0, h: float = 1e-
         m, r = point_kinematics(scene, qs[1:], np.zeros(n))
         V = -np.einsum("p,spi,i->s", m, r[0], scene.gravity)
         P = P - V.imag / h
+    # elastic forces as -dV/da of V = 1/2 sum omega^2 a^2 (complex steps), damping as given
+    Ve = np.array([sum(0.5 * np.sum(b.modes.omega2 * qs[1 + k][s] ** 2) for b, s in scene.modal_slices())
+                   for k in range(n)], dtype=complex)
+    P = P - Ve.imag / h
+    if scene.damping_on:
+        for b, s in scene.modal_slices():
+            P[s] -= 2.0 * b.modal_damping * np.sqrt(b.modes.omega2) * qd[s]
     P = P + scene.generalised_drive_forces(t)
     return M, P

@@ -43,8 +43,8 @@ program mrsim
   call run_scene(scene, overrides, out, summary, error)
   if (allocated(error)) then
     write(error_unit, '(a)') 'mrsim: error: ' // error%message
-    if (error%stat == 1) error stop 1, quiet=.true.
-    error stop 2, quiet=.true.
+    if (error%stat == 1) stop 1, quiet=.true.
+    stop 2, quiet=.true.
   end if
   if (.not. quiet) write(output_unit, '(a)') summary
 
@@ -62,6 +62,6 @@ contains
   subroutine usage_error(msg)
     character(len=*), intent(in) :: msg
     write(error_unit, '(a)') 'mrsim: error: ' // msg
-    error stop 1, quiet=.true.
+    stop 1, quiet=.true.
   end subroutine usage_error
 end program mrsim

@@ -205,3 +205,37 @@ subroutine pymr_nordsieck_op(op, n, z, alpha, out)
     call nordsieck_value(z, alpha, out(:, 1))
   end select
 end subroutine pymr_nordsieck_op
+
+!> Write the modes of beam `body` of a scene to a modal data file (for kind='modal').
+subroutine pymr_write_modal(scene, overrides, body, path, stat, message)
+  use pymr_error, only : error_type, fatal_error
+  use pymr_bind_support, only : report
+  use pymr_model_scene, only : scene_t
+  use pymr_model, only : model_t
+  use pymr_run, only : load_model
+  use pymr_io_modal_file, only : write_modal_file
+  implicit none
+  character(len=*), intent(in) :: scene, overrides, body, path
+  integer, intent(out) :: stat
+  character(len=1024), intent(out) :: message
+  type(error_type), allocatable :: error
+  type(scene_t) :: sc
+  type(model_t) :: model
+  integer :: b, k
+  call load_model(scene, overrides, sc, model, error)
+  if (.not. allocated(error)) then
+    k = 0
+    do b = 2, model%d%nb
+      if (model%d%body_name(b) == body) k = b
+    end do
+    if (k == 0) then
+      call fatal_error(error, scene // ": no body named '" // body // "'")
+    else if (model%d%bshape(k)%ne == 0) then
+      call fatal_error(error, scene // ": body '" // body // "' is not a beam (kind='beam')")
+    else
+      call write_modal_file(path, 'modes of beam ' // body // ' from ' // scene, model%d%flex(k), &
+        & model%d%bshape(k), error)
+    end if
+  end if
+  call report(error, stat, message)
+end subroutine pymr_write_modal

@@ -27,9 +27,9 @@ module pymr_io_namelist_input
     & 'adaptive', 'rtol', 'atol', 'h_min', 'h_max', 'n_corrector']
   character(len=*), parameter :: items_effects(3) = [character(len=16) :: 'gravity', 'joint_drives', &
     & 'modal_damping']
-  character(len=*), parameter :: items_body(17) = [character(len=16) :: 'name', 'kind', 'mass', 'com', 'inertia', &
+  character(len=*), parameter :: items_body(18) = [character(len=16) :: 'name', 'kind', 'mass', 'com', 'inertia', &
     & 'length', 'youngs_modulus', 'density', 'r_outer', 'r_inner', 'area', 'iy', 'iz', 'n_elements', 'modes_y', &
-    & 'modes_z', 'modal_damping']
+    & 'modes_z', 'modal_damping', 'modal_file']
   character(len=*), parameter :: items_joint(8) = [character(len=16) :: 'name', 'kind', 'parent', 'child', &
     & 'at', 'axis', 'q0', 'qd0']
   character(len=*), parameter :: items_drive(6) = [character(len=16) :: 'joint', 'coordinate', 'offset', &
@@ -379,11 +379,12 @@ contains
     real(dp) :: mass, com(3), inertia(6), length, youngs_modulus, density, r_outer, r_inner, area, iy, iz
     real(dp) :: modal_damping
     integer :: n_elements, modes_y, modes_z
+    character(len=512) :: modal_file
     integer :: ios, i, k, n
     character(len=256) :: msg
     type(body_spec) :: d
     namelist /body/ name, kind, mass, com, inertia, length, youngs_modulus, density, r_outer, r_inner, area, &
-      & iy, iz, n_elements, modes_y, modes_z, modal_damping
+      & iy, iz, n_elements, modes_y, modes_z, modal_damping, modal_file
     n = count(groups%name == 'body')
     allocate(sc%bodies(n))
     rewind(u)
@@ -391,7 +392,7 @@ contains
       name = d%name; kind = d%kind; mass = d%mass; com = d%com; inertia = d%inertia
       length = d%length; youngs_modulus = d%youngs_modulus; density = d%density; r_outer = d%r_outer
       r_inner = d%r_inner; area = d%area; iy = d%iy; iz = d%iz; n_elements = d%n_elements
-      modes_y = d%modes_y; modes_z = d%modes_z; modal_damping = d%modal_damping
+      modes_y = d%modes_y; modes_z = d%modes_z; modal_damping = d%modal_damping; modal_file = d%modal_file
       read(u, nml=body, iostat=ios, iomsg=msg)
       if (ios /= 0) then
         call read_failed(file, 'body', groups, k, msg, error); return
@@ -407,7 +408,7 @@ contains
       sc%bodies(k) = body_spec(name=name, kind=lower(kind), mass=mass, com=com, inertia=inertia, length=length, &
         & youngs_modulus=youngs_modulus, density=density, r_outer=r_outer, r_inner=r_inner, area=area, iy=iy, &
         & iz=iz, n_elements=n_elements, modes_y=modes_y, modes_z=modes_z, modal_damping=modal_damping, &
-        & line=group_line(groups, 'body', k))
+        & modal_file=modal_file, line=group_line(groups, 'body', k))
     end do
   end subroutine read_bodies
 

@@ -7,6 +7,8 @@ module pymr_model_build
   use pymr_model_types, only : model_data, prim_revolute, prim_prismatic, effect_gravity, effect_joint_drives, &
     & effect_modal_damping
   use pymr_model_beam_modes, only : build_beam, beam_point_shapes
+  use pymr_io_modal_file, only : read_modal_file
+  use pymr_model_flexbody, only : flex_data, modal_nodes
   use pymr_model_spatial, only : unit_axes
   use pymr_model, only : model_t
   use pymr_io_namelist_scan, only : itoa
@@ -186,8 +188,14 @@ contains
         case ('beam')
           call check_beam(sc, i, error); if (allocated(error)) return
         case ('modal')
-          call fatal_error(error, where_body(sc, i) // ": kind: 'modal' (mode data from a file) is not " // &
-            & "available in this version (use 'beam', 'rigid' or 'ground')"); return
+          if (len_trim(b%modal_file) == 0) then
+            call fatal_error(error, where_body(sc, i) // ': modal_file: missing (the file with the mode data)')
+            return
+          end if
+          if (b%modal_damping < 0.0_dp .or. b%modal_damping >= 1.0_dp) then
+            call fatal_error(error, where_body(sc, i) // ': modal_damping: must be a fraction of critical in ' // &
+              & '[0, 1), got ' // fmt(b%modal_damping)); return
+          end if
         case ('')
           call fatal_error(error, where_body(sc, i) // ": kind: missing ('ground', 'rigid', 'beam' or 'modal')")
           return
@@ -414,27 +422,37 @@ contains
     integer, intent(in) :: order(:), inboard(:)
     type(model_data), intent(out) :: d
     type(error_type), allocatable, intent(out) :: error
-    integer :: nb, b, i, j, k, m, nmod, pos_in(size(order))
+    integer :: nb, b, i, j, k, m, nmod, nmb, pos_in(size(order))
+    type(flex_data), allocatable :: mfd(:)
+    type(modal_nodes), allocatable :: mnd(:)
     nb = size(order)
     do b = 1, nb
       pos_in(order(b)) = b
     end do
     d%nb = nb
     d%nj = 0; nmod = 0; d%mmax = 0
+    allocate(mfd(nb), mnd(nb))
     do b = 2, nb
       d%nj = d%nj + joint_ndof(sc%joints(inboard(order(b)))%kind)
       associate(bs => sc%bodies(order(b)))
-        if (bs%kind == 'beam') then
-          nmod = nmod + bs%modes_y + bs%modes_z
-          d%mmax = max(d%mmax, bs%modes_y + bs%modes_z)
+        nmb = 0
+        if (bs%kind == 'beam') nmb = bs%modes_y + bs%modes_z
+        if (bs%kind == 'modal') then
+          call read_modal_file(relative_to(sc%file, trim(bs%modal_file)), bs%modal_damping, mfd(b), mnd(b), error)
+          if (allocated(error)) then
+            error%message = where_body(sc, order(b)) // ': modal_file: ' // error%message; return
+          end if
+          nmb = mfd(b)%m
         end if
+        nmod = nmod + nmb
+        d%mmax = max(d%mmax, nmb)
       end associate
     end do
     d%n = d%nj + nmod
     associate(n => d%n, mx => d%mmax)
       allocate(d%body_name(nb), d%joint_name(nb), d%parent(nb), d%c0(nb), d%nc(nb), d%mass(nb), d%com(3, nb), &
         & d%inertia(3, 3, nb), d%at(3, nb), d%prim(n), d%cbody(n), d%cgrp(n), d%axis(3, n), d%qname(n), &
-        & d%qdname(n), d%flexible(nb), d%nm(nb), d%a0(nb), d%flex(nb), d%fwork(nb), d%bshape(nb), &
+        & d%qdname(n), d%flexible(nb), d%nm(nb), d%a0(nb), d%flex(nb), d%fwork(nb), d%bshape(nb), d%mnodes(nb), &
         & d%att_psi(3, mx, nb), d%att_phi(3, mx, nb), d%cm(6, mx, nb), d%mva(6, mx, nb), d%wam(mx, nb))
     end associate
     d%parent = 0; d%c0 = 1; d%nc = 0; d%mass = 0.0_dp; d%com = 0.0_dp; d%inertia = 0.0_dp; d%at = 0.0_dp
@@ -451,6 +469,9 @@ contains
       call add_joint(sc%joints(j), b, k, d)
       if (sc%bodies(i)%kind == 'beam') then
         call add_beam(sc, i, b, m, d, error); if (allocated(error)) return
+      else if (sc%bodies(i)%kind == 'modal') then
+        d%flex(b) = mfd(b); d%mnodes(b) = mnd(b)
+        call add_flexible(sc%bodies(i)%name, b, m, d)
       else
         d%mass(b) = sc%bodies(i)%mass
         d%com(:, b) = sc%bodies(i)%com
@@ -514,7 +535,6 @@ contains
     type(model_data), intent(inout) :: d
     type(error_type), allocatable, intent(out) :: error
     real(dp) :: area, iy, iz
-    integer :: k, nmb
     associate(bs => sc%bodies(i))
       if (bs%r_outer /= unset) then
         area = pi*(bs%r_outer**2 - bs%r_inner**2)
@@ -527,21 +547,44 @@ contains
       if (allocated(error)) then
         error%message = where_body(sc, i) // ': ' // error%message; return
       end if
-      nmb = bs%modes_y + bs%modes_z
-      d%flexible(b) = .true.
-      d%nm(b) = nmb
-      d%a0(b) = m + 1
-      d%mass(b) = d%flex(b)%mass
-      allocate(d%fwork(b)%wa(3, 3, 0:nmb), d%fwork(b)%cr(3, nmb))
-      do k = 1, nmb
-        d%cbody(m + k) = b; d%cgrp(m + k) = d%nb + b
-        d%qname(m + k) = trim(bs%name) // '.a' // itoa(k)
-        d%qdname(m + k) = trim(bs%name) // '.ad' // itoa(k)
-        d%prim(m + k) = 0; d%axis(:, m + k) = 0.0_dp
-      end do
-      m = m + nmb
+      call add_flexible(bs%name, b, m, d)
     end associate
   end subroutine add_beam
+
+  !> Register flexible body b (its flex data already set): modal coordinates after m.
+  subroutine add_flexible(name, b, m, d)
+    character(len=*), intent(in) :: name
+    integer, intent(in) :: b
+    integer, intent(inout) :: m
+    type(model_data), intent(inout) :: d
+    integer :: k, nmb
+    nmb = d%flex(b)%m
+    d%flexible(b) = .true.
+    d%nm(b) = nmb
+    d%a0(b) = m + 1
+    d%mass(b) = d%flex(b)%mass
+    allocate(d%fwork(b)%wa(3, 3, 0:nmb), d%fwork(b)%cr(3, nmb))
+    do k = 1, nmb
+      d%cbody(m + k) = b; d%cgrp(m + k) = d%nb + b
+      d%qname(m + k) = trim(name) // '.a' // itoa(k)
+      d%qdname(m + k) = trim(name) // '.ad' // itoa(k)
+      d%prim(m + k) = 0; d%axis(:, m + k) = 0.0_dp
+    end do
+    m = m + nmb
+  end subroutine add_flexible
+
+  !> A path relative to the folder of `scene` (absolute paths are kept).
+  function relative_to(scene, path) result(p)
+    character(len=*), intent(in) :: scene, path
+    character(len=:), allocatable :: p
+    integer :: k
+    k = index(scene, '/', back=.true.)
+    if (path(1:1) == '/' .or. k == 0) then
+      p = path
+    else
+      p = scene(1:k) // path
+    end if
+  end function relative_to
 
   !> Children lists of every body.
   subroutine fill_children(d)
@@ -570,6 +613,19 @@ contains
     real(dp), intent(out) :: psi(:, :), phi(:, :)
     type(error_type), allocatable, intent(out) :: error
     real(dp) :: len_b
+    integer :: p
+    if (d%bshape(b)%ne == 0) then
+      do p = 1, d%mnodes(b)%np
+        if (norm2(d%mnodes(b)%x(:, p) - r) <= 1.0e-9_dp*max(1.0_dp, norm2(r))) then
+          psi = 0.0_dp; phi = 0.0_dp
+          psi(:, 1:d%nm(b)) = d%mnodes(b)%psi(:, :, p); phi(:, 1:d%nm(b)) = d%mnodes(b)%phi(:, :, p)
+          return
+        end if
+      end do
+      call fatal_error(error, sc%file // ': ' // what // ': at: (' // fmt(r(1)) // ', ' // fmt(r(2)) // ', ' // &
+        & fmt(r(3)) // ") is not a point of modal body '" // trim(d%body_name(b)) // "' (joints and markers " // &
+        & 'on a modal body must sit on one of its file''s points)'); return
+    end if
     len_b = d%bshape(b)%length
     if (r(1) < -1.0e-9_dp*len_b .or. r(1) > len_b*(1.0_dp + 1.0e-9_dp)) then
       call fatal_error(error, sc%file // ': ' // what // ': at: x = ' // fmt(r(1)) // " lies outside beam '" // &

@@ -12,7 +12,7 @@ module pymr_model_flexbody
   use pymr_model_spatial, only : cross, skew, rigid_inertia
   implicit none
   private
-  public :: flex_data, flex_invariants, flex_body_terms, flex_work, small_rotation, point_shapes
+  public :: flex_data, flex_invariants, flex_body_terms, flex_work, small_rotation, point_shapes, modal_nodes
 
   !> Invariants and modal properties of one flexible body.
   type :: flex_data
@@ -29,6 +29,12 @@ module pymr_model_flexbody
     !> Mode data at the mass points (kept for the modal file writer): s(3,np), mp(np), psi(3,m,np)
     real(dp), allocatable :: ps(:, :), pm(:), ppsi(:, :, :)
   end type flex_data
+
+  !> Points of a modal-file body with their shapes, where joints and markers attach.
+  type :: modal_nodes
+    integer :: np = 0
+    real(dp), allocatable :: x(:, :), psi(:, :, :), phi(:, :, :)
+  end type modal_nodes
 
   !> Work arrays of one evaluation of a flexible body.
   type :: flex_work

@@ -34,7 +34,7 @@ module pymr_model_scene
   !> One &body group.
   type :: body_spec
     character(len=name_len) :: name = ''
-    !> 'ground', 'rigid', 'beam' (later: 'modal').
+    !> 'ground', 'rigid', 'beam', 'modal'.
     character(len=16) :: kind = ''
     !> Mass (kg), centre of mass in the body frame (m), inertia about the centre of
     !> mass in body axes: Ixx Iyy Izz Ixy Ixz Iyz (kg m^2).
@@ -46,6 +46,8 @@ module pymr_model_scene
     integer :: n_elements = 20, modes_y = 0, modes_z = 0
     !> Modal damping, fraction of critical (used when &effects modal_damping is on).
     real(dp) :: modal_damping = 0.0_dp
+    !> Modal data file of a 'modal' body (relative to the scene file's folder).
+    character(len=512) :: modal_file = ''
     !> Line of the group in the file (for messages).
     integer :: line = 0
   end type body_spec

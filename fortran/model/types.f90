@@ -2,7 +2,7 @@
 !> effect plan and the work arrays of one evaluation (allocated once at build).
 module pymr_model_types
   use pymr_kinds, only : dp, name_len
-  use pymr_model_flexbody, only : flex_data, flex_work
+  use pymr_model_flexbody, only : flex_data, flex_work, modal_nodes
   use pymr_model_beam_modes, only : beam_shape
   implicit none
   private
@@ -40,6 +40,7 @@ module pymr_model_types
     type(flex_data), allocatable :: flex(:)
     type(flex_work), allocatable :: fwork(:)
     type(beam_shape), allocatable :: bshape(:)
+    type(modal_nodes), allocatable :: mnodes(:)
     !> Mode shapes of the parent at each body's joint point: translation, rotation (3, mmax, nb).
     real(dp), allocatable :: att_psi(:, :, :), att_phi(:, :, :)
     !> Spatial columns of the parent's modal rates at each body's joint point (6, mmax, nb).

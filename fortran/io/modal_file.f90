@@ -1,0 +1,147 @@
+!> Modal data files for `kind='modal'` bodies (format in README.md, "Modal data files").
+!>
+!>   # comment lines start with '#'
+!>   pymr-modal 1
+!>   modes M
+!>   frequencies_hz f_1 ... f_M
+!>   points P
+!>   x y z mass  psi(1:3, 1) ... psi(1:3, M)  phi(1:3, 1) ... phi(1:3, M)     (P lines)
+!>
+!> Points are in the body frame (m); mass in kg (0 for a point that only carries a
+!> joint or a marker); psi and phi are the mass-normalised translational and rotational
+!> mode shapes at the point. The body's inertia is the sum over the point masses.
+module pymr_io_modal_file
+  use pymr_kinds, only : dp, pi
+  use pymr_error, only : error_type, fatal_error
+  use pymr_model_flexbody, only : flex_data, flex_invariants, modal_nodes
+  use pymr_model_beam_modes, only : beam_shape, beam_point_shapes
+  use pymr_io_namelist_scan, only : itoa
+  implicit none
+  private
+  public :: read_modal_file, write_modal_file
+
+contains
+
+  !> Read a modal file into invariants (fd) and nodes.
+  subroutine read_modal_file(path, zeta, fd, nodes, error)
+    character(len=*), intent(in) :: path
+    real(dp), intent(in) :: zeta
+    type(flex_data), intent(out) :: fd
+    type(modal_nodes), intent(out) :: nodes
+    type(error_type), allocatable, intent(out) :: error
+    integer :: u, ios, m, np, p, line
+    character(len=256) :: msg
+    character(len=64) :: key
+    real(dp), allocatable :: f(:), row(:), mp(:)
+    logical :: exists
+    inquire(file=path, exist=exists)
+    if (.not. exists) then
+      call fatal_error(error, path // ': modal file not found'); return
+    end if
+    open(newunit=u, file=path, status='old', action='read', iostat=ios, iomsg=msg)
+    if (ios /= 0) then
+      call fatal_error(error, path // ': cannot open: ' // trim(msg)); return
+    end if
+    line = 0
+    call next_key('pymr-modal'); if (allocated(error)) goto 90
+    call next_key('modes'); if (allocated(error)) goto 90
+    backspace(u); read(u, *, iostat=ios, iomsg=msg) key, m
+    if (ios /= 0 .or. m < 0) then
+      call fatal_error(error, path // ': line ' // itoa(line) // ': modes: expected a count'); goto 90
+    end if
+    allocate(f(m))
+    call next_key('frequencies_hz'); if (allocated(error)) goto 90
+    backspace(u); read(u, *, iostat=ios, iomsg=msg) key, f
+    if (ios /= 0 .or. any(f <= 0.0_dp)) then
+      call fatal_error(error, path // ': line ' // itoa(line) // ': frequencies_hz: expected ' // itoa(m) // &
+        & ' positive frequencies'); goto 90
+    end if
+    call next_key('points'); if (allocated(error)) goto 90
+    backspace(u); read(u, *, iostat=ios, iomsg=msg) key, np
+    if (ios /= 0 .or. np < 1) then
+      call fatal_error(error, path // ': line ' // itoa(line) // ': points: expected a positive count'); goto 90
+    end if
+    nodes%np = np
+    allocate(nodes%x(3, np), nodes%psi(3, m, np), nodes%phi(3, m, np), mp(np), row(4 + 6*m))
+    do p = 1, np
+      call skip_comments(); if (allocated(error)) goto 90
+      read(u, *, iostat=ios, iomsg=msg) row
+      if (ios /= 0) then
+        call fatal_error(error, path // ': line ' // itoa(line) // ': point ' // itoa(p) // ': expected ' // &
+          & itoa(4 + 6*m) // ' numbers (x y z mass, then psi and phi of each mode)'); goto 90
+      end if
+      if (row(4) < 0.0_dp) then
+        call fatal_error(error, path // ': line ' // itoa(line) // ': point ' // itoa(p) // ': negative mass')
+        goto 90
+      end if
+      nodes%x(:, p) = row(1:3); mp(p) = row(4)
+      nodes%psi(:, :, p) = reshape(row(5:4 + 3*m), [3, m])
+      nodes%phi(:, :, p) = reshape(row(5 + 3*m:4 + 6*m), [3, m])
+    end do
+    if (.not. (sum(mp) > 0.0_dp)) then
+      call fatal_error(error, path // ': the points carry no mass'); goto 90
+    end if
+    call flex_invariants(nodes%x, mp, nodes%psi, fd)
+    fd%omega2 = (2.0_dp*pi*f)**2
+    fd%damp = 2.0_dp*zeta*2.0_dp*pi*f
+90  close(u)
+  contains
+    subroutine skip_comments()
+      character(len=1024) :: buf
+      do
+        read(u, '(a)', iostat=ios) buf
+        line = line + 1
+        if (ios /= 0) then
+          call fatal_error(error, path // ': unexpected end of file after line ' // itoa(line - 1)); return
+        end if
+        if (len_trim(buf) == 0) cycle
+        if (buf(verify(buf, ' '):verify(buf, ' ')) == '#') cycle
+        backspace(u); line = line - 1
+        exit
+      end do
+      line = line + 1
+    end subroutine skip_comments
+    subroutine next_key(expect)
+      character(len=*), intent(in) :: expect
+      character(len=64) :: word
+      call skip_comments(); if (allocated(error)) return
+      read(u, *, iostat=ios) word
+      if (ios /= 0 .or. trim(word) /= expect) then
+        call fatal_error(error, path // ': line ' // itoa(line) // ": expected '" // expect // "'"); return
+      end if
+      if (expect == 'pymr-modal') return
+    end subroutine next_key
+  end subroutine read_modal_file
+
+  !> Write a built-in beam as a modal file: its Gauss mass points and its nodes (mass 0).
+  subroutine write_modal_file(path, title, fd, bs, error)
+    character(len=*), intent(in) :: path, title
+    type(flex_data), intent(in) :: fd
+    type(beam_shape), intent(in) :: bs
+    type(error_type), allocatable, intent(out) :: error
+    integer :: u, ios, p, m, i
+    character(len=256) :: msg
+    real(dp) :: psi(3, fd%m), phi(3, fd%m), x(3)
+    m = fd%m
+    open(newunit=u, file=path, status='replace', action='write', iostat=ios, iomsg=msg)
+    if (ios /= 0) then
+      call fatal_error(error, path // ': cannot write: ' // trim(msg)); return
+    end if
+    write(u, '(a)') '# ' // trim(title)
+    write(u, '(a)') '# points: x y z mass, psi(1:3) of each mode, phi(1:3) of each mode (body frame, SI)'
+    write(u, '(a)') 'pymr-modal 1'
+    write(u, '(a,i0)') 'modes ', m
+    write(u, '(a,*(1x,es24.16e3))') 'frequencies_hz', sqrt(fd%omega2)/(2.0_dp*pi)
+    write(u, '(a,i0)') 'points ', size(fd%pm) + bs%ne + 1
+    do p = 1, size(fd%pm)
+      call beam_point_shapes(bs, fd%ps(:, p), psi, phi)
+      write(u, '(*(es24.16e3,:,1x))') fd%ps(:, p), fd%pm(p), fd%ppsi(:, :, p), phi
+    end do
+    do i = 0, bs%ne
+      x = [bs%length*i/bs%ne, 0.0_dp, 0.0_dp]
+      call beam_point_shapes(bs, x, psi, phi)
+      write(u, '(*(es24.16e3,:,1x))') x, 0.0_dp, psi, phi
+    end do
+    close(u)
+  end subroutine write_modal_file
+end module pymr_io_modal_file
