@@ -48,21 +48,59 @@ def bench_rhs(sizes=(5, 20, 100), repeats: int = 7) -> list[dict]:
     return rows
 
 
+INPUT = Path(__file__).resolve().parent.parent / "input"
+
+
+def _scene_path(name: str) -> Path:
+    """A scene shipped in input/ (source checkout) or beside the installed package."""
+    for base in (INPUT, Path.cwd() / "input"):
+        if (base / name).exists():
+            return base / name
+    raise FileNotFoundError(f"input/{name} not found (run from the pymr checkout)")
+
+
+def bench_scenes(repeats: int = 7) -> list[dict]:
+    """Cost of one evaluation of the shipped flexible scenes at their initial state."""
+    rows = []
+    for name in ("tank_gun_turret.nml", "flexible_chain.nml"):
+        path = _scene_path(name)
+        n, nb, _ = model_size(path)
+        res_q = np.zeros(n)
+        sec = time_evaluation(str(path), res_q, res_q, repeats=repeats)
+        rows.append({"scene": name.removesuffix(".nml"), "bodies": nb - 1, "coordinates": n, "median_us": sec * 1e6})
+    return rows
+
+
+def bench_tank_run(repeats: int = 3) -> dict:
+    """CPU time of the tank's 1 s single-rate run (h = 1e-4 s), median of repeats."""
+    from .api import run
+    cpu = []
+    with tempfile.TemporaryDirectory(prefix="pymr-bench-") as tmp:
+        for _ in range(repeats):
+            res = run(_scene_path("tank_gun_turret.nml"), Path(tmp) / "tank.csv")
+            cpu.append(res.stats["cpu_time_s"])
+    return {"scene": "tank_gun_turret", "median_cpu_s": statistics.median(cpu), "steps": res.stats["steps_slow"],
+            "rhs_full": res.stats["rhs_full"]}
+
+
 def main(what: str, repeats: int = 7, json_path: str | None = None) -> int:
     if what == "rhs":
-        rows = bench_rhs(repeats=repeats)
+        rows = bench_rhs(repeats=repeats) + bench_scenes(repeats=repeats)
         print(f"pymr bench rhs: median CPU time of one model evaluation ({repeats} repeats)")
         print(f"{'scene':>12} {'bodies':>7} {'coords':>7} {'median us':>11} {'us/body':>9} {'growth':>8}")
         prev = None
         for r in rows:
             growth = ""
-            if prev is not None:
+            if prev is not None and r["scene"].startswith("chain-"):
                 # exponent p in cost ~ bodies^p between consecutive sizes
                 growth = "n^%.2f" % (np.log(r["median_us"] / prev["median_us"]) / np.log(r["bodies"] / prev["bodies"]))
             print(f"{r['scene']:>12} {r['bodies']:>7} {r['coordinates']:>7} {r['median_us']:>11.2f} "
                   f"{r['median_us'] / r['bodies']:>9.3f} {growth:>8}")
             prev = r
+        tank = bench_tank_run()
+        print(f"tank 1 s single-rate run (h = 1e-4 s, {tank['steps']} steps, {tank['rhs_full']} evaluations): "
+              f"median CPU {tank['median_cpu_s']:.3f} s")
         if json_path:
-            Path(json_path).write_text(json.dumps(rows, indent=2))
+            Path(json_path).write_text(json.dumps({"evaluations": rows, "tank_run": tank}, indent=2))
         return 0
     raise ValueError(what)

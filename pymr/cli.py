@@ -19,6 +19,14 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     return bench.main(args.what, repeats=args.repeats, json_path=args.json)
 
 
+def _cmd_modal_file(args: argparse.Namespace) -> int:
+    from .api import write_modal_file
+    write_modal_file(args.scene, args.body, args.output, overrides=args.set or None)
+    if not args.quiet:
+        print(f"wrote the modes of beam {args.body!r} to {args.output}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="pymr", description="Flexible multibody dynamics with multirate "
                                 "Nordsieck Adams integration.")
@@ -31,6 +39,13 @@ def build_parser() -> argparse.ArgumentParser:
                         "body[gun].mass=1000 (repeatable)")
     r.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
     r.set_defaults(func=_cmd_run)
+    m = sub.add_parser("modal-file", help="write a beam's modes to a modal data file (for kind='modal')")
+    m.add_argument("scene", help="scene namelist file")
+    m.add_argument("body", help="name of a kind='beam' body")
+    m.add_argument("-o", "--output", required=True, help="modal data file to write")
+    m.add_argument("--set", action="append", metavar="GROUP.KEY=VALUE", help="namelist override (repeatable)")
+    m.add_argument("-q", "--quiet", action="store_true")
+    m.set_defaults(func=_cmd_modal_file)
     b = sub.add_parser("bench", help="benchmarks that print figures")
     b.add_argument("what", choices=["rhs"], help="rhs: cost of one model evaluation vs chain length")
     b.add_argument("--repeats", type=int, default=7, help="timing repeats (median is reported)")

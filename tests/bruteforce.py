@@ -360,8 +360,16 @@ def point_masses(mass: float, com: np.ndarray, inertia: np.ndarray) -> tuple[np.
 # beams: cubic Hermite elements, clamped at x = 0, modes per bending plane
 # ----------------------------------------------------------------------------------------
 
+# Quadrature of the beams' mass points and element mass matrices: None = exact 4-point
+# Gauss-Legendre rule (numpy); a pair (points, weights) on [0, 1] replaces it (diagnostics:
+# e.g. the constants of another implementation, to separate their effect from others).
+QUADRATURE: tuple | None = None
+
+
 def gauss_points(n: int = 4) -> tuple[np.ndarray, np.ndarray]:
-    """Gauss-Legendre points and weights on [0, 1]."""
+    """Gauss-Legendre points and weights on [0, 1] (or the override QUADRATURE)."""
+    if QUADRATURE is not None:
+        return np.asarray(QUADRATURE[0], dtype=float), np.asarray(QUADRATURE[1], dtype=float)
     x, w = np.polynomial.legendre.leggauss(n)
     return 0.5 * (x + 1.0), 0.5 * w
 
