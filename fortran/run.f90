@@ -105,7 +105,9 @@ contains
     call integ%value_at(sc%t_end, x)
 90  continue
     call csv%close()
-    if (allocated(error)) return
+    if (allocated(error)) then
+      error%message = file // ': ' // error%message; return
+    end if
     call cpu_time(cpu1); call system_clock(c1)
     st%cpu_time_s = cpu1 - cpu0; st%wall_time_s = real(c1 - c0, dp)/real(rate, dp)
     st%steps_slow = integ%steps; st%steps_fast = integ%steps

@@ -159,8 +159,8 @@ CASES = [
          ("&joint", "'pivot'", "axis", "zero length")),
     # 12. a value of the wrong type, too many values
     Case("mass_text", _MASS_TEXT,
-         ("&body", "cannot read a value", f"line {line_of(_MASS_TEXT, BOB_GROUP_START)}")),
-    Case("mass_two_values", _MASS_TWO, ("&body", "cannot read a value")),
+         ("&body", "mass: cannot read the value 'abc'", f"line {line_of(_MASS_TEXT, BOB_GROUP_START)}")),
+    Case("mass_two_values", _MASS_TWO, ("&body", "mass: cannot read the value 1.0, 2.0")),
     # 13. --set errors
     Case("set_unknown_group", BASE, ("--set", "bodyy.mass=2", "unknown group", "'bodyy'"),
          sets=("bodyy.mass=2",)),

@@ -53,7 +53,10 @@ contains
     sc%file = file
     call scan_file(file, groups, error); if (allocated(error)) return
     call check_groups(file, groups, error); if (allocated(error)) return
-    call parse_overrides(overrides, ovs, error); if (allocated(error)) return
+    call parse_overrides(overrides, ovs, error)
+    if (allocated(error)) then
+      error%message = file // ': ' // error%message; return
+    end if
     open(newunit=u, file=file, status='old', action='read', iostat=ios, iomsg=msg)
     if (ios /= 0) then
       call fatal_error(error, file // ': cannot open: ' // trim(msg)); return
@@ -67,7 +70,10 @@ contains
     if (.not. allocated(error)) call read_drives(file, u, groups, ovs, sc, error)
     if (.not. allocated(error)) call read_markers(file, u, groups, ovs, sc, error)
     close(u)
-    if (allocated(error)) return
+    if (allocated(error)) then
+      if (index(error%message, '--set ') == 1) error%message = file // ': ' // error%message
+      return
+    end if
     ! one step given: it serves both rates
     if (sc%integrator%h_fast == unset) sc%integrator%h_fast = sc%integrator%h_slow
     if (sc%integrator%h_slow == unset) sc%integrator%h_slow = sc%integrator%h_fast
@@ -208,23 +214,45 @@ contains
     end select
   end function key_known
 
-  !> Message for a failed namelist read of group occurrence `idx`.
+  !> Message for a failed namelist read of group occurrence `idx`. gfortran names the
+  !> token it could not read; the item whose value holds that token is named.
   subroutine read_failed(file, group, groups, idx, msg, error)
     character(len=*), intent(in) :: file, group, msg
     type(group_scan), intent(in) :: groups(:)
     integer, intent(in) :: idx
     type(error_type), allocatable, intent(out) :: error
-    call fatal_error(error, file // ': &' // group // ' #' // itoa(idx) // ' (line ' // &
-      & itoa(group_line(groups, group, idx)) // &
-      & '): cannot read a value (wrong type or too many values): ' // trim(msg))
+    integer :: i, k, hit, nhit
+    character(len=:), allocatable :: token, where
+    where = file // ': &' // group // ' #' // itoa(idx) // ' (line ' // itoa(group_line(groups, group, idx)) // ')'
+    k = index(msg, 'object name ', back=.true.)
+    token = ''
+    if (k > 0) token = trim(adjustl(msg(k + 12:)))
+    if (len(token) > 1) then
+      if (token(1:1) == "'" .or. token(1:1) == '"') token = token(2:len(token) - 1)
+    end if
+    nhit = 0; hit = 0
+    do i = 1, size(groups)
+      if (groups(i)%name /= group .or. groups(i)%index /= idx) cycle
+      do k = 1, size(groups(i)%items)
+        if (len(token) > 0 .and. index(groups(i)%values(k), token) > 0) then
+          nhit = nhit + 1
+          if (nhit == 1) hit = k
+        end if
+      end do
+      if (nhit >= 1 .and. hit > 0) then
+        call fatal_error(error, where // ': ' // trim(groups(i)%items(hit)) // ': cannot read the value ' // &
+          & trim(groups(i)%values(hit)) // ' (wrong type, or more values than the item holds)'); return
+      end if
+    end do
+    call fatal_error(error, where // ': cannot read a value (wrong type or too many values): ' // trim(msg))
   end subroutine read_failed
 
   !> Message for a failed override read.
-  subroutine override_failed(ov, msg, error)
+  subroutine override_failed(ov, error)
     type(override_t), intent(in) :: ov
-    character(len=*), intent(in) :: msg
     type(error_type), allocatable, intent(out) :: error
-    call fatal_error(error, '--set ' // ov%source // ': cannot read the value: ' // trim(msg))
+    call fatal_error(error, '--set ' // ov%source // ': cannot read the value (wrong type, or more values ' // &
+      & 'than the item holds)')
   end subroutine override_failed
 
   !> Line of occurrence idx of group.
@@ -261,7 +289,7 @@ contains
       if (ovs(i)%group /= 'scene') cycle
       read(ovs(i)%text, nml=scene, iostat=ios, iomsg=msg)
       if (ios /= 0) then
-        call override_failed(ovs(i), msg, error); return
+        call override_failed(ovs(i), error); return
       end if
       ovs(i)%used = .true.
     end do
@@ -294,7 +322,7 @@ contains
       if (ovs(i)%group /= 'integrator') cycle
       read(ovs(i)%text, nml=integrator, iostat=ios, iomsg=msg)
       if (ios /= 0) then
-        call override_failed(ovs(i), msg, error); return
+        call override_failed(ovs(i), error); return
       end if
       ovs(i)%used = .true.
     end do
@@ -328,7 +356,7 @@ contains
       if (ovs(i)%group /= 'effects') cycle
       read(ovs(i)%text, nml=effects, iostat=ios, iomsg=msg)
       if (ios /= 0) then
-        call override_failed(ovs(i), msg, error); return
+        call override_failed(ovs(i), error); return
       end if
       ovs(i)%used = .true.
     end do
@@ -360,7 +388,7 @@ contains
       if (ovs(i)%group /= 'output') cycle
       read(ovs(i)%text, nml=output, iostat=ios, iomsg=msg)
       if (ios /= 0) then
-        call override_failed(ovs(i), msg, error); return
+        call override_failed(ovs(i), error); return
       end if
       ovs(i)%used = .true.
     end do
@@ -401,7 +429,7 @@ contains
         if (ovs(i)%group /= 'body' .or. ovs(i)%sel /= name) cycle
         read(ovs(i)%text, nml=body, iostat=ios, iomsg=msg)
         if (ios /= 0) then
-          call override_failed(ovs(i), msg, error); return
+          call override_failed(ovs(i), error); return
         end if
         ovs(i)%used = .true.
       end do
@@ -440,7 +468,7 @@ contains
         if (ovs(i)%group /= 'joint' .or. ovs(i)%sel /= name) cycle
         read(ovs(i)%text, nml=joint, iostat=ios, iomsg=msg)
         if (ios /= 0) then
-          call override_failed(ovs(i), msg, error); return
+          call override_failed(ovs(i), error); return
         end if
         ovs(i)%used = .true.
       end do
@@ -477,7 +505,7 @@ contains
         if (ovs(i)%group /= 'drive' .or. ovs(i)%sel /= joint) cycle
         read(ovs(i)%text, nml=drive, iostat=ios, iomsg=msg)
         if (ios /= 0) then
-          call override_failed(ovs(i), msg, error); return
+          call override_failed(ovs(i), error); return
         end if
         ovs(i)%used = .true.
       end do
@@ -512,7 +540,7 @@ contains
         if (ovs(i)%group /= 'marker' .or. ovs(i)%sel /= name) cycle
         read(ovs(i)%text, nml=marker, iostat=ios, iomsg=msg)
         if (ios /= 0) then
-          call override_failed(ovs(i), msg, error); return
+          call override_failed(ovs(i), error); return
         end if
         ovs(i)%used = .true.
       end do

@@ -14,9 +14,10 @@ module pymr_io_namelist_scan
     character(len=name_len) :: name = ''
     !> Line of the '&' and running number of this group name (1 = first &body).
     integer :: line = 0, index = 0
-    !> Item names (lower case) and the line of each.
+    !> Item names (lower case), the line of each, and the text of its value.
     character(len=name_len), allocatable :: items(:)
     integer, allocatable :: item_lines(:)
+    character(len=256), allocatable :: values(:)
   end type group_scan
 
 contains
@@ -58,6 +59,7 @@ contains
     character(len=1) :: c, quote
     logical :: in_group
     type(group_scan) :: g
+    integer, allocatable :: vstart(:), istart(:)
     allocate(groups(0))
     line = 1; i = 1; n = len(text); in_group = .false.; quote = ' '
     do while (i <= n)
@@ -86,6 +88,7 @@ contains
             g%name = lower(text(i+1:j-1)); g%line = line; g%index = 0
             if (allocated(g%items)) deallocate(g%items, g%item_lines)
             allocate(g%items(0), g%item_lines(0))
+            vstart = [integer ::]; istart = [integer ::]
             in_group = .true.; i = j; cycle
           end if
         else if (c == '&' .or. c == '$') then
@@ -95,11 +98,11 @@ contains
             j = j + 1
           end do
           if (lower(text(i+1:max(i+1, j-1))) == 'end') then
-            call close_group(); i = j; cycle
+            call close_group(i); i = j; cycle
           end if
         end if
       case ('/')
-        if (in_group) call close_group()
+        if (in_group) call close_group(i)
       case ('=')
         if (in_group) then
           k = i - 1
@@ -119,18 +122,34 @@ contains
           if (k > j) then
             g%items = [character(len=name_len) :: g%items, lower(text(j+1:k))]
             g%item_lines = [g%item_lines, line]
+            vstart = [vstart, i + 1]; istart = [istart, j + 1]
           end if
         end if
       end select
       i = i + 1
     end do
-    if (in_group) call close_group()
+    if (in_group) call close_group(n + 1)
     do i = 1, size(groups)
       groups(i)%index = count(groups(1:i)%name == groups(i)%name)
     end do
   contains
-    subroutine close_group()
+    !> Close the group at position iend; each item's value runs to the next item.
+    subroutine close_group(iend)
+      integer, intent(in) :: iend
+      integer :: m, e
+      allocate(g%values(size(g%items)))
+      do m = 1, size(g%items)
+        e = iend - 1
+        if (m < size(g%items)) e = istart(m + 1) - 1
+        g%values(m) = adjustl(text(vstart(m):max(e, vstart(m) - 1)))
+        do while (len_trim(g%values(m)) > 0)
+          e = len_trim(g%values(m))
+          if (g%values(m)(e:e) /= ',' .and. g%values(m)(e:e) /= achar(10) .and. g%values(m)(e:e) /= achar(13)) exit
+          g%values(m)(e:e) = ' '
+        end do
+      end do
       groups = [groups, g]
+      deallocate(g%values)
       in_group = .false.
     end subroutine close_group
   end subroutine scan_text
