@@ -103,8 +103,9 @@ contains
     end if
   end subroutine potrs_mat
 
-  !> Generalised symmetric-definite eigenproblem K v = lambda M v (all eigenpairs,
-  !> ascending). On return `k` holds the M-normalised eigenvectors in its columns.
+  !> Generalised symmetric-definite eigenproblem A v = lambda B v, B positive definite
+  !> (all eigenpairs, ascending). On return `k` (A) holds the B-normalised eigenvectors
+  !> in its columns. `what` names B in messages.
   subroutine sygvd(k, m, lambda, what, error)
     real(dp), intent(inout) :: k(:, :)
     real(dp), intent(inout) :: m(:, :)
@@ -125,7 +126,7 @@ contains
     if (info == 0) return
     write(buf, '(i0)') info
     if (info > n) then
-      call fatal_error(error, 'leading minor ' // trim(adjustl(itoa(info - n))) // ' of the mass matrix of ' &
+      call fatal_error(error, 'leading minor ' // trim(adjustl(itoa(info - n))) // ' of ' &
         & // what // ' is not positive definite (dsygvd)', stat_solver)
     else
       call fatal_error(error, 'eigenvalue solver dsygvd failed for ' // what // ' (info ' // trim(buf) // ')', &

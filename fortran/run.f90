@@ -8,6 +8,7 @@ module pymr_run
   use pymr_model_build, only : build_model
   use pymr_model, only : model_t
   use pymr_integrator_abm, only : abm_integrator
+  use pymr_integrator_multirate, only : multirate_integrator, coupling_full, coupling_split
   use pymr_integrator_control, only : step_control
   use pymr_io_results_output, only : csv_writer, json_path, write_json, run_stats
   use pymr_model_kinematics, only : forward_kinematics, marker_motion
@@ -15,7 +16,85 @@ module pymr_run
   private
   public :: run_scene, load_model, default_output
 
+  !> The time stepper of a run: single-rate ABM or multirate.
+  type :: stepper
+    logical :: multirate = .false.
+    type(abm_integrator) :: abm
+    type(multirate_integrator) :: mr
+  contains
+    procedure :: time => stepper_time
+    procedure :: advance => stepper_advance
+    procedure :: value_at => stepper_value_at
+  end type stepper
+
 contains
+
+  pure real(dp) function stepper_time(self)
+    class(stepper), intent(in) :: self
+    if (self%multirate) then
+      stepper_time = self%mr%t
+    else
+      stepper_time = self%abm%t
+    end if
+  end function stepper_time
+
+  subroutine stepper_advance(self, model, error)
+    class(stepper), intent(inout) :: self
+    type(model_t), intent(inout) :: model
+    type(error_type), allocatable, intent(out) :: error
+    if (self%multirate) then
+      call self%mr%step(model, error)
+    else
+      call self%abm%step(model, error)
+    end if
+  end subroutine stepper_advance
+
+  pure subroutine stepper_value_at(self, t, x)
+    class(stepper), intent(in) :: self
+    real(dp), intent(in) :: t
+    real(dp), intent(out) :: x(:)
+    if (self%multirate) then
+      call self%mr%value_at(t, x)
+    else
+      call self%abm%value_at(t, x)
+    end if
+  end subroutine stepper_value_at
+
+  !> Set up the stepper for the scene and start it at (0, x).
+  subroutine start_stepper(sc, model, x, st, error)
+    type(scene_t), intent(in) :: sc
+    type(model_t), intent(inout) :: model
+    real(dp), intent(in) :: x(:)
+    type(stepper), intent(inout) :: st
+    type(error_type), allocatable, intent(out) :: error
+    type(step_control) :: ctl
+    integer :: k, coupling
+    st%multirate = trim(sc%integrator%method) == 'multirate'
+    if (st%multirate) then
+      if (model%n_fast() == 0 .or. model%n_slow() == 0) then
+        call fatal_error(error, sc%file // ": &integrator: method: 'multirate' needs slow (joint) and fast " // &
+          & "(modal) coordinates; this scene has " // trim(itoa_(model%n_slow())) // ' and ' // &
+          & trim(itoa_(model%n_fast())) // ": use method = 'single'"); return
+      end if
+      k = nint(sc%integrator%h_slow/sc%integrator%h_fast)
+      coupling = merge(coupling_split, coupling_full, sc%integrator%coupling == 'split')
+      call model%init_partition()
+      call st%mr%init(model%n_slow(), model%n_fast(), k, coupling)
+      call st%mr%start(model, 0.0_dp, x, sc%integrator%h_slow, error)
+    else
+      ctl%rtol = sc%integrator%rtol; ctl%atol = sc%integrator%atol
+      if (sc%integrator%h_min > 0.0_dp) ctl%h_min = sc%integrator%h_min
+      if (sc%integrator%h_max > 0.0_dp) ctl%h_max = sc%integrator%h_max
+      call st%abm%init(size(x), sc%integrator%adaptive, ctl, sc%integrator%n_corrector)
+      call st%abm%start(model, 0.0_dp, x, sc%integrator%h_slow, error)
+    end if
+  contains
+    function itoa_(i) result(r)
+      integer, intent(in) :: i
+      character(len=16) :: r
+      write(r, '(i0)') i
+    end function itoa_
+  end subroutine start_stepper
 
   !> Read and build the model of a scene (with overrides).
   subroutine load_model(file, overrides, sc, model, error)
@@ -53,10 +132,9 @@ contains
     type(error_type), allocatable, intent(out) :: error
     type(scene_t) :: sc
     type(model_t) :: model
-    type(abm_integrator) :: integ
-    type(step_control) :: ctl
+    type(stepper) :: st
     type(csv_writer) :: csv
-    type(run_stats) :: st
+    type(run_stats) :: stats
     real(dp), allocatable :: x(:)
     real(dp) :: h, dt_out, t_next, eps, cpu0, cpu1
     integer :: n, k_out
@@ -67,55 +145,69 @@ contains
     n = model%d%n
     path = default_output(sc, out)
     call cpu_time(cpu0); call system_clock(c0, rate)
-
     h = sc%integrator%h_slow
-    if (h <= 0.0_dp) h = sc%integrator%h_fast
-    ctl%rtol = sc%integrator%rtol; ctl%atol = sc%integrator%atol
-    if (sc%integrator%h_min > 0.0_dp) ctl%h_min = sc%integrator%h_min
-    if (sc%integrator%h_max > 0.0_dp) ctl%h_max = sc%integrator%h_max
-    call integ%init(2*n, sc%integrator%adaptive, ctl, sc%integrator%n_corrector)
     allocate(x(2*n))
     call initial_state(sc, model, x)
-
     call csv%open(path, model%d, sc%title, method_label(sc), error); if (allocated(error)) return
-    call csv%write_row(model%d, 0.0_dp, x(1:n), x(n+1:)); st%rows = 1
+    call csv%write_row(model%d, 0.0_dp, x(1:n), x(n+1:)); stats%rows = 1
     dt_out = sc%output_dt
     if (dt_out <= 0.0_dp .and. .not. sc%integrator%adaptive) dt_out = h
     eps = 1.0e-9_dp*h
     k_out = 1
     t_next = dt_out
-    call integ%start(model, 0.0_dp, x, h, error); if (allocated(error)) goto 90
+    call start_stepper(sc, model, x, st, error)
+    if (allocated(error)) then
+      call csv%close()
+      if (index(error%message, file) /= 1) error%message = file // ': ' // error%message
+      return
+    end if
     do
       if (dt_out > 0.0_dp) then
-        do while (t_next <= min(integ%t, sc%t_end) + eps)
-          call integ%value_at(t_next, x)
-          call csv%write_row(model%d, t_next, x(1:n), x(n+1:)); st%rows = st%rows + 1
+        do while (t_next <= min(st%time(), sc%t_end) + eps)
+          call st%value_at(t_next, x)
+          call csv%write_row(model%d, t_next, x(1:n), x(n+1:)); stats%rows = stats%rows + 1
           k_out = k_out + 1; t_next = k_out*dt_out
         end do
-      else if (integ%t < sc%t_end - eps) then
-        call csv%write_row(model%d, integ%t, integ%z(1:n, 0), integ%z(n+1:, 0)); st%rows = st%rows + 1
+      else if (st%time() < sc%t_end - eps) then
+        call st%value_at(st%time(), x)
+        call csv%write_row(model%d, st%time(), x(1:n), x(n+1:)); stats%rows = stats%rows + 1
       end if
-      if (integ%t >= sc%t_end - eps) exit
-      call integ%step(model, error); if (allocated(error)) goto 90
+      if (st%time() >= sc%t_end - eps) exit
+      call st%advance(model, error); if (allocated(error)) exit
     end do
-    if (dt_out <= 0.0_dp .or. abs(t_next - dt_out - sc%t_end) > eps) then
-      call integ%value_at(sc%t_end, x)
-      call csv%write_row(model%d, sc%t_end, x(1:n), x(n+1:)); st%rows = st%rows + 1
+    if (.not. allocated(error) .and. (dt_out <= 0.0_dp .or. abs(t_next - dt_out - sc%t_end) > eps)) then
+      call st%value_at(sc%t_end, x)
+      call csv%write_row(model%d, sc%t_end, x(1:n), x(n+1:)); stats%rows = stats%rows + 1
     end if
-    call integ%value_at(sc%t_end, x)
-90  continue
     call csv%close()
     if (allocated(error)) then
       error%message = file // ': ' // error%message; return
     end if
+    call st%value_at(sc%t_end, x)
     call cpu_time(cpu1); call system_clock(c1)
-    st%cpu_time_s = cpu1 - cpu0; st%wall_time_s = real(c1 - c0, dp)/real(rate, dp)
-    st%steps_slow = integ%steps; st%steps_fast = integ%steps
-    st%rhs_full = integ%evals; st%rhs_fast = 0; st%rejected_steps = integ%rejected; st%h_last = integ%h
-    call write_json(json_path(path), file, sc%title, settings_json(sc), model%d, st, error)
+    stats%cpu_time_s = cpu1 - cpu0; stats%wall_time_s = real(c1 - c0, dp)/real(rate, dp)
+    call fill_stats(st, model, stats)
+    call write_json(json_path(path), file, sc%title, settings_json(sc), model%d, stats, error)
     if (allocated(error)) return
-    summary = summary_text(sc, model, st, path, x)
+    summary = summary_text(sc, model, stats, path, x)
   end subroutine run_scene
+
+  !> Step and evaluation counts of a run.
+  subroutine fill_stats(st, model, stats)
+    type(stepper), intent(in) :: st
+    type(model_t), intent(in) :: model
+    type(run_stats), intent(inout) :: stats
+    if (st%multirate) then
+      stats%steps_slow = st%mr%steps_slow; stats%steps_fast = st%mr%steps_fast
+      stats%rhs_fast = model%evals_split + model%d%evals_fast_rows
+      stats%rhs_full = model%d%evals
+      stats%h_last = st%mr%hs
+    else
+      stats%steps_slow = st%abm%steps; stats%steps_fast = st%abm%steps
+      stats%rhs_full = st%abm%evals; stats%rhs_fast = 0
+      stats%rejected_steps = st%abm%rejected; stats%h_last = st%abm%h
+    end if
+  end subroutine fill_stats
 
   !> [q0; qd0] from the joints' q0 and qd0 in model coordinate order.
   subroutine initial_state(sc, model, x)
@@ -142,6 +234,9 @@ contains
     character(len=64) :: buf
     if (sc%integrator%adaptive) then
       write(buf, '(a,es9.2,a,es9.2)') ' adaptive rtol=', sc%integrator%rtol, ' atol=', sc%integrator%atol
+    else if (sc%integrator%method == 'multirate') then
+      write(buf, '(a,es10.3,a,es10.3,a)') ' h_slow=', sc%integrator%h_slow, ' h_fast=', sc%integrator%h_fast, &
+        & ' coupling=' // trim(sc%integrator%coupling)
     else
       write(buf, '(a,es10.3)') ' fixed h=', sc%integrator%h_slow
     end if
@@ -157,7 +252,8 @@ contains
       write(buf, '(a,g0.10,a,g0.10,a,g0.10,a,g0.10,a,g0.10,a,g0.10,a,i0,a,g0.10)') &
         & '", "h_fast": ', g%h_fast, ', "h_slow": ', g%h_slow, ', "rtol": ', g%rtol, ', "atol": ', g%atol, &
         & ', "h_min": ', g%h_min, ', "h_max": ', g%h_max, ', "n_corrector": ', g%n_corrector, ', "t_end": ', sc%t_end
-      s = '"method": "' // trim(g%method) // trim(buf) // ', "adaptive": ' // trim(merge('true ', 'false', g%adaptive))
+      s = '"method": "' // trim(g%method) // trim(buf) // ', "adaptive": ' // trim(merge('true ', 'false', g%adaptive)) &
+        & // ', "coupling": "' // trim(g%coupling) // '"'
     end associate
   end function settings_json
 
@@ -173,8 +269,9 @@ contains
     integer :: i, n
     n = model%d%n
     s = 'scene: ' // trim(sc%title) // new_line('a')
-    write(buf, '(a,g0.6,a,i0,a,i0,a,i0,a)') 'simulated 0 to ', sc%t_end, ' s: ', st%steps_slow, ' steps, ', &
-      & st%rejected_steps, ' rejected, ', st%rhs_full, ' model evaluations'
+    write(buf, '(a,g0.6,a,i0,a,i0,a,i0,a,i0,a)') 'simulated 0 to ', sc%t_end, ' s: ', st%steps_slow, ' steps (', &
+      & st%steps_fast, ' fast), ', st%rejected_steps, ' rejected, ', st%rhs_full, ' full evaluations'
+    if (st%rhs_fast > 0) write(buf, '(a,a,i0,a)') trim(buf), ', ', st%rhs_fast, ' fast-only'
     s = s // trim(buf) // new_line('a')
     write(buf, '(a,f10.4,a,f10.4,a)') 'cpu time ', st%cpu_time_s, ' s, wall time ', st%wall_time_s, ' s'
     s = s // trim(buf) // new_line('a')

@@ -103,4 +103,79 @@ def main(what: str, repeats: int = 7, json_path: str | None = None) -> int:
         if json_path:
             Path(json_path).write_text(json.dumps({"evaluations": rows, "tank_run": tank}, indent=2))
         return 0
+    if what == "table1":
+        rows = bench_table1(repeats=max(repeats, 5))
+        print_table1(rows)
+        path = json_path or "table1.json"
+        Path(path).write_text(json.dumps({"paper": PAPER_TABLE1, "cases": rows}, indent=2))
+        print(f"written: {path}")
+        return 0
     raise ValueError(what)
+
+
+#: The paper's Table 1 (Kim and Kim 2000): step ratio -> (CPU s on its machine, speed-up).
+PAPER_TABLE1 = {1: (251.06, 1.0), 2: (197.34, 1.272), 5: (162.74, 1.546), 10: (148.90, 1.696)}
+
+
+def bench_table1(ratios=(1, 2, 5, 10, 20, 50), couplings=("full", "split"), repeats: int = 5,
+                 h_fast: float = 1e-4) -> list[dict]:
+    """The tank's Table 1 cases: CPU time (median of ``repeats``, interleaved so that machine
+    drift hits every case alike), speed-up over case 1, evaluation counts and the muzzle's
+    largest deviation from case 1 (single-rate h_fast) over 0-1 s."""
+    from .api import PymrError, run
+    scene = _scene_path("tank_gun_turret.nml")
+    cases = [("single", 1)] + [(c, k) for k in ratios for c in couplings if k > 1]
+    cpu: dict[tuple, list] = {c: [] for c in cases}
+    results: dict[tuple, object] = {}
+    errors: dict[tuple, str] = {}
+    with tempfile.TemporaryDirectory(prefix="pymr-table1-") as tmp:
+        for rep in range(repeats):
+            for case in cases:
+                if case in errors:
+                    continue
+                coupling, k = case
+                over = {"integrator.h_fast": h_fast, "integrator.h_slow": h_fast * k,
+                        "output.dt": max(1e-3, h_fast * k)}
+                if coupling != "single":
+                    over.update({"integrator.method": "multirate", "integrator.coupling": coupling})
+                try:
+                    res = run(scene, Path(tmp) / f"{coupling}{k}.csv", overrides=over)
+                except PymrError as exc:
+                    errors[case] = str(exc)
+                    continue
+                cpu[case].append(res.stats["cpu_time_s"])
+                results[case] = res
+    base = results[("single", 1)]
+    base_cpu = statistics.median(cpu[("single", 1)])
+    rows = []
+    for case in cases:
+        coupling, k = case
+        row = {"coupling": coupling, "ratio": k, "h_fast": h_fast, "h_slow": h_fast * k}
+        if case in errors:
+            row.update({"status": "failed", "error": errors[case]})
+            rows.append(row)
+            continue
+        res = results[case]
+        idx = np.searchsorted(base.t, res.t)
+        dev = np.abs(res.marker("muzzle")[0] - base.marker("muzzle")[0][idx]).max()
+        med = statistics.median(cpu[case])
+        row.update({"status": "ok", "median_cpu_s": med, "speedup": base_cpu / med,
+                    "rhs_full": res.stats["rhs_full"], "rhs_fast": res.stats["rhs_fast"],
+                    "muzzle_dev_m": float(dev), "repeats": len(cpu[case])})
+        rows.append(row)
+    return rows
+
+
+def print_table1(rows: list[dict]) -> None:
+    print("pymr bench table1: tank gun-turret, 0-1 s, h_fast = 1e-4 s (median CPU of repeated runs, "
+          "speed-up over case 1 of the same run)")
+    print(f"{'coupling':>8} {'ratio':>5} {'h_slow s':>9} {'CPU s':>9} {'speed-up':>8} {'full evals':>10} "
+          f"{'fast evals':>10} {'muzzle dev m':>12} | {'paper CPU s':>11} {'paper speed-up':>14}")
+    for r in rows:
+        paper = PAPER_TABLE1.get(r["ratio"]) if r["coupling"] in ("single", "full") else None
+        ptxt = f"{paper[0]:>11.2f} {paper[1]:>14.3f}" if paper else f"{'':>11} {'':>14}"
+        if r["status"] != "ok":
+            print(f"{r['coupling']:>8} {r['ratio']:>5} {r['h_slow']:>9.1e}  failed: {r['error'][:70]} | {ptxt}")
+            continue
+        print(f"{r['coupling']:>8} {r['ratio']:>5} {r['h_slow']:>9.1e} {r['median_cpu_s']:>9.4f} {r['speedup']:>8.2f} "
+              f"{r['rhs_full']:>10} {r['rhs_fast']:>10} {r['muzzle_dev_m']:>12.3e} | {ptxt}")

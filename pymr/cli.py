@@ -47,7 +47,9 @@ def build_parser() -> argparse.ArgumentParser:
     m.add_argument("-q", "--quiet", action="store_true")
     m.set_defaults(func=_cmd_modal_file)
     b = sub.add_parser("bench", help="benchmarks that print figures")
-    b.add_argument("what", choices=["rhs"], help="rhs: cost of one model evaluation vs chain length")
+    b.add_argument("what", choices=["rhs", "table1"],
+                   help="rhs: cost of one model evaluation vs chain length; table1: the paper's Table 1 "
+                        "(tank, step ratios 1-50, both couplings)")
     b.add_argument("--repeats", type=int, default=7, help="timing repeats (median is reported)")
     b.add_argument("--json", help="also write the figures to this JSON file")
     b.set_defaults(func=_cmd_bench)

@@ -203,18 +203,21 @@ contains
     call nordsieck_value(self%z, (t - self%t)/self%h, x)
   end subroutine abm_value_at
 
-  !> Error naming the first non-finite component of v.
-  subroutine check_finite(sys, t, v, what, error)
+  !> Error naming the first non-finite component of v (component map(i) of the system).
+  subroutine check_finite(sys, t, v, what, error, map)
     class(ode_system), intent(in) :: sys
     real(dp), intent(in) :: t, v(:)
     character(len=*), intent(in) :: what
     type(error_type), allocatable, intent(out) :: error
-    integer :: i
+    integer, intent(in), optional :: map(:)
+    integer :: i, j
     character(len=40) :: buf
     do i = 1, size(v)
       if (v(i) /= v(i) .or. abs(v(i)) > huge(1.0_dp)) then
         write(buf, '(es12.5)') t
-        call fatal_error(error, 'non-finite ' // what // ' of ' // sys%component_name(i) // &
+        j = i
+        if (present(map)) j = map(i)
+        call fatal_error(error, 'non-finite ' // what // ' of ' // sys%component_name(j) // &
           & ' at t = ' // trim(adjustl(buf)) // ' s', stat_solver)
         return
       end if

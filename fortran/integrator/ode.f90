@@ -5,7 +5,7 @@ module pymr_integrator_ode
   use pymr_error, only : error_type
   implicit none
   private
-  public :: ode_system
+  public :: ode_system, partitioned_system
 
   !> A first-order system of `n` equations.
   type, abstract :: ode_system
@@ -16,6 +16,21 @@ module pymr_integrator_ode
     procedure(name_iface), deferred :: component_name
   end type ode_system
 
+  !> A second-order system split into slow and fast coordinates for multirate
+  !> integration. The full state is x = [q_s; q_f; qd_s; qd_f]; the slow state is
+  !> xs = [q_s; qd_s], the fast state xf = [q_f; qd_f].
+  type, abstract, extends(ode_system) :: partitioned_system
+  contains
+    !> Numbers of slow and fast coordinates.
+    procedure(count_iface), deferred :: n_slow, n_fast
+    !> Both derivatives from one full evaluation: qdd_s from the Schur complement equation
+    !> M_e qdd_s = Q_e, then qdd_f from M_ff qdd_f = Q_f - M_fs qdd_s.
+    procedure(sync_iface), deferred :: sync_rhs
+    !> Fast derivative [qd_f; qdd_f] from M_ff qdd_f = Q_f - M_fs acc_s with given slow
+    !> accelerations; `split` reuses the terms held from the last slow evaluation and
+    !> recomputes only the elastic and damping forces.
+    procedure(fast_iface), deferred :: fast_rhs
+  end type partitioned_system
   abstract interface
     subroutine eval_iface(self, t, x, f, error)
       import :: ode_system, dp, error_type
@@ -28,6 +43,25 @@ module pymr_integrator_ode
       real(dp), intent(out), contiguous :: f(:)
       type(error_type), allocatable, intent(out) :: error
     end subroutine eval_iface
+    pure integer function count_iface(self)
+      import :: partitioned_system
+      class(partitioned_system), intent(in) :: self
+    end function count_iface
+    subroutine sync_iface(self, t, xs, xf, fs, ff, error)
+      import :: partitioned_system, dp, error_type
+      class(partitioned_system), intent(inout) :: self
+      real(dp), intent(in) :: t, xs(:), xf(:)
+      real(dp), intent(out) :: fs(:), ff(:)
+      type(error_type), allocatable, intent(out) :: error
+    end subroutine sync_iface
+    subroutine fast_iface(self, t, xs, xf, acc_s, split, ff, error)
+      import :: partitioned_system, dp, error_type
+      class(partitioned_system), intent(inout) :: self
+      real(dp), intent(in) :: t, xs(:), xf(:), acc_s(:)
+      logical, intent(in) :: split
+      real(dp), intent(out) :: ff(:)
+      type(error_type), allocatable, intent(out) :: error
+    end subroutine fast_iface
     function name_iface(self, i) result(name)
       import :: ode_system
       class(ode_system), intent(in) :: self

@@ -23,8 +23,8 @@ module pymr_io_namelist_input
   character(len=*), parameter :: known_groups(8) = [character(len=16) :: 'scene', 'integrator', &
     & 'effects', 'body', 'joint', 'drive', 'marker', 'output']
   character(len=*), parameter :: items_scene(3) = [character(len=16) :: 'title', 't_end', 'gravity']
-  character(len=*), parameter :: items_integrator(9) = [character(len=16) :: 'method', 'h_fast', 'h_slow', &
-    & 'adaptive', 'rtol', 'atol', 'h_min', 'h_max', 'n_corrector']
+  character(len=*), parameter :: items_integrator(10) = [character(len=16) :: 'method', 'h_fast', 'h_slow', &
+    & 'adaptive', 'rtol', 'atol', 'h_min', 'h_max', 'n_corrector', 'coupling']
   character(len=*), parameter :: items_effects(3) = [character(len=16) :: 'gravity', 'joint_drives', &
     & 'modal_damping']
   character(len=*), parameter :: items_body(18) = [character(len=16) :: 'name', 'kind', 'mass', 'com', 'inertia', &
@@ -303,13 +303,14 @@ contains
     type(override_t), intent(inout) :: ovs(:)
     type(scene_t), intent(inout) :: sc
     type(error_type), allocatable, intent(out) :: error
-    character(len=16) :: method
+    character(len=16) :: method, coupling
     real(dp) :: h_fast, h_slow, rtol, atol, h_min, h_max
     logical :: adaptive
     integer :: n_corrector, ios, i
     character(len=256) :: msg
-    namelist /integrator/ method, h_fast, h_slow, adaptive, rtol, atol, h_min, h_max, n_corrector
+    namelist /integrator/ method, h_fast, h_slow, adaptive, rtol, atol, h_min, h_max, n_corrector, coupling
     associate(s => sc%integrator)
+      coupling = s%coupling
       method = s%method; h_fast = s%h_fast; h_slow = s%h_slow; adaptive = s%adaptive
       rtol = s%rtol; atol = s%atol; h_min = s%h_min; h_max = s%h_max; n_corrector = s%n_corrector
     end associate
@@ -327,6 +328,7 @@ contains
       ovs(i)%used = .true.
     end do
     associate(s => sc%integrator)
+      s%coupling = lower(coupling)
       s%method = lower(method); s%h_fast = h_fast; s%h_slow = h_slow; s%adaptive = adaptive
       s%rtol = rtol; s%atol = atol; s%h_min = h_min; s%h_max = h_max; s%n_corrector = n_corrector
     end associate

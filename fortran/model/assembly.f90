@@ -18,12 +18,17 @@ contains
 
   !> Spatial inertia and bias wrench I a_bias + v x* I v of every body (no applied
   !> loads); flexible bodies add their modal coupling, modal bias and elastic forces.
-  pure subroutine body_terms(d, q, qd)
+  pure subroutine body_terms(d, q, qd, only)
     type(model_data), intent(inout) :: d
     real(dp), intent(in) :: q(:), qd(:)
+    !> Restrict to these bodies (the fast rows).
+    logical, intent(in), optional :: only(:)
     integer :: b, m
     real(dp) :: c(3), icw(3, 3)
     do b = 2, d%nb
+      if (present(only)) then
+        if (.not. only(b)) cycle
+      end if
       if (d%flexible(b)) then
         m = d%nm(b)
         call flex_body_terms(d%flex(b), d%fwork(b), d%rot(:, :, b), d%pos(:, b), d%vel(:, b), d%acc(:, b), &
@@ -40,12 +45,16 @@ contains
   end subroutine body_terms
 
   !> Composite inertia and wrench of each subtree, from the leaves to the base.
-  pure subroutine composite_terms(d)
+  pure subroutine composite_terms(d, only)
     type(model_data), intent(inout) :: d
+    logical, intent(in), optional :: only(:)
     integer :: b, a
     d%ic(:, :, 2:) = d%i6(:, :, 2:)
     d%wc(:, 2:) = d%w(:, 2:)
     do b = d%nb, 2, -1
+      if (present(only)) then
+        if (.not. only(b)) cycle
+      end if
       a = d%parent(b)
       if (a > 1) then
         d%ic(:, :, a) = d%ic(:, :, a) + d%ic(:, :, b)
@@ -55,10 +64,14 @@ contains
   end subroutine composite_terms
 
   !> Mass matrix (generalised composite-rigid-body recursion; O(n * depth)).
-  pure subroutine assemble_mass(d)
+  pure subroutine assemble_mass(d, only)
     type(model_data), intent(inout) :: d
+    logical, intent(in), optional :: only(:)
     integer :: b, k
     do b = 2, d%nb
+      if (present(only)) then
+        if (.not. only(b)) cycle
+      end if
       do k = d%c0(b), d%c0(b) + d%nc(b) - 1
         call walk_up(d, b, k, matmul(d%ic(:, :, b), d%s(:, k)))
       end do
@@ -118,10 +131,14 @@ contains
 
   !> Right-hand side P = tau - column . Wc (modal: minus the body's modal bias and the
   !> children's composite wrenches through the modal columns).
-  pure subroutine assemble_rhs(d)
+  pure subroutine assemble_rhs(d, only)
     type(model_data), intent(inout) :: d
+    logical, intent(in), optional :: only(:)
     integer :: b, k, i, c
     do b = 2, d%nb
+      if (present(only)) then
+        if (.not. only(b)) cycle
+      end if
       do k = d%c0(b), d%c0(b) + d%nc(b) - 1
         d%p(k) = d%tau(k) - dot_product(d%s(:, k), d%wc(:, b))
       end do

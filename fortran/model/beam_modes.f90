@@ -11,12 +11,13 @@ module pymr_model_beam_modes
   private
   public :: beam_shape, build_beam, beam_point_shapes, gauss4
 
-  !> Gauss-Legendre points and weights on [0, 1] (exact for degree 7).
+  !> Gauss-Legendre points and weights on [0, 1] (exact for degree 7): the nodes
+  !> +-0.8611363115940526, +-0.3399810435848563 of [-1, 1] halved and shifted.
   real(dp), parameter :: gauss4(2, 4) = reshape([ &
-    & 0.5_dp - 0.4305681557970262_dp, 0.1739274225687269_dp, &
-    & 0.5_dp - 0.1699905127001435_dp, 0.3260725774312731_dp, &
-    & 0.5_dp + 0.1699905127001435_dp, 0.3260725774312731_dp, &
-    & 0.5_dp + 0.4305681557970262_dp, 0.1739274225687269_dp], [2, 4])
+    & 0.5_dp - 0.43056815579702629_dp, 0.17392742256872693_dp, &
+    & 0.5_dp - 0.16999052179242813_dp, 0.32607257743127307_dp, &
+    & 0.5_dp + 0.16999052179242813_dp, 0.32607257743127307_dp, &
+    & 0.5_dp + 0.43056815579702629_dp, 0.17392742256872693_dp], [2, 4])
 
   !> Mode shapes of a beam at its nodes, for interpolation at attachments and markers.
   type :: beam_shape
@@ -50,9 +51,11 @@ contains
     real(dp) :: le, xi, nn(4), dn(4)
     bs%length = length; bs%ne = ne; bs%my = my; bs%mz = mz
     le = length/ne
-    call plane_modes(e*iz, rho*area, le, ne, my, what // ' (bending in the x-y plane)', bs%vy, lam_y, error)
+    call plane_modes(e*iz, rho*area, le, ne, my, 'the stiffness matrix of ' // what // ' (x-y plane)', bs%vy, &
+      & lam_y, error)
     if (allocated(error)) return
-    call plane_modes(e*iy, rho*area, le, ne, mz, what // ' (bending in the x-z plane)', bs%vz, lam_z, error)
+    call plane_modes(e*iy, rho*area, le, ne, mz, 'the stiffness matrix of ' // what // ' (x-z plane)', bs%vz, &
+      & lam_z, error)
     if (allocated(error)) return
     m = my + mz
     np = 4*ne
@@ -108,12 +111,15 @@ contains
         end do
       end do
     end do
-    call sygvd(kk, mm, w, what, error); if (allocated(error)) return
+    ! flexibility form M v = mu K v (mu = 1/lambda): the lowest modes are the largest mu and
+    ! come out more accurately than from K v = lambda M v; v^T K v = 1, so v/sqrt(mu) is
+    ! mass-normalised.
+    call sygvd(mm, kk, w, what, error); if (allocated(error)) return
     v = 0.0_dp
     do k = 1, nm
-      v(3:, k) = kk(:, k)
-      if (kk(nd - 1, k) < 0.0_dp) v(3:, k) = -v(3:, k)
-      lam(k) = w(k)
+      v(3:, k) = mm(:, nd + 1 - k)/sqrt(w(nd + 1 - k))
+      if (v(nd + 1, k) < 0.0_dp) v(3:, k) = -v(3:, k)
+      lam(k) = 1.0_dp/w(nd + 1 - k)
     end do
   end subroutine plane_modes
 

@@ -89,10 +89,7 @@ contains
     end if
     associate(s => sc%integrator)
       select case (trim(s%method))
-      case ('single')
-      case ('multirate')
-        call fatal_error(error, w // "method: 'multirate' is not available in this version (use 'single')")
-        return
+      case ('single', 'multirate')
       case default
         call fatal_error(error, w // "method: '" // trim(s%method) // "' is not a method ('single' or 'multirate')")
         return
@@ -117,6 +114,19 @@ contains
       if (trim(s%method) == 'single' .and. nint(r) /= 1) then
         call fatal_error(error, w // "h_slow: method 'single' takes one step for all coordinates: set h_fast = " &
           & // "h_slow, or method = 'multirate'"); return
+      end if
+      if (trim(s%method) == 'multirate') then
+        if (s%coupling /= 'full' .and. s%coupling /= 'split') then
+          call fatal_error(error, w // "coupling: '" // trim(s%coupling) // "' is not a coupling ('full' or 'split')")
+          return
+        end if
+        if (s%adaptive) then
+          call fatal_error(error, w // "adaptive: adaptive multirate is not available yet; use fixed steps " // &
+            & "(adaptive = .false.) or method = 'single'"); return
+        end if
+        if (s%n_corrector /= 1) then
+          call fatal_error(error, w // "n_corrector: multirate uses PECE (n_corrector = 1)"); return
+        end if
       end if
       if (s%adaptive .and. .not. (s%rtol > 0.0_dp)) then
         call fatal_error(error, w // 'rtol: must be positive, got ' // fmt(s%rtol)); return
@@ -479,6 +489,11 @@ contains
       end if
     end do
     call fill_children(d)
+    allocate(d%in_fast(nb))
+    d%in_fast(1) = .false.
+    do b = 2, nb
+      d%in_fast(b) = d%flexible(b) .or. d%in_fast(d%parent(b))
+    end do
     do b = 2, nb
       if (d%nm(d%parent(b)) > 0) then
         call flexible_point(sc, d, d%parent(b), d%at(:, b), "joint '" // trim(d%joint_name(b)) // "'", &

@@ -24,11 +24,16 @@ contains
 
   !> Subtract the gravity wrench [m g; c x m g] of every body from its bias wrench, and
   !> the modal gravity loads S1^T R^T g from the modal bias of flexible bodies.
-  pure subroutine add_gravity(d)
+  pure subroutine add_gravity(d, only)
     type(model_data), intent(inout) :: d
+    !> Restrict to these bodies (the fast rows).
+    logical, intent(in), optional :: only(:)
     integer :: b, k
     real(dp) :: c(3), f(3), gb(3)
     do b = 2, d%nb
+      if (present(only)) then
+        if (.not. only(b)) cycle
+      end if
       c = body_com(d, b)
       f = d%mass(b)*d%gravity
       d%w(1:3, b) = d%w(1:3, b) - f

@@ -3,7 +3,7 @@ module pymr_model
   use pymr_kinds, only : dp
   use pymr_error, only : error_type, prefix_error
   use pymr_lapack, only : potrf, potrs
-  use pymr_integrator_ode, only : ode_system
+  use pymr_integrator_ode, only : partitioned_system
   use pymr_model_types, only : model_data, effect_gravity, effect_joint_drives, effect_modal_damping
   use pymr_model_kinematics, only : forward_kinematics
   use pymr_model_assembly, only : body_terms, composite_terms, assemble_mass, assemble_rhs, kinetic_energy
@@ -14,33 +14,62 @@ module pymr_model
   public :: model_t
 
   !> A built model: data and work arrays, and the ODE interface the integrators use.
-  type, extends(ode_system) :: model_t
+  !> Slow coordinates are the joint coordinates (1..nj), fast ones the modal coordinates.
+  type, extends(partitioned_system) :: model_t
     type(model_data) :: d
+    !> Multirate work: Cholesky factors of M_ff and M_e, M_fs, M_ff^-1 M_fs, and the fast
+    !> generalised forces without their elastic and damping parts (held for 'split').
+    real(dp), allocatable :: lff(:, :), le(:, :), mfs(:, :), xfs(:, :), qrest(:), yf(:)
+    !> Modal stiffness omega^2 and damping 2 zeta omega (0 when the effect is off) per fast coordinate.
+    real(dp), allocatable :: kf(:), df(:)
+    !> Split fast evaluations.
+    integer :: evals_split = 0
   contains
     procedure :: eval => model_eval
     procedure :: component_name => model_component_name
     procedure :: terms => model_terms
     procedure :: accelerations => model_accelerations
     procedure :: energy => model_energy
+    procedure :: n_slow => model_n_slow
+    procedure :: n_fast => model_n_fast
+    procedure :: sync_rhs => model_sync_rhs
+    procedure :: fast_rhs => model_fast_rhs
+    procedure :: init_partition => model_init_partition
   end type model_t
 
 contains
 
   !> Mass matrix and right-hand side at (t, q, qd), left in self%d%mm and self%d%p.
-  subroutine model_terms(self, t, q, qd)
+  !> With fast_only, only the rows of the modal coordinates are assembled (the bodies
+  !> on and below flexible bodies; joint drives act on joint rows and are skipped).
+  subroutine model_terms(self, t, q, qd, fast_only)
     class(model_t), intent(inout) :: self
     real(dp), intent(in) :: t, q(:), qd(:)
+    logical, intent(in), optional :: fast_only
+    logical :: fo
+    fo = .false.
+    if (present(fast_only)) fo = fast_only
     associate(d => self%d)
       call forward_kinematics(d, q, qd)
-      call body_terms(d, q, qd)
-      if (d%effect_on(effect_gravity)) call add_gravity(d)
-      if (d%effect_on(effect_modal_damping)) call add_modal_damping(d, qd)
-      d%tau = 0.0_dp
-      if (d%effect_on(effect_joint_drives)) call add_joint_drives(d, t)
-      call composite_terms(d)
-      call assemble_mass(d)
-      call assemble_rhs(d)
-      d%evals = d%evals + 1
+      if (fo) then
+        call body_terms(d, q, qd, d%in_fast)
+        if (d%effect_on(effect_gravity)) call add_gravity(d, d%in_fast)
+        if (d%effect_on(effect_modal_damping)) call add_modal_damping(d, qd)
+        call composite_terms(d, d%in_fast)
+        call assemble_mass(d, d%in_fast)
+        call assemble_rhs(d, d%in_fast)
+        d%evals_fast_rows = d%evals_fast_rows + 1
+      else
+        call body_terms(d, q, qd)
+        if (d%effect_on(effect_gravity)) call add_gravity(d)
+        if (d%effect_on(effect_modal_damping)) call add_modal_damping(d, qd)
+        d%tau = 0.0_dp
+        if (d%effect_on(effect_joint_drives)) call add_joint_drives(d, t)
+        call composite_terms(d)
+        call assemble_mass(d)
+        call assemble_rhs(d)
+        d%evals = d%evals + 1
+      end if
     end associate
   end subroutine model_terms
 
@@ -103,4 +132,116 @@ contains
     potential = elastic_potential(self%d, q)
     if (self%d%effect_on(effect_gravity)) potential = potential + gravity_potential(self%d)
   end subroutine model_energy
+
+  pure integer function model_n_slow(self)
+    class(model_t), intent(in) :: self
+    model_n_slow = self%d%nj
+  end function model_n_slow
+
+  pure integer function model_n_fast(self)
+    class(model_t), intent(in) :: self
+    model_n_fast = self%d%n - self%d%nj
+  end function model_n_fast
+
+  !> Allocate the multirate work arrays and the per-coordinate modal stiffness and damping.
+  subroutine model_init_partition(self)
+    class(model_t), intent(inout) :: self
+    integer :: ns, nf, b, m
+    ns = self%d%nj; nf = self%d%n - ns
+    if (allocated(self%lff)) deallocate(self%lff, self%le, self%mfs, self%xfs, self%qrest, self%yf, self%kf, self%df)
+    allocate(self%lff(nf, nf), self%le(ns, ns), self%mfs(nf, ns), self%xfs(nf, ns), self%qrest(nf), self%yf(nf), &
+      & self%kf(nf), self%df(nf))
+    self%df = 0.0_dp
+    do b = 2, self%d%nb
+      m = self%d%nm(b)
+      if (m == 0) cycle
+      self%kf(self%d%a0(b) - ns:self%d%a0(b) - ns + m - 1) = self%d%flex(b)%omega2
+      if (self%d%effect_on(effect_modal_damping)) &
+        & self%df(self%d%a0(b) - ns:self%d%a0(b) - ns + m - 1) = self%d%flex(b)%damp
+    end do
+  end subroutine model_init_partition
+
+  !> Factor M_ff of the last assembly (Cholesky), naming time and minor on failure.
+  subroutine factor_ff(self, t, error)
+    class(model_t), intent(inout) :: self
+    real(dp), intent(in) :: t
+    type(error_type), allocatable, intent(out) :: error
+    integer :: ns, minor
+    ns = self%d%nj
+    self%lff = self%d%mm(ns+1:, ns+1:)
+    call potrf(self%lff, 'the fast (modal) mass matrix M_ff', error, minor)
+    if (allocated(error)) then
+      if (minor > 0) error%message = error%message // ' (coordinate ' // trim(self%d%qname(ns + minor)) // ')'
+      call prefix_error(error, 'at t = ' // time_text(t))
+    end if
+  end subroutine factor_ff
+
+  !> Derivatives from one full evaluation: fs = [qd_s; qdd_s] with M_e qdd_s = Q_e,
+  !> M_e = M_ss - M_sf M_ff^-1 M_fs, Q_e = Q_s - M_sf M_ff^-1 Q_f (LAPACK Cholesky of M_ff
+  !> and M_e), and ff = [qd_f; qdd_f] with qdd_f = M_ff^-1 (Q_f - M_fs qdd_s). Holds M_ff,
+  !> M_fs and the fast forces without elastic and damping parts for 'split' fast steps.
+  subroutine model_sync_rhs(self, t, xs, xf, fs, ff, error)
+    class(model_t), intent(inout) :: self
+    real(dp), intent(in) :: t, xs(:), xf(:)
+    real(dp), intent(out) :: fs(:), ff(:)
+    type(error_type), allocatable, intent(out) :: error
+    integer :: ns, nf, minor
+    ns = self%d%nj; nf = self%d%n - ns
+    call self%terms(t, [xs(1:ns), xf(1:nf)], [xs(ns+1:), xf(nf+1:)])
+    call factor_ff(self, t, error); if (allocated(error)) return
+    associate(mm => self%d%mm, p => self%d%p)
+      self%mfs = mm(ns+1:, 1:ns)
+      self%xfs = self%mfs
+      call potrs(self%lff, self%xfs, 'M_ff', error); if (allocated(error)) return
+      self%yf = p(ns+1:)
+      call potrs(self%lff, self%yf, 'M_ff', error); if (allocated(error)) return
+      self%le = mm(1:ns, 1:ns) - matmul(mm(1:ns, ns+1:), self%xfs)
+      fs(ns+1:) = p(1:ns) - matmul(mm(1:ns, ns+1:), self%yf)
+      call potrf(self%le, 'the effective mass matrix M_e (Schur complement of M_ff)', error, minor)
+      if (allocated(error)) then
+        if (minor > 0) error%message = error%message // ' (coordinate ' // trim(self%d%qname(minor)) // ')'
+        call prefix_error(error, 'at t = ' // time_text(t)); return
+      end if
+      call potrs(self%le, fs(ns+1:), 'M_e', error); if (allocated(error)) return
+      self%qrest = p(ns+1:) + self%kf*xf(1:nf) + self%df*xf(nf+1:)
+      ff(nf+1:) = self%yf - matmul(self%xfs, fs(ns+1:))
+    end associate
+    fs(1:ns) = xs(ns+1:)
+    ff(1:nf) = xf(nf+1:)
+  end subroutine model_sync_rhs
+
+  !> Fast derivative ff = [qd_f; qdd_f] with M_ff qdd_f = Q_f - M_fs acc_s. Full coupling
+  !> assembles the model at (t, xs, xf); split coupling holds M_ff, M_fs and the slowly
+  !> varying forces from the last slow evaluation and recomputes only the elastic and
+  !> damping forces -omega^2 a - 2 zeta omega ad.
+  subroutine model_fast_rhs(self, t, xs, xf, acc_s, split, ff, error)
+    class(model_t), intent(inout) :: self
+    real(dp), intent(in) :: t, xs(:), xf(:), acc_s(:)
+    logical, intent(in) :: split
+    real(dp), intent(out) :: ff(:)
+    type(error_type), allocatable, intent(out) :: error
+    integer :: ns, nf
+    ns = self%d%nj; nf = self%d%n - ns
+    if (split) then
+      ff(nf+1:) = self%qrest - self%kf*xf(1:nf) - self%df*xf(nf+1:) - matmul(self%mfs, acc_s)
+      self%evals_split = self%evals_split + 1
+      if (self%d%effect_on(effect_modal_damping)) &
+        & self%d%effect_evals(effect_modal_damping) = self%d%effect_evals(effect_modal_damping) + 1
+    else
+      call self%terms(t, [xs(1:ns), xf(1:nf)], [xs(ns+1:), xf(nf+1:)], fast_only=.true.)
+      call factor_ff(self, t, error); if (allocated(error)) return
+      ff(nf+1:) = self%d%p(ns+1:) - matmul(self%d%mm(ns+1:, 1:ns), acc_s)
+    end if
+    call potrs(self%lff, ff(nf+1:), 'M_ff', error)
+    ff(1:nf) = xf(nf+1:)
+  end subroutine model_fast_rhs
+
+  !> Time as text for messages.
+  function time_text(t) result(s)
+    real(dp), intent(in) :: t
+    character(len=:), allocatable :: s
+    character(len=32) :: buf
+    write(buf, '(es12.5)') t
+    s = trim(adjustl(buf)) // ' s'
+  end function time_text
 end module pymr_model

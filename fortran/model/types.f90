@@ -74,7 +74,9 @@ module pymr_model_types
     real(dp), allocatable :: i6(:, :, :), w(:, :), ic(:, :, :), wc(:, :)
     !> Mass matrix, its Cholesky factor, right-hand side, generalised applied forces.
     real(dp), allocatable :: mm(:, :), lf(:, :), p(:), tau(:)
-    !> Evaluation counter.
-    integer :: evals = 0
+    !> Bodies on or below a flexible body (whose terms the fast rows need).
+    logical, allocatable :: in_fast(:)
+    !> Evaluation counters: full assemblies, fast-row assemblies.
+    integer :: evals = 0, evals_fast_rows = 0
   end type model_data
 end module pymr_model_types

@@ -1,0 +1,175 @@
+!> Multirate Nordsieck ABM integration (METHOD.md section 4; paper eqs. 33-43).
+!>
+!> A macro step of size H = k h: the fast coordinates take k - 1 ABM steps of size h,
+!> each evaluating the fast equation with the slow state and accelerations extrapolated
+!> from the slow Nordsieck array (its polynomial at s = i h / H, which is C(alpha)
+!> rescaling followed by the Pascal predictor, eq. 37). At the end of the macro step both
+!> arrays are predicted and one full evaluation gives the slow accelerations (Schur
+!> complement) and the fast ones consistent with them; both are corrected. With k = 1
+!> this is the single-rate PECE method.
+module pymr_integrator_multirate
+  use pymr_kinds, only : dp
+  use pymr_error, only : error_type
+  use pymr_integrator_ode, only : partitioned_system
+  use pymr_integrator_nordsieck, only : nq, nordsieck_predict, nordsieck_correct, nordsieck_value, &
+    & nordsieck_from_history
+  use pymr_integrator_abm, only : rk4_step, check_finite
+  implicit none
+  private
+  public :: multirate_integrator, coupling_full, coupling_split
+
+  !> Coupling of the fast substeps: full evaluation (the paper's) or split (held terms).
+  integer, parameter :: coupling_full = 1, coupling_split = 2
+
+  !> Multirate integrator state.
+  type :: multirate_integrator
+    !> Slow and fast coordinates, step ratio k = H/h, coupling.
+    integer :: ns = 0, nf = 0, k = 1, coupling = coupling_full
+    !> Time of the Nordsieck arrays (s), slow step H and fast step h (s).
+    real(dp) :: t = 0.0_dp, hs = 0.0_dp, hf = 0.0_dp
+    !> Slow Nordsieck array (2ns, 0:3) scaled with H, fast one (2nf, 0:3) scaled with h.
+    real(dp), allocatable :: zs(:, :), zf(:, :)
+    !> Counters: macro (slow) steps, fast steps, slow and fast evaluations.
+    integer :: steps_slow = 0, steps_fast = 0, evals_slow = 0, evals_fast = 0, evals_start = 0
+    !> Work arrays.
+    real(dp), allocatable :: zp(:, :), zn(:, :), wp(:, :), wn(:, :), fs(:), ff(:), gs(:), gf(:), xs(:), acc(:)
+  contains
+    procedure :: init => mr_init
+    procedure :: start => mr_start
+    procedure :: step => mr_step
+    procedure :: value_at => mr_value_at
+  end type multirate_integrator
+
+contains
+
+  !> Allocate for ns slow and nf fast coordinates, step ratio k, coupling.
+  subroutine mr_init(self, ns, nf, k, coupling)
+    class(multirate_integrator), intent(inout) :: self
+    integer, intent(in) :: ns, nf, k, coupling
+    self%ns = ns; self%nf = nf; self%k = k; self%coupling = coupling
+    allocate(self%zs(2*ns, 0:nq), self%zf(2*nf, 0:nq), self%zp(2*ns, 0:nq), self%zn(2*ns, 0:nq), &
+      & self%wp(2*nf, 0:nq), self%wn(2*nf, 0:nq), self%fs(2*ns), self%ff(2*nf), self%gs(2*ns), self%gf(2*nf), &
+      & self%xs(2*ns), self%acc(ns))
+  end subroutine mr_init
+
+  !> Start at (t0, x0), x0 = [q_s; q_f; qd_s; qd_f]: classical RK4 steps of size h on the
+  !> coupled system up to t0 + 2H (local error O(h^5)), recording the derivatives that
+  !> build the slow array (at t0, t0 + H, t0 + 2H) and the fast one (last three fast points).
+  subroutine mr_start(self, sys, t0, x0, hs, error)
+    class(multirate_integrator), intent(inout) :: self
+    class(partitioned_system), intent(inout) :: sys
+    real(dp), intent(in) :: t0, x0(:), hs
+    type(error_type), allocatable, intent(out) :: error
+    real(dp), allocatable :: x(:), f(:), fsl(:, :), ffa(:, :)
+    integer :: i, ns, nf, n, nsteps
+    real(dp) :: t
+    ns = self%ns; nf = self%nf; n = ns + nf
+    self%hs = hs; self%hf = hs/self%k
+    nsteps = 2*self%k
+    allocate(x(2*n), f(2*n), fsl(2*ns, 0:2), ffa(2*nf, 0:nsteps))
+    x = x0; t = t0
+    do i = 0, nsteps
+      call sys%eval(t, x, f, error); self%evals_start = self%evals_start + 1
+      if (allocated(error)) return
+      call check_finite(sys, t, f, 'derivative', error); if (allocated(error)) return
+      if (mod(i, self%k) == 0) fsl(:, i/self%k) = slow_part(f)
+      ffa(:, i) = fast_part(f)
+      if (i == nsteps) exit
+      call rk4_step(sys, t, self%hf, x, f, self%evals_start, error); if (allocated(error)) return
+      t = t0 + (i + 1)*self%hf
+    end do
+    call nordsieck_from_history(slow_part(x), fsl(:, 2), fsl(:, 1), fsl(:, 0), self%hs, self%zs)
+    call nordsieck_from_history(fast_part(x), ffa(:, nsteps), ffa(:, nsteps - 1), ffa(:, nsteps - 2), self%hf, self%zf)
+    ! one synchronised evaluation at the start point sets the terms 'split' holds
+    call sys%sync_rhs(t, self%zs(:, 0), self%zf(:, 0), self%fs, self%ff, error)
+    self%evals_start = self%evals_start + 1
+    if (allocated(error)) return
+    self%t = t0 + 2*hs
+    self%steps_slow = 2; self%steps_fast = nsteps
+  contains
+    pure function slow_part(v) result(r)
+      real(dp), intent(in) :: v(:)
+      real(dp) :: r(2*ns)
+      r = [v(1:ns), v(n+1:n+ns)]
+    end function slow_part
+    pure function fast_part(v) result(r)
+      real(dp), intent(in) :: v(:)
+      real(dp) :: r(2*nf)
+      r = [v(ns+1:n), v(n+ns+1:2*n)]
+    end function fast_part
+  end subroutine mr_start
+
+  !> One macro step: k fast ABM steps with the extrapolated slow state, then one slow step.
+  subroutine mr_step(self, sys, error)
+    class(multirate_integrator), intent(inout) :: self
+    class(partitioned_system), intent(inout) :: sys
+    type(error_type), allocatable, intent(out) :: error
+    integer :: i, ns
+    real(dp) :: s, ti
+    ns = self%ns
+    do i = 1, self%k - 1
+      s = real(i, dp)/self%k
+      ti = self%t + i*self%hf
+      call slow_extrapolation(self, s)
+      call nordsieck_predict(self%zf, self%wp)
+      call sys%fast_rhs(ti, self%xs, self%wp(:, 0), self%acc, self%coupling == coupling_split, self%ff, error)
+      self%evals_fast = self%evals_fast + 1
+      if (allocated(error)) return
+      call nordsieck_correct(self%wp, self%hf*self%ff, self%wn, self%gf)
+      self%zf = self%wn
+      self%steps_fast = self%steps_fast + 1
+    end do
+    call nordsieck_predict(self%zs, self%zp)
+    call nordsieck_predict(self%zf, self%wp)
+    call sys%sync_rhs(self%t + self%hs, self%zp(:, 0), self%wp(:, 0), self%fs, self%ff, error)
+    self%evals_slow = self%evals_slow + 1
+    if (allocated(error)) return
+    call nordsieck_correct(self%zp, self%hs*self%fs, self%zn, self%gs)
+    call nordsieck_correct(self%wp, self%hf*self%ff, self%wn, self%gf)
+    self%zs = self%zn
+    self%zf = self%wn
+    self%steps_fast = self%steps_fast + 1
+    self%t = self%t + self%hs
+    self%steps_slow = self%steps_slow + 1
+    call check_finite(sys, self%t, self%zs(:, 0), 'state', error, slow_index(ns, self%nf)); if (allocated(error)) return
+    call check_finite(sys, self%t, self%zf(:, 0), 'state', error, fast_index(ns, self%nf))
+  end subroutine mr_step
+
+  !> Positions of the slow state [q_s; qd_s] in the full state [q_s; q_f; qd_s; qd_f].
+  pure function slow_index(ns, nf) result(idx)
+    integer, intent(in) :: ns, nf
+    integer :: idx(2*ns), i
+    idx = [(i, i = 1, ns), (ns + nf + i, i = 1, ns)]
+  end function slow_index
+
+  !> Positions of the fast state [q_f; qd_f] in the full state.
+  pure function fast_index(ns, nf) result(idx)
+    integer, intent(in) :: ns, nf
+    integer :: idx(2*nf), i
+    idx = [(ns + i, i = 1, nf), (2*ns + nf + i, i = 1, nf)]
+  end function fast_index
+
+  !> Slow state xs and accelerations acc at t + s H from the slow Nordsieck polynomial.
+  pure subroutine slow_extrapolation(self, s)
+    class(multirate_integrator), intent(inout) :: self
+    real(dp), intent(in) :: s
+    integer :: ns
+    ns = self%ns
+    call nordsieck_value(self%zs, s, self%xs)
+    self%acc = (self%zs(ns+1:, 1) + s*(2.0_dp*self%zs(ns+1:, 2) + 3.0_dp*s*self%zs(ns+1:, 3)))/self%hs
+  end subroutine slow_extrapolation
+
+  !> Full state [q_s; q_f; qd_s; qd_f] at time t (t within the last macro step).
+  pure subroutine mr_value_at(self, t, x)
+    class(multirate_integrator), intent(in) :: self
+    real(dp), intent(in) :: t
+    real(dp), intent(out) :: x(:)
+    real(dp) :: xs(2*self%ns), xf(2*self%nf)
+    integer :: ns, nf, n
+    ns = self%ns; nf = self%nf; n = ns + nf
+    call nordsieck_value(self%zs, (t - self%t)/self%hs, xs)
+    call nordsieck_value(self%zf, (t - self%t)/self%hf, xf)
+    x(1:ns) = xs(1:ns); x(n+1:n+ns) = xs(ns+1:)
+    x(ns+1:n) = xf(1:nf); x(n+ns+1:) = xf(nf+1:)
+  end subroutine mr_value_at
+end module pymr_integrator_multirate
