@@ -5,6 +5,7 @@ module pymr_io_results_output
   use pymr_error, only : error_type, fatal_error
   use pymr_model_types, only : model_data, n_effects, effect_names
   use pymr_model_kinematics, only : forward_kinematics, marker_motion
+  use pymr_io_fast_format, only : put_real
   implicit none
   private
   public :: csv_writer, json_path, write_json, run_stats, pymr_version
@@ -24,6 +25,7 @@ module pymr_io_results_output
     logical :: opened = .false.
     character(len=:), allocatable :: path
     real(dp), allocatable :: row(:)
+    character(len=:), allocatable :: line
   contains
     procedure :: open => csv_open
     procedure :: write_row => csv_write_row
@@ -74,6 +76,7 @@ contains
     end do
     write(self%unit, '(a)') header
     allocate(self%row(1 + 2*d%n + 6*d%n_markers))
+    allocate(character(len=25*size(self%row)) :: self%line)
   contains
     subroutine add_rates(last)
       integer, intent(in) :: last
@@ -89,7 +92,7 @@ contains
     class(csv_writer), intent(inout) :: self
     type(model_data), intent(inout) :: d
     real(dp), intent(in) :: t, q(:), qd(:)
-    integer :: i, k, b0
+    integer :: i, k, b0, pos
     real(dp) :: r(3), v(3)
     self%row(1) = t
     k = 1; b0 = 1
@@ -104,7 +107,14 @@ contains
       call marker_motion(d, i, q, qd, r, v)
       self%row(k+1:k+3) = r; self%row(k+4:k+6) = v; k = k + 6
     end do
-    write(self%unit, '(*(es24.16e3,:,","))') self%row
+    pos = 1
+    do i = 1, size(self%row)
+      if (i > 1) then
+        self%line(pos:pos) = ','; pos = pos + 1
+      end if
+      call put_real(self%row(i), self%line, pos)
+    end do
+    write(self%unit, '(a)') self%line(1:pos-1)
   end subroutine csv_write_row
 
   subroutine csv_close(self)

@@ -20,10 +20,17 @@ module pymr_model
     !> Multirate work: Cholesky factors of M_ff and M_e, M_fs, M_ff^-1 M_fs, and the fast
     !> generalised forces without their elastic and damping parts (held for 'split').
     real(dp), allocatable :: lff(:, :), le(:, :), mfs(:, :), xfs(:, :), qrest(:), yf(:)
+    !> Held for 'split': M_ff^-1 and M_ff^-1 times the held fast forces.
+    real(dp), allocatable :: mffinv(:, :), yrest(:)
     !> Modal stiffness omega^2 and damping 2 zeta omega (0 when the effect is off) per fast coordinate.
     real(dp), allocatable :: kf(:), df(:)
     !> Split fast evaluations.
     integer :: evals_split = 0
+    !> Full coordinates and rates assembled from the slow and fast states.
+    real(dp), allocatable :: qw(:), qdw(:)
+    !> Once partitioned (multirate), eval solves through the Schur complement too.
+    logical :: partitioned = .false.
+    real(dp), allocatable :: xsw(:), xfw(:), fsw(:), ffw(:)
   contains
     procedure :: eval => model_eval
     procedure :: component_name => model_component_name
@@ -103,8 +110,17 @@ contains
     real(dp), intent(in), contiguous :: x(:)
     real(dp), intent(out), contiguous :: f(:)
     type(error_type), allocatable, intent(out) :: error
-    integer :: n
+    integer :: n, ns, nf
     n = self%d%n
+    if (self%partitioned) then
+      ns = self%d%nj; nf = n - ns
+      self%xsw = [x(1:ns), x(n+1:n+ns)]
+      self%xfw = [x(ns+1:n), x(n+ns+1:)]
+      call self%sync_rhs(t, self%xsw, self%xfw, self%fsw, self%ffw, error)
+      f(1:ns) = self%fsw(1:ns); f(n+1:n+ns) = self%fsw(ns+1:)
+      f(ns+1:n) = self%ffw(1:nf); f(n+ns+1:) = self%ffw(nf+1:)
+      return
+    end if
     f(1:n) = x(n+1:2*n)
     call self%accelerations(t, x(1:n), x(n+1:2*n), f(n+1:2*n), error)
   end subroutine model_eval
@@ -148,9 +164,12 @@ contains
     class(model_t), intent(inout) :: self
     integer :: ns, nf, b, m
     ns = self%d%nj; nf = self%d%n - ns
-    if (allocated(self%lff)) deallocate(self%lff, self%le, self%mfs, self%xfs, self%qrest, self%yf, self%kf, self%df)
+    if (allocated(self%lff)) deallocate(self%lff, self%le, self%mfs, self%xfs, self%qrest, self%yf, self%kf, self%df, &
+      & self%qw, self%qdw, self%mffinv, self%yrest, self%xsw, self%xfw, self%fsw, self%ffw)
     allocate(self%lff(nf, nf), self%le(ns, ns), self%mfs(nf, ns), self%xfs(nf, ns), self%qrest(nf), self%yf(nf), &
-      & self%kf(nf), self%df(nf))
+      & self%kf(nf), self%df(nf), self%qw(ns + nf), self%qdw(ns + nf), self%mffinv(nf, nf), self%yrest(nf), &
+      & self%xsw(2*ns), self%xfw(2*nf), self%fsw(2*ns), self%ffw(2*nf))
+    self%partitioned = .true.
     self%df = 0.0_dp
     do b = 2, self%d%nb
       m = self%d%nm(b)
@@ -187,7 +206,8 @@ contains
     type(error_type), allocatable, intent(out) :: error
     integer :: ns, nf, minor
     ns = self%d%nj; nf = self%d%n - ns
-    call self%terms(t, [xs(1:ns), xf(1:nf)], [xs(ns+1:), xf(nf+1:)])
+    call gather(self, xs, xf)
+    call self%terms(t, self%qw, self%qdw)
     call factor_ff(self, t, error); if (allocated(error)) return
     associate(mm => self%d%mm, p => self%d%p)
       self%mfs = mm(ns+1:, 1:ns)
@@ -205,6 +225,7 @@ contains
       call potrs(self%le, fs(ns+1:), 'M_e', error); if (allocated(error)) return
       self%qrest = p(ns+1:) + self%kf*xf(1:nf) + self%df*xf(nf+1:)
       ff(nf+1:) = self%yf - matmul(self%xfs, fs(ns+1:))
+      call hold_inverse(self, error); if (allocated(error)) return
     end associate
     fs(1:ns) = xs(ns+1:)
     ff(1:nf) = xf(nf+1:)
@@ -223,18 +244,43 @@ contains
     integer :: ns, nf
     ns = self%d%nj; nf = self%d%n - ns
     if (split) then
-      ff(nf+1:) = self%qrest - self%kf*xf(1:nf) - self%df*xf(nf+1:) - matmul(self%mfs, acc_s)
+      ! qdd_f = M_ff^-1 (Q_rest - K a - D ad) - M_ff^-1 M_fs acc_s, all held but K a + D ad
+      ff(nf+1:) = self%yrest - matmul(self%mffinv, self%kf*xf(1:nf) + self%df*xf(nf+1:)) - matmul(self%xfs, acc_s)
       self%evals_split = self%evals_split + 1
       if (self%d%effect_on(effect_modal_damping)) &
         & self%d%effect_evals(effect_modal_damping) = self%d%effect_evals(effect_modal_damping) + 1
     else
-      call self%terms(t, [xs(1:ns), xf(1:nf)], [xs(ns+1:), xf(nf+1:)], fast_only=.true.)
+      call gather(self, xs, xf)
+      call self%terms(t, self%qw, self%qdw, fast_only=.true.)
       call factor_ff(self, t, error); if (allocated(error)) return
       ff(nf+1:) = self%d%p(ns+1:) - matmul(self%d%mm(ns+1:, 1:ns), acc_s)
+      call potrs(self%lff, ff(nf+1:), 'M_ff', error)
     end if
-    call potrs(self%lff, ff(nf+1:), 'M_ff', error)
     ff(1:nf) = xf(nf+1:)
   end subroutine model_fast_rhs
+
+  !> M_ff^-1 (from its Cholesky factor) and M_ff^-1 Q_rest, held for 'split' fast steps.
+  subroutine hold_inverse(self, error)
+    class(model_t), intent(inout) :: self
+    type(error_type), allocatable, intent(out) :: error
+    integer :: i
+    self%mffinv = 0.0_dp
+    do i = 1, size(self%mffinv, 1)
+      self%mffinv(i, i) = 1.0_dp
+    end do
+    call potrs(self%lff, self%mffinv, 'M_ff', error); if (allocated(error)) return
+    self%yrest = matmul(self%mffinv, self%qrest)
+  end subroutine hold_inverse
+
+  !> Full coordinates and rates from the slow state [q_s; qd_s] and fast state [q_f; qd_f].
+  pure subroutine gather(self, xs, xf)
+    class(model_t), intent(inout) :: self
+    real(dp), intent(in) :: xs(:), xf(:)
+    integer :: ns, nf
+    ns = self%d%nj; nf = self%d%n - ns
+    self%qw(1:ns) = xs(1:ns); self%qw(ns+1:) = xf(1:nf)
+    self%qdw(1:ns) = xs(ns+1:); self%qdw(ns+1:) = xf(nf+1:)
+  end subroutine gather
 
   !> Time as text for messages.
   function time_text(t) result(s)

