@@ -87,15 +87,13 @@ contains
     real(dp), intent(out), contiguous :: qdd(:)
     type(error_type), allocatable, intent(out) :: error
     integer :: minor
-    character(len=32) :: buf
     call self%terms(t, q, qd)
     associate(d => self%d)
       d%lf = d%mm
       call potrf(d%lf, 'the mass matrix', error, minor)
       if (allocated(error)) then
-        write(buf, '(es12.5)') t
         if (minor > 0) error%message = error%message // ' (coordinate ' // trim(d%qname(minor)) // ')'
-        call prefix_error(error, 'at t = ' // trim(adjustl(buf)) // ' s')
+        call prefix_error(error, 'at t = ' // time_text(t))
         return
       end if
       qdd = d%p
