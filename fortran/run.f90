@@ -126,10 +126,12 @@ contains
 
   !> Run a scene: results to `out` (or the default), statistics beside it; `summary`
   !> receives a few human-readable lines.
-  subroutine run_scene(file, overrides, out, summary, error)
+  subroutine run_scene(file, overrides, out, summary, error, written)
     character(len=*), intent(in) :: file, overrides, out
     character(len=:), allocatable, intent(out) :: summary
     type(error_type), allocatable, intent(out) :: error
+    !> The CSV file written.
+    character(len=:), allocatable, intent(out), optional :: written
     type(scene_t) :: sc
     type(model_t) :: model
     type(stepper) :: st
@@ -190,6 +192,7 @@ contains
     call write_json(json_path(path), file, sc%title, settings_json(sc), model%d, stats, error)
     if (allocated(error)) return
     summary = summary_text(sc, model, stats, path, x)
+    if (present(written)) written = path
   end subroutine run_scene
 
   !> Step and evaluation counts of a run.

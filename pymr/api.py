@@ -27,9 +27,7 @@ class SolverError(PymrError):
 def _raise(stat: int, message: bytes | str) -> None:
     if stat == 0:
         return
-    text = message.decode() if isinstance(message, bytes) else message
-    text = text.strip()
-    raise (SceneError if stat == 1 else SolverError)(text)
+    raise (SceneError if stat == 1 else SolverError)(_text(message))
 
 
 def format_overrides(overrides: Mapping[str, object] | Iterable[str] | None) -> str:
@@ -71,24 +69,27 @@ def run(scene: str | os.PathLike, output: str | os.PathLike | None = None,
     text = format_overrides(overrides)
     if output == "":
         # let the kernel choose: &output file, else SCENE.csv in the working folder
-        stat, msg, summary = _core.pymr_run_scene(_scene_arg(scene), text, "")
+        stat, msg, summary, written = _core.pymr_run_scene(_scene_arg(scene), text, "")
         _raise(stat, msg)
-        summary = summary.decode() if isinstance(summary, bytes) else str(summary)
-        out = summary.strip().splitlines()[-1].split("results: ", 1)[1].split(", ")[0]
-        res = load_results(out)
+        res = load_results(_text(written))
     elif output is None:
         with tempfile.TemporaryDirectory(prefix="pymr-") as tmp:
             out = str(Path(tmp) / "results.csv")
-            stat, msg, summary = _core.pymr_run_scene(_scene_arg(scene), text, out)
+            stat, msg, summary, _ = _core.pymr_run_scene(_scene_arg(scene), text, out)
             _raise(stat, msg)
             res = load_results(out)
     else:
         out = os.fspath(output)
-        stat, msg, summary = _core.pymr_run_scene(_scene_arg(scene), text, out)
+        stat, msg, summary, _ = _core.pymr_run_scene(_scene_arg(scene), text, out)
         _raise(stat, msg)
         res = load_results(out)
-    res.summary = summary.decode().strip() if isinstance(summary, bytes) else str(summary).strip()
+    res.summary = _text(summary)
     return res
+
+
+def _text(value: bytes | str) -> str:
+    """A fixed-length character result of the binding as a stripped str."""
+    return (value.decode() if isinstance(value, bytes) else str(value)).strip()
 
 
 def model_size(scene: str | os.PathLike, overrides=None) -> tuple[int, int, int]:

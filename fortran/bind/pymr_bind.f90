@@ -2,8 +2,8 @@
 !> `double precision` arrays and scalars only. Each call reports `stat` (0 ok,
 !> 1 bad input, 2 failed run) and a one-line `message`; Python raises on stat /= 0.
 
-!> Run a scene to result files (see pymr_run%run_scene).
-subroutine pymr_run_scene(scene, overrides, out, stat, message, summary)
+!> Run a scene to result files (see pymr_run%run_scene); `path` returns the CSV written.
+subroutine pymr_run_scene(scene, overrides, out, stat, message, summary, path)
   use pymr_error, only : error_type
   use pymr_bind_support, only : report
   use pymr_run, only : run_scene
@@ -12,12 +12,15 @@ subroutine pymr_run_scene(scene, overrides, out, stat, message, summary)
   integer, intent(out) :: stat
   character(len=1024), intent(out) :: message
   character(len=4096), intent(out) :: summary
+  character(len=1024), intent(out) :: path
   type(error_type), allocatable :: error
-  character(len=:), allocatable :: text
-  call run_scene(scene, overrides, out, text, error)
+  character(len=:), allocatable :: text, written
+  call run_scene(scene, overrides, out, text, error, written)
   call report(error, stat, message)
-  summary = ''
-  if (stat == 0) summary = text
+  summary = ''; path = ''
+  if (stat == 0) then
+    summary = text; path = written
+  end if
 end subroutine pymr_run_scene
 
 !> Sizes of a scene's model: coordinates, bodies (with ground), markers.
