@@ -139,6 +139,7 @@ subroutine pymr_time_evaluation(scene, overrides, n, q, qd, reps, seconds, stat,
   use pymr_model_scene, only : scene_t
   use pymr_model, only : model_t
   use pymr_run, only : load_model
+  use pymr_clock, only : thread_cpu_time
   implicit none
   character(len=*), intent(in) :: scene, overrides
   integer, intent(in) :: n, reps
@@ -158,12 +159,12 @@ subroutine pymr_time_evaluation(scene, overrides, n, q, qd, reps, seconds, stat,
   if (.not. allocated(error) .and. model%d%n /= n) call fatal_error(error, 'q has the wrong length')
   if (.not. allocated(error)) then
     allocate(qdd(n))
-    call cpu_time(c0)
+    c0 = thread_cpu_time()
     do k = 1, reps
       call model%accelerations(0.0d0, q, qd, qdd, error)
       if (allocated(error)) exit
     end do
-    call cpu_time(c1)
+    c1 = thread_cpu_time()
     seconds = (c1 - c0)/max(reps, 1)
   end if
   call report(error, stat, message)
