@@ -13,6 +13,7 @@ module pymr_run
   use pymr_io_results_output, only : csv_writer, json_path, write_json, run_stats
   use pymr_model_kinematics, only : forward_kinematics, marker_motion
   use pymr_clock, only : thread_cpu_time
+  use pymr_io_namelist_scan, only : itoa
   implicit none
   private
   public :: run_scene, load_model, default_output
@@ -74,8 +75,8 @@ contains
     if (st%multirate) then
       if (model%n_fast() == 0 .or. model%n_slow() == 0) then
         call fatal_error(error, sc%file // ": &integrator: method: 'multirate' needs slow (joint) and fast " // &
-          & "(modal) coordinates; this scene has " // trim(itoa_(model%n_slow())) // ' and ' // &
-          & trim(itoa_(model%n_fast())) // ": use method = 'single'"); return
+          & "(modal) coordinates; this scene has " // itoa(model%n_slow()) // ' and ' // &
+          & itoa(model%n_fast()) // ": use method = 'single'"); return
       end if
       k = nint(sc%integrator%h_slow/sc%integrator%h_fast)
       coupling = merge(coupling_split, coupling_full, sc%integrator%coupling == 'split')
@@ -89,12 +90,6 @@ contains
       call st%abm%init(size(x), sc%integrator%adaptive, ctl, sc%integrator%n_corrector)
       call st%abm%start(model, 0.0_dp, x, sc%integrator%h_slow, error)
     end if
-  contains
-    function itoa_(i) result(r)
-      integer, intent(in) :: i
-      character(len=16) :: r
-      write(r, '(i0)') i
-    end function itoa_
   end subroutine start_stepper
 
   !> Read and build the model of a scene (with overrides).
@@ -178,15 +173,16 @@ contains
       if (st%time() >= sc%t_end - eps) exit
       call st%advance(model, error); if (allocated(error)) exit
     end do
-    if (.not. allocated(error) .and. (dt_out <= 0.0_dp .or. abs(t_next - dt_out - sc%t_end) > eps)) then
+    if (.not. allocated(error)) then
       call st%value_at(sc%t_end, x)
-      call csv%write_row(model%d, sc%t_end, x(1:n), x(n+1:)); stats%rows = stats%rows + 1
+      if (dt_out <= 0.0_dp .or. abs(t_next - dt_out - sc%t_end) > eps) then
+        call csv%write_row(model%d, sc%t_end, x(1:n), x(n+1:)); stats%rows = stats%rows + 1
+      end if
     end if
     call csv%close()
     if (allocated(error)) then
       error%message = file // ': ' // error%message; return
     end if
-    call st%value_at(sc%t_end, x)
     cpu1 = thread_cpu_time(); call system_clock(c1)
     stats%cpu_time_s = cpu1 - cpu0; stats%wall_time_s = real(c1 - c0, dp)/real(rate, dp)
     call fill_stats(st, model, stats)

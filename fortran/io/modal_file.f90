@@ -107,9 +107,8 @@ contains
       call skip_comments(); if (allocated(error)) return
       read(u, *, iostat=ios) word
       if (ios /= 0 .or. trim(word) /= expect) then
-        call fatal_error(error, path // ': line ' // itoa(line) // ": expected '" // expect // "'"); return
+        call fatal_error(error, path // ': line ' // itoa(line) // ": expected '" // expect // "'")
       end if
-      if (expect == 'pymr-modal') return
     end subroutine next_key
   end subroutine read_modal_file
 

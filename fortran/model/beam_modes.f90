@@ -6,7 +6,7 @@ module pymr_model_beam_modes
   use pymr_kinds, only : dp, pi
   use pymr_error, only : error_type
   use pymr_lapack, only : sygvd
-  use pymr_model_flexbody, only : flex_data, flex_invariants
+  use pymr_model_flexbody, only : flex_data, flex_invariants, point_shapes
   implicit none
   private
   public :: beam_shape, build_beam, beam_point_shapes, gauss4
@@ -130,29 +130,22 @@ contains
     type(beam_shape), intent(in) :: bs
     real(dp), intent(in) :: r(3)
     real(dp), intent(out) :: psi(:, :), phi(:, :)
-    real(dp) :: le, x, xi, nn(4), dn(4), off(3), dv, dw
-    integer :: el, k, m
-    m = bs%my + bs%mz
+    real(dp) :: le, x, xi, nn(4), dn(4), psi_axis(3, size(psi, 2))
+    integer :: el, k
     le = bs%length/bs%ne
     x = min(max(r(1), 0.0_dp), bs%length)
     el = min(int(x/le) + 1, bs%ne)
     xi = x/le - (el - 1)
     call hermite(xi, le, nn, dn)
-    psi = 0.0_dp; phi = 0.0_dp
-    off = [0.0_dp, r(2), r(3)]
+    psi_axis = 0.0_dp; phi = 0.0_dp
     do k = 1, bs%my
-      dv = dot_product(dn, bs%vy(2*el-1:2*el+2, k))
-      psi(2, k) = dot_product(nn, bs%vy(2*el-1:2*el+2, k))
-      phi(3, k) = dv
+      psi_axis(2, k) = dot_product(nn, bs%vy(2*el-1:2*el+2, k))
+      phi(3, k) = dot_product(dn, bs%vy(2*el-1:2*el+2, k))
     end do
     do k = 1, bs%mz
-      dw = dot_product(dn, bs%vz(2*el-1:2*el+2, k))
-      psi(3, bs%my + k) = dot_product(nn, bs%vz(2*el-1:2*el+2, k))
-      phi(2, bs%my + k) = -dw
+      psi_axis(3, bs%my + k) = dot_product(nn, bs%vz(2*el-1:2*el+2, k))
+      phi(2, bs%my + k) = -dot_product(dn, bs%vz(2*el-1:2*el+2, k))
     end do
-    do k = 1, m
-      psi(:, k) = psi(:, k) + [phi(2, k)*off(3) - phi(3, k)*off(2), phi(3, k)*off(1) - phi(1, k)*off(3), &
-        & phi(1, k)*off(2) - phi(2, k)*off(1)]
-    end do
+    call point_shapes(psi_axis, phi, [0.0_dp, r(2), r(3)], psi)
   end subroutine beam_point_shapes
 end module pymr_model_beam_modes

@@ -156,7 +156,7 @@ contains
   subroutine check_bodies(sc, error)
     type(scene_t), intent(in) :: sc
     type(error_type), allocatable, intent(out) :: error
-    integer :: i, j, ng, info
+    integer :: i, j, ng
     real(dp) :: a(3, 3), e(3)
     ng = 0
     do i = 1, size(sc%bodies)
@@ -186,7 +186,7 @@ contains
             return
           end if
           a = inertia_matrix(b%inertia)
-          call eig3(a, e, info)
+          call eig3(a, e)
           if (minval(e) <= 0.0_dp) then
             call fatal_error(error, where_body(sc, i) // ': inertia: not positive definite (smallest principal ' // &
               & 'moment ' // fmt(minval(e)) // ' kg m^2)'); return
@@ -695,13 +695,12 @@ contains
   end function inertia_matrix
 
   !> Eigenvalues of a symmetric 3x3 matrix (Jacobi sweeps; enough for input checks).
-  pure subroutine eig3(a0, e, info)
+  pure subroutine eig3(a0, e)
     real(dp), intent(in) :: a0(3, 3)
     real(dp), intent(out) :: e(3)
-    integer, intent(out) :: info
     real(dp) :: a(3, 3), th, c, s, t, g(3, 3)
     integer :: sweep, p, q, i
-    a = a0; info = 0
+    a = a0
     do sweep = 1, 50
       if (abs(a(1, 2)) + abs(a(1, 3)) + abs(a(2, 3)) <= 1.0e-15_dp*sum(abs(a))) exit
       do p = 1, 2
