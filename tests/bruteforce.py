@@ -699,3 +699,22 @@ def reference_terms_lagrange(scene: Scene, q, qd, t: float = 0.0, h: float = 1e-
             P[s] -= 2.0 * b.modal_damping * np.sqrt(b.modes.omega2) * qd[s]
     P = P + scene.generalised_drive_forces(t)
     return M, P
+
+
+def check_energy_and_accelerations(path, sc, states, rtol, t=0.45):
+    """Assert that the kernel's kinetic energy, potential-energy differences and
+    accelerations (as the residual |M_ref qdd - P_ref| / (|M||qdd| + |P|)) agree with
+    the reference at the given states, to ``rtol``."""
+    import pymr
+    qs = np.array([s[0] for s in states])
+    qds = np.array([s[1] for s in states])
+    ke, pe = pymr.model_energy(path, qs, qds)
+    ref = np.array([reference_energy(sc, q, qd) for q, qd in states])
+    np.testing.assert_allclose(ke, ref[:, 0], rtol=rtol, atol=rtol * ref[:, 0].max())
+    scale = np.abs(ref[:, 1]).max() + 1.0
+    np.testing.assert_allclose(pe - pe[0], ref[:, 1] - ref[0, 1], rtol=0, atol=rtol * scale)
+    qdd = pymr.model_accelerations(path, np.full(len(states), t), qs, qds)
+    for (q, qd), a in zip(states, qdd):
+        mr, pr = reference_terms(sc, q, qd, t)
+        res = np.abs(mr @ a - pr).max() / (np.abs(mr).max() * np.abs(a).max() + np.abs(pr).max())
+        assert res < rtol

@@ -424,16 +424,4 @@ def test_kernel_energy_and_accelerations(tmp_path, which):
     kernel agree with the reference (residual |M_ref qdd - P_ref| / (|M||qdd| + |P|))."""
     path, sc = _load(which, tmp_path)
     states = _states(sc, seed=21, count=3)
-    qs = np.array([s[0] for s in states])
-    qds = np.array([s[1] for s in states])
-    ke, pe = pymr.model_energy(path, qs, qds)
-    ref = np.array([bf.reference_energy(sc, q, qd) for q, qd in states])
-    np.testing.assert_allclose(ke, ref[:, 0], rtol=RTOL, atol=RTOL * ref[:, 0].max())
-    scale = np.abs(ref[:, 1]).max() + 1.0
-    np.testing.assert_allclose(pe - pe[0], ref[:, 1] - ref[0, 1], rtol=0, atol=RTOL * scale)
-    t = 0.45
-    qdd = pymr.model_accelerations(path, np.full(len(states), t), qs, qds)
-    for (q, qd), a in zip(states, qdd):
-        mr, pr = bf.reference_terms(sc, q, qd, t)
-        res = np.abs(mr @ a - pr).max() / (np.abs(mr).max() * np.abs(a).max() + np.abs(pr).max())
-        assert res < RTOL
+    bf.check_energy_and_accelerations(path, sc, states, RTOL)
