@@ -33,6 +33,8 @@ module pymr_integrator_multirate
     integer :: steps_slow = 0, steps_fast = 0, evals_slow = 0, evals_fast = 0, evals_start = 0
     !> Work arrays.
     real(dp), allocatable :: zp(:, :), zn(:, :), wp(:, :), wn(:, :), fs(:), ff(:), gs(:), gf(:), xs(:), acc(:)
+    !> Positions of the slow and fast states in the full state (for error messages).
+    integer, allocatable :: slow_map(:), fast_map(:)
   contains
     procedure :: init => mr_init
     procedure :: start => mr_start
@@ -50,6 +52,8 @@ contains
     allocate(self%zs(2*ns, 0:nq), self%zf(2*nf, 0:nq), self%zp(2*ns, 0:nq), self%zn(2*ns, 0:nq), &
       & self%wp(2*nf, 0:nq), self%wn(2*nf, 0:nq), self%fs(2*ns), self%ff(2*nf), self%gs(2*ns), self%gf(2*nf), &
       & self%xs(2*ns), self%acc(ns))
+    self%slow_map = slow_index(ns, nf)
+    self%fast_map = fast_index(ns, nf)
   end subroutine mr_init
 
   !> Start at (t0, x0), x0 = [q_s; q_f; qd_s; qd_f]: classical RK4 steps of size h on the
@@ -115,7 +119,8 @@ contains
       call sys%fast_rhs(ti, self%xs, self%wp(:, 0), self%acc, self%coupling == coupling_split, self%ff, error)
       self%evals_fast = self%evals_fast + 1
       if (allocated(error)) return
-      call nordsieck_correct(self%wp, self%hf*self%ff, self%wn, self%gf)
+      self%ff = self%hf*self%ff
+      call nordsieck_correct(self%wp, self%ff, self%wn, self%gf)
       self%zf = self%wn
       self%steps_fast = self%steps_fast + 1
     end do
@@ -131,8 +136,8 @@ contains
     self%steps_fast = self%steps_fast + 1
     self%t = self%t + self%hs
     self%steps_slow = self%steps_slow + 1
-    call check_finite(sys, self%t, self%zs(:, 0), 'state', error, slow_index(ns, self%nf)); if (allocated(error)) return
-    call check_finite(sys, self%t, self%zf(:, 0), 'state', error, fast_index(ns, self%nf))
+    call check_finite(sys, self%t, self%zs(:, 0), 'state', error, self%slow_map); if (allocated(error)) return
+    call check_finite(sys, self%t, self%zf(:, 0), 'state', error, self%fast_map)
   end subroutine mr_step
 
   !> Positions of the slow state [q_s; qd_s] in the full state [q_s; q_f; qd_s; qd_f].

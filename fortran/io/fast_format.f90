@@ -8,6 +8,11 @@ module pymr_io_fast_format
   private
   public :: put_real
 
+  integer :: k_
+  !> The hundred two-digit strings '00' ... '99'.
+  character(len=2), parameter :: pairs(0:99) = [(achar(iachar('0') + k_/10) // achar(iachar('0') + mod(k_, 10)), &
+    & k_ = 0, 99)]
+
 contains
 
   !> Append the text of x to buf at position pos (advanced past the text).
@@ -15,7 +20,7 @@ contains
     real(dp), intent(in) :: x
     character(len=*), intent(inout) :: buf
     integer, intent(inout) :: pos
-    integer :: e, i, ae
+    integer :: e, i, ae, hi, lo
     integer(int64) :: dgt
     real(dp) :: m
     character(len=17) :: dstr
@@ -36,8 +41,14 @@ contains
     if (x < 0.0_dp) then
       buf(pos:pos) = '-'; pos = pos + 1
     end if
-    e = floor(log10(abs(x)))
+    ! decimal exponent from the binary one (log10(2) = 0.30103...); the checks of m
+    ! below correct the estimate by one either way
+    e = floor((exponent(x) - 1)*0.30102999566398120_dp)
     m = scale_by_pow10(abs(x), -e)
+    if (m >= 10.0_dp) then
+      e = e + 1
+      m = scale_by_pow10(abs(x), -e)
+    end if
     if (m >= 10.0_dp) then
       m = m/10.0_dp; e = e + 1
     else if (m < 1.0_dp) then
@@ -47,10 +58,18 @@ contains
     if (dgt >= 100000000000000000_int64) then
       dgt = dgt/10; e = e + 1
     end if
-    do i = 17, 1, -1
-      dstr(i:i) = achar(iachar('0') + int(mod(dgt, 10_int64)))
-      dgt = dgt/10
+    ! digits two at a time, in two 32-bit halves (9 + 8): fewer and cheaper divisions
+    hi = int(dgt/100000000_int64)
+    lo = int(dgt - 100000000_int64*hi)
+    do i = 16, 10, -2
+      dstr(i:i+1) = pairs(mod(lo, 100))
+      lo = lo/100
     end do
+    do i = 8, 2, -2
+      dstr(i:i+1) = pairs(mod(hi, 100))
+      hi = hi/100
+    end do
+    dstr(1:1) = achar(iachar('0') + hi)
     buf(pos:pos) = dstr(1:1); buf(pos+1:pos+1) = '.'; buf(pos+2:pos+17) = dstr(2:17)
     pos = pos + 18
     buf(pos:pos) = 'e'

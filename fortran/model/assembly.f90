@@ -25,15 +25,19 @@ contains
     logical, intent(in), optional :: only(:)
     integer :: b, m
     real(dp) :: c(3), icw(3, 3)
+    logical :: modal_only
     do b = 2, d%nb
+      modal_only = .false.
       if (present(only)) then
         if (.not. only(b)) cycle
+        ! the fast rows need a body's inertia and wrench only below a flexible body
+        modal_only = .not. d%in_fast(d%parent(b))
       end if
       if (d%flexible(b)) then
         m = d%nm(b)
         call flex_body_terms(d%flex(b), d%fwork(b), d%rot(:, :, b), d%pos(:, b), d%vel(:, b), d%acc(:, b), &
           & q(d%a0(b):d%a0(b) + m - 1), qd(d%a0(b):d%a0(b) + m - 1), d%i6(:, :, b), d%mva(:, 1:m, b), &
-          & d%w(:, b), d%wam(1:m, b))
+          & d%w(:, b), d%wam(1:m, b), modal_only)
         cycle
       end if
       c = d%pos(:, b) + matmul(d%rot(:, :, b), d%com(:, b))
@@ -71,6 +75,11 @@ contains
     do b = 2, d%nb
       if (present(only)) then
         if (.not. only(b)) cycle
+        ! a joint column of a body with no flexible body above it has no fast rows
+        if (.not. d%in_fast(d%parent(b))) then
+          if (d%nm(b) > 0) call modal_block(d, b)
+          cycle
+        end if
       end if
       do k = d%c0(b), d%c0(b) + d%nc(b) - 1
         call walk_up(d, b, k, matmul(d%ic(:, :, b), d%s(:, k)))

@@ -5,7 +5,7 @@
 !> points of its Hermite elements, so sums over them reproduce the consistent
 !> finite-element mass matrix exactly. With Z_p = [s_p, Psi_p] (3 x (1+m)) all inertia
 !> invariants follow from the first moment F = sum m_p Z_p and the second-moment tensor
-!> W(i,alpha,j,beta) = sum m_p Z_p(i,alpha) Z_p(j,beta), computed once. The deformed
+!> W(i,j,alpha,beta) = sum m_p Z_p(i,alpha) Z_p(j,beta), computed once. The deformed
 !> point is c_p = Z_p [1; a].
 module pymr_model_flexbody
   use pymr_kinds, only : dp
@@ -20,8 +20,12 @@ module pymr_model_flexbody
     integer :: m = 0
     !> Total mass (kg).
     real(dp) :: mass = 0.0_dp
-    !> First moments F(3, 0:m) and second moments W(3, 0:m, 3, 0:m).
+    !> First moments F(3, 0:m) and second moments W(3, 3, 0:m, 0:m) (a contiguous 3 x 3
+    !> block per pair of columns of Z).
     real(dp), allocatable :: first(:, :), w(:, :, :, :)
+    !> Gyroscopic vectors G(:,l,k) = sum m_p Psi_l x Psi_k (so that summed over the points,
+    !> Psi_k . (w x Psi_l) = w . G(:,l,k)).
+    real(dp), allocatable :: gyro(:, :, :)
     !> Modal mass matrix sum m_p Psi_p^T Psi_p (identity for mass-normalised modes).
     real(dp), allocatable :: mmm(:, :)
     !> Squared circular frequencies (rad^2/s^2) and modal damping 2 zeta omega (1/s).
@@ -55,7 +59,7 @@ contains
     real(dp) :: z(3, 0:size(psi, 2))
     m = size(psi, 2)
     fd%m = m
-    allocate(fd%first(3, 0:m), fd%w(3, 0:m, 3, 0:m), fd%mmm(m, m))
+    allocate(fd%first(3, 0:m), fd%w(3, 3, 0:m, 0:m), fd%mmm(m, m), fd%gyro(3, m, m))
     fd%first = 0.0_dp; fd%w = 0.0_dp
     fd%mass = sum(mp)
     do p = 1, size(mp)
@@ -63,10 +67,10 @@ contains
       z(:, 1:m) = psi(:, :, p)
       fd%first = fd%first + mp(p)*z
       do be = 0, m
-        do j = 1, 3
-          do al = 0, m
+        do al = 0, m
+          do j = 1, 3
             do i = 1, 3
-              fd%w(i, al, j, be) = fd%w(i, al, j, be) + mp(p)*z(i, al)*z(j, be)
+              fd%w(i, j, al, be) = fd%w(i, j, al, be) + mp(p)*z(i, al)*z(j, be)
             end do
           end do
         end do
@@ -74,7 +78,9 @@ contains
     end do
     do al = 1, m
       do be = 1, m
-        fd%mmm(al, be) = fd%w(1, al, 1, be) + fd%w(2, al, 2, be) + fd%w(3, al, 3, be)
+        fd%mmm(al, be) = fd%w(1, 1, al, be) + fd%w(2, 2, al, be) + fd%w(3, 3, al, be)
+        fd%gyro(:, al, be) = [fd%w(2, 3, al, be) - fd%w(3, 2, al, be), fd%w(3, 1, al, be) - fd%w(1, 3, al, be), &
+          & fd%w(1, 2, al, be) - fd%w(2, 1, al, be)]
       end do
     end do
     fd%ps = s; fd%pm = mp; fd%ppsi = psi
@@ -99,11 +105,14 @@ contains
   !> mva (6 x m, coupling of frame motion and modal rates), and the bias terms
   !> wv (6, spatial wrench) and wam (m): inertia forces at zero joint and modal
   !> accelerations plus the elastic forces omega^2 a. Gravity and damping are effects.
-  pure subroutine flex_body_terms(fd, wk, rot, pos, vel, acc, a, ad, i6, mva, wv, wam)
+  pure subroutine flex_body_terms(fd, wk, rot, pos, vel, acc, a, ad, i6, mva, wv, wam, modal_only)
     type(flex_data), intent(in) :: fd
     type(flex_work), intent(inout) :: wk
     real(dp), intent(in) :: rot(3, 3), pos(3), vel(6), acc(6), a(:), ad(:)
-    real(dp), intent(out) :: i6(6, 6), mva(:, :), wv(6), wam(:)
+    real(dp), intent(inout) :: i6(6, 6), wv(6)
+    real(dp), intent(out) :: mva(:, :), wam(:)
+    !> Only the modal rows' terms (mva, wam): i6 and wv are left as they were.
+    logical, intent(in) :: modal_only
     integer :: m, k, l, al, be
     real(dp) :: ah(0:size(a)), d(3), jc(3, 3), cm(3, 3), pd(3), wb(3), alv(3), alw(3)
     real(dp) :: f(3), n(3), psiad(3), tr, tmp(3)
@@ -111,30 +120,35 @@ contains
     ah(0) = 1.0_dp; ah(1:m) = a
     ! Wa(i,j,beta) = sum_alpha ah(alpha) W(i,alpha,j,beta); S = F ah; C = sum m c c^T
     do be = 0, m
-      wk%wa(:, :, be) = 0.0_dp
-      do al = 0, m
-        wk%wa(:, :, be) = wk%wa(:, :, be) + ah(al)*fd%w(:, al, :, be)
+      wk%wa(:, :, be) = fd%w(:, :, 0, be)
+      do al = 1, m
+        wk%wa(:, :, be) = wk%wa(:, :, be) + ah(al)*fd%w(:, :, al, be)
       end do
     end do
-    wk%s = matmul(fd%first, ah)
-    cm = 0.0_dp
-    do be = 0, m
-      cm = cm + ah(be)*wk%wa(:, :, be)
-    end do
-    tr = cm(1, 1) + cm(2, 2) + cm(3, 3)
-    wk%j = -cm
-    do k = 1, 3
-      wk%j(k, k) = wk%j(k, k) + tr
+    wk%s = fd%first(:, 0)
+    do al = 1, m
+      wk%s = wk%s + ah(al)*fd%first(:, al)
     end do
     ! Cr(:,k) = sum m_p c_p x Psi_p(:,k)
     do k = 1, m
       wk%cr(:, k) = [wk%wa(2, 3, k) - wk%wa(3, 2, k), wk%wa(3, 1, k) - wk%wa(1, 3, k), &
         & wk%wa(1, 2, k) - wk%wa(2, 1, k)]
     end do
-    ! spatial inertia of the deformed body about the inertial origin
-    d = wk%s/fd%mass
-    jc = wk%j + fd%mass*matmul(skew(d), skew(d))
-    i6 = rigid_inertia(fd%mass, pos + matmul(rot, d), matmul(rot, matmul(jc, transpose(rot))))
+    if (.not. modal_only) then
+      cm = 0.0_dp
+      do be = 0, m
+        cm = cm + ah(be)*wk%wa(:, :, be)
+      end do
+      tr = cm(1, 1) + cm(2, 2) + cm(3, 3)
+      wk%j = -cm
+      do k = 1, 3
+        wk%j(k, k) = wk%j(k, k) + tr
+      end do
+      ! spatial inertia of the deformed body about the inertial origin
+      d = wk%s/fd%mass
+      jc = wk%j + fd%mass*matmul(skew(d), skew(d))
+      i6 = rigid_inertia(fd%mass, pos + matmul(rot, d), matmul(rot, matmul(jc, transpose(rot))))
+    end if
     ! coupling columns [R S1; p x R S1 + R Cr]
     do k = 1, m
       tmp = matmul(rot, fd%first(:, k))
@@ -147,34 +161,36 @@ contains
     alv = matmul(transpose(rot), acc(1:3) + cross(acc(4:6), pos) + cross(vel(4:6), pd))
     alw = matmul(transpose(rot), acc(4:6))
     ! inertia forces M_bb [alv; alw; 0] + quadratic velocity terms (body frame)
-    psiad = matmul(fd%first(:, 1:m), ad)
-    f = fd%mass*alv + cross(alw, wk%s) + cross(wb, cross(wb, wk%s)) + 2.0_dp*cross(wb, psiad)
-    n = cross(wk%s, alv) + matmul(wk%j, alw) + cross(wb, matmul(wk%j, wb))
-    do l = 1, m
-      tr = wk%wa(1, 1, l) + wk%wa(2, 2, l) + wk%wa(3, 3, l)
-      n = n + 2.0_dp*ad(l)*(wb*tr - matmul(transpose(wk%wa(:, :, l)), wb))
-    end do
+    if (.not. modal_only) then
+      psiad = matmul(fd%first(:, 1:m), ad)
+      f = fd%mass*alv + cross(alw, wk%s) + cross(wb, cross(wb, wk%s)) + 2.0_dp*cross(wb, psiad)
+      n = cross(wk%s, alv) + matmul(wk%j, alw) + cross(wb, matmul(wk%j, wb))
+      do l = 1, m
+        tr = wk%wa(1, 1, l) + wk%wa(2, 2, l) + wk%wa(3, 3, l)
+        n = n + 2.0_dp*ad(l)*(wb*tr - matmul(transpose(wk%wa(:, :, l)), wb))
+      end do
+      ! to inertial Pluecker: [R f; R n + p x R f]
+      wv(1:3) = matmul(rot, f)
+      wv(4:6) = matmul(rot, n) + cross(pos, wv(1:3))
+    end if
     do k = 1, m
       tr = wk%wa(1, 1, k) + wk%wa(2, 2, k) + wk%wa(3, 3, k)
       wam(k) = dot_product(fd%first(:, k), alv) + dot_product(wk%cr(:, k), alw) &
-        & + dot_product(wb, matmul(wk%wa(:, :, k), wb)) - dot_product(wb, wb)*tr
+        & + quad_form(wk%wa(:, :, k), wb) - dot_product(wb, wb)*tr
       do l = 1, m
         ! 2 sum_p m_p Psi_k . (w x Psi_l) ad_l
-        wam(k) = wam(k) + 2.0_dp*ad(l)*dot_product(wb, gyro(l, k))
+        wam(k) = wam(k) + 2.0_dp*ad(l)*dot_product(wb, fd%gyro(:, l, k))
       end do
       wam(k) = wam(k) + fd%omega2(k)*a(k)
     end do
-    ! to inertial Pluecker: [R f; R n + p x R f]
-    wv(1:3) = matmul(rot, f)
-    wv(4:6) = matmul(rot, n) + cross(pos, wv(1:3))
   contains
-    !> sum_p m_p Psi_l x Psi_k (so that Psi_k . (w x Psi_l) summed = w . gyro(l,k))
-    pure function gyro(l, k) result(v)
-      integer, intent(in) :: l, k
-      real(dp) :: v(3)
-      v = [fd%w(2, l, 3, k) - fd%w(3, l, 2, k), fd%w(3, l, 1, k) - fd%w(1, l, 3, k), &
-        & fd%w(1, l, 2, k) - fd%w(2, l, 1, k)]
-    end function gyro
+    !> v . (A v) for a 3 x 3 matrix A.
+    pure real(dp) function quad_form(a3, v)
+      real(dp), intent(in) :: a3(3, 3), v(3)
+      quad_form = v(1)*(a3(1, 1)*v(1) + a3(1, 2)*v(2) + a3(1, 3)*v(3)) &
+        & + v(2)*(a3(2, 1)*v(1) + a3(2, 2)*v(2) + a3(2, 3)*v(3)) &
+        & + v(3)*(a3(3, 1)*v(1) + a3(3, 2)*v(2) + a3(3, 3)*v(3))
+    end function quad_form
   end subroutine flex_body_terms
 
   !> Small rotation of an attachment: R = exp(theta~) (Rodrigues), the left Jacobian

@@ -30,6 +30,9 @@ module pymr_model
     real(dp), allocatable :: qw(:), qdw(:)
     !> Once partitioned (multirate), eval solves through the Schur complement too.
     logical :: partitioned = .false.
+    !> M_ff is constant (no flexible body carries children): factored once, at the first
+    !> synchronised evaluation, and not again in 'full' fast steps.
+    logical :: mff_fixed = .false., mff_factored = .false.
     real(dp), allocatable :: xsw(:), xfw(:), fsw(:), ffw(:)
   contains
     procedure :: eval => model_eval
@@ -168,6 +171,11 @@ contains
       & self%kf(nf), self%df(nf), self%qw(ns + nf), self%qdw(ns + nf), self%mffinv(nf, nf), self%yrest(nf), &
       & self%xsw(2*ns), self%xfw(2*nf), self%fsw(2*ns), self%ffw(2*nf))
     self%partitioned = .true.
+    self%mff_fixed = .true.
+    self%mff_factored = .false.
+    do b = 2, self%d%nb
+      if (self%d%flexible(b) .and. self%d%child_ptr(b + 1) > self%d%child_ptr(b)) self%mff_fixed = .false.
+    end do
     self%df = 0.0_dp
     do b = 2, self%d%nb
       m = self%d%nm(b)
@@ -178,15 +186,18 @@ contains
     end do
   end subroutine model_init_partition
 
-  !> Factor M_ff of the last assembly (Cholesky), naming time and minor on failure.
+  !> Factor M_ff of the last assembly (Cholesky), naming time and minor on failure; once
+  !> only when M_ff is constant.
   subroutine factor_ff(self, t, error)
     class(model_t), intent(inout) :: self
     real(dp), intent(in) :: t
     type(error_type), allocatable, intent(out) :: error
     integer :: ns, minor
+    if (self%mff_fixed .and. self%mff_factored) return
     ns = self%d%nj
     self%lff = self%d%mm(ns+1:, ns+1:)
     call potrf(self%lff, 'the fast (modal) mass matrix M_ff', error, minor)
+    self%mff_factored = .not. allocated(error)
     if (allocated(error)) then
       if (minor > 0) error%message = error%message // ' (coordinate ' // trim(self%d%qname(ns + minor)) // ')'
       call prefix_error(error, 'at t = ' // time_text(t))
@@ -206,13 +217,20 @@ contains
     ns = self%d%nj; nf = self%d%n - ns
     call gather(self, xs, xf)
     call self%terms(t, self%qw, self%qdw)
-    call factor_ff(self, t, error); if (allocated(error)) return
     associate(mm => self%d%mm, p => self%d%p)
       self%mfs = mm(ns+1:, 1:ns)
-      self%xfs = self%mfs
-      call potrs(self%lff, self%xfs, 'M_ff', error); if (allocated(error)) return
-      self%yf = p(ns+1:)
-      call potrs(self%lff, self%yf, 'M_ff', error); if (allocated(error)) return
+      if (self%mff_fixed .and. self%mff_factored) then
+        ! constant M_ff: its inverse is held from the first synchronised evaluation
+        self%xfs = matmul(self%mffinv, self%mfs)
+        self%yf = matmul(self%mffinv, p(ns+1:))
+      else
+        call factor_ff(self, t, error); if (allocated(error)) return
+        call hold_inverse(self, error); if (allocated(error)) return
+        self%xfs = self%mfs
+        call potrs(self%lff, self%xfs, 'M_ff', error); if (allocated(error)) return
+        self%yf = p(ns+1:)
+        call potrs(self%lff, self%yf, 'M_ff', error); if (allocated(error)) return
+      end if
       self%le = mm(1:ns, 1:ns) - matmul(mm(1:ns, ns+1:), self%xfs)
       fs(ns+1:) = p(1:ns) - matmul(mm(1:ns, ns+1:), self%yf)
       call potrf(self%le, 'the effective mass matrix M_e (Schur complement of M_ff)', error, minor)
@@ -223,7 +241,7 @@ contains
       call potrs(self%le, fs(ns+1:), 'M_e', error); if (allocated(error)) return
       self%qrest = p(ns+1:) + self%kf*xf(1:nf) + self%df*xf(nf+1:)
       ff(nf+1:) = self%yf - matmul(self%xfs, fs(ns+1:))
-      call hold_inverse(self, error); if (allocated(error)) return
+      self%yrest = matmul(self%mffinv, self%qrest)
     end associate
     fs(1:ns) = xs(ns+1:)
     ff(1:nf) = xf(nf+1:)
@@ -239,11 +257,17 @@ contains
     logical, intent(in) :: split
     real(dp), intent(out) :: ff(:)
     type(error_type), allocatable, intent(out) :: error
-    integer :: ns, nf
+    integer :: ns, nf, j
     ns = self%d%nj; nf = self%d%n - ns
     if (split) then
       ! qdd_f = M_ff^-1 (Q_rest - K a - D ad) - M_ff^-1 M_fs acc_s, all held but K a + D ad
-      ff(nf+1:) = self%yrest - matmul(self%mffinv, self%kf*xf(1:nf) + self%df*xf(nf+1:)) - matmul(self%xfs, acc_s)
+      ff(nf+1:) = self%yrest
+      do j = 1, nf
+        ff(nf + 1:) = ff(nf + 1:) - self%mffinv(:, j)*(self%kf(j)*xf(j) + self%df(j)*xf(nf + j))
+      end do
+      do j = 1, ns
+        ff(nf + 1:) = ff(nf + 1:) - self%xfs(:, j)*acc_s(j)
+      end do
       self%evals_split = self%evals_split + 1
       if (self%d%effect_on(effect_modal_damping)) &
         & self%d%effect_evals(effect_modal_damping) = self%d%effect_evals(effect_modal_damping) + 1
@@ -257,7 +281,8 @@ contains
     ff(1:nf) = xf(nf+1:)
   end subroutine model_fast_rhs
 
-  !> M_ff^-1 (from its Cholesky factor) and M_ff^-1 Q_rest, held for 'split' fast steps.
+  !> M_ff^-1 from its Cholesky factor, held for 'split' fast steps (and, when M_ff is
+  !> constant, for every synchronised evaluation).
   subroutine hold_inverse(self, error)
     class(model_t), intent(inout) :: self
     type(error_type), allocatable, intent(out) :: error
@@ -266,8 +291,7 @@ contains
     do i = 1, size(self%mffinv, 1)
       self%mffinv(i, i) = 1.0_dp
     end do
-    call potrs(self%lff, self%mffinv, 'M_ff', error); if (allocated(error)) return
-    self%yrest = matmul(self%mffinv, self%qrest)
+    call potrs(self%lff, self%mffinv, 'M_ff', error)
   end subroutine hold_inverse
 
   !> Full coordinates and rates from the slow state [q_s; qd_s] and fast state [q_f; qd_f].
