@@ -13,6 +13,7 @@ module pymr_run
   use pymr_io_results_output, only : csv_writer, json_path, write_json, run_stats
   use pymr_model_kinematics, only : forward_kinematics, marker_motion
   use pymr_clock, only : thread_cpu_time
+  use pymr_model_effects, only : prescribed_motion
   use pymr_io_namelist_scan, only : itoa
   implicit none
   private
@@ -214,7 +215,8 @@ contains
     type(scene_t), intent(in) :: sc
     type(model_t), intent(in) :: model
     real(dp), intent(out) :: x(:)
-    integer :: b, j, m, n
+    integer :: b, j, m, n, i
+    real(dp) :: fdd
     n = model%d%n
     x = 0.0_dp
     do b = 2, model%d%nb
@@ -225,6 +227,10 @@ contains
           x(n + model%d%c0(b) + m - 1) = sc%joints(j)%qd0(m)
         end do
       end do
+    end do
+    ! prescribed coordinates start on their functions
+    do i = 1, model%d%n_prescribed
+      call prescribed_motion(model%d, i, 0.0_dp, x(model%d%pres_coord(i)), x(n + model%d%pres_coord(i)), fdd)
     end do
   end subroutine initial_state
 

@@ -7,7 +7,8 @@
 module pymr_io_namelist_input
   use pymr_kinds, only : dp, name_len
   use pymr_error, only : error_type, fatal_error
-  use pymr_model_scene, only : scene_t, body_spec, joint_spec, drive_spec, marker_spec, unset
+  use pymr_model_scene, only : scene_t, body_spec, joint_spec, drive_spec, marker_spec, spring_spec, motion_spec, unset, &
+    & max_modes_input
   use pymr_io_namelist_scan, only : group_scan, scan_file, check_items, itoa, lower
   implicit none
   private
@@ -20,20 +21,24 @@ module pymr_io_namelist_input
     logical :: used = .false.
   end type override_t
 
-  character(len=*), parameter :: known_groups(8) = [character(len=16) :: 'scene', 'integrator', &
-    & 'effects', 'body', 'joint', 'drive', 'marker', 'output']
+  character(len=*), parameter :: known_groups(10) = [character(len=16) :: 'scene', 'integrator', &
+    & 'effects', 'body', 'joint', 'drive', 'spring', 'motion', 'marker', 'output']
   character(len=*), parameter :: items_scene(3) = [character(len=16) :: 'title', 't_end', 'gravity']
   character(len=*), parameter :: items_integrator(10) = [character(len=16) :: 'method', 'h_fast', 'h_slow', &
     & 'adaptive', 'rtol', 'atol', 'h_min', 'h_max', 'n_corrector', 'coupling']
-  character(len=*), parameter :: items_effects(3) = [character(len=16) :: 'gravity', 'joint_drives', &
-    & 'modal_damping']
-  character(len=*), parameter :: items_body(18) = [character(len=16) :: 'name', 'kind', 'mass', 'com', 'inertia', &
+  character(len=*), parameter :: items_effects(6) = [character(len=20) :: 'gravity', 'joint_drives', &
+    & 'modal_damping', 'joint_springs', 'geometric_stiffening', 'base_motion']
+  character(len=*), parameter :: items_body(20) = [character(len=16) :: 'name', 'kind', 'mass', 'com', 'inertia', &
     & 'length', 'youngs_modulus', 'density', 'r_outer', 'r_inner', 'area', 'iy', 'iz', 'n_elements', 'modes_y', &
-    & 'modes_z', 'modal_damping', 'modal_file']
+    & 'modes_z', 'modal_damping', 'rayleigh_alpha', 'rayleigh_beta', 'modal_file']
   character(len=*), parameter :: items_joint(8) = [character(len=16) :: 'name', 'kind', 'parent', 'child', &
     & 'at', 'axis', 'q0', 'qd0']
   character(len=*), parameter :: items_drive(6) = [character(len=16) :: 'joint', 'coordinate', 'offset', &
     & 'amplitude', 'frequency', 'phase']
+  character(len=*), parameter :: items_spring(5) = [character(len=16) :: 'joint', 'coordinate', 'stiffness', &
+    & 'damping', 'free_position']
+  character(len=*), parameter :: items_motion(9) = [character(len=16) :: 'joint', 'coordinate', 'form', &
+    & 'offset', 'amplitude', 'frequency', 'phase', 'rate', 'ramp_time']
   character(len=*), parameter :: items_marker(3) = [character(len=16) :: 'name', 'body', 'at']
   character(len=*), parameter :: items_output(2) = [character(len=16) :: 'file', 'dt']
 
@@ -68,6 +73,8 @@ contains
     if (.not. allocated(error)) call read_bodies(file, u, groups, ovs, sc, error)
     if (.not. allocated(error)) call read_joints(file, u, groups, ovs, sc, error)
     if (.not. allocated(error)) call read_drives(file, u, groups, ovs, sc, error)
+    if (.not. allocated(error)) call read_springs(file, u, groups, ovs, sc, error)
+    if (.not. allocated(error)) call read_motions(file, u, groups, ovs, sc, error)
     if (.not. allocated(error)) call read_markers(file, u, groups, ovs, sc, error)
     close(u)
     if (allocated(error)) then
@@ -94,7 +101,7 @@ contains
     character(len=:), allocatable :: list
     do i = 1, size(groups)
       if (.not. any(known_groups == groups(i)%name)) then
-        list = 'scene, integrator, effects, body, joint, drive, marker, output'
+        list = 'scene, integrator, effects, body, joint, drive, spring, motion, marker, output'
         call fatal_error(error, file // ': &' // trim(groups(i)%name) // ' (line ' // itoa(groups(i)%line) // &
           & '): unknown group (known: ' // list // ')'); return
       end if
@@ -105,6 +112,8 @@ contains
       case ('body'); call check_items(file, groups(i), items_body, error)
       case ('joint'); call check_items(file, groups(i), items_joint, error)
       case ('drive'); call check_items(file, groups(i), items_drive, error)
+      case ('spring'); call check_items(file, groups(i), items_spring, error)
+      case ('motion'); call check_items(file, groups(i), items_motion, error)
       case ('marker'); call check_items(file, groups(i), items_marker, error)
       case ('output'); call check_items(file, groups(i), items_output, error)
       end select
@@ -179,7 +188,7 @@ contains
       return
     end if
     select case (trim(ov%group))
-    case ('body', 'joint', 'drive', 'marker')
+    case ('body', 'joint', 'drive', 'spring', 'motion', 'marker')
       if (len_trim(ov%sel) == 0) then
         call fatal_error(error, '--set ' // entry // ': &' // trim(ov%group) // ' is a repeated group: name one as ' &
           & // trim(ov%group) // '[NAME].' // key); return
@@ -208,6 +217,8 @@ contains
     case ('body'); key_known = any(items_body == base)
     case ('joint'); key_known = any(items_joint == base)
     case ('drive'); key_known = any(items_drive == base)
+    case ('spring'); key_known = any(items_spring == base)
+    case ('motion'); key_known = any(items_motion == base)
     case ('marker'); key_known = any(items_marker == base)
     case ('output'); key_known = any(items_output == base)
     case default; key_known = .false.
@@ -341,12 +352,13 @@ contains
     type(override_t), intent(inout) :: ovs(:)
     type(scene_t), intent(inout) :: sc
     type(error_type), allocatable, intent(out) :: error
-    logical :: gravity, joint_drives, modal_damping
+    logical :: gravity, joint_drives, modal_damping, joint_springs, geometric_stiffening, base_motion
     integer :: ios, i
     character(len=256) :: msg
-    namelist /effects/ gravity, joint_drives, modal_damping
+    namelist /effects/ gravity, joint_drives, modal_damping, joint_springs, geometric_stiffening, base_motion
     gravity = sc%effects%gravity; joint_drives = sc%effects%joint_drives
-    modal_damping = sc%effects%modal_damping
+    modal_damping = sc%effects%modal_damping; joint_springs = sc%effects%joint_springs
+    geometric_stiffening = sc%effects%geometric_stiffening; base_motion = sc%effects%base_motion
     if (any(groups%name == 'effects')) then
       rewind(u)
       read(u, nml=effects, iostat=ios, iomsg=msg)
@@ -363,7 +375,27 @@ contains
       ovs(i)%used = .true.
     end do
     sc%effects%gravity = gravity; sc%effects%joint_drives = joint_drives
-    sc%effects%modal_damping = modal_damping
+    sc%effects%modal_damping = modal_damping; sc%effects%joint_springs = joint_springs
+    sc%effects%geometric_stiffening = geometric_stiffening; sc%effects%base_motion = base_motion
+    sc%effects%given_joint_drives = effect_given('joint_drives')
+    sc%effects%given_modal_damping = effect_given('modal_damping')
+    sc%effects%given_joint_springs = effect_given('joint_springs')
+    sc%effects%given_base_motion = effect_given('base_motion')
+  contains
+    !> The item was written in &effects or by a --set effects.ITEM=...
+    logical function effect_given(item)
+      character(len=*), intent(in) :: item
+      integer :: g, j
+      effect_given = .false.
+      do g = 1, size(groups)
+        if (groups(g)%name /= 'effects') cycle
+        effect_given = effect_given .or. any(groups(g)%items == item)
+      end do
+      do j = 1, size(ovs)
+        if (ovs(j)%group /= 'effects') cycle
+        effect_given = effect_given .or. index(lower(ovs(j)%text), '&effects ' // item) == 1
+      end do
+    end function effect_given
   end subroutine read_effects
 
   subroutine read_output(path, u, groups, ovs, sc, error)
@@ -407,14 +439,14 @@ contains
     character(len=name_len) :: name
     character(len=16) :: kind
     real(dp) :: mass, com(3), inertia(6), length, youngs_modulus, density, r_outer, r_inner, area, iy, iz
-    real(dp) :: modal_damping
+    real(dp) :: modal_damping(max_modes_input), rayleigh_alpha, rayleigh_beta
     integer :: n_elements, modes_y, modes_z
     character(len=512) :: modal_file
     integer :: ios, i, k, n
     character(len=256) :: msg
     type(body_spec) :: d
     namelist /body/ name, kind, mass, com, inertia, length, youngs_modulus, density, r_outer, r_inner, area, &
-      & iy, iz, n_elements, modes_y, modes_z, modal_damping, modal_file
+      & iy, iz, n_elements, modes_y, modes_z, modal_damping, rayleigh_alpha, rayleigh_beta, modal_file
     n = count(groups%name == 'body')
     allocate(sc%bodies(n))
     rewind(u)
@@ -423,6 +455,7 @@ contains
       length = d%length; youngs_modulus = d%youngs_modulus; density = d%density; r_outer = d%r_outer
       r_inner = d%r_inner; area = d%area; iy = d%iy; iz = d%iz; n_elements = d%n_elements
       modes_y = d%modes_y; modes_z = d%modes_z; modal_damping = d%modal_damping; modal_file = d%modal_file
+      rayleigh_alpha = d%rayleigh_alpha; rayleigh_beta = d%rayleigh_beta
       read(u, nml=body, iostat=ios, iomsg=msg)
       if (ios /= 0) then
         call read_failed(file, 'body', groups, k, msg, error); return
@@ -438,7 +471,8 @@ contains
       sc%bodies(k) = body_spec(name=name, kind=lower(kind), mass=mass, com=com, inertia=inertia, length=length, &
         & youngs_modulus=youngs_modulus, density=density, r_outer=r_outer, r_inner=r_inner, area=area, iy=iy, &
         & iz=iz, n_elements=n_elements, modes_y=modes_y, modes_z=modes_z, modal_damping=modal_damping, &
-        & modal_file=modal_file, line=group_line(groups, 'body', k))
+        & rayleigh_alpha=rayleigh_alpha, rayleigh_beta=rayleigh_beta, modal_file=modal_file, &
+        & line=group_line(groups, 'body', k))
     end do
   end subroutine read_bodies
 
@@ -515,6 +549,82 @@ contains
         & frequency=frequency, phase=phase, line=group_line(groups, 'drive', k))
     end do
   end subroutine read_drives
+
+  subroutine read_springs(file, u, groups, ovs, sc, error)
+    character(len=*), intent(in) :: file
+    integer, intent(in) :: u
+    type(group_scan), intent(in) :: groups(:)
+    type(override_t), intent(inout) :: ovs(:)
+    type(scene_t), intent(inout) :: sc
+    type(error_type), allocatable, intent(out) :: error
+    character(len=name_len) :: joint
+    integer :: coordinate
+    real(dp) :: stiffness, damping, free_position
+    integer :: ios, i, k, n
+    character(len=256) :: msg
+    type(spring_spec) :: d
+    namelist /spring/ joint, coordinate, stiffness, damping, free_position
+    n = count(groups%name == 'spring')
+    allocate(sc%springs(n))
+    rewind(u)
+    do k = 1, n
+      joint = d%joint; coordinate = d%coordinate; stiffness = d%stiffness; damping = d%damping
+      free_position = d%free_position
+      read(u, nml=spring, iostat=ios, iomsg=msg)
+      if (ios /= 0) then
+        call read_failed(file, 'spring', groups, k, msg, error); return
+      end if
+      do i = 1, size(ovs)
+        if (ovs(i)%group /= 'spring' .or. ovs(i)%sel /= joint) cycle
+        read(ovs(i)%text, nml=spring, iostat=ios, iomsg=msg)
+        if (ios /= 0) then
+          call override_failed(ovs(i), error); return
+        end if
+        ovs(i)%used = .true.
+      end do
+      sc%springs(k) = spring_spec(joint=joint, coordinate=coordinate, stiffness=stiffness, damping=damping, &
+        & free_position=free_position, line=group_line(groups, 'spring', k))
+    end do
+  end subroutine read_springs
+
+  subroutine read_motions(file, u, groups, ovs, sc, error)
+    character(len=*), intent(in) :: file
+    integer, intent(in) :: u
+    type(group_scan), intent(in) :: groups(:)
+    type(override_t), intent(inout) :: ovs(:)
+    type(scene_t), intent(inout) :: sc
+    type(error_type), allocatable, intent(out) :: error
+    character(len=name_len) :: joint
+    character(len=16) :: form
+    integer :: coordinate
+    real(dp) :: offset, amplitude, frequency, phase, rate, ramp_time
+    integer :: ios, i, k, n
+    character(len=256) :: msg
+    type(motion_spec) :: d
+    namelist /motion/ joint, coordinate, form, offset, amplitude, frequency, phase, rate, ramp_time
+    n = count(groups%name == 'motion')
+    allocate(sc%motions(n))
+    rewind(u)
+    do k = 1, n
+      joint = d%joint; coordinate = d%coordinate; form = d%form; offset = d%offset; amplitude = d%amplitude
+      frequency = d%frequency; phase = d%phase; rate = d%rate; ramp_time = d%ramp_time
+      read(u, nml=motion, iostat=ios, iomsg=msg)
+      if (ios /= 0) then
+        call read_failed(file, 'motion', groups, k, msg, error); return
+      end if
+      do i = 1, size(ovs)
+        if (ovs(i)%group /= 'motion' .or. ovs(i)%sel /= joint) cycle
+        read(ovs(i)%text, nml=motion, iostat=ios, iomsg=msg)
+        if (ios /= 0) then
+          call override_failed(ovs(i), error); return
+        end if
+        ovs(i)%used = .true.
+      end do
+      sc%motions(k) = motion_spec(joint=joint, coordinate=coordinate, form=lower(form), offset=offset, &
+        & amplitude=amplitude, frequency=frequency, phase=phase, rate=rate, ramp_time=ramp_time, &
+        & line=group_line(groups, 'motion', k))
+    end do
+  end subroutine read_motions
 
   subroutine read_markers(file, u, groups, ovs, sc, error)
     character(len=*), intent(in) :: file

@@ -4,6 +4,7 @@ module pymr_io_results_output
   use pymr_kinds, only : dp
   use pymr_error, only : error_type, fatal_error
   use pymr_model_types, only : model_data, n_effects, effect_names
+  use pymr_model_effects, only : impose_prescribed_state
   use pymr_model_kinematics, only : forward_kinematics, marker_motion
   use pymr_io_fast_format, only : put_real
   implicit none
@@ -94,6 +95,21 @@ contains
     real(dp), intent(in) :: t, q(:), qd(:)
     integer :: i, k, b0, pos
     real(dp) :: r(3), v(3)
+    if (d%n_prescribed > 0) then
+      ! prescribed coordinates are written (and move the markers) exactly as their functions
+      call impose_prescribed_state(d, t, q, qd)
+      call write_values(self, d, t, d%qx, d%qdx)
+    else
+      call write_values(self, d, t, q, qd)
+    end if
+  end subroutine csv_write_row
+
+  subroutine write_values(self, d, t, q, qd)
+    class(csv_writer), intent(inout) :: self
+    type(model_data), intent(inout) :: d
+    real(dp), intent(in) :: t, q(:), qd(:)
+    integer :: i, k, b0, pos
+    real(dp) :: r(3), v(3)
     self%row(1) = t
     k = 1; b0 = 1
     do i = 1, d%n
@@ -115,7 +131,7 @@ contains
       call put_real(self%row(i), self%line, pos)
     end do
     write(self%unit, '(a)') self%line(1:pos-1)
-  end subroutine csv_write_row
+  end subroutine write_values
 
   subroutine csv_close(self)
     class(csv_writer), intent(inout) :: self
@@ -132,6 +148,7 @@ contains
     type(run_stats), intent(in) :: st
     type(error_type), allocatable, intent(out) :: error
     integer :: u, ios, i
+    real(dp) :: cpu
     character(len=256) :: msg
     logical :: first
     open(newunit=u, file=path, status='replace', action='write', iostat=ios, iomsg=msg)
@@ -156,7 +173,10 @@ contains
     do i = 1, n_effects
       if (.not. d%effect_on(i)) cycle
       if (.not. first) write(u, '(a)', advance='no') ', '
-      write(u, '(a,i0,a)', advance='no') '"' // trim(effect_names(i)) // '": {"evaluations": ', d%effect_evals(i), '}'
+      cpu = 0.0_dp
+      if (d%effect_timed(i) > 0) cpu = d%effect_cpu(i)*real(d%effect_evals(i), dp)/real(d%effect_timed(i), dp)
+      write(u, '(a,i0,a,es12.5,a)', advance='no') '"' // trim(effect_names(i)) // '": {"evaluations": ', &
+        & d%effect_evals(i), ', "cpu_time_s": ', cpu, '}'
       first = .false.
     end do
     write(u, '(a)') '},'

@@ -75,7 +75,46 @@ contains
     call flex_invariants(s, mp, psi, fd)
     fd%omega2 = [lam_y, lam_z]
     fd%damp = 2.0_dp*zeta*sqrt(max(fd%omega2, 0.0_dp))
+    call beam_geometric_stiffness(bs, rho*area, fd%kg1, fd%kg2)
   end subroutine build_beam
+
+  !> Geometric stiffness of the beam's modes per unit load factor: with the tension
+  !> N(x) = c1 rho A (L - x) + c2 rho A (L^2 - x^2)/2, K_G = c1 kg1 + c2 kg2 where
+  !> kg = int N_unit(x) (v_y,k' v_y,l' + v_z,k' v_z,l') dx (slopes of the modes in both
+  !> planes). 4-point Gauss per element is exact: the integrand is a polynomial of degree 6.
+  pure subroutine beam_geometric_stiffness(bs, rhoa, kg1, kg2)
+    type(beam_shape), intent(in) :: bs
+    real(dp), intent(in) :: rhoa
+    real(dp), allocatable, intent(out) :: kg1(:, :), kg2(:, :)
+    integer :: el, g, m, k, l
+    real(dp) :: le, xi, x, wt, nn(4), dn(4), sl(bs%my + bs%mz)
+    m = bs%my + bs%mz
+    allocate(kg1(m, m), kg2(m, m))
+    kg1 = 0.0_dp; kg2 = 0.0_dp
+    le = bs%length/bs%ne
+    do el = 1, bs%ne
+      do g = 1, 4
+        xi = gauss4(1, g)
+        x = (el - 1 + xi)*le
+        wt = le*gauss4(2, g)*rhoa
+        call hermite(xi, le, nn, dn)
+        do k = 1, bs%my
+          sl(k) = dot_product(dn, bs%vy(2*el-1:2*el+2, k))
+        end do
+        do k = 1, bs%mz
+          sl(bs%my + k) = dot_product(dn, bs%vz(2*el-1:2*el+2, k))
+        end do
+        ! slopes of modes in different planes are orthogonal components
+        do l = 1, m
+          do k = 1, m
+            if ((k <= bs%my) .neqv. (l <= bs%my)) cycle
+            kg1(k, l) = kg1(k, l) + wt*(bs%length - x)*sl(k)*sl(l)
+            kg2(k, l) = kg2(k, l) + wt*0.5_dp*(bs%length**2 - x**2)*sl(k)*sl(l)
+          end do
+        end do
+      end do
+    end do
+  end subroutine beam_geometric_stiffness
 
   !> Lowest `nm` modes of one bending plane: nodal vectors (with the clamped node 0 as zeros),
   !> M-normalised, signed so that the tip displacement is positive.

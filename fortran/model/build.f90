@@ -5,7 +5,8 @@ module pymr_model_build
   use pymr_error, only : error_type, fatal_error
   use pymr_model_scene, only : scene_t, body_spec, joint_spec, joint_ndof, unset
   use pymr_model_types, only : model_data, prim_revolute, prim_prismatic, effect_gravity, effect_joint_drives, &
-    & effect_modal_damping
+    & effect_modal_damping, effect_joint_springs, effect_geometric_stiffening, effect_base_motion, n_effects, &
+    & motion_sine, motion_spinup
   use pymr_model_beam_modes, only : build_beam, beam_point_shapes
   use pymr_io_modal_file, only : read_modal_file
   use pymr_model_flexbody, only : flex_data, modal_nodes
@@ -202,10 +203,7 @@ contains
             call fatal_error(error, where_body(sc, i) // ': modal_file: missing (the file with the mode data)')
             return
           end if
-          if (b%modal_damping < 0.0_dp .or. b%modal_damping >= 1.0_dp) then
-            call fatal_error(error, where_body(sc, i) // ': modal_damping: must be a fraction of critical in ' // &
-              & '[0, 1), got ' // fmt(b%modal_damping)); return
-          end if
+          call check_damping(sc, i, error); if (allocated(error)) return
         case ('')
           call fatal_error(error, where_body(sc, i) // ": kind: missing ('ground', 'rigid', 'beam' or 'modal')")
           return
@@ -269,10 +267,7 @@ contains
         call fatal_error(error, w // ': modes_z: must be 0 to 2*n_elements = ' // itoa(2*b%n_elements) // &
           & ', got ' // itoa(b%modes_z)); return
       end if
-      if (b%modal_damping < 0.0_dp .or. b%modal_damping >= 1.0_dp) then
-        call fatal_error(error, w // ': modal_damping: must be a fraction of critical in [0, 1), got ' // &
-          & fmt(b%modal_damping)); return
-      end if
+      call check_damping(sc, i, error); if (allocated(error)) return
     end associate
   contains
     subroutine positive(x, item, unit)
@@ -358,11 +353,72 @@ contains
         call fatal_error(error, w // ': coordinate: joint ''' // trim(sc%joints(k)%name) // ''' has ' // itoa(nd) // &
           & ' coordinates, got ' // itoa(sc%drives(i)%coordinate)); return
       end if
-      if (.not. sc%effects%joint_drives) then
-        call fatal_error(error, w // ': the scene gives drives but &effects joint_drives is off: set ' // &
-          & 'joint_drives = .true. in &effects, or remove the &drive groups'); return
+      if (.not. sc%effects%joint_drives .and. .not. sc%effects%given_joint_drives) then
+        call fatal_error(error, w // ': the scene gives drives but &effects joint_drives is not on: set ' // &
+          & 'joint_drives = .true. in &effects (or .false. to ignore the drives on purpose)'); return
       end if
     end do
+    do i = 1, size(sc%springs)
+      w = sc%file // ': &spring #' // itoa(i) // ' (line ' // itoa(sc%springs(i)%line) // ')'
+      call joint_coordinate(sc%springs(i)%joint, sc%springs(i)%coordinate, w, error); if (allocated(error)) return
+      if (sc%springs(i)%stiffness < 0.0_dp) then
+        call fatal_error(error, w // ': stiffness: must be >= 0, got ' // fmt(sc%springs(i)%stiffness)); return
+      end if
+      if (sc%springs(i)%damping < 0.0_dp) then
+        call fatal_error(error, w // ': damping: must be >= 0, got ' // fmt(sc%springs(i)%damping)); return
+      end if
+      if (.not. sc%effects%joint_springs .and. .not. sc%effects%given_joint_springs) then
+        call fatal_error(error, w // ': the scene gives springs but &effects joint_springs is not on: set ' // &
+          & 'joint_springs = .true. in &effects (or .false. to ignore the springs on purpose)'); return
+      end if
+    end do
+    do i = 1, size(sc%motions)
+      w = sc%file // ': &motion #' // itoa(i) // ' (line ' // itoa(sc%motions(i)%line) // ')'
+      call joint_coordinate(sc%motions(i)%joint, sc%motions(i)%coordinate, w, error); if (allocated(error)) return
+      do j = 1, i - 1
+        if (sc%motions(j)%joint == sc%motions(i)%joint .and. sc%motions(j)%coordinate == sc%motions(i)%coordinate) then
+          call fatal_error(error, w // ': coordinate ' // itoa(sc%motions(i)%coordinate) // " of joint '" // &
+            & trim(sc%motions(i)%joint) // "' is already prescribed by &motion #" // itoa(j)); return
+        end if
+      end do
+      select case (trim(sc%motions(i)%form))
+      case ('sine')
+        if (sc%motions(i)%frequency < 0.0_dp) then
+          call fatal_error(error, w // ': frequency: must be >= 0 Hz, got ' // fmt(sc%motions(i)%frequency)); return
+        end if
+      case ('spinup')
+        if (sc%motions(i)%ramp_time == unset) then
+          call fatal_error(error, w // ": ramp_time: missing (form 'spinup' needs the ramp time, s)"); return
+        end if
+        if (sc%motions(i)%ramp_time <= 0.0_dp) then
+          call fatal_error(error, w // ': ramp_time: must be > 0 s, got ' // fmt(sc%motions(i)%ramp_time)); return
+        end if
+      case default
+        call fatal_error(error, w // ": form: '" // trim(sc%motions(i)%form) // "' is not a motion form " // &
+          & "('sine' or 'spinup')"); return
+      end select
+      if (.not. sc%effects%base_motion .and. .not. sc%effects%given_base_motion) then
+        call fatal_error(error, w // ': the scene prescribes motion but &effects base_motion is not on: set ' // &
+          & 'base_motion = .true. in &effects (or .false. to leave the joint free on purpose)'); return
+      end if
+    end do
+    do i = 1, size(sc%bodies)
+      associate(b => sc%bodies(i))
+        if (b%kind /= 'beam' .and. b%kind /= 'modal') cycle
+        if (any(b%modal_damping /= unset .and. b%modal_damping /= 0.0_dp) .or. b%rayleigh_alpha /= 0.0_dp .or. &
+          & b%rayleigh_beta /= 0.0_dp) then
+          if (.not. sc%effects%modal_damping .and. .not. sc%effects%given_modal_damping) then
+            call fatal_error(error, where_body(sc, i) // ': the body gives modal damping but &effects ' // &
+              & 'modal_damping is not on: set modal_damping = .true. in &effects (or .false. to ignore it on purpose)')
+            return
+          end if
+        end if
+      end associate
+    end do
+    if (sc%effects%geometric_stiffening .and. .not. any(sc%bodies%kind == 'beam')) then
+      call fatal_error(error, sc%file // ': &effects: geometric_stiffening: the scene has no beam (only built-in ' // &
+        & "beams, kind = 'beam', carry a geometric stiffness)"); return
+    end if
     do i = 1, size(sc%markers)
       w = sc%file // ': &marker ''' // trim(sc%markers(i)%name) // ''' (line ' // itoa(sc%markers(i)%line) // ')'
       if (len_trim(sc%markers(i)%name) == 0) then
@@ -377,7 +433,83 @@ contains
         end if
       end do
     end do
+  contains
+    !> The named joint exists and has the coordinate.
+    subroutine joint_coordinate(joint, coordinate, w, error)
+      character(len=*), intent(in) :: joint, w
+      integer, intent(in) :: coordinate
+      type(error_type), allocatable, intent(out) :: error
+      integer :: jj, kk, ndof
+      kk = 0
+      do jj = 1, size(sc%joints)
+        if (sc%joints(jj)%name == joint) kk = jj
+      end do
+      if (kk == 0) then
+        call fatal_error(error, w // ": joint: no &joint named '" // trim(joint) // "'"); return
+      end if
+      ndof = joint_ndof(sc%joints(kk)%kind)
+      if (coordinate < 1 .or. coordinate > ndof) then
+        call fatal_error(error, w // ': coordinate: joint ''' // trim(joint) // ''' has ' // itoa(ndof) // &
+          & ' coordinates, got ' // itoa(coordinate)); return
+      end if
+    end subroutine joint_coordinate
   end subroutine check_loads_markers
+
+  !> Modal damping of body i: fractions in [0, 1) given contiguously from the first mode;
+  !> Rayleigh coefficients >= 0.
+  subroutine check_damping(sc, i, error)
+    type(scene_t), intent(in) :: sc
+    integer, intent(in) :: i
+    type(error_type), allocatable, intent(out) :: error
+    integer :: k, ng
+    associate(b => sc%bodies(i))
+      ng = count(b%modal_damping /= unset)
+      do k = 1, ng
+        if (b%modal_damping(k) == unset) then
+          call fatal_error(error, where_body(sc, i) // ': modal_damping: give one value, or one per mode from ' // &
+            & 'the first (value ' // itoa(k) // ' is missing)'); return
+        end if
+        if (b%modal_damping(k) < 0.0_dp .or. b%modal_damping(k) >= 1.0_dp) then
+          call fatal_error(error, where_body(sc, i) // ': modal_damping: must be a fraction of critical in ' // &
+            & '[0, 1), got ' // fmt(b%modal_damping(k))); return
+        end if
+      end do
+      if (b%kind == 'beam' .and. ng > 1 .and. ng /= b%modes_y + b%modes_z) then
+        call fatal_error(error, where_body(sc, i) // ': modal_damping: give one value or one per mode (' // &
+          & itoa(b%modes_y + b%modes_z) // ' modes), got ' // itoa(ng)); return
+      end if
+      if (b%rayleigh_alpha < 0.0_dp .or. b%rayleigh_beta < 0.0_dp) then
+        call fatal_error(error, where_body(sc, i) // ': rayleigh_alpha, rayleigh_beta: must be >= 0, got ' // &
+          & fmt(b%rayleigh_alpha) // ', ' // fmt(b%rayleigh_beta)); return
+      end if
+    end associate
+  end subroutine check_damping
+
+  !> Modal damping forces per unit modal rate of flexible body i: 2 zeta_k omega_k +
+  !> alpha + beta omega_k^2.
+  subroutine set_damping(sc, i, fd, error)
+    type(scene_t), intent(in) :: sc
+    integer, intent(in) :: i
+    type(flex_data), intent(inout) :: fd
+    type(error_type), allocatable, intent(out) :: error
+    integer :: ng, k
+    real(dp) :: zeta
+    associate(b => sc%bodies(i))
+      ng = count(b%modal_damping /= unset)
+      if (ng > 1 .and. ng /= fd%m) then
+        call fatal_error(error, where_body(sc, i) // ': modal_damping: give one value or one per mode (' // &
+          & itoa(fd%m) // ' modes), got ' // itoa(ng)); return
+      end if
+      if (allocated(fd%damp)) deallocate(fd%damp)
+      allocate(fd%damp(fd%m))
+      do k = 1, fd%m
+        zeta = 0.0_dp
+        if (ng == 1) zeta = b%modal_damping(1)
+        if (ng > 1) zeta = b%modal_damping(k)
+        fd%damp(k) = 2.0_dp*zeta*sqrt(max(fd%omega2(k), 0.0_dp)) + b%rayleigh_alpha + b%rayleigh_beta*fd%omega2(k)
+      end do
+    end associate
+  end subroutine set_damping
 
   !> Bodies in parent-before-child order (order(1) = ground) and each body's inboard joint.
   subroutine tree_order(sc, order, inboard, error)
@@ -448,7 +580,7 @@ contains
         nmb = 0
         if (bs%kind == 'beam') nmb = bs%modes_y + bs%modes_z
         if (bs%kind == 'modal') then
-          call read_modal_file(relative_to(sc%file, trim(bs%modal_file)), bs%modal_damping, mfd(b), mnd(b), error)
+          call read_modal_file(relative_to(sc%file, trim(bs%modal_file)), 0.0_dp, mfd(b), mnd(b), error)
           if (allocated(error)) then
             error%message = where_body(sc, order(b)) // ': modal_file: ' // error%message; return
           end if
@@ -486,6 +618,9 @@ contains
         d%mass(b) = sc%bodies(i)%mass
         d%com(:, b) = sc%bodies(i)%com
         d%inertia(:, :, b) = inertia_matrix(sc%bodies(i)%inertia)
+      end if
+      if (d%nm(b) > 0) then
+        call set_damping(sc, i, d%flex(b), error); if (allocated(error)) return
       end if
     end do
     call fill_children(d)
@@ -558,7 +693,7 @@ contains
         area = bs%area; iy = bs%iy; iz = bs%iz
       end if
       call build_beam(bs%length, bs%youngs_modulus, bs%density, area, iy, iz, bs%n_elements, bs%modes_y, &
-        & bs%modes_z, bs%modal_damping, "beam '" // trim(bs%name) // "'", d%flex(b), d%bshape(b), error)
+        & bs%modes_z, 0.0_dp, "beam '" // trim(bs%name) // "'", d%flex(b), d%bshape(b), error)
       if (allocated(error)) then
         error%message = where_body(sc, i) // ': ' // error%message; return
       end if
@@ -660,7 +795,42 @@ contains
     d%effect_on(effect_gravity) = sc%effects%gravity
     d%effect_on(effect_joint_drives) = sc%effects%joint_drives .and. size(sc%drives) > 0
     d%effect_on(effect_modal_damping) = sc%effects%modal_damping .and. any(d%nm > 0)
+    d%effect_on(effect_joint_springs) = sc%effects%joint_springs .and. size(sc%springs) > 0
+    d%effect_on(effect_geometric_stiffening) = sc%effects%geometric_stiffening
+    d%effect_on(effect_base_motion) = sc%effects%base_motion .and. size(sc%motions) > 0
+    ! the plan: active effects in evaluation order (loads first; base motion last)
+    d%n_plan = 0
+    do i = 1, n_effects
+      if (.not. d%effect_on(i)) cycle
+      d%n_plan = d%n_plan + 1
+      d%plan(d%n_plan) = i
+    end do
+    allocate(d%every(d%nb))
+    d%every = .true.
     d%gravity = sc%gravity
+    d%n_springs = 0
+    if (d%effect_on(effect_joint_springs)) d%n_springs = size(sc%springs)
+    allocate(d%spring_coord(d%n_springs), d%spring_par(3, d%n_springs))
+    do i = 1, d%n_springs
+      d%spring_coord(i) = coordinate_index(sc%springs(i)%joint, sc%springs(i)%coordinate)
+      d%spring_par(:, i) = [sc%springs(i)%stiffness, sc%springs(i)%damping, sc%springs(i)%free_position]
+    end do
+    d%n_prescribed = 0
+    if (d%effect_on(effect_base_motion)) d%n_prescribed = size(sc%motions)
+    allocate(d%pres_coord(d%n_prescribed), d%pres_form(d%n_prescribed), d%pres_par(6, d%n_prescribed), &
+      & d%qx(d%n), d%qdx(d%n))
+    do i = 1, d%n_prescribed
+      associate(mo => sc%motions(i))
+        d%pres_coord(i) = coordinate_index(mo%joint, mo%coordinate)
+        d%pres_form(i) = merge(motion_spinup, motion_sine, mo%form == 'spinup')
+        d%pres_par(:, i) = [mo%offset, mo%amplitude, mo%frequency, mo%phase, mo%rate, mo%ramp_time]
+      end associate
+    end do
+    if (.not. d%effect_on(effect_geometric_stiffening)) then
+      do b = 2, d%nb
+        if (allocated(d%flex(b)%kg1)) deallocate(d%flex(b)%kg1, d%flex(b)%kg2)
+      end do
+    end if
     d%n_drives = size(sc%drives)
     allocate(d%drive_coord(d%n_drives), d%drive_par(4, d%n_drives))
     do i = 1, d%n_drives
@@ -685,6 +855,18 @@ contains
           & d%marker_psi(:, :, i), phi, error); if (allocated(error)) return
       end if
     end do
+  contains
+    !> Model coordinate of a joint's coordinate.
+    integer function coordinate_index(joint, coordinate)
+      character(len=*), intent(in) :: joint
+      integer, intent(in) :: coordinate
+      integer :: jj
+      coordinate_index = 0
+      do jj = 1, size(sc%joints)
+        if (sc%joints(jj)%name /= joint) cycle
+        coordinate_index = d%c0(pos_in(body_index(sc, sc%joints(jj)%child))) + coordinate - 1
+      end do
+    end function coordinate_index
   end subroutine fill_loads_markers
 
   !> 3x3 inertia from Ixx Iyy Izz Ixy Ixz Iyz (products enter as given: I(1,2) = Ixy).

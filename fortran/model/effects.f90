@@ -2,11 +2,14 @@
 !> scene turned on (the plan in model_data%effect_on is fixed at build time).
 module pymr_model_effects
   use pymr_kinds, only : dp, pi
-  use pymr_model_types, only : model_data, effect_gravity, effect_joint_drives, effect_modal_damping
+  use pymr_model_types, only : model_data, effect_gravity, effect_joint_drives, effect_modal_damping, &
+    & effect_joint_springs, effect_geometric_stiffening, effect_base_motion, motion_spinup
   use pymr_model_spatial, only : cross
   implicit none
   private
   public :: add_gravity, add_joint_drives, add_modal_damping, gravity_potential, elastic_potential
+  public :: add_joint_springs, spring_potential, add_geometric_stiffening
+  public :: prescribed_motion, impose_prescribed_state, prescribe_rows
 
 contains
 
@@ -26,14 +29,12 @@ contains
   !> the modal gravity loads S1^T R^T g from the modal bias of flexible bodies.
   pure subroutine add_gravity(d, only)
     type(model_data), intent(inout) :: d
-    !> Restrict to these bodies (the fast rows).
-    logical, intent(in), optional :: only(:)
+    !> The bodies to load (all, or those of the fast rows).
+    logical, intent(in) :: only(:)
     integer :: b, k
     real(dp) :: c(3), f(3), gb(3)
     do b = 2, d%nb
-      if (present(only)) then
-        if (.not. only(b)) cycle
-      end if
+      if (.not. only(b)) cycle
       c = body_com(d, b)
       f = d%mass(b)*d%gravity
       d%w(1:3, b) = d%w(1:3, b) - f
@@ -60,14 +61,16 @@ contains
     d%effect_evals(effect_joint_drives) = d%effect_evals(effect_joint_drives) + 1
   end subroutine add_joint_drives
 
-  !> Modal damping forces 2 zeta omega ad added to the modal bias of flexible bodies.
-  pure subroutine add_modal_damping(d, qd)
+  !> Modal damping forces (2 zeta omega + alpha + beta omega^2) ad added to the modal bias
+  !> of flexible bodies.
+  pure subroutine add_modal_damping(d, qd, only)
     type(model_data), intent(inout) :: d
     real(dp), intent(in) :: qd(:)
+    logical, intent(in) :: only(:)
     integer :: b, m
     do b = 2, d%nb
       m = d%nm(b)
-      if (m == 0) cycle
+      if (m == 0 .or. .not. only(b)) cycle
       d%wam(1:m, b) = d%wam(1:m, b) + d%flex(b)%damp*qd(d%a0(b):d%a0(b) + m - 1)
     end do
     d%effect_evals(effect_modal_damping) = d%effect_evals(effect_modal_damping) + 1
@@ -97,4 +100,126 @@ contains
       v = v + 0.5_dp*sum(d%flex(b)%omega2*q(d%a0(b):d%a0(b) + m - 1)**2)
     end do
   end function elastic_potential
+
+  !> Joint spring-dampers: tau_k += -stiffness (q_k - free_position) - damping qd_k.
+  pure subroutine add_joint_springs(d, q, qd)
+    type(model_data), intent(inout) :: d
+    real(dp), intent(in) :: q(:), qd(:)
+    integer :: i, k
+    do i = 1, d%n_springs
+      k = d%spring_coord(i)
+      associate(p => d%spring_par(:, i))
+        d%tau(k) = d%tau(k) - p(1)*(q(k) - p(3)) - p(2)*qd(k)
+      end associate
+    end do
+    d%effect_evals(effect_joint_springs) = d%effect_evals(effect_joint_springs) + 1
+  end subroutine add_joint_springs
+
+  !> Potential energy of the joint springs, 1/2 sum stiffness (q - free_position)^2 (J).
+  pure function spring_potential(d, q) result(v)
+    type(model_data), intent(in) :: d
+    real(dp), intent(in) :: q(:)
+    real(dp) :: v
+    integer :: i
+    v = 0.0_dp
+    do i = 1, d%n_springs
+      v = v + 0.5_dp*d%spring_par(1, i)*(q(d%spring_coord(i)) - d%spring_par(3, i))**2
+    end do
+  end function spring_potential
+
+  !> Geometric stiffening of beams by their axial load (after body_terms). A beam along its
+  !> x axis carries the tension N(x) = rho A [(g_x - a0_x)(L - x) + (w_y^2 + w_z^2)(L^2 - x^2)/2]
+  !> from gravity, the axial acceleration a0_x of its frame origin (velocity terms only: the
+  !> part proportional to the accelerations is not known before the solve) and the
+  !> centrifugal load of its rotation (body-frame components). Its modal stiffness
+  !> K_G = (g_x - a0_x) kg1 + (w_y^2 + w_z^2) kg2 adds K_G a to the modal bias.
+  pure subroutine add_geometric_stiffening(d, q, only)
+    type(model_data), intent(inout) :: d
+    real(dp), intent(in) :: q(:)
+    logical, intent(in) :: only(:)
+    integer :: b, m, k
+    real(dp) :: wb(3), pd(3), alv(3), gb(3), c1, c2
+    do b = 2, d%nb
+      if (.not. allocated(d%flex(b)%kg1) .or. .not. only(b)) cycle
+      m = d%nm(b)
+      associate(rot => d%rot(:, :, b), pos => d%pos(:, b), vel => d%vel(:, b), acc => d%acc(:, b))
+        wb = matmul(transpose(rot), vel(4:6))
+        pd = vel(1:3) + cross(vel(4:6), pos)
+        alv = matmul(transpose(rot), acc(1:3) + cross(acc(4:6), pos) + cross(vel(4:6), pd))
+        gb = 0.0_dp
+        if (d%effect_on(effect_gravity)) gb = matmul(transpose(rot), d%gravity)
+      end associate
+      c1 = gb(1) - alv(1)
+      c2 = wb(2)**2 + wb(3)**2
+      associate(a => q(d%a0(b):d%a0(b) + m - 1))
+        do k = 1, m
+          d%wam(k, b) = d%wam(k, b) + c1*dot_product(d%flex(b)%kg1(:, k), a) + c2*dot_product(d%flex(b)%kg2(:, k), a)
+        end do
+      end associate
+    end do
+    d%effect_evals(effect_geometric_stiffening) = d%effect_evals(effect_geometric_stiffening) + 1
+  end subroutine add_geometric_stiffening
+
+  !> Value, rate and acceleration at time t of prescribed coordinate i.
+  pure subroutine prescribed_motion(d, i, t, f, fd, fdd)
+    type(model_data), intent(in) :: d
+    integer, intent(in) :: i
+    real(dp), intent(in) :: t
+    real(dp), intent(out) :: f, fd, fdd
+    real(dp) :: w, rate, tr, c
+    associate(p => d%pres_par(:, i))
+      if (d%pres_form(i) == motion_spinup) then
+        ! theta = (rate/T)[t^2/2 + (T/2 pi)^2 (cos(2 pi t/T) - 1)] up to T, then constant rate
+        rate = p(5); tr = p(6)
+        if (t <= tr) then
+          w = 2.0_dp*pi/tr
+          c = rate/tr
+          f = p(1) + c*(0.5_dp*t**2 + (cos(w*t) - 1.0_dp)/w**2)
+          fd = c*(t - sin(w*t)/w)
+          fdd = c*(1.0_dp - cos(w*t))
+        else
+          f = p(1) + rate*(t - 0.5_dp*tr)
+          fd = rate
+          fdd = 0.0_dp
+        end if
+      else
+        w = 2.0_dp*pi*p(3)
+        f = p(1) + p(2)*sin(w*t + p(4))
+        fd = p(2)*w*cos(w*t + p(4))
+        fdd = -p(2)*w**2*sin(w*t + p(4))
+      end if
+    end associate
+  end subroutine prescribed_motion
+
+  !> Copies of (q, qd) in d%qx, d%qdx with the prescribed coordinates set to their functions.
+  pure subroutine impose_prescribed_state(d, t, q, qd)
+    type(model_data), intent(inout) :: d
+    real(dp), intent(in) :: t, q(:), qd(:)
+    integer :: i
+    real(dp) :: fdd
+    d%qx = q; d%qdx = qd
+    do i = 1, d%n_prescribed
+      call prescribed_motion(d, i, t, d%qx(d%pres_coord(i)), d%qdx(d%pres_coord(i)), fdd)
+    end do
+  end subroutine impose_prescribed_state
+
+  !> After assembly: each prescribed coordinate j gets the equation qdd_j = f''(t). Its known
+  !> acceleration moves to the right-hand side of the other rows and its row and column
+  !> are cleared (M stays symmetric positive definite).
+  pure subroutine prescribe_rows(d, t)
+    type(model_data), intent(inout) :: d
+    real(dp), intent(in) :: t
+    integer :: i, j
+    real(dp) :: f, fd, fdd
+    do i = 1, d%n_prescribed
+      j = d%pres_coord(i)
+      call prescribed_motion(d, i, t, f, fd, fdd)
+      d%p = d%p - d%mm(:, j)*fdd
+      d%mm(:, j) = 0.0_dp
+      d%mm(j, :) = 0.0_dp
+      d%mm(j, j) = 1.0_dp
+      d%p(j) = fdd
+    end do
+    d%effect_evals(effect_base_motion) = d%effect_evals(effect_base_motion) + 1
+  end subroutine prescribe_rows
 end module pymr_model_effects

@@ -30,6 +30,10 @@ module pymr_model_flexbody
     real(dp), allocatable :: mmm(:, :)
     !> Squared circular frequencies (rad^2/s^2) and modal damping 2 zeta omega (1/s).
     real(dp), allocatable :: omega2(:), damp(:)
+    !> Geometric stiffness of a beam per unit axial load factor (m x m): kg1 for a uniform
+    !> axial acceleration, kg2 for the centrifugal load (see beam_geometric_stiffness);
+    !> unallocated when the body has none.
+    real(dp), allocatable :: kg1(:, :), kg2(:, :)
     !> Mode data at the mass points (kept for the modal file writer): s(3,np), mp(np), psi(3,m,np)
     real(dp), allocatable :: ps(:, :), pm(:), ppsi(:, :, :)
   end type flex_data

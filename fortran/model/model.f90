@@ -4,14 +4,20 @@ module pymr_model
   use pymr_error, only : error_type, prefix_error
   use pymr_lapack, only : potrf, potrs
   use pymr_integrator_ode, only : partitioned_system
-  use pymr_model_types, only : model_data, effect_gravity, effect_joint_drives, effect_modal_damping
+  use pymr_clock, only : thread_cpu_time
+  use pymr_model_types, only : model_data, effect_gravity, effect_joint_drives, effect_modal_damping, &
+    & effect_joint_springs, effect_geometric_stiffening, effect_base_motion
   use pymr_model_kinematics, only : forward_kinematics
   use pymr_model_assembly, only : body_terms, composite_terms, assemble_mass, assemble_rhs, kinetic_energy
   use pymr_model_effects, only : add_gravity, add_joint_drives, add_modal_damping, gravity_potential, &
-    & elastic_potential
+    & elastic_potential, add_joint_springs, spring_potential, add_geometric_stiffening, impose_prescribed_state, &
+    & prescribe_rows
   implicit none
   private
   public :: model_t
+
+  !> One evaluation in this many times its effects.
+  integer, parameter :: timing_interval = 32
 
   !> A built model: data and work arrays, and the ODE interface the integrators use.
   !> Slow coordinates are the joint coordinates (1..nj), fast ones the modal coordinates.
@@ -51,7 +57,8 @@ contains
 
   !> Mass matrix and right-hand side at (t, q, qd), left in self%d%mm and self%d%p.
   !> With fast_only, only the rows of the modal coordinates are assembled (the bodies
-  !> on and below flexible bodies; joint drives act on joint rows and are skipped).
+  !> on and below flexible bodies; joint drives and springs act on joint rows and are skipped).
+  !> Prescribed coordinates (base_motion) take their functions' values before kinematics.
   subroutine model_terms(self, t, q, qd, fast_only)
     class(model_t), intent(inout) :: self
     real(dp), intent(in) :: t, q(:), qd(:)
@@ -59,29 +66,84 @@ contains
     logical :: fo
     fo = .false.
     if (present(fast_only)) fo = fast_only
-    associate(d => self%d)
-      call forward_kinematics(d, q, qd)
-      if (fo) then
-        call body_terms(d, q, qd, d%in_fast)
-        if (d%effect_on(effect_gravity)) call add_gravity(d, d%in_fast)
-        if (d%effect_on(effect_modal_damping)) call add_modal_damping(d, qd)
-        call composite_terms(d, d%in_fast)
-        call assemble_mass(d, d%in_fast)
-        call assemble_rhs(d, d%in_fast)
-        d%evals_fast_rows = d%evals_fast_rows + 1
-      else
-        call body_terms(d, q, qd)
-        if (d%effect_on(effect_gravity)) call add_gravity(d)
-        if (d%effect_on(effect_modal_damping)) call add_modal_damping(d, qd)
-        d%tau = 0.0_dp
-        if (d%effect_on(effect_joint_drives)) call add_joint_drives(d, t)
-        call composite_terms(d)
-        call assemble_mass(d)
-        call assemble_rhs(d)
-        d%evals = d%evals + 1
-      end if
-    end associate
+    if (self%d%n_prescribed > 0) then
+      call impose_prescribed_state(self%d, t, q, qd)
+      call terms_at(self%d, t, self%d%qx, self%d%qdx, fo)
+    else
+      call terms_at(self%d, t, q, qd, fo)
+    end if
   end subroutine model_terms
+
+  !> model_terms at a state with the prescribed coordinates already imposed.
+  subroutine terms_at(d, t, q, qd, fo)
+    type(model_data), intent(inout) :: d
+    real(dp), intent(in) :: t, q(:), qd(:)
+    logical, intent(in) :: fo
+    call forward_kinematics(d, q, qd)
+    if (fo) then
+      call body_terms(d, q, qd, d%in_fast)
+      call apply_effects(d, t, q, qd, d%in_fast, .true.)
+      call composite_terms(d, d%in_fast)
+      call assemble_mass(d, d%in_fast)
+      call assemble_rhs(d, d%in_fast)
+      d%evals_fast_rows = d%evals_fast_rows + 1
+    else
+      call body_terms(d, q, qd)
+      d%tau = 0.0_dp
+      call apply_effects(d, t, q, qd, d%every, .false.)
+      call composite_terms(d)
+      call assemble_mass(d)
+      call assemble_rhs(d)
+      d%evals = d%evals + 1
+    end if
+    if (d%n_prescribed > 0) call timed_prescribe_rows(d, t)
+  end subroutine terms_at
+
+  !> The effect plan: each active effect's routine, in plan order, on the bodies in
+  !> `mask`; joint loads only in full evaluations. Every 32nd evaluation times each effect
+  !> (thread CPU time); the JSON reports the estimate for all evaluations.
+  subroutine apply_effects(d, t, q, qd, mask, fast_only)
+    type(model_data), intent(inout) :: d
+    real(dp), intent(in) :: t, q(:), qd(:)
+    logical, intent(in) :: mask(:), fast_only
+    integer :: i, e
+    logical :: timed
+    real(dp) :: c0
+    timed = mod(d%evals + d%evals_fast_rows, timing_interval) == 0
+    c0 = 0.0_dp
+    do i = 1, d%n_plan
+      e = d%plan(i)
+      if (timed) c0 = thread_cpu_time()
+      select case (e)
+      case (effect_gravity); call add_gravity(d, mask)
+      case (effect_joint_drives); if (.not. fast_only) call add_joint_drives(d, t)
+      case (effect_joint_springs); if (.not. fast_only) call add_joint_springs(d, q, qd)
+      case (effect_modal_damping); call add_modal_damping(d, qd, mask)
+      case (effect_geometric_stiffening); call add_geometric_stiffening(d, q, mask)
+      case default; cycle
+      end select
+      if (timed) then
+        d%effect_cpu(e) = d%effect_cpu(e) + (thread_cpu_time() - c0)
+        d%effect_timed(e) = d%effect_timed(e) + 1
+      end if
+    end do
+  end subroutine apply_effects
+
+  !> prescribe_rows, timed like the other effects.
+  subroutine timed_prescribe_rows(d, t)
+    type(model_data), intent(inout) :: d
+    real(dp), intent(in) :: t
+    logical :: timed
+    real(dp) :: c0
+    timed = mod(d%evals + d%evals_fast_rows, timing_interval) == 1
+    c0 = 0.0_dp
+    if (timed) c0 = thread_cpu_time()
+    call prescribe_rows(d, t)
+    if (timed) then
+      d%effect_cpu(effect_base_motion) = d%effect_cpu(effect_base_motion) + (thread_cpu_time() - c0)
+      d%effect_timed(effect_base_motion) = d%effect_timed(effect_base_motion) + 1
+    end if
+  end subroutine timed_prescribe_rows
 
   !> Accelerations qdd from M qdd = P (LAPACK Cholesky).
   subroutine model_accelerations(self, t, q, qd, qdd, error)
@@ -148,6 +210,7 @@ contains
     kinetic = kinetic_energy(self%d, qd)
     potential = elastic_potential(self%d, q)
     if (self%d%effect_on(effect_gravity)) potential = potential + gravity_potential(self%d)
+    if (self%d%effect_on(effect_joint_springs)) potential = potential + spring_potential(self%d, q)
   end subroutine model_energy
 
   pure integer function model_n_slow(self)

@@ -4,10 +4,13 @@ module pymr_model_scene
   implicit none
   private
   public :: scene_t, body_spec, joint_spec, drive_spec, marker_spec, integrator_spec, effects_spec
+  public :: spring_spec, motion_spec, max_modes_input
   public :: joint_ndof, unset
 
   !> Marker for "item not given" in real-valued namelist items.
   real(dp), parameter :: unset = -huge(1.0_dp)
+  !> Most per-mode values an item such as modal_damping can hold.
+  integer, parameter :: max_modes_input = 64
 
   !> Settings of the time integrator (&integrator).
   type :: integrator_spec
@@ -26,11 +29,18 @@ module pymr_model_scene
     character(len=16) :: coupling = 'split'
   end type integrator_spec
 
-  !> Optional physics (&effects); every effect is off unless turned on.
+  !> Optional physics (&effects); every effect is off unless turned on. `given` records
+  !> the items the scene (or a --set) wrote, so that an effect turned off on purpose is
+  !> told apart from one forgotten.
   type :: effects_spec
     logical :: gravity = .false.
     logical :: joint_drives = .false.
     logical :: modal_damping = .false.
+    logical :: joint_springs = .false.
+    logical :: geometric_stiffening = .false.
+    logical :: base_motion = .false.
+    logical :: given_joint_drives = .false., given_modal_damping = .false., given_joint_springs = .false.
+    logical :: given_base_motion = .false.
   end type effects_spec
 
   !> One &body group.
@@ -46,8 +56,10 @@ module pymr_model_scene
     real(dp) :: length = unset, youngs_modulus = unset, density = unset
     real(dp) :: r_outer = unset, r_inner = 0.0_dp, area = unset, iy = unset, iz = unset
     integer :: n_elements = 20, modes_y = 0, modes_z = 0
-    !> Modal damping, fraction of critical (used when &effects modal_damping is on).
-    real(dp) :: modal_damping = 0.0_dp
+    !> Modal damping (used when &effects modal_damping is on): fraction of critical, one
+    !> value for every mode or one per mode; or Rayleigh damping alpha + beta omega^2 (1/s).
+    real(dp) :: modal_damping(max_modes_input) = unset
+    real(dp) :: rayleigh_alpha = 0.0_dp, rayleigh_beta = 0.0_dp
     !> Modal data file of a 'modal' body (relative to the scene file's folder).
     character(len=512) :: modal_file = ''
     !> Line of the group in the file (for messages).
@@ -75,6 +87,27 @@ module pymr_model_scene
     integer :: line = 0
   end type drive_spec
 
+  !> One &spring group: a spring-damper on a joint coordinate,
+  !> force = -stiffness (q - free_position) - damping qd.
+  type :: spring_spec
+    character(len=name_len) :: joint = ''
+    integer :: coordinate = 1
+    real(dp) :: stiffness = 0.0_dp, damping = 0.0_dp, free_position = 0.0_dp
+    integer :: line = 0
+  end type spring_spec
+
+  !> One &motion group: a joint coordinate that follows a function of time.
+  !> form 'sine': offset + amplitude sin(2 pi frequency t + phase); 'spinup': the smooth
+  !> ramp to the rate `rate` over `ramp_time` (Kane, Ryan and Banerjee 1987), then constant rate.
+  type :: motion_spec
+    character(len=name_len) :: joint = ''
+    integer :: coordinate = 1
+    character(len=16) :: form = 'sine'
+    real(dp) :: offset = 0.0_dp, amplitude = 0.0_dp, frequency = 0.0_dp, phase = 0.0_dp
+    real(dp) :: rate = 0.0_dp, ramp_time = unset
+    integer :: line = 0
+  end type motion_spec
+
   !> One &marker group: a point of a body whose motion is written out.
   type :: marker_spec
     character(len=name_len) :: name = '', body = ''
@@ -94,6 +127,8 @@ module pymr_model_scene
     type(body_spec), allocatable :: bodies(:)
     type(joint_spec), allocatable :: joints(:)
     type(drive_spec), allocatable :: drives(:)
+    type(spring_spec), allocatable :: springs(:)
+    type(motion_spec), allocatable :: motions(:)
     type(marker_spec), allocatable :: markers(:)
     !> CSV output file and output interval (s; 0 = every slow step).
     character(len=512) :: output_file = ''

@@ -7,15 +7,21 @@ module pymr_model_types
   implicit none
   private
   public :: model_data, prim_revolute, prim_prismatic
-  public :: effect_gravity, effect_joint_drives, effect_modal_damping, n_effects, effect_names
+  public :: effect_gravity, effect_joint_drives, effect_modal_damping, effect_joint_springs
+  public :: effect_geometric_stiffening, effect_base_motion, n_effects, effect_names
+  public :: motion_sine, motion_spinup
 
   !> Kinds of one-coordinate joint primitives: every joint is a chain of them.
   integer, parameter :: prim_revolute = 1, prim_prismatic = 2
 
   !> Effect identifiers (index into counters and names).
-  integer, parameter :: effect_gravity = 1, effect_joint_drives = 2, effect_modal_damping = 3, n_effects = 3
-  character(len=*), parameter :: effect_names(n_effects) = [character(len=16) :: 'gravity', 'joint_drives', &
-    & 'modal_damping']
+  integer, parameter :: effect_gravity = 1, effect_joint_drives = 2, effect_modal_damping = 3, &
+    & effect_joint_springs = 4, effect_geometric_stiffening = 5, effect_base_motion = 6, n_effects = 6
+  character(len=*), parameter :: effect_names(n_effects) = [character(len=20) :: 'gravity', 'joint_drives', &
+    & 'modal_damping', 'joint_springs', 'geometric_stiffening', 'base_motion']
+
+  !> Forms of a prescribed coordinate's time function.
+  integer, parameter :: motion_sine = 1, motion_spinup = 2
 
   !> Everything one model evaluation needs.
   type :: model_data
@@ -59,9 +65,24 @@ module pymr_model_types
     real(dp), allocatable :: marker_at(:, :)
     !> Mode shapes at markers on flexible bodies (3, mmax, n_markers).
     real(dp), allocatable :: marker_psi(:, :, :)
-    !> Effect plan: which effects are on, and their evaluation counters.
+    !> Effect plan: which effects are on, the active ones in evaluation order, their
+    !> evaluation counters, and their CPU time measured on every 32nd evaluation
+    !> (effect_cpu over effect_timed evaluations).
     logical :: effect_on(n_effects) = .false.
-    integer :: effect_evals(n_effects) = 0
+    integer :: n_plan = 0, plan(n_effects) = 0
+    integer :: effect_evals(n_effects) = 0, effect_timed(n_effects) = 0
+    real(dp) :: effect_cpu(n_effects) = 0.0_dp
+    !> Every body (the mask of a full evaluation).
+    logical, allocatable :: every(:)
+    !> Joint springs: coordinate, stiffness, damping, free position.
+    integer :: n_springs = 0
+    integer, allocatable :: spring_coord(:)
+    real(dp), allocatable :: spring_par(:, :)
+    !> Prescribed coordinates: coordinate, form and parameters (offset, amplitude,
+    !> frequency, phase, rate, ramp time); work copies of q and qd with them imposed.
+    integer :: n_prescribed = 0
+    integer, allocatable :: pres_coord(:), pres_form(:)
+    real(dp), allocatable :: pres_par(:, :), qx(:), qdx(:)
     !> Gravity (m/s^2, inertial).
     real(dp) :: gravity(3) = 0.0_dp
     !> Drives: coordinate and offset, amplitude, frequency (Hz), phase (rad).
