@@ -62,8 +62,8 @@ def test_flexible_chain_converges_at_order_three(coupling):
     devs = []
     for h in (2.5e-5, 1.25e-5):
         over = {"scene.t_end": 0.1, "integrator.h_fast": h, "integrator.h_slow": h, "output.dt": 1e-3}
-        single = pymr.run(chain, "", overrides=over)
-        multi = pymr.run(chain, "", overrides={**over, **multirate(coupling, 4, h), "output.dt": 1e-3})
+        single = pymr.run(chain, overrides=over)
+        multi = pymr.run(chain, overrides={**over, **multirate(coupling, 4, h), "output.dt": 1e-3})
         cols = [i for i, c in enumerate(single.columns) if c.endswith(".q") or ".a" in c]
         devs.append(np.abs(multi.data[:, cols] - single.data[:, cols]).max())
     assert np.log2(devs[0] / devs[1]) == pytest.approx(3.2, abs=0.3)

@@ -1,0 +1,227 @@
+"""Effects (issue 5): each one off costs nothing and changes nothing, on with zero
+magnitude changes nothing, and on it matches an independent figure. Scenes are written
+inline so that each test shows the physics it checks."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import pymr
+
+PENDULUM_SPRING = """
+&scene title = 'pendulum on a torsion spring-damper', t_end = 4.0, gravity = 0.0, -9.81, 0.0 /
+&integrator method = 'single', h_slow = 1.0e-4 /
+&effects gravity = .true. {extra} /
+&body name = 'ground', kind = 'ground' /
+&body name = 'bob', kind = 'rigid', mass = 1.0, com = 0.0, -1.0, 0.0,
+      inertia = 4.0e-5, 4.0e-5, 4.0e-5, 0.0, 0.0, 0.0 /
+&joint name = 'pivot', kind = 'revolute', parent = 'ground', child = 'bob', axis = 0.0, 0.0, 1.0, q0 = 1.0 /
+{groups}
+&output dt = 1.0e-3 /
+"""
+
+SPRING = "&spring joint = 'pivot', stiffness = {k}, damping = {c}, free_position = {q0} /"
+
+SPIN = """
+&scene title = 'beam spun about a vertical axis', t_end = {t_end}, gravity = 0.0, 0.0, 0.0 /
+&integrator method = 'single', h_slow = 1.0e-3 /
+&effects base_motion = .true., geometric_stiffening = {gs} /
+&body name = 'ground', kind = 'ground' /
+&body name = 'beam', kind = 'beam', length = 10.0, youngs_modulus = 1.4e10, density = 1200.0,
+      area = 1.0e-3, iy = 1.0e-6, iz = 1.0e-6, n_elements = 20, modes_y = {modes}, modes_z = {modes} /
+&joint name = 'hub', kind = 'revolute', parent = 'ground', child = 'beam', axis = 0.0, 1.0, 0.0 /
+&motion joint = 'hub', form = 'spinup', rate = {rate}, ramp_time = {ramp} /
+&marker name = 'tip', body = 'beam', at = 10.0, 0.0, 0.0 /
+&output dt = 1.0e-2 /
+"""
+
+
+def write(tmp_path: Path, name: str, text: str) -> Path:
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def pendulum(tmp_path, name="p.nml", extra="", groups=""):
+    return write(tmp_path, name, PENDULUM_SPRING.format(extra=extra, groups=groups))
+
+
+def stats_effects(res: pymr.Results) -> dict:
+    return res.stats["effects"]
+
+
+# ---------------------------------------------------------------- joint springs
+
+def test_spring_damper_dissipates_the_integral_of_its_power(tmp_path):
+    """E(t) - E(0) = -int c qd^2 dt for a pendulum on a torsion spring-damper (gravity,
+    spring and damper together); the energy includes the spring's 1/2 k (q - q0)^2."""
+    scene = pendulum(tmp_path, extra=", joint_springs = .true.", groups=SPRING.format(k=5.0, c=0.3, q0=0.2))
+    res = pymr.run(scene, tmp_path / "p.csv")
+    q, qd = res["pivot.q"], res["pivot.qd"]
+    ke, pe = pymr.model_energy(scene, q[:, None], qd[:, None])
+    energy = ke + pe
+    # Simpson's rule on the 1 ms output of the damper's power c qd^2
+    power = 0.3 * qd**2
+    h = res.t[1] - res.t[0]
+    dissipated = h / 3 * (power[0] + power[-1] + 4 * power[1:-1:2].sum() + 2 * power[2:-1:2].sum())
+    assert len(res.t) % 2 == 1
+    assert dissipated > 1.0                      # a real loss, not a rounding
+    assert energy[-1] - energy[0] == pytest.approx(-dissipated, rel=1e-8)
+    eff = stats_effects(res)
+    assert eff["joint_springs"]["evaluations"] == res.stats["rhs_full"]
+    assert eff["joint_springs"]["cpu_time_s"] >= 0.0
+
+
+def test_spring_mass_oscillates_at_sqrt_k_over_m(tmp_path):
+    """A 2 kg slider on a 50 N/m spring (no gravity): x(t) = x0 cos(5 t)."""
+    scene = write(tmp_path, "s.nml", """
+&scene title = 'spring-mass', t_end = 2.0, gravity = 0.0, 0.0, 0.0 /
+&integrator method = 'single', h_slow = 1.0e-4 /
+&effects joint_springs = .true. /
+&body name = 'ground', kind = 'ground' /
+&body name = 'slider', kind = 'rigid', mass = 2.0, inertia = 1.0, 1.0, 1.0, 0.0, 0.0, 0.0 /
+&joint name = 'rail', kind = 'prismatic', parent = 'ground', child = 'slider', axis = 1.0, 0.0, 0.0, q0 = 0.1 /
+&spring joint = 'rail', stiffness = 50.0 /
+&output dt = 1.0e-2 /
+""")
+    res = pymr.run(scene)
+    assert np.abs(res["rail.q"] - 0.1 * np.cos(5.0 * res.t)).max() < 1e-10
+
+
+# ------------------------------------------------------- off, zero magnitude, missing
+
+@pytest.mark.parametrize("effect, groups", [
+    ("joint_springs", SPRING.format(k=5.0, c=0.3, q0=0.2)),
+    ("base_motion", "&motion joint = 'pivot', amplitude = 0.5, frequency = 1.0 /"),
+    ("joint_drives", "&drive joint = 'pivot', amplitude = 3.0, frequency = 1.0 /"),
+])
+def test_effect_off_costs_nothing_and_changes_nothing(tmp_path, effect, groups):
+    """Turned off on purpose, an effect's groups are ignored: no evaluation, and results
+    bit-identical to the scene without the groups."""
+    plain = pymr.run(pendulum(tmp_path, "plain.nml"))
+    off = pymr.run(pendulum(tmp_path, "off.nml", extra=f", {effect} = .false.", groups=groups))
+    assert np.array_equal(off.data, plain.data)
+    assert effect not in stats_effects(off)
+    assert set(stats_effects(off)) == {"gravity"}
+
+
+@pytest.mark.parametrize("effect, groups", [
+    ("joint_springs", SPRING.format(k=0.0, c=0.0, q0=0.3)),
+    ("joint_drives", "&drive joint = 'pivot', amplitude = 0.0, frequency = 1.0 /"),
+])
+def test_effect_on_with_zero_magnitude_changes_nothing(tmp_path, effect, groups):
+    plain = pymr.run(pendulum(tmp_path, "plain.nml"))
+    zero = pymr.run(pendulum(tmp_path, "zero.nml", extra=f", {effect} = .true.", groups=groups))
+    assert np.abs(zero.data - plain.data).max() < 1e-12
+    assert stats_effects(zero)[effect]["evaluations"] == zero.stats["rhs_full"]
+
+
+@pytest.mark.parametrize("groups, group, effect", [
+    (SPRING.format(k=5.0, c=0.0, q0=0.0), "&spring #1 (line 9)", "joint_springs"),
+    ("&motion joint = 'pivot', amplitude = 0.5, frequency = 1.0 /", "&motion #1 (line 9)", "base_motion"),
+    ("&drive joint = 'pivot', amplitude = 3.0 /", "&drive #1 (line 9)", "joint_drives"),
+])
+def test_groups_of_an_effect_not_turned_on_are_an_error(tmp_path, groups, group, effect):
+    scene = pendulum(tmp_path, groups=groups)
+    with pytest.raises(pymr.SceneError) as exc:
+        pymr.run(scene)
+    msg = str(exc.value)
+    assert str(scene) in msg and group in msg and f"&effects {effect} is not on" in msg
+    assert "\n" not in msg.strip()
+
+
+def test_modal_damping_given_but_not_turned_on_is_an_error():
+    tank = Path(__file__).resolve().parent.parent / "input" / "tank_hold.nml"
+    with pytest.raises(pymr.SceneError, match=r"&body 'gun' \(line \d+\): the body gives modal damping but "
+                                               r"&effects modal_damping is not on"):
+        pymr.model_size(tank, {"body[gun].rayleigh_alpha": 0.5})
+
+
+# -------------------------------------------------------------- prescribed motion
+
+def spin_scene(tmp_path, gs=".true.", rate=2.0, ramp=1.0, modes=1, t_end=2.0, name="spin.nml"):
+    return write(tmp_path, name, SPIN.format(gs=gs, rate=rate, ramp=ramp, modes=modes, t_end=t_end))
+
+
+def spinup(t, rate, ramp):
+    """Kane, Ryan and Banerjee's hub angle and rate."""
+    w = 2 * np.pi / ramp
+    theta = np.where(t <= ramp, rate / ramp * (t**2 / 2 + (np.cos(w * t) - 1) / w**2), rate * (t - ramp / 2))
+    rate_t = np.where(t <= ramp, rate / ramp * (t - np.sin(w * t) / w), rate)
+    return theta, rate_t
+
+
+def test_prescribed_joint_follows_its_function_to_roundoff(tmp_path):
+    res = pymr.run(spin_scene(tmp_path, rate=6.0, ramp=1.5, t_end=3.0))
+    theta, rate = spinup(res.t, 6.0, 1.5)
+    assert np.abs(res["hub.q"] - theta).max() < 1e-13 * np.abs(theta).max()
+    assert np.abs(res["hub.qd"] - rate).max() < 1e-13 * 6.0
+    assert stats_effects(res)["base_motion"]["evaluations"] == res.stats["rhs_full"]
+
+
+# ---------------------------------------------------------- geometric stiffening
+
+def modal_frequencies_squared(scene: Path, t: float) -> np.ndarray:
+    """omega^2 of the beam's modes linearised at zero deflection, from central differences
+    of the model's right-hand side (K = -dP/da) and its mass matrix."""
+    n = pymr.model_size(scene)[0]
+    q, qd = np.zeros(n), np.zeros(n)
+    k = np.zeros((n, n))
+    for i in range(1, n):
+        e = np.zeros(n)
+        e[i] = 1e-6
+        k[:, i] = -(pymr.model_terms(scene, q + e, qd, t=t)[1] - pymr.model_terms(scene, q - e, qd, t=t)[1]) / 2e-6
+    m = pymr.model_terms(scene, q, qd, t=t)[0]
+    return np.diag(k)[1:] / np.diag(m)[1:]
+
+
+@pytest.mark.parametrize("rate", [1.0, 2.0, 4.0])
+def test_southwell_coefficient_of_a_spinning_cantilever(tmp_path, rate):
+    """Spinning at a constant rate about an axis through its clamped root, a cantilever's
+    first out-of-plane frequency rises per Southwell, omega^2 = omega_0^2 + 1.193 Omega^2,
+    with geometric stiffening, and stays at omega_0 without it; in plane the centrifugal
+    softening of the floating frame takes Omega^2 off (coefficient 0.193 with, -1 without).
+    omega_0 = 1.8751^2 sqrt(EI / (rho A L^4)) = 3.798 rad/s."""
+    w0sq = (1.875104069**2 * np.sqrt(1.4e4 / (1.2 * 10.0**4)))**2
+    on = modal_frequencies_squared(spin_scene(tmp_path, rate=rate, name="on.nml"), t=2.0)
+    off = modal_frequencies_squared(spin_scene(tmp_path, gs=".false.", rate=rate, name="off.nml"), t=2.0)
+    out_of_plane, in_plane = 0, 1
+    assert (on[out_of_plane] - w0sq) / rate**2 == pytest.approx(1.193, abs=1e-3)
+    assert (on[in_plane] - w0sq) / rate**2 == pytest.approx(0.193, abs=1e-3)
+    assert off[out_of_plane] == pytest.approx(w0sq, rel=1e-6)
+    assert (off[in_plane] - w0sq) / rate**2 == pytest.approx(-1.0, abs=1e-4)
+    if rate > np.sqrt(w0sq):
+        assert off[in_plane] < 0 < on[in_plane]      # the linear model diverges, the stiffened one does not
+
+
+def test_geometric_stiffening_with_zero_load_changes_nothing(tmp_path):
+    """No rotation and no gravity: the tension is zero, so turning the effect on changes
+    the results by nothing but rounding (evaluations counted)."""
+    on = pymr.run(spin_scene(tmp_path, rate=0.0, name="on.nml"))
+    off = pymr.run(spin_scene(tmp_path, gs=".false.", rate=0.0, name="off.nml"))
+    assert np.abs(on.data - off.data).max() < 1e-12
+    assert stats_effects(on)["geometric_stiffening"]["evaluations"] == on.stats["rhs_full"]
+    assert "geometric_stiffening" not in stats_effects(off)
+
+
+# ---------------------------------------------------------------- modal damping
+
+def test_rayleigh_and_per_mode_damping_coefficients(tmp_path):
+    """-dP/d(ad) of the barrel's modes equals 2 zeta_k omega_k + alpha + beta omega_k^2."""
+    tank = Path(__file__).resolve().parent.parent / "input" / "tank_hold.nml"
+    zeta = [0.01, 0.02, 0.03, 0.04]
+    over = {"effects.modal_damping": True, "body[gun].modal_damping": zeta,
+            "body[gun].rayleigh_alpha": 0.5, "body[gun].rayleigh_beta": 1e-4}
+    n = pymr.model_size(tank, over)[0]
+    q, qd = np.zeros(n), np.zeros(n)
+    m, p0 = pymr.model_terms(tank, q, qd, overrides=over)
+    rows = range(n - 4, n)
+    w = 2 * np.pi * np.array([6.408986, 40.16451, 6.408986, 40.16451])   # y plane, then z plane
+    for j, k in enumerate(rows):
+        e = np.zeros(n)
+        e[k] = 1e-3
+        c = -(pymr.model_terms(tank, q, qd + e, overrides=over)[1] - p0)[k] / 1e-3
+        assert c == pytest.approx(2 * zeta[j] * w[j] + 0.5 + 1e-4 * w[j]**2, rel=1e-5)
