@@ -15,18 +15,18 @@ from .scenes import spatial_chain
 
 
 def time_evaluation(scene: str, q: np.ndarray, qd: np.ndarray, repeats: int = 7,
-                    min_time: float = 0.05) -> float:
+                    min_time: float = 0.05, overrides: str = "") -> float:
     """Median CPU seconds of one model evaluation (kinematics, assembly, Cholesky solve)."""
     reps = 1
     while True:
-        sec, stat, msg = _core.pymr_time_evaluation(scene, "", q, qd, reps)
+        sec, stat, msg = _core.pymr_time_evaluation(scene, overrides, q, qd, reps)
         _raise(stat, msg)
         if sec * reps >= min_time or reps >= 1 << 20:
             break
         reps *= 4
     samples = []
     for _ in range(repeats):
-        sec, stat, msg = _core.pymr_time_evaluation(scene, "", q, qd, reps)
+        sec, stat, msg = _core.pymr_time_evaluation(scene, overrides, q, qd, reps)
         _raise(stat, msg)
         samples.append(sec)
     return statistics.median(samples)
@@ -104,6 +104,16 @@ def main(what: str, repeats: int | None = None, json_path: str | None = None) ->
         if json_path:
             Path(json_path).write_text(json.dumps({"evaluations": rows, "tank_run": tank}, indent=2))
         return 0
+    if what == "effects":
+        rows = bench_effects(repeats=repeats or 7)
+        print("pymr bench effects: one tank evaluation (kinematics, assembly, Cholesky solve), "
+              f"median CPU of {repeats or 7} timings; each effect alone, then all")
+        print(f"{'effect':>22} {'median us':>10} {'extra us':>9}")
+        for r in rows:
+            print(f"{r['effect']:>22} {r['median_us']:>10.3f} {r['extra_us']:>+9.3f}")
+        if json_path:
+            Path(json_path).write_text(json.dumps(rows, indent=2))
+        return 0
     if what == "table1":
         # runs of 5-30 ms are noisy on a shared machine: 21 interleaved repeats by default
         rows = bench_table1(repeats=max(repeats or 21, 5))
@@ -113,6 +123,56 @@ def main(what: str, repeats: int | None = None, json_path: str | None = None) ->
         print(f"written: {path}")
         return 0
     raise ValueError(what)
+
+
+#: Tank variants for ``bench effects``: (effect, &effects items, extra groups, overrides).
+EFFECT_VARIANTS = [
+    ("gravity", "gravity = .true.", "", ""),
+    ("joint_drives", "joint_drives = .true.", "", ""),
+    ("modal_damping", "modal_damping = .true.", "", "body[gun].modal_damping=0.02"),
+    ("joint_springs", "joint_springs = .true.",
+     "&spring joint = 'traverse', stiffness = 1.0e6, damping = 1.0e3 /\n"
+     "&spring joint = 'elevation', stiffness = 1.0e6, damping = 1.0e3 /\n", ""),
+    ("geometric_stiffening", "geometric_stiffening = .true.", "", ""),
+    ("base_motion", "base_motion = .true.",
+     "&motion joint = 'traverse', amplitude = 0.1, frequency = 1.0 /\n", ""),
+]
+
+
+def _tank_variant(tmp: Path, name: str, effects: str, groups: str) -> Path:
+    """The tank scene with its &effects replaced and extra groups appended."""
+    text = _scene_path("tank_gun_turret.nml").read_text()
+    start = text.index("&effects")
+    end = text.index("/", start)
+    path = Path(tmp) / f"{name}.nml"
+    path.write_text(text[:start] + "&effects " + effects + " " + text[end:] + "\n" + groups)
+    return path
+
+
+def bench_effects(repeats: int = 7) -> list[dict]:
+    """Cost of one tank evaluation with no effect, each effect alone, and all together,
+    at a moving, deflected state (median CPU of repeated timings)."""
+    rng = np.random.default_rng(1)
+    rows = []
+    with tempfile.TemporaryDirectory(prefix="pymr-effects-") as tmp:
+        off = ("joint_drives = .false., gravity = .false.", "", "")
+        cases = [("none",) + off] + [(e, items + ", joint_drives = .false." if e != "joint_drives" else items,
+                                      groups, over) for e, items, groups, over in EFFECT_VARIANTS]
+        every = ", ".join(items for _, items, _, _ in EFFECT_VARIANTS)
+        cases.append(("all", every, "".join(g for _, _, g, _ in EFFECT_VARIANTS),
+                      ";".join(o for _, _, _, o in EFFECT_VARIANTS if o)))
+        paths = {c[0]: _tank_variant(Path(tmp), c[0], c[1], c[2]) for c in cases}
+        n, _, _ = model_size(paths["none"])
+        q = 0.05 * rng.standard_normal(n)
+        qd = 0.5 * rng.standard_normal(n)
+        q[2:] *= 1e-3
+        for name, _, _, over in cases:
+            sec = time_evaluation(str(paths[name]), q, qd, repeats=repeats, overrides=over)
+            rows.append({"effect": name, "median_us": sec * 1e6})
+    base = rows[0]["median_us"]
+    for r in rows:
+        r["extra_us"] = r["median_us"] - base
+    return rows
 
 
 #: The paper's Table 1 (Kim and Kim 2000): step ratio -> (CPU s on its machine, speed-up).

@@ -47,11 +47,12 @@ def build_parser() -> argparse.ArgumentParser:
     m.add_argument("-q", "--quiet", action="store_true")
     m.set_defaults(func=_cmd_modal_file)
     b = sub.add_parser("bench", help="benchmarks that print figures")
-    b.add_argument("what", choices=["rhs", "table1"],
+    b.add_argument("what", choices=["rhs", "table1", "effects"],
                    help="rhs: cost of one model evaluation vs chain length; table1: the paper's Table 1 "
-                        "(tank, step ratios 1-50, both couplings)")
+                        "(tank, step ratios 1-50, both couplings); effects: cost of one tank evaluation "
+                        "with each effect on and off")
     b.add_argument("--repeats", type=int, default=None,
-                   help="timing repeats, median reported (default 7 for rhs, 21 for table1)")
+                   help="timing repeats, median reported (default 7 for rhs and effects, 21 for table1)")
     b.add_argument("--json", help="also write the figures to this JSON file")
     b.set_defaults(func=_cmd_bench)
     return p
