@@ -225,3 +225,54 @@ def test_rayleigh_and_per_mode_damping_coefficients(tmp_path):
         e[k] = 1e-3
         c = -(pymr.model_terms(tank, q, qd + e, overrides=over)[1] - p0)[k] / 1e-3
         assert c == pytest.approx(2 * zeta[j] * w[j] + 0.5 + 1e-4 * w[j]**2, rel=1e-5)
+
+
+# ------------------------------------------------------------------- firing load
+
+def pulse_energy_balance(tmp_path, h: float) -> tuple[float, float, pymr.Results]:
+    """(energy gained, work of the load) for the pendulum hit by the pulse, step h."""
+    load = ("&marker name = 'tip', body = 'bob', at = 0.0, -1.0, 0.0 /\n"
+            "&load marker = 'tip', direction = 1.0, 0.0, 0.0, peak = 100.0, start = 0.01, duration = 0.01 /")
+    text = (PENDULUM_SPRING.format(extra=", firing_load = .true.", groups=load)
+            .replace("t_end = 4.0", "t_end = 0.04").replace("dt = 1.0e-3", f"dt = {h}")
+            .replace("h_slow = 1.0e-4", f"h_slow = {h}"))
+    scene = write(tmp_path, f"f{h}.nml", text)
+    res = pymr.run(scene)
+    q, qd = res["pivot.q"], res["pivot.qd"]
+    ke, pe = pymr.model_energy(scene, q[:, None], qd[:, None])
+    _, v = res.marker("tip")
+    t = res.t
+    force = np.where((t >= 0.01) & (t <= 0.02), 100.0 * np.sin(np.pi * (t - 0.01) / 0.01), 0.0)
+    f = force[:, None] * np.stack([np.cos(q), np.sin(q), 0 * q], axis=1)    # body x axis, inertial
+    power = (f * v).sum(axis=1)
+    dt = t[1] - t[0]
+    work = dt / 3 * (power[0] + power[-1] + 4 * power[1:-1:2].sum() + 2 * power[2:-1:2].sum())
+    return (ke + pe)[-1] - (ke + pe)[0], work, res
+
+
+def test_pulse_load_work_equals_energy_gain(tmp_path):
+    """A 100 N half-sine pulse of 10 ms at the bob, along the bob's x axis: the energy gained
+    equals the work int f . v dt of the load (Simpson on output at every step). The pulse's
+    slope jumps at its start and end, so the fixed-step ABM converges at order 2 across it:
+    measured -8.2e-5, -2.1e-5, -5.1e-6 relative at h = 1e-4, 5e-5, 2.5e-5."""
+    errs = []
+    for h in (1e-4, 5e-5, 2.5e-5):
+        gained, work, res = pulse_energy_balance(tmp_path, h)
+        assert work > 0.1
+        errs.append(gained / work - 1)
+    orders = np.log2(np.abs(errs[:-1]) / np.abs(errs[1:]))
+    assert orders == pytest.approx([2.0, 2.0], abs=0.1)
+    assert abs(errs[-1]) < 1e-5
+    assert stats_effects(res)["firing_load"]["evaluations"] == res.stats["rhs_full"]
+
+
+def test_load_off_is_bit_identical(tmp_path):
+    marker = "&marker name = 'tip', body = 'bob', at = 0.0, -1.0, 0.0 /\n"
+    load = "&load marker = 'tip', direction = 1.0, 0.0, 0.0, peak = 100.0, start = 0.01, duration = 0.01 /"
+    plain = pymr.run(pendulum(tmp_path, "plain.nml", groups=marker))
+    off = pymr.run(pendulum(tmp_path, "off.nml", extra=", firing_load = .false.", groups=marker + load))
+    assert np.array_equal(off.data, plain.data)
+    assert "firing_load" not in stats_effects(off)
+    with pytest.raises(pymr.SceneError, match=r"&load #1 \(line 10\): the scene gives loads but &effects "
+                                               r"firing_load is not on"):
+        pymr.run(pendulum(tmp_path, "missing.nml", groups=marker + load))

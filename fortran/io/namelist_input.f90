@@ -7,7 +7,7 @@
 module pymr_io_namelist_input
   use pymr_kinds, only : dp, name_len
   use pymr_error, only : error_type, fatal_error
-  use pymr_model_scene, only : scene_t, body_spec, joint_spec, drive_spec, marker_spec, spring_spec, motion_spec, unset, &
+  use pymr_model_scene, only : scene_t, body_spec, joint_spec, drive_spec, marker_spec, spring_spec, motion_spec, load_spec, unset, &
     & max_modes_input
   use pymr_io_namelist_scan, only : group_scan, scan_file, check_items, itoa, lower
   implicit none
@@ -21,13 +21,13 @@ module pymr_io_namelist_input
     logical :: used = .false.
   end type override_t
 
-  character(len=*), parameter :: known_groups(10) = [character(len=16) :: 'scene', 'integrator', &
-    & 'effects', 'body', 'joint', 'drive', 'spring', 'motion', 'marker', 'output']
+  character(len=*), parameter :: known_groups(11) = [character(len=16) :: 'scene', 'integrator', &
+    & 'effects', 'body', 'joint', 'drive', 'spring', 'motion', 'load', 'marker', 'output']
   character(len=*), parameter :: items_scene(3) = [character(len=16) :: 'title', 't_end', 'gravity']
   character(len=*), parameter :: items_integrator(10) = [character(len=16) :: 'method', 'h_fast', 'h_slow', &
     & 'adaptive', 'rtol', 'atol', 'h_min', 'h_max', 'n_corrector', 'coupling']
-  character(len=*), parameter :: items_effects(6) = [character(len=20) :: 'gravity', 'joint_drives', &
-    & 'modal_damping', 'joint_springs', 'geometric_stiffening', 'base_motion']
+  character(len=*), parameter :: items_effects(7) = [character(len=20) :: 'gravity', 'joint_drives', &
+    & 'modal_damping', 'joint_springs', 'geometric_stiffening', 'base_motion', 'firing_load']
   character(len=*), parameter :: items_body(20) = [character(len=16) :: 'name', 'kind', 'mass', 'com', 'inertia', &
     & 'length', 'youngs_modulus', 'density', 'r_outer', 'r_inner', 'area', 'iy', 'iz', 'n_elements', 'modes_y', &
     & 'modes_z', 'modal_damping', 'rayleigh_alpha', 'rayleigh_beta', 'modal_file']
@@ -39,6 +39,8 @@ module pymr_io_namelist_input
     & 'damping', 'free_position']
   character(len=*), parameter :: items_motion(9) = [character(len=16) :: 'joint', 'coordinate', 'form', &
     & 'offset', 'amplitude', 'frequency', 'phase', 'rate', 'ramp_time']
+  character(len=*), parameter :: items_load(6) = [character(len=16) :: 'marker', 'direction', 'form', 'peak', &
+    & 'start', 'duration']
   character(len=*), parameter :: items_marker(3) = [character(len=16) :: 'name', 'body', 'at']
   character(len=*), parameter :: items_output(2) = [character(len=16) :: 'file', 'dt']
 
@@ -75,6 +77,7 @@ contains
     if (.not. allocated(error)) call read_drives(file, u, groups, ovs, sc, error)
     if (.not. allocated(error)) call read_springs(file, u, groups, ovs, sc, error)
     if (.not. allocated(error)) call read_motions(file, u, groups, ovs, sc, error)
+    if (.not. allocated(error)) call read_loads(file, u, groups, ovs, sc, error)
     if (.not. allocated(error)) call read_markers(file, u, groups, ovs, sc, error)
     close(u)
     if (allocated(error)) then
@@ -101,7 +104,7 @@ contains
     character(len=:), allocatable :: list
     do i = 1, size(groups)
       if (.not. any(known_groups == groups(i)%name)) then
-        list = 'scene, integrator, effects, body, joint, drive, spring, motion, marker, output'
+        list = 'scene, integrator, effects, body, joint, drive, spring, motion, load, marker, output'
         call fatal_error(error, file // ': &' // trim(groups(i)%name) // ' (line ' // itoa(groups(i)%line) // &
           & '): unknown group (known: ' // list // ')'); return
       end if
@@ -114,6 +117,7 @@ contains
       case ('drive'); call check_items(file, groups(i), items_drive, error)
       case ('spring'); call check_items(file, groups(i), items_spring, error)
       case ('motion'); call check_items(file, groups(i), items_motion, error)
+      case ('load'); call check_items(file, groups(i), items_load, error)
       case ('marker'); call check_items(file, groups(i), items_marker, error)
       case ('output'); call check_items(file, groups(i), items_output, error)
       end select
@@ -188,7 +192,7 @@ contains
       return
     end if
     select case (trim(ov%group))
-    case ('body', 'joint', 'drive', 'spring', 'motion', 'marker')
+    case ('body', 'joint', 'drive', 'spring', 'motion', 'load', 'marker')
       if (len_trim(ov%sel) == 0) then
         call fatal_error(error, '--set ' // entry // ': &' // trim(ov%group) // ' is a repeated group: name one as ' &
           & // trim(ov%group) // '[NAME].' // key); return
@@ -219,6 +223,7 @@ contains
     case ('drive'); key_known = any(items_drive == base)
     case ('spring'); key_known = any(items_spring == base)
     case ('motion'); key_known = any(items_motion == base)
+    case ('load'); key_known = any(items_load == base)
     case ('marker'); key_known = any(items_marker == base)
     case ('output'); key_known = any(items_output == base)
     case default; key_known = .false.
@@ -352,13 +357,15 @@ contains
     type(override_t), intent(inout) :: ovs(:)
     type(scene_t), intent(inout) :: sc
     type(error_type), allocatable, intent(out) :: error
-    logical :: gravity, joint_drives, modal_damping, joint_springs, geometric_stiffening, base_motion
+    logical :: gravity, joint_drives, modal_damping, joint_springs, geometric_stiffening, base_motion, firing_load
     integer :: ios, i
     character(len=256) :: msg
-    namelist /effects/ gravity, joint_drives, modal_damping, joint_springs, geometric_stiffening, base_motion
+    namelist /effects/ gravity, joint_drives, modal_damping, joint_springs, geometric_stiffening, base_motion, &
+      & firing_load
     gravity = sc%effects%gravity; joint_drives = sc%effects%joint_drives
     modal_damping = sc%effects%modal_damping; joint_springs = sc%effects%joint_springs
     geometric_stiffening = sc%effects%geometric_stiffening; base_motion = sc%effects%base_motion
+    firing_load = sc%effects%firing_load
     if (any(groups%name == 'effects')) then
       rewind(u)
       read(u, nml=effects, iostat=ios, iomsg=msg)
@@ -377,6 +384,8 @@ contains
     sc%effects%gravity = gravity; sc%effects%joint_drives = joint_drives
     sc%effects%modal_damping = modal_damping; sc%effects%joint_springs = joint_springs
     sc%effects%geometric_stiffening = geometric_stiffening; sc%effects%base_motion = base_motion
+    sc%effects%firing_load = firing_load
+    sc%effects%given_firing_load = effect_given('firing_load')
     sc%effects%given_joint_drives = effect_given('joint_drives')
     sc%effects%given_modal_damping = effect_given('modal_damping')
     sc%effects%given_joint_springs = effect_given('joint_springs')
@@ -625,6 +634,43 @@ contains
         & line=group_line(groups, 'motion', k))
     end do
   end subroutine read_motions
+
+  subroutine read_loads(file, u, groups, ovs, sc, error)
+    character(len=*), intent(in) :: file
+    integer, intent(in) :: u
+    type(group_scan), intent(in) :: groups(:)
+    type(override_t), intent(inout) :: ovs(:)
+    type(scene_t), intent(inout) :: sc
+    type(error_type), allocatable, intent(out) :: error
+    character(len=name_len) :: marker
+    character(len=16) :: form
+    real(dp) :: direction(3), peak, start, duration
+    integer :: ios, i, k, n
+    character(len=256) :: msg
+    type(load_spec) :: d
+    namelist /load/ marker, direction, form, peak, start, duration
+    n = count(groups%name == 'load')
+    allocate(sc%loads(n))
+    rewind(u)
+    do k = 1, n
+      marker = d%marker; direction = d%direction; form = d%form; peak = d%peak; start = d%start
+      duration = d%duration
+      read(u, nml=load, iostat=ios, iomsg=msg)
+      if (ios /= 0) then
+        call read_failed(file, 'load', groups, k, msg, error); return
+      end if
+      do i = 1, size(ovs)
+        if (ovs(i)%group /= 'load' .or. ovs(i)%sel /= marker) cycle
+        read(ovs(i)%text, nml=load, iostat=ios, iomsg=msg)
+        if (ios /= 0) then
+          call override_failed(ovs(i), error); return
+        end if
+        ovs(i)%used = .true.
+      end do
+      sc%loads(k) = load_spec(marker=marker, direction=direction, form=lower(form), peak=peak, start=start, &
+        & duration=duration, line=group_line(groups, 'load', k))
+    end do
+  end subroutine read_loads
 
   subroutine read_markers(file, u, groups, ovs, sc, error)
     character(len=*), intent(in) :: file

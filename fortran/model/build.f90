@@ -6,6 +6,7 @@ module pymr_model_build
   use pymr_model_scene, only : scene_t, body_spec, joint_spec, joint_ndof, unset
   use pymr_model_types, only : model_data, prim_revolute, prim_prismatic, effect_gravity, effect_joint_drives, &
     & effect_modal_damping, effect_joint_springs, effect_geometric_stiffening, effect_base_motion, n_effects, &
+    & effect_firing_load, &
     & motion_sine, motion_spinup
   use pymr_model_beam_modes, only : build_beam, beam_point_shapes
   use pymr_io_modal_file, only : read_modal_file
@@ -415,6 +416,35 @@ contains
         end if
       end associate
     end do
+    do i = 1, size(sc%loads)
+      associate(ld => sc%loads(i))
+        w = sc%file // ': &load #' // itoa(i) // ' (line ' // itoa(ld%line) // ')'
+        k = 0
+        do j = 1, size(sc%markers)
+          if (sc%markers(j)%name == ld%marker) k = j
+        end do
+        if (k == 0) then
+          call fatal_error(error, w // ": marker: no &marker named '" // trim(ld%marker) // "'"); return
+        end if
+        if (norm2(ld%direction) < 1.0e-12_dp) then
+          call fatal_error(error, w // ': direction: missing or zero (a direction in the body frame of the ' // &
+            & "marker's body)"); return
+        end if
+        if (ld%form /= 'pulse') then
+          call fatal_error(error, w // ": form: '" // trim(ld%form) // "' is not a load form ('pulse')"); return
+        end if
+        if (ld%duration == unset) then
+          call fatal_error(error, w // ': duration: missing (the pulse length, s)'); return
+        end if
+        if (ld%duration <= 0.0_dp) then
+          call fatal_error(error, w // ': duration: must be > 0 s, got ' // fmt(ld%duration)); return
+        end if
+        if (.not. sc%effects%firing_load .and. .not. sc%effects%given_firing_load) then
+          call fatal_error(error, w // ': the scene gives loads but &effects firing_load is not on: set ' // &
+            & 'firing_load = .true. in &effects (or .false. to ignore the loads on purpose)'); return
+        end if
+      end associate
+    end do
     if (sc%effects%geometric_stiffening .and. .not. any(sc%bodies%kind == 'beam')) then
       call fatal_error(error, sc%file // ': &effects: geometric_stiffening: the scene has no beam (only built-in ' // &
         & "beams, kind = 'beam', carry a geometric stiffness)"); return
@@ -798,6 +828,7 @@ contains
     d%effect_on(effect_joint_springs) = sc%effects%joint_springs .and. size(sc%springs) > 0
     d%effect_on(effect_geometric_stiffening) = sc%effects%geometric_stiffening
     d%effect_on(effect_base_motion) = sc%effects%base_motion .and. size(sc%motions) > 0
+    d%effect_on(effect_firing_load) = sc%effects%firing_load .and. size(sc%loads) > 0
     ! the plan: active effects in evaluation order (loads first; base motion last)
     d%n_plan = 0
     do i = 1, n_effects
@@ -854,6 +885,16 @@ contains
         call flexible_point(sc, d, b, sc%markers(i)%at, "marker '" // trim(sc%markers(i)%name) // "'", &
           & d%marker_psi(:, :, i), phi, error); if (allocated(error)) return
       end if
+    end do
+    d%n_loads = 0
+    if (d%effect_on(effect_firing_load)) d%n_loads = size(sc%loads)
+    allocate(d%load_marker(d%n_loads), d%load_dir(3, d%n_loads), d%load_par(3, d%n_loads))
+    do i = 1, d%n_loads
+      do j = 1, d%n_markers
+        if (d%marker_name(j) == sc%loads(i)%marker) d%load_marker(i) = j
+      end do
+      d%load_dir(:, i) = sc%loads(i)%direction/norm2(sc%loads(i)%direction)
+      d%load_par(:, i) = [sc%loads(i)%peak, sc%loads(i)%start, sc%loads(i)%duration]
     end do
   contains
     !> Model coordinate of a joint's coordinate.

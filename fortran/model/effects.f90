@@ -3,12 +3,13 @@
 module pymr_model_effects
   use pymr_kinds, only : dp, pi
   use pymr_model_types, only : model_data, effect_gravity, effect_joint_drives, effect_modal_damping, &
-    & effect_joint_springs, effect_geometric_stiffening, effect_base_motion, motion_spinup
+    & effect_joint_springs, effect_geometric_stiffening, effect_base_motion, effect_firing_load, motion_spinup
   use pymr_model_spatial, only : cross
+  use pymr_model_kinematics, only : marker_motion
   implicit none
   private
   public :: add_gravity, add_joint_drives, add_modal_damping, gravity_potential, elastic_potential
-  public :: add_joint_springs, spring_potential, add_geometric_stiffening
+  public :: add_joint_springs, spring_potential, add_geometric_stiffening, add_firing_load, load_force
   public :: prescribed_motion, impose_prescribed_state, prescribe_rows
 
 contains
@@ -159,6 +160,44 @@ contains
     end do
     d%effect_evals(effect_geometric_stiffening) = d%effect_evals(effect_geometric_stiffening) + 1
   end subroutine add_geometric_stiffening
+
+  !> Magnitude (N) of load i at time t: a half-sine pulse.
+  pure real(dp) function load_force(d, i, t)
+    type(model_data), intent(in) :: d
+    integer, intent(in) :: i
+    real(dp), intent(in) :: t
+    associate(p => d%load_par(:, i))
+      load_force = 0.0_dp
+      if (t >= p(2) .and. t <= p(2) + p(3)) load_force = p(1)*sin(pi*(t - p(2))/p(3))
+    end associate
+  end function load_force
+
+  !> Point loads at markers (after kinematics): the force f = R (direction F(t)) at the
+  !> marker's point r enters the body's wrench as [f; r x f] and, on a flexible body, the
+  !> modal forces Psi(marker)^T (direction F(t)).
+  pure subroutine add_firing_load(d, t, q, qd, only)
+    type(model_data), intent(inout) :: d
+    real(dp), intent(in) :: t, q(:), qd(:)
+    logical, intent(in) :: only(:)
+    integer :: i, b, k, mk
+    real(dp) :: fmag, fb(3), f(3), r(3), v(3)
+    do i = 1, d%n_loads
+      mk = d%load_marker(i)
+      b = d%marker_body(mk)
+      if (.not. only(b)) cycle
+      fmag = load_force(d, i, t)
+      if (fmag == 0.0_dp) cycle
+      fb = d%load_dir(:, i)*fmag
+      f = matmul(d%rot(:, :, b), fb)
+      call marker_motion(d, mk, q, qd, r, v)
+      d%w(1:3, b) = d%w(1:3, b) - f
+      d%w(4:6, b) = d%w(4:6, b) - cross(r, f)
+      do k = 1, d%nm(b)
+        d%wam(k, b) = d%wam(k, b) - dot_product(d%marker_psi(:, k, mk), fb)
+      end do
+    end do
+    d%effect_evals(effect_firing_load) = d%effect_evals(effect_firing_load) + 1
+  end subroutine add_firing_load
 
   !> Value, rate and acceleration at time t of prescribed coordinate i.
   pure subroutine prescribed_motion(d, i, t, f, fd, fdd)

@@ -6,12 +6,12 @@ module pymr_model
   use pymr_integrator_ode, only : partitioned_system
   use pymr_clock, only : thread_cpu_time
   use pymr_model_types, only : model_data, effect_gravity, effect_joint_drives, effect_modal_damping, &
-    & effect_joint_springs, effect_geometric_stiffening, effect_base_motion
+    & effect_joint_springs, effect_geometric_stiffening, effect_base_motion, effect_firing_load
   use pymr_model_kinematics, only : forward_kinematics
   use pymr_model_assembly, only : body_terms, composite_terms, assemble_mass, assemble_rhs, kinetic_energy
   use pymr_model_effects, only : add_gravity, add_joint_drives, add_modal_damping, gravity_potential, &
     & elastic_potential, add_joint_springs, spring_potential, add_geometric_stiffening, impose_prescribed_state, &
-    & prescribe_rows
+    & prescribe_rows, add_firing_load
   implicit none
   private
   public :: model_t
@@ -120,6 +120,7 @@ contains
       case (effect_joint_springs); if (.not. fast_only) call add_joint_springs(d, q, qd)
       case (effect_modal_damping); call add_modal_damping(d, qd, mask)
       case (effect_geometric_stiffening); call add_geometric_stiffening(d, q, mask)
+      case (effect_firing_load); call add_firing_load(d, t, q, qd, mask)
       case default; cycle
       end select
       if (timed) then

@@ -4,7 +4,7 @@ module pymr_model_scene
   implicit none
   private
   public :: scene_t, body_spec, joint_spec, drive_spec, marker_spec, integrator_spec, effects_spec
-  public :: spring_spec, motion_spec, max_modes_input
+  public :: spring_spec, motion_spec, load_spec, max_modes_input
   public :: joint_ndof, unset
 
   !> Marker for "item not given" in real-valued namelist items.
@@ -39,6 +39,8 @@ module pymr_model_scene
     logical :: joint_springs = .false.
     logical :: geometric_stiffening = .false.
     logical :: base_motion = .false.
+    logical :: firing_load = .false.
+    logical :: given_firing_load = .false.
     logical :: given_joint_drives = .false., given_modal_damping = .false., given_joint_springs = .false.
     logical :: given_base_motion = .false.
   end type effects_spec
@@ -108,6 +110,17 @@ module pymr_model_scene
     integer :: line = 0
   end type motion_spec
 
+  !> One &load group: a force at a marker along `direction` (body frame of the marker's
+  !> body), of magnitude peak sin(pi (t - start)/duration) for start <= t <= start + duration
+  !> (form 'pulse'), zero outside.
+  type :: load_spec
+    character(len=name_len) :: marker = ''
+    real(dp) :: direction(3) = 0.0_dp
+    character(len=16) :: form = 'pulse'
+    real(dp) :: peak = 0.0_dp, start = 0.0_dp, duration = unset
+    integer :: line = 0
+  end type load_spec
+
   !> One &marker group: a point of a body whose motion is written out.
   type :: marker_spec
     character(len=name_len) :: name = '', body = ''
@@ -129,6 +142,7 @@ module pymr_model_scene
     type(drive_spec), allocatable :: drives(:)
     type(spring_spec), allocatable :: springs(:)
     type(motion_spec), allocatable :: motions(:)
+    type(load_spec), allocatable :: loads(:)
     type(marker_spec), allocatable :: markers(:)
     !> CSV output file and output interval (s; 0 = every slow step).
     character(len=512) :: output_file = ''
