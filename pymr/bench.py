@@ -15,18 +15,18 @@ from .scenes import spatial_chain
 
 
 def time_evaluation(scene: str, q: np.ndarray, qd: np.ndarray, repeats: int = 7,
-                    min_time: float = 0.05, overrides: str = "") -> float:
+                    min_time: float = 0.05) -> float:
     """Median CPU seconds of one model evaluation (kinematics, assembly, Cholesky solve)."""
     reps = 1
     while True:
-        sec, stat, msg = _core.pymr_time_evaluation(scene, overrides, q, qd, reps)
+        sec, stat, msg = _core.pymr_time_evaluation(scene, "", q, qd, reps)
         _raise(stat, msg)
         if sec * reps >= min_time or reps >= 1 << 20:
             break
         reps *= 4
     samples = []
     for _ in range(repeats):
-        sec, stat, msg = _core.pymr_time_evaluation(scene, overrides, q, qd, reps)
+        sec, stat, msg = _core.pymr_time_evaluation(scene, "", q, qd, reps)
         _raise(stat, msg)
         samples.append(sec)
     return statistics.median(samples)

@@ -23,9 +23,8 @@ module pymr_io_modal_file
 contains
 
   !> Read a modal file into invariants (fd) and nodes.
-  subroutine read_modal_file(path, zeta, fd, nodes, error)
+  subroutine read_modal_file(path, fd, nodes, error)
     character(len=*), intent(in) :: path
-    real(dp), intent(in) :: zeta
     type(flex_data), intent(out) :: fd
     type(modal_nodes), intent(out) :: nodes
     type(error_type), allocatable, intent(out) :: error
@@ -83,7 +82,6 @@ contains
     end if
     call flex_invariants(nodes%x, mp, nodes%psi, fd)
     fd%omega2 = (2.0_dp*pi*f)**2
-    fd%damp = 2.0_dp*zeta*2.0_dp*pi*f
 90  close(u)
   contains
     subroutine skip_comments()

@@ -7,8 +7,8 @@
 module pymr_io_namelist_input
   use pymr_kinds, only : dp, name_len
   use pymr_error, only : error_type, fatal_error
-  use pymr_model_scene, only : scene_t, body_spec, joint_spec, drive_spec, marker_spec, spring_spec, motion_spec, load_spec, unset, &
-    & max_modes_input
+  use pymr_model_scene, only : scene_t, body_spec, joint_spec, drive_spec, marker_spec, spring_spec, motion_spec, &
+    & load_spec, unset, max_modes_input
   use pymr_io_namelist_scan, only : group_scan, scan_file, check_items, itoa, lower
   implicit none
   private

@@ -93,8 +93,6 @@ contains
     class(csv_writer), intent(inout) :: self
     type(model_data), intent(inout) :: d
     real(dp), intent(in) :: t, q(:), qd(:)
-    integer :: i, k, b0, pos
-    real(dp) :: r(3), v(3)
     if (d%n_prescribed > 0) then
       ! prescribed coordinates are written (and move the markers) exactly as their functions
       call impose_prescribed_state(d, t, q, qd)

@@ -38,8 +38,8 @@ contains
   end subroutine hermite
 
   !> Build a beam: modes of each plane, mass points at the Gauss points, invariants.
-  subroutine build_beam(length, e, rho, area, iy, iz, ne, my, mz, zeta, what, fd, bs, error)
-    real(dp), intent(in) :: length, e, rho, area, iy, iz, zeta
+  subroutine build_beam(length, e, rho, area, iy, iz, ne, my, mz, what, fd, bs, error)
+    real(dp), intent(in) :: length, e, rho, area, iy, iz
     integer, intent(in) :: ne, my, mz
     !> Name of the body for messages.
     character(len=*), intent(in) :: what
@@ -74,7 +74,6 @@ contains
     end do
     call flex_invariants(s, mp, psi, fd)
     fd%omega2 = [lam_y, lam_z]
-    fd%damp = 2.0_dp*zeta*sqrt(max(fd%omega2, 0.0_dp))
     call beam_geometric_stiffness(bs, rho*area, fd%kg1, fd%kg2)
   end subroutine build_beam
 

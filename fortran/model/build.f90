@@ -338,22 +338,11 @@ contains
   subroutine check_loads_markers(sc, error)
     type(scene_t), intent(in) :: sc
     type(error_type), allocatable, intent(out) :: error
-    integer :: i, j, k, nd
+    integer :: i, j, k
     character(len=:), allocatable :: w
     do i = 1, size(sc%drives)
       w = sc%file // ': &drive #' // itoa(i) // ' (line ' // itoa(sc%drives(i)%line) // ')'
-      k = 0
-      do j = 1, size(sc%joints)
-        if (sc%joints(j)%name == sc%drives(i)%joint) k = j
-      end do
-      if (k == 0) then
-        call fatal_error(error, w // ": joint: no &joint named '" // trim(sc%drives(i)%joint) // "'"); return
-      end if
-      nd = joint_ndof(sc%joints(k)%kind)
-      if (sc%drives(i)%coordinate < 1 .or. sc%drives(i)%coordinate > nd) then
-        call fatal_error(error, w // ': coordinate: joint ''' // trim(sc%joints(k)%name) // ''' has ' // itoa(nd) // &
-          & ' coordinates, got ' // itoa(sc%drives(i)%coordinate)); return
-      end if
+      call joint_coordinate(sc%drives(i)%joint, sc%drives(i)%coordinate, w, error); if (allocated(error)) return
       if (.not. sc%effects%joint_drives .and. .not. sc%effects%given_joint_drives) then
         call fatal_error(error, w // ': the scene gives drives but &effects joint_drives is not on: set ' // &
           & 'joint_drives = .true. in &effects (or .false. to ignore the drives on purpose)'); return
@@ -610,7 +599,7 @@ contains
         nmb = 0
         if (bs%kind == 'beam') nmb = bs%modes_y + bs%modes_z
         if (bs%kind == 'modal') then
-          call read_modal_file(relative_to(sc%file, trim(bs%modal_file)), 0.0_dp, mfd(b), mnd(b), error)
+          call read_modal_file(relative_to(sc%file, trim(bs%modal_file)), mfd(b), mnd(b), error)
           if (allocated(error)) then
             error%message = where_body(sc, order(b)) // ': modal_file: ' // error%message; return
           end if
@@ -723,7 +712,7 @@ contains
         area = bs%area; iy = bs%iy; iz = bs%iz
       end if
       call build_beam(bs%length, bs%youngs_modulus, bs%density, area, iy, iz, bs%n_elements, bs%modes_y, &
-        & bs%modes_z, 0.0_dp, "beam '" // trim(bs%name) // "'", d%flex(b), d%bshape(b), error)
+        & bs%modes_z, "beam '" // trim(bs%name) // "'", d%flex(b), d%bshape(b), error)
       if (allocated(error)) then
         error%message = where_body(sc, i) // ': ' // error%message; return
       end if
@@ -865,11 +854,7 @@ contains
     d%n_drives = size(sc%drives)
     allocate(d%drive_coord(d%n_drives), d%drive_par(4, d%n_drives))
     do i = 1, d%n_drives
-      do j = 1, size(sc%joints)
-        if (sc%joints(j)%name /= sc%drives(i)%joint) cycle
-        b = pos_in(body_index(sc, sc%joints(j)%child))
-        d%drive_coord(i) = d%c0(b) + sc%drives(i)%coordinate - 1
-      end do
+      d%drive_coord(i) = coordinate_index(sc%drives(i)%joint, sc%drives(i)%coordinate)
       d%drive_par(:, i) = [sc%drives(i)%offset, sc%drives(i)%amplitude, sc%drives(i)%frequency, sc%drives(i)%phase]
     end do
     d%n_markers = size(sc%markers)

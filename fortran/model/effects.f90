@@ -139,7 +139,9 @@ contains
     real(dp), intent(in) :: q(:)
     logical, intent(in) :: only(:)
     integer :: b, m, k
-    real(dp) :: wb(3), pd(3), alv(3), gb(3), c1, c2
+    real(dp) :: wb(3), pd(3), alv(3), gb(3), g(3), c1, c2
+    g = 0.0_dp
+    if (d%effect_on(effect_gravity)) g = d%gravity
     do b = 2, d%nb
       if (.not. allocated(d%flex(b)%kg1) .or. .not. only(b)) cycle
       m = d%nm(b)
@@ -147,8 +149,7 @@ contains
         wb = matmul(transpose(rot), vel(4:6))
         pd = vel(1:3) + cross(vel(4:6), pos)
         alv = matmul(transpose(rot), acc(1:3) + cross(acc(4:6), pos) + cross(vel(4:6), pd))
-        gb = 0.0_dp
-        if (d%effect_on(effect_gravity)) gb = matmul(transpose(rot), d%gravity)
+        gb = matmul(transpose(rot), g)
       end associate
       c1 = gb(1) - alv(1)
       c2 = wb(2)**2 + wb(3)**2
