@@ -139,6 +139,8 @@ EFFECT_VARIANTS = [
     # a pulse at its peak at t = 0, when the evaluation is timed
     ("firing_load", "firing_load = .true.",
      "&load marker = 'muzzle', direction = -1.0, 0.0, 0.0, peak = 1.0e6, start = -0.5, duration = 1.0 /\n", ""),
+    # the default fidelity 'full' against 'linear' (the baseline of the other cases)
+    ("deformation_inertia", "deformation_inertia = 'full'", "", ""),
 ]
 
 
@@ -158,9 +160,14 @@ def bench_effects(repeats: int = 7) -> list[dict]:
     rng = np.random.default_rng(1)
     rows = []
     with tempfile.TemporaryDirectory(prefix="pymr-effects-") as tmp:
-        off = ("joint_drives = .false., gravity = .false.", "", "")
-        cases = [("none",) + off] + [(e, items + ", joint_drives = .false." if e != "joint_drives" else items,
-                                      groups, over) for e, items, groups, over in EFFECT_VARIANTS]
+        off = {"joint_drives": ".false.", "gravity": ".false.", "deformation_inertia": "'linear'"}
+
+        def alone(effect: str, items: str) -> str:
+            """The effect's items with every other effect of the default scene off."""
+            return ", ".join([items] + [f"{k} = {v}" for k, v in off.items() if k != effect])
+
+        cases = [("none", alone("", "")[2:], "", "")] + [
+            (e, alone(e, items), groups, over) for e, items, groups, over in EFFECT_VARIANTS]
         every = ", ".join(items for _, items, _, _ in EFFECT_VARIANTS)
         cases.append(("all", every, "".join(g for _, _, g, _ in EFFECT_VARIANTS),
                       ";".join(o for _, _, _, o in EFFECT_VARIANTS if o)))

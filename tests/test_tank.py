@@ -123,4 +123,4 @@ def test_mrsim_writes_muzzle_motion(tmp_path, mrsim):
     assert pos[0] == pytest.approx([6.8, 1.7, 0.0], abs=1e-12)
     assert np.abs(vel[0]).max() == 0.0
     assert res.stats["rhs_full"] > 0 and res.stats["steps_slow"] == 500
-    assert set(res.stats["effects"]) == {"gravity", "joint_drives"}
+    assert set(res.stats["effects"]) == {"gravity", "joint_drives", "deformation_inertia"}

@@ -26,8 +26,8 @@ module pymr_io_namelist_input
   character(len=*), parameter :: items_scene(3) = [character(len=16) :: 'title', 't_end', 'gravity']
   character(len=*), parameter :: items_integrator(10) = [character(len=16) :: 'method', 'h_fast', 'h_slow', &
     & 'adaptive', 'rtol', 'atol', 'h_min', 'h_max', 'n_corrector', 'coupling']
-  character(len=*), parameter :: items_effects(7) = [character(len=20) :: 'gravity', 'joint_drives', &
-    & 'modal_damping', 'joint_springs', 'geometric_stiffening', 'base_motion', 'firing_load']
+  character(len=*), parameter :: items_effects(8) = [character(len=20) :: 'gravity', 'joint_drives', &
+    & 'modal_damping', 'joint_springs', 'geometric_stiffening', 'base_motion', 'firing_load', 'deformation_inertia']
   character(len=*), parameter :: items_body(20) = [character(len=16) :: 'name', 'kind', 'mass', 'com', 'inertia', &
     & 'length', 'youngs_modulus', 'density', 'r_outer', 'r_inner', 'area', 'iy', 'iz', 'n_elements', 'modes_y', &
     & 'modes_z', 'modal_damping', 'rayleigh_alpha', 'rayleigh_beta', 'modal_file']
@@ -358,10 +358,12 @@ contains
     type(scene_t), intent(inout) :: sc
     type(error_type), allocatable, intent(out) :: error
     logical :: gravity, joint_drives, modal_damping, joint_springs, geometric_stiffening, base_motion, firing_load
+    character(len=16) :: deformation_inertia
     integer :: ios, i
     character(len=256) :: msg
     namelist /effects/ gravity, joint_drives, modal_damping, joint_springs, geometric_stiffening, base_motion, &
-      & firing_load
+      & firing_load, deformation_inertia
+    deformation_inertia = sc%effects%deformation_inertia
     gravity = sc%effects%gravity; joint_drives = sc%effects%joint_drives
     modal_damping = sc%effects%modal_damping; joint_springs = sc%effects%joint_springs
     geometric_stiffening = sc%effects%geometric_stiffening; base_motion = sc%effects%base_motion
@@ -385,6 +387,7 @@ contains
     sc%effects%modal_damping = modal_damping; sc%effects%joint_springs = joint_springs
     sc%effects%geometric_stiffening = geometric_stiffening; sc%effects%base_motion = base_motion
     sc%effects%firing_load = firing_load
+    sc%effects%deformation_inertia = lower(deformation_inertia)
     sc%effects%given_firing_load = effect_given('firing_load')
     sc%effects%given_joint_drives = effect_given('joint_drives')
     sc%effects%given_modal_damping = effect_given('modal_damping')

@@ -7,7 +7,7 @@
 !> the base, with f_k the spatial momentum of k's motion. P_k = tau_k - column_k . Wc.
 module pymr_model_assembly
   use pymr_kinds, only : dp
-  use pymr_model_types, only : model_data
+  use pymr_model_types, only : model_data, effect_deformation_inertia
   use pymr_model_spatial, only : force_cross, rigid_inertia
   use pymr_model_flexbody, only : flex_body_terms
   implicit none
@@ -37,7 +37,7 @@ contains
         m = d%nm(b)
         call flex_body_terms(d%flex(b), d%fwork(b), d%rot(:, :, b), d%pos(:, b), d%vel(:, b), d%acc(:, b), &
           & q(d%a0(b):d%a0(b) + m - 1), qd(d%a0(b):d%a0(b) + m - 1), d%i6(:, :, b), d%mva(:, 1:m, b), &
-          & d%w(:, b), d%wam(1:m, b), modal_only)
+          & d%w(:, b), d%wam(1:m, b), modal_only, d%effect_on(effect_deformation_inertia))
         cycle
       end if
       c = d%pos(:, b) + matmul(d%rot(:, :, b), d%com(:, b))

@@ -6,11 +6,11 @@ module pymr_model_build
   use pymr_model_scene, only : scene_t, body_spec, joint_spec, joint_ndof, unset
   use pymr_model_types, only : model_data, prim_revolute, prim_prismatic, effect_gravity, effect_joint_drives, &
     & effect_modal_damping, effect_joint_springs, effect_geometric_stiffening, effect_base_motion, n_effects, &
-    & effect_firing_load, &
+    & effect_firing_load, effect_deformation_inertia, &
     & motion_sine, motion_spinup
   use pymr_model_beam_modes, only : build_beam, beam_point_shapes
   use pymr_io_modal_file, only : read_modal_file
-  use pymr_model_flexbody, only : flex_data, modal_nodes
+  use pymr_model_flexbody, only : flex_data, modal_nodes, undeformed_modal_moments
   use pymr_model_spatial, only : unit_axes
   use pymr_model, only : model_t
   use pymr_io_namelist_scan, only : itoa
@@ -89,6 +89,12 @@ contains
     if (.not. (sc%t_end > 0.0_dp)) then
       call fatal_error(error, sc%file // ': &scene: t_end: must be positive, got ' // fmt(sc%t_end)); return
     end if
+    select case (trim(sc%effects%deformation_inertia))
+    case ('full', 'linear')
+    case default
+      call fatal_error(error, sc%file // ": &effects: deformation_inertia: '" // trim(sc%effects%deformation_inertia) &
+        & // "' is not a fidelity ('full' or 'linear')"); return
+    end select
     associate(s => sc%integrator)
       select case (trim(s%method))
       case ('single', 'multirate')
@@ -818,6 +824,12 @@ contains
     d%effect_on(effect_geometric_stiffening) = sc%effects%geometric_stiffening
     d%effect_on(effect_base_motion) = sc%effects%base_motion .and. size(sc%motions) > 0
     d%effect_on(effect_firing_load) = sc%effects%firing_load .and. size(sc%loads) > 0
+    d%effect_on(effect_deformation_inertia) = sc%effects%deformation_inertia == 'full' .and. any(d%nm > 0)
+    if (.not. d%effect_on(effect_deformation_inertia)) then
+      do b = 2, d%nb
+        if (d%nm(b) > 0) call undeformed_modal_moments(d%flex(b), d%fwork(b))
+      end do
+    end if
     ! the plan: active effects in evaluation order (loads first; base motion last)
     d%n_plan = 0
     do i = 1, n_effects

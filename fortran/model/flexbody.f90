@@ -13,6 +13,7 @@ module pymr_model_flexbody
   implicit none
   private
   public :: flex_data, flex_invariants, flex_body_terms, flex_work, small_rotation, point_shapes, modal_nodes
+  public :: deformed_modal_moments, undeformed_modal_moments
 
   !> Invariants and modal properties of one flexible body.
   type :: flex_data
@@ -109,7 +110,7 @@ contains
   !> mva (6 x m, coupling of frame motion and modal rates), and the bias terms
   !> wv (6, spatial wrench) and wam (m): inertia forces at zero joint and modal
   !> accelerations plus the elastic forces omega^2 a. Gravity and damping are effects.
-  pure subroutine flex_body_terms(fd, wk, rot, pos, vel, acc, a, ad, i6, mva, wv, wam, modal_only)
+  pure subroutine flex_body_terms(fd, wk, rot, pos, vel, acc, a, ad, i6, mva, wv, wam, modal_only, full_inertia)
     type(flex_data), intent(in) :: fd
     type(flex_work), intent(inout) :: wk
     real(dp), intent(in) :: rot(3, 3), pos(3), vel(6), acc(6), a(:), ad(:)
@@ -117,26 +118,23 @@ contains
     real(dp), intent(out) :: mva(:, :), wam(:)
     !> Only the modal rows' terms (mva, wam): i6 and wv are left as they were.
     logical, intent(in) :: modal_only
+    !> deformation_inertia 'full': the modal gyroscopic forces of Cr's deformed part
+    !> (dropped with 'linear', whose Cr is constant).
+    logical, intent(in) :: full_inertia
     integer :: m, k, l, al, be
     real(dp) :: ah(0:size(a)), d(3), jc(3, 3), cm(3, 3), pd(3), wb(3), alv(3), alw(3)
     real(dp) :: f(3), n(3), psiad(3), tr, tmp(3)
     m = fd%m
     ah(0) = 1.0_dp; ah(1:m) = a
-    ! Wa(i,j,beta) = sum_alpha ah(alpha) W(i,alpha,j,beta); S = F ah; C = sum m c c^T
-    do be = 0, m
-      wk%wa(:, :, be) = fd%w(:, :, 0, be)
-      do al = 1, m
-        wk%wa(:, :, be) = wk%wa(:, :, be) + ah(al)*fd%w(:, :, al, be)
-      end do
+    ! Wa(:,:,0) = sum m c s^T and S = F ah (Wa(:,:,1:m) and Cr come from the
+    ! deformation_inertia routines: deformed, or fixed at their undeformed values)
+    wk%wa(:, :, 0) = fd%w(:, :, 0, 0)
+    do al = 1, m
+      wk%wa(:, :, 0) = wk%wa(:, :, 0) + ah(al)*fd%w(:, :, al, 0)
     end do
     wk%s = fd%first(:, 0)
     do al = 1, m
       wk%s = wk%s + ah(al)*fd%first(:, al)
-    end do
-    ! Cr(:,k) = sum m_p c_p x Psi_p(:,k)
-    do k = 1, m
-      wk%cr(:, k) = [wk%wa(2, 3, k) - wk%wa(3, 2, k), wk%wa(3, 1, k) - wk%wa(1, 3, k), &
-        & wk%wa(1, 2, k) - wk%wa(2, 1, k)]
     end do
     if (.not. modal_only) then
       cm = 0.0_dp
@@ -181,10 +179,12 @@ contains
       tr = wk%wa(1, 1, k) + wk%wa(2, 2, k) + wk%wa(3, 3, k)
       wam(k) = dot_product(fd%first(:, k), alv) + dot_product(wk%cr(:, k), alw) &
         & + quad_form(wk%wa(:, :, k), wb) - dot_product(wb, wb)*tr
-      do l = 1, m
-        ! 2 sum_p m_p Psi_k . (w x Psi_l) ad_l
-        wam(k) = wam(k) + 2.0_dp*ad(l)*dot_product(wb, fd%gyro(:, l, k))
-      end do
+      if (full_inertia) then
+        do l = 1, m
+          ! 2 sum_p m_p Psi_k . (w x Psi_l) ad_l
+          wam(k) = wam(k) + 2.0_dp*ad(l)*dot_product(wb, fd%gyro(:, l, k))
+        end do
+      end if
       wam(k) = wam(k) + fd%omega2(k)*a(k)
     end do
   contains
@@ -196,6 +196,46 @@ contains
         & + v(3)*(a3(3, 1)*v(1) + a3(3, 2)*v(2) + a3(3, 3)*v(3))
     end function quad_form
   end subroutine flex_body_terms
+
+  !> deformation_inertia 'full': the deformed parts of the second moments,
+  !> Wa(:,:,k) = sum_p m_p c_p Psi_p(:,k)^T (k = 1..m) with c_p = s_p + Psi_p a, and the
+  !> rotational-modal coupling Cr(:,k) = sum_p m_p c_p x Psi_p(:,k). With them the body's
+  !> inertia J(a) is exact (quadratic in a) and Cr(a) linear in a.
+  pure subroutine deformed_modal_moments(fd, wk, a)
+    type(flex_data), intent(in) :: fd
+    type(flex_work), intent(inout) :: wk
+    real(dp), intent(in) :: a(:)
+    integer :: al, be
+    do be = 1, fd%m
+      wk%wa(:, :, be) = fd%w(:, :, 0, be)
+      do al = 1, fd%m
+        wk%wa(:, :, be) = wk%wa(:, :, be) + a(al)*fd%w(:, :, al, be)
+      end do
+    end do
+    call coupling_from_moments(fd%m, wk)
+  end subroutine deformed_modal_moments
+
+  !> deformation_inertia 'linear': Wa(:,:,k) = sum_p m_p s_p Psi_p(:,k)^T and Cr = Cr(0),
+  !> set once. The inertia J(a) keeps its terms of first order in a; the dropped ones
+  !> (sum m |w x Psi a|^2 / 2 + sum m (w x Psi a) . Psi ad in the kinetic energy) are of
+  !> second order in the deformation, so the equations stay those of a kinetic energy.
+  pure subroutine undeformed_modal_moments(fd, wk)
+    type(flex_data), intent(in) :: fd
+    type(flex_work), intent(inout) :: wk
+    wk%wa(:, :, 1:fd%m) = fd%w(:, :, 0, 1:fd%m)
+    call coupling_from_moments(fd%m, wk)
+  end subroutine undeformed_modal_moments
+
+  !> Cr(:,k) = axial vector of Wa(:,:,k) - Wa(:,:,k)^T = sum m_p c_p x Psi_p(:,k).
+  pure subroutine coupling_from_moments(m, wk)
+    integer, intent(in) :: m
+    type(flex_work), intent(inout) :: wk
+    integer :: k
+    do k = 1, m
+      wk%cr(:, k) = [wk%wa(2, 3, k) - wk%wa(3, 2, k), wk%wa(3, 1, k) - wk%wa(1, 3, k), &
+        & wk%wa(1, 2, k) - wk%wa(2, 1, k)]
+    end do
+  end subroutine coupling_from_moments
 
   !> Small rotation of an attachment: R = exp(theta~) (Rodrigues), the left Jacobian
   !> jl (angular velocity = jl theta_dot) and jd = d(jl)/dt theta_dot.

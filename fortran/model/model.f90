@@ -6,8 +6,10 @@ module pymr_model
   use pymr_integrator_ode, only : partitioned_system
   use pymr_clock, only : thread_cpu_time
   use pymr_model_types, only : model_data, effect_gravity, effect_joint_drives, effect_modal_damping, &
-    & effect_joint_springs, effect_geometric_stiffening, effect_base_motion, effect_firing_load
+    & effect_joint_springs, effect_geometric_stiffening, effect_base_motion, effect_firing_load, &
+    & effect_deformation_inertia
   use pymr_model_kinematics, only : forward_kinematics
+  use pymr_model_flexbody, only : deformed_modal_moments
   use pymr_model_assembly, only : body_terms, composite_terms, assemble_mass, assemble_rhs, kinetic_energy
   use pymr_model_effects, only : add_gravity, add_joint_drives, add_modal_damping, gravity_potential, &
     & elastic_potential, add_joint_springs, spring_potential, add_geometric_stiffening, impose_prescribed_state, &
@@ -81,6 +83,7 @@ contains
     logical, intent(in) :: fo
     call forward_kinematics(d, q, qd)
     if (fo) then
+      if (d%effect_on(effect_deformation_inertia)) call timed_deformation(d, q, d%in_fast)
       call body_terms(d, q, qd, d%in_fast)
       call apply_effects(d, t, q, qd, d%in_fast, .true.)
       call composite_terms(d, d%in_fast)
@@ -88,6 +91,7 @@ contains
       call assemble_rhs(d, d%in_fast)
       d%evals_fast_rows = d%evals_fast_rows + 1
     else
+      if (d%effect_on(effect_deformation_inertia)) call timed_deformation(d, q, d%every)
       call body_terms(d, q, qd)
       d%tau = 0.0_dp
       call apply_effects(d, t, q, qd, d%every, .false.)
@@ -145,6 +149,37 @@ contains
       d%effect_timed(effect_base_motion) = d%effect_timed(effect_base_motion) + 1
     end if
   end subroutine timed_prescribe_rows
+
+  !> deformation_inertia 'full': the deformed modal moments of the flexible bodies in
+  !> `mask` (before body_terms), timed like the other effects.
+  subroutine timed_deformation(d, q, mask)
+    type(model_data), intent(inout) :: d
+    real(dp), intent(in) :: q(:)
+    logical, intent(in) :: mask(:)
+    logical :: timed
+    real(dp) :: c0
+    timed = mod(d%evals + d%evals_fast_rows, timing_interval) == 0
+    c0 = 0.0_dp
+    if (timed) c0 = thread_cpu_time()
+    call deform_moments(d, q, mask)
+    d%effect_evals(effect_deformation_inertia) = d%effect_evals(effect_deformation_inertia) + 1
+    if (timed) then
+      d%effect_cpu(effect_deformation_inertia) = d%effect_cpu(effect_deformation_inertia) + (thread_cpu_time() - c0)
+      d%effect_timed(effect_deformation_inertia) = d%effect_timed(effect_deformation_inertia) + 1
+    end if
+  end subroutine timed_deformation
+
+  !> The deformed modal moments of the flexible bodies in `mask`.
+  pure subroutine deform_moments(d, q, mask)
+    type(model_data), intent(inout) :: d
+    real(dp), intent(in) :: q(:)
+    logical, intent(in) :: mask(:)
+    integer :: b
+    do b = 2, d%nb
+      if (d%nm(b) == 0 .or. .not. mask(b)) cycle
+      call deformed_modal_moments(d%flex(b), d%fwork(b), q(d%a0(b):d%a0(b) + d%nm(b) - 1))
+    end do
+  end subroutine deform_moments
 
   !> Accelerations qdd from M qdd = P (LAPACK Cholesky).
   subroutine model_accelerations(self, t, q, qd, qdd, error)
@@ -207,6 +242,7 @@ contains
     real(dp), intent(in) :: q(:), qd(:)
     real(dp), intent(out) :: kinetic, potential
     call forward_kinematics(self%d, q, qd)
+    if (self%d%effect_on(effect_deformation_inertia)) call deform_moments(self%d, q, self%d%every)
     call body_terms(self%d, q, qd)
     kinetic = kinetic_energy(self%d, qd)
     potential = elastic_potential(self%d, q)

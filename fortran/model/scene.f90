@@ -40,6 +40,8 @@ module pymr_model_scene
     logical :: geometric_stiffening = .false.
     logical :: base_motion = .false.
     logical :: firing_load = .false.
+    !> Fidelity of the deformation-dependent inertia of flexible bodies: 'full' or 'linear'.
+    character(len=16) :: deformation_inertia = 'full'
     logical :: given_firing_load = .false.
     logical :: given_joint_drives = .false., given_modal_damping = .false., given_joint_springs = .false.
     logical :: given_base_motion = .false.

@@ -8,7 +8,8 @@ module pymr_model_types
   private
   public :: model_data, prim_revolute, prim_prismatic
   public :: effect_gravity, effect_joint_drives, effect_modal_damping, effect_joint_springs
-  public :: effect_geometric_stiffening, effect_base_motion, effect_firing_load, n_effects, effect_names
+  public :: effect_geometric_stiffening, effect_base_motion, effect_firing_load, effect_deformation_inertia
+  public :: n_effects, effect_names
   public :: motion_sine, motion_spinup
 
   !> Kinds of one-coordinate joint primitives: every joint is a chain of them.
@@ -17,9 +18,9 @@ module pymr_model_types
   !> Effect identifiers (index into counters and names).
   integer, parameter :: effect_gravity = 1, effect_joint_drives = 2, effect_modal_damping = 3, &
     & effect_joint_springs = 4, effect_geometric_stiffening = 5, effect_firing_load = 6, effect_base_motion = 7, &
-    & n_effects = 7
+    & effect_deformation_inertia = 8, n_effects = 8
   character(len=*), parameter :: effect_names(n_effects) = [character(len=20) :: 'gravity', 'joint_drives', &
-    & 'modal_damping', 'joint_springs', 'geometric_stiffening', 'firing_load', 'base_motion']
+    & 'modal_damping', 'joint_springs', 'geometric_stiffening', 'firing_load', 'base_motion', 'deformation_inertia']
 
   !> Forms of a prescribed coordinate's time function.
   integer, parameter :: motion_sine = 1, motion_spinup = 2
