@@ -5,7 +5,7 @@ module pymr_lapack
   use pymr_error, only : error_type, fatal_error, stat_solver
   implicit none
   private
-  public :: potrf, potrs, sygvd
+  public :: potrf, potrs, sygvd, ptsv
 
   !> Cholesky solve for one (vector) or several (matrix) right-hand sides.
   interface potrs
@@ -36,9 +36,31 @@ module pymr_lapack
       real(dp), intent(out) :: w(*), work(*)
       integer, intent(out) :: iwork(*), info
     end subroutine dsygvd
+    subroutine dptsv(n, nrhs, d, e, b, ldb, info)
+      import :: dp
+      integer, intent(in) :: n, nrhs, ldb
+      real(dp), intent(inout) :: d(*), e(*), b(ldb, *)
+      integer, intent(out) :: info
+    end subroutine dptsv
   end interface
 
 contains
+
+  !> Solve T x = b in place for the symmetric positive definite tridiagonal T with
+  !> diagonal `dg` and off-diagonal `e` (both overwritten by its factor).
+  subroutine ptsv(dg, e, b, what, error)
+    real(dp), intent(inout) :: dg(:), e(:)
+    real(dp), intent(inout), contiguous :: b(:)
+    character(len=*), intent(in) :: what
+    type(error_type), allocatable, intent(out) :: error
+    integer :: info
+    character(len=24) :: buf
+    if (size(dg) == 0) return
+    call dptsv(size(dg), 1, dg, e, b, size(b), info)
+    if (info == 0) return
+    write(buf, '(i0)') info
+    call fatal_error(error, 'dptsv failed for ' // what // ' (info ' // trim(buf) // ')', stat_solver)
+  end subroutine ptsv
 
   !> Cholesky factorisation (lower triangle) of the symmetric positive definite `a`.
   !> `what` names the matrix in the error message ("the mass matrix at t = 0.5 s").

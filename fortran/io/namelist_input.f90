@@ -33,12 +33,12 @@ module pymr_io_namelist_input
     & 'modes_z', 'modal_damping', 'rayleigh_alpha', 'rayleigh_beta', 'modal_file']
   character(len=*), parameter :: items_joint(8) = [character(len=16) :: 'name', 'kind', 'parent', 'child', &
     & 'at', 'axis', 'q0', 'qd0']
-  character(len=*), parameter :: items_drive(6) = [character(len=16) :: 'joint', 'coordinate', 'offset', &
-    & 'amplitude', 'frequency', 'phase']
+  character(len=*), parameter :: items_drive(8) = [character(len=16) :: 'joint', 'coordinate', 'form', &
+    & 'offset', 'amplitude', 'frequency', 'phase', 'file']
   character(len=*), parameter :: items_spring(5) = [character(len=16) :: 'joint', 'coordinate', 'stiffness', &
     & 'damping', 'free_position']
-  character(len=*), parameter :: items_motion(9) = [character(len=16) :: 'joint', 'coordinate', 'form', &
-    & 'offset', 'amplitude', 'frequency', 'phase', 'rate', 'ramp_time']
+  character(len=*), parameter :: items_motion(10) = [character(len=16) :: 'joint', 'coordinate', 'form', &
+    & 'offset', 'amplitude', 'frequency', 'phase', 'rate', 'ramp_time', 'file']
   character(len=*), parameter :: items_load(6) = [character(len=16) :: 'marker', 'direction', 'form', 'peak', &
     & 'start', 'duration']
   character(len=*), parameter :: items_marker(3) = [character(len=16) :: 'name', 'body', 'at']
@@ -525,29 +525,31 @@ contains
     end do
   end subroutine read_joints
 
-  subroutine read_drives(file, u, groups, ovs, sc, error)
-    character(len=*), intent(in) :: file
+  subroutine read_drives(path, u, groups, ovs, sc, error)
+    character(len=*), intent(in) :: path
     integer, intent(in) :: u
     type(group_scan), intent(in) :: groups(:)
     type(override_t), intent(inout) :: ovs(:)
     type(scene_t), intent(inout) :: sc
     type(error_type), allocatable, intent(out) :: error
     character(len=name_len) :: joint
+    character(len=16) :: form
+    character(len=512) :: file
     integer :: coordinate
     real(dp) :: offset, amplitude, frequency, phase
     integer :: ios, i, k, n
     character(len=256) :: msg
     type(drive_spec) :: d
-    namelist /drive/ joint, coordinate, offset, amplitude, frequency, phase
+    namelist /drive/ joint, coordinate, form, offset, amplitude, frequency, phase, file
     n = count(groups%name == 'drive')
     allocate(sc%drives(n))
     rewind(u)
     do k = 1, n
-      joint = d%joint; coordinate = d%coordinate; offset = d%offset; amplitude = d%amplitude
-      frequency = d%frequency; phase = d%phase
+      joint = d%joint; coordinate = d%coordinate; form = d%form; offset = d%offset; amplitude = d%amplitude
+      frequency = d%frequency; phase = d%phase; file = d%file
       read(u, nml=drive, iostat=ios, iomsg=msg)
       if (ios /= 0) then
-        call read_failed(file, 'drive', groups, k, msg, error); return
+        call read_failed(path, 'drive', groups, k, msg, error); return
       end if
       do i = 1, size(ovs)
         if (ovs(i)%group /= 'drive' .or. ovs(i)%sel /= joint) cycle
@@ -557,8 +559,8 @@ contains
         end if
         ovs(i)%used = .true.
       end do
-      sc%drives(k) = drive_spec(joint=joint, coordinate=coordinate, offset=offset, amplitude=amplitude, &
-        & frequency=frequency, phase=phase, line=group_line(groups, 'drive', k))
+      sc%drives(k) = drive_spec(joint=joint, coordinate=coordinate, form=lower(form), offset=offset, &
+        & amplitude=amplitude, frequency=frequency, phase=phase, file=file, line=group_line(groups, 'drive', k))
     end do
   end subroutine read_drives
 
@@ -599,8 +601,8 @@ contains
     end do
   end subroutine read_springs
 
-  subroutine read_motions(file, u, groups, ovs, sc, error)
-    character(len=*), intent(in) :: file
+  subroutine read_motions(path, u, groups, ovs, sc, error)
+    character(len=*), intent(in) :: path
     integer, intent(in) :: u
     type(group_scan), intent(in) :: groups(:)
     type(override_t), intent(inout) :: ovs(:)
@@ -608,21 +610,22 @@ contains
     type(error_type), allocatable, intent(out) :: error
     character(len=name_len) :: joint
     character(len=16) :: form
+    character(len=512) :: file
     integer :: coordinate
     real(dp) :: offset, amplitude, frequency, phase, rate, ramp_time
     integer :: ios, i, k, n
     character(len=256) :: msg
     type(motion_spec) :: d
-    namelist /motion/ joint, coordinate, form, offset, amplitude, frequency, phase, rate, ramp_time
+    namelist /motion/ joint, coordinate, form, offset, amplitude, frequency, phase, rate, ramp_time, file
     n = count(groups%name == 'motion')
     allocate(sc%motions(n))
     rewind(u)
     do k = 1, n
       joint = d%joint; coordinate = d%coordinate; form = d%form; offset = d%offset; amplitude = d%amplitude
-      frequency = d%frequency; phase = d%phase; rate = d%rate; ramp_time = d%ramp_time
+      frequency = d%frequency; phase = d%phase; rate = d%rate; ramp_time = d%ramp_time; file = d%file
       read(u, nml=motion, iostat=ios, iomsg=msg)
       if (ios /= 0) then
-        call read_failed(file, 'motion', groups, k, msg, error); return
+        call read_failed(path, 'motion', groups, k, msg, error); return
       end if
       do i = 1, size(ovs)
         if (ovs(i)%group /= 'motion' .or. ovs(i)%sel /= joint) cycle
@@ -633,7 +636,7 @@ contains
         ovs(i)%used = .true.
       end do
       sc%motions(k) = motion_spec(joint=joint, coordinate=coordinate, form=lower(form), offset=offset, &
-        & amplitude=amplitude, frequency=frequency, phase=phase, rate=rate, ramp_time=ramp_time, &
+        & amplitude=amplitude, frequency=frequency, phase=phase, rate=rate, ramp_time=ramp_time, file=file, &
         & line=group_line(groups, 'motion', k))
     end do
   end subroutine read_motions

@@ -2,11 +2,11 @@
 !> names and on which line. It lets the reader report unknown groups and unknown items
 !> by name and line before gfortran's namelist read sees them.
 module pymr_io_namelist_scan
-  use pymr_kinds, only : name_len
+  use pymr_kinds, only : dp, name_len
   use pymr_error, only : error_type, fatal_error
   implicit none
   private
-  public :: group_scan, scan_file, scan_text, check_items, itoa, lower
+  public :: group_scan, scan_file, scan_text, check_items, itoa, lower, fmt
 
   !> One group occurrence in the file.
   type :: group_scan
@@ -201,4 +201,13 @@ contains
       if (c >= iachar('A') .and. c <= iachar('Z')) r(i:i) = achar(c + 32)
     end do
   end function lower
+
+  !> A real for messages, 6 significant digits.
+  function fmt(x) result(s)
+    real(dp), intent(in) :: x
+    character(len=:), allocatable :: s
+    character(len=32) :: buf
+    write(buf, '(g0.6)') x
+    s = trim(adjustl(buf))
+  end function fmt
 end module pymr_io_namelist_scan

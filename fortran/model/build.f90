@@ -7,13 +7,15 @@ module pymr_model_build
   use pymr_model_types, only : model_data, prim_revolute, prim_prismatic, effect_gravity, effect_joint_drives, &
     & effect_modal_damping, effect_joint_springs, effect_geometric_stiffening, effect_base_motion, n_effects, &
     & effect_firing_load, effect_deformation_inertia, &
-    & motion_sine, motion_spinup
+    & motion_sine, motion_spinup, motion_table
+  use pymr_model_time_table, only : spline_setup
+  use pymr_io_table_file, only : read_time_table
   use pymr_model_beam_modes, only : build_beam, beam_point_shapes
   use pymr_io_modal_file, only : read_modal_file
   use pymr_model_flexbody, only : flex_data, modal_nodes, undeformed_modal_moments
   use pymr_model_spatial, only : unit_axes
   use pymr_model, only : model_t
-  use pymr_io_namelist_scan, only : itoa
+  use pymr_io_namelist_scan, only : itoa, fmt
   implicit none
   private
   public :: build_model, check_scene
@@ -46,13 +48,6 @@ contains
     s = sc%file // ': &joint ''' // trim(sc%joints(i)%name) // ''' (line ' // itoa(sc%joints(i)%line) // ')'
   end function where_joint
 
-  function fmt(x) result(s)
-    real(dp), intent(in) :: x
-    character(len=:), allocatable :: s
-    character(len=32) :: buf
-    write(buf, '(g0.6)') x
-    s = trim(adjustl(buf))
-  end function fmt
 
   !> Index of the body called `name`, 0 if none.
   integer function body_index(sc, name)
@@ -349,6 +344,14 @@ contains
     do i = 1, size(sc%drives)
       w = sc%file // ': &drive #' // itoa(i) // ' (line ' // itoa(sc%drives(i)%line) // ')'
       call joint_coordinate(sc%drives(i)%joint, sc%drives(i)%coordinate, w, error); if (allocated(error)) return
+      associate(dr => sc%drives(i))
+        if (dr%form /= 'sine' .and. dr%form /= 'table') then
+          call fatal_error(error, w // ": form: '" // trim(dr%form) // "' is not a drive form ('sine' or 'table')")
+          return
+        end if
+        call check_table_form(w, dr%form, dr%file, [dr%amplitude, dr%frequency, dr%phase], error)
+        if (allocated(error)) return
+      end associate
       if (.not. sc%effects%joint_drives .and. .not. sc%effects%given_joint_drives) then
         call fatal_error(error, w // ': the scene gives drives but &effects joint_drives is not on: set ' // &
           & 'joint_drives = .true. in &effects (or .false. to ignore the drives on purpose)'); return
@@ -377,7 +380,12 @@ contains
             & trim(sc%motions(i)%joint) // "' is already prescribed by &motion #" // itoa(j)); return
         end if
       end do
+      associate(mo => sc%motions(i))
+        call check_table_form(w, mo%form, mo%file, [mo%amplitude, mo%frequency, mo%phase], error)
+        if (allocated(error)) return
+      end associate
       select case (trim(sc%motions(i)%form))
+      case ('table')
       case ('sine')
         if (sc%motions(i)%frequency < 0.0_dp) then
           call fatal_error(error, w // ': frequency: must be >= 0 Hz, got ' // fmt(sc%motions(i)%frequency)); return
@@ -391,7 +399,7 @@ contains
         end if
       case default
         call fatal_error(error, w // ": form: '" // trim(sc%motions(i)%form) // "' is not a motion form " // &
-          & "('sine' or 'spinup')"); return
+          & "('sine', 'spinup' or 'table')"); return
       end select
       if (.not. sc%effects%base_motion .and. .not. sc%effects%given_base_motion) then
         call fatal_error(error, w // ': the scene prescribes motion but &effects base_motion is not on: set ' // &
@@ -479,6 +487,30 @@ contains
       end if
     end subroutine joint_coordinate
   end subroutine check_loads_markers
+
+  !> A group's form 'table' needs a file and no sine items; other forms take no file.
+  !> `w` names the group; `sine_items` are its amplitude, frequency and phase.
+  subroutine check_table_form(w, form, file, sine_items, error)
+    character(len=*), intent(in) :: w, form, file
+    real(dp), intent(in) :: sine_items(3)
+    type(error_type), allocatable, intent(out) :: error
+    character(len=*), parameter :: names(3) = [character(len=9) :: 'amplitude', 'frequency', 'phase']
+    integer :: k
+    if (trim(form) == 'table') then
+      if (len_trim(file) == 0) then
+        call fatal_error(error, w // ": file: missing (form 'table' reads the history from a file of " // &
+          & "'time value' lines)"); return
+      end if
+      do k = 1, 3
+        if (sine_items(k) /= 0.0_dp) then
+          call fatal_error(error, w // ': ' // trim(names(k)) // ": not used by form 'table' (the file gives " // &
+            & 'the history; offset adds a constant)'); return
+        end if
+      end do
+    else if (len_trim(file) > 0) then
+      call fatal_error(error, w // ": file: only form 'table' reads a file (form is '" // trim(form) // "')"); return
+    end if
+  end subroutine check_table_form
 
   !> Modal damping of body i: fractions in [0, 1) given contiguously from the first mode;
   !> Rayleigh coefficients >= 0.
@@ -851,10 +883,35 @@ contains
     if (d%effect_on(effect_base_motion)) d%n_prescribed = size(sc%motions)
     allocate(d%pres_coord(d%n_prescribed), d%pres_form(d%n_prescribed), d%pres_par(6, d%n_prescribed), &
       & d%qx(d%n), d%qdx(d%n))
+    ! tables: one per tabulated drive or motion, read and (motions) splined once
+    allocate(d%tables(count(sc%drives%form == 'table') + count(sc%motions%form == 'table')), &
+      & d%drive_table(size(sc%drives)), d%pres_table(d%n_prescribed))
+    d%drive_table = 0; d%pres_table = 0
+    j = 0
+    do i = 1, size(sc%drives)
+      if (sc%drives(i)%form /= 'table' .or. .not. d%effect_on(effect_joint_drives)) cycle
+      j = j + 1
+      d%drive_table(i) = j
+      call read_time_table(relative_to(sc%file, trim(sc%drives(i)%file)), sc%file // ': &drive #' // itoa(i) // &
+        & ' (line ' // itoa(sc%drives(i)%line) // '): file', d%tables(j)%t, d%tables(j)%y, error)
+      if (allocated(error)) return
+    end do
+    do i = 1, d%n_prescribed
+      if (sc%motions(i)%form /= 'table') cycle
+      j = j + 1
+      d%pres_table(i) = j
+      associate(w => sc%file // ': &motion #' // itoa(i) // ' (line ' // itoa(sc%motions(i)%line) // '): file')
+        call read_time_table(relative_to(sc%file, trim(sc%motions(i)%file)), w, d%tables(j)%t, d%tables(j)%y, error)
+        if (allocated(error)) return
+        call spline_setup(d%tables(j), w, error); if (allocated(error)) return
+      end associate
+    end do
     do i = 1, d%n_prescribed
       associate(mo => sc%motions(i))
         d%pres_coord(i) = coordinate_index(mo%joint, mo%coordinate)
-        d%pres_form(i) = merge(motion_spinup, motion_sine, mo%form == 'spinup')
+        d%pres_form(i) = motion_sine
+        if (mo%form == 'spinup') d%pres_form(i) = motion_spinup
+        if (mo%form == 'table') d%pres_form(i) = motion_table
         d%pres_par(:, i) = [mo%offset, mo%amplitude, mo%frequency, mo%phase, mo%rate, mo%ramp_time]
       end associate
     end do

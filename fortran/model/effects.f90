@@ -3,7 +3,9 @@
 module pymr_model_effects
   use pymr_kinds, only : dp, pi
   use pymr_model_types, only : model_data, effect_gravity, effect_joint_drives, effect_modal_damping, &
-    & effect_joint_springs, effect_geometric_stiffening, effect_base_motion, effect_firing_load, motion_spinup
+    & effect_joint_springs, effect_geometric_stiffening, effect_base_motion, effect_firing_load, motion_spinup, &
+    & motion_table
+  use pymr_model_time_table, only : table_linear, table_spline
   use pymr_model_spatial, only : cross
   use pymr_model_kinematics, only : marker_motion
   implicit none
@@ -49,14 +51,21 @@ contains
     d%effect_evals(effect_gravity) = d%effect_evals(effect_gravity) + 1
   end subroutine add_gravity
 
-  !> Add the drive loads offset + amplitude sin(2 pi f t + phase) to the generalised forces.
+  !> Add the drive loads to the generalised forces: offset + amplitude sin(2 pi f t + phase),
+  !> or offset + the drive's table interpolated linearly at t.
   pure subroutine add_joint_drives(d, t)
     type(model_data), intent(inout) :: d
     real(dp), intent(in) :: t
     integer :: i
+    real(dp) :: f
     do i = 1, d%n_drives
       associate(p => d%drive_par(:, i))
-        d%tau(d%drive_coord(i)) = d%tau(d%drive_coord(i)) + p(1) + p(2)*sin(2.0_dp*pi*p(3)*t + p(4))
+        if (d%drive_table(i) > 0) then
+          f = p(1) + table_linear(d%tables(d%drive_table(i)), t)
+        else
+          f = p(1) + p(2)*sin(2.0_dp*pi*p(3)*t + p(4))
+        end if
+        d%tau(d%drive_coord(i)) = d%tau(d%drive_coord(i)) + f
       end associate
     end do
     d%effect_evals(effect_joint_drives) = d%effect_evals(effect_joint_drives) + 1
@@ -208,7 +217,10 @@ contains
     real(dp), intent(out) :: f, fd, fdd
     real(dp) :: w, rate, tr, c
     associate(p => d%pres_par(:, i))
-      if (d%pres_form(i) == motion_spinup) then
+      if (d%pres_form(i) == motion_table) then
+        call table_spline(d%tables(d%pres_table(i)), t, f, fd, fdd)
+        f = f + p(1)
+      else if (d%pres_form(i) == motion_spinup) then
         ! theta = (rate/T)[t^2/2 + (T/2 pi)^2 (cos(2 pi t/T) - 1)] up to T, then constant rate
         rate = p(5); tr = p(6)
         if (t <= tr) then

@@ -87,7 +87,11 @@ module pymr_model_scene
     character(len=name_len) :: joint = ''
     !> Which coordinate of the joint (1 for one-coordinate joints).
     integer :: coordinate = 1
+    !> 'sine': offset + amplitude sin(2 pi frequency t + phase); 'table': offset + the
+    !> history in `file` (time, value lines), interpolated linearly.
+    character(len=16) :: form = 'sine'
     real(dp) :: offset = 0.0_dp, amplitude = 0.0_dp, frequency = 0.0_dp, phase = 0.0_dp
+    character(len=512) :: file = ''
     integer :: line = 0
   end type drive_spec
 
@@ -102,13 +106,16 @@ module pymr_model_scene
 
   !> One &motion group: a joint coordinate that follows a function of time.
   !> form 'sine': offset + amplitude sin(2 pi frequency t + phase); 'spinup': the smooth
-  !> ramp to the rate `rate` over `ramp_time` (Kane, Ryan and Banerjee 1987), then constant rate.
+  !> ramp to the rate `rate` over `ramp_time` (Kane, Ryan and Banerjee 1987), then constant rate;
+  !> 'table': a tabulated history (see `file`).
   type :: motion_spec
     character(len=name_len) :: joint = ''
     integer :: coordinate = 1
     character(len=16) :: form = 'sine'
     real(dp) :: offset = 0.0_dp, amplitude = 0.0_dp, frequency = 0.0_dp, phase = 0.0_dp
     real(dp) :: rate = 0.0_dp, ramp_time = unset
+    !> form 'table': offset + the natural cubic spline through the history in `file`.
+    character(len=512) :: file = ''
     integer :: line = 0
   end type motion_spec
 

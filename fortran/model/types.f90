@@ -4,13 +4,14 @@ module pymr_model_types
   use pymr_kinds, only : dp, name_len
   use pymr_model_flexbody, only : flex_data, flex_work, modal_nodes
   use pymr_model_beam_modes, only : beam_shape
+  use pymr_model_time_table, only : time_table
   implicit none
   private
   public :: model_data, prim_revolute, prim_prismatic
   public :: effect_gravity, effect_joint_drives, effect_modal_damping, effect_joint_springs
   public :: effect_geometric_stiffening, effect_base_motion, effect_firing_load, effect_deformation_inertia
   public :: n_effects, effect_names
-  public :: motion_sine, motion_spinup
+  public :: motion_sine, motion_spinup, motion_table
 
   !> Kinds of one-coordinate joint primitives: every joint is a chain of them.
   integer, parameter :: prim_revolute = 1, prim_prismatic = 2
@@ -23,7 +24,7 @@ module pymr_model_types
     & 'modal_damping', 'joint_springs', 'geometric_stiffening', 'firing_load', 'base_motion', 'deformation_inertia']
 
   !> Forms of a prescribed coordinate's time function.
-  integer, parameter :: motion_sine = 1, motion_spinup = 2
+  integer, parameter :: motion_sine = 1, motion_spinup = 2, motion_table = 3
 
   !> Everything one model evaluation needs.
   type :: model_data
@@ -89,6 +90,9 @@ module pymr_model_types
     integer :: n_prescribed = 0
     integer, allocatable :: pres_coord(:), pres_form(:)
     real(dp), allocatable :: pres_par(:, :), qx(:), qdx(:)
+    !> Tabulated histories, and the table of each drive and prescribed coordinate (0: none).
+    type(time_table), allocatable :: tables(:)
+    integer, allocatable :: drive_table(:), pres_table(:)
     !> Gravity (m/s^2, inertial).
     real(dp) :: gravity(3) = 0.0_dp
     !> Drives: coordinate and offset, amplitude, frequency (Hz), phase (rad).
