@@ -9,7 +9,7 @@ module pymr_model_beam_modes
   use pymr_model_flexbody, only : flex_data, flex_invariants, point_shapes
   implicit none
   private
-  public :: beam_shape, build_beam, beam_point_shapes, gauss4
+  public :: beam_point_load_stiffness, beam_shape, build_beam, beam_point_shapes, gauss4
 
   !> Gauss-Legendre points and weights on [0, 1] (exact for degree 7): the nodes
   !> +-0.8611363115940526, +-0.3399810435848563 of [-1, 1] halved and shifted.
@@ -114,6 +114,42 @@ contains
       end do
     end do
   end subroutine beam_geometric_stiffness
+
+  !> Geometric stiffness of the beam's modes per newton of tension carried from the root
+  !> to x = xc (an axial load at a point): kg = int_0^xc (v_y,k' v_y,l' + v_z,k' v_z,l') dx.
+  !> Each element, or its part below xc, by 4-point Gauss (exact for the degree-4 integrand).
+  pure subroutine beam_point_load_stiffness(bs, xc, kg)
+    type(beam_shape), intent(in) :: bs
+    real(dp), intent(in) :: xc
+    real(dp), intent(out) :: kg(:, :)
+    integer :: el, g, m, k, l
+    real(dp) :: le, span, xi, wt, nn(4), dn(4), sl(bs%my + bs%mz)
+    m = bs%my + bs%mz
+    kg = 0.0_dp
+    le = bs%length/bs%ne
+    do el = 1, bs%ne
+      ! the part of element el below xc, as a fraction of the element
+      span = min(max(xc/le - (el - 1), 0.0_dp), 1.0_dp)
+      if (span <= 0.0_dp) exit
+      do g = 1, 4
+        xi = span*gauss4(1, g)
+        wt = le*span*gauss4(2, g)
+        call hermite(xi, le, nn, dn)
+        do k = 1, bs%my
+          sl(k) = dot_product(dn, bs%vy(2*el-1:2*el+2, k))
+        end do
+        do k = 1, bs%mz
+          sl(bs%my + k) = dot_product(dn, bs%vz(2*el-1:2*el+2, k))
+        end do
+        do l = 1, m
+          do k = 1, m
+            if ((k <= bs%my) .neqv. (l <= bs%my)) cycle
+            kg(k, l) = kg(k, l) + wt*sl(k)*sl(l)
+          end do
+        end do
+      end do
+    end do
+  end subroutine beam_point_load_stiffness
 
   !> Lowest `nm` modes of one bending plane: nodal vectors (with the clamped node 0 as zeros),
   !> M-normalised, signed so that the tip displacement is positive.

@@ -10,7 +10,7 @@ module pymr_model_build
     & motion_sine, motion_spinup, motion_table
   use pymr_model_time_table, only : spline_setup
   use pymr_io_table_file, only : read_time_table
-  use pymr_model_beam_modes, only : build_beam, beam_point_shapes
+  use pymr_model_beam_modes, only : build_beam, beam_point_shapes, beam_point_load_stiffness
   use pymr_io_modal_file, only : read_modal_file
   use pymr_model_flexbody, only : flex_data, modal_nodes, undeformed_modal_moments
   use pymr_model_spatial, only : unit_axes
@@ -920,6 +920,15 @@ contains
         if (allocated(d%flex(b)%kg1)) deallocate(d%flex(b)%kg1, d%flex(b)%kg2)
       end do
     end if
+    ! bodies whose joint sits on a stiffened beam: the beam carries their axial load to its root
+    allocate(d%child_kg(d%nb), d%kgc(d%mmax, d%mmax, d%nb))
+    d%child_kg = .false.
+    do b = 2, d%nb
+      if (.not. allocated(d%flex(d%parent(b))%kg1)) cycle
+      d%child_kg(b) = .true.
+      call beam_point_load_stiffness(d%bshape(d%parent(b)), d%at(1, b), &
+        & d%kgc(1:d%nm(d%parent(b)), 1:d%nm(d%parent(b)), b))
+    end do
     d%n_drives = size(sc%drives)
     allocate(d%drive_coord(d%n_drives), d%drive_par(4, d%n_drives))
     do i = 1, d%n_drives

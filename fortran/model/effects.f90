@@ -12,6 +12,7 @@ module pymr_model_effects
   private
   public :: add_gravity, add_joint_drives, add_modal_damping, gravity_potential, elastic_potential
   public :: add_joint_springs, spring_potential, add_geometric_stiffening, add_firing_load, load_force
+  public :: add_carried_load_stiffening
   public :: prescribed_motion, impose_prescribed_state, prescribe_rows
 
 contains
@@ -170,6 +171,31 @@ contains
     end do
     d%effect_evals(effect_geometric_stiffening) = d%effect_evals(effect_geometric_stiffening) + 1
   end subroutine add_geometric_stiffening
+
+  !> Geometric stiffening of beams by the bodies they carry (after composite_terms): a body
+  !> c jointed to beam b at x_c pulls on it with the force -f_c, f_c the composite bias
+  !> wrench's force of c's subtree (its weight, applied loads and velocity-term inertia;
+  !> the part proportional to the accelerations is not known before the solve). Its
+  !> component along the beam axis is a tension N_c = -x_b . f_c on [0, x_c], adding
+  !> N_c kgc_c a to the beam's modal bias.
+  pure subroutine add_carried_load_stiffening(d, q, only)
+    type(model_data), intent(inout) :: d
+    real(dp), intent(in) :: q(:)
+    logical, intent(in) :: only(:)
+    integer :: c, b, m, k
+    real(dp) :: tension
+    do c = 2, d%nb
+      if (.not. d%child_kg(c) .or. .not. only(c)) cycle
+      b = d%parent(c)
+      m = d%nm(b)
+      tension = -dot_product(d%rot(:, 1, b), d%wc(1:3, c))
+      associate(a => q(d%a0(b):d%a0(b) + m - 1))
+        do k = 1, m
+          d%wam(k, b) = d%wam(k, b) + tension*dot_product(d%kgc(k, 1:m, c), a)
+        end do
+      end associate
+    end do
+  end subroutine add_carried_load_stiffening
 
   !> Magnitude (N) of load i at time t: a half-sine pulse.
   pure real(dp) function load_force(d, i, t)

@@ -13,7 +13,7 @@ module pymr_model
   use pymr_model_assembly, only : body_terms, composite_terms, assemble_mass, assemble_rhs, kinetic_energy
   use pymr_model_effects, only : add_gravity, add_joint_drives, add_modal_damping, gravity_potential, &
     & elastic_potential, add_joint_springs, spring_potential, add_geometric_stiffening, impose_prescribed_state, &
-    & prescribe_rows, add_firing_load
+    & prescribe_rows, add_firing_load, add_carried_load_stiffening
   implicit none
   private
   public :: model_t
@@ -87,6 +87,7 @@ contains
       call body_terms(d, q, qd, d%in_fast)
       call apply_effects(d, t, q, qd, d%in_fast, .true.)
       call composite_terms(d, d%in_fast)
+      if (d%effect_on(effect_geometric_stiffening)) call add_carried_load_stiffening(d, q, d%in_fast)
       call assemble_mass(d, d%in_fast)
       call assemble_rhs(d, d%in_fast)
       d%evals_fast_rows = d%evals_fast_rows + 1
@@ -96,6 +97,7 @@ contains
       d%tau = 0.0_dp
       call apply_effects(d, t, q, qd, d%every, .false.)
       call composite_terms(d)
+      if (d%effect_on(effect_geometric_stiffening)) call add_carried_load_stiffening(d, q, d%every)
       call assemble_mass(d)
       call assemble_rhs(d)
       d%evals = d%evals + 1

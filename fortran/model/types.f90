@@ -93,6 +93,10 @@ module pymr_model_types
     !> Tabulated histories, and the table of each drive and prescribed coordinate (0: none).
     type(time_table), allocatable :: tables(:)
     integer, allocatable :: drive_table(:), pres_table(:)
+    !> Bodies jointed to a beam with geometric stiffness, and the beam's geometric stiffness
+    !> per newton of the axial load such a body puts on it (mmax, mmax, nb).
+    logical, allocatable :: child_kg(:)
+    real(dp), allocatable :: kgc(:, :, :)
     !> Gravity (m/s^2, inertial).
     real(dp) :: gravity(3) = 0.0_dp
     !> Drives: coordinate and offset, amplitude, frequency (Hz), phase (rad).
