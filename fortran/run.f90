@@ -7,7 +7,7 @@ module pymr_run
   use pymr_io_namelist_input, only : read_scene
   use pymr_model_build, only : build_model
   use pymr_model, only : model_t
-  use pymr_integrator_abm, only : abm_integrator
+  use pymr_integrator_abm, only : abm_integrator, hinit
   use pymr_integrator_multirate, only : multirate_integrator, coupling_full, coupling_split
   use pymr_integrator_control, only : step_control
   use pymr_io_results_output, only : csv_writer, json_path, write_json, run_stats
@@ -72,6 +72,8 @@ contains
     type(error_type), allocatable, intent(out) :: error
     type(step_control) :: ctl
     integer :: k, coupling
+    real(dp) :: hs, h0
+    real(dp), allocatable :: f0(:)
     st%multirate = trim(sc%integrator%method) == 'multirate'
     if (st%multirate) then
       if (model%n_fast() == 0 .or. model%n_slow() == 0) then
@@ -79,15 +81,28 @@ contains
           & "(modal) coordinates; this scene has " // itoa(model%n_slow()) // ' and ' // &
           & itoa(model%n_fast()) // ": use method = 'single'"); return
       end if
+    end if
+    ctl%rtol = sc%integrator%rtol; ctl%atol = sc%integrator%atol
+    if (sc%integrator%h_min > 0.0_dp) ctl%h_min = sc%integrator%h_min
+    if (sc%integrator%h_max > 0.0_dp) ctl%h_max = sc%integrator%h_max
+    if (st%multirate) then
       k = nint(sc%integrator%h_slow/sc%integrator%h_fast)
+      hs = sc%integrator%h_slow
+      if (sc%integrator%adaptive) then
+        ! start single-rate (k = 1) at h_fast, or less if the tolerances ask for it; the
+        ! controller then chooses k
+        call st%abm%init(size(x), .true., ctl, 1)
+        allocate(f0(size(x)))
+        call model%eval(0.0_dp, x, f0, error); if (allocated(error)) return
+        call hinit(st%abm, model, 0.0_dp, x, f0, h0, error); if (allocated(error)) return
+        k = 1
+        hs = min(sc%integrator%h_fast, h0)
+      end if
       coupling = merge(coupling_split, coupling_full, sc%integrator%coupling == 'split')
       call model%init_partition()
-      call st%mr%init(model%n_slow(), model%n_fast(), k, coupling)
-      call st%mr%start(model, 0.0_dp, x, sc%integrator%h_slow, error)
+      call st%mr%init(model%n_slow(), model%n_fast(), k, coupling, sc%integrator%adaptive, ctl, sc%integrator%k_max)
+      call st%mr%start(model, 0.0_dp, x, hs, error)
     else
-      ctl%rtol = sc%integrator%rtol; ctl%atol = sc%integrator%atol
-      if (sc%integrator%h_min > 0.0_dp) ctl%h_min = sc%integrator%h_min
-      if (sc%integrator%h_max > 0.0_dp) ctl%h_max = sc%integrator%h_max
       call st%abm%init(size(x), sc%integrator%adaptive, ctl, sc%integrator%n_corrector)
       call st%abm%start(model, 0.0_dp, x, sc%integrator%h_slow, error)
     end if
@@ -203,6 +218,7 @@ contains
       stats%rhs_fast = model%evals_split + model%d%evals_fast_rows
       stats%rhs_full = model%d%evals
       stats%h_last = st%mr%hs
+      stats%rejected_steps = st%mr%rejected; stats%ratio_last = st%mr%k
     else
       stats%steps_slow = st%abm%steps; stats%steps_fast = st%abm%steps
       stats%rhs_full = st%abm%evals; stats%rhs_fast = 0

@@ -9,11 +9,12 @@
 !> this is the single-rate PECE method.
 module pymr_integrator_multirate
   use pymr_kinds, only : dp
-  use pymr_error, only : error_type
+  use pymr_error, only : error_type, fatal_error, stat_solver
   use pymr_integrator_ode, only : partitioned_system
   use pymr_integrator_nordsieck, only : nq, nordsieck_predict, nordsieck_correct, nordsieck_value, &
-    & nordsieck_from_history
+    & nordsieck_from_history, nordsieck_rescale, corrector_l
   use pymr_integrator_abm, only : rk4_step, check_finite
+  use pymr_integrator_control, only : step_control, error_weights, wrms_norm
   implicit none
   private
   public :: multirate_integrator, coupling_full, coupling_split
@@ -29,8 +30,15 @@ module pymr_integrator_multirate
     real(dp) :: t = 0.0_dp, hs = 0.0_dp, hf = 0.0_dp
     !> Slow Nordsieck array (2ns, 0:3) scaled with H, fast one (2nf, 0:3) scaled with h.
     real(dp), allocatable :: zs(:, :), zf(:, :)
-    !> Counters: macro (slow) steps, fast steps, slow and fast evaluations.
-    integer :: steps_slow = 0, steps_fast = 0, evals_slow = 0, evals_fast = 0, evals_start = 0
+    !> Counters: macro (slow) steps, fast steps, slow and fast evaluations, rejected macro steps.
+    integer :: steps_slow = 0, steps_fast = 0, evals_slow = 0, evals_fast = 0, evals_start = 0, rejected = 0
+    !> Adaptive: local-error control of both steps (weighted RMS norms, as CVODE), the step
+    !> ratio k chosen within [1, k_max].
+    logical :: adaptive = .false.
+    type(step_control) :: ctl
+    integer :: k_max = 1
+    !> Adaptive work: the arrays at the start of the macro step, the error weights.
+    real(dp), allocatable :: zs0(:, :), zf0(:, :), ws(:), wf(:), fx(:)
     !> Work arrays.
     real(dp), allocatable :: zp(:, :), zn(:, :), wp(:, :), wn(:, :), fs(:), ff(:), gs(:), gf(:), xs(:), acc(:)
     !> Positions of the slow and fast states in the full state (for error messages).
@@ -44,11 +52,20 @@ module pymr_integrator_multirate
 
 contains
 
-  !> Allocate for ns slow and nf fast coordinates, step ratio k, coupling.
-  subroutine mr_init(self, ns, nf, k, coupling)
+  !> Allocate for ns slow and nf fast coordinates, step ratio k, coupling; adaptive runs
+  !> control both steps with `ctl` and keep the ratio within [1, k_max].
+  subroutine mr_init(self, ns, nf, k, coupling, adaptive, ctl, k_max)
     class(multirate_integrator), intent(inout) :: self
     integer, intent(in) :: ns, nf, k, coupling
+    logical, intent(in), optional :: adaptive
+    type(step_control), intent(in), optional :: ctl
+    integer, intent(in), optional :: k_max
     self%ns = ns; self%nf = nf; self%k = k; self%coupling = coupling
+    if (present(adaptive)) self%adaptive = adaptive
+    if (present(ctl)) self%ctl = ctl
+    self%k_max = max(k, 1)
+    if (present(k_max)) self%k_max = max(k_max, 1)
+    allocate(self%zs0(2*ns, 0:nq), self%zf0(2*nf, 0:nq), self%ws(2*ns), self%wf(2*nf), self%fx(2*nf))
     allocate(self%zs(2*ns, 0:nq), self%zf(2*nf, 0:nq), self%zp(2*ns, 0:nq), self%zn(2*ns, 0:nq), &
       & self%wp(2*nf, 0:nq), self%wn(2*nf, 0:nq), self%fs(2*ns), self%ff(2*nf), self%gs(2*ns), self%gf(2*nf), &
       & self%xs(2*ns), self%acc(ns))
@@ -103,14 +120,104 @@ contains
     end function fast_part
   end subroutine mr_start
 
-  !> One macro step: k fast ABM steps with the extrapolated slow state, then one slow step.
+  !> One macro step. Fixed steps: `try_macro_step` once. Adaptive: the slow corrector's
+  !> error estimate sets the next macro step H, the largest fast one sets the fast step h,
+  !> and k = H/h is rounded into [1, k_max] (H shrinks when k would exceed k_max). A
+  !> rejected macro step is retried from its start with both steps rescaled.
   subroutine mr_step(self, sys, error)
     class(multirate_integrator), intent(inout) :: self
     class(partitioned_system), intent(inout) :: sys
     type(error_type), allocatable, intent(out) :: error
-    integer :: i, ns
+    real(dp) :: err_s, err_f, hs_new, hf_new, hs0, hf0
+    integer :: k_new
+    character(len=120) :: buf
+    if (.not. self%adaptive) then
+      call try_macro_step(self, sys, err_s, err_f, error); if (allocated(error)) return
+      call finish_macro_step(self, sys, error)
+      return
+    end if
+    self%zs0 = self%zs; self%zf0 = self%zf
+    hs0 = self%hs; hf0 = self%hf
+    call error_weights(self%ctl, self%zs(:, 0), self%ws)
+    call error_weights(self%ctl, self%zf(:, 0), self%wf)
+    do
+      call try_macro_step(self, sys, err_s, err_f, error); if (allocated(error)) return
+      if (err_s <= 1.0_dp .and. err_f <= 1.0_dp) exit
+      self%rejected = self%rejected + 1
+      hs_new = self%hs*min(self%ctl%ratio(err_s, err_s <= 1.0_dp), 1.0_dp)
+      hf_new = self%hf*min(self%ctl%ratio(err_f, err_f <= 1.0_dp), 1.0_dp)
+      call choose_ratio(self, hs_new, hf_new, k_new)
+      if (hf_new < self%ctl%h_min) then
+        write(buf, '(a,es10.3,a,es10.3,a)') 'step size underflow at t = ', self%t, ' s (fast step ', hf_new, &
+          & ' s below h_min)'
+        call fatal_error(error, trim(buf), stat_solver); return
+      end if
+      ! back to the start of the macro step, with the arrays' own scaling
+      self%zs = self%zs0; self%zf = self%zf0
+      self%hs = hs0; self%hf = hf0
+      call rescale_steps(self, hs_new, hf_new, k_new)
+      ! 'split' holds terms from the last synchronised evaluation: take them at the start again
+      if (self%coupling == coupling_split) then
+        call sys%sync_rhs(self%t, self%zs(:, 0), self%zf(:, 0), self%fs, self%ff, error)
+        self%evals_slow = self%evals_slow + 1
+        if (allocated(error)) return
+      end if
+    end do
+    call finish_macro_step(self, sys, error); if (allocated(error)) return
+    hs_new = min(self%hs*self%ctl%ratio(err_s, .true.), self%ctl%h_max)
+    hf_new = self%hf*self%ctl%ratio(err_f, .true.)
+    call choose_ratio(self, hs_new, hf_new, k_new)
+    if (hs_new /= self%hs .or. k_new /= self%k) call rescale_steps(self, hs_new, hf_new, k_new)
+  end subroutine mr_step
+
+  !> Step ratio k for the wanted slow and fast steps: nint(H/h) within [1, k_max]; on
+  !> return H = k h with h no larger than wanted (H shrinks when k is capped).
+  pure subroutine choose_ratio(self, hs, hf, k)
+    class(multirate_integrator), intent(in) :: self
+    real(dp), intent(inout) :: hs, hf
+    integer, intent(out) :: k
+    k = min(max(nint(hs/hf), 1), self%k_max)
+    if (hs/k > hf) hs = k*hf
+    hf = hs/k
+  end subroutine choose_ratio
+
+  !> Rescale both Nordsieck arrays to the macro step hs and fast step hf = hs/k.
+  pure subroutine rescale_steps(self, hs, hf, k)
+    class(multirate_integrator), intent(inout) :: self
+    real(dp), intent(in) :: hs, hf
+    integer, intent(in) :: k
+    call nordsieck_rescale(self%zs, hs/self%hs)
+    call nordsieck_rescale(self%zf, hf/self%hf)
+    self%hs = hs; self%hf = hf; self%k = k
+  end subroutine rescale_steps
+
+  !> Accept the macro step computed by try_macro_step.
+  subroutine finish_macro_step(self, sys, error)
+    class(multirate_integrator), intent(inout) :: self
+    class(partitioned_system), intent(inout) :: sys
+    type(error_type), allocatable, intent(out) :: error
+    self%zs = self%zn
+    self%zf = self%wn
+    self%steps_fast = self%steps_fast + 1
+    self%t = self%t + self%hs
+    self%steps_slow = self%steps_slow + 1
+    call check_finite(sys, self%t, self%zs(:, 0), 'state', error, self%slow_map); if (allocated(error)) return
+    call check_finite(sys, self%t, self%zf(:, 0), 'state', error, self%fast_map)
+  end subroutine finish_macro_step
+
+  !> k - 1 fast ABM steps with the extrapolated slow state, then the predicted slow and
+  !> fast arrays corrected with one synchronised evaluation; results in zn (slow) and wn
+  !> (fast), zs unchanged. err_s, err_f: weighted RMS local error estimates l0 |g| of the
+  !> slow corrector and the largest of the fast ones (adaptive runs only).
+  subroutine try_macro_step(self, sys, err_s, err_f, error)
+    class(multirate_integrator), intent(inout) :: self
+    class(partitioned_system), intent(inout) :: sys
+    real(dp), intent(out) :: err_s, err_f
+    type(error_type), allocatable, intent(out) :: error
+    integer :: i, ns, nf
     real(dp) :: s, ti
     ns = self%ns
+    err_s = 0.0_dp; err_f = 0.0_dp
     do i = 1, self%k - 1
       s = real(i, dp)/self%k
       ti = self%t + i*self%hf
@@ -121,6 +228,7 @@ contains
       if (allocated(error)) return
       self%ff = self%hf*self%ff
       call nordsieck_correct(self%wp, self%ff, self%wn, self%gf)
+      if (self%adaptive) err_f = max(err_f, wrms_norm(corrector_l(0)*self%gf, self%wf))
       self%zf = self%wn
       self%steps_fast = self%steps_fast + 1
     end do
@@ -131,14 +239,25 @@ contains
     if (allocated(error)) return
     call nordsieck_correct(self%zp, self%hs*self%fs, self%zn, self%gs)
     call nordsieck_correct(self%wp, self%hf*self%ff, self%wn, self%gf)
-    self%zs = self%zn
-    self%zf = self%wn
-    self%steps_fast = self%steps_fast + 1
-    self%t = self%t + self%hs
-    self%steps_slow = self%steps_slow + 1
-    call check_finite(sys, self%t, self%zs(:, 0), 'state', error, self%slow_map); if (allocated(error)) return
-    call check_finite(sys, self%t, self%zf(:, 0), 'state', error, self%fast_map)
-  end subroutine mr_step
+    if (.not. self%adaptive) return
+    err_s = wrms_norm(corrector_l(0)*self%gs, self%ws)
+    err_f = max(err_f, wrms_norm(corrector_l(0)*self%gf, self%wf))
+    if (self%k == 1) return
+    ! Coupling error: the fast substeps used slow accelerations extrapolated from the slow
+    ! array. Their error at the end of the macro step shows in the fast accelerations with
+    ! the extrapolated and the synchronised slow accelerations, d = ff - f_x. Grown like
+    ! the quadratic extrapolation's error s(s+1)(s+2)/6 over the step, it displaces the
+    ! fast state by 0.106 H^2 d and its rates by 0.375 H d; this error bounds H.
+    call slow_extrapolation(self, 1.0_dp)
+    call sys%fast_rhs(self%t + self%hs, self%xs, self%wp(:, 0), self%acc, self%coupling == coupling_split, &
+      & self%fx, error)
+    self%evals_fast = self%evals_fast + 1
+    if (allocated(error)) return
+    nf = self%nf
+    self%fx(1:nf) = 0.10556_dp*self%hs**2*(self%ff(nf+1:) - self%fx(nf+1:))
+    self%fx(nf+1:) = 0.375_dp*self%hs*(self%ff(nf+1:) - self%fx(nf+1:))
+    err_s = max(err_s, wrms_norm(self%fx, self%wf))
+  end subroutine try_macro_step
 
   !> Positions of the slow state [q_s; qd_s] in the full state [q_s; q_f; qd_s; qd_f].
   pure function slow_index(ns, nf) result(idx)

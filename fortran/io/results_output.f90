@@ -18,6 +18,8 @@ module pymr_io_results_output
     real(dp) :: cpu_time_s = 0.0_dp, wall_time_s = 0.0_dp
     integer :: steps_slow = 0, steps_fast = 0, rhs_full = 0, rhs_fast = 0, rejected_steps = 0, rows = 0
     real(dp) :: h_last = 0.0_dp
+    !> Multirate: the last step ratio H/h (1 single-rate).
+    integer :: ratio_last = 1
   end type run_stats
 
   !> An open CSV result file.
@@ -164,6 +166,8 @@ contains
     write(u, '(a,i0,a)') '  "rhs_full": ', st%rhs_full, ','
     write(u, '(a,i0,a)') '  "rhs_fast": ', st%rhs_fast, ','
     write(u, '(a,i0,a)') '  "rejected_steps": ', st%rejected_steps, ','
+    write(u, '(a,g0.10,a)') '  "h_last": ', st%h_last, ','
+    write(u, '(a,i0,a)') '  "step_ratio_last": ', st%ratio_last, ','
     write(u, '(a,i0,a)') '  "rows": ', st%rows, ','
     write(u, '(a,i0,a)') '  "n_coordinates": ', d%n, ','
     write(u, '(a)', advance='no') '  "effects": {'

@@ -123,9 +123,8 @@ contains
           call fatal_error(error, w // "coupling: '" // trim(s%coupling) // "' is not a coupling ('full' or 'split')")
           return
         end if
-        if (s%adaptive) then
-          call fatal_error(error, w // "adaptive: adaptive multirate is not available yet; use fixed steps " // &
-            & "(adaptive = .false.) or method = 'single'"); return
+        if (s%k_max < 1) then
+          call fatal_error(error, w // 'k_max: must be >= 1, got ' // itoa(s%k_max)); return
         end if
         if (s%n_corrector /= 1) then
           call fatal_error(error, w // "n_corrector: multirate uses PECE (n_corrector = 1)"); return

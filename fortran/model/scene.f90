@@ -25,6 +25,8 @@ module pymr_model_scene
     real(dp) :: h_min = 0.0_dp, h_max = 0.0_dp
     !> Corrector evaluations per step (1 = PECE).
     integer :: n_corrector = 1
+    !> Adaptive multirate: the largest step ratio H/h the controller may choose.
+    integer :: k_max = 50
     !> Multirate coupling of the fast substeps: 'full' (the paper's) or 'split'.
     character(len=16) :: coupling = 'split'
   end type integrator_spec
