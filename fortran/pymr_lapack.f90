@@ -5,7 +5,7 @@ module pymr_lapack
   use pymr_error, only : error_type, fatal_error, stat_solver
   implicit none
   private
-  public :: potrf, potrs, sygvd, ptsv
+  public :: potrf, potrs, sygvd, ptsv, geev_complex, geev_real
 
   !> Cholesky solve for one (vector) or several (matrix) right-hand sides.
   interface potrs
@@ -36,6 +36,23 @@ module pymr_lapack
       real(dp), intent(out) :: w(*), work(*)
       integer, intent(out) :: iwork(*), info
     end subroutine dsygvd
+    subroutine zgeev(jobvl, jobvr, n, a, lda, w, vl, ldvl, vr, ldvr, work, lwork, rwork, info)
+      import :: dp
+      character(len=1), intent(in) :: jobvl, jobvr
+      integer, intent(in) :: n, lda, ldvl, ldvr, lwork
+      complex(dp), intent(inout) :: a(lda, *)
+      complex(dp), intent(out) :: w(*), vl(ldvl, *), vr(ldvr, *), work(*)
+      real(dp), intent(out) :: rwork(*)
+      integer, intent(out) :: info
+    end subroutine zgeev
+    subroutine dgeev(jobvl, jobvr, n, a, lda, wr, wi, vl, ldvl, vr, ldvr, work, lwork, info)
+      import :: dp
+      character(len=1), intent(in) :: jobvl, jobvr
+      integer, intent(in) :: n, lda, ldvl, ldvr, lwork
+      real(dp), intent(inout) :: a(lda, *)
+      real(dp), intent(out) :: wr(*), wi(*), vl(ldvl, *), vr(ldvr, *), work(*)
+      integer, intent(out) :: info
+    end subroutine dgeev
     subroutine dptsv(n, nrhs, d, e, b, ldb, info)
       import :: dp
       integer, intent(in) :: n, nrhs, ldb
@@ -161,4 +178,40 @@ contains
       write(s, '(i0)') i
     end function itoa
   end subroutine sygvd
+
+  !> Eigenvalues w of the complex square matrix a (overwritten), LAPACK zgeev.
+  subroutine geev_complex(a, w, what, error)
+    complex(dp), intent(inout) :: a(:, :)
+    complex(dp), intent(out) :: w(:)
+    character(len=*), intent(in) :: what
+    type(error_type), allocatable, intent(out) :: error
+    integer :: n, info
+    complex(dp) :: dum(1, 1), wq(1)
+    complex(dp), allocatable :: work(:)
+    real(dp) :: rwork(2*size(a, 1))
+    n = size(a, 1)
+    if (n == 0) return
+    call zgeev('N', 'N', n, a, n, w, dum, 1, dum, 1, wq, -1, rwork, info)
+    allocate(work(max(1, int(real(wq(1))))))
+    call zgeev('N', 'N', n, a, n, w, dum, 1, dum, 1, work, size(work), rwork, info)
+    if (info /= 0) call fatal_error(error, 'eigenvalue solver zgeev failed for ' // what, stat_solver)
+  end subroutine geev_complex
+
+  !> Eigenvalues wr + i wi and right eigenvectors vr (dgeev's packed real form) of the
+  !> real square matrix a (overwritten), LAPACK dgeev.
+  subroutine geev_real(a, wr, wi, vr, what, error)
+    real(dp), intent(inout) :: a(:, :)
+    real(dp), intent(out) :: wr(:), wi(:), vr(:, :)
+    character(len=*), intent(in) :: what
+    type(error_type), allocatable, intent(out) :: error
+    integer :: n, info
+    real(dp) :: dum(1, 1), wq(1)
+    real(dp), allocatable :: work(:)
+    n = size(a, 1)
+    if (n == 0) return
+    call dgeev('N', 'V', n, a, n, wr, wi, dum, 1, vr, n, wq, -1, info)
+    allocate(work(max(1, int(wq(1)))))
+    call dgeev('N', 'V', n, a, n, wr, wi, dum, 1, vr, n, work, size(work), info)
+    if (info /= 0) call fatal_error(error, 'eigenvalue solver dgeev failed for ' // what, stat_solver)
+  end subroutine geev_real
 end module pymr_lapack

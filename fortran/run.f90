@@ -15,6 +15,7 @@ module pymr_run
   use pymr_clock, only : thread_cpu_time
   use pymr_model_effects, only : prescribed_motion
   use pymr_io_namelist_scan, only : itoa
+  use pymr_preflight, only : check_step_stability, check_mass_matrix
   implicit none
   private
   public :: run_scene, load_model, default_output
@@ -169,6 +170,18 @@ contains
     eps = 1.0e-9_dp*h
     k_out = 1
     t_next = dt_out
+    call check_mass_matrix(model, x, file // ': ', error)
+    if (allocated(error)) then
+      call csv%close(); return
+    end if
+    if (.not. sc%integrator%adaptive) then
+      call check_step_stability(model, x, h, merge(sc%integrator%h_fast, h, sc%integrator%h_fast > 0.0_dp), &
+        & sc%integrator%method == 'multirate', merge(coupling_split, coupling_full, sc%integrator%coupling == 'split'), &
+        & sc%t_end, file // ': &integrator: ', error)
+      if (allocated(error)) then
+        call csv%close(); return
+      end if
+    end if
     call start_stepper(sc, model, x, st, error)
     if (allocated(error)) then
       call csv%close()
