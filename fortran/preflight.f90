@@ -160,12 +160,19 @@ contains
     call restore_counters(model, counters)
     l = model%d%mm
     call potrf(l, 'the mass matrix', error, minor)
-    if (.not. allocated(error)) return
+    if (.not. allocated(error)) then
+      ! nearly singular: a pivot that keeps less than 1e-10 of its diagonal entry
+      do minor = 1, n
+        if (l(minor, minor)**2 < 1.0e-10_dp*model%d%mm(minor, minor)) exit
+      end do
+      if (minor > n) return
+      call fatal_error(error, '')
+    end if
     if (minor > 0) then
       error%message = where // 'the mass matrix is singular at the initial state: coordinate ' // &
         & trim(model%d%qname(minor)) // ' (leading minor ' // itoa(minor) // ') moves no inertia that the ' // &
-        & 'coordinates before it do not already move: check the masses and inertias of the bodies it moves ' // &
-        & 'and the axes of its joint'
+        & 'coordinates before it do not already move (or almost none): check the masses and inertias of the ' // &
+        & 'bodies it moves, the axes of its joint, and the singular angles of spherical and free joints'
       error%stat = stat_input
     else
       error%message = where // error%message

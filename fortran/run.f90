@@ -174,7 +174,7 @@ contains
     if (allocated(error)) then
       call csv%close(); return
     end if
-    if (.not. sc%integrator%adaptive) then
+    if (.not. sc%integrator%adaptive .and. sc%integrator%stability_check) then
       call check_step_stability(model, x, h, merge(sc%integrator%h_fast, h, sc%integrator%h_fast > 0.0_dp), &
         & sc%integrator%method == 'multirate', merge(coupling_split, coupling_full, sc%integrator%coupling == 'split'), &
         & sc%t_end, file // ': &integrator: ', error)

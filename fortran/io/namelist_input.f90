@@ -24,8 +24,8 @@ module pymr_io_namelist_input
   character(len=*), parameter :: known_groups(11) = [character(len=16) :: 'scene', 'integrator', &
     & 'effects', 'body', 'joint', 'drive', 'spring', 'motion', 'load', 'marker', 'output']
   character(len=*), parameter :: items_scene(3) = [character(len=16) :: 'title', 't_end', 'gravity']
-  character(len=*), parameter :: items_integrator(11) = [character(len=16) :: 'method', 'h_fast', 'h_slow', &
-    & 'adaptive', 'rtol', 'atol', 'h_min', 'h_max', 'n_corrector', 'coupling', 'k_max']
+  character(len=*), parameter :: items_integrator(12) = [character(len=16) :: 'method', 'h_fast', 'h_slow', &
+    & 'adaptive', 'rtol', 'atol', 'h_min', 'h_max', 'n_corrector', 'coupling', 'k_max', 'stability_check']
   character(len=*), parameter :: items_effects(8) = [character(len=20) :: 'gravity', 'joint_drives', &
     & 'modal_damping', 'joint_springs', 'geometric_stiffening', 'base_motion', 'firing_load', 'deformation_inertia']
   character(len=*), parameter :: items_body(20) = [character(len=16) :: 'name', 'kind', 'mass', 'com', 'inertia', &
@@ -323,13 +323,15 @@ contains
     real(dp) :: h_fast, h_slow, rtol, atol, h_min, h_max
     logical :: adaptive
     integer :: n_corrector, k_max, ios, i
+    logical :: stability_check
     character(len=256) :: msg
-    namelist /integrator/ method, h_fast, h_slow, adaptive, rtol, atol, h_min, h_max, n_corrector, coupling, k_max
+    namelist /integrator/ method, h_fast, h_slow, adaptive, rtol, atol, h_min, h_max, n_corrector, coupling, k_max, &
+      & stability_check
     associate(s => sc%integrator)
       coupling = s%coupling
       method = s%method; h_fast = s%h_fast; h_slow = s%h_slow; adaptive = s%adaptive
       rtol = s%rtol; atol = s%atol; h_min = s%h_min; h_max = s%h_max; n_corrector = s%n_corrector
-      k_max = s%k_max
+      k_max = s%k_max; stability_check = s%stability_check
     end associate
     rewind(u)
     read(u, nml=integrator, iostat=ios, iomsg=msg)
@@ -348,7 +350,7 @@ contains
       s%coupling = lower(coupling)
       s%method = lower(method); s%h_fast = h_fast; s%h_slow = h_slow; s%adaptive = adaptive
       s%rtol = rtol; s%atol = atol; s%h_min = h_min; s%h_max = h_max; s%n_corrector = n_corrector
-      s%k_max = k_max
+      s%k_max = k_max; s%stability_check = stability_check
     end associate
   end subroutine read_integrator
 

@@ -27,6 +27,8 @@ module pymr_model_scene
     integer :: n_corrector = 1
     !> Adaptive multirate: the largest step ratio H/h the controller may choose.
     integer :: k_max = 50
+    !> Refuse fixed steps that the pre-flight check finds unstable (.false.: run anyway).
+    logical :: stability_check = .true.
     !> Multirate coupling of the fast substeps: 'full' (the paper's) or 'split'.
     character(len=16) :: coupling = 'split'
   end type integrator_spec
