@@ -7,10 +7,11 @@ from __future__ import annotations
 
 from .results import Results, load_results
 from .api import (PymrError, SceneError, SolverError, run, model_terms, model_accelerations,
-                  model_energy, model_size, write_modal_file)
+                  model_energy, model_size, write_modal_file, Model, time_fast_evaluation)
 
 __version__ = "0.1.0"
 
 __all__ = ["PymrError", "SceneError", "SolverError", "Results", "load_results", "run",
            "model_terms", "model_accelerations", "model_energy", "model_size", "write_modal_file",
+           "Model", "time_fast_evaluation",
            "__version__"]

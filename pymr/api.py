@@ -134,3 +134,55 @@ def write_modal_file(scene: str | os.PathLike, body: str, path: str | os.PathLik
     ``kind='modal'`` body can read back (``modal_file=...``)."""
     stat, msg = _core.pymr_write_modal(_scene_arg(scene), format_overrides(overrides), body, os.fspath(path))
     _raise(stat, msg)
+
+
+class Model:
+    """A scene's model kept open in the kernel, for integrators driven from Python (scipy's
+    ``solve_ivp``, SUNDIALS CVODE): ``rhs(t, x)`` is f of ``x' = f(t, x)`` for the state
+    ``x = [q; qd]``, ``evaluations`` counts the kernel's full evaluations so far, and
+    ``marker(name, t, q, qd)`` gives a marker's positions at states of shape (m, n)."""
+
+    def __init__(self, scene: str | os.PathLike, overrides=None):
+        self.scene = _scene_arg(scene)
+        handle, n, stat, msg = _core.pymr_model_open(self.scene, format_overrides(overrides))
+        _raise(stat, msg)
+        self.handle, self.n, self.evaluations = int(handle), int(n), 0
+
+    def rhs(self, t: float, x) -> np.ndarray:
+        f, evals, stat, msg = _core.pymr_model_rhs(self.handle, float(t), np.asarray(x, dtype=float))
+        if stat:
+            _raise(stat, msg)
+        self.evaluations = int(evals)
+        return f
+
+    def marker(self, name: str, t, q, qd) -> np.ndarray:
+        k = int(_core.pymr_model_marker_index(self.handle, name))
+        if k == 0:
+            raise SceneError(f"{self.scene}: no marker {name!r}")
+        q2 = np.asfortranarray(np.atleast_2d(np.asarray(q, dtype=float)).T)
+        qd2 = np.asfortranarray(np.atleast_2d(np.asarray(qd, dtype=float)).T)
+        pos, stat, msg = _core.pymr_model_marker(self.handle, k, np.atleast_1d(np.asarray(t, dtype=float)), q2, qd2)
+        _raise(stat, msg)
+        return pos.T.copy()
+
+    def close(self) -> None:
+        if self.handle:
+            _core.pymr_model_close(self.handle)
+            self.handle = 0
+
+    def __enter__(self) -> "Model":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def time_fast_evaluation(scene: str | os.PathLike, q, qd, split: bool, reps: int = 2000,
+                         overrides=None) -> tuple[float, float]:
+    """CPU seconds of one multirate fast right-hand side (``split`` or 'full' coupling) and
+    of one full evaluation at (q, qd)."""
+    fast, full, stat, msg = _core.pymr_time_fast(_scene_arg(scene), format_overrides(overrides),
+                                                  np.asarray(q, dtype=float), np.asarray(qd, dtype=float),
+                                                  reps, int(split))
+    _raise(stat, msg)
+    return float(fast), float(full)

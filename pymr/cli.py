@@ -1,4 +1,4 @@
-"""The ``pymr`` command line: ``pymr run``, ``pymr bench``."""
+"""The ``pymr`` command line: ``pymr run``, ``pymr bench``, ``pymr study``, ``pymr modal-file``."""
 from __future__ import annotations
 
 import argparse
@@ -25,6 +25,11 @@ def _cmd_modal_file(args: argparse.Namespace) -> int:
     if not args.quiet:
         print(f"wrote the modes of beam {args.body!r} to {args.output}")
     return 0
+
+
+def _cmd_study(args: argparse.Namespace) -> int:
+    from . import study
+    return study.main(args.scene, marker=args.marker, output=args.output, quick=args.quick)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -55,6 +60,13 @@ def build_parser() -> argparse.ArgumentParser:
                    help="timing repeats, median reported (default 7 for rhs and effects, 21 for table1)")
     b.add_argument("--json", help="also write the figures to this JSON file")
     b.set_defaults(func=_cmd_bench)
+    s = sub.add_parser("study", help="work-precision study: error against CPU time and evaluations for every "
+                       "method (fixed, multirate, adaptive, scipy DOP853/LSODA, CVODE)")
+    s.add_argument("scene", help="scene namelist file (with at least one &marker)")
+    s.add_argument("--marker", help="marker whose position error is measured (default: the first by name)")
+    s.add_argument("-o", "--output", help="prefix of the CSV and PNG written (default: SCENE_study)")
+    s.add_argument("--quick", action="store_true", help="fewer steps and tolerances (a smoke run)")
+    s.set_defaults(func=_cmd_study)
     return p
 
 

@@ -243,3 +243,204 @@ subroutine pymr_write_modal(scene, overrides, body, path, stat, message)
   end if
   call report(error, stat, message)
 end subroutine pymr_write_modal
+
+!> Build a scene's model and keep it open: `handle` for pymr_model_rhs and friends, `n`
+!> its number of coordinates.
+subroutine pymr_model_open(scene, overrides, handle, n, stat, message)
+  use pymr_error, only : error_type
+  use pymr_bind_support, only : report
+  use pymr_bind_models, only : open_models, open_flags
+  use pymr_model_scene, only : scene_t
+  use pymr_model, only : model_t
+  use pymr_run, only : load_model
+  implicit none
+  character(len=*), intent(in) :: scene, overrides
+  integer, intent(out) :: handle, n, stat
+  character(len=1024), intent(out) :: message
+  type(error_type), allocatable :: error
+  type(scene_t) :: sc
+  type(model_t), allocatable :: grown(:)
+  logical, allocatable :: flags(:)
+  integer :: k
+  handle = 0; n = 0
+  if (.not. allocated(open_models)) then
+    allocate(open_models(4), open_flags(4))
+    open_flags = .false.
+  end if
+  do k = 1, size(open_flags)
+    if (.not. open_flags(k)) exit
+  end do
+  if (k > size(open_flags)) then
+    allocate(grown(2*size(open_models)), flags(2*size(open_flags)))
+    flags = .false.
+    call move_alloc(grown, open_models)
+    call move_alloc(flags, open_flags)
+  end if
+  call load_model(scene, overrides, sc, open_models(k), error)
+  call report(error, stat, message)
+  if (stat /= 0) return
+  open_flags(k) = .true.
+  handle = k; n = open_models(k)%d%n
+end subroutine pymr_model_open
+
+!> Release an open model.
+subroutine pymr_model_close(handle)
+  use pymr_bind_models, only : open_models, open_flags
+  use pymr_model, only : model_t
+  implicit none
+  integer, intent(in) :: handle
+  type(model_t) :: empty
+  if (.not. allocated(open_flags)) return
+  if (handle < 1 .or. handle > size(open_flags)) return
+  open_models(handle) = empty
+  open_flags(handle) = .false.
+end subroutine pymr_model_close
+
+!> f(t, x) = [qd; qdd] of an open model for the state x = [q; qd]; `evals` counts the
+!> model's full evaluations so far.
+subroutine pymr_model_rhs(handle, nx, t, x, f, evals, stat, message)
+  use pymr_error, only : error_type, fatal_error
+  use pymr_bind_support, only : report
+  use pymr_bind_models, only : open_models, open_flags
+  implicit none
+  integer, intent(in) :: handle, nx
+  double precision, intent(in) :: t, x(nx)
+  double precision, intent(out) :: f(nx)
+  integer, intent(out) :: evals, stat
+  character(len=1024), intent(out) :: message
+  !f2py integer intent(hide), depend(x) :: nx = len(x)
+  type(error_type), allocatable :: error
+  f = 0.0d0; evals = 0
+  if (.not. allocated(open_flags)) then
+    call fatal_error(error, 'no open model')
+  else if (handle < 1 .or. handle > size(open_flags)) then
+    call fatal_error(error, 'no open model with this handle')
+  else if (.not. open_flags(handle)) then
+    call fatal_error(error, 'the model of this handle is closed')
+  else if (2*open_models(handle)%d%n /= nx) then
+    call fatal_error(error, 'x has the wrong length')
+  else
+    call open_models(handle)%eval(t, x, f, error)
+    evals = open_models(handle)%d%evals
+  end if
+  call report(error, stat, message)
+end subroutine pymr_model_rhs
+
+!> Position (inertial, m) of marker `marker` (1-based) of an open model at m states
+!> (t(m), q(n,m), qd(n,m)); prescribed coordinates take their functions' values.
+subroutine pymr_model_marker(handle, marker, n, m, t, q, qd, pos, stat, message)
+  use pymr_error, only : error_type, fatal_error
+  use pymr_bind_support, only : report
+  use pymr_bind_models, only : open_models, open_flags
+  use pymr_model_kinematics, only : forward_kinematics, marker_motion
+  use pymr_model_effects, only : impose_prescribed_state
+  implicit none
+  integer, intent(in) :: handle, marker, n, m
+  double precision, intent(in) :: t(m), q(n, m), qd(n, m)
+  double precision, intent(out) :: pos(3, m)
+  integer, intent(out) :: stat
+  character(len=1024), intent(out) :: message
+  !f2py integer intent(hide), depend(q) :: n = shape(q, 0)
+  !f2py integer intent(hide), depend(q) :: m = shape(q, 1)
+  type(error_type), allocatable :: error
+  double precision :: v(3)
+  integer :: k
+  pos = 0.0d0
+  if (.not. allocated(open_flags)) then
+    call fatal_error(error, 'no open model')
+  else if (handle < 1 .or. handle > size(open_flags)) then
+    call fatal_error(error, 'no open model with this handle')
+  else if (.not. open_flags(handle)) then
+    call fatal_error(error, 'the model of this handle is closed')
+  else if (open_models(handle)%d%n /= n) then
+    call fatal_error(error, 'q has the wrong length')
+  else if (marker < 1 .or. marker > open_models(handle)%d%n_markers) then
+    call fatal_error(error, 'no marker with this index')
+  end if
+  call report(error, stat, message)
+  if (stat /= 0) return
+  associate(d => open_models(handle)%d)
+    do k = 1, m
+      call impose_prescribed_state(d, t(k), q(:, k), qd(:, k))
+      call forward_kinematics(d, d%qx, d%qdx)
+      call marker_motion(d, marker, d%qx, d%qdx, pos(:, k), v)
+    end do
+  end associate
+end subroutine pymr_model_marker
+
+!> CPU seconds of one fast right-hand side of the multirate method ('full' coupling:
+!> the fast rows assembled; 'split': held terms) and of one full evaluation, at (q, qd):
+!> the weights that turn fast evaluations into full-evaluation equivalents.
+subroutine pymr_time_fast(scene, overrides, n, q, qd, reps, split, fast_seconds, full_seconds, stat, message)
+  use pymr_error, only : error_type, fatal_error
+  use pymr_bind_support, only : report
+  use pymr_model_scene, only : scene_t
+  use pymr_model, only : model_t
+  use pymr_run, only : load_model
+  use pymr_clock, only : thread_cpu_time
+  implicit none
+  character(len=*), intent(in) :: scene, overrides
+  integer, intent(in) :: n, reps, split
+  double precision, intent(in) :: q(n), qd(n)
+  double precision, intent(out) :: fast_seconds, full_seconds
+  integer, intent(out) :: stat
+  character(len=1024), intent(out) :: message
+  !f2py integer intent(hide), depend(q) :: n = len(q)
+  type(error_type), allocatable :: error
+  type(scene_t) :: sc
+  type(model_t) :: model
+  double precision, allocatable :: x(:), f(:), xs(:), xf(:), fs(:), ff(:), acc(:)
+  double precision :: c0
+  integer :: k, ns, nf
+  fast_seconds = 0.0d0; full_seconds = 0.0d0
+  call load_model(scene, overrides, sc, model, error)
+  if (.not. allocated(error) .and. model%d%n /= n) call fatal_error(error, 'q has the wrong length')
+  if (.not. allocated(error)) then
+    ns = model%d%nj; nf = n - ns
+    if (ns == 0 .or. nf == 0) call fatal_error(error, 'the scene has no slow or no fast coordinates')
+  end if
+  if (.not. allocated(error)) then
+    x = [q, qd]
+    allocate(f(2*n))
+    c0 = thread_cpu_time()
+    do k = 1, reps
+      call model%eval(0.0d0, x, f, error)
+      if (allocated(error)) exit
+    end do
+    full_seconds = (thread_cpu_time() - c0)/max(reps, 1)
+  end if
+  if (.not. allocated(error)) then
+    call model%init_partition()
+    xs = [q(1:ns), qd(1:ns)]; xf = [q(ns+1:), qd(ns+1:)]
+    allocate(fs(2*ns), ff(2*nf))
+    call model%sync_rhs(0.0d0, xs, xf, fs, ff, error)
+    acc = fs(ns+1:)
+  end if
+  if (.not. allocated(error)) then
+    c0 = thread_cpu_time()
+    do k = 1, reps
+      call model%fast_rhs(0.0d0, xs, xf, acc, split /= 0, ff, error)
+      if (allocated(error)) exit
+    end do
+    fast_seconds = (thread_cpu_time() - c0)/max(reps, 1)
+  end if
+  call report(error, stat, message)
+end subroutine pymr_time_fast
+
+
+!> Index (1-based; 0 when absent) of the marker called `name` in an open model.
+subroutine pymr_model_marker_index(handle, name, k)
+  use pymr_bind_models, only : open_models, open_flags
+  implicit none
+  integer, intent(in) :: handle
+  character(len=*), intent(in) :: name
+  integer, intent(out) :: k
+  integer :: i
+  k = 0
+  if (.not. allocated(open_flags)) return
+  if (handle < 1 .or. handle > size(open_flags)) return
+  if (.not. open_flags(handle)) return
+  do i = 1, open_models(handle)%d%n_markers
+    if (trim(open_models(handle)%d%marker_name(i)) == trim(name)) k = i
+  end do
+end subroutine pymr_model_marker_index

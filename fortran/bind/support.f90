@@ -16,3 +16,16 @@ contains
     end if
   end subroutine report
 end module pymr_bind_support
+
+!> Models kept open between binding calls (for integrators driven from Python, such as
+!> scipy's, that call the right-hand side many times): a handle is an index here.
+module pymr_bind_models
+  use pymr_model, only : model_t
+  implicit none
+  private
+  public :: open_models, open_flags
+
+  type(model_t), allocatable, target :: open_models(:)
+  logical, allocatable :: open_flags(:)
+end module pymr_bind_models
+
