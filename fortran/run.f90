@@ -16,6 +16,7 @@ module pymr_run
   use pymr_model_effects, only : prescribed_motion
   use pymr_io_namelist_scan, only : itoa
   use pymr_preflight, only : check_step_stability, check_mass_matrix
+  use pymr_io_checkpoint, only : run_progress, write_checkpoint, read_checkpoint
   implicit none
   private
   public :: run_scene, load_model, default_output
@@ -64,12 +65,14 @@ contains
     end if
   end subroutine stepper_value_at
 
-  !> Set up the stepper for the scene and start it at (0, x).
-  subroutine start_stepper(sc, model, x, st, error)
+  !> Set up the stepper for the scene and start it at (0, x); with `restarting`, only set
+  !> it up (its state comes from a checkpoint).
+  subroutine start_stepper(sc, model, x, st, restarting, error)
     type(scene_t), intent(in) :: sc
     type(model_t), intent(inout) :: model
     real(dp), intent(in) :: x(:)
     type(stepper), intent(inout) :: st
+    logical, intent(in) :: restarting
     type(error_type), allocatable, intent(out) :: error
     type(step_control) :: ctl
     integer :: k, coupling
@@ -89,7 +92,7 @@ contains
     if (st%multirate) then
       k = nint(sc%integrator%h_slow/sc%integrator%h_fast)
       hs = sc%integrator%h_slow
-      if (sc%integrator%adaptive) then
+      if (sc%integrator%adaptive .and. .not. restarting) then
         ! start single-rate (k = 1) at h_fast, or less if the tolerances ask for it; the
         ! controller then chooses k
         call st%abm%init(size(x), .true., ctl, 1)
@@ -102,10 +105,10 @@ contains
       coupling = merge(coupling_split, coupling_full, sc%integrator%coupling == 'split')
       call model%init_partition()
       call st%mr%init(model%n_slow(), model%n_fast(), k, coupling, sc%integrator%adaptive, ctl, sc%integrator%k_max)
-      call st%mr%start(model, 0.0_dp, x, hs, error)
+      if (.not. restarting) call st%mr%start(model, 0.0_dp, x, hs, error)
     else
       call st%abm%init(size(x), sc%integrator%adaptive, ctl, sc%integrator%n_corrector)
-      call st%abm%start(model, 0.0_dp, x, sc%integrator%h_slow, error)
+      if (.not. restarting) call st%abm%start(model, 0.0_dp, x, sc%integrator%h_slow, error)
     end if
   end subroutine start_stepper
 
@@ -138,56 +141,80 @@ contains
   end function default_output
 
   !> Run a scene: results to `out` (or the default), statistics beside it; `summary`
-  !> receives a few human-readable lines.
-  subroutine run_scene(file, overrides, out, summary, error, written)
+  !> receives a few human-readable lines. With `restart`, continue the run from that
+  !> checkpoint file: the results file keeps the rows written up to the checkpoint.
+  subroutine run_scene(file, overrides, out, summary, error, written, restart)
     character(len=*), intent(in) :: file, overrides, out
     character(len=:), allocatable, intent(out) :: summary
     type(error_type), allocatable, intent(out) :: error
     !> The CSV file written.
     character(len=:), allocatable, intent(out), optional :: written
+    !> Checkpoint to continue from ('' or absent: a new run).
+    character(len=*), intent(in), optional :: restart
     type(scene_t) :: sc
     type(model_t) :: model
     type(stepper) :: st
     type(csv_writer) :: csv
     type(run_stats) :: stats
+    type(run_progress) :: prog
     real(dp), allocatable :: x(:)
-    real(dp) :: h, dt_out, t_next, eps, cpu0, cpu1
+    real(dp) :: h, dt_out, t_next, eps, cpu0, cpu1, t_ckpt
     integer :: n, k_out
     integer(8) :: c0, c1, rate
-    character(len=:), allocatable :: path
+    logical :: restarting
+    character(len=:), allocatable :: path, ckpt_path
 
+    restarting = .false.
+    if (present(restart)) restarting = len_trim(restart) > 0
     call load_model(file, overrides, sc, model, error); if (allocated(error)) return
     n = model%d%n
     path = default_output(sc, out)
+    ckpt_path = trim(sc%checkpoint_file)
+    if (len(ckpt_path) == 0) ckpt_path = checkpoint_default(path)
     cpu0 = thread_cpu_time(); call system_clock(c0, rate)
     h = sc%integrator%h_slow
     allocate(x(2*n))
     call initial_state(sc, model, x)
-    call csv%open(path, model%d, sc%title, method_label(sc), error); if (allocated(error)) return
-    call csv%write_row(model%d, 0.0_dp, x(1:n), x(n+1:)); stats%rows = 1
     dt_out = sc%output_dt
     if (dt_out <= 0.0_dp .and. .not. sc%integrator%adaptive) dt_out = h
     eps = 1.0e-9_dp*h
     k_out = 1
     t_next = dt_out
-    call check_mass_matrix(model, x, file // ': ', error)
-    if (allocated(error)) then
-      call csv%close(); return
-    end if
-    if (.not. sc%integrator%adaptive .and. sc%integrator%stability_check) then
-      call check_step_stability(model, x, h, merge(sc%integrator%h_fast, h, sc%integrator%h_fast > 0.0_dp), &
-        & sc%integrator%method == 'multirate', merge(coupling_split, coupling_full, sc%integrator%coupling == 'split'), &
-        & sc%t_end, file // ': &integrator: ', error)
+    if (restarting) then
+      call start_stepper(sc, model, x, st, .true., error)
+      if (.not. allocated(error)) call read_checkpoint(restart, st%multirate, st%abm, st%mr, model, prog, error)
+      if (.not. allocated(error)) call csv%reopen(path, model%d, prog%rows, error)
+      if (allocated(error)) then
+        call csv%close()
+        if (index(error%message, file) /= 1) error%message = file // ': ' // error%message
+        return
+      end if
+      stats%rows = prog%rows; k_out = prog%k_out; t_next = prog%t_next
+      cpu0 = cpu0 - prog%cpu_s
+    else
+      call csv%open(path, model%d, sc%title, method_label(sc), error); if (allocated(error)) return
+      call csv%write_row(model%d, 0.0_dp, x(1:n), x(n+1:)); stats%rows = 1
+      call check_mass_matrix(model, x, file // ': ', error)
       if (allocated(error)) then
         call csv%close(); return
       end if
+      if (.not. sc%integrator%adaptive .and. sc%integrator%stability_check) then
+        call check_step_stability(model, x, h, merge(sc%integrator%h_fast, h, sc%integrator%h_fast > 0.0_dp), &
+          & sc%integrator%method == 'multirate', merge(coupling_split, coupling_full, sc%integrator%coupling == 'split'), &
+          & sc%t_end, file // ': &integrator: ', error)
+        if (allocated(error)) then
+          call csv%close(); return
+        end if
+      end if
+      call start_stepper(sc, model, x, st, .false., error)
+      if (allocated(error)) then
+        call csv%close()
+        if (index(error%message, file) /= 1) error%message = file // ': ' // error%message
+        return
+      end if
     end if
-    call start_stepper(sc, model, x, st, error)
-    if (allocated(error)) then
-      call csv%close()
-      if (index(error%message, file) /= 1) error%message = file // ': ' // error%message
-      return
-    end if
+    t_ckpt = huge(1.0_dp)
+    if (sc%checkpoint_dt > 0.0_dp) t_ckpt = (floor(st%time()/sc%checkpoint_dt + 1.0e-9_dp) + 1)*sc%checkpoint_dt
     do
       if (dt_out > 0.0_dp) then
         do while (t_next <= min(st%time(), sc%t_end) + eps)
@@ -200,6 +227,14 @@ contains
         call csv%write_row(model%d, st%time(), x(1:n), x(n+1:)); stats%rows = stats%rows + 1
       end if
       if (st%time() >= sc%t_end - eps) exit
+      if (st%time() >= t_ckpt - eps) then
+        ! the rows up to now are on disk before the checkpoint that counts them
+        flush(csv%unit)
+        prog = run_progress(rows=stats%rows, k_out=k_out, t_next=t_next, cpu_s=thread_cpu_time() - cpu0, &
+          & t_checkpoint=st%time())
+        call write_checkpoint(ckpt_path, st%multirate, st%abm, st%mr, model, prog, error); if (allocated(error)) exit
+        t_ckpt = (floor(st%time()/sc%checkpoint_dt + 1.0e-9_dp) + 1)*sc%checkpoint_dt
+      end if
       call st%advance(model, error); if (allocated(error)) exit
     end do
     if (.not. allocated(error)) then
@@ -220,6 +255,19 @@ contains
     summary = summary_text(sc, model, stats, path, x)
     if (present(written)) written = path
   end subroutine run_scene
+
+  !> The checkpoint file beside the CSV: extension replaced by .ckpt (or appended).
+  function checkpoint_default(csv) result(p)
+    character(len=*), intent(in) :: csv
+    character(len=:), allocatable :: p
+    integer :: k
+    k = index(csv, '.', back=.true.)
+    if (k > index(csv, '/', back=.true.) .and. k > 1) then
+      p = csv(1:k-1) // '.ckpt'
+    else
+      p = csv // '.ckpt'
+    end if
+  end function checkpoint_default
 
   !> Step and evaluation counts of a run.
   subroutine fill_stats(st, model, stats)

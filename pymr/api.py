@@ -57,30 +57,36 @@ def _scene_arg(scene: str | os.PathLike) -> str:
 
 
 def run(scene: str | os.PathLike, output: str | os.PathLike | None = None,
-        overrides: Mapping[str, object] | Iterable[str] | None = None) -> Results:
+        overrides: Mapping[str, object] | Iterable[str] | None = None,
+        restart: str | os.PathLike | None = None) -> Results:
     """Run a scene in the Fortran kernel and return its results as numpy arrays.
 
     ``output`` is the CSV path (the JSON statistics go beside it); ``""`` lets the kernel
     choose (``&output file``, else SCENE.csv); ``None`` writes to a temporary folder,
     loads the results and removes the files.
     ``overrides`` changes namelist values for this run, as ``pymr run --set`` does.
+    ``restart`` continues a run from its checkpoint file (``&output checkpoint_dt``): the
+    results file keeps the rows written up to the checkpoint and the run goes on from there.
     Raises :class:`SceneError` for bad input and :class:`SolverError` for a failed run.
     """
     text = format_overrides(overrides)
+    ckpt = os.fspath(restart) if restart else ""
+    if ckpt and output is None:
+        raise ValueError("a restart continues an existing results file: give output (or '' for the default)")
     if output == "":
         # let the kernel choose: &output file, else SCENE.csv in the working folder
-        stat, msg, summary, written = _core.pymr_run_scene(_scene_arg(scene), text, "")
+        stat, msg, summary, written = _core.pymr_run_scene(_scene_arg(scene), text, "", ckpt)
         _raise(stat, msg)
         res = load_results(_text(written))
     elif output is None:
         with tempfile.TemporaryDirectory(prefix="pymr-") as tmp:
             out = str(Path(tmp) / "results.csv")
-            stat, msg, summary, _ = _core.pymr_run_scene(_scene_arg(scene), text, out)
+            stat, msg, summary, _ = _core.pymr_run_scene(_scene_arg(scene), text, out, ckpt)
             _raise(stat, msg)
             res = load_results(out)
     else:
         out = os.fspath(output)
-        stat, msg, summary, _ = _core.pymr_run_scene(_scene_arg(scene), text, out)
+        stat, msg, summary, _ = _core.pymr_run_scene(_scene_arg(scene), text, out, ckpt)
         _raise(stat, msg)
         res = load_results(out)
     res.summary = _text(summary)

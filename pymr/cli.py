@@ -1,14 +1,16 @@
-"""The ``pymr`` command line: ``pymr run``, ``pymr bench``, ``pymr study``, ``pymr modal-file``."""
+"""The ``pymr`` command line: ``pymr run``, ``pymr bench``, ``pymr study``, ``pymr modal-file``,
+``pymr plot``."""
 from __future__ import annotations
 
 import argparse
 import sys
 
 from .api import PymrError, SceneError, run
+from .plot import PlotError
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    res = run(args.scene, output=args.output or "", overrides=args.set or None)
+    res = run(args.scene, output=args.output or "", overrides=args.set or None, restart=args.restart)
     if not args.quiet:
         print(res.summary)
     return 0
@@ -32,6 +34,12 @@ def _cmd_study(args: argparse.Namespace) -> int:
     return study.main(args.scene, marker=args.marker, output=args.output, quick=args.quick)
 
 
+def _cmd_plot(args: argparse.Namespace) -> int:
+    from . import plot
+    return plot.main(args.csv, output=args.output, markers=args.marker, joints=args.joint,
+                     labels=args.labels, title=args.title, quiet=args.quiet)
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="pymr", description="Flexible multibody dynamics with multirate "
                                 "Nordsieck Adams integration.")
@@ -42,6 +50,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--set", action="append", metavar="GROUP.KEY=VALUE",
                    help="override a namelist value for this run, e.g. integrator.h_slow=5e-4 or "
                         "body[gun].mass=1000 (repeatable)")
+    r.add_argument("--restart", metavar="CKPT", help="continue a run from its checkpoint file (written with "
+                   "&output checkpoint_dt); the results file keeps the rows up to the checkpoint")
     r.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
     r.set_defaults(func=_cmd_run)
     m = sub.add_parser("modal-file", help="write a beam's modes to a modal data file (for kind='modal')")
@@ -67,6 +77,20 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("-o", "--output", help="prefix of the CSV and PNG written (default: SCENE_study)")
     s.add_argument("--quick", action="store_true", help="fewer steps and tolerances (a smoke run)")
     s.set_defaults(func=_cmd_study)
+    pl = sub.add_parser("plot", help="plot result files, overlaid (the tank: muzzle position, velocity and "
+                        "modal coordinates, the paper's Figs. 5-7; other scenes: markers and joints)")
+    pl.add_argument("csv", nargs="+", help="result files (OUT.csv; OUT.json beside it is not needed)")
+    pl.add_argument("-o", "--output", help="figure to write (default: the first CSV's stem + .png, here)")
+    pl.add_argument("--marker", action="append", metavar="NAME",
+                    help="plot this marker's position and velocity (repeatable; default: the tank's "
+                         "muzzle, else every marker)")
+    pl.add_argument("--joint", action="extend", nargs="+", metavar="NAME",
+                    help="plot these joints' coordinates (default: none for the tank, else every joint)")
+    pl.add_argument("--labels", nargs="+", metavar="LABEL",
+                    help="legend labels, one per CSV (default: each run's method, else the file's stem)")
+    pl.add_argument("--title", help="figure title (default: the first run's scene title)")
+    pl.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
+    pl.set_defaults(func=_cmd_plot)
     return p
 
 
@@ -76,7 +100,7 @@ def main(argv: list[str] | None = None) -> int:
         return args.func(args)
     except PymrError as exc:
         print(f"pymr: error: {exc}", file=sys.stderr)
-        return 1 if isinstance(exc, SceneError) else 2
+        return 1 if isinstance(exc, (SceneError, PlotError)) else 2
 
 
 if __name__ == "__main__":

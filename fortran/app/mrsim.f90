@@ -1,6 +1,6 @@
 !> mrsim: run a pymr scene from a namelist file.
 !>
-!>   mrsim SCENE.nml [-o OUT.csv] [--set GROUP.KEY=VALUE ...] [--quiet]
+!>   mrsim SCENE.nml [-o OUT.csv] [--set GROUP.KEY=VALUE ...] [--restart CKPT] [--quiet]
 !>
 !> Exit status 0 on success; otherwise one line on stderr,
 !> "mrsim: error: <message>", and status 1 (bad input) or 2 (failed run).
@@ -9,19 +9,20 @@ program mrsim
   use pymr_error, only : error_type
   use pymr_run, only : run_scene
   implicit none
-  character(len=:), allocatable :: scene, out, overrides, summary, arg
+  character(len=:), allocatable :: scene, out, overrides, summary, arg, restart
   type(error_type), allocatable :: error
   integer :: i, nargs
   logical :: quiet
 
-  scene = ''; out = ''; overrides = ''; quiet = .false.
+  scene = ''; out = ''; overrides = ''; restart = ''; quiet = .false.
   nargs = command_argument_count()
   i = 1
   do while (i <= nargs)
     arg = get_arg(i)
     select case (arg)
     case ('-h', '--help')
-      write(output_unit, '(a)') 'usage: mrsim SCENE.nml [-o OUT.csv] [--set GROUP.KEY=VALUE ...] [--quiet]'
+      write(output_unit, '(a)') 'usage: mrsim SCENE.nml [-o OUT.csv] [--set GROUP.KEY=VALUE ...] [--restart CKPT] ' &
+        & // '[--quiet]'
       stop
     case ('-o', '--output')
       if (i == nargs) call usage_error(arg // ' needs a file name')
@@ -29,6 +30,9 @@ program mrsim
     case ('--set')
       if (i == nargs) call usage_error('--set needs GROUP.KEY=VALUE')
       i = i + 1; overrides = overrides // get_arg(i) // achar(10)
+    case ('--restart')
+      if (i == nargs) call usage_error('--restart needs a checkpoint file')
+      i = i + 1; restart = get_arg(i)
     case ('-q', '--quiet')
       quiet = .true.
     case default
@@ -40,7 +44,7 @@ program mrsim
   end do
   if (len(scene) == 0) call usage_error('no scene file (usage: mrsim SCENE.nml [-o OUT.csv] [--set G.K=V ...])')
 
-  call run_scene(scene, overrides, out, summary, error)
+  call run_scene(scene, overrides, out, summary, error, restart=restart)
   if (allocated(error)) then
     write(error_unit, '(a)') 'mrsim: error: ' // error%message
     if (error%stat == 1) stop 1, quiet=.true.

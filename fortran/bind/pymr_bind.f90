@@ -3,19 +3,20 @@
 !> 1 bad input, 2 failed run) and a one-line `message`; Python raises on stat /= 0.
 
 !> Run a scene to result files (see pymr_run%run_scene); `path` returns the CSV written.
-subroutine pymr_run_scene(scene, overrides, out, stat, message, summary, path)
+!> A non-empty `restart` continues from that checkpoint file.
+subroutine pymr_run_scene(scene, overrides, out, restart, stat, message, summary, path)
   use pymr_error, only : error_type
   use pymr_bind_support, only : report
   use pymr_run, only : run_scene
   implicit none
-  character(len=*), intent(in) :: scene, overrides, out
+  character(len=*), intent(in) :: scene, overrides, out, restart
   integer, intent(out) :: stat
   character(len=1024), intent(out) :: message
   character(len=4096), intent(out) :: summary
   character(len=1024), intent(out) :: path
   type(error_type), allocatable :: error
   character(len=:), allocatable :: text, written
-  call run_scene(scene, overrides, out, text, error, written)
+  call run_scene(scene, overrides, out, text, error, written, restart)
   call report(error, stat, message)
   summary = ''; path = ''
   if (stat == 0) then

@@ -42,7 +42,8 @@ module pymr_io_namelist_input
   character(len=*), parameter :: items_load(6) = [character(len=16) :: 'marker', 'direction', 'form', 'peak', &
     & 'start', 'duration']
   character(len=*), parameter :: items_marker(3) = [character(len=16) :: 'name', 'body', 'at']
-  character(len=*), parameter :: items_output(2) = [character(len=16) :: 'file', 'dt']
+  character(len=*), parameter :: items_output(4) = [character(len=16) :: 'file', 'dt', 'checkpoint_dt', &
+    & 'checkpoint_file']
 
 contains
 
@@ -421,12 +422,13 @@ contains
     type(override_t), intent(inout) :: ovs(:)
     type(scene_t), intent(inout) :: sc
     type(error_type), allocatable, intent(out) :: error
-    character(len=512) :: file
-    real(dp) :: dt
+    character(len=512) :: file, checkpoint_file
+    real(dp) :: dt, checkpoint_dt
     integer :: ios, i
     character(len=256) :: msg
-    namelist /output/ file, dt
+    namelist /output/ file, dt, checkpoint_dt, checkpoint_file
     file = sc%output_file; dt = sc%output_dt
+    checkpoint_dt = sc%checkpoint_dt; checkpoint_file = sc%checkpoint_file
     if (any(groups%name == 'output')) then
       rewind(u)
       read(u, nml=output, iostat=ios, iomsg=msg)
@@ -443,6 +445,7 @@ contains
       ovs(i)%used = .true.
     end do
     sc%output_file = file; sc%output_dt = dt
+    sc%checkpoint_dt = checkpoint_dt; sc%checkpoint_file = checkpoint_file
   end subroutine read_output
 
   subroutine read_bodies(file, u, groups, ovs, sc, error)

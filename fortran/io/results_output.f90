@@ -7,6 +7,7 @@ module pymr_io_results_output
   use pymr_model_effects, only : impose_prescribed_state
   use pymr_model_kinematics, only : forward_kinematics, marker_motion
   use pymr_io_fast_format, only : put_real
+  use pymr_io_namelist_scan, only : itoa
   implicit none
   private
   public :: csv_writer, json_path, write_json, run_stats, pymr_version
@@ -31,6 +32,7 @@ module pymr_io_results_output
     character(len=:), allocatable :: line
   contains
     procedure :: open => csv_open
+    procedure :: reopen => csv_reopen
     procedure :: write_row => csv_write_row
     procedure :: close => csv_close
   end type csv_writer
@@ -89,6 +91,57 @@ contains
       end do
     end subroutine add_rates
   end subroutine csv_open
+
+  !> Restart: keep the comment lines, the header and the first `rows` rows of the CSV file a
+  !> checkpointed run wrote (dropping rows it wrote after its checkpoint), and append.
+  subroutine csv_reopen(self, path, d, rows, error)
+    class(csv_writer), intent(inout) :: self
+    character(len=*), intent(in) :: path
+    type(model_data), intent(in) :: d
+    integer, intent(in) :: rows
+    type(error_type), allocatable, intent(out) :: error
+    integer :: u, ios, k, keep
+    character(len=256) :: msg
+    character(len=:), allocatable :: buf
+    type :: line_t
+      character(len=:), allocatable :: s
+    end type line_t
+    type(line_t), allocatable :: lines(:)
+    logical :: exists
+    keep = rows + 4
+    inquire(file=path, exist=exists)
+    if (.not. exists) then
+      call fatal_error(error, path // ': the results of the checkpointed run are missing (restart needs them)')
+      return
+    end if
+    allocate(character(len=25*(1 + 2*d%n + 6*d%n_markers) + 64*d%n + 1024) :: buf)
+    allocate(lines(keep))
+    open(newunit=u, file=path, status='old', action='read', iostat=ios, iomsg=msg)
+    if (ios /= 0) then
+      call fatal_error(error, path // ': cannot read the results: ' // trim(msg)); return
+    end if
+    do k = 1, keep
+      read(u, '(a)', iostat=ios) buf
+      if (ios /= 0) exit
+      lines(k)%s = trim(buf)
+    end do
+    close(u)
+    if (k <= keep) then
+      call fatal_error(error, path // ': has ' // itoa(max(k - 5, 0)) // ' result rows, the checkpoint expects ' // &
+        & itoa(rows) // ': the file belongs to another run'); return
+    end if
+    open(newunit=self%unit, file=path, status='replace', action='write', iostat=ios, iomsg=msg)
+    if (ios /= 0) then
+      call fatal_error(error, path // ': cannot write the results: ' // trim(msg)); return
+    end if
+    do k = 1, keep
+      write(self%unit, '(a)') lines(k)%s
+    end do
+    self%path = path
+    self%opened = .true.
+    allocate(self%row(1 + 2*d%n + 6*d%n_markers))
+    allocate(character(len=25*size(self%row)) :: self%line)
+  end subroutine csv_reopen
 
   !> Write the row for time t and state (q, qd); runs kinematics for the markers.
   subroutine csv_write_row(self, d, t, q, qd)

@@ -145,6 +145,10 @@ contains
       if (sc%output_dt < 0.0_dp) then
         call fatal_error(error, sc%file // ': &output: dt: must not be negative, got ' // fmt(sc%output_dt)); return
       end if
+      if (sc%checkpoint_dt < 0.0_dp) then
+        call fatal_error(error, sc%file // ': &output: checkpoint_dt: must not be negative, got ' // &
+          & fmt(sc%checkpoint_dt)); return
+      end if
       if (.not. s%adaptive .and. sc%output_dt > 0.0_dp) then
         r = sc%output_dt/hs
         if (abs(r - nint(r)) > 1.0e-9_dp*r .or. nint(r) < 1) then

@@ -160,6 +160,10 @@ module pymr_model_scene
     !> CSV output file and output interval (s; 0 = every slow step).
     character(len=512) :: output_file = ''
     real(dp) :: output_dt = 0.0_dp
+    !> Checkpoints every checkpoint_dt s of simulated time (0: none), to checkpoint_file
+    !> (default: the CSV path with .ckpt).
+    real(dp) :: checkpoint_dt = 0.0_dp
+    character(len=512) :: checkpoint_file = ''
   end type scene_t
 
 contains
