@@ -1,6 +1,7 @@
 !> One run from a scene file to result files: read, build, integrate, write.
 !> Shared by the `mrsim` program and the Python binding.
 module pymr_run
+  use, intrinsic :: iso_fortran_env, only : error_unit
   use pymr_kinds, only : dp
   use pymr_error, only : error_type, fatal_error
   use pymr_model_scene, only : scene_t
@@ -19,7 +20,13 @@ module pymr_run
   use pymr_io_checkpoint, only : run_progress, write_checkpoint, read_checkpoint
   implicit none
   private
-  public :: run_scene, load_model, default_output
+  public :: run_scene, load_model, default_output, progress_t, progress_t_end, progress_running
+
+  !> Progress of the run in this process, read by the Python binding from another thread
+  !> while the run goes on (no call back into Python per step): simulated time reached,
+  !> end time, and whether a run is going.
+  real(dp), volatile :: progress_t = 0.0_dp, progress_t_end = 0.0_dp
+  logical, volatile :: progress_running = .false.
 
   !> The time stepper of a run: single-rate ABM or multirate.
   type :: stepper
@@ -143,7 +150,7 @@ contains
   !> Run a scene: results to `out` (or the default), statistics beside it; `summary`
   !> receives a few human-readable lines. With `restart`, continue the run from that
   !> checkpoint file: the results file keeps the rows written up to the checkpoint.
-  subroutine run_scene(file, overrides, out, summary, error, written, restart)
+  subroutine run_scene(file, overrides, out, summary, error, written, restart, progress_lines)
     character(len=*), intent(in) :: file, overrides, out
     character(len=:), allocatable, intent(out) :: summary
     type(error_type), allocatable, intent(out) :: error
@@ -151,6 +158,8 @@ contains
     character(len=:), allocatable, intent(out), optional :: written
     !> Checkpoint to continue from ('' or absent: a new run).
     character(len=*), intent(in), optional :: restart
+    !> Print a progress line to stderr about every second (mrsim --progress).
+    logical, intent(in), optional :: progress_lines
     type(scene_t) :: sc
     type(model_t) :: model
     type(stepper) :: st
@@ -160,12 +169,14 @@ contains
     real(dp), allocatable :: x(:)
     real(dp) :: h, dt_out, t_next, eps, cpu0, cpu1, t_ckpt
     integer :: n, k_out
-    integer(8) :: c0, c1, rate
-    logical :: restarting
+    integer(8) :: c0, c1, rate, c_line
+    logical :: restarting, lines
     character(len=:), allocatable :: path, ckpt_path
 
     restarting = .false.
     if (present(restart)) restarting = len_trim(restart) > 0
+    lines = .false.
+    if (present(progress_lines)) lines = progress_lines
     call load_model(file, overrides, sc, model, error); if (allocated(error)) return
     n = model%d%n
     path = default_output(sc, out)
@@ -213,6 +224,9 @@ contains
         return
       end if
     end if
+    progress_t_end = sc%t_end; progress_t = st%time(); progress_running = .true.
+    c_line = c0
+    if (lines) call progress_line(st%time(), sc%t_end, c0, rate)
     t_ckpt = huge(1.0_dp)
     if (sc%checkpoint_dt > 0.0_dp) t_ckpt = (floor(st%time()/sc%checkpoint_dt + 1.0e-9_dp) + 1)*sc%checkpoint_dt
     do
@@ -236,7 +250,16 @@ contains
         t_ckpt = (floor(st%time()/sc%checkpoint_dt + 1.0e-9_dp) + 1)*sc%checkpoint_dt
       end if
       call st%advance(model, error); if (allocated(error)) exit
+      progress_t = st%time()
+      if (lines) then
+        call system_clock(c1)
+        if (c1 - c_line >= rate) then
+          call progress_line(st%time(), sc%t_end, c0, rate); c_line = c1
+        end if
+      end if
     end do
+    progress_running = .false.
+    if (lines .and. .not. allocated(error)) call progress_line(sc%t_end, sc%t_end, c0, rate)
     if (.not. allocated(error)) then
       call st%value_at(sc%t_end, x)
       if (dt_out <= 0.0_dp .or. abs(t_next - dt_out - sc%t_end) > eps) then
@@ -255,6 +278,23 @@ contains
     summary = summary_text(sc, model, stats, path, x)
     if (present(written)) written = path
   end subroutine run_scene
+
+  !> One progress line on stderr: simulated time, percent, wall time and its estimate to go.
+  subroutine progress_line(t, t_end, c0, rate)
+    real(dp), intent(in) :: t, t_end
+    integer(8), intent(in) :: c0, rate
+    integer(8) :: c
+    real(dp) :: wall, eta
+    character(len=160) :: buf
+    call system_clock(c)
+    wall = real(c - c0, dp)/real(rate, dp)
+    eta = 0.0_dp
+    if (t > 0.0_dp) eta = wall*max(t_end - t, 0.0_dp)/t
+    write(buf, '(a,es11.4,a,es11.4,a,f6.1,a,f9.1,a,f9.1,a)') 'mrsim: t = ', t, ' s of ', t_end, ' s (', &
+      & 100.0_dp*min(t/t_end, 1.0_dp), ' %), ', wall, ' s elapsed, ETA ', eta, ' s'
+    write(error_unit, '(a)') trim(buf)
+    flush(error_unit)
+  end subroutine progress_line
 
   !> The checkpoint file beside the CSV: extension replaced by .ckpt (or appended).
   function checkpoint_default(csv) result(p)

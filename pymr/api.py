@@ -2,7 +2,9 @@
 from __future__ import annotations
 
 import os
+import sys
 import tempfile
+import threading
 from pathlib import Path
 from typing import Iterable, Mapping
 
@@ -58,7 +60,7 @@ def _scene_arg(scene: str | os.PathLike) -> str:
 
 def run(scene: str | os.PathLike, output: str | os.PathLike | None = None,
         overrides: Mapping[str, object] | Iterable[str] | None = None,
-        restart: str | os.PathLike | None = None) -> Results:
+        restart: str | os.PathLike | None = None, progress: bool | None = None) -> Results:
     """Run a scene in the Fortran kernel and return its results as numpy arrays.
 
     ``output`` is the CSV path (the JSON statistics go beside it); ``""`` lets the kernel
@@ -67,6 +69,9 @@ def run(scene: str | os.PathLike, output: str | os.PathLike | None = None,
     ``overrides`` changes namelist values for this run, as ``pymr run --set`` does.
     ``restart`` continues a run from its checkpoint file (``&output checkpoint_dt``): the
     results file keeps the rows written up to the checkpoint and the run goes on from there.
+    ``progress`` shows simulated time, percent and ETA (tqdm) while the kernel runs; by
+    default only when stderr is a terminal. The kernel runs in a thread and Python reads
+    its progress ten times a second: no per-step call crosses into Python.
     Raises :class:`SceneError` for bad input and :class:`SolverError` for a failed run.
     """
     text = format_overrides(overrides)
@@ -75,22 +80,49 @@ def run(scene: str | os.PathLike, output: str | os.PathLike | None = None,
         raise ValueError("a restart continues an existing results file: give output (or '' for the default)")
     if output == "":
         # let the kernel choose: &output file, else SCENE.csv in the working folder
-        stat, msg, summary, written = _core.pymr_run_scene(_scene_arg(scene), text, "", ckpt)
+        stat, msg, summary, written = _run_kernel(_scene_arg(scene), text, "", ckpt, progress)
         _raise(stat, msg)
         res = load_results(_text(written))
     elif output is None:
         with tempfile.TemporaryDirectory(prefix="pymr-") as tmp:
             out = str(Path(tmp) / "results.csv")
-            stat, msg, summary, _ = _core.pymr_run_scene(_scene_arg(scene), text, out, ckpt)
+            stat, msg, summary, _ = _run_kernel(_scene_arg(scene), text, out, ckpt, progress)
             _raise(stat, msg)
             res = load_results(out)
     else:
         out = os.fspath(output)
-        stat, msg, summary, _ = _core.pymr_run_scene(_scene_arg(scene), text, out, ckpt)
+        stat, msg, summary, _ = _run_kernel(_scene_arg(scene), text, out, ckpt, progress)
         _raise(stat, msg)
         res = load_results(out)
     res.summary = _text(summary)
     return res
+
+
+def _run_kernel(scene: str, text: str, out: str, ckpt: str, progress: bool | None):
+    """pymr_run_scene, with a progress bar on a terminal (or when asked)."""
+    show = sys.stderr.isatty() if progress is None else progress
+    if not show:
+        return _core.pymr_run_scene(scene, text, out, ckpt)
+    from tqdm import tqdm
+    result: list = []
+    worker = threading.Thread(target=lambda: result.append(_core.pymr_run_scene(scene, text, out, ckpt)))
+    worker.start()
+    with tqdm(total=1.0, unit="s", desc=f"pymr {Path(scene).name}", file=sys.stderr,
+              bar_format="{desc}: {percentage:3.0f}%|{bar}| t = {n:.4g} of {total:.4g} s "
+                         "[{elapsed}<{remaining}]") as bar:
+        while worker.is_alive():
+            worker.join(0.1)
+            t, t_end, running = _core.pymr_progress()
+            if running and t_end > 0:
+                bar.total = float(t_end)
+                bar.n = float(t)
+                bar.refresh()
+        t, t_end, _ = _core.pymr_progress()
+        if t_end > 0:
+            bar.total = float(t_end)
+            bar.n = float(t_end) if result and result[0][0] == 0 else float(t)
+            bar.refresh()
+    return result[0]
 
 
 def _text(value: bytes | str) -> str:

@@ -10,7 +10,8 @@ from .plot import PlotError
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    res = run(args.scene, output=args.output or "", overrides=args.set or None, restart=args.restart)
+    res = run(args.scene, output=args.output or "", overrides=args.set or None, restart=args.restart,
+              progress=None if args.progress is None else args.progress)
     if not args.quiet:
         print(res.summary)
     return 0
@@ -52,6 +53,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "body[gun].mass=1000 (repeatable)")
     r.add_argument("--restart", metavar="CKPT", help="continue a run from its checkpoint file (written with "
                    "&output checkpoint_dt); the results file keeps the rows up to the checkpoint")
+    r.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
+                   help="progress bar (simulated time, percent, ETA) on stderr; default: when stderr is a terminal")
     r.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
     r.set_defaults(func=_cmd_run)
     m = sub.add_parser("modal-file", help="write a beam's modes to a modal data file (for kind='modal')")

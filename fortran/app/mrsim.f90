@@ -1,6 +1,6 @@
 !> mrsim: run a pymr scene from a namelist file.
 !>
-!>   mrsim SCENE.nml [-o OUT.csv] [--set GROUP.KEY=VALUE ...] [--restart CKPT] [--quiet]
+!>   mrsim SCENE.nml [-o OUT.csv] [--set GROUP.KEY=VALUE ...] [--restart CKPT] [--progress] [--quiet]
 !>
 !> Exit status 0 on success; otherwise one line on stderr,
 !> "mrsim: error: <message>", and status 1 (bad input) or 2 (failed run).
@@ -12,9 +12,9 @@ program mrsim
   character(len=:), allocatable :: scene, out, overrides, summary, arg, restart
   type(error_type), allocatable :: error
   integer :: i, nargs
-  logical :: quiet
+  logical :: quiet, progress
 
-  scene = ''; out = ''; overrides = ''; restart = ''; quiet = .false.
+  scene = ''; out = ''; overrides = ''; restart = ''; quiet = .false.; progress = .false.
   nargs = command_argument_count()
   i = 1
   do while (i <= nargs)
@@ -22,7 +22,7 @@ program mrsim
     select case (arg)
     case ('-h', '--help')
       write(output_unit, '(a)') 'usage: mrsim SCENE.nml [-o OUT.csv] [--set GROUP.KEY=VALUE ...] [--restart CKPT] ' &
-        & // '[--quiet]'
+        & // '[--progress] [--quiet]'
       stop
     case ('-o', '--output')
       if (i == nargs) call usage_error(arg // ' needs a file name')
@@ -33,6 +33,8 @@ program mrsim
     case ('--restart')
       if (i == nargs) call usage_error('--restart needs a checkpoint file')
       i = i + 1; restart = get_arg(i)
+    case ('--progress')
+      progress = .true.
     case ('-q', '--quiet')
       quiet = .true.
     case default
@@ -44,7 +46,7 @@ program mrsim
   end do
   if (len(scene) == 0) call usage_error('no scene file (usage: mrsim SCENE.nml [-o OUT.csv] [--set G.K=V ...])')
 
-  call run_scene(scene, overrides, out, summary, error, restart=restart)
+  call run_scene(scene, overrides, out, summary, error, restart=restart, progress_lines=progress)
   if (allocated(error)) then
     write(error_unit, '(a)') 'mrsim: error: ' // error%message
     if (error%stat == 1) stop 1, quiet=.true.

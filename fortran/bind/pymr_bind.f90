@@ -14,6 +14,7 @@ subroutine pymr_run_scene(scene, overrides, out, restart, stat, message, summary
   character(len=1024), intent(out) :: message
   character(len=4096), intent(out) :: summary
   character(len=1024), intent(out) :: path
+  !f2py threadsafe
   type(error_type), allocatable :: error
   character(len=:), allocatable :: text, written
   call run_scene(scene, overrides, out, text, error, written, restart)
@@ -445,3 +446,14 @@ subroutine pymr_model_marker_index(handle, name, k)
     if (trim(open_models(handle)%d%marker_name(i)) == trim(name)) k = i
   end do
 end subroutine pymr_model_marker_index
+
+!> Progress of the run going on in this process (another thread's pymr_run_scene):
+!> simulated time reached, end time, and whether it is running.
+subroutine pymr_progress(t, t_end, running)
+  use pymr_run, only : progress_t, progress_t_end, progress_running
+  implicit none
+  double precision, intent(out) :: t, t_end
+  integer, intent(out) :: running
+  t = progress_t; t_end = progress_t_end
+  running = merge(1, 0, progress_running)
+end subroutine pymr_progress
