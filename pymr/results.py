@@ -11,11 +11,22 @@ import numpy as np
 
 _Q = re.compile(r"\.(q\d*|a\d+)$")
 _QD = re.compile(r"\.(qd\d*|ad\d+)$")
+_JOINT_Q = re.compile(r"^(?P<name>.+)\.q(?P<k>\d*)$")
+_MODAL_A = re.compile(r"^(?P<name>.+)\.a(?P<k>\d+)$")
+_MARKER_COMPONENTS = ("x", "y", "z", "vx", "vy", "vz")
 
 
 @dataclass
 class Results:
-    """A run's results: columns by name as numpy arrays, statistics and comment lines."""
+    """A run's results: columns by name as numpy arrays, statistics and comment lines.
+
+    - ``res["elevation.q"]``, ``res.t``: one column by name (a view into ``data``).
+    - ``stats``: the run statistics of OUT.json (empty when there is none).
+    - ``meta``: the CSV's comment lines as ``key: value`` (``title``, ``method``, and
+      ``scene`` when the file names it); ``title`` and ``method`` are also properties.
+    - ``markers``, ``joints``, ``flexible_bodies``: names in column order;
+      ``marker(name)``, ``joint(name)``, ``modal(body)``: their arrays.
+    """
 
     columns: list[str]
     data: np.ndarray
@@ -37,11 +48,74 @@ class Results:
     def t(self) -> np.ndarray:
         return self["t"]
 
+    @property
+    def title(self) -> str:
+        """The scene's title (``# title:`` line), or ``""``."""
+        return self.meta.get("title", "")
+
+    @property
+    def method(self) -> str:
+        """The integration method (``# method:`` line), e.g. ``single fixed h= 1.000E-04``, or ``""``."""
+        return self.meta.get("method", "")
+
+    @property
+    def scene(self) -> str | None:
+        """The scene file when the CSV names it (``# scene:`` line), else None."""
+        return self.meta.get("scene") or None
+
+    @property
+    def markers(self) -> list[str]:
+        """Names of the markers (those with all of x, y, z, vx, vy, vz columns), in column order."""
+        names = [c[:-2] for c in self.columns if c.endswith(".x")]
+        have = set(self.columns)
+        return [n for n in names if all(f"{n}.{c}" in have for c in _MARKER_COMPONENTS)]
+
+    @property
+    def joints(self) -> list[str]:
+        """Names of the joints with coordinates (``j.q`` or ``j.q1`` ...), in column order."""
+        return list(dict.fromkeys(m["name"] for c in self.columns if (m := _JOINT_Q.match(c))))
+
+    @property
+    def flexible_bodies(self) -> list[str]:
+        """Names of the bodies with modal coordinates (``body.a1`` ...), in column order."""
+        return list(dict.fromkeys(m["name"] for c in self.columns if (m := _MODAL_A.match(c))))
+
+    def joint_columns(self, name: str) -> list[str]:
+        """Coordinate column names of joint ``name``: ``["j.q"]`` or ``["j.q1", ..., "j.qn"]``."""
+        cols = [c for c in self.columns if (m := _JOINT_Q.match(c)) and m["name"] == name]
+        if not cols:
+            raise KeyError(f"no joint {name!r}; joints: {', '.join(self.joints) or '(none)'}")
+        return cols
+
+    def modal_columns(self, body: str) -> list[str]:
+        """Modal coordinate column names of flexible body ``body``: ``["b.a1", ..., "b.aM"]``."""
+        cols = [c for c in self.columns if (m := _MODAL_A.match(c)) and m["name"] == body]
+        if not cols:
+            raise KeyError(f"no flexible body {body!r}; flexible bodies: "
+                           f"{', '.join(self.flexible_bodies) or '(none)'}")
+        return cols
+
     def marker(self, name: str) -> tuple[np.ndarray, np.ndarray]:
         """Position (rows, 3) and velocity (rows, 3) of a marker, inertial frame."""
+        if name not in self.markers:
+            raise KeyError(f"no marker {name!r}; markers: {', '.join(self.markers) or '(none)'}")
         pos = np.column_stack([self[f"{name}.{c}"] for c in ("x", "y", "z")])
         vel = np.column_stack([self[f"{name}.{c}"] for c in ("vx", "vy", "vz")])
         return pos, vel
+
+    def joint(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """Coordinates (rows, n) and rates (rows, n) of joint ``name`` (n = 1 for a revolute)."""
+        qcols = self.joint_columns(name)
+        qdcols = [f"{name}.qd{c[len(name) + 2:]}" for c in qcols]
+        return (np.column_stack([self[c] for c in qcols]),
+                np.column_stack([self[c] for c in qdcols]))
+
+    def modal(self, body: str) -> tuple[np.ndarray, np.ndarray]:
+        """Modal coordinates (rows, M) and their rates (rows, M) of flexible body ``body``."""
+        acols = self.modal_columns(body)
+        adcols = [f"{body}.ad{c[len(body) + 2:]}" for c in acols]
+        return (np.column_stack([self[c] for c in acols]),
+                np.column_stack([self[c] for c in adcols]))
 
     def coordinates(self) -> tuple[np.ndarray, np.ndarray]:
         """All generalised coordinates and rates (rows, n) in model order: joint

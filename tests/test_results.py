@@ -43,3 +43,40 @@ def test_csv_layout_and_json(tmp_path):
         assert key in stats
     assert stats["integrator"]["method"] == "single" and stats["integrator"]["h_slow"] == 1e-4
     assert stats["effects"]["gravity"]["evaluations"] == stats["rhs_full"]
+
+
+def test_results_names_meta_and_accessors(tmp_path):
+    """Markers, joints and flexible bodies by name; the CSV's title and method; run(output=None)
+    leaves no files."""
+    out = tmp_path / "tank.csv"
+    res = pymr.run(ROOT / "input" / "tank_gun_turret.nml", out, overrides={"scene.t_end": 0.01})
+    assert res.markers == ["muzzle"]
+    assert res.joints == ["traverse", "elevation"]
+    assert res.flexible_bodies == ["gun"]
+    assert res.title == res.meta["title"] == "tank gun-turret (Kim and Kim 2000), single-rate"
+    assert res.method == res.meta["method"] and res.method.startswith("single fixed")
+    assert res.scene is None                      # the CSV does not name its scene file
+    assert res.stats["steps_slow"] == 100
+    q, qd = res.joint("elevation")
+    assert q.shape == qd.shape == (11, 1)
+    assert np.array_equal(q[:, 0], res["elevation.q"]) and np.array_equal(qd[:, 0], res["elevation.qd"])
+    a, ad = res.modal("gun")
+    assert a.shape == (11, 4)
+    assert np.array_equal(a, np.column_stack([res[f"gun.a{i}"] for i in range(1, 5)]))
+    assert np.array_equal(ad[:, 3], res["gun.ad4"])
+    for call, arg, listed in ((res.marker, "nose", "markers: muzzle"),
+                              (res.joint, "wrist", "joints: traverse, elevation"),
+                              (res.modal, "turret", "flexible bodies: gun")):
+        try:
+            call(arg)
+        except KeyError as exc:
+            assert repr(arg) in str(exc) and listed in str(exc)
+        else:
+            raise AssertionError(f"{arg} should be unknown")
+
+    chain = pymr.run(ROOT / "input" / "spatial_chain.nml", None, overrides={"scene.t_end": 0.01})
+    assert chain.joints == ["j1", "j2", "j3", "j4", "j5", "j6"] and chain.flexible_bodies == []
+    q, qd = chain.joint("j1")
+    assert q.shape[1] == 6 and np.array_equal(qd[:, 5], chain["j1.qd6"])
+    assert chain.joint_columns("j1") == [f"j1.q{i}" for i in range(1, 7)]
+    assert not Path(chain.path).exists()          # output=None: the files are gone

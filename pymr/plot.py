@@ -1,0 +1,206 @@
+"""``pymr plot``: figures of result files, headless (matplotlib's Agg renderer).
+
+One figure, one axes per plotted column, every run overlaid in each axes (one colour per
+run, the same in every axes) and one legend naming the runs.
+
+- The tank (runs with a ``muzzle`` marker and the modal coordinates of ``gun``): the paper's
+  Figs. 5-7, the muzzle's position (x, y, z against t), its velocity (vx, vy, vz) and the
+  barrel's modal coordinates (gun.a1 ... gun.a4).
+- Any other scene: every marker's position and velocity, every joint's coordinates and
+  every flexible body's modal coordinates.
+
+``markers=`` (``--marker``) and ``joints=`` (``--joint``) choose markers and joints by name
+instead (for the tank, named joints are added to Figs. 5-7). Each axes is titled with its
+column's name and holds one line per run whose data are the run's arrays themselves, so
+``{ax.get_title(): ax.get_lines() for ax in fig.axes}`` reads the plotted numbers back.
+"""
+from __future__ import annotations
+
+import os
+import re
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Sequence, Union
+
+from .api import PymrError
+from .results import Results, load_results
+
+RunLike = Union[Results, str, os.PathLike]
+
+#: Columns per row of the figure at most (markers use rows of 3: x, y, z).
+ROW_WIDTH = 4
+
+
+class PlotError(PymrError, ValueError):
+    """Bad input to a plot: a missing or unreadable result file, an unknown marker or joint,
+    labels that do not match the runs. The CLI prints it as one line and exits with 1."""
+
+
+@dataclass
+class Row:
+    """One row of axes: the columns it plots and the y label they share."""
+    columns: list[str]
+    ylabel: str
+
+
+def load_runs(runs: Sequence[RunLike]) -> list[Results]:
+    """Results as given, or loaded from CSV paths (a missing or unreadable file is a PlotError)."""
+    out = []
+    for run in runs:
+        if isinstance(run, Results):
+            out.append(run)
+            continue
+        path = Path(run)
+        if not path.is_file():
+            raise PlotError(f"{path}: no such result file")
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")      # numpy's "input contained no data"
+                res = load_results(path)
+        except (OSError, ValueError) as exc:
+            msg = " ".join(str(exc).split())
+            raise PlotError(f"{path}: not a pymr result file ({msg})") from None
+        if not res.columns or res.columns[0] != "t":
+            raise PlotError(f"{path}: not a pymr result file (its header does not start with the column 't')")
+        if res.data.shape[0] == 0:
+            raise PlotError(f"{path}: has no result rows")
+        out.append(res)
+    if not out:
+        raise PlotError("no result files to plot")
+    return out
+
+
+def _name(res: Results, k: int) -> str:
+    return res.path or f"run {k + 1}"
+
+
+def default_labels(runs: Sequence[Results]) -> list[str]:
+    """Each run's method from its CSV comment lines (``single fixed h=1.000E-04``), else the
+    file's stem; when two runs would share a label, the stem is put in front of the method."""
+    def method(r: Results) -> str:
+        return re.sub(r"=\s+", "=", " ".join(r.method.split()))
+
+    def stem(r: Results, k: int) -> str:
+        return Path(r.path).stem if r.path else f"run {k + 1}"
+
+    labels = [method(r) or stem(r, k) for k, r in enumerate(runs)]
+    if len(set(labels)) < len(labels):
+        labels = [f"{stem(r, k)}: {method(r)}" if method(r) else stem(r, k) for k, r in enumerate(runs)]
+    return labels
+
+
+def is_tank(res: Results) -> bool:
+    """True for the paper's tank: a ``muzzle`` marker and the barrel ``gun``'s modal coordinates."""
+    return "muzzle" in res.markers and "gun" in res.flexible_bodies
+
+
+def _chunks(columns: list[str], ylabel: str, width: int = ROW_WIDTH) -> list[Row]:
+    return [Row(columns[i:i + width], ylabel) for i in range(0, len(columns), width)]
+
+
+def layout(runs: Sequence[Results], markers: Sequence[str] | None = None,
+           joints: Sequence[str] | None = None) -> list[Row]:
+    """The rows of axes for these runs (see the module's docstring). Every run must have
+    every chosen marker and joint; an unknown one is a PlotError naming the file."""
+    first = runs[0]
+    tank = is_tank(first)
+    if markers is None:
+        markers = ["muzzle"] if tank else first.markers
+    if joints is None:
+        joints = [] if tank else first.joints
+    bodies = ["gun"] if tank else first.flexible_bodies
+    markers, joints = list(markers), list(joints)
+    for k, res in enumerate(runs):
+        for m in markers:
+            if m not in res.markers:
+                raise PlotError(f"{_name(res, k)}: no marker {m!r} (markers: {', '.join(res.markers) or 'none'})")
+        for j in joints:
+            if j not in res.joints:
+                raise PlotError(f"{_name(res, k)}: no joint {j!r} (joints: {', '.join(res.joints) or 'none'})")
+        for b in bodies:
+            if b not in res.flexible_bodies:
+                raise PlotError(f"{_name(res, k)}: no modal coordinates of body {b!r}, which "
+                                f"{_name(first, 0)} has: the runs are of different scenes")
+    rows: list[Row] = []
+    for m in markers:
+        rows.append(Row([f"{m}.{c}" for c in ("x", "y", "z")], f"{m} position (m)"))
+        rows.append(Row([f"{m}.{c}" for c in ("vx", "vy", "vz")], f"{m} velocity (m/s)"))
+    jcols = [c for j in joints for c in first.joint_columns(j)]
+    rows += _chunks(jcols, "joint coordinate (rad or m)")
+    for b in bodies:
+        rows += _chunks(first.modal_columns(b), f"{b} modal coordinate")
+    if not rows:
+        raise PlotError(f"{_name(first, 0)}: nothing to plot (no markers, joints or modal coordinates)")
+    return rows
+
+
+def plot_results(runs: Sequence[RunLike], output: str | os.PathLike | None = None, *,
+                 markers: Sequence[str] | str | None = None, joints: Sequence[str] | None = None,
+                 labels: Sequence[str] | None = None, title: str | None = None):
+    """Plot one or more runs (``Results`` or CSV paths) and return the matplotlib Figure;
+    write it to ``output`` (PNG, or any format matplotlib knows by the suffix) when given.
+
+    ``markers`` and ``joints`` choose what is plotted by name (default: see the module's
+    docstring); ``labels`` name the runs in the legend (default: :func:`default_labels`).
+    The figure is not registered with pyplot, so nothing needs closing and no display is used.
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    from matplotlib.gridspec import GridSpec
+
+    runs = load_runs(runs)
+    if isinstance(markers, str):
+        markers = [markers]
+    if labels is None:
+        labels = default_labels(runs)
+    labels = list(labels)
+    if len(labels) != len(runs):
+        raise PlotError(f"labels: {len(labels)} given for {len(runs)} result files; give one per file")
+    rows = layout(runs, markers, joints)
+
+    fig = Figure(figsize=(16, 2.9 * len(rows) + 0.9), layout="constrained")
+    FigureCanvasAgg(fig)
+    grid = GridSpec(len(rows), 12, figure=fig)
+    # one colour and line style per run; later runs thinner, so that coinciding runs stay visible
+    colours = [f"C{k % 10}" for k in range(len(runs))]
+    styles = ["-", "--", "-.", ":"]
+    widths = [max(2.0 - 0.4 * k, 0.8) for k in range(len(runs))]
+    for i, row in enumerate(rows):
+        span = 12 // max(len(row.columns), 3)
+        for j, col in enumerate(row.columns):
+            ax = fig.add_subplot(grid[i, j * span:(j + 1) * span])
+            for k, (res, label) in enumerate(zip(runs, labels)):
+                ax.plot(res.t, res[col], styles[k % len(styles)], color=colours[k], label=label, lw=widths[k])
+            ax.set_title(col)
+            ax.set_xlabel("t (s)")
+            ax.set_ylabel(row.ylabel)
+            ax.grid(True, alpha=0.3)
+    first = runs[0]
+    if title is None:
+        title = first.title or (Path(first.path).stem if first.path else "pymr results")
+        if is_tank(first) and markers is None:
+            title += ": muzzle position, velocity and modal coordinates (the paper's Figs. 5-7)"
+    fig.suptitle(title)
+    handles, names = fig.axes[0].get_legend_handles_labels()
+    try:
+        fig.legend(handles, names, loc="outside lower center", ncol=min(len(runs), 4), fontsize=9)
+    except ValueError:                               # matplotlib < 3.7: no "outside" placement
+        fig.legend(handles, names, loc="lower center", ncol=min(len(runs), 4), fontsize=9)
+    if output is not None:
+        try:
+            fig.savefig(output, dpi=100)
+        except (OSError, ValueError) as exc:
+            raise PlotError(f"{output}: cannot write the figure ({' '.join(str(exc).split())})") from None
+    return fig
+
+
+def main(csvs: Sequence[str], output: str | None = None, markers: Sequence[str] | None = None,
+         joints: Sequence[str] | None = None, labels: Sequence[str] | None = None,
+         title: str | None = None, quiet: bool = False) -> int:
+    """``pymr plot``: write the figure of the result files (default: FIRST_STEM.png here)."""
+    out = Path(output) if output else Path(Path(csvs[0]).stem + ".png") if csvs else None
+    fig = plot_results(csvs, out, markers=markers, joints=joints, labels=labels, title=title)
+    if not quiet:
+        print(f"wrote {out}: {len(csvs)} run{'s' if len(csvs) != 1 else ''}, {len(fig.axes)} panels")
+    return 0
