@@ -41,6 +41,11 @@ def _cmd_plot(args: argparse.Namespace) -> int:
                      labels=args.labels, title=args.title, quiet=args.quiet)
 
 
+def _cmd_sweep(args: argparse.Namespace) -> int:
+    from . import sweep
+    return sweep.main(args.sweep, scheduler=args.scheduler, workers=args.workers, emit=args.emit_slurm)
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="pymr", description="Flexible multibody dynamics with multirate "
                                 "Nordsieck Adams integration.")
@@ -80,6 +85,14 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("-o", "--output", help="prefix of the CSV and PNG written (default: SCENE_study)")
     s.add_argument("--quick", action="store_true", help="fewer steps and tolerances (a smoke run)")
     s.set_defaults(func=_cmd_study)
+    w = sub.add_parser("sweep", help="run a parameter sweep (SWEEP.toml) on Dask, or emit SLURM job-array files")
+    w.add_argument("sweep", help="sweep file (TOML: scene, output, metric, [grid], [fixed], [reference])")
+    w.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask scheduler (e.g. from dask-jobqueue on "
+                   "SLURM or PBS); default: a LocalCluster on this machine")
+    w.add_argument("--workers", type=int, default=2, help="LocalCluster worker processes (default 2)")
+    w.add_argument("--emit-slurm", metavar="DIR", help="write the case namelists and a SLURM job-array script "
+                   "running mrsim per case to DIR instead of running")
+    w.set_defaults(func=_cmd_sweep)
     pl = sub.add_parser("plot", help="plot result files, overlaid (the tank: muzzle position, velocity and "
                         "modal coordinates, the paper's Figs. 5-7; other scenes: markers and joints)")
     pl.add_argument("csv", nargs="+", help="result files (OUT.csv; OUT.json beside it is not needed)")

@@ -1,0 +1,269 @@
+"""``pymr sweep SWEEP.toml``: a base scene and a parameter grid, expanded into cases, run on
+Dask and collected into one summary CSV; or, with ``--emit-slurm DIR``, written out as case
+namelists and a SLURM job-array script that runs ``mrsim`` per case.
+
+SWEEP.toml::
+
+    scene = "input/tank_gun_turret.nml"     # relative to the TOML file
+    output = "sweep"                         # folder for the cases' results and the summary
+    metric = "deviation:muzzle"              # or "final:COLUMN", "max_abs:COLUMN"
+
+    [grid]                                   # every combination of these values is a case
+    "integrator.h_slow" = [1e-3, 5e-4]
+    "body[gun].modal_damping" = [0.0, 0.02]
+
+    [fixed]                                  # overrides shared by every case (optional)
+    "integrator.method" = "multirate"
+
+    [reference]                              # overrides of the reference run (deviation metric)
+    "integrator.h_slow" = 2.5e-5
+
+Keys are ``--set`` keys: ``group.item``, with repeated groups named by their name (body,
+joint, marker), joint (drive, spring, motion) or marker (load). ``deviation:MARKER`` is the
+largest distance over the run between the marker's position and the reference run's (the
+base scene with the [reference] overrides, at the same output times).
+"""
+from __future__ import annotations
+
+import csv
+import itertools
+import math
+import os
+import re
+import time
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .api import PymrError, SceneError, run
+from .results import load_results
+
+#: The item that names each repeated group in ``group[name]`` keys.
+SELECTOR = {"body": "name", "joint": "name", "marker": "name", "drive": "joint", "spring": "joint",
+            "motion": "joint", "load": "marker"}
+
+
+class SweepError(PymrError):
+    """A bad sweep file."""
+
+
+@dataclass
+class Sweep:
+    """A parsed sweep: base scene, cases (each a dict of overrides), metric."""
+    path: Path
+    scene: Path
+    output: Path
+    metric: str
+    grid: dict
+    fixed: dict = field(default_factory=dict)
+    reference: dict = field(default_factory=dict)
+
+    @property
+    def cases(self) -> list[dict]:
+        keys = list(self.grid)
+        return [dict(zip(keys, values)) for values in itertools.product(*(self.grid[k] for k in keys))]
+
+
+def load_sweep(path: str | os.PathLike) -> Sweep:
+    path = Path(path)
+    try:
+        spec = tomllib.loads(path.read_text())
+    except FileNotFoundError:
+        raise SweepError(f"{path}: not found") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise SweepError(f"{path}: {exc}") from None
+    for key in spec:
+        if key not in ("scene", "output", "metric", "grid", "fixed", "reference"):
+            raise SweepError(f"{path}: unknown key {key!r} (known: scene, output, metric, grid, fixed, reference)")
+    if "scene" not in spec:
+        raise SweepError(f"{path}: scene: missing (the base scene's namelist file)")
+    grid = spec.get("grid", {})
+    if not grid:
+        raise SweepError(f"{path}: [grid]: missing or empty (parameter = [values, ...])")
+    for k, v in grid.items():
+        if not isinstance(v, list) or not v:
+            raise SweepError(f"{path}: [grid] {k}: must be a non-empty list of values")
+        _check_key(path, "grid", k)
+    for part in ("fixed", "reference"):
+        for k in spec.get(part, {}):
+            _check_key(path, part, k)
+    metric = spec.get("metric", "")
+    if metric and not re.fullmatch(r"(deviation|final|max_abs):[\w.\[\]]+", metric):
+        raise SweepError(f"{path}: metric: {metric!r} is not 'deviation:MARKER', 'final:COLUMN' or 'max_abs:COLUMN'")
+    scene = (path.parent / spec["scene"]).resolve()
+    if not scene.exists():
+        raise SweepError(f"{path}: scene: {scene} not found")
+    output = (path.parent / spec.get("output", path.stem)).resolve()
+    return Sweep(path, scene, output, metric, grid, spec.get("fixed", {}), spec.get("reference", {}))
+
+
+def _check_key(path: Path, part: str, key: str) -> None:
+    if not re.fullmatch(r"[a-z]+(\[[\w.]+\])?\.\w+", key):
+        raise SweepError(f"{path}: [{part}] {key}: not a GROUP.ITEM or GROUP[NAME].ITEM key")
+
+
+def case_name(i: int) -> str:
+    return f"case{i:04d}"
+
+
+def run_case(scene: str, overrides: dict, out: str, metric: str, reference: np.ndarray | None) -> dict:
+    """Run one case; return its metric, CPU time and status (errors are recorded, not raised)."""
+    row = {"metric": math.nan, "cpu_time_s": math.nan, "status": "ok"}
+    try:
+        res = run(scene, out, overrides=overrides, progress=False)
+    except PymrError as exc:
+        row["status"] = f"error: {exc}"
+        return row
+    row["cpu_time_s"] = float(res.stats["cpu_time_s"])
+    if metric:
+        kind, what = metric.split(":", 1)
+        try:
+            if kind == "deviation":
+                pos = res.marker(what)[0]
+                if reference is None or len(reference) != len(pos):
+                    row["status"] = "error: the case's output times differ from the reference's"
+                    return row
+                row["metric"] = float(np.linalg.norm(pos - reference, axis=1).max())
+            elif kind == "final":
+                row["metric"] = float(res[what][-1])
+            else:
+                row["metric"] = float(np.abs(res[what]).max())
+        except KeyError as exc:
+            row["status"] = f"error: {exc.args[0]}"
+    return row
+
+
+def reference_positions(sw: Sweep) -> np.ndarray | None:
+    if not sw.metric.startswith("deviation:"):
+        return None
+    res = run(sw.scene, sw.output / "reference.csv", overrides={**sw.fixed, **sw.reference}, progress=False)
+    return res.marker(sw.metric.split(":", 1)[1])[0]
+
+
+def run_sweep(sw: Sweep, scheduler: str | None = None, workers: int = 2) -> list[dict]:
+    """Run every case on Dask (a LocalCluster of `workers` processes, or the scheduler at
+    `scheduler`) and write the summary CSV; returns its rows."""
+    from dask.distributed import Client, LocalCluster
+    sw.output.mkdir(parents=True, exist_ok=True)
+    ref = reference_positions(sw)
+    cases = sw.cases
+    cluster = None
+    if scheduler:
+        client = Client(scheduler)
+    else:
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None)
+        client = Client(cluster)
+    try:
+        futures = [client.submit(run_case, str(sw.scene), {**sw.fixed, **case},
+                                 str(sw.output / f"{case_name(i)}.csv"), sw.metric, ref, pure=False)
+                   for i, case in enumerate(cases)]
+        results = client.gather(futures, errors="skip")
+        done = {f.key: r for f, r in zip([f for f in futures if f.status == "finished"], results)}
+        rows = []
+        for i, (case, fut) in enumerate(zip(cases, futures)):
+            row = done.get(fut.key) or {"metric": math.nan, "cpu_time_s": math.nan,
+                                        "status": f"error: {fut.exception()!r}"}
+            rows.append({"case": case_name(i), **case, **row})
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+    write_summary(sw, rows)
+    return rows
+
+
+def write_summary(sw: Sweep, rows: list[dict]) -> Path:
+    path = sw.output / "summary.csv"
+    fields = ["case", *sw.grid, "metric", "cpu_time_s", "status"]
+    with open(path, "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=fields, extrasaction="ignore")
+        w.writeheader()
+        for r in rows:
+            w.writerow(r)
+    return path
+
+
+# ------------------------------------------------------------------------ SLURM
+
+def case_namelist(base: Path, overrides: dict, dest: Path) -> None:
+    """Write the base scene with the overrides applied (f90nml), file paths made absolute."""
+    import f90nml
+    nml = f90nml.read(base)
+    for key, value in overrides.items():
+        m = re.fullmatch(r"([a-z]+)(?:\[([\w.]+)\])?\.(\w+)", key)
+        group, sel, item = m.group(1), m.group(2), m.group(3)
+        if group not in nml:
+            if sel:
+                raise SweepError(f"{base}: no &{group} group for {key}")
+            nml[group] = f90nml.Namelist()
+        target = nml[group]
+        if sel is not None or isinstance(target, list) or type(target).__name__ == "Cogroup":
+            groups = list(target) if (isinstance(target, list) or type(target).__name__ == "Cogroup") else [target]
+            hits = [g for g in groups if str(g.get(SELECTOR.get(group, "name"), "")).lower() == str(sel).lower()]
+            if not hits:
+                raise SweepError(f"{base}: no &{group} with {SELECTOR.get(group, 'name')} = '{sel}' for {key}")
+            target = hits[0]
+        target[item] = value
+    for group in ("body", "drive", "motion"):
+        if group not in nml:
+            continue
+        groups = nml[group] if (isinstance(nml[group], list) or type(nml[group]).__name__ == "Cogroup") \
+            else [nml[group]]
+        for g in groups:
+            for item in ("modal_file", "file"):
+                if item in g and g[item] and not os.path.isabs(g[item]):
+                    g[item] = str((base.parent / g[item]).resolve())
+    if "output" in nml:
+        nml["output"].pop("file", None)
+    with open(dest, "w") as fh:
+        fh.write(f"! {dest.name}: {base.name} with {overrides}\n")
+        nml.write(fh)
+
+
+def emit_slurm(sw: Sweep, folder: str | os.PathLike, time_limit: str = "01:00:00") -> Path:
+    """Case namelists and a SLURM job-array script running mrsim per case, in `folder`."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    cases = sw.cases
+    for i, case in enumerate(cases):
+        case_namelist(sw.scene, {**sw.fixed, **case}, folder / f"{case_name(i)}.nml")
+    with open(folder / "cases.csv", "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=["case", *sw.grid])
+        w.writeheader()
+        for i, case in enumerate(cases):
+            w.writerow({"case": case_name(i), **case})
+    script = folder / "sweep.slurm"
+    script.write_text(f"""#!/bin/bash
+# SLURM job array for the sweep {sw.path.name}: one task per case namelist.
+# Submit from this folder: sbatch sweep.slurm   (results: caseNNNN.csv and .json here)
+#SBATCH --job-name=pymr-sweep
+#SBATCH --array=0-{len(cases) - 1}
+#SBATCH --ntasks=1
+#SBATCH --cpus-per-task=1
+#SBATCH --time={time_limit}
+#SBATCH --output=slurm-%A_%a.out
+set -euo pipefail
+cd "${{SLURM_SUBMIT_DIR:-$(dirname "$0")}}"
+case=$(printf 'case%04d' "${{SLURM_ARRAY_TASK_ID}}")
+mrsim "$case.nml" -o "$case.csv" --quiet
+""")
+    script.chmod(0o755)
+    return script
+
+
+def main(toml: str, scheduler: str | None = None, workers: int = 2, emit: str | None = None) -> int:
+    sw = load_sweep(toml)
+    if emit:
+        script = emit_slurm(sw, emit)
+        print(f"wrote {len(sw.cases)} case namelists and {script} (submit with: cd {emit} && sbatch sweep.slurm)")
+        return 0
+    t0 = time.time()
+    rows = run_sweep(sw, scheduler=scheduler, workers=workers)
+    failed = sum(r["status"] != "ok" for r in rows)
+    print(f"{len(rows)} cases, {failed} failed, {time.time() - t0:.1f} s: {sw.output / 'summary.csv'}")
+    for r in rows:
+        params = ", ".join(f"{k}={r[k]}" for k in sw.grid)
+        print(f"  {r['case']}  {params}  metric {r['metric']:.4g}  cpu {r['cpu_time_s']:.3f} s  {r['status'][:90]}")
+    return 0

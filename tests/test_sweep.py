@@ -1,0 +1,108 @@
+"""pymr sweep (issue 7): a grid of tank variants run on a Dask LocalCluster with 2 workers
+equals the same cases run one by one; a failing case is recorded and the others run; the
+SLURM emission writes case namelists (f90nml) whose mrsim runs equal the override runs."""
+from __future__ import annotations
+
+import csv
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import pymr
+from pymr.sweep import SweepError, emit_slurm, load_sweep, run_sweep
+
+ROOT = Path(__file__).resolve().parent.parent
+TANK = ROOT / "input" / "tank_gun_turret.nml"
+
+GRID = """
+scene = "{scene}"
+output = "out"
+metric = "deviation:muzzle"
+[grid]
+"integrator.h_slow" = [5e-4, 1e-3]
+"integrator.coupling" = ["full", "split"]
+"body[gun].modal_damping" = [0.0, 0.02]
+[fixed]
+"integrator.method" = "multirate"
+"integrator.h_fast" = 1e-4
+"effects.modal_damping" = true
+[reference]
+"integrator.method" = "single"
+"integrator.h_slow" = 1e-4
+"""
+
+
+def test_sweep_on_a_local_cluster_equals_the_cases_run_one_by_one(tmp_path):
+    """8 variants (step ratio 5 and 10, both couplings, damping 0 and 0.02) on 2 Dask
+    workers: every case's results file equals a run of the same overrides in this process,
+    and the summary's metric is the muzzle's largest deviation from the reference run."""
+    toml = tmp_path / "tank.toml"
+    toml.write_text(GRID.format(scene=TANK))
+    sw = load_sweep(toml)
+    assert len(sw.cases) == 8
+    rows = run_sweep(sw, workers=2)
+    assert [r["status"] for r in rows] == ["ok"] * 8
+    ref = pymr.run(TANK, overrides={**sw.fixed, **sw.reference})
+    for i, (case, row) in enumerate(zip(sw.cases, rows)):
+        alone = pymr.run(TANK, overrides={**sw.fixed, **case})
+        swept = pymr.load_results(sw.output / f"case{i:04d}.csv")
+        assert np.array_equal(swept.data, alone.data)
+        dev = np.linalg.norm(alone.marker("muzzle")[0] - ref.marker("muzzle")[0], axis=1).max()
+        assert row["metric"] == dev
+    summary = list(csv.DictReader(open(sw.output / "summary.csv")))
+    assert len(summary) == 8 and summary[3]["integrator.coupling"] == "split"
+    assert float(summary[3]["metric"]) == rows[3]["metric"]
+
+
+def test_a_failing_case_is_recorded_and_the_others_run(tmp_path):
+    toml = tmp_path / "bad.toml"
+    toml.write_text(f"""
+scene = "{TANK}"
+metric = "final:elevation.q"
+[grid]
+"integrator.h_slow" = [2.5e-4, 2e-4]
+[fixed]
+"integrator.method" = "multirate"
+"integrator.h_fast" = 1e-4
+""")
+    rows = run_sweep(load_sweep(toml), workers=2)
+    assert rows[0]["status"].startswith("error: ") and "integer multiple of h_fast" in rows[0]["status"]
+    assert np.isnan(rows[0]["metric"])
+    assert rows[1]["status"] == "ok"
+    alone = pymr.run(TANK, overrides={"integrator.method": "multirate", "integrator.h_fast": 1e-4,
+                                      "integrator.h_slow": 2e-4})
+    assert rows[1]["metric"] == alone["elevation.q"][-1]
+
+
+def test_emitted_slurm_cases_run_by_mrsim_equal_the_override_runs(tmp_path, mrsim):
+    toml = tmp_path / "tank.toml"
+    toml.write_text(GRID.format(scene=TANK))
+    sw = load_sweep(toml)
+    script = emit_slurm(sw, tmp_path / "slurm")
+    text = script.read_text()
+    assert "#SBATCH --array=0-7" in text and 'mrsim "$case.nml" -o "$case.csv"' in text
+    assert sorted(p.name for p in (tmp_path / "slurm").glob("case*.nml")) == [f"case{i:04d}.nml" for i in range(8)]
+    for i in (0, 5):
+        r = subprocess.run([mrsim, f"case{i:04d}.nml", "-o", f"case{i:04d}.csv", "--quiet"],
+                           cwd=tmp_path / "slurm", capture_output=True, text=True)
+        assert r.returncode == 0, r.stderr
+        emitted = pymr.load_results(tmp_path / "slurm" / f"case{i:04d}.csv")
+        alone = pymr.run(TANK, overrides={**sw.fixed, **sw.cases[i]})
+        assert np.array_equal(emitted.data, alone.data)
+
+
+@pytest.mark.parametrize("text, message", [
+    ('scene = "nope.nml"\n[grid]\n"integrator.h_slow" = [1e-4]\n', r"scene: .*nope.nml not found"),
+    ('scene = "{scene}"\n', r"\[grid\]: missing or empty"),
+    ('scene = "{scene}"\n[grid]\n"integrator.h_slow" = 1e-4\n', r"\[grid\] integrator.h_slow: must be a non-empty list"),
+    ('scene = "{scene}"\nmetric = "median:x"\n[grid]\n"integrator.h_slow" = [1e-4]\n', r"metric: 'median:x' is not"),
+    ('scene = "{scene}"\nworkers = 3\n[grid]\n"integrator.h_slow" = [1e-4]\n', r"unknown key 'workers'"),
+])
+def test_bad_sweep_files_are_one_line_errors(tmp_path, text, message):
+    toml = tmp_path / "s.toml"
+    toml.write_text(text.format(scene=TANK))
+    with pytest.raises(SweepError, match=message) as exc:
+        load_sweep(toml)
+    assert str(exc.value).startswith(str(toml)) and "\n" not in str(exc.value)
