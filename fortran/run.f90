@@ -401,8 +401,14 @@ contains
     call forward_kinematics(model%d, x(1:n), x(n+1:))
     do i = 1, model%d%n_markers
       call marker_motion(model%d, i, x(1:n), x(n+1:), r, v)
-      write(buf, '(a,3f12.6,a,3f12.6,a)') 'final ' // trim(model%d%marker_name(i)) // ': position', r, &
-        & ' m, velocity', v, ' m/s'
+      ! fixed digits for ordinary values; exponents when a run went far off (a diverging model)
+      if (maxval(abs([r, v])) < 1.0e5_dp) then
+        write(buf, '(a,3f12.6,a,3f12.6,a)') 'final ' // trim(model%d%marker_name(i)) // ': position', r, &
+          & ' m, velocity', v, ' m/s'
+      else
+        write(buf, '(a,3es12.4,a,3es12.4,a)') 'final ' // trim(model%d%marker_name(i)) // ': position', r, &
+          & ' m, velocity', v, ' m/s'
+      end if
       s = s // trim(buf) // new_line('a')
     end do
     s = s // 'results: ' // path // ', ' // json_path(path)
