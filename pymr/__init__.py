@@ -9,9 +9,12 @@ from .results import Results, load_results
 from .api import (PymrError, SceneError, SolverError, run, model_terms, model_accelerations,
                   model_energy, model_size, write_modal_file, Model, time_fast_evaluation)
 
+from .plot import PlotError
+from .sweep import SweepError
+
 __version__ = "0.1.0"
 
 __all__ = ["PymrError", "SceneError", "SolverError", "Results", "load_results", "run",
            "model_terms", "model_accelerations", "model_energy", "model_size", "write_modal_file",
-           "Model", "time_fast_evaluation",
+           "Model", "time_fast_evaluation", "PlotError", "SweepError",
            "__version__"]
