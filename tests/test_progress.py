@@ -34,12 +34,13 @@ def test_mrsim_progress_lines_only_when_asked(tmp_path, mrsim):
     assert float(got[0].group(2)) < 1.0 and float(got[-1].group(2)) == 100.0
 
 
-def _pymr_on_a_terminal(args: list[str]) -> str:
-    """Run `pymr ARGS` with stderr on a pseudo-terminal; return what the terminal got."""
+def _pymr_on_a_terminal(args: list[str], cwd: Path) -> str:
+    """Run `pymr ARGS` with stderr on a pseudo-terminal; return what the terminal got. The
+    working folder is not the checkout's root, whose pymr/ would shadow the installed one."""
     master, slave = pty.openpty()
     fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 100, 0, 0))     # a 100-column terminal
     proc = subprocess.Popen([sys.executable, "-c", "from pymr.cli import main; raise SystemExit(main())"] + args,
-                            stdout=subprocess.DEVNULL, stderr=slave, close_fds=True)
+                            stdout=subprocess.DEVNULL, stderr=slave, close_fds=True, cwd=cwd)
     os.close(slave)
     chunks = []
     while True:
@@ -58,12 +59,12 @@ def _pymr_on_a_terminal(args: list[str]) -> str:
 
 def test_pymr_run_shows_progress_on_a_terminal_and_not_in_batch(tmp_path):
     args = ["run", str(LONG), "-o", str(tmp_path / "l.csv"), "--set", "scene.t_end=5"]
-    shown = _pymr_on_a_terminal(args)
+    shown = _pymr_on_a_terminal(args, tmp_path)
     assert "pymr tank_long.nml: 100%" in shown and "t = 5 of 5 s" in shown
     batch = subprocess.run([sys.executable, "-c", "from pymr.cli import main; raise SystemExit(main())"] + args,
-                           capture_output=True, text=True)
+                           capture_output=True, text=True, cwd=tmp_path)
     assert batch.returncode == 0 and batch.stderr == ""
-    assert "%|" not in _pymr_on_a_terminal(args + ["--no-progress"])
+    assert "%|" not in _pymr_on_a_terminal(args + ["--no-progress"], tmp_path)
 
 
 def test_python_progress_reads_the_kernel_during_the_run(tmp_path, capsys):
