@@ -9,9 +9,9 @@
 module pymr_preflight
   use pymr_kinds, only : dp, pi
   use pymr_error, only : error_type, fatal_error, stat_input
-  use pymr_lapack, only : potrf, potrs, geev_real
-  use pymr_model, only : model_t
-  use pymr_model_types, only : model_data, effect_modal_damping
+  use pymr_lapack, only : potrf, potrs, geev_real, factor_inverse
+  use pymr_model, only : model_t, modal_stiffness_damping
+  use pymr_model_types, only : model_data
   use pymr_integrator_stability, only : pece_growth, pece_limit
   use pymr_integrator_ode, only : partitioned_system
   use pymr_integrator_multirate, only : multirate_integrator, coupling_split
@@ -239,38 +239,21 @@ contains
     real(dp), intent(in) :: m(:, :), k(:, :), c(:, :)
     type(linear_system), intent(out) :: sys
     type(error_type), allocatable, intent(out) :: error
-    integer :: n, ns, nf, i, b, mb
+    integer :: n, ns, nf
     real(dp), allocatable :: l(:, :)
     n = size(m, 1); ns = model%d%nj; nf = n - ns
     sys%ns = ns; sys%nf = nf
     sys%k = k; sys%c = c
     l = m
     call potrf(l, 'the mass matrix at the initial state', error); if (allocated(error)) return
-    allocate(sys%minv(n, n))
-    sys%minv = 0.0_dp
-    do i = 1, n
-      sys%minv(i, i) = 1.0_dp
-    end do
-    call potrs(l, sys%minv, 'the mass matrix', error); if (allocated(error)) return
+    allocate(sys%minv(n, n), sys%mffinv(nf, nf), sys%kf(nf), sys%df(nf), sys%yrest(nf))
+    call factor_inverse(l, sys%minv, 'the mass matrix', error); if (allocated(error)) return
     l = m(ns+1:, ns+1:)
     call potrf(l, 'M_ff at the initial state', error); if (allocated(error)) return
-    allocate(sys%mffinv(nf, nf))
-    sys%mffinv = 0.0_dp
-    do i = 1, nf
-      sys%mffinv(i, i) = 1.0_dp
-    end do
-    call potrs(l, sys%mffinv, 'M_ff', error); if (allocated(error)) return
+    call factor_inverse(l, sys%mffinv, 'M_ff', error); if (allocated(error)) return
     sys%mfs = m(ns+1:, 1:ns)
-    ! the modal stiffness and damping that 'split' recomputes in every fast step
-    allocate(sys%kf(nf), sys%df(nf), sys%yrest(nf))
-    sys%df = 0.0_dp; sys%kf = 0.0_dp; sys%yrest = 0.0_dp
-    do b = 2, model%d%nb
-      mb = model%d%nm(b)
-      if (mb == 0) cycle
-      sys%kf(model%d%a0(b) - ns:model%d%a0(b) - ns + mb - 1) = model%d%flex(b)%omega2
-      if (model%d%effect_on(effect_modal_damping)) &
-        & sys%df(model%d%a0(b) - ns:model%d%a0(b) - ns + mb - 1) = model%d%flex(b)%damp
-    end do
+    call modal_stiffness_damping(model%d, sys%kf, sys%df)
+    sys%yrest = 0.0_dp
   end subroutine linear_model
 
   !> Spectral radius rho of one multirate macro step (ratio kr, fast step hf) on the linear

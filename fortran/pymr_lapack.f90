@@ -5,7 +5,7 @@ module pymr_lapack
   use pymr_error, only : error_type, fatal_error, stat_solver
   implicit none
   private
-  public :: potrf, potrs, sygvd, ptsv, geev_complex, geev_real
+  public :: potrf, potrs, sygvd, ptsv, geev_complex, geev_real, factor_inverse
 
   !> Cholesky solve for one (vector) or several (matrix) right-hand sides.
   interface potrs
@@ -142,6 +142,20 @@ contains
     end if
   end subroutine potrs_mat
 
+  !> The inverse of A from its Cholesky factor (from `potrf`): the identity solved in place.
+  subroutine factor_inverse(l, ainv, what, error)
+    real(dp), intent(in) :: l(:, :)
+    real(dp), intent(out), contiguous :: ainv(:, :)
+    character(len=*), intent(in) :: what
+    type(error_type), allocatable, intent(out) :: error
+    integer :: i
+    ainv = 0.0_dp
+    do i = 1, size(ainv, 1)
+      ainv(i, i) = 1.0_dp
+    end do
+    call potrs(l, ainv, what, error)
+  end subroutine factor_inverse
+
   !> Generalised symmetric-definite eigenproblem A v = lambda B v, B positive definite
   !> (all eigenpairs, ascending). On return `k` (A) holds the B-normalised eigenvectors
   !> in its columns. `what` names B in messages.
@@ -186,14 +200,14 @@ contains
     character(len=*), intent(in) :: what
     type(error_type), allocatable, intent(out) :: error
     integer :: n, info
-    complex(dp) :: dum(1, 1), wq(1)
+    complex(dp) :: vl(1, 1), vr(1, 1), wq(1)
     complex(dp), allocatable :: work(:)
     real(dp) :: rwork(2*size(a, 1))
     n = size(a, 1)
     if (n == 0) return
-    call zgeev('N', 'N', n, a, n, w, dum, 1, dum, 1, wq, -1, rwork, info)
+    call zgeev('N', 'N', n, a, n, w, vl, 1, vr, 1, wq, -1, rwork, info)
     allocate(work(max(1, int(real(wq(1))))))
-    call zgeev('N', 'N', n, a, n, w, dum, 1, dum, 1, work, size(work), rwork, info)
+    call zgeev('N', 'N', n, a, n, w, vl, 1, vr, 1, work, size(work), rwork, info)
     if (info /= 0) call fatal_error(error, 'eigenvalue solver zgeev failed for ' // what, stat_solver)
   end subroutine geev_complex
 

@@ -56,9 +56,10 @@ class Study:
         self.scene = Path(scene)
         self.quick = quick
         self.say = progress or (lambda *a, **k: None)
-        with Model(self.scene) as model:
-            self.n = model.n
         probe = run(self.scene, overrides={"output.dt": 0.0, "scene.t_end": 1e-6})
+        q, qd = probe.coordinates()
+        self.n = q.shape[1]
+        self.x0 = np.concatenate([q[0], qd[0]])      # the initial state [q; qd]
         markers = sorted({c.rsplit(".", 1)[0] for c in probe.columns if c.endswith(".x")})
         if not markers:
             raise PymrError(f"{self.scene}: the scene has no &marker to measure the error at")
@@ -90,7 +91,7 @@ class Study:
         self.ref = res.marker(self.marker)[0]
         from scipy.integrate import solve_ivp
         with Model(self.scene) as model:
-            x0 = self._initial_state()
+            x0 = self.x0
             sol = solve_ivp(model.rhs, (0.0, self.t_end), x0, method="DOP853", t_eval=self.grid, rtol=1e-12,
                             atol=1e-14)
             if not sol.success:
@@ -99,15 +100,6 @@ class Study:
             pos = model.marker(self.marker, sol.t, sol.y[:n].T, sol.y[n:].T)
         self.ref_check = float(np.linalg.norm(pos - self.ref, axis=1).max())
         self.say(f"  pymr and DOP853 references differ by {self.ref_check:.2e} m at most")
-
-    def _initial_state(self) -> np.ndarray:
-        res = run(self.scene, overrides={"scene.t_end": 1e-9, "output.dt": 0.0})
-        n = self.n
-        qcols = [c for c in res.columns[1:] if re.search(r"\.(q\d*|a\d+)$", c)]
-        qdcols = [c for c in res.columns[1:] if re.search(r"\.(qd\d*|ad\d+)$", c)]
-        if len(qcols) != n or len(qdcols) != n:
-            raise PymrError(f"{self.scene}: cannot read the initial state from the results")
-        return np.array([res[c][0] for c in qcols] + [res[c][0] for c in qdcols])
 
     # ----------------------------------------------------------------- the methods
 
@@ -137,7 +129,7 @@ class Study:
 
     def weights(self) -> None:
         """Cost of a fast evaluation against a full one, per coupling (at the initial state)."""
-        x0 = self._initial_state()
+        x0 = self.x0
         q, qd = x0[:self.n], x0[self.n:]
         self.weight = {}
         for coupling in ("full", "split"):
@@ -190,7 +182,7 @@ class Study:
 
     def _peer(self, name: str, rtol: float) -> Case:
         case = Case(name, f"rtol={rtol:.0e}")
-        x0 = self._initial_state()
+        x0 = self.x0
         n = self.n
         with Model(self.scene) as model:
             try:

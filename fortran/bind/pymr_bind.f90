@@ -303,7 +303,7 @@ end subroutine pymr_model_close
 subroutine pymr_model_rhs(handle, nx, t, x, f, evals, stat, message)
   use pymr_error, only : error_type, fatal_error
   use pymr_bind_support, only : report
-  use pymr_bind_models, only : open_models, open_flags
+  use pymr_bind_models, only : open_models, check_handle
   implicit none
   integer, intent(in) :: handle, nx
   double precision, intent(in) :: t, x(nx)
@@ -313,17 +313,14 @@ subroutine pymr_model_rhs(handle, nx, t, x, f, evals, stat, message)
   !f2py integer intent(hide), depend(x) :: nx = len(x)
   type(error_type), allocatable :: error
   f = 0.0d0; evals = 0
-  if (.not. allocated(open_flags)) then
-    call fatal_error(error, 'no open model')
-  else if (handle < 1 .or. handle > size(open_flags)) then
-    call fatal_error(error, 'no open model with this handle')
-  else if (.not. open_flags(handle)) then
-    call fatal_error(error, 'the model of this handle is closed')
-  else if (2*open_models(handle)%d%n /= nx) then
-    call fatal_error(error, 'x has the wrong length')
-  else
-    call open_models(handle)%eval(t, x, f, error)
-    evals = open_models(handle)%d%evals
+  call check_handle(handle, error)
+  if (.not. allocated(error)) then
+    if (2*open_models(handle)%d%n /= nx) then
+      call fatal_error(error, 'x has the wrong length')
+    else
+      call open_models(handle)%eval(t, x, f, error)
+      evals = open_models(handle)%d%evals
+    end if
   end if
   call report(error, stat, message)
 end subroutine pymr_model_rhs
@@ -333,7 +330,7 @@ end subroutine pymr_model_rhs
 subroutine pymr_model_marker(handle, marker, n, m, t, q, qd, pos, stat, message)
   use pymr_error, only : error_type, fatal_error
   use pymr_bind_support, only : report
-  use pymr_bind_models, only : open_models, open_flags
+  use pymr_bind_models, only : open_models, check_handle
   use pymr_model_kinematics, only : forward_kinematics, marker_motion
   use pymr_model_effects, only : impose_prescribed_state
   implicit none
@@ -348,16 +345,13 @@ subroutine pymr_model_marker(handle, marker, n, m, t, q, qd, pos, stat, message)
   double precision :: v(3)
   integer :: k
   pos = 0.0d0
-  if (.not. allocated(open_flags)) then
-    call fatal_error(error, 'no open model')
-  else if (handle < 1 .or. handle > size(open_flags)) then
-    call fatal_error(error, 'no open model with this handle')
-  else if (.not. open_flags(handle)) then
-    call fatal_error(error, 'the model of this handle is closed')
-  else if (open_models(handle)%d%n /= n) then
-    call fatal_error(error, 'q has the wrong length')
-  else if (marker < 1 .or. marker > open_models(handle)%d%n_markers) then
-    call fatal_error(error, 'no marker with this index')
+  call check_handle(handle, error)
+  if (.not. allocated(error)) then
+    if (open_models(handle)%d%n /= n) then
+      call fatal_error(error, 'q has the wrong length')
+    else if (marker < 1 .or. marker > open_models(handle)%d%n_markers) then
+      call fatal_error(error, 'no marker with this index')
+    end if
   end if
   call report(error, stat, message)
   if (stat /= 0) return
@@ -432,16 +426,17 @@ end subroutine pymr_time_fast
 
 !> Index (1-based; 0 when absent) of the marker called `name` in an open model.
 subroutine pymr_model_marker_index(handle, name, k)
-  use pymr_bind_models, only : open_models, open_flags
+  use pymr_error, only : error_type
+  use pymr_bind_models, only : open_models, check_handle
   implicit none
   integer, intent(in) :: handle
   character(len=*), intent(in) :: name
   integer, intent(out) :: k
+  type(error_type), allocatable :: error
   integer :: i
   k = 0
-  if (.not. allocated(open_flags)) return
-  if (handle < 1 .or. handle > size(open_flags)) return
-  if (.not. open_flags(handle)) return
+  call check_handle(handle, error)
+  if (allocated(error)) return
   do i = 1, open_models(handle)%d%n_markers
     if (trim(open_models(handle)%d%marker_name(i)) == trim(name)) k = i
   end do

@@ -85,8 +85,8 @@ contains
     type(beam_shape), intent(in) :: bs
     real(dp), intent(in) :: rhoa
     real(dp), allocatable, intent(out) :: kg1(:, :), kg2(:, :)
-    integer :: el, g, m, k, l
-    real(dp) :: le, xi, x, wt, nn(4), dn(4), sl(bs%my + bs%mz)
+    integer :: el, g, m
+    real(dp) :: le, xi, x, wt, sl(bs%my + bs%mz)
     m = bs%my + bs%mz
     allocate(kg1(m, m), kg2(m, m))
     kg1 = 0.0_dp; kg2 = 0.0_dp
@@ -96,21 +96,9 @@ contains
         xi = gauss4(1, g)
         x = (el - 1 + xi)*le
         wt = le*gauss4(2, g)*rhoa
-        call hermite(xi, le, nn, dn)
-        do k = 1, bs%my
-          sl(k) = dot_product(dn, bs%vy(2*el-1:2*el+2, k))
-        end do
-        do k = 1, bs%mz
-          sl(bs%my + k) = dot_product(dn, bs%vz(2*el-1:2*el+2, k))
-        end do
-        ! slopes of modes in different planes are orthogonal components
-        do l = 1, m
-          do k = 1, m
-            if ((k <= bs%my) .neqv. (l <= bs%my)) cycle
-            kg1(k, l) = kg1(k, l) + wt*(bs%length - x)*sl(k)*sl(l)
-            kg2(k, l) = kg2(k, l) + wt*0.5_dp*(bs%length**2 - x**2)*sl(k)*sl(l)
-          end do
-        end do
+        call mode_slopes(bs, el, xi, le, sl)
+        call add_slope_products(bs, wt*(bs%length - x), sl, kg1)
+        call add_slope_products(bs, wt*0.5_dp*(bs%length**2 - x**2), sl, kg2)
       end do
     end do
   end subroutine beam_geometric_stiffness
@@ -122,9 +110,8 @@ contains
     type(beam_shape), intent(in) :: bs
     real(dp), intent(in) :: xc
     real(dp), intent(out) :: kg(:, :)
-    integer :: el, g, m, k, l
-    real(dp) :: le, span, xi, wt, nn(4), dn(4), sl(bs%my + bs%mz)
-    m = bs%my + bs%mz
+    integer :: el, g
+    real(dp) :: le, span, xi, wt, sl(bs%my + bs%mz)
     kg = 0.0_dp
     le = bs%length/bs%ne
     do el = 1, bs%ne
@@ -134,22 +121,43 @@ contains
       do g = 1, 4
         xi = span*gauss4(1, g)
         wt = le*span*gauss4(2, g)
-        call hermite(xi, le, nn, dn)
-        do k = 1, bs%my
-          sl(k) = dot_product(dn, bs%vy(2*el-1:2*el+2, k))
-        end do
-        do k = 1, bs%mz
-          sl(bs%my + k) = dot_product(dn, bs%vz(2*el-1:2*el+2, k))
-        end do
-        do l = 1, m
-          do k = 1, m
-            if ((k <= bs%my) .neqv. (l <= bs%my)) cycle
-            kg(k, l) = kg(k, l) + wt*sl(k)*sl(l)
-          end do
-        end do
+        call mode_slopes(bs, el, xi, le, sl)
+        call add_slope_products(bs, wt, sl, kg)
       end do
     end do
   end subroutine beam_point_load_stiffness
+
+  !> Slopes sl (y-plane modes, then z-plane ones) of the modes at xi in [0, 1] of element el.
+  pure subroutine mode_slopes(bs, el, xi, le, sl)
+    type(beam_shape), intent(in) :: bs
+    integer, intent(in) :: el
+    real(dp), intent(in) :: xi, le
+    real(dp), intent(out) :: sl(:)
+    real(dp) :: nn(4), dn(4)
+    integer :: k
+    call hermite(xi, le, nn, dn)
+    do k = 1, bs%my
+      sl(k) = dot_product(dn, bs%vy(2*el-1:2*el+2, k))
+    end do
+    do k = 1, bs%mz
+      sl(bs%my + k) = dot_product(dn, bs%vz(2*el-1:2*el+2, k))
+    end do
+  end subroutine mode_slopes
+
+  !> kg(k, l) += w sl(k) sl(l) for modes of the same plane (slopes of modes in different
+  !> planes are orthogonal components).
+  pure subroutine add_slope_products(bs, w, sl, kg)
+    type(beam_shape), intent(in) :: bs
+    real(dp), intent(in) :: w, sl(:)
+    real(dp), intent(inout) :: kg(:, :)
+    integer :: k, l
+    do l = 1, size(sl)
+      do k = 1, size(sl)
+        if ((k <= bs%my) .neqv. (l <= bs%my)) cycle
+        kg(k, l) = kg(k, l) + w*sl(k)*sl(l)
+      end do
+    end do
+  end subroutine add_slope_products
 
   !> Lowest `nm` modes of one bending plane: nodal vectors (with the clamped node 0 as zeros),
   !> M-normalised, signed so that the tip displacement is positive.

@@ -2,7 +2,7 @@
 module pymr_model
   use pymr_kinds, only : dp
   use pymr_error, only : error_type, prefix_error
-  use pymr_lapack, only : potrf, potrs
+  use pymr_lapack, only : potrf, potrs, factor_inverse
   use pymr_integrator_ode, only : partitioned_system
   use pymr_clock, only : thread_cpu_time
   use pymr_model_types, only : model_data, effect_gravity, effect_joint_drives, effect_modal_damping, &
@@ -16,7 +16,7 @@ module pymr_model
     & prescribe_rows, add_firing_load, add_carried_load_stiffening
   implicit none
   private
-  public :: model_t
+  public :: model_t, modal_stiffness_damping
 
   !> One evaluation in this many times its effects.
   integer, parameter :: timing_interval = 32
@@ -265,7 +265,7 @@ contains
   !> Allocate the multirate work arrays and the per-coordinate modal stiffness and damping.
   subroutine model_init_partition(self)
     class(model_t), intent(inout) :: self
-    integer :: ns, nf, b, m
+    integer :: ns, nf, b
     ns = self%d%nj; nf = self%d%n - ns
     if (allocated(self%lff)) deallocate(self%lff, self%le, self%mfs, self%xfs, self%qrest, self%yf, self%kf, self%df, &
       & self%qw, self%qdw, self%mffinv, self%yrest, self%xsw, self%xfw, self%fsw, self%ffw)
@@ -278,15 +278,24 @@ contains
     do b = 2, self%d%nb
       if (self%d%flexible(b) .and. self%d%child_ptr(b + 1) > self%d%child_ptr(b)) self%mff_fixed = .false.
     end do
-    self%df = 0.0_dp
-    do b = 2, self%d%nb
-      m = self%d%nm(b)
-      if (m == 0) cycle
-      self%kf(self%d%a0(b) - ns:self%d%a0(b) - ns + m - 1) = self%d%flex(b)%omega2
-      if (self%d%effect_on(effect_modal_damping)) &
-        & self%df(self%d%a0(b) - ns:self%d%a0(b) - ns + m - 1) = self%d%flex(b)%damp
-    end do
+    call modal_stiffness_damping(self%d, self%kf, self%df)
   end subroutine model_init_partition
+
+  !> Per fast (modal) coordinate: modal stiffness omega^2 and damping (2 zeta omega + ...;
+  !> 0 when modal_damping is off), the forces 'split' recomputes in every fast step.
+  pure subroutine modal_stiffness_damping(d, kf, df)
+    type(model_data), intent(in) :: d
+    real(dp), intent(out) :: kf(:), df(:)
+    integer :: b, m, f0
+    kf = 0.0_dp; df = 0.0_dp
+    do b = 2, d%nb
+      m = d%nm(b)
+      if (m == 0) cycle
+      f0 = d%a0(b) - d%nj
+      kf(f0:f0 + m - 1) = d%flex(b)%omega2
+      if (d%effect_on(effect_modal_damping)) df(f0:f0 + m - 1) = d%flex(b)%damp
+    end do
+  end subroutine modal_stiffness_damping
 
   !> Factor M_ff of the last assembly (Cholesky), naming time and minor on failure; once
   !> only when M_ff is constant.
@@ -388,12 +397,7 @@ contains
   subroutine hold_inverse(self, error)
     class(model_t), intent(inout) :: self
     type(error_type), allocatable, intent(out) :: error
-    integer :: i
-    self%mffinv = 0.0_dp
-    do i = 1, size(self%mffinv, 1)
-      self%mffinv(i, i) = 1.0_dp
-    end do
-    call potrs(self%lff, self%mffinv, 'M_ff', error)
+    call factor_inverse(self%lff, self%mffinv, 'M_ff', error)
   end subroutine hold_inverse
 
   !> Full coordinates and rates from the slow state [q_s; qd_s] and fast state [q_f; qd_f].
