@@ -83,6 +83,14 @@ def revolute(name: str, parent: str, child: str) -> str:
             f"child = '{child}', axis = 0.0, 0.0, 1.0 /\n")
 
 
+def damped_beam(damping: str) -> str:
+    """BASE with a damped beam 'arm' hung from the bob (two modes: one per plane)."""
+    return (BASE.replace("gravity = .true.", "gravity = .true., modal_damping = .true.")
+            + "&body name = 'arm', kind = 'beam', length = 1.0, youngs_modulus = 2.0e11, density = 7800.0,\n"
+              f"      area = 1.0e-4, iy = 1.0e-9, iz = 1.0e-9, modes_y = 1, modes_z = 1, modal_damping = {damping} /\n"
+              "&joint name = 'mount', kind = 'fixed', parent = 'bob', child = 'arm' /\n")
+
+
 DIRECTORY = "<directory>"          # the scene path is a directory
 GARBAGE = bytes(range(256)) * 16   # binary garbage (no '&name' anywhere)
 
@@ -181,6 +189,13 @@ CASES = [
     # 14. drives given, &effects joint_drives off
     Case("drive_without_joint_drives", BASE + "&drive joint = 'pivot', offset = 1.0 /\n",
          ("&drive", "joint_drives")),
+    # 15. modal damping is a fraction of critical: critical (1) and beyond, or negative, is refused
+    Case("modal_damping_critical", damped_beam("1.0"),
+         ("&body", "'arm'", "modal_damping", "[0, 1)", "got 1")),
+    Case("modal_damping_overcritical_mode", damped_beam("0.02, 1.5"),
+         ("&body", "'arm'", "modal_damping", "[0, 1)", "got 1.5")),
+    Case("modal_damping_negative", damped_beam("-0.01"),
+         ("&body", "'arm'", "modal_damping", "[0, 1)", "got -0.01")),
 ]
 
 CASE_PARAMS = [pytest.param(c, id=c.id) for c in CASES]

@@ -216,3 +216,74 @@ def test_predictor_local_error_for_a_quartic_is_binomial_h4():
     zp = nordsieck_op(PASCAL, z)
     ref = nordsieck_of([0, 0, 0, 0, 1.0], t + h, h)
     np.testing.assert_allclose(ref - zp[0], h**4 * np.array([1.0, 4.0, 6.0, 4.0]), rtol=1e-10)
+
+
+# ---------------------------------------------------------------------------------------------
+# 5. The corrector is the 3-step Adams-Moulton formula; its local error constant is -19/720
+# ---------------------------------------------------------------------------------------------
+def correct(zp, hf):
+    z, g = _core.pymr_nordsieck_correct(np.asfortranarray(zp, dtype=float), np.asarray(hf, dtype=float))
+    return np.array(z), np.array(g)
+
+
+def history(x, f0, f1, f2, h):
+    """Nordsieck array of x_n and the derivatives f_n, f_{n-1}, f_{n-2} at t_n, t_n - h, t_n - 2h:
+    the derivative is the quadratic p(s) = f0 + b s + c s^2 through them (s = (t - t_n)/h), and
+    x(s) = x_n + h (f0 s + b s^2/2 + c s^3/3), so z = [x_n, h f0, h b/2, h c/3]."""
+    c = (f2 - 2 * f1 + f0) / 2
+    b = f0 - f1 + c
+    return np.stack([x, h * f0, h * b / 2, h * c / 3], axis=-1)
+
+
+PASCAL_T = np.array([[1, 1, 1, 1], [0, 1, 2, 3], [0, 0, 1, 3], [0, 0, 0, 1]], float).T
+
+
+def test_corrector_is_the_three_step_adams_moulton_formula():
+    """Predict, evaluate f_{n+1}, correct: x_{n+1} = x_n + h/24 (9 f_{n+1} + 19 f_n - 5 f_{n-1}
+    + f_{n-2}) (Adams-Moulton, order 4), and the corrected array is the Nordsieck array of the
+    shifted history (f_{n+1}, f_n, f_{n-1}). The four columns pin the corrector vector l."""
+    rng = np.random.default_rng(2026)
+    h = 0.1
+    x = rng.standard_normal(6)
+    f_new, f0, f1, f2 = rng.standard_normal((4, 6))
+    zp = history(x, f0, f1, f2, h) @ PASCAL_T
+    z, g = correct(zp, h * f_new)
+    np.testing.assert_allclose(g, h * f_new - zp[:, 1], rtol=0, atol=1e-15)
+    am = x + h / 24 * (9 * f_new + 19 * f0 - 5 * f1 + f2)
+    np.testing.assert_allclose(z[:, 0], am, rtol=0, atol=2e-15 * np.abs(am).max())
+    np.testing.assert_allclose(z, history(am, f_new, f0, f1, h), rtol=0, atol=2e-15)
+
+
+def test_corrector_local_error_constant_is_minus_19_over_720():
+    """On x' = t^4 from an exact history the corrector misses x(t_n + h) by exactly
+    -(-19/720) h^5 x^(5) = 19/30 h^5 (x^(5) = 24; no higher derivative), at any t_n and h."""
+    for tn in (0.0, 0.3, -1.1):
+        for h in (0.2, 0.1, 0.05):
+            x0 = np.array([tn**5 / 5])
+            fs = [np.array([(tn - k * h)**4]) for k in (0, 1, 2)]
+            zp = history(x0, *fs, h)[None, 0] @ PASCAL_T
+            z, _ = correct(zp, h * np.array([(tn + h)**4]))
+            miss = z[0, 0] - (tn + h)**5 / 5
+            assert miss == pytest.approx(19 / 30 * h**5, rel=1e-9, abs=0)
+
+
+def test_step_ratio_exponent_matches_the_order_of_the_error_estimate():
+    """The estimate l0 (h f - zp') is measured to scale as h^p on x' = t^3 (where it is exact:
+    the quadratic extrapolation of f misses 6 h^3); the controller's ratio eta then puts the
+    next estimate at safety^p of the tolerance: err eta^p = 0.85^p for every ratio that no bound
+    clips (accepted: 0.5 <= eta <= 4 outside the hold band [1, 1.25); rejected: eta >= 0.2)."""
+    est = []
+    for h in (0.1, 0.05, 0.025):
+        fs = [np.array([(0.7 - k * h)**3]) for k in (0, 1, 2)]
+        zp = history(np.array([0.7**4 / 4]), *fs, h)[None, 0] @ PASCAL_T
+        _, g = correct(zp, h * np.array([(0.7 + h)**3]))
+        est.append(abs(g[0]))
+        assert g[0] == pytest.approx(6 * h**4, rel=1e-9)
+    p = np.log2(est[0] / est[1])
+    assert p == pytest.approx(4.0, abs=1e-9) and np.log2(est[1] / est[2]) == pytest.approx(p, abs=1e-9)
+    for err, accepted in [(0.01, 1), (0.05, 1), (0.1, 1), (1.01, 0), (2.0, 0), (5.0, 0), (20.0, 0)]:
+        eta = _core.pymr_step_ratio(err, accepted)
+        assert err * eta**p == pytest.approx(0.85**p, rel=1e-12), (err, accepted, eta)
+    # the bounds: growth at most 4x, a rejected step at least 0.2x
+    assert _core.pymr_step_ratio(1e-9, 1) == 4.0
+    assert _core.pymr_step_ratio(1e9, 0) == pytest.approx(0.2)

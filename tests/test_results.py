@@ -80,3 +80,34 @@ def test_results_names_meta_and_accessors(tmp_path):
     assert q.shape[1] == 6 and np.array_equal(qd[:, 5], chain["j1.qd6"])
     assert chain.joint_columns("j1") == [f"j1.q{i}" for i in range(1, 7)]
     assert not Path(chain.path).exists()          # output=None: the files are gone
+
+
+EXTREME = [1.2345678901234567e+150, -9.8765432109876543e-150, 5.0e+140, 2.5e-300, 7.0e+99, 1.0e+100,
+           1.0e-100, 9.99e-101, -4.4e+123, 6.02214076e-123]
+
+
+def test_csv_numbers_with_three_digit_exponents_round_trip(tmp_path):
+    """Sliders at rest at positions from 1e-300 to 1e150 (no force acts): every written value,
+    read back by Python's own float(), is the position given, and the text has the form
+    d.dddddddddddddddde+XXX (17 digits, a three-digit exponent where one is needed)."""
+    bodies = "".join(f"&body name = 'b{i}', kind = 'rigid', mass = 1.0, inertia = 1.0, 1.0, 1.0, 0.0, 0.0, 0.0 /\n"
+                     f"&joint name = 's{i}', kind = 'prismatic', parent = 'ground', child = 'b{i}', "
+                     f"axis = 1.0, 0.0, 0.0, q0 = {x!r} /\n" for i, x in enumerate(EXTREME))
+    scene = tmp_path / "far.nml"
+    scene.write_text("&scene title = 'sliders at rest, far and near', t_end = 0.01 /\n"
+                     "&integrator method = 'single', h_slow = 1.0e-3 /\n"
+                     "&body name = 'ground', kind = 'ground' /\n" + bodies + "&output dt = 5.0e-3 /\n")
+    out = tmp_path / "far.csv"
+    pymr.run(scene, out)
+    lines = [ln for ln in out.read_text().splitlines() if not ln.startswith("#")]
+    header = lines[0].split(",")
+    assert len(lines) == 4
+    for row in lines[1:]:
+        cells = dict(zip(header, row.split(",")))
+        for i, x in enumerate(EXTREME):
+            text = cells[f"s{i}.q"].strip()
+            assert float(text) == x, (text, x)
+            mantissa, exponent = text.lower().split("e")
+            assert int(exponent) == int(f"{x:.16e}".split("e")[1]), (text, x)
+            assert len(mantissa.lstrip("-").replace(".", "")) == 17, text
+            assert float(cells[f"s{i}.qd"]) == 0.0

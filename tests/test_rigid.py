@@ -293,3 +293,19 @@ def test_sinusoidal_drive_torque(tmp_path, overrides, tol):
     assert t[-1] == pytest.approx(1.0)
     assert np.max(np.abs(q - q_exact)) < tol * np.max(np.abs(q_exact))
     assert np.max(np.abs(qd - qd_exact)) < tol * np.max(np.abs(qd_exact))
+
+
+def test_adaptive_steps_never_exceed_h_max(tmp_path):
+    """Adaptive steps on the pendulum at rtol 1e-6 grow well past 1e-2 s; with h_max = 4e-3 s
+    every step (each one written: output dt = 0) stays within it, so at least t_end / h_max
+    steps are taken, and the period stays exact."""
+    over = {"integrator.adaptive": True, "integrator.rtol": 1e-6, "integrator.atol": 1e-8, "output.dt": 0.0}
+    free = run(PENDULUM, tmp_path, "free", overrides=over)
+    assert np.diff(free.t).max() > 1e-2
+    capped = run(PENDULUM, tmp_path, "capped", overrides={**over, "integrator.h_max": 4e-3})
+    steps = np.diff(capped.t)
+    assert steps.max() <= 4e-3 * (1 + 1e-12)
+    assert capped.stats["steps_slow"] >= 10.0 / 4e-3
+    assert capped.t[-1] == pytest.approx(10.0)
+    T, _ = mean_period(capped.t, capped["pivot.q"])
+    assert T == pytest.approx(pendulum_exact_period(), rel=1e-6)

@@ -212,6 +212,29 @@ subroutine pymr_nordsieck_op(op, n, z, alpha, out)
   end select
 end subroutine pymr_nordsieck_op
 
+!> Nordsieck corrector for tests: z = zp + l (hf - zp(:,1)), and g = hf - zp(:,1).
+subroutine pymr_nordsieck_correct(n, zp, hf, z, g)
+  use pymr_integrator_nordsieck, only : nordsieck_correct
+  implicit none
+  integer, intent(in) :: n
+  double precision, intent(in) :: zp(n, 4), hf(n)
+  double precision, intent(out) :: z(n, 4), g(n)
+  !f2py integer intent(hide), depend(zp) :: n = shape(zp, 0)
+  call nordsieck_correct(zp, hf, z, g)
+end subroutine pymr_nordsieck_correct
+
+!> Step ratio of the default adaptive controller for a normalised error estimate `err`
+!> after an accepted (accepted /= 0) or a rejected step.
+subroutine pymr_step_ratio(err, accepted, eta)
+  use pymr_integrator_control, only : step_control
+  implicit none
+  double precision, intent(in) :: err
+  integer, intent(in) :: accepted
+  double precision, intent(out) :: eta
+  type(step_control) :: ctl
+  eta = ctl%ratio(err, accepted /= 0)
+end subroutine pymr_step_ratio
+
 !> Write the modes of beam `body` of a scene to a modal data file (for kind='modal').
 subroutine pymr_write_modal(scene, overrides, body, path, stat, message)
   use pymr_error, only : error_type, fatal_error

@@ -202,12 +202,46 @@ contains
     end do
   end function lower
 
-  !> A real for messages, 6 significant digits.
+  !> A real for messages as a person writes it, at most 6 significant digits: 0.01, 2.5,
+  !> 150000, 1.5e+8, -3e-7 (never a compiler's own form such as 0.100000E-1).
   function fmt(x) result(s)
     real(dp), intent(in) :: x
     character(len=:), allocatable :: s
-    character(len=32) :: buf
-    write(buf, '(g0.6)') x
-    s = trim(adjustl(buf))
+    character(len=40) :: buf, form
+    integer :: e, p
+    if (x /= x) then
+      s = 'NaN'; return
+    else if (abs(x) > huge(x)) then
+      s = merge('-Inf', 'Inf ', x < 0.0_dp); s = trim(s); return
+    else if (x == 0.0_dp) then
+      s = '0'; return
+    end if
+    write(buf, '(es14.5e3)') x
+    p = index(buf, 'E')
+    read(buf(p+1:), *) e
+    if (e >= -4 .and. e < 6) then
+      write(form, '(a,i0,a)') '(f0.', max(0, 5 - e), ')'
+      write(buf, form) x
+      s = strip_zeros(trim(adjustl(buf)))
+      if (s(1:1) == '.') s = '0' // s
+      if (s(1:min(2, len(s))) == '-.') s = '-0' // s(2:)
+    else
+      s = strip_zeros(trim(adjustl(buf(:p-1)))) // 'e' // merge('-', '+', e < 0) // itoa(abs(e))
+    end if
   end function fmt
+
+  !> A decimal number's text without trailing zeros after its point (and without the point).
+  pure function strip_zeros(t) result(s)
+    character(len=*), intent(in) :: t
+    character(len=:), allocatable :: s
+    integer :: n
+    s = t
+    if (index(s, '.') == 0) return
+    n = len(s)
+    do while (s(n:n) == '0')
+      n = n - 1
+    end do
+    if (s(n:n) == '.') n = n - 1
+    s = s(:n)
+  end function strip_zeros
 end module pymr_io_namelist_scan
