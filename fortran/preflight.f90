@@ -16,7 +16,7 @@ module pymr_preflight
   use pymr_integrator_ode, only : partitioned_system
   use pymr_integrator_multirate, only : multirate_integrator, coupling_split
   use pymr_integrator_nordsieck, only : nq
-  use pymr_io_namelist_scan, only : itoa
+  use pymr_io_text, only : itoa
   implicit none
   private
   public :: check_step_stability, check_mass_matrix

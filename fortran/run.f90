@@ -15,7 +15,7 @@ module pymr_run
   use pymr_model_kinematics, only : forward_kinematics, marker_motion
   use pymr_clock, only : thread_cpu_time
   use pymr_model_effects, only : prescribed_motion
-  use pymr_io_namelist_scan, only : itoa
+  use pymr_io_text, only : itoa
   use pymr_preflight, only : check_step_stability, check_mass_matrix
   use pymr_io_checkpoint, only : run_progress, write_checkpoint, read_checkpoint
   implicit none
@@ -137,8 +137,8 @@ contains
     integer :: k, s
     if (len_trim(out) > 0) then
       path = trim(out)
-    else if (len_trim(sc%output_file) > 0) then
-      path = trim(sc%output_file)
+    else if (len_trim(sc%output%file) > 0) then
+      path = trim(sc%output%file)
     else
       s = index(sc%file, '/', back=.true.)
       k = index(sc%file, '.', back=.true.)
@@ -180,13 +180,13 @@ contains
     call load_model(file, overrides, sc, model, error); if (allocated(error)) return
     n = model%d%n
     path = default_output(sc, out)
-    ckpt_path = trim(sc%checkpoint_file)
+    ckpt_path = trim(sc%output%checkpoint_file)
     if (len(ckpt_path) == 0) ckpt_path = checkpoint_default(path)
     cpu0 = thread_cpu_time(); call system_clock(c0, rate)
     h = sc%integrator%h_slow
     allocate(x(2*n))
     call initial_state(sc, model, x)
-    dt_out = sc%output_dt
+    dt_out = sc%output%dt
     if (dt_out <= 0.0_dp .and. .not. sc%integrator%adaptive) dt_out = h
     eps = 1.0e-9_dp*h
     k_out = 1
@@ -203,7 +203,7 @@ contains
       stats%rows = prog%rows; k_out = prog%k_out; t_next = prog%t_next
       cpu0 = cpu0 - prog%cpu_s
     else
-      call csv%open(path, model%d, sc%title, method_label(sc), error); if (allocated(error)) return
+      call csv%open(path, model%d, sc%scene%title, method_label(sc), error); if (allocated(error)) return
       call csv%write_row(model%d, 0.0_dp, x(1:n), x(n+1:)); stats%rows = 1
       call check_mass_matrix(model, x, file // ': ', error)
       if (allocated(error)) then
@@ -212,7 +212,7 @@ contains
       if (.not. sc%integrator%adaptive .and. sc%integrator%stability_check) then
         call check_step_stability(model, x, h, merge(sc%integrator%h_fast, h, sc%integrator%h_fast > 0.0_dp), &
           & sc%integrator%method == 'multirate', merge(coupling_split, coupling_full, sc%integrator%coupling == 'split'), &
-          & sc%t_end, file // ': &integrator: ', error)
+          & sc%scene%t_end, file // ': &integrator: ', error)
         if (allocated(error)) then
           call csv%close(); return
         end if
@@ -224,46 +224,46 @@ contains
         return
       end if
     end if
-    progress_t_end = sc%t_end; progress_t = st%time(); progress_running = .true.
+    progress_t_end = sc%scene%t_end; progress_t = st%time(); progress_running = .true.
     c_line = c0
-    if (lines) call progress_line(st%time(), sc%t_end, c0, rate)
+    if (lines) call progress_line(st%time(), sc%scene%t_end, c0, rate)
     t_ckpt = huge(1.0_dp)
-    if (sc%checkpoint_dt > 0.0_dp) t_ckpt = (floor(st%time()/sc%checkpoint_dt + 1.0e-9_dp) + 1)*sc%checkpoint_dt
+    if (sc%output%checkpoint_dt > 0.0_dp) t_ckpt = (floor(st%time()/sc%output%checkpoint_dt + 1.0e-9_dp) + 1)*sc%output%checkpoint_dt
     do
       if (dt_out > 0.0_dp) then
-        do while (t_next <= min(st%time(), sc%t_end) + eps)
+        do while (t_next <= min(st%time(), sc%scene%t_end) + eps)
           call st%value_at(t_next, x)
           call csv%write_row(model%d, t_next, x(1:n), x(n+1:)); stats%rows = stats%rows + 1
           k_out = k_out + 1; t_next = k_out*dt_out
         end do
-      else if (st%time() < sc%t_end - eps) then
+      else if (st%time() < sc%scene%t_end - eps) then
         call st%value_at(st%time(), x)
         call csv%write_row(model%d, st%time(), x(1:n), x(n+1:)); stats%rows = stats%rows + 1
       end if
-      if (st%time() >= sc%t_end - eps) exit
+      if (st%time() >= sc%scene%t_end - eps) exit
       if (st%time() >= t_ckpt - eps) then
         ! the rows up to now are on disk before the checkpoint that counts them
         flush(csv%unit)
         prog = run_progress(rows=stats%rows, k_out=k_out, t_next=t_next, cpu_s=thread_cpu_time() - cpu0, &
           & t_checkpoint=st%time())
         call write_checkpoint(ckpt_path, st%multirate, st%abm, st%mr, model, prog, error); if (allocated(error)) exit
-        t_ckpt = (floor(st%time()/sc%checkpoint_dt + 1.0e-9_dp) + 1)*sc%checkpoint_dt
+        t_ckpt = (floor(st%time()/sc%output%checkpoint_dt + 1.0e-9_dp) + 1)*sc%output%checkpoint_dt
       end if
       call st%advance(model, error); if (allocated(error)) exit
       progress_t = st%time()
       if (lines) then
         call system_clock(c1)
         if (c1 - c_line >= rate) then
-          call progress_line(st%time(), sc%t_end, c0, rate); c_line = c1
+          call progress_line(st%time(), sc%scene%t_end, c0, rate); c_line = c1
         end if
       end if
     end do
     progress_running = .false.
-    if (lines .and. .not. allocated(error)) call progress_line(sc%t_end, sc%t_end, c0, rate)
+    if (lines .and. .not. allocated(error)) call progress_line(sc%scene%t_end, sc%scene%t_end, c0, rate)
     if (.not. allocated(error)) then
-      call st%value_at(sc%t_end, x)
-      if (dt_out <= 0.0_dp .or. abs(t_next - dt_out - sc%t_end) > eps) then
-        call csv%write_row(model%d, sc%t_end, x(1:n), x(n+1:)); stats%rows = stats%rows + 1
+      call st%value_at(sc%scene%t_end, x)
+      if (dt_out <= 0.0_dp .or. abs(t_next - dt_out - sc%scene%t_end) > eps) then
+        call csv%write_row(model%d, sc%scene%t_end, x(1:n), x(n+1:)); stats%rows = stats%rows + 1
       end if
     end if
     call csv%close()
@@ -273,7 +273,7 @@ contains
     cpu1 = thread_cpu_time(); call system_clock(c1)
     stats%cpu_time_s = cpu1 - cpu0; stats%wall_time_s = real(c1 - c0, dp)/real(rate, dp)
     call fill_stats(st, model, stats)
-    call write_json(json_path(path), file, sc%title, settings_json(sc), model%d, stats, error)
+    call write_json(json_path(path), file, sc%scene%title, settings_json(sc), model%d, stats, error)
     if (allocated(error)) return
     summary = summary_text(sc, model, stats, path, x)
     if (present(written)) written = path
@@ -374,7 +374,7 @@ contains
     associate(g => sc%integrator)
       write(buf, '(a,g0.10,a,g0.10,a,g0.10,a,g0.10,a,g0.10,a,g0.10,a,i0,a,g0.10)') &
         & '", "h_fast": ', g%h_fast, ', "h_slow": ', g%h_slow, ', "rtol": ', g%rtol, ', "atol": ', g%atol, &
-        & ', "h_min": ', g%h_min, ', "h_max": ', g%h_max, ', "n_corrector": ', g%n_corrector, ', "t_end": ', sc%t_end
+        & ', "h_min": ', g%h_min, ', "h_max": ', g%h_max, ', "n_corrector": ', g%n_corrector, ', "t_end": ', sc%scene%t_end
       s = '"method": "' // trim(g%method) // trim(buf) // ', "adaptive": ' // trim(merge('true ', 'false', g%adaptive)) &
         & // ', "coupling": "' // trim(g%coupling) // '"'
     end associate
@@ -391,8 +391,8 @@ contains
     real(dp) :: r(3), v(3)
     integer :: i, n
     n = model%d%n
-    s = 'scene: ' // trim(sc%title) // new_line('a')
-    write(buf, '(a,g0.6,a,i0,a,i0,a,i0,a,i0,a)') 'simulated 0 to ', sc%t_end, ' s: ', st%steps_slow, ' steps (', &
+    s = 'scene: ' // trim(sc%scene%title) // new_line('a')
+    write(buf, '(a,g0.6,a,i0,a,i0,a,i0,a,i0,a)') 'simulated 0 to ', sc%scene%t_end, ' s: ', st%steps_slow, ' steps (', &
       & st%steps_fast, ' fast), ', st%rejected_steps, ' rejected, ', st%rhs_full, ' full evaluations'
     if (st%rhs_fast > 0) write(buf, '(a,a,i0,a)') trim(buf), ', ', st%rhs_fast, ' fast-only'
     s = s // trim(buf) // new_line('a')

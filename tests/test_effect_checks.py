@@ -344,7 +344,7 @@ TANK = """
 &output dt = 1.0e-3 /
 """
 WELDED = "&joint name = 'suspension', kind = 'fixed', parent = 'road', child = 'chassis', at = 0.0, 0.5, 0.0 /"
-PRESCRIBED = ("&joint name = 'suspension', kind = 'free', parent = 'road', child = 'chassis', q0 = 0.0, 0.5 /\n"
+PRESCRIBED = ("&joint name = 'suspension', kind = 'free', parent = 'road', child = 'chassis', q0 = 0.0, 0.5, 0.0, 0.0, 0.0, 0.0 /\n"
               "&motion joint = 'suspension', coordinate = 2, offset = 0.5, amplitude = 0.0, frequency = 1.5 /\n"
               + "".join(f"&motion joint = 'suspension', coordinate = {k}, amplitude = 0.0 /\n" for k in (1, 3, 4, 5, 6)))
 

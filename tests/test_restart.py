@@ -79,5 +79,5 @@ def test_bad_restarts_are_one_line_errors(tmp_path):
         pymr.run(TANK, out, restart=tmp_path / "junk.ckpt")
     with pytest.raises(pymr.SceneError, match=r"other.csv: the results of the checkpointed run are missing"):
         pymr.run(TANK, tmp_path / "other.csv", restart=tmp_path / "job.ckpt")
-    with pytest.raises(pymr.SceneError, match=r"&output: checkpoint_dt: must not be negative"):
+    with pytest.raises(pymr.SceneError, match=r"&output: checkpoint_dt: must be in \[0, 1e\+9\], got -1"):
         pymr.run(TANK, out, overrides={"output.checkpoint_dt": -1.0})

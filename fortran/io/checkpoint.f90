@@ -13,7 +13,7 @@ module pymr_io_checkpoint
   use pymr_integrator_abm, only : abm_integrator
   use pymr_integrator_multirate, only : multirate_integrator
   use pymr_model, only : model_t
-  use pymr_io_namelist_scan, only : itoa
+  use pymr_io_text, only : itoa
   implicit none
   private
   public :: run_progress, write_checkpoint, read_checkpoint

@@ -15,7 +15,7 @@ module pymr_io_modal_file
   use pymr_error, only : error_type, fatal_error
   use pymr_model_flexbody, only : flex_data, flex_invariants, modal_nodes
   use pymr_model_beam_modes, only : beam_shape, beam_point_shapes
-  use pymr_io_namelist_scan, only : itoa
+  use pymr_io_text, only : itoa
   implicit none
   private
   public :: read_modal_file, write_modal_file

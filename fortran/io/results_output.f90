@@ -7,7 +7,7 @@ module pymr_io_results_output
   use pymr_model_effects, only : impose_prescribed_state
   use pymr_model_kinematics, only : forward_kinematics, marker_motion
   use pymr_io_fast_format, only : put_real
-  use pymr_io_namelist_scan, only : itoa
+  use pymr_io_text, only : itoa
   implicit none
   private
   public :: csv_writer, json_path, write_json, run_stats, pymr_version

@@ -4,7 +4,7 @@
 module pymr_io_table_file
   use pymr_kinds, only : dp
   use pymr_error, only : error_type, fatal_error
-  use pymr_io_namelist_scan, only : itoa, fmt
+  use pymr_io_text, only : itoa, fmt
   implicit none
   private
   public :: read_time_table

@@ -15,7 +15,7 @@ module pymr_model_build
   use pymr_model_flexbody, only : flex_data, modal_nodes, undeformed_modal_moments
   use pymr_model_spatial, only : unit_axes
   use pymr_model, only : model_t
-  use pymr_io_namelist_scan, only : itoa, fmt
+  use pymr_io_text, only : itoa, fmt
   implicit none
   private
   public :: build_model, check_scene
@@ -32,21 +32,6 @@ contains
     call tree_order(sc, order, inboard, error); if (allocated(error)) return
     call fill_model(sc, order, inboard, model%d, error)
   end subroutine build_model
-
-  !> "&body 'turret' (line 12)" for messages.
-  function where_body(sc, i) result(s)
-    type(scene_t), intent(in) :: sc
-    integer, intent(in) :: i
-    character(len=:), allocatable :: s
-    s = sc%file // ': &body ''' // trim(sc%bodies(i)%name) // ''' (line ' // itoa(sc%bodies(i)%line) // ')'
-  end function where_body
-
-  function where_joint(sc, i) result(s)
-    type(scene_t), intent(in) :: sc
-    integer, intent(in) :: i
-    character(len=:), allocatable :: s
-    s = sc%file // ': &joint ''' // trim(sc%joints(i)%name) // ''' (line ' // itoa(sc%joints(i)%line) // ')'
-  end function where_joint
 
 
   !> Index of the body called `name`, 0 if none.
@@ -78,37 +63,16 @@ contains
     real(dp) :: hf, hs, r
     character(len=:), allocatable :: w
     w = sc%file // ': &integrator: '
-    if (sc%t_end == unset) then
+    if (sc%scene%t_end == unset) then
       call fatal_error(error, sc%file // ': &scene: t_end: missing (the end time of the run in s)'); return
     end if
-    if (.not. (sc%t_end > 0.0_dp)) then
-      call fatal_error(error, sc%file // ': &scene: t_end: must be positive, got ' // fmt(sc%t_end)); return
-    end if
-    select case (trim(sc%effects%deformation_inertia))
-    case ('full', 'linear')
-    case default
-      call fatal_error(error, sc%file // ": &effects: deformation_inertia: '" // trim(sc%effects%deformation_inertia) &
-        & // "' is not a fidelity ('full' or 'linear')"); return
-    end select
     associate(s => sc%integrator)
-      select case (trim(s%method))
-      case ('single', 'multirate')
-      case default
-        call fatal_error(error, w // "method: '" // trim(s%method) // "' is not a method ('single' or 'multirate')")
-        return
-      end select
       hf = s%h_fast; hs = s%h_slow
       if (hf == unset .and. hs == unset) then
         call fatal_error(error, w // 'h_slow: missing (the step in s; h_fast for the modal coordinates)'); return
       end if
       if (hf == unset) hf = hs
       if (hs == unset) hs = hf
-      if (.not. (hf > 0.0_dp)) then
-        call fatal_error(error, w // 'h_fast: must be positive, got ' // fmt(hf)); return
-      end if
-      if (.not. (hs > 0.0_dp)) then
-        call fatal_error(error, w // 'h_slow: must be positive, got ' // fmt(hs)); return
-      end if
       r = hs/hf
       if (r < 1.0_dp - 1.0e-9_dp .or. abs(r - nint(r)) > 1.0e-9_dp*r) then
         call fatal_error(error, w // 'h_slow: must be an integer multiple of h_fast, got h_slow/h_fast = ' // fmt(r))
@@ -119,41 +83,15 @@ contains
           & // "h_slow, or method = 'multirate'"); return
       end if
       if (trim(s%method) == 'multirate') then
-        if (s%coupling /= 'full' .and. s%coupling /= 'split') then
-          call fatal_error(error, w // "coupling: '" // trim(s%coupling) // "' is not a coupling ('full' or 'split')")
-          return
-        end if
-        if (s%k_max < 1) then
-          call fatal_error(error, w // 'k_max: must be >= 1, got ' // itoa(s%k_max)); return
-        end if
         if (s%n_corrector /= 1) then
           call fatal_error(error, w // "n_corrector: multirate uses PECE (n_corrector = 1)"); return
         end if
       end if
-      if (s%adaptive .and. .not. (s%rtol > 0.0_dp)) then
-        call fatal_error(error, w // 'rtol: must be positive, got ' // fmt(s%rtol)); return
-      end if
-      if (s%adaptive .and. .not. (s%atol > 0.0_dp)) then
-        call fatal_error(error, w // 'atol: must be positive, got ' // fmt(s%atol)); return
-      end if
-      if (s%h_min < 0.0_dp .or. s%h_max < 0.0_dp) then
-        call fatal_error(error, w // 'h_min, h_max: must not be negative (0 = automatic)'); return
-      end if
-      if (s%n_corrector < 1 .or. s%n_corrector > 10) then
-        call fatal_error(error, w // 'n_corrector: must be 1 (PECE) to 10, got ' // itoa(s%n_corrector)); return
-      end if
-      if (sc%output_dt < 0.0_dp) then
-        call fatal_error(error, sc%file // ': &output: dt: must not be negative, got ' // fmt(sc%output_dt)); return
-      end if
-      if (sc%checkpoint_dt < 0.0_dp) then
-        call fatal_error(error, sc%file // ': &output: checkpoint_dt: must not be negative, got ' // &
-          & fmt(sc%checkpoint_dt)); return
-      end if
-      if (.not. s%adaptive .and. sc%output_dt > 0.0_dp) then
-        r = sc%output_dt/hs
+      if (.not. s%adaptive .and. sc%output%dt > 0.0_dp) then
+        r = sc%output%dt/hs
         if (abs(r - nint(r)) > 1.0e-9_dp*r .or. nint(r) < 1) then
           call fatal_error(error, sc%file // ': &output: dt: must be a multiple of the step h_slow = ' // fmt(hs) &
-            & // ' s, got ' // fmt(sc%output_dt)); return
+            & // ' s, got ' // fmt(sc%output%dt)); return
         end if
       end if
     end associate
@@ -168,13 +106,12 @@ contains
     do i = 1, size(sc%bodies)
       associate(b => sc%bodies(i))
         if (len_trim(b%name) == 0) then
-          call fatal_error(error, sc%file // ': &body #' // itoa(i) // ' (line ' // itoa(b%line) // &
-            & '): name: missing'); return
+          call fatal_error(error, b%origin%where('name') // ': missing'); return
         end if
         do j = 1, i - 1
           if (sc%bodies(j)%name == b%name) then
-            call fatal_error(error, where_body(sc, i) // ': name: used by another &body too (line ' // &
-              & itoa(sc%bodies(j)%line) // ')'); return
+            call fatal_error(error, b%origin%where('name') // ': used by another &body too (line ' // &
+              & itoa(sc%bodies(j)%origin%line) // ')'); return
           end if
         end do
         select case (trim(b%kind))
@@ -182,39 +119,33 @@ contains
           ng = ng + 1
         case ('rigid')
           if (b%mass == unset) then
-            call fatal_error(error, where_body(sc, i) // ': mass: missing (kg)'); return
-          end if
-          if (.not. (b%mass > 0.0_dp)) then
-            call fatal_error(error, where_body(sc, i) // ': mass: must be positive, got ' // fmt(b%mass)); return
+            call fatal_error(error, sc%bodies(i)%origin%where() // ': mass: missing (kg)'); return
           end if
           if (any(b%inertia == unset)) then
-            call fatal_error(error, where_body(sc, i) // ': inertia: missing (6 values: Ixx Iyy Izz Ixy Ixz Iyz)')
+            call fatal_error(error, sc%bodies(i)%origin%where() // ': inertia: missing (6 values: Ixx Iyy Izz Ixy Ixz Iyz)')
             return
           end if
           a = inertia_matrix(b%inertia)
           call eig3(a, e)
           if (minval(e) <= 0.0_dp) then
-            call fatal_error(error, where_body(sc, i) // ': inertia: not positive definite (smallest principal ' // &
+            call fatal_error(error, sc%bodies(i)%origin%where() // ': inertia: not positive definite (smallest principal ' // &
               & 'moment ' // fmt(minval(e)) // ' kg m^2)'); return
           end if
           if (2*maxval(e) > sum(e)*(1.0_dp + 1.0e-12_dp)) then
-            call fatal_error(error, where_body(sc, i) // ': inertia: principal moments ' // fmt(e(1)) // ', ' // &
+            call fatal_error(error, sc%bodies(i)%origin%where() // ': inertia: principal moments ' // fmt(e(1)) // ', ' // &
               & fmt(e(2)) // ', ' // fmt(e(3)) // ' break the triangle inequality (no real body has them)'); return
           end if
         case ('beam')
           call check_beam(sc, i, error); if (allocated(error)) return
         case ('modal')
           if (len_trim(b%modal_file) == 0) then
-            call fatal_error(error, where_body(sc, i) // ': modal_file: missing (the file with the mode data)')
+            call fatal_error(error, sc%bodies(i)%origin%where() // ': modal_file: missing (the file with the mode data)')
             return
           end if
           call check_damping(sc, i, error); if (allocated(error)) return
-        case ('')
-          call fatal_error(error, where_body(sc, i) // ": kind: missing ('ground', 'rigid', 'beam' or 'modal')")
-          return
         case default
-          call fatal_error(error, where_body(sc, i) // ": kind: '" // trim(b%kind) // &
-            & "' is not a body kind ('ground', 'rigid', 'beam' or 'modal')"); return
+          call fatal_error(error, sc%bodies(i)%origin%where() // ": kind: missing ('ground', 'rigid', 'beam' or 'modal')")
+          return
         end select
       end associate
     end do
@@ -236,7 +167,7 @@ contains
     integer, intent(in) :: i
     type(error_type), allocatable, intent(out) :: error
     character(len=:), allocatable :: w
-    w = where_body(sc, i)
+    w = sc%bodies(i)%origin%where()
     associate(b => sc%bodies(i))
       if (b%mass /= unset .or. any(b%inertia /= unset)) then
         call fatal_error(error, w // ': mass, inertia: not items of a beam (its mass follows from density and ' // &
@@ -247,8 +178,9 @@ contains
       call positive(b%density, 'density', '(kg/m^3)'); if (allocated(error)) return
       if (b%r_outer /= unset) then
         call positive(b%r_outer, 'r_outer', '(m)'); if (allocated(error)) return
-        if (b%r_inner < 0.0_dp .or. b%r_inner >= b%r_outer) then
-          call fatal_error(error, w // ': r_inner: must be in [0, r_outer), got ' // fmt(b%r_inner)); return
+        if (b%r_inner >= b%r_outer) then
+          call fatal_error(error, b%origin%where('r_inner') // ': must be below r_outer = ' // fmt(b%r_outer) // &
+            & ', got ' // fmt(b%r_inner)); return
         end if
         if (b%area /= unset .or. b%iy /= unset .or. b%iz /= unset) then
           call fatal_error(error, w // ': area, iy, iz: give either r_outer (and r_inner) or area, iy and iz'); return
@@ -261,14 +193,11 @@ contains
         call positive(b%iy, 'iy', '(m^4)'); if (allocated(error)) return
         call positive(b%iz, 'iz', '(m^4)'); if (allocated(error)) return
       end if
-      if (b%n_elements < 1 .or. b%n_elements > 5000) then
-        call fatal_error(error, w // ': n_elements: must be 1 to 5000, got ' // itoa(b%n_elements)); return
-      end if
-      if (b%modes_y < 0 .or. b%modes_y > 2*b%n_elements) then
+      if (b%modes_y > 2*b%n_elements) then
         call fatal_error(error, w // ': modes_y: must be 0 to 2*n_elements = ' // itoa(2*b%n_elements) // &
           & ', got ' // itoa(b%modes_y)); return
       end if
-      if (b%modes_z < 0 .or. b%modes_z > 2*b%n_elements) then
+      if (b%modes_z > 2*b%n_elements) then
         call fatal_error(error, w // ': modes_z: must be 0 to 2*n_elements = ' // itoa(2*b%n_elements) // &
           & ', got ' // itoa(b%modes_z)); return
       end if
@@ -278,11 +207,7 @@ contains
     subroutine positive(x, item, unit)
       real(dp), intent(in) :: x
       character(len=*), intent(in) :: item, unit
-      if (x == unset) then
-        call fatal_error(error, w // ': ' // item // ': missing ' // unit)
-      else if (.not. (x > 0.0_dp)) then
-        call fatal_error(error, w // ': ' // item // ': must be positive, got ' // fmt(x))
-      end if
+      if (x == unset) call fatal_error(error, w // ': ' // item // ': missing ' // unit)
     end subroutine positive
   end subroutine check_beam
 
@@ -293,45 +218,46 @@ contains
     do i = 1, size(sc%joints)
       associate(jt => sc%joints(i))
         if (len_trim(jt%name) == 0) then
-          call fatal_error(error, sc%file // ': &joint #' // itoa(i) // ' (line ' // itoa(jt%line) // &
-            & '): name: missing'); return
+          call fatal_error(error, jt%origin%where('name') // ': missing'); return
         end if
         do j = 1, i - 1
           if (sc%joints(j)%name == jt%name) then
-            call fatal_error(error, where_joint(sc, i) // ': name: used by another &joint too (line ' // &
-              & itoa(sc%joints(j)%line) // ')'); return
+            call fatal_error(error, jt%origin%where('name') // ': used by another &joint too (line ' // &
+              & itoa(sc%joints(j)%origin%line) // ')'); return
           end if
         end do
         if (joint_ndof(jt%kind) < 0) then
-          call fatal_error(error, where_joint(sc, i) // ": kind: '" // trim(jt%kind) // "' is not a joint kind " // &
-            & "('revolute', 'prismatic', 'fixed', 'spherical' or 'free')"); return
+          call fatal_error(error, jt%origin%where('kind') // ": missing ('revolute', 'prismatic', 'fixed', " // &
+            & "'spherical' or 'free')"); return
         end if
+        call check_coordinate_count(jt, 'q0', error); if (allocated(error)) return
+        call check_coordinate_count(jt, 'qd0', error); if (allocated(error)) return
         ip = body_index(sc, jt%parent); ic = body_index(sc, jt%child)
         if (ip == 0) then
-          call fatal_error(error, where_joint(sc, i) // ": parent: no &body named '" // trim(jt%parent) // "'")
+          call fatal_error(error, sc%joints(i)%origin%where() // ": parent: no &body named '" // trim(jt%parent) // "'")
           return
         end if
         if (ic == 0) then
-          call fatal_error(error, where_joint(sc, i) // ": child: no &body named '" // trim(jt%child) // "'")
+          call fatal_error(error, sc%joints(i)%origin%where() // ": child: no &body named '" // trim(jt%child) // "'")
           return
         end if
         if (ip == ic) then
-          call fatal_error(error, where_joint(sc, i) // ": child: the joint joins body '" // trim(jt%child) // &
+          call fatal_error(error, sc%joints(i)%origin%where() // ": child: the joint joins body '" // trim(jt%child) // &
             & "' to itself (a cycle)"); return
         end if
         if (sc%bodies(ic)%kind == 'ground') then
-          call fatal_error(error, where_joint(sc, i) // ": child: '" // trim(jt%child) // &
+          call fatal_error(error, sc%joints(i)%origin%where() // ": child: '" // trim(jt%child) // &
             & "' is the ground; the ground can only be a parent"); return
         end if
         do j = 1, i - 1
           if (sc%joints(j)%child == jt%child) then
-            call fatal_error(error, where_joint(sc, i) // ": child: body '" // trim(jt%child) // &
+            call fatal_error(error, sc%joints(i)%origin%where() // ": child: body '" // trim(jt%child) // &
               & "' has two parents (also joint '" // trim(sc%joints(j)%name) // "'); a tree allows one"); return
           end if
         end do
         if (jt%kind == 'revolute' .or. jt%kind == 'prismatic') then
           if (norm2(jt%axis) < 1.0e-12_dp) then
-            call fatal_error(error, where_joint(sc, i) // ': axis: zero length; give a direction in the parent frame')
+            call fatal_error(error, sc%joints(i)%origin%where() // ': axis: zero length; give a direction in the parent frame')
             return
           end if
         end if
@@ -339,43 +265,47 @@ contains
     end do
   end subroutine check_joints
 
+  !> A joint's q0 or qd0, when given, has one value per coordinate of the joint.
+  subroutine check_coordinate_count(jt, item, error)
+    type(joint_spec), intent(in) :: jt
+    character(len=*), intent(in) :: item
+    type(error_type), allocatable, intent(out) :: error
+    integer :: n
+    n = jt%origin%count_of(item)
+    if (n > 0 .and. n /= joint_ndof(jt%kind)) then
+      call fatal_error(error, jt%origin%where(item) // ': a ' // trim(jt%kind) // ' joint has ' // &
+        & itoa(joint_ndof(jt%kind)) // trim(merge(' coordinate ', ' coordinates', joint_ndof(jt%kind) == 1)) // &
+        & ', got ' // itoa(n) // ' values')
+    end if
+  end subroutine check_coordinate_count
+
   subroutine check_loads_markers(sc, error)
     type(scene_t), intent(in) :: sc
     type(error_type), allocatable, intent(out) :: error
     integer :: i, j, k
     character(len=:), allocatable :: w
     do i = 1, size(sc%drives)
-      w = sc%file // ': &drive #' // itoa(i) // ' (line ' // itoa(sc%drives(i)%line) // ')'
+      w = sc%drives(i)%origin%where()
       call joint_coordinate(sc%drives(i)%joint, sc%drives(i)%coordinate, w, error); if (allocated(error)) return
       associate(dr => sc%drives(i))
-        if (dr%form /= 'sine' .and. dr%form /= 'table') then
-          call fatal_error(error, w // ": form: '" // trim(dr%form) // "' is not a drive form ('sine' or 'table')")
-          return
-        end if
         call check_table_form(w, dr%form, dr%file, [dr%amplitude, dr%frequency, dr%phase], error)
         if (allocated(error)) return
       end associate
-      if (.not. sc%effects%joint_drives .and. .not. sc%effects%given_joint_drives) then
+      if (.not. sc%effects%joint_drives .and. .not. sc%effects%origin%given('joint_drives')) then
         call fatal_error(error, w // ': the scene gives drives but &effects joint_drives is not on: set ' // &
           & 'joint_drives = .true. in &effects (or .false. to ignore the drives on purpose)'); return
       end if
     end do
     do i = 1, size(sc%springs)
-      w = sc%file // ': &spring #' // itoa(i) // ' (line ' // itoa(sc%springs(i)%line) // ')'
+      w = sc%springs(i)%origin%where()
       call joint_coordinate(sc%springs(i)%joint, sc%springs(i)%coordinate, w, error); if (allocated(error)) return
-      if (sc%springs(i)%stiffness < 0.0_dp) then
-        call fatal_error(error, w // ': stiffness: must be >= 0, got ' // fmt(sc%springs(i)%stiffness)); return
-      end if
-      if (sc%springs(i)%damping < 0.0_dp) then
-        call fatal_error(error, w // ': damping: must be >= 0, got ' // fmt(sc%springs(i)%damping)); return
-      end if
-      if (.not. sc%effects%joint_springs .and. .not. sc%effects%given_joint_springs) then
+      if (.not. sc%effects%joint_springs .and. .not. sc%effects%origin%given('joint_springs')) then
         call fatal_error(error, w // ': the scene gives springs but &effects joint_springs is not on: set ' // &
           & 'joint_springs = .true. in &effects (or .false. to ignore the springs on purpose)'); return
       end if
     end do
     do i = 1, size(sc%motions)
-      w = sc%file // ': &motion #' // itoa(i) // ' (line ' // itoa(sc%motions(i)%line) // ')'
+      w = sc%motions(i)%origin%where()
       call joint_coordinate(sc%motions(i)%joint, sc%motions(i)%coordinate, w, error); if (allocated(error)) return
       do j = 1, i - 1
         if (sc%motions(j)%joint == sc%motions(i)%joint .and. sc%motions(j)%coordinate == sc%motions(i)%coordinate) then
@@ -387,24 +317,10 @@ contains
         call check_table_form(w, mo%form, mo%file, [mo%amplitude, mo%frequency, mo%phase], error)
         if (allocated(error)) return
       end associate
-      select case (trim(sc%motions(i)%form))
-      case ('table')
-      case ('sine')
-        if (sc%motions(i)%frequency < 0.0_dp) then
-          call fatal_error(error, w // ': frequency: must be >= 0 Hz, got ' // fmt(sc%motions(i)%frequency)); return
-        end if
-      case ('spinup')
-        if (sc%motions(i)%ramp_time == unset) then
-          call fatal_error(error, w // ": ramp_time: missing (form 'spinup' needs the ramp time, s)"); return
-        end if
-        if (sc%motions(i)%ramp_time <= 0.0_dp) then
-          call fatal_error(error, w // ': ramp_time: must be > 0 s, got ' // fmt(sc%motions(i)%ramp_time)); return
-        end if
-      case default
-        call fatal_error(error, w // ": form: '" // trim(sc%motions(i)%form) // "' is not a motion form " // &
-          & "('sine', 'spinup' or 'table')"); return
-      end select
-      if (.not. sc%effects%base_motion .and. .not. sc%effects%given_base_motion) then
+      if (sc%motions(i)%form == 'spinup' .and. sc%motions(i)%ramp_time == unset) then
+        call fatal_error(error, w // ": ramp_time: missing (form 'spinup' needs the ramp time, s)"); return
+      end if
+      if (.not. sc%effects%base_motion .and. .not. sc%effects%origin%given('base_motion')) then
         call fatal_error(error, w // ': the scene prescribes motion but &effects base_motion is not on: set ' // &
           & 'base_motion = .true. in &effects (or .false. to leave the joint free on purpose)'); return
       end if
@@ -414,8 +330,8 @@ contains
         if (b%kind /= 'beam' .and. b%kind /= 'modal') cycle
         if (any(b%modal_damping /= unset .and. b%modal_damping /= 0.0_dp) .or. b%rayleigh_alpha /= 0.0_dp .or. &
           & b%rayleigh_beta /= 0.0_dp) then
-          if (.not. sc%effects%modal_damping .and. .not. sc%effects%given_modal_damping) then
-            call fatal_error(error, where_body(sc, i) // ': the body gives modal damping but &effects ' // &
+          if (.not. sc%effects%modal_damping .and. .not. sc%effects%origin%given('modal_damping')) then
+            call fatal_error(error, sc%bodies(i)%origin%where() // ': the body gives modal damping but &effects ' // &
               & 'modal_damping is not on: set modal_damping = .true. in &effects (or .false. to ignore it on purpose)')
             return
           end if
@@ -424,7 +340,7 @@ contains
     end do
     do i = 1, size(sc%loads)
       associate(ld => sc%loads(i))
-        w = sc%file // ': &load #' // itoa(i) // ' (line ' // itoa(ld%line) // ')'
+        w = ld%origin%where()
         k = 0
         do j = 1, size(sc%markers)
           if (sc%markers(j)%name == ld%marker) k = j
@@ -436,16 +352,10 @@ contains
           call fatal_error(error, w // ': direction: missing or zero (a direction in the body frame of the ' // &
             & "marker's body)"); return
         end if
-        if (ld%form /= 'pulse') then
-          call fatal_error(error, w // ": form: '" // trim(ld%form) // "' is not a load form ('pulse')"); return
-        end if
         if (ld%duration == unset) then
           call fatal_error(error, w // ': duration: missing (the pulse length, s)'); return
         end if
-        if (ld%duration <= 0.0_dp) then
-          call fatal_error(error, w // ': duration: must be > 0 s, got ' // fmt(ld%duration)); return
-        end if
-        if (.not. sc%effects%firing_load .and. .not. sc%effects%given_firing_load) then
+        if (.not. sc%effects%firing_load .and. .not. sc%effects%origin%given('firing_load')) then
           call fatal_error(error, w // ': the scene gives loads but &effects firing_load is not on: set ' // &
             & 'firing_load = .true. in &effects (or .false. to ignore the loads on purpose)'); return
         end if
@@ -456,7 +366,7 @@ contains
         & "beams, kind = 'beam', carry a geometric stiffness)"); return
     end if
     do i = 1, size(sc%markers)
-      w = sc%file // ': &marker ''' // trim(sc%markers(i)%name) // ''' (line ' // itoa(sc%markers(i)%line) // ')'
+      w = sc%markers(i)%origin%where()
       if (len_trim(sc%markers(i)%name) == 0) then
         call fatal_error(error, w // ': name: missing'); return
       end if
@@ -521,26 +431,12 @@ contains
     type(scene_t), intent(in) :: sc
     integer, intent(in) :: i
     type(error_type), allocatable, intent(out) :: error
-    integer :: k, ng
+    integer :: ng
     associate(b => sc%bodies(i))
       ng = count(b%modal_damping /= unset)
-      do k = 1, ng
-        if (b%modal_damping(k) == unset) then
-          call fatal_error(error, where_body(sc, i) // ': modal_damping: give one value, or one per mode from ' // &
-            & 'the first (value ' // itoa(k) // ' is missing)'); return
-        end if
-        if (b%modal_damping(k) < 0.0_dp .or. b%modal_damping(k) >= 1.0_dp) then
-          call fatal_error(error, where_body(sc, i) // ': modal_damping: must be a fraction of critical in ' // &
-            & '[0, 1), got ' // fmt(b%modal_damping(k))); return
-        end if
-      end do
       if (b%kind == 'beam' .and. ng > 1 .and. ng /= b%modes_y + b%modes_z) then
-        call fatal_error(error, where_body(sc, i) // ': modal_damping: give one value or one per mode (' // &
+        call fatal_error(error, b%origin%where('modal_damping') // ': give one value or one per mode (' // &
           & itoa(b%modes_y + b%modes_z) // ' modes), got ' // itoa(ng)); return
-      end if
-      if (b%rayleigh_alpha < 0.0_dp .or. b%rayleigh_beta < 0.0_dp) then
-        call fatal_error(error, where_body(sc, i) // ': rayleigh_alpha, rayleigh_beta: must be >= 0, got ' // &
-          & fmt(b%rayleigh_alpha) // ', ' // fmt(b%rayleigh_beta)); return
       end if
     end associate
   end subroutine check_damping
@@ -557,7 +453,7 @@ contains
     associate(b => sc%bodies(i))
       ng = count(b%modal_damping /= unset)
       if (ng > 1 .and. ng /= fd%m) then
-        call fatal_error(error, where_body(sc, i) // ': modal_damping: give one value or one per mode (' // &
+        call fatal_error(error, sc%bodies(i)%origin%where() // ': modal_damping: give one value or one per mode (' // &
           & itoa(fd%m) // ' modes), got ' // itoa(ng)); return
       end if
       if (allocated(fd%damp)) deallocate(fd%damp)
@@ -592,12 +488,12 @@ contains
       do while (a /= 0 .and. sc%bodies(max(a, 1))%kind /= 'ground')
         a = parent(a); steps = steps + 1
         if (steps > nb) then
-          call fatal_error(error, where_body(sc, i) // ': the joints form a cycle through this body; ' // &
+          call fatal_error(error, sc%bodies(i)%origin%where() // ': the joints form a cycle through this body; ' // &
             & 'a tree needs every body to reach the ground'); return
         end if
       end do
       if (a == 0) then
-        call fatal_error(error, where_body(sc, i) // ': not connected to the ground by joints (add a &joint ' // &
+        call fatal_error(error, sc%bodies(i)%origin%where() // ': not connected to the ground by joints (add a &joint ' // &
           & 'with this body as child)'); return
       end if
     end do
@@ -642,7 +538,7 @@ contains
         if (bs%kind == 'modal') then
           call read_modal_file(relative_to(sc%file, trim(bs%modal_file)), mfd(b), mnd(b), error)
           if (allocated(error)) then
-            error%message = where_body(sc, order(b)) // ': modal_file: ' // error%message; return
+            error%message = sc%bodies(order(b))%origin%where() // ': modal_file: ' // error%message; return
           end if
           nmb = mfd(b)%m
         end if
@@ -755,7 +651,7 @@ contains
       call build_beam(bs%length, bs%youngs_modulus, bs%density, area, iy, iz, bs%n_elements, bs%modes_y, &
         & bs%modes_z, "beam '" // trim(bs%name) // "'", d%flex(b), d%bshape(b), error)
       if (allocated(error)) then
-        error%message = where_body(sc, i) // ': ' // error%message; return
+        error%message = sc%bodies(i)%origin%where() // ': ' // error%message; return
       end if
       call add_flexible(bs%name, b, m, d)
     end associate
@@ -852,6 +748,7 @@ contains
     type(error_type), allocatable, intent(out) :: error
     integer :: i, j, b
     real(dp), allocatable :: phi(:, :)
+    character(len=:), allocatable :: where_file
     d%effect_on(effect_gravity) = sc%effects%gravity
     d%effect_on(effect_joint_drives) = sc%effects%joint_drives .and. size(sc%drives) > 0
     d%effect_on(effect_modal_damping) = sc%effects%modal_damping .and. any(d%nm > 0)
@@ -874,7 +771,7 @@ contains
     end do
     allocate(d%every(d%nb))
     d%every = .true.
-    d%gravity = sc%gravity
+    d%gravity = sc%scene%gravity
     d%n_springs = 0
     if (d%effect_on(effect_joint_springs)) d%n_springs = size(sc%springs)
     allocate(d%spring_coord(d%n_springs), d%spring_par(3, d%n_springs))
@@ -895,19 +792,19 @@ contains
       if (sc%drives(i)%form /= 'table' .or. .not. d%effect_on(effect_joint_drives)) cycle
       j = j + 1
       d%drive_table(i) = j
-      call read_time_table(relative_to(sc%file, trim(sc%drives(i)%file)), sc%file // ': &drive #' // itoa(i) // &
-        & ' (line ' // itoa(sc%drives(i)%line) // '): file', d%tables(j)%t, d%tables(j)%y, error)
+      call read_time_table(relative_to(sc%file, trim(sc%drives(i)%file)), sc%drives(i)%origin%where('file'), &
+        & d%tables(j)%t, d%tables(j)%y, error)
       if (allocated(error)) return
     end do
     do i = 1, d%n_prescribed
       if (sc%motions(i)%form /= 'table') cycle
       j = j + 1
       d%pres_table(i) = j
-      associate(w => sc%file // ': &motion #' // itoa(i) // ' (line ' // itoa(sc%motions(i)%line) // '): file')
-        call read_time_table(relative_to(sc%file, trim(sc%motions(i)%file)), w, d%tables(j)%t, d%tables(j)%y, error)
-        if (allocated(error)) return
-        call spline_setup(d%tables(j), w, error); if (allocated(error)) return
-      end associate
+      where_file = sc%motions(i)%origin%where('file')
+      call read_time_table(relative_to(sc%file, trim(sc%motions(i)%file)), where_file, d%tables(j)%t, &
+        & d%tables(j)%y, error)
+      if (allocated(error)) return
+      call spline_setup(d%tables(j), where_file, error); if (allocated(error)) return
     end do
     do i = 1, d%n_prescribed
       associate(mo => sc%motions(i))

@@ -1,14 +1,28 @@
 !> The scene as read from a namelist file: plain data, validated, not yet a model.
+!>
+!> Each namelist group is a record type here, and beside it the one table that describes
+!> its items (`describe_*`: name, type, count, range or choices, unit, meaning, and the field
+!> that holds it). A field's initial value is the item's default; `unset` marks an item
+!> without one. The reader, the writer of the resolved scene and the schema all go through
+!> these tables.
 module pymr_model_scene
   use pymr_kinds, only : dp, name_len
+  use pymr_io_item_table, only : item_table, origin_t, unset
   implicit none
   private
   public :: scene_t, body_spec, joint_spec, drive_spec, marker_spec, integrator_spec, effects_spec
-  public :: spring_spec, motion_spec, load_spec, max_modes_input
-  public :: joint_ndof, unset
+  public :: spring_spec, motion_spec, load_spec, output_spec, scene_spec, max_modes_input
+  public :: joint_ndof, unset, group_names, single_groups, describe_group, group_origin, group_count
+  public :: naming_item
 
-  !> Marker for "item not given" in real-valued namelist items.
-  real(dp), parameter :: unset = -huge(1.0_dp)
+  !> The groups of a scene file, in the order the resolved scene is written.
+  character(len=*), parameter :: group_names = &
+    & 'scene integrator effects output body joint drive spring motion load marker'
+  !> The groups that may appear at most once.
+  character(len=*), parameter :: single_groups = 'scene integrator effects output'
+
+  !> Bounds that keep every physical value far from overflow in the model's arithmetic.
+  real(dp), parameter :: big_length = 1.0e6_dp, big_force = 1.0e12_dp, big_mass = 1.0e12_dp
   !> Most per-mode values an item such as modal_damping can hold.
   integer, parameter :: max_modes_input = 64
 
@@ -31,9 +45,30 @@ module pymr_model_scene
     logical :: stability_check = .true.
     !> Multirate coupling of the fast substeps: 'full' (the paper's) or 'split'.
     character(len=16) :: coupling = 'split'
+    type(origin_t) :: origin
   end type integrator_spec
 
-  !> Optional physics (&effects); every effect is off unless turned on. `given` records
+  !> &scene: the run's title, end time and gravity.
+  type :: scene_spec
+    character(len=256) :: title = ''
+    !> End time (s) and gravity (m/s^2, inertial frame).
+    real(dp) :: t_end = unset, gravity(3) = [0.0_dp, -9.81_dp, 0.0_dp]
+    type(origin_t) :: origin
+  end type scene_spec
+
+  !> &output: the CSV file, its interval and the checkpoints.
+  type :: output_spec
+    !> CSV output file and output interval (s; 0 = every slow step).
+    character(len=512) :: file = ''
+    real(dp) :: dt = 0.0_dp
+    !> Checkpoints every checkpoint_dt s of simulated time (0: none), to checkpoint_file
+    !> (default: the CSV path with .ckpt).
+    real(dp) :: checkpoint_dt = 0.0_dp
+    character(len=512) :: checkpoint_file = ''
+    type(origin_t) :: origin
+  end type output_spec
+
+  !> Optional physics (&effects); every effect is off unless turned on. Its origin records
   !> the items the scene (or a --set) wrote, so that an effect turned off on purpose is
   !> told apart from one forgotten.
   type :: effects_spec
@@ -46,9 +81,7 @@ module pymr_model_scene
     logical :: firing_load = .false.
     !> Fidelity of the deformation-dependent inertia of flexible bodies: 'full' or 'linear'.
     character(len=16) :: deformation_inertia = 'full'
-    logical :: given_firing_load = .false.
-    logical :: given_joint_drives = .false., given_modal_damping = .false., given_joint_springs = .false.
-    logical :: given_base_motion = .false.
+    type(origin_t) :: origin
   end type effects_spec
 
   !> One &body group.
@@ -70,8 +103,7 @@ module pymr_model_scene
     real(dp) :: rayleigh_alpha = 0.0_dp, rayleigh_beta = 0.0_dp
     !> Modal data file of a 'modal' body (relative to the scene file's folder).
     character(len=512) :: modal_file = ''
-    !> Line of the group in the file (for messages).
-    integer :: line = 0
+    type(origin_t) :: origin
   end type body_spec
 
   !> One &joint group.
@@ -83,7 +115,7 @@ module pymr_model_scene
     real(dp) :: at(3) = 0.0_dp, axis(3) = [0.0_dp, 0.0_dp, 1.0_dp]
     !> Initial coordinates and rates (as many as the joint has).
     real(dp) :: q0(6) = 0.0_dp, qd0(6) = 0.0_dp
-    integer :: line = 0
+    type(origin_t) :: origin
   end type joint_spec
 
   !> One &drive group: a generalised force offset + amplitude*sin(2 pi frequency t + phase).
@@ -96,7 +128,7 @@ module pymr_model_scene
     character(len=16) :: form = 'sine'
     real(dp) :: offset = 0.0_dp, amplitude = 0.0_dp, frequency = 0.0_dp, phase = 0.0_dp
     character(len=512) :: file = ''
-    integer :: line = 0
+    type(origin_t) :: origin
   end type drive_spec
 
   !> One &spring group: a spring-damper on a joint coordinate,
@@ -105,7 +137,7 @@ module pymr_model_scene
     character(len=name_len) :: joint = ''
     integer :: coordinate = 1
     real(dp) :: stiffness = 0.0_dp, damping = 0.0_dp, free_position = 0.0_dp
-    integer :: line = 0
+    type(origin_t) :: origin
   end type spring_spec
 
   !> One &motion group: a joint coordinate that follows a function of time.
@@ -120,7 +152,7 @@ module pymr_model_scene
     real(dp) :: rate = 0.0_dp, ramp_time = unset
     !> form 'table': offset + the natural cubic spline through the history in `file`.
     character(len=512) :: file = ''
-    integer :: line = 0
+    type(origin_t) :: origin
   end type motion_spec
 
   !> One &load group: a force at a marker along `direction` (body frame of the marker's
@@ -131,23 +163,21 @@ module pymr_model_scene
     real(dp) :: direction(3) = 0.0_dp
     character(len=16) :: form = 'pulse'
     real(dp) :: peak = 0.0_dp, start = 0.0_dp, duration = unset
-    integer :: line = 0
+    type(origin_t) :: origin
   end type load_spec
 
   !> One &marker group: a point of a body whose motion is written out.
   type :: marker_spec
     character(len=name_len) :: name = '', body = ''
     real(dp) :: at(3) = 0.0_dp
-    integer :: line = 0
+    type(origin_t) :: origin
   end type marker_spec
 
   !> The whole scene.
   type :: scene_t
     !> File the scene came from (for messages).
     character(len=:), allocatable :: file
-    character(len=256) :: title = ''
-    !> End time (s) and gravity (m/s^2, inertial frame).
-    real(dp) :: t_end = unset, gravity(3) = [0.0_dp, -9.81_dp, 0.0_dp]
+    type(scene_spec) :: scene
     type(integrator_spec) :: integrator
     type(effects_spec) :: effects
     type(body_spec), allocatable :: bodies(:)
@@ -157,16 +187,254 @@ module pymr_model_scene
     type(motion_spec), allocatable :: motions(:)
     type(load_spec), allocatable :: loads(:)
     type(marker_spec), allocatable :: markers(:)
-    !> CSV output file and output interval (s; 0 = every slow step).
-    character(len=512) :: output_file = ''
-    real(dp) :: output_dt = 0.0_dp
-    !> Checkpoints every checkpoint_dt s of simulated time (0: none), to checkpoint_file
-    !> (default: the CSV path with .ckpt).
-    real(dp) :: checkpoint_dt = 0.0_dp
-    character(len=512) :: checkpoint_file = ''
+    type(output_spec) :: output
   end type scene_t
 
 contains
+
+  ! ----------------------------------------------------------------- the item tables
+
+  subroutine describe_scene(g, t)
+    type(scene_spec), target, intent(inout) :: g
+    type(item_table), intent(out) :: t
+    call t%add('title', g%title, 'title of the run, written into the results')
+    call t%add('t_end', g%t_end, 's', 'end time of the run (required)', gt=0.0_dp, le=1.0e9_dp)
+    call t%add('gravity', g%gravity, 'm/s^2', 'gravity in the inertial frame (used with &effects gravity)', &
+      & ge=-1.0e6_dp, le=1.0e6_dp)
+  end subroutine describe_scene
+
+  subroutine describe_integrator(g, t)
+    type(integrator_spec), target, intent(inout) :: g
+    type(item_table), intent(out) :: t
+    call t%add('method', g%method, 'single-rate or multirate integration', choices='single multirate')
+    call t%add('h_fast', g%h_fast, 's', 'step of the fast (modal) coordinates; default h_slow', &
+      & ge=1.0e-12_dp, le=1.0e3_dp)
+    call t%add('h_slow', g%h_slow, 's', 'step of the slow (joint) coordinates, the step of a single-rate run; ' // &
+      & 'default h_fast', ge=1.0e-12_dp, le=1.0e3_dp)
+    call t%add('adaptive', g%adaptive, 'adaptive steps from the local error estimate')
+    call t%add('rtol', g%rtol, '-', 'relative tolerance of the local error (adaptive)', ge=1.0e-14_dp, le=1.0_dp)
+    call t%add('atol', g%atol, 'state units', 'absolute tolerance of the local error (adaptive)', &
+      & ge=1.0e-20_dp, le=1.0e6_dp)
+    call t%add('h_min', g%h_min, 's', 'smallest adaptive step; 0 = 1e-12 s', ge=0.0_dp, le=1.0e3_dp)
+    call t%add('h_max', g%h_max, 's', 'largest adaptive step; 0 = no limit', ge=0.0_dp, le=1.0e9_dp)
+    call t%add('n_corrector', g%n_corrector, '-', 'corrector evaluations per step (1 = PECE)', ge=1, le=10)
+    call t%add('coupling', g%coupling, "multirate coupling of the fast substeps: 'full' re-evaluates the " // &
+      & "whole model, 'split' holds the slow terms", choices='full split')
+    call t%add('k_max', g%k_max, '-', 'largest step ratio H/h of adaptive multirate', ge=1, le=100000)
+    call t%add('stability_check', g%stability_check, 'refuse fixed steps that the pre-flight check finds unstable')
+  end subroutine describe_integrator
+
+  subroutine describe_effects(g, t)
+    type(effects_spec), target, intent(inout) :: g
+    type(item_table), intent(out) :: t
+    call t%add('gravity', g%gravity, 'gravity (&scene gravity) on every body')
+    call t%add('joint_drives', g%joint_drives, 'the &drive forces and torques')
+    call t%add('modal_damping', g%modal_damping, "the flexible bodies' modal damping")
+    call t%add('joint_springs', g%joint_springs, 'the &spring spring-dampers')
+    call t%add('geometric_stiffening', g%geometric_stiffening, 'geometric stiffness of beams from their axial load')
+    call t%add('base_motion', g%base_motion, 'the &motion prescribed joint coordinates')
+    call t%add('firing_load', g%firing_load, 'the &load pulses')
+    call t%add('deformation_inertia', g%deformation_inertia, "inertia of deformed flexible bodies: 'full' or " // &
+      & "'linear' (without the second-order deformation terms)", choices='full linear')
+  end subroutine describe_effects
+
+  subroutine describe_output(g, t)
+    type(output_spec), target, intent(inout) :: g
+    type(item_table), intent(out) :: t
+    call t%add('file', g%file, 'CSV result file (relative to the working folder; default: the scene file ' // &
+      & 'with .csv)')
+    call t%add('dt', g%dt, 's', 'output interval; 0 = every step', ge=0.0_dp, le=1.0e9_dp)
+    call t%add('checkpoint_dt', g%checkpoint_dt, 's', 'checkpoint interval of simulated time; 0 = none', &
+      & ge=0.0_dp, le=1.0e9_dp)
+    call t%add('checkpoint_file', g%checkpoint_file, 'checkpoint file (default: the CSV file with .ckpt)')
+  end subroutine describe_output
+
+  subroutine describe_body(g, t)
+    type(body_spec), target, intent(inout) :: g
+    type(item_table), intent(out) :: t
+    call t%add('name', g%name, 'name of the body, unique among the bodies (required)')
+    call t%add('kind', g%kind, "'ground' (the fixed base), 'rigid', 'beam' (built-in Euler-Bernoulli beam " // &
+      & "along x) or 'modal' (modes from a file) (required)", choices='ground rigid beam modal')
+    call t%add('mass', g%mass, 'kg', 'mass of a rigid body (required for rigid)', ge=1.0e-12_dp, le=big_mass)
+    call t%add('com', g%com, 'm', 'centre of mass of a rigid body in its frame', ge=-big_length, le=big_length)
+    call t%add('inertia', g%inertia, 'kg m^2', 'inertia about the centre of mass in body axes: Ixx Iyy Izz ' // &
+      & 'Ixy Ixz Iyz (required for rigid)', ge=-1.0e15_dp, le=1.0e15_dp)
+    call t%add('length', g%length, 'm', 'beam length along its x axis', ge=1.0e-6_dp, le=1.0e4_dp)
+    call t%add('youngs_modulus', g%youngs_modulus, 'Pa', "beam Young's modulus", ge=1.0e-3_dp, le=1.0e13_dp)
+    call t%add('density', g%density, 'kg/m^3', 'beam density', ge=1.0e-6_dp, le=1.0e6_dp)
+    call t%add('r_outer', g%r_outer, 'm', 'outer radius of a tube section', ge=1.0e-9_dp, le=1.0e3_dp)
+    call t%add('r_inner', g%r_inner, 'm', 'inner radius of a tube section', ge=0.0_dp, le=1.0e3_dp)
+    call t%add('area', g%area, 'm^2', 'section area (instead of r_outer)', ge=1.0e-18_dp, le=1.0e6_dp)
+    call t%add('iy', g%iy, 'm^4', 'second moment of the section for bending in the x-z plane (modes_z)', &
+      & ge=1.0e-36_dp, le=1.0e12_dp)
+    call t%add('iz', g%iz, 'm^4', 'second moment of the section for bending in the x-y plane (modes_y)', &
+      & ge=1.0e-36_dp, le=1.0e12_dp)
+    call t%add('n_elements', g%n_elements, '-', 'finite elements of a beam', ge=1, le=5000)
+    call t%add('modes_y', g%modes_y, '-', 'bending modes kept in the x-y plane (deflection along y)', ge=0, le=10000)
+    call t%add('modes_z', g%modes_z, '-', 'bending modes kept in the x-z plane (deflection along z)', ge=0, le=10000)
+    call t%add('modal_damping', g%modal_damping, '-', 'damping as a fraction of critical: one value for ' // &
+      & 'every mode, or one per mode', ge=0.0_dp, lt=1.0_dp, variable=.true.)
+    call t%add('rayleigh_alpha', g%rayleigh_alpha, '1/s', 'Rayleigh damping: alpha + beta omega^2', &
+      & ge=0.0_dp, le=1.0e6_dp)
+    call t%add('rayleigh_beta', g%rayleigh_beta, 's', 'Rayleigh damping: alpha + beta omega^2', &
+      & ge=0.0_dp, le=1.0e3_dp)
+    call t%add('modal_file', g%modal_file, "modal data file of a 'modal' body (relative to the scene's folder)")
+  end subroutine describe_body
+
+  subroutine describe_joint(g, t)
+    type(joint_spec), target, intent(inout) :: g
+    type(item_table), intent(out) :: t
+    call t%add('name', g%name, 'name of the joint, unique among the joints (required)')
+    call t%add('kind', g%kind, "'revolute', 'prismatic' (one coordinate about or along axis), 'fixed', " // &
+      & "'spherical' (rotations x, y, z) or 'free' (translations x, y, z, then rotations) (required)", &
+      & choices='revolute prismatic fixed spherical free')
+    call t%add('parent', g%parent, 'the body the joint hangs from (required)')
+    call t%add('child', g%child, 'the body the joint moves (required)')
+    call t%add('at', g%at, 'm', "joint point in the parent's frame", ge=-big_length, le=big_length)
+    call t%add('axis', g%axis, '-', "axis of a revolute or prismatic joint in the parent's frame", &
+      & ge=-big_length, le=big_length)
+    call t%add('q0', g%q0, 'rad or m', 'initial coordinates, one per coordinate of the joint', &
+      & ge=-big_length, le=big_length, variable=.true.)
+    call t%add('qd0', g%qd0, 'rad/s or m/s', 'initial rates, one per coordinate of the joint', &
+      & ge=-big_length, le=big_length, variable=.true.)
+  end subroutine describe_joint
+
+  subroutine describe_drive(g, t)
+    type(drive_spec), target, intent(inout) :: g
+    type(item_table), intent(out) :: t
+    call t%add('joint', g%joint, 'the joint driven (required)')
+    call t%add('coordinate', g%coordinate, '-', 'which coordinate of the joint', ge=1, le=6)
+    call t%add('form', g%form, "'sine': offset + amplitude sin(2 pi frequency t + phase); 'table': offset + " // &
+      & 'the history in file', choices='sine table')
+    call t%add('offset', g%offset, 'N or N m', 'constant force or torque', ge=-big_force, le=big_force)
+    call t%add('amplitude', g%amplitude, 'N or N m', 'amplitude of the sine', ge=-big_force, le=big_force)
+    call t%add('frequency', g%frequency, 'Hz', 'frequency of the sine', ge=0.0_dp, le=1.0e6_dp)
+    call t%add('phase', g%phase, 'rad', 'phase of the sine', ge=-1.0e3_dp, le=1.0e3_dp)
+    call t%add('file', g%file, "file of 'time value' lines (form 'table'; relative to the scene's folder)")
+  end subroutine describe_drive
+
+  subroutine describe_spring(g, t)
+    type(spring_spec), target, intent(inout) :: g
+    type(item_table), intent(out) :: t
+    call t%add('joint', g%joint, 'the joint whose coordinate the spring-damper acts on (required)')
+    call t%add('coordinate', g%coordinate, '-', 'which coordinate of the joint', ge=1, le=6)
+    call t%add('stiffness', g%stiffness, 'N/m or N m/rad', 'spring stiffness', ge=0.0_dp, le=big_force)
+    call t%add('damping', g%damping, 'N s/m or N m s/rad', 'damper coefficient', ge=0.0_dp, le=big_force)
+    call t%add('free_position', g%free_position, 'm or rad', 'coordinate at which the spring is relaxed', &
+      & ge=-big_length, le=big_length)
+  end subroutine describe_spring
+
+  subroutine describe_motion(g, t)
+    type(motion_spec), target, intent(inout) :: g
+    type(item_table), intent(out) :: t
+    call t%add('joint', g%joint, 'the joint whose coordinate is prescribed (required)')
+    call t%add('coordinate', g%coordinate, '-', 'which coordinate of the joint', ge=1, le=6)
+    call t%add('form', g%form, "'sine': offset + amplitude sin(2 pi frequency t + phase); 'spinup': a " // &
+      & "smooth ramp to rate over ramp_time; 'table': offset + the spline through file", &
+      & choices='sine spinup table')
+    call t%add('offset', g%offset, 'm or rad', 'constant part', ge=-big_length, le=big_length)
+    call t%add('amplitude', g%amplitude, 'm or rad', 'amplitude of the sine', ge=-big_length, le=big_length)
+    call t%add('frequency', g%frequency, 'Hz', 'frequency of the sine', ge=0.0_dp, le=1.0e6_dp)
+    call t%add('phase', g%phase, 'rad', 'phase of the sine', ge=-1.0e3_dp, le=1.0e3_dp)
+    call t%add('rate', g%rate, 'm/s or rad/s', "final rate of form 'spinup'", ge=-big_length, le=big_length)
+    call t%add('ramp_time', g%ramp_time, 's', "ramp time of form 'spinup'", gt=0.0_dp, le=1.0e9_dp)
+    call t%add('file', g%file, "file of 'time value' lines (form 'table'; relative to the scene's folder)")
+  end subroutine describe_motion
+
+  subroutine describe_load(g, t)
+    type(load_spec), target, intent(inout) :: g
+    type(item_table), intent(out) :: t
+    call t%add('marker', g%marker, 'the marker the force acts at (required)')
+    call t%add('direction', g%direction, '-', "direction of the force in the frame of the marker's body " // &
+      & '(required)', ge=-big_length, le=big_length)
+    call t%add('form', g%form, "'pulse': peak sin(pi (t - start)/duration) from start to start + duration", &
+      & choices='pulse')
+    call t%add('peak', g%peak, 'N', 'peak force', ge=-big_force, le=big_force)
+    call t%add('start', g%start, 's', 'start time of the pulse', ge=0.0_dp, le=1.0e9_dp)
+    call t%add('duration', g%duration, 's', 'length of the pulse (required)', gt=0.0_dp, le=1.0e9_dp)
+  end subroutine describe_load
+
+  subroutine describe_marker(g, t)
+    type(marker_spec), target, intent(inout) :: g
+    type(item_table), intent(out) :: t
+    call t%add('name', g%name, 'name of the marker, unique among the markers (required)')
+    call t%add('body', g%body, 'the body the marker is fixed to (required)')
+    call t%add('at', g%at, 'm', "the point in the body's frame", ge=-big_length, le=big_length)
+  end subroutine describe_marker
+
+  ! ------------------------------------------------------------ groups by their names
+
+  !> The table of occurrence k of group `name` in `sc` (the records must exist).
+  subroutine describe_group(sc, name, k, t)
+    type(scene_t), target, intent(inout) :: sc
+    character(len=*), intent(in) :: name
+    integer, intent(in) :: k
+    type(item_table), intent(out) :: t
+    select case (name)
+    case ('scene'); call describe_scene(sc%scene, t)
+    case ('integrator'); call describe_integrator(sc%integrator, t)
+    case ('effects'); call describe_effects(sc%effects, t)
+    case ('output'); call describe_output(sc%output, t)
+    case ('body'); call describe_body(sc%bodies(k), t)
+    case ('joint'); call describe_joint(sc%joints(k), t)
+    case ('drive'); call describe_drive(sc%drives(k), t)
+    case ('spring'); call describe_spring(sc%springs(k), t)
+    case ('motion'); call describe_motion(sc%motions(k), t)
+    case ('load'); call describe_load(sc%loads(k), t)
+    case ('marker'); call describe_marker(sc%markers(k), t)
+    end select
+  end subroutine describe_group
+
+  !> The origin record of occurrence k of group `name`.
+  function group_origin(sc, name, k) result(o)
+    type(scene_t), target, intent(inout) :: sc
+    character(len=*), intent(in) :: name
+    integer, intent(in) :: k
+    type(origin_t), pointer :: o
+    o => null()
+    select case (name)
+    case ('scene'); o => sc%scene%origin
+    case ('integrator'); o => sc%integrator%origin
+    case ('effects'); o => sc%effects%origin
+    case ('output'); o => sc%output%origin
+    case ('body'); o => sc%bodies(k)%origin
+    case ('joint'); o => sc%joints(k)%origin
+    case ('drive'); o => sc%drives(k)%origin
+    case ('spring'); o => sc%springs(k)%origin
+    case ('motion'); o => sc%motions(k)%origin
+    case ('load'); o => sc%loads(k)%origin
+    case ('marker'); o => sc%markers(k)%origin
+    end select
+  end function group_origin
+
+  !> How many occurrences of group `name` the scene holds.
+  integer function group_count(sc, name) result(n)
+    type(scene_t), intent(in) :: sc
+    character(len=*), intent(in) :: name
+    select case (name)
+    case ('body'); n = size(sc%bodies)
+    case ('joint'); n = size(sc%joints)
+    case ('drive'); n = size(sc%drives)
+    case ('spring'); n = size(sc%springs)
+    case ('motion'); n = size(sc%motions)
+    case ('load'); n = size(sc%loads)
+    case ('marker'); n = size(sc%markers)
+    case default; n = 1
+    end select
+  end function group_count
+
+  !> The item that names an occurrence of a repeated group (and selects it in --set
+  !> GROUP[NAME].ITEM=...): 'name', or for groups that act on something, that thing.
+  pure function naming_item(name) result(item)
+    character(len=*), intent(in) :: name
+    character(len=:), allocatable :: item
+    select case (name)
+    case ('drive', 'spring', 'motion'); item = 'joint'
+    case ('load'); item = 'marker'
+    case ('body', 'joint', 'marker'); item = 'name'
+    case default; item = ''
+    end select
+  end function naming_item
 
   !> Number of coordinates of a joint kind (-1 for an unknown kind).
   pure function joint_ndof(kind) result(n)

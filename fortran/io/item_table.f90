@@ -1,0 +1,618 @@
+!> Descriptions of namelist items, and the one generic way to set, check and write them.
+!>
+!> A group's table is built by its record's `describe` routine: each entry names an item,
+!> its type, how many values it takes, its range or choices, its unit and its meaning, and
+!> points at the record field that holds it. The reader sets fields through these pointers
+!> from parsed tokens (checking count, type, finiteness, range and choices); the writer
+!> prints them back; the schema prints the tables. The field's initial value is the default.
+module pymr_io_item_table
+  use, intrinsic :: iso_c_binding, only : c_f_pointer, c_loc
+  use pymr_kinds, only : dp, name_len
+  use pymr_error, only : error_type, fatal_error
+  use pymr_io_namelist_parse, only : token_t
+  use pymr_io_text, only : itoa, lower, fmt, exact_text
+  implicit none
+  private
+  public :: item_t, item_table, origin_t, unset, t_real, t_integer, t_logical, t_string
+  public :: nearest_name, value_text, is_unset, set_item, schema_line, comma_list
+
+  !> Marker for "not given, no default" in real items.
+  real(dp), parameter :: unset = -huge(1.0_dp)
+
+  integer, parameter :: t_real = 1, t_integer = 2, t_logical = 3, t_string = 4
+  character(len=*), parameter :: type_names(4) = [character(len=7) :: 'real', 'integer', 'logical', 'string']
+
+  !> One item: its description and the field it sets.
+  type :: item_t
+    character(len=name_len) :: name = ''
+    integer :: type = t_real
+    !> Number of values; with `variable`, the most (1 to count may be given).
+    integer :: count = 1
+    logical :: variable = .false.
+    !> Allowed range of numbers (open or closed at each end).
+    real(dp) :: lo = -huge(1.0_dp), hi = huge(1.0_dp)
+    logical :: lo_open = .false., hi_open = .false.
+    !> Allowed words of a string item, blank-separated ('' = any text).
+    character(len=:), allocatable :: choices
+    character(len=:), allocatable :: unit, meaning
+    real(dp), pointer :: r(:) => null()
+    integer, pointer :: i => null()
+    logical, pointer :: l => null()
+    character(len=:), pointer :: s => null()
+  end type item_t
+
+  !> The table of one group.
+  type :: item_table
+    type(item_t), allocatable :: items(:)
+    integer :: n = 0
+  contains
+    procedure, private :: add_real, add_reals, add_integer, add_logical, add_string
+    generic :: add => add_real, add_reals, add_integer, add_logical, add_string
+    procedure :: find => table_find
+  end type item_table
+
+  !> Where a record's values came from: the group's line and index, its label for messages
+  !> ("&body 'gun'", "&drive #2"), and for each item given, where ("file:12" or "--set ...")
+  !> and how many values.
+  type :: origin_t
+    integer :: line = 0, index = 0
+    character(len=:), allocatable :: file, label
+    character(len=name_len), allocatable :: items(:)
+    character(len=256), allocatable :: at(:)
+    integer, allocatable :: counts(:)
+  contains
+    procedure :: given => origin_given
+    procedure :: count_of => origin_count
+    procedure :: where => origin_where
+    procedure :: note => origin_note
+  end type origin_t
+
+contains
+
+  ! ------------------------------------------------------------------ building a table
+
+  subroutine push(self, it)
+    class(item_table), intent(inout) :: self
+    type(item_t), intent(in) :: it
+    type(item_t), allocatable :: tmp(:)
+    if (.not. allocated(self%items)) allocate(self%items(24))
+    if (self%n == size(self%items)) then
+      allocate(tmp(2*self%n)); tmp(1:self%n) = self%items
+      call move_alloc(tmp, self%items)
+    end if
+    self%n = self%n + 1
+    self%items(self%n) = it
+  end subroutine push
+
+  !> Range of a number item from gt/ge/lt/le.
+  subroutine set_range(it, gt, ge, lt, le)
+    type(item_t), intent(inout) :: it
+    real(dp), intent(in), optional :: gt, ge, lt, le
+    if (present(gt)) then
+      it%lo = gt; it%lo_open = .true.
+    end if
+    if (present(ge)) it%lo = ge
+    if (present(lt)) then
+      it%hi = lt; it%hi_open = .true.
+    end if
+    if (present(le)) it%hi = le
+  end subroutine set_range
+
+  subroutine add_real(self, name, x, unit, meaning, gt, ge, lt, le)
+    class(item_table), intent(inout) :: self
+    character(len=*), intent(in) :: name, unit, meaning
+    real(dp), target, intent(inout) :: x
+    real(dp), intent(in), optional :: gt, ge, lt, le
+    type(item_t) :: it
+    it%name = name; it%type = t_real; it%unit = unit; it%meaning = meaning; it%choices = ''
+    call c_f_pointer(c_loc(x), it%r, [1])
+    call set_range(it, gt, ge, lt, le)
+    call push(self, it)
+  end subroutine add_real
+
+  !> An array item: exactly size(x) values, or 1 to size(x) with `variable`.
+  subroutine add_reals(self, name, x, unit, meaning, gt, ge, lt, le, variable)
+    class(item_table), intent(inout) :: self
+    character(len=*), intent(in) :: name, unit, meaning
+    real(dp), target, contiguous, intent(inout) :: x(:)
+    real(dp), intent(in), optional :: gt, ge, lt, le
+    logical, intent(in), optional :: variable
+    type(item_t) :: it
+    it%name = name; it%type = t_real; it%unit = unit; it%meaning = meaning; it%choices = ''
+    it%r => x
+    it%count = size(x)
+    if (present(variable)) it%variable = variable
+    call set_range(it, gt, ge, lt, le)
+    call push(self, it)
+  end subroutine add_reals
+
+  subroutine add_integer(self, name, x, unit, meaning, ge, le)
+    class(item_table), intent(inout) :: self
+    character(len=*), intent(in) :: name, unit, meaning
+    integer, target, intent(inout) :: x
+    integer, intent(in), optional :: ge, le
+    type(item_t) :: it
+    it%name = name; it%type = t_integer; it%unit = unit; it%meaning = meaning; it%choices = ''
+    it%i => x
+    it%lo = -huge(1); it%hi = huge(1)
+    if (present(ge)) it%lo = ge
+    if (present(le)) it%hi = le
+    call push(self, it)
+  end subroutine add_integer
+
+  subroutine add_logical(self, name, x, meaning)
+    class(item_table), intent(inout) :: self
+    character(len=*), intent(in) :: name, meaning
+    logical, target, intent(inout) :: x
+    type(item_t) :: it
+    it%name = name; it%type = t_logical; it%unit = ''; it%meaning = meaning; it%choices = ''
+    it%l => x
+    call push(self, it)
+  end subroutine add_logical
+
+  subroutine add_string(self, name, x, meaning, choices)
+    class(item_table), intent(inout) :: self
+    character(len=*), intent(in) :: name, meaning
+    character(len=*), target, intent(inout) :: x
+    character(len=*), intent(in), optional :: choices
+    type(item_t) :: it
+    it%name = name; it%type = t_string; it%unit = ''; it%meaning = meaning
+    it%s => x
+    it%choices = ''
+    if (present(choices)) it%choices = choices
+    call push(self, it)
+  end subroutine add_string
+
+  !> Index of the item `name` in the table (0 if none).
+  pure integer function table_find(self, name) result(k)
+    class(item_table), intent(in) :: self
+    character(len=*), intent(in) :: name
+    do k = 1, self%n
+      if (self%items(k)%name == name) return
+    end do
+    k = 0
+  end function table_find
+
+  ! ------------------------------------------------------------------- setting values
+
+  !> Set item `it` from its tokens; `where` ("file:12: &body 'gun': mass") prefixes errors.
+  subroutine set_item(it, values, where, error)
+    type(item_t), intent(inout) :: it
+    type(token_t), intent(in) :: values(:)
+    character(len=*), intent(in) :: where
+    type(error_type), allocatable, intent(out) :: error
+    type(token_t), allocatable :: flat(:)
+    integer :: k
+    call expand_repeats(values, flat, where, error); if (allocated(error)) return
+    call check_count(it, size(flat), where, error); if (allocated(error)) return
+    do k = 1, size(flat)
+      select case (it%type)
+      case (t_real); call set_real(it, k, flat(k), where, error)
+      case (t_integer); call set_integer(it, flat(k), where, error)
+      case (t_logical); call set_logical(it, flat(k), where, error)
+      case (t_string); call set_string(it, flat(k), where, error)
+      end select
+      if (allocated(error)) return
+    end do
+  end subroutine set_item
+
+  !> Repeat counts: `3*0.0` stands for three values 0.0.
+  subroutine expand_repeats(values, flat, where, error)
+    type(token_t), intent(in) :: values(:)
+    type(token_t), allocatable, intent(out) :: flat(:)
+    character(len=*), intent(in) :: where
+    type(error_type), allocatable, intent(out) :: error
+    integer :: k, star, n, ios, j
+    if (all(values%quoted .or. [(index(values(k)%text, '*') == 0, k = 1, size(values))])) then
+      flat = values; return
+    end if
+    allocate(flat(0))
+    do k = 1, size(values)
+      star = 0
+      if (.not. values(k)%quoted) star = index(values(k)%text, '*')
+      if (star <= 1) then
+        flat = [flat, values(k)]; cycle
+      end if
+      read(values(k)%text(1:star-1), '(i20)', iostat=ios) n
+      if (ios /= 0 .or. n < 1 .or. n > 100000 .or. verify(values(k)%text(1:star-1), '0123456789') /= 0 &
+        & .or. star == len(values(k)%text)) then
+        call fatal_error(error, where // ': cannot read ''' // values(k)%text // ''' (a repeat is N*VALUE)'); return
+      end if
+      do j = 1, n
+        flat = [flat, token_t(values(k)%text(star+1:), .false.)]
+      end do
+    end do
+  end subroutine expand_repeats
+
+  subroutine check_count(it, n, where, error)
+    type(item_t), intent(in) :: it
+    integer, intent(in) :: n
+    character(len=*), intent(in) :: where
+    type(error_type), allocatable, intent(out) :: error
+    if (n == 0) then
+      call fatal_error(error, where // ': no value given'); return
+    end if
+    if (it%variable) then
+      if (n > it%count) call fatal_error(error, where // ': takes at most ' // itoa(it%count) // &
+        & ' values, got ' // itoa(n))
+    else if (n /= it%count) then
+      call fatal_error(error, where // ': takes ' // plural(it%count, 'value') // ', got ' // itoa(n))
+    end if
+  end subroutine check_count
+
+  subroutine set_real(it, k, tok, where, error)
+    type(item_t), intent(inout) :: it
+    integer, intent(in) :: k
+    type(token_t), intent(in) :: tok
+    character(len=*), intent(in) :: where
+    type(error_type), allocatable, intent(out) :: error
+    real(dp) :: x
+    logical :: ok
+    call read_real(tok, x, ok)
+    if (.not. ok) then
+      call fatal_error(error, where // ': ''' // tok%text // ''' is not a number'); return
+    end if
+    if (x /= x .or. abs(x) > huge(x)) then
+      call fatal_error(error, where // ': ''' // tok%text // ''' is not a finite number'); return
+    end if
+    call check_range(it, x, where, error); if (allocated(error)) return
+    it%r(k) = x
+  end subroutine set_real
+
+  subroutine set_integer(it, tok, where, error)
+    type(item_t), intent(inout) :: it
+    type(token_t), intent(in) :: tok
+    character(len=*), intent(in) :: where
+    type(error_type), allocatable, intent(out) :: error
+    integer :: ios, start
+    integer(8) :: v
+    start = 1
+    if (len(tok%text) > 0) then
+      if (tok%text(1:1) == '+' .or. tok%text(1:1) == '-') start = 2
+    end if
+    if (tok%quoted .or. len(tok%text) < start .or. len(tok%text) > 18 .or. &
+      & verify(tok%text(start:), '0123456789') /= 0) then
+      call fatal_error(error, where // ': ''' // tok%text // ''' is not a whole number'); return
+    end if
+    read(tok%text, '(i20)', iostat=ios) v
+    if (ios /= 0 .or. abs(v) > huge(1)) then
+      call fatal_error(error, where // ': ''' // tok%text // ''' is out of the range of whole numbers'); return
+    end if
+    call check_range(it, real(v, dp), where, error); if (allocated(error)) return
+    it%i = int(v)
+  end subroutine set_integer
+
+  subroutine set_logical(it, tok, where, error)
+    type(item_t), intent(inout) :: it
+    type(token_t), intent(in) :: tok
+    character(len=*), intent(in) :: where
+    type(error_type), allocatable, intent(out) :: error
+    select case (lower(tok%text))
+    case ('.true.', '.t.', 't', 'true')
+      it%l = .true.
+    case ('.false.', '.f.', 'f', 'false')
+      it%l = .false.
+    case default
+      call fatal_error(error, where // ': ''' // tok%text // ''' is not a logical (.true. or .false.)')
+    end select
+    if (tok%quoted .and. .not. allocated(error)) &
+      & call fatal_error(error, where // ': ''' // tok%text // ''' is quoted: write .true. or .false.')
+  end subroutine set_logical
+
+  subroutine set_string(it, tok, where, error)
+    type(item_t), intent(inout) :: it
+    type(token_t), intent(in) :: tok
+    character(len=*), intent(in) :: where
+    type(error_type), allocatable, intent(out) :: error
+    character(len=:), allocatable :: v
+    v = tok%text
+    if (len(it%choices) > 0) then
+      v = lower(v)
+      if (index(' ' // it%choices // ' ', ' ' // v // ' ') == 0 .or. len(v) == 0) then
+        call fatal_error(error, where // ': ''' // tok%text // ''' is not one of: ' // &
+          & comma_list(it%choices) // suggestion(v, it%choices)); return
+      end if
+    end if
+    if (len(v) > len(it%s)) then
+      call fatal_error(error, where // ': the text is longer than ' // itoa(len(it%s)) // ' characters'); return
+    end if
+    if (index(v, achar(10)) > 0 .or. index(v, achar(13)) > 0) then
+      call fatal_error(error, where // ': the text spans lines'); return
+    end if
+    it%s = v
+  end subroutine set_string
+
+  !> A number token: [sign] digits [. digits] [(e|d) [sign] digits], or nan/inf (read, then
+  !> refused as not finite). Anything else, or a quoted token, is not a number.
+  subroutine read_real(tok, x, ok)
+    type(token_t), intent(in) :: tok
+    real(dp), intent(out) :: x
+    logical, intent(out) :: ok
+    character(len=:), allocatable :: t
+    integer :: i, ios, nd
+    x = 0.0_dp
+    ok = .false.
+    if (tok%quoted) return
+    t = lower(tok%text)
+    i = 1
+    if (len(t) == 0) return
+    if (t(1:1) == '+' .or. t(1:1) == '-') i = 2
+    if (any(t(i:) == [character(len=8) :: 'nan', 'inf', 'infinity'])) then
+      x = huge(x); x = x*2
+      if (t(i:) == 'nan') x = x - x
+      ok = .true.; return
+    end if
+    nd = count_digits(t, i)
+    if (i <= len(t)) then
+      if (t(i:i) == '.') then
+        i = i + 1
+        nd = nd + count_digits(t, i)
+      end if
+    end if
+    if (nd == 0) return
+    if (i <= len(t)) then
+      if (t(i:i) /= 'e' .and. t(i:i) /= 'd') return
+      t(i:i) = 'e'
+      i = i + 1
+      if (i <= len(t)) then
+        if (t(i:i) == '+' .or. t(i:i) == '-') i = i + 1
+      end if
+      if (count_digits(t, i) == 0) return
+    end if
+    if (i <= len(t)) return
+    read(t, *, iostat=ios) x
+    if (ios /= 0) then
+      x = huge(x); x = 2*x
+    end if
+    ok = .true.
+  end subroutine read_real
+
+  !> Number of decimal digits in t from i on; i ends past them.
+  integer function count_digits(t, i) result(n)
+    character(len=*), intent(in) :: t
+    integer, intent(inout) :: i
+    n = 0
+    do while (i <= len(t))
+      if (index('0123456789', t(i:i)) == 0) exit
+      i = i + 1; n = n + 1
+    end do
+  end function count_digits
+
+  subroutine check_range(it, x, where, error)
+    type(item_t), intent(in) :: it
+    real(dp), intent(in) :: x
+    character(len=*), intent(in) :: where
+    type(error_type), allocatable, intent(out) :: error
+    logical :: low, high
+    low = x < it%lo .or. (it%lo_open .and. x == it%lo)
+    high = x > it%hi .or. (it%hi_open .and. x == it%hi)
+    if (low .or. high) call fatal_error(error, where // ': must be ' // range_text(it) // ', got ' // fmt(x))
+  end subroutine check_range
+
+  !> "> 0", "in [0, 1)", "<= 1e+12", "" for an item without a range.
+  function range_text(it) result(s)
+    type(item_t), intent(in) :: it
+    character(len=:), allocatable :: s
+    logical :: has_lo, has_hi
+    has_lo = it%lo > -huge(1.0_dp) .and. .not. (it%type == t_integer .and. it%lo <= -huge(1))
+    has_hi = it%hi < huge(1.0_dp) .and. .not. (it%type == t_integer .and. it%hi >= huge(1))
+    if (has_lo .and. has_hi) then
+      s = 'in ' // merge('(', '[', it%lo_open) // fmt(it%lo) // ', ' // fmt(it%hi) // merge(')', ']', it%hi_open)
+    else if (has_lo) then
+      s = merge('> ', '>=', it%lo_open) // ' ' // fmt(it%lo)
+    else if (has_hi) then
+      s = merge('< ', '<=', it%hi_open) // ' ' // fmt(it%hi)
+    else
+      s = ''
+    end if
+    s = trim(s)
+  end function range_text
+
+  ! ------------------------------------------------------------------ writing values
+
+  !> Is x the "not given" marker?
+  elemental logical function is_unset(x)
+    real(dp), intent(in) :: x
+    is_unset = x == unset
+  end function is_unset
+
+  !> The item's current values as namelist text ('' when it holds no value: unset reals).
+  function value_text(it) result(s)
+    type(item_t), intent(in) :: it
+    character(len=:), allocatable :: s
+    integer :: k, n
+    select case (it%type)
+    case (t_real)
+      n = size(it%r)
+      if (it%variable) then
+        n = 0
+        do while (n < size(it%r))
+          if (is_unset(it%r(n + 1))) exit
+          n = n + 1
+        end do
+      end if
+      s = ''
+      if (any(is_unset(it%r(1:n))) .or. n == 0) return
+      do k = 1, n
+        s = s // merge(', ', '  ', k > 1) // exact_text(it%r(k))
+      end do
+      s = s(3:)
+    case (t_integer)
+      s = itoa(it%i)
+    case (t_logical)
+      s = merge('.true. ', '.false.', it%l)
+      s = trim(s)
+    case (t_string)
+      s = quoted(trim(it%s))
+    end select
+  end function value_text
+
+  !> Text in single quotes, inner quotes doubled.
+  function quoted(t) result(s)
+    character(len=*), intent(in) :: t
+    character(len=:), allocatable :: s
+    integer :: k
+    s = ''''
+    do k = 1, len(t)
+      s = s // t(k:k)
+      if (t(k:k) == '''') s = s // ''''
+    end do
+    s = s // ''''
+  end function quoted
+
+  !> One line of the schema: name, type (with its count), default, range or choices, unit
+  !> and meaning, tab-separated. The default is the value the field holds before reading.
+  function schema_line(it) result(s)
+    type(item_t), intent(in) :: it
+    character(len=:), allocatable :: s, kind, dflt, allowed
+    character(len=1), parameter :: tab = achar(9)
+    kind = trim(type_names(it%type))
+    if (it%variable) then
+      kind = kind // '(1..' // itoa(it%count) // ')'
+    else if (it%count > 1) then
+      kind = kind // '(' // itoa(it%count) // ')'
+    end if
+    dflt = value_text(it)
+    if (len(dflt) == 0) dflt = '-'
+    if (it%type == t_string .and. len(it%choices) > 0) then
+      allowed = comma_list(it%choices)
+    else
+      allowed = range_text(it)
+    end if
+    s = trim(it%name) // tab // kind // tab // dflt // tab // allowed // tab // it%unit // tab // it%meaning
+  end function schema_line
+
+  ! ------------------------------------------------------------------------- origins
+
+  !> Record that `item` was given at `at` ("file:12" or "--set ...") with n values.
+  subroutine origin_note(self, item, at, n)
+    class(origin_t), intent(inout) :: self
+    character(len=*), intent(in) :: item, at
+    integer, intent(in) :: n
+    integer :: k
+    if (.not. allocated(self%items)) allocate(self%items(0), self%at(0), self%counts(0))
+    do k = 1, size(self%items)
+      if (self%items(k) == item) then
+        self%at(k) = at; self%counts(k) = n; return
+      end if
+    end do
+    self%items = [self%items, [character(len=name_len) :: item]]
+    self%at = [self%at, [character(len=256) :: at]]
+    self%counts = [self%counts, n]
+  end subroutine origin_note
+
+  pure logical function origin_given(self, item)
+    class(origin_t), intent(in) :: self
+    character(len=*), intent(in) :: item
+    origin_given = .false.
+    if (allocated(self%items)) origin_given = any(self%items == item)
+  end function origin_given
+
+  !> Number of values given for `item` (0 if not given).
+  pure integer function origin_count(self, item) result(n)
+    class(origin_t), intent(in) :: self
+    character(len=*), intent(in) :: item
+    integer :: k
+    n = 0
+    if (.not. allocated(self%items)) return
+    do k = 1, size(self%items)
+      if (self%items(k) == item) n = self%counts(k)
+    end do
+  end function origin_count
+
+  !> Prefix for a message about `item` of this group: "file:12: &body 'gun': mass", the
+  !> item's own line if it was given, else the group's.
+  function origin_where(self, item) result(s)
+    class(origin_t), intent(in) :: self
+    character(len=*), intent(in), optional :: item
+    character(len=:), allocatable :: s
+    integer :: k
+    s = self%file // ':' // itoa(self%line) // ': ' // self%label
+    if (.not. present(item)) return
+    s = s // ': ' // item
+    if (.not. allocated(self%items)) return
+    do k = 1, size(self%items)
+      if (self%items(k) == item) then
+        if (index(self%at(k), '--set ') == 1) then
+          s = self%file // ': ' // trim(self%at(k)) // ': ' // self%label // ': ' // item
+        else
+          s = trim(self%at(k)) // ': ' // self%label // ': ' // item
+        end if
+      end if
+    end do
+  end function origin_where
+
+  ! ------------------------------------------------------------------------- helpers
+
+  !> ", did you mean 'x'?" for the closest of `names` (blank-separated) to `word`, or ''.
+  function suggestion(word, names) result(s)
+    character(len=*), intent(in) :: word, names
+    character(len=:), allocatable :: s
+    character(len=:), allocatable :: best
+    best = nearest_name(word, names)
+    s = ''
+    if (len(best) > 0) s = '; did you mean ''' // best // '''?'
+  end function suggestion
+
+  !> The name of `names` (blank-separated) nearest to `word` by edit distance, if within
+  !> a third of its length (at least 2 edits); '' when none is near.
+  function nearest_name(word, names) result(best)
+    character(len=*), intent(in) :: word, names
+    character(len=:), allocatable :: best
+    integer :: i, j, d, dbest
+    best = ''; dbest = huge(1)
+    i = 1
+    do while (i <= len(names))
+      if (names(i:i) == ' ') then
+        i = i + 1; cycle
+      end if
+      j = index(names(i:) // ' ', ' ') + i - 2
+      d = edit_distance(lower(word), names(i:j))
+      if (d < dbest) then
+        dbest = d; best = names(i:j)
+      end if
+      i = j + 1
+    end do
+    if (dbest > max(2, len_trim(word)/3)) best = ''
+  end function nearest_name
+
+  !> Levenshtein distance.
+  pure integer function edit_distance(a, b) result(d)
+    character(len=*), intent(in) :: a, b
+    integer :: prev(0:len(b)), cur(0:len(b)), i, j
+    prev = [(j, j = 0, len(b))]
+    do i = 1, len(a)
+      cur(0) = i
+      do j = 1, len(b)
+        cur(j) = min(prev(j) + 1, cur(j-1) + 1, prev(j-1) + merge(0, 1, a(i:i) == b(j:j)))
+      end do
+      prev = cur
+    end do
+    d = prev(len(b))
+  end function edit_distance
+
+  !> "a b c" -> "a, b, c".
+  function comma_list(words) result(s)
+    character(len=*), intent(in) :: words
+    character(len=:), allocatable :: s
+    integer :: i
+    s = ''
+    do i = 1, len(words)
+      if (words(i:i) == ' ') then
+        if (len(s) > 0) then
+          if (s(len(s):len(s)) /= ' ') s = s // ', '
+        end if
+      else
+        s = s // words(i:i)
+      end if
+    end do
+  end function comma_list
+
+  function plural(n, word) result(s)
+    integer, intent(in) :: n
+    character(len=*), intent(in) :: word
+    character(len=:), allocatable :: s
+    s = itoa(n) // ' ' // word
+    if (n /= 1) s = s // 's'
+  end function plural
+end module pymr_io_item_table

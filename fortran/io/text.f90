@@ -1,0 +1,98 @@
+!> Text of numbers and words for messages and files: integers, reals as a person writes
+!> them or in the fewest digits that read back exactly, lower case.
+module pymr_io_text
+  use pymr_kinds, only : dp
+  implicit none
+  private
+  public :: itoa, lower, fmt, decimal_text, exact_text
+
+contains
+
+  !> Integer to text without blanks.
+  pure function itoa(i) result(s)
+    integer, intent(in) :: i
+    character(len=:), allocatable :: s
+    character(len=24) :: buf
+    write(buf, '(i0)') i
+    s = trim(buf)
+  end function itoa
+
+  !> Lower-case copy of a string.
+  pure function lower(s) result(r)
+    character(len=*), intent(in) :: s
+    character(len=len(s)) :: r
+    integer :: i, c
+    r = s
+    do i = 1, len(s)
+      c = iachar(s(i:i))
+      if (c >= iachar('A') .and. c <= iachar('Z')) r(i:i) = achar(c + 32)
+    end do
+  end function lower
+
+  !> A real for messages as a person writes it, at most 6 significant digits: 0.01, 2.5,
+  !> 150000, 1.5e+8, -3e-7 (never a compiler's own form such as 0.100000E-1).
+  function fmt(x) result(s)
+    real(dp), intent(in) :: x
+    character(len=:), allocatable :: s
+    s = decimal_text(x, 6)
+  end function fmt
+
+  !> A real in at most `digits` significant digits, without trailing zeros: fixed notation
+  !> from 1e-4 to 10**digits, else d.ddde+N. Non-finite values are NaN, Inf and -Inf.
+  function decimal_text(x, digits) result(s)
+    real(dp), intent(in) :: x
+    integer, intent(in) :: digits
+    character(len=:), allocatable :: s
+    character(len=48) :: buf, form
+    integer :: e, p
+    if (x /= x) then
+      s = 'NaN'; return
+    else if (abs(x) > huge(x)) then
+      s = 'Inf'
+      if (x < 0.0_dp) s = '-Inf'
+      return
+    else if (x == 0.0_dp) then
+      s = '0'; return
+    end if
+    write(form, '(a,i0,a,i0,a)') '(es', digits + 10, '.', digits - 1, 'e3)'
+    write(buf, form) x
+    p = index(buf, 'E')
+    read(buf(p+1:), *) e
+    if (e >= -4 .and. e < digits) then
+      write(form, '(a,i0,a)') '(f0.', max(0, digits - 1 - e), ')'
+      write(buf, form) x
+      s = strip_zeros(trim(adjustl(buf)))
+      if (s(1:1) == '.') s = '0' // s
+      if (s(1:min(2, len(s))) == '-.') s = '-0' // s(2:)
+    else
+      s = strip_zeros(trim(adjustl(buf(:p-1)))) // 'e' // merge('-', '+', e < 0) // itoa(abs(e))
+    end if
+  end function decimal_text
+
+  !> The shortest of 15 or 17 significant digits that reads back to x exactly.
+  function exact_text(x) result(s)
+    real(dp), intent(in) :: x
+    character(len=:), allocatable :: s
+    real(dp) :: y
+    integer :: ios
+    s = decimal_text(x, 15)
+    if (x /= x .or. abs(x) > huge(x)) return
+    read(s, *, iostat=ios) y
+    if (ios /= 0 .or. y /= x) s = decimal_text(x, 17)
+  end function exact_text
+
+  !> A decimal number's text without trailing zeros after its point (and without the point).
+  pure function strip_zeros(t) result(s)
+    character(len=*), intent(in) :: t
+    character(len=:), allocatable :: s
+    integer :: n
+    s = t
+    if (index(s, '.') == 0) return
+    n = len(s)
+    do while (s(n:n) == '0')
+      n = n - 1
+    end do
+    if (s(n:n) == '.') n = n - 1
+    s = s(:n)
+  end function strip_zeros
+end module pymr_io_text
