@@ -133,7 +133,7 @@ contains
     if (multirate .and. worst > model%d%nj) h = h_fast
     write(b1, '(es9.2)') h
     write(b2, '(f0.1)') abs(worst_lam)/(2.0_dp*pi)
-    write(b3, '(f0.3)') abs(worst_lam)*h
+    write(b3, '(f5.3)') abs(worst_lam)*h
     write(b4, '(es9.2)') pece_limit(worst_lam)
     call fatal_error(error, where // merge('h_fast', 'h_slow', multirate .and. worst > model%d%nj) // &
       & ': a fixed step of ' // trim(adjustl(b1)) // ' s is not stable for ' // coordinate_name(model, worst) // ' (' // &

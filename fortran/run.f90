@@ -5,7 +5,7 @@ module pymr_run
   use pymr_kinds, only : dp
   use pymr_error, only : error_type, fatal_error
   use pymr_model_scene, only : scene_t
-  use pymr_io_namelist_input, only : read_scene
+  use pymr_io_namelist_input, only : read_scene, scene_fingerprint
   use pymr_model_build, only : build_model
   use pymr_model, only : model_t
   use pymr_integrator_abm, only : abm_integrator, hinit
@@ -21,6 +21,9 @@ module pymr_run
   implicit none
   private
   public :: run_scene, load_model, default_output, progress_t, progress_t_end, progress_running
+
+  !> Markers whose final motion the summary prints (the results hold them all).
+  integer, parameter :: max_summary_markers = 10
 
   !> Progress of the run in this process, read by the Python binding from another thread
   !> while the run goes on (no call back into Python per step): simulated time reached,
@@ -160,7 +163,7 @@ contains
     character(len=*), intent(in), optional :: restart
     !> Print a progress line to stderr about every second (mrsim --progress).
     logical, intent(in), optional :: progress_lines
-    type(scene_t) :: sc
+    type(scene_t), target :: sc
     type(model_t) :: model
     type(stepper) :: st
     type(csv_writer) :: csv
@@ -273,7 +276,8 @@ contains
     cpu1 = thread_cpu_time(); call system_clock(c1)
     stats%cpu_time_s = cpu1 - cpu0; stats%wall_time_s = real(c1 - c0, dp)/real(rate, dp)
     call fill_stats(st, model, stats)
-    call write_json(json_path(path), file, sc%scene%title, settings_json(sc), model%d, stats, error)
+    call write_json(json_path(path), file, sc%scene%title, scene_fingerprint(sc), settings_json(sc), model%d, &
+      & stats, error)
     if (allocated(error)) return
     summary = summary_text(sc, model, stats, path, x)
     if (present(written)) written = path
@@ -399,7 +403,7 @@ contains
     write(buf, '(a,f10.4,a,f10.4,a)') 'cpu time ', st%cpu_time_s, ' s, wall time ', st%wall_time_s, ' s'
     s = s // trim(buf) // new_line('a')
     call forward_kinematics(model%d, x(1:n), x(n+1:))
-    do i = 1, model%d%n_markers
+    do i = 1, min(model%d%n_markers, max_summary_markers)
       call marker_motion(model%d, i, x(1:n), x(n+1:), r, v)
       ! fixed digits for ordinary values; exponents when a run went far off (a diverging model)
       if (maxval(abs([r, v])) < 1.0e5_dp) then
@@ -411,6 +415,8 @@ contains
       end if
       s = s // trim(buf) // new_line('a')
     end do
+    if (model%d%n_markers > max_summary_markers) s = s // '(and ' // itoa(model%d%n_markers - max_summary_markers) &
+      & // ' more markers in the results)' // new_line('a')
     s = s // 'results: ' // path // ', ' // json_path(path)
   end function summary_text
 end module pymr_run

@@ -9,6 +9,7 @@ from .results import Results, load_results
 from .api import (PymrError, SceneError, SolverError, run, model_terms, model_accelerations,
                   model_energy, model_size, write_modal_file, Model, time_fast_evaluation)
 
+from .scene import Scene, schema
 from .plot import PlotError
 from .sweep import SweepError
 
@@ -16,5 +17,5 @@ __version__ = "0.1.0"
 
 __all__ = ["PymrError", "SceneError", "SolverError", "Results", "load_results", "run",
            "model_terms", "model_accelerations", "model_energy", "model_size", "write_modal_file",
-           "Model", "time_fast_evaluation", "PlotError", "SweepError",
+           "Model", "time_fast_evaluation", "PlotError", "SweepError", "Scene", "schema",
            "__version__"]

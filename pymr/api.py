@@ -10,7 +10,12 @@ from typing import Iterable, Mapping
 
 import numpy as np
 
-from . import _core
+try:
+    from . import _core
+except ImportError:
+    raise ImportError("pymr's compiled kernel (pymr._core) is not here: this is the source folder, not the "
+                      "installed package. Build and install it with 'bash .ci/setup' (or 'pip install "
+                      "--no-build-isolation .') and import pymr from outside the checkout.") from None
 from .results import Results, load_results
 
 
@@ -38,30 +43,37 @@ def format_overrides(overrides: Mapping[str, object] | Iterable[str] | None) -> 
     if not overrides:
         return ""
     if isinstance(overrides, Mapping):
-        items = [f"{k}={_nml_value(v)}" for k, v in overrides.items()]
+        items = [f"{k}={nml_value(v)}" for k, v in overrides.items()]
     else:
         items = [str(s) for s in overrides]
     return "\n".join(items)   # the kernel checks each entry and names the scene file
 
 
-def _nml_value(v: object) -> str:
+def nml_value(v: object) -> str:
     if isinstance(v, bool):
         return ".true." if v else ".false."
     if isinstance(v, str):
         return "'" + v.replace("'", "''") + "'"
     if isinstance(v, (list, tuple, np.ndarray)):
-        return ", ".join(_nml_value(x) for x in v)
+        return ", ".join(nml_value(x) for x in v)
     return repr(float(v)) if isinstance(v, float) else str(v)
 
 
-def _scene_arg(scene: str | os.PathLike) -> str:
-    return os.fspath(scene)
+def _scene_and_overrides(scene, overrides) -> tuple[str, str]:
+    """The scene file and the override text for the kernel: a :class:`pymr.Scene` brings its
+    own overrides, which the call's overrides follow (and so win)."""
+    text = format_overrides(overrides)
+    from .scene import Scene
+    if isinstance(scene, Scene):
+        return str(scene.path), "\n".join(t for t in (scene.overrides, text) if t)
+    return os.fspath(scene), text
 
 
-def run(scene: str | os.PathLike, output: str | os.PathLike | None = None,
+def run(scene, output: str | os.PathLike | None = None,
         overrides: Mapping[str, object] | Iterable[str] | None = None,
         restart: str | os.PathLike | None = None, progress: bool | None = None) -> Results:
-    """Run a scene in the Fortran kernel and return its results as numpy arrays.
+    """Run a scene (a namelist file's path or a :class:`pymr.Scene`) in the Fortran kernel and
+    return its results as numpy arrays.
 
     ``output`` is the CSV path (the JSON statistics go beside it); ``""`` lets the kernel
     choose (``&output file``, else SCENE.csv); ``None`` writes to a temporary folder,
@@ -74,24 +86,24 @@ def run(scene: str | os.PathLike, output: str | os.PathLike | None = None,
     its progress ten times a second: no per-step call crosses into Python.
     Raises :class:`SceneError` for bad input and :class:`SolverError` for a failed run.
     """
-    text = format_overrides(overrides)
+    scene, text = _scene_and_overrides(scene, overrides)
     ckpt = os.fspath(restart) if restart else ""
     if ckpt and output is None:
         raise ValueError("a restart continues an existing results file: give output (or '' for the default)")
     if output == "":
         # let the kernel choose: &output file, else SCENE.csv in the working folder
-        stat, msg, summary, written = _run_kernel(_scene_arg(scene), text, "", ckpt, progress)
+        stat, msg, summary, written = _run_kernel(scene, text, "", ckpt, progress)
         _raise(stat, msg)
         res = load_results(_text(written))
     elif output is None:
         with tempfile.TemporaryDirectory(prefix="pymr-") as tmp:
             out = str(Path(tmp) / "results.csv")
-            stat, msg, summary, _ = _run_kernel(_scene_arg(scene), text, out, ckpt, progress)
+            stat, msg, summary, _ = _run_kernel(scene, text, out, ckpt, progress)
             _raise(stat, msg)
             res = load_results(out)
     else:
         out = os.fspath(output)
-        stat, msg, summary, _ = _run_kernel(_scene_arg(scene), text, out, ckpt, progress)
+        stat, msg, summary, _ = _run_kernel(scene, text, out, ckpt, progress)
         _raise(stat, msg)
         res = load_results(out)
     res.summary = _text(summary)
@@ -132,7 +144,7 @@ def _text(value: bytes | str) -> str:
 
 def model_size(scene: str | os.PathLike, overrides=None) -> tuple[int, int, int]:
     """(coordinates, bodies including the ground, markers) of a scene's model."""
-    n, nb, nm, stat, msg = _core.pymr_model_size(_scene_arg(scene), format_overrides(overrides))
+    n, nb, nm, stat, msg = _core.pymr_model_size(*_scene_and_overrides(scene, overrides))
     _raise(stat, msg)
     return int(n), int(nb), int(nm)
 
@@ -141,7 +153,7 @@ def model_terms(scene: str | os.PathLike, q, qd, t: float = 0.0, overrides=None)
     """Mass matrix M and right-hand side P of ``M qdd = P`` at (t, q, qd)."""
     q = np.ascontiguousarray(q, dtype=float)
     qd = np.ascontiguousarray(qd, dtype=float)
-    mm, p, stat, msg = _core.pymr_model_terms(_scene_arg(scene), format_overrides(overrides), t, q, qd)
+    mm, p, stat, msg = _core.pymr_model_terms(*_scene_and_overrides(scene, overrides), t, q, qd)
     _raise(stat, msg)
     return mm, p
 
@@ -153,7 +165,7 @@ def model_accelerations(scene: str | os.PathLike, t, q, qd, overrides=None) -> n
     q2 = np.asfortranarray(np.atleast_2d(q).T)
     qd2 = np.asfortranarray(np.atleast_2d(np.asarray(qd, dtype=float)).T)
     t1 = np.atleast_1d(np.asarray(t, dtype=float))
-    qdd, stat, msg = _core.pymr_model_accelerations(_scene_arg(scene), format_overrides(overrides), t1, q2, qd2)
+    qdd, stat, msg = _core.pymr_model_accelerations(*_scene_and_overrides(scene, overrides), t1, q2, qd2)
     _raise(stat, msg)
     return qdd[:, 0].copy() if single else qdd.T.copy()
 
@@ -162,7 +174,7 @@ def model_energy(scene: str | os.PathLike, q, qd, overrides=None) -> tuple[np.nd
     """Kinetic and potential (gravity, when on) energy for states q, qd of shape (m, n)."""
     q2 = np.asfortranarray(np.atleast_2d(np.asarray(q, dtype=float)).T)
     qd2 = np.asfortranarray(np.atleast_2d(np.asarray(qd, dtype=float)).T)
-    ke, pe, stat, msg = _core.pymr_model_energy(_scene_arg(scene), format_overrides(overrides), q2, qd2)
+    ke, pe, stat, msg = _core.pymr_model_energy(*_scene_and_overrides(scene, overrides), q2, qd2)
     _raise(stat, msg)
     return ke, pe
 
@@ -170,7 +182,7 @@ def model_energy(scene: str | os.PathLike, q, qd, overrides=None) -> tuple[np.nd
 def write_modal_file(scene: str | os.PathLike, body: str, path: str | os.PathLike, overrides=None) -> None:
     """Write the modes of beam ``body`` of a scene to a modal data file, which a
     ``kind='modal'`` body can read back (``modal_file=...``)."""
-    stat, msg = _core.pymr_write_modal(_scene_arg(scene), format_overrides(overrides), body, os.fspath(path))
+    stat, msg = _core.pymr_write_modal(*_scene_and_overrides(scene, overrides), body, os.fspath(path))
     _raise(stat, msg)
 
 
@@ -181,8 +193,8 @@ class Model:
     ``marker(name, t, q, qd)`` gives a marker's positions at states of shape (m, n)."""
 
     def __init__(self, scene: str | os.PathLike, overrides=None):
-        self.scene = _scene_arg(scene)
-        handle, n, stat, msg = _core.pymr_model_open(self.scene, format_overrides(overrides))
+        self.scene, text = _scene_and_overrides(scene, overrides)
+        handle, n, stat, msg = _core.pymr_model_open(self.scene, text)
         _raise(stat, msg)
         self.handle, self.n, self.evaluations = int(handle), int(n), 0
 
@@ -219,7 +231,7 @@ def time_fast_evaluation(scene: str | os.PathLike, q, qd, split: bool, reps: int
                          overrides=None) -> tuple[float, float]:
     """CPU seconds of one multirate fast right-hand side (``split`` or 'full' coupling) and
     of one full evaluation at (q, qd)."""
-    fast, full, stat, msg = _core.pymr_time_fast(_scene_arg(scene), format_overrides(overrides),
+    fast, full, stat, msg = _core.pymr_time_fast(*_scene_and_overrides(scene, overrides),
                                                   np.asarray(q, dtype=float), np.asarray(qd, dtype=float),
                                                   reps, int(split))
     _raise(stat, msg)

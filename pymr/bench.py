@@ -125,33 +125,15 @@ def main(what: str, repeats: int | None = None, json_path: str | None = None) ->
     raise ValueError(what)
 
 
-#: Tank variants for ``bench effects``: (effect, &effects items, extra groups, overrides).
-EFFECT_VARIANTS = [
-    ("gravity", "gravity = .true.", "", ""),
-    ("joint_drives", "joint_drives = .true.", "", ""),
-    ("modal_damping", "modal_damping = .true.", "", "body[gun].modal_damping=0.02"),
-    ("joint_springs", "joint_springs = .true.",
-     "&spring joint = 'traverse', stiffness = 1.0e6, damping = 1.0e3 /\n"
-     "&spring joint = 'elevation', stiffness = 1.0e6, damping = 1.0e3 /\n", ""),
-    ("geometric_stiffening", "geometric_stiffening = .true.", "", ""),
-    ("base_motion", "base_motion = .true.",
-     "&motion joint = 'traverse', amplitude = 0.1, frequency = 1.0 /\n", ""),
-    # a pulse at its peak at t = 0, when the evaluation is timed
-    ("firing_load", "firing_load = .true.",
-     "&load marker = 'muzzle', direction = -1.0, 0.0, 0.0, peak = 1.0e6, start = -0.5, duration = 1.0 /\n", ""),
-    # the default fidelity 'full' against 'linear' (the baseline of the other cases)
-    ("deformation_inertia", "deformation_inertia = 'full'", "", ""),
-]
+#: The effects ``bench effects`` times, each turned on alone (``input/tank_effects.nml`` gives
+#: every effect's data with every effect off) and all together; deformation_inertia's case is
+#: 'full' against the baseline 'linear'.
+EFFECTS = ["gravity", "joint_drives", "modal_damping", "joint_springs", "geometric_stiffening", "base_motion",
+           "firing_load", "deformation_inertia"]
 
 
-def _tank_variant(tmp: Path, name: str, effects: str, groups: str) -> Path:
-    """The tank scene with its &effects replaced and extra groups appended."""
-    text = _scene_path("tank_gun_turret.nml").read_text()
-    start = text.index("&effects")
-    end = text.index("/", start)
-    path = Path(tmp) / f"{name}.nml"
-    path.write_text(text[:start] + "&effects " + effects + " " + text[end:] + "\n" + groups)
-    return path
+def _effect_on(effect: str) -> str:
+    return "effects.deformation_inertia='full'" if effect == "deformation_inertia" else f"effects.{effect}=.true."
 
 
 def bench_effects(repeats: int = 7) -> list[dict]:
@@ -159,33 +141,22 @@ def bench_effects(repeats: int = 7) -> list[dict]:
     at a moving, deflected state (median CPU of repeated timings)."""
     rng = np.random.default_rng(1)
     rows = []
-    with tempfile.TemporaryDirectory(prefix="pymr-effects-") as tmp:
-        off = {"joint_drives": ".false.", "gravity": ".false.", "deformation_inertia": "'linear'"}
-
-        def alone(effect: str, items: str) -> str:
-            """The effect's items with every other effect of the default scene off."""
-            return ", ".join([items] + [f"{k} = {v}" for k, v in off.items() if k != effect])
-
-        cases = [("none", alone("", "")[2:], "", "")] + [
-            (e, alone(e, items), groups, over) for e, items, groups, over in EFFECT_VARIANTS]
-        every = ", ".join(items for _, items, _, _ in EFFECT_VARIANTS)
-        cases.append(("all", every, "".join(g for _, _, g, _ in EFFECT_VARIANTS),
-                      ";".join(o for _, _, _, o in EFFECT_VARIANTS if o)))
-        paths = {c[0]: _tank_variant(Path(tmp), c[0], c[1], c[2]) for c in cases}
-        n, _, _ = model_size(paths["none"])
-        q = 0.05 * rng.standard_normal(n)
-        qd = 0.5 * rng.standard_normal(n)
-        q[2:] *= 1e-3
-        # interleaved: every repeat times each case once, so that machine drift hits all alike
-        samples: dict[str, list] = {name: [] for name, *_ in cases}
-        reps = 20000
-        for _ in range(repeats):
-            for name, _, _, over in cases:
-                sec, stat, msg = _core.pymr_time_evaluation(str(paths[name]), over, q, qd, reps)
-                _raise(stat, msg)
-                samples[name].append(sec)
-        for name, *_ in cases:
-            rows.append({"effect": name, "median_us": statistics.median(samples[name]) * 1e6})
+    scene = str(_scene_path("tank_effects.nml"))
+    cases = [("none", "")] + [(e, _effect_on(e)) for e in EFFECTS] + [("all", "\n".join(map(_effect_on, EFFECTS)))]
+    n, _, _ = model_size(scene)
+    q = 0.05 * rng.standard_normal(n)
+    qd = 0.5 * rng.standard_normal(n)
+    q[2:] *= 1e-3
+    # interleaved: every repeat times each case once, so that machine drift hits all alike
+    samples: dict[str, list] = {name: [] for name, _ in cases}
+    reps = 20000
+    for _ in range(repeats):
+        for name, over in cases:
+            sec, stat, msg = _core.pymr_time_evaluation(scene, over, q, qd, reps)
+            _raise(stat, msg)
+            samples[name].append(sec)
+    for name, _ in cases:
+        rows.append({"effect": name, "median_us": statistics.median(samples[name]) * 1e6})
     base = rows[0]["median_us"]
     for r in rows:
         r["extra_us"] = r["median_us"] - base

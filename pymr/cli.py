@@ -1,5 +1,5 @@
-"""The ``pymr`` command line: ``pymr run``, ``pymr bench``, ``pymr study``, ``pymr modal-file``,
-``pymr plot``."""
+"""The ``pymr`` command line: ``pymr run``, ``pymr scene``, ``pymr bench``, ``pymr study``,
+``pymr modal-file``, ``pymr plot``, ``pymr sweep``."""
 from __future__ import annotations
 
 import argparse
@@ -14,6 +14,17 @@ def _cmd_run(args: argparse.Namespace) -> int:
               progress=None if args.progress is None else args.progress)
     if not args.quiet:
         print(res.summary)
+    return 0
+
+
+def _cmd_scene(args: argparse.Namespace) -> int:
+    from .scene import Scene, schema
+    if args.schema:
+        print(schema(), end="")
+        return 0
+    if not args.scene:
+        raise SceneError("pymr scene: give a scene file (or --schema)")
+    print(Scene(args.scene, args.set or None).resolved(absolute_paths=args.absolute_paths), end="")
     return 0
 
 
@@ -53,7 +64,7 @@ def build_parser() -> argparse.ArgumentParser:
     r = sub.add_parser("run", help="run a scene (namelist file) and write OUT.csv and OUT.json")
     r.add_argument("scene", help="scene namelist file")
     r.add_argument("-o", "--output", help="CSV result file (default: &output file, else SCENE.csv)")
-    r.add_argument("--set", action="append", metavar="GROUP.KEY=VALUE",
+    r.add_argument("--set", action="append", metavar="GROUP.ITEM=VALUE",
                    help="override a namelist value for this run, e.g. integrator.h_slow=5e-4 or "
                         "body[gun].mass=1000 (repeatable)")
     r.add_argument("--restart", metavar="CKPT", help="continue a run from its checkpoint file (written with "
@@ -62,6 +73,15 @@ def build_parser() -> argparse.ArgumentParser:
                    help="progress bar (simulated time, percent, ETA) on stderr; default: when stderr is a terminal")
     r.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
     r.set_defaults(func=_cmd_run)
+    sc = sub.add_parser("scene", help="print the resolved scene (every default filled in, every --set applied, "
+                        "checked) and its fingerprint; --schema: every group and item")
+    sc.add_argument("scene", nargs="?", help="scene namelist file")
+    sc.add_argument("--set", action="append", metavar="GROUP.ITEM=VALUE", help="override (repeatable)")
+    sc.add_argument("--schema", action="store_true", help="print the groups and items: name, type(count), default, "
+                    "range or choices, unit, meaning (tab-separated)")
+    sc.add_argument("--absolute-paths", action="store_true",
+                    help="write the files the scene names (modal_file, file) as absolute paths")
+    sc.set_defaults(func=_cmd_scene)
     m = sub.add_parser("modal-file", help="write a beam's modes to a modal data file (for kind='modal')")
     m.add_argument("scene", help="scene namelist file")
     m.add_argument("body", help="name of a kind='beam' body")

@@ -16,7 +16,6 @@ from __future__ import annotations
 import csv
 import math
 import os
-import re
 import tempfile
 import time
 from dataclasses import dataclass, asdict
@@ -25,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from .api import Model, PymrError, run, time_fast_evaluation
+from .scene import Scene
 
 #: Step factors (times the scene's h_slow) of single-rate fixed steps, and fast steps of multirate.
 SINGLE_FACTORS = (8.0, 4.0, 2.0, 1.0, 0.5)
@@ -77,11 +77,7 @@ class Study:
         self.cases: list[Case] = []
 
     def _t_end(self) -> float:
-        text = self.scene.read_text()
-        m = re.search(r"t_end\s*=\s*([0-9.eEdD+-]+)", text)
-        if not m:
-            raise PymrError(f"{self.scene}: &scene t_end not found")
-        return float(m.group(1).replace("d", "e").replace("D", "e"))
+        return float(Scene(self.scene)["scene.t_end"])
 
     # ------------------------------------------------------------------ reference
 

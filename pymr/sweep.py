@@ -39,10 +39,7 @@ import numpy as np
 
 from .api import PymrError, SceneError, run
 from .results import load_results
-
-#: The item that names each repeated group in ``group[name]`` keys.
-SELECTOR = {"body": "name", "joint": "name", "marker": "name", "drive": "joint", "spring": "joint",
-            "motion": "joint", "load": "marker"}
+from .scene import Scene
 
 
 class SweepError(PymrError):
@@ -85,10 +82,6 @@ def load_sweep(path: str | os.PathLike) -> Sweep:
     for k, v in grid.items():
         if not isinstance(v, list) or not v:
             raise SweepError(f"{path}: [grid] {k}: must be a non-empty list of values")
-        _check_key(path, "grid", k)
-    for part in ("fixed", "reference"):
-        for k in spec.get(part, {}):
-            _check_key(path, part, k)
     metric = spec.get("metric", "")
     if metric and not re.fullmatch(r"(deviation|final|max_abs):[\w.\[\]]+", metric):
         raise SweepError(f"{path}: metric: {metric!r} is not 'deviation:MARKER', 'final:COLUMN' or 'max_abs:COLUMN'")
@@ -96,12 +89,21 @@ def load_sweep(path: str | os.PathLike) -> Sweep:
     if not scene.exists():
         raise SweepError(f"{path}: scene: {scene} not found")
     output = (path.parent / spec.get("output", path.stem)).resolve()
-    return Sweep(path, scene, output, metric, grid, spec.get("fixed", {}), spec.get("reference", {}))
+    sw = Sweep(path, scene, output, metric, grid, spec.get("fixed", {}), spec.get("reference", {}))
+    check_cases(sw)
+    return sw
 
 
-def _check_key(path: Path, part: str, key: str) -> None:
-    if not re.fullmatch(r"[a-z]+(\[[\w.]+\])?\.\w+", key):
-        raise SweepError(f"{path}: [{part}] {key}: not a GROUP.ITEM or GROUP[NAME].ITEM key")
+def check_cases(sw: Sweep) -> None:
+    """Every case's scene (and the reference's) read and checked by the kernel before any
+    case runs: a bad key or value is one error naming the case."""
+    named = [("reference", {**sw.fixed, **sw.reference})] + [(case_name(i), {**sw.fixed, **c})
+                                                                for i, c in enumerate(sw.cases)]
+    for name, overrides in named:
+        try:
+            Scene(sw.scene, overrides)
+        except SceneError as exc:
+            raise SweepError(f"{sw.path}: {name} {overrides}: {exc}") from None
 
 
 def case_name(i: int) -> str:
@@ -188,38 +190,12 @@ def write_summary(sw: Sweep, rows: list[dict]) -> Path:
 # ------------------------------------------------------------------------ SLURM
 
 def case_namelist(base: Path, overrides: dict, dest: Path) -> None:
-    """Write the base scene with the overrides applied (f90nml), file paths made absolute."""
-    import f90nml
-    nml = f90nml.read(base)
-    for key, value in overrides.items():
-        m = re.fullmatch(r"([a-z]+)(?:\[([\w.]+)\])?\.(\w+)", key)
-        group, sel, item = m.group(1), m.group(2), m.group(3)
-        if group not in nml:
-            if sel:
-                raise SweepError(f"{base}: no &{group} group for {key}")
-            nml[group] = f90nml.Namelist()
-        target = nml[group]
-        if sel is not None or isinstance(target, list) or type(target).__name__ == "Cogroup":
-            groups = list(target) if (isinstance(target, list) or type(target).__name__ == "Cogroup") else [target]
-            hits = [g for g in groups if str(g.get(SELECTOR.get(group, "name"), "")).lower() == str(sel).lower()]
-            if not hits:
-                raise SweepError(f"{base}: no &{group} with {SELECTOR.get(group, 'name')} = '{sel}' for {key}")
-            target = hits[0]
-        target[item] = value
-    for group in ("body", "drive", "motion"):
-        if group not in nml:
-            continue
-        groups = nml[group] if (isinstance(nml[group], list) or type(nml[group]).__name__ == "Cogroup") \
-            else [nml[group]]
-        for g in groups:
-            for item in ("modal_file", "file"):
-                if item in g and g[item] and not os.path.isabs(g[item]):
-                    g[item] = str((base.parent / g[item]).resolve())
-    if "output" in nml:
-        nml["output"].pop("file", None)
-    with open(dest, "w") as fh:
-        fh.write(f"! {dest.name}: {base.name} with {overrides}\n")
-        nml.write(fh)
+    """Write the base scene with the overrides applied and every default filled in (the
+    kernel's resolved scene), the files it names made absolute, and no &output file (mrsim
+    gets -o)."""
+    scene = Scene(base, {**overrides, "output.file": ""})
+    text = scene.resolved(absolute_paths=True)
+    dest.write_text(f"! {dest.name}: {base.name} with {overrides}\n" + text)
 
 
 def emit_slurm(sw: Sweep, folder: str | os.PathLike, time_limit: str = "01:00:00") -> Path:

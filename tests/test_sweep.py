@@ -1,6 +1,6 @@
 """pymr sweep (issue 7): a grid of tank variants run on a Dask LocalCluster with 2 workers
 equals the same cases run one by one; a failing case is recorded and the others run; the
-SLURM emission writes case namelists (f90nml) whose mrsim runs equal the override runs."""
+SLURM emission writes case namelists (the kernel's resolved scenes) whose mrsim runs equal the override runs."""
 from __future__ import annotations
 
 import csv
@@ -57,23 +57,49 @@ def test_sweep_on_a_local_cluster_equals_the_cases_run_one_by_one(tmp_path):
 
 
 def test_a_failing_case_is_recorded_and_the_others_run(tmp_path):
+    """A case whose run breaks down (multirate k = 50 with the stability check off: the
+    linearised macro step grows by 1.42 per step) is recorded with its error; the others run
+    and equal the same overrides run alone."""
     toml = tmp_path / "bad.toml"
     toml.write_text(f"""
 scene = "{TANK}"
 metric = "final:elevation.q"
 [grid]
-"integrator.h_slow" = [2.5e-4, 2e-4]
+"integrator.h_slow" = [5e-3, 2e-4]
+[fixed]
+"integrator.method" = "multirate"
+"integrator.h_fast" = 1e-4
+"integrator.stability_check" = false
+"output.dt" = 1e-2
+""")
+    rows = run_sweep(load_sweep(toml), workers=2)
+    assert rows[0]["status"].startswith("error: ") and "effective mass matrix M_e" in rows[0]["status"]
+    assert np.isnan(rows[0]["metric"])
+    assert rows[1]["status"] == "ok"
+    alone = pymr.run(TANK, overrides={"integrator.method": "multirate", "integrator.h_fast": 1e-4,
+                                      "integrator.h_slow": 2e-4, "integrator.stability_check": False,
+                                      "output.dt": 1e-2})
+    assert rows[1]["metric"] == alone["elevation.q"][-1]
+
+
+def test_a_case_the_kernel_refuses_stops_the_sweep_before_any_case_runs(tmp_path):
+    """Every case's scene is read and checked by the kernel when the sweep is loaded: a
+    value it refuses (h_slow not a multiple of h_fast) is one error naming the case."""
+    toml = tmp_path / "bad.toml"
+    toml.write_text(f"""
+scene = "{TANK}"
+metric = "final:elevation.q"
+output = "{tmp_path / 'runs'}"
+[grid]
+"integrator.h_slow" = [2e-4, 2.5e-4]
 [fixed]
 "integrator.method" = "multirate"
 "integrator.h_fast" = 1e-4
 """)
-    rows = run_sweep(load_sweep(toml), workers=2)
-    assert rows[0]["status"].startswith("error: ") and "integer multiple of h_fast" in rows[0]["status"]
-    assert np.isnan(rows[0]["metric"])
-    assert rows[1]["status"] == "ok"
-    alone = pymr.run(TANK, overrides={"integrator.method": "multirate", "integrator.h_fast": 1e-4,
-                                      "integrator.h_slow": 2e-4})
-    assert rows[1]["metric"] == alone["elevation.q"][-1]
+    with pytest.raises(pymr.SweepError, match=r"case0001 .*&integrator: h_slow: must be an integer multiple of "
+                                              r"h_fast, got h_slow/h_fast = 2.5"):
+        load_sweep(toml)
+    assert not (tmp_path / "runs").exists()
 
 
 def test_emitted_slurm_cases_run_by_mrsim_equal_the_override_runs(tmp_path, mrsim):

@@ -475,3 +475,55 @@ subroutine pymr_progress(t, t_end, running)
   t = progress_t; t_end = progress_t_end
   running = merge(1, 0, progress_running)
 end subroutine pymr_progress
+
+!> The resolved scene (what = 0: read, overrides applied and validated by building its
+!> model; every item with a value, then a comment line with its fingerprint; what = 2: the
+!> same with the files it names made absolute, for a copy placed elsewhere) or the schema
+!> of the scene items (what = 1), written to `path`.
+subroutine pymr_scene_write(scene, overrides, what, path, stat, message)
+  use pymr_error, only : error_type
+  use pymr_bind_support, only : report
+  use pymr_model_scene, only : scene_t
+  use pymr_model, only : model_t
+  use pymr_run, only : load_model
+  use pymr_io_namelist_input, only : resolved_text, schema_text, scene_fingerprint
+  use pymr_io_text_file, only : write_text_file
+  implicit none
+  character(len=*), intent(in) :: scene, overrides, path
+  integer, intent(in) :: what
+  integer, intent(out) :: stat
+  character(len=1024), intent(out) :: message
+  type(error_type), allocatable :: error
+  type(scene_t), target :: sc
+  type(model_t) :: model
+  if (what == 1) then
+    call write_text_file(path, schema_text(), error)
+  else
+    call load_model(scene, overrides, sc, model, error)
+    if (.not. allocated(error)) call write_text_file(path, resolved_text(sc, what == 2) // '! fingerprint ' // &
+      & scene_fingerprint(sc) // new_line('a'), error)
+  end if
+  call report(error, stat, message)
+end subroutine pymr_scene_write
+
+!> The value of one item (address GROUP.ITEM or GROUP[NAME].ITEM) of a scene read with
+!> its overrides, as the resolved scene writes it ('' when it holds no value).
+subroutine pymr_scene_item(scene, overrides, address, value, stat, message)
+  use pymr_error, only : error_type
+  use pymr_bind_support, only : report
+  use pymr_model_scene, only : scene_t
+  use pymr_io_namelist_input, only : read_scene, item_value
+  implicit none
+  character(len=*), intent(in) :: scene, overrides, address
+  character(len=4096), intent(out) :: value
+  integer, intent(out) :: stat
+  character(len=1024), intent(out) :: message
+  type(error_type), allocatable :: error
+  type(scene_t), target :: sc
+  character(len=:), allocatable :: text
+  value = ''
+  call read_scene(scene, overrides, sc, error)
+  if (.not. allocated(error)) call item_value(sc, address, text, error)
+  if (.not. allocated(error)) value = text
+  call report(error, stat, message)
+end subroutine pymr_scene_item

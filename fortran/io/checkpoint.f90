@@ -7,7 +7,7 @@
 !> evaluations, and the model's evaluation and effect counters. Written to PATH.tmp and
 !> renamed, so a run killed while writing keeps the previous checkpoint.
 module pymr_io_checkpoint
-  use, intrinsic :: iso_c_binding, only : c_char, c_int, c_null_char
+  use pymr_io_text_file, only : rename_file
   use pymr_kinds, only : dp
   use pymr_error, only : error_type, fatal_error
   use pymr_integrator_abm, only : abm_integrator
@@ -26,14 +26,6 @@ module pymr_io_checkpoint
     integer :: rows = 0, k_out = 1
     real(dp) :: t_next = 0.0_dp, cpu_s = 0.0_dp, t_checkpoint = 0.0_dp
   end type run_progress
-
-  interface
-    function c_rename(old, new) bind(c, name='rename') result(r)
-      import :: c_char, c_int
-      character(kind=c_char), intent(in) :: old(*), new(*)
-      integer(c_int) :: r
-    end function c_rename
-  end interface
 
 contains
 
@@ -65,9 +57,7 @@ contains
     end if
     write(u) model%d%evals, model%d%evals_fast_rows, model%d%effect_evals, model%d%effect_timed, model%d%effect_cpu
     close(u)
-    if (c_rename(path // '.tmp' // c_null_char, path // c_null_char) /= 0) then
-      call fatal_error(error, path // ': cannot move the new checkpoint into place from ' // path // '.tmp')
-    end if
+    call rename_file(path // '.tmp', path, error)
   end subroutine write_checkpoint
 
   !> Read a checkpoint into an initialised stepper (abm or mr) and model; the model must

@@ -11,6 +11,7 @@ module pymr_io_item_table
   use pymr_error, only : error_type, fatal_error
   use pymr_io_namelist_parse, only : token_t
   use pymr_io_text, only : itoa, lower, fmt, exact_text
+  use pymr_io_text_file, only : scene_relative, absolute_path
   implicit none
   private
   public :: item_t, item_table, origin_t, unset, t_real, t_integer, t_logical, t_string
@@ -34,6 +35,8 @@ module pymr_io_item_table
     logical :: lo_open = .false., hi_open = .false.
     !> Allowed words of a string item, blank-separated ('' = any text).
     character(len=:), allocatable :: choices
+    !> A file path that the scene gives relative to its own folder.
+    logical :: scene_file = .false.
     character(len=:), allocatable :: unit, meaning
     real(dp), pointer :: r(:) => null()
     integer, pointer :: i => null()
@@ -45,26 +48,35 @@ module pymr_io_item_table
   type :: item_table
     type(item_t), allocatable :: items(:)
     integer :: n = 0
+    !> When set, the table keeps only this item (a cheap lookup of one item of a record).
+    character(len=name_len) :: only = ''
   contains
     procedure, private :: add_real, add_reals, add_integer, add_logical, add_string
     generic :: add => add_real, add_reals, add_integer, add_logical, add_string
     procedure :: find => table_find
   end type item_table
 
+  !> Text of one --set entry.
+  type :: text_t
+    character(len=:), allocatable :: s
+  end type text_t
+
   !> Where a record's values came from: the group's line and index, its label for messages
-  !> ("&body 'gun'", "&drive #2"), and for each item given, where ("file:12" or "--set ...")
-  !> and how many values.
+  !> ("&body 'gun'", "&drive #2"), and for each item given its line in the file (or -k for
+  !> the k-th --set entry that set it) and how many values.
   type :: origin_t
     integer :: line = 0, index = 0
     character(len=:), allocatable :: file, label
+    integer :: n = 0
     character(len=name_len), allocatable :: items(:)
-    character(len=256), allocatable :: at(:)
-    integer, allocatable :: counts(:)
+    integer, allocatable :: lines(:), counts(:)
+    type(text_t), allocatable :: sets(:)
   contains
     procedure :: given => origin_given
     procedure :: count_of => origin_count
     procedure :: where => origin_where
     procedure :: note => origin_note
+    procedure :: note_set => origin_note_set
   end type origin_t
 
 contains
@@ -75,7 +87,7 @@ contains
     class(item_table), intent(inout) :: self
     type(item_t), intent(in) :: it
     type(item_t), allocatable :: tmp(:)
-    if (.not. allocated(self%items)) allocate(self%items(24))
+    if (.not. allocated(self%items)) allocate(self%items(merge(1, 24, len_trim(self%only) > 0)))
     if (self%n == size(self%items)) then
       allocate(tmp(2*self%n)); tmp(1:self%n) = self%items
       call move_alloc(tmp, self%items)
@@ -104,6 +116,7 @@ contains
     real(dp), target, intent(inout) :: x
     real(dp), intent(in), optional :: gt, ge, lt, le
     type(item_t) :: it
+    if (len_trim(self%only) > 0 .and. self%only /= name) return
     it%name = name; it%type = t_real; it%unit = unit; it%meaning = meaning; it%choices = ''
     call c_f_pointer(c_loc(x), it%r, [1])
     call set_range(it, gt, ge, lt, le)
@@ -118,6 +131,7 @@ contains
     real(dp), intent(in), optional :: gt, ge, lt, le
     logical, intent(in), optional :: variable
     type(item_t) :: it
+    if (len_trim(self%only) > 0 .and. self%only /= name) return
     it%name = name; it%type = t_real; it%unit = unit; it%meaning = meaning; it%choices = ''
     it%r => x
     it%count = size(x)
@@ -132,6 +146,7 @@ contains
     integer, target, intent(inout) :: x
     integer, intent(in), optional :: ge, le
     type(item_t) :: it
+    if (len_trim(self%only) > 0 .and. self%only /= name) return
     it%name = name; it%type = t_integer; it%unit = unit; it%meaning = meaning; it%choices = ''
     it%i => x
     it%lo = -huge(1); it%hi = huge(1)
@@ -145,21 +160,25 @@ contains
     character(len=*), intent(in) :: name, meaning
     logical, target, intent(inout) :: x
     type(item_t) :: it
+    if (len_trim(self%only) > 0 .and. self%only /= name) return
     it%name = name; it%type = t_logical; it%unit = ''; it%meaning = meaning; it%choices = ''
     it%l => x
     call push(self, it)
   end subroutine add_logical
 
-  subroutine add_string(self, name, x, meaning, choices)
+  subroutine add_string(self, name, x, meaning, choices, scene_file)
     class(item_table), intent(inout) :: self
     character(len=*), intent(in) :: name, meaning
     character(len=*), target, intent(inout) :: x
     character(len=*), intent(in), optional :: choices
+    logical, intent(in), optional :: scene_file
     type(item_t) :: it
+    if (len_trim(self%only) > 0 .and. self%only /= name) return
     it%name = name; it%type = t_string; it%unit = ''; it%meaning = meaning
     it%s => x
     it%choices = ''
     if (present(choices)) it%choices = choices
+    if (present(scene_file)) it%scene_file = scene_file
     call push(self, it)
   end subroutine add_string
 
@@ -175,32 +194,31 @@ contains
 
   ! ------------------------------------------------------------------- setting values
 
-  !> Set item `it` from its tokens; `where` ("file:12: &body 'gun': mass") prefixes errors.
-  subroutine set_item(it, values, where, error)
+  !> Set item `it` from its tokens; the caller puts where ("file:12: &body 'gun': mass") in
+  !> front of an error's message.
+  subroutine set_item(it, values, error)
     type(item_t), intent(inout) :: it
     type(token_t), intent(in) :: values(:)
-    character(len=*), intent(in) :: where
     type(error_type), allocatable, intent(out) :: error
     type(token_t), allocatable :: flat(:)
     integer :: k
-    call expand_repeats(values, flat, where, error); if (allocated(error)) return
-    call check_count(it, size(flat), where, error); if (allocated(error)) return
+    call expand_repeats(values, flat, error); if (allocated(error)) return
+    call check_count(it, size(flat), error); if (allocated(error)) return
     do k = 1, size(flat)
       select case (it%type)
-      case (t_real); call set_real(it, k, flat(k), where, error)
-      case (t_integer); call set_integer(it, flat(k), where, error)
-      case (t_logical); call set_logical(it, flat(k), where, error)
-      case (t_string); call set_string(it, flat(k), where, error)
+      case (t_real); call set_real(it, k, flat(k), error)
+      case (t_integer); call set_integer(it, flat(k), error)
+      case (t_logical); call set_logical(it, flat(k), error)
+      case (t_string); call set_string(it, flat(k), error)
       end select
       if (allocated(error)) return
     end do
   end subroutine set_item
 
   !> Repeat counts: `3*0.0` stands for three values 0.0.
-  subroutine expand_repeats(values, flat, where, error)
+  subroutine expand_repeats(values, flat, error)
     type(token_t), intent(in) :: values(:)
     type(token_t), allocatable, intent(out) :: flat(:)
-    character(len=*), intent(in) :: where
     type(error_type), allocatable, intent(out) :: error
     integer :: k, star, n, ios, j
     if (all(values%quoted .or. [(index(values(k)%text, '*') == 0, k = 1, size(values))])) then
@@ -216,7 +234,7 @@ contains
       read(values(k)%text(1:star-1), '(i20)', iostat=ios) n
       if (ios /= 0 .or. n < 1 .or. n > 100000 .or. verify(values(k)%text(1:star-1), '0123456789') /= 0 &
         & .or. star == len(values(k)%text)) then
-        call fatal_error(error, where // ': cannot read ''' // values(k)%text // ''' (a repeat is N*VALUE)'); return
+        call fatal_error(error, 'cannot read ''' // values(k)%text // ''' (a repeat is N*VALUE)'); return
       end if
       do j = 1, n
         flat = [flat, token_t(values(k)%text(star+1:), .false.)]
@@ -224,45 +242,42 @@ contains
     end do
   end subroutine expand_repeats
 
-  subroutine check_count(it, n, where, error)
+  subroutine check_count(it, n, error)
     type(item_t), intent(in) :: it
     integer, intent(in) :: n
-    character(len=*), intent(in) :: where
     type(error_type), allocatable, intent(out) :: error
     if (n == 0) then
-      call fatal_error(error, where // ': no value given'); return
+      call fatal_error(error, 'no value given'); return
     end if
     if (it%variable) then
-      if (n > it%count) call fatal_error(error, where // ': takes at most ' // itoa(it%count) // &
+      if (n > it%count) call fatal_error(error, 'takes at most ' // itoa(it%count) // &
         & ' values, got ' // itoa(n))
     else if (n /= it%count) then
-      call fatal_error(error, where // ': takes ' // plural(it%count, 'value') // ', got ' // itoa(n))
+      call fatal_error(error, 'takes ' // plural(it%count, 'value') // ', got ' // itoa(n))
     end if
   end subroutine check_count
 
-  subroutine set_real(it, k, tok, where, error)
+  subroutine set_real(it, k, tok, error)
     type(item_t), intent(inout) :: it
     integer, intent(in) :: k
     type(token_t), intent(in) :: tok
-    character(len=*), intent(in) :: where
     type(error_type), allocatable, intent(out) :: error
     real(dp) :: x
     logical :: ok
     call read_real(tok, x, ok)
     if (.not. ok) then
-      call fatal_error(error, where // ': ''' // tok%text // ''' is not a number'); return
+      call fatal_error(error, '''' // tok%text // ''' is not a number'); return
     end if
     if (x /= x .or. abs(x) > huge(x)) then
-      call fatal_error(error, where // ': ''' // tok%text // ''' is not a finite number'); return
+      call fatal_error(error, '''' // tok%text // ''' is not a finite number'); return
     end if
-    call check_range(it, x, where, error); if (allocated(error)) return
+    call check_range(it, x, error); if (allocated(error)) return
     it%r(k) = x
   end subroutine set_real
 
-  subroutine set_integer(it, tok, where, error)
+  subroutine set_integer(it, tok, error)
     type(item_t), intent(inout) :: it
     type(token_t), intent(in) :: tok
-    character(len=*), intent(in) :: where
     type(error_type), allocatable, intent(out) :: error
     integer :: ios, start
     integer(8) :: v
@@ -272,20 +287,19 @@ contains
     end if
     if (tok%quoted .or. len(tok%text) < start .or. len(tok%text) > 18 .or. &
       & verify(tok%text(start:), '0123456789') /= 0) then
-      call fatal_error(error, where // ': ''' // tok%text // ''' is not a whole number'); return
+      call fatal_error(error, '''' // tok%text // ''' is not a whole number'); return
     end if
     read(tok%text, '(i20)', iostat=ios) v
     if (ios /= 0 .or. abs(v) > huge(1)) then
-      call fatal_error(error, where // ': ''' // tok%text // ''' is out of the range of whole numbers'); return
+      call fatal_error(error, '''' // tok%text // ''' is out of the range of whole numbers'); return
     end if
-    call check_range(it, real(v, dp), where, error); if (allocated(error)) return
+    call check_range(it, real(v, dp), error); if (allocated(error)) return
     it%i = int(v)
   end subroutine set_integer
 
-  subroutine set_logical(it, tok, where, error)
+  subroutine set_logical(it, tok, error)
     type(item_t), intent(inout) :: it
     type(token_t), intent(in) :: tok
-    character(len=*), intent(in) :: where
     type(error_type), allocatable, intent(out) :: error
     select case (lower(tok%text))
     case ('.true.', '.t.', 't', 'true')
@@ -293,31 +307,30 @@ contains
     case ('.false.', '.f.', 'f', 'false')
       it%l = .false.
     case default
-      call fatal_error(error, where // ': ''' // tok%text // ''' is not a logical (.true. or .false.)')
+      call fatal_error(error, '''' // tok%text // ''' is not a logical (.true. or .false.)')
     end select
     if (tok%quoted .and. .not. allocated(error)) &
-      & call fatal_error(error, where // ': ''' // tok%text // ''' is quoted: write .true. or .false.')
+      & call fatal_error(error, '''' // tok%text // ''' is quoted: write .true. or .false.')
   end subroutine set_logical
 
-  subroutine set_string(it, tok, where, error)
+  subroutine set_string(it, tok, error)
     type(item_t), intent(inout) :: it
     type(token_t), intent(in) :: tok
-    character(len=*), intent(in) :: where
     type(error_type), allocatable, intent(out) :: error
     character(len=:), allocatable :: v
     v = tok%text
     if (len(it%choices) > 0) then
       v = lower(v)
       if (index(' ' // it%choices // ' ', ' ' // v // ' ') == 0 .or. len(v) == 0) then
-        call fatal_error(error, where // ': ''' // tok%text // ''' is not one of: ' // &
+        call fatal_error(error, '''' // tok%text // ''' is not one of: ' // &
           & comma_list(it%choices) // suggestion(v, it%choices)); return
       end if
     end if
     if (len(v) > len(it%s)) then
-      call fatal_error(error, where // ': the text is longer than ' // itoa(len(it%s)) // ' characters'); return
+      call fatal_error(error, 'the text is longer than ' // itoa(len(it%s)) // ' characters'); return
     end if
     if (index(v, achar(10)) > 0 .or. index(v, achar(13)) > 0) then
-      call fatal_error(error, where // ': the text spans lines'); return
+      call fatal_error(error, 'the text spans lines'); return
     end if
     it%s = v
   end subroutine set_string
@@ -378,15 +391,14 @@ contains
     end do
   end function count_digits
 
-  subroutine check_range(it, x, where, error)
+  subroutine check_range(it, x, error)
     type(item_t), intent(in) :: it
     real(dp), intent(in) :: x
-    character(len=*), intent(in) :: where
     type(error_type), allocatable, intent(out) :: error
     logical :: low, high
     low = x < it%lo .or. (it%lo_open .and. x == it%lo)
     high = x > it%hi .or. (it%hi_open .and. x == it%hi)
-    if (low .or. high) call fatal_error(error, where // ': must be ' // range_text(it) // ', got ' // fmt(x))
+    if (low .or. high) call fatal_error(error, 'must be ' // range_text(it) // ', got ' // fmt(x))
   end subroutine check_range
 
   !> "> 0", "in [0, 1)", "<= 1e+12", "" for an item without a range.
@@ -417,8 +429,10 @@ contains
   end function is_unset
 
   !> The item's current values as namelist text ('' when it holds no value: unset reals).
-  function value_text(it) result(s)
+  !> With `scene`, a path item given relative to the scene's folder is written absolute.
+  function value_text(it, scene) result(s)
     type(item_t), intent(in) :: it
+    character(len=*), intent(in), optional :: scene
     character(len=:), allocatable :: s
     integer :: k, n
     select case (it%type)
@@ -444,6 +458,8 @@ contains
       s = trim(s)
     case (t_string)
       s = quoted(trim(it%s))
+      if (present(scene) .and. it%scene_file .and. len_trim(it%s) > 0) &
+        & s = quoted(absolute_path(scene_relative(scene, trim(it%s))))
     end select
   end function value_text
 
@@ -484,28 +500,49 @@ contains
 
   ! ------------------------------------------------------------------------- origins
 
-  !> Record that `item` was given at `at` ("file:12" or "--set ...") with n values.
-  subroutine origin_note(self, item, at, n)
+  !> Record that `item` was given on `line` of the file with n values (`room`: how many
+  !> items the group gives, to size the record once).
+  subroutine origin_note(self, item, line, n, room)
     class(origin_t), intent(inout) :: self
-    character(len=*), intent(in) :: item, at
-    integer, intent(in) :: n
+    character(len=*), intent(in) :: item
+    integer, intent(in) :: line, n
+    integer, intent(in), optional :: room
     integer :: k
-    if (.not. allocated(self%items)) allocate(self%items(0), self%at(0), self%counts(0))
-    do k = 1, size(self%items)
+    character(len=name_len), allocatable :: items(:)
+    integer, allocatable :: lines(:), counts(:)
+    if (.not. allocated(self%items)) then
+      k = 4
+      if (present(room)) k = max(room, 1)
+      allocate(self%items(k), self%lines(k), self%counts(k))
+    end if
+    do k = 1, self%n
       if (self%items(k) == item) then
-        self%at(k) = at; self%counts(k) = n; return
+        self%lines(k) = line; self%counts(k) = n; return
       end if
     end do
-    self%items = [self%items, [character(len=name_len) :: item]]
-    self%at = [self%at, [character(len=256) :: at]]
-    self%counts = [self%counts, n]
+    if (self%n == size(self%items)) then
+      allocate(items(2*self%n), lines(2*self%n), counts(2*self%n))
+      items(1:self%n) = self%items; lines(1:self%n) = self%lines; counts(1:self%n) = self%counts
+      call move_alloc(items, self%items); call move_alloc(lines, self%lines); call move_alloc(counts, self%counts)
+    end if
+    self%n = self%n + 1
+    self%items(self%n) = item; self%lines(self%n) = line; self%counts(self%n) = n
   end subroutine origin_note
+
+  !> Record that `item` was set by the --set entry `source` with n values.
+  subroutine origin_note_set(self, item, source, n)
+    class(origin_t), intent(inout) :: self
+    character(len=*), intent(in) :: item, source
+    integer, intent(in) :: n
+    if (.not. allocated(self%sets)) allocate(self%sets(0))
+    self%sets = [self%sets, text_t(source)]
+    call self%note(item, -size(self%sets), n)
+  end subroutine origin_note_set
 
   pure logical function origin_given(self, item)
     class(origin_t), intent(in) :: self
     character(len=*), intent(in) :: item
-    origin_given = .false.
-    if (allocated(self%items)) origin_given = any(self%items == item)
+    origin_given = self%count_of(item) > 0
   end function origin_given
 
   !> Number of values given for `item` (0 if not given).
@@ -514,32 +551,34 @@ contains
     character(len=*), intent(in) :: item
     integer :: k
     n = 0
-    if (.not. allocated(self%items)) return
-    do k = 1, size(self%items)
+    do k = 1, self%n
       if (self%items(k) == item) n = self%counts(k)
     end do
   end function origin_count
 
   !> Prefix for a message about `item` of this group: "file:12: &body 'gun': mass", the
-  !> item's own line if it was given, else the group's.
+  !> item's own line if it was given, "file: --set ...: &body 'gun': mass" if a --set gave it,
+  !> else the group's line.
   function origin_where(self, item) result(s)
     class(origin_t), intent(in) :: self
     character(len=*), intent(in), optional :: item
     character(len=:), allocatable :: s
-    integer :: k
-    s = self%file // ':' // itoa(self%line) // ': ' // self%label
-    if (.not. present(item)) return
-    s = s // ': ' // item
-    if (.not. allocated(self%items)) return
-    do k = 1, size(self%items)
-      if (self%items(k) == item) then
-        if (index(self%at(k), '--set ') == 1) then
-          s = self%file // ': ' // trim(self%at(k)) // ': ' // self%label // ': ' // item
-        else
-          s = trim(self%at(k)) // ': ' // self%label // ': ' // item
-        end if
-      end if
-    end do
+    integer :: k, line
+    line = self%line
+    s = ''
+    if (present(item)) then
+      s = ': ' // item
+      do k = 1, self%n
+        if (self%items(k) == item) line = self%lines(k)
+      end do
+    end if
+    if (line < 0) then
+      s = self%file // ': ' // self%sets(-line)%s // ': ' // self%label // s
+    else if (line == 0) then
+      s = self%file // ': ' // self%label // s
+    else
+      s = self%file // ':' // itoa(line) // ': ' // self%label // s
+    end if
   end function origin_where
 
   ! ------------------------------------------------------------------------- helpers

@@ -3,15 +3,16 @@
 !> pymr_model_scene, one generic path for every group and item.
 module pymr_io_namelist_input
   use pymr_kinds, only : dp, name_len
-  use pymr_error, only : error_type, fatal_error
+  use pymr_error, only : error_type, fatal_error, prefix_error
   use pymr_model_scene, only : scene_t, unset, group_names, single_groups, describe_group, group_origin, &
-    & group_count, naming_item
+    & group_count, naming_item, complete_scene
   use pymr_io_item_table, only : item_table, origin_t, set_item, value_text, nearest_name, schema_line, comma_list
   use pymr_io_namelist_parse, only : group_text, token_t, parse_namelist, parse_values
   use pymr_io_text, only : itoa, lower
+  use pymr_io_sha256, only : sha256_hex
   implicit none
   private
-  public :: read_scene, read_scene_text, resolved_text, schema_text
+  public :: read_scene, read_scene_text, resolved_text, schema_text, scene_fingerprint, item_value
 
   !> One --set entry: group[sel].item=values.
   type :: override_t
@@ -48,18 +49,16 @@ contains
       error%message = file // ': ' // error%message; return
     end if
     call parse_namelist(text, file, groups, ng, error); if (allocated(error)) return
-    call check_groups(file, groups, error); if (allocated(error)) return
-    call allocate_records(sc, groups)
+    call check_groups(file, groups(1:ng), error); if (allocated(error)) return
+    call allocate_records(sc, groups(1:ng))
     do i = 1, ng
       call fill_group(sc, groups(i), error); if (allocated(error)) return
     end do
-    call label_single_groups(sc, groups)
+    call label_single_groups(sc, groups(1:ng))
     do i = 1, size(ovs)
       call apply_override(sc, ovs(i), error); if (allocated(error)) return
     end do
-    ! one step given: it serves both rates
-    if (sc%integrator%h_fast == unset) sc%integrator%h_fast = sc%integrator%h_slow
-    if (sc%integrator%h_slow == unset) sc%integrator%h_slow = sc%integrator%h_fast
+    call complete_scene(sc)
   end subroutine read_scene_text
 
   !> The whole file as text.
@@ -139,8 +138,7 @@ contains
     type(error_type), allocatable, intent(out) :: error
     type(item_table) :: t
     type(origin_t), pointer :: o
-    integer :: i, j, k
-    call describe_group(sc, trim(g%name), g%index, t)
+    integer :: i, j
     o => group_origin(sc, trim(g%name), g%index)
     o%file = sc%file; o%line = g%line; o%index = g%index
     o%label = group_label(g)
@@ -152,14 +150,17 @@ contains
               & ': given twice in the group (also on line ' // itoa(g%items(j)%line) // ')'); return
           end if
         end do
-        k = t%find(it%name)
-        if (k == 0) then
+        call describe_group(sc, trim(g%name), g%index, t, only=it%name)
+        if (t%n == 0) then
+          call describe_group(sc, trim(g%name), g%index, t)
           call unknown_item(sc%file // ':' // itoa(it%line) // ': ' // o%label, it%name, t, error); return
         end if
-        call set_item(t%items(k), it%values, sc%file // ':' // itoa(it%line) // ': ' // o%label // ': ' // &
-          & trim(it%name), error)
-        if (allocated(error)) return
-        call o%note(trim(it%name), sc%file // ':' // itoa(it%line), size(it%values))
+        call set_item(t%items(1), it%values, error)
+        if (allocated(error)) then
+          call prefix_error(error, sc%file // ':' // itoa(it%line) // ': ' // o%label // ': ' // trim(it%name))
+          return
+        end if
+        call o%note(trim(it%name), it%line, size(it%values), room=size(g%items))
       end associate
     end do
   end subroutine fill_group
@@ -246,21 +247,40 @@ contains
     character(len=*), intent(in) :: entry
     type(override_t), intent(inout) :: ov
     type(error_type), allocatable, intent(out) :: error
-    integer :: dot, eq, lb, rb
-    character(len=:), allocatable :: near
+    integer :: eq
     ov%source = '--set ' // entry
     eq = index(entry, '=')
-    dot = index(entry(1:max(eq-1, 0)), '.')
-    if (eq == 0 .or. dot == 0) then
+    if (eq == 0) then
       call fatal_error(error, ov%source // ': expected GROUP.ITEM=VALUE or GROUP[NAME].ITEM=VALUE'); return
     end if
-    lb = index(entry(1:dot), '['); rb = index(entry(1:dot), ']')
+    call parse_address(entry(1:eq-1), ov, error); if (allocated(error)) return
+    call parse_values(entry(eq+1:), ov%source, ov%values, error)
+  end subroutine parse_one
+
+  !> GROUP.ITEM or GROUP[NAME].ITEM into ov's group, selector and item.
+  subroutine parse_address(address, ov, error)
+    character(len=*), intent(in) :: address
+    type(override_t), intent(inout) :: ov
+    type(error_type), allocatable, intent(out) :: error
+    integer :: dot, lb, rb
+    character(len=:), allocatable :: near
+    if (.not. allocated(ov%source)) ov%source = address
+    lb = index(address, '['); rb = index(address, ']', back=.true.)
     if (lb > 0 .and. rb > lb) then
-      ov%group = lower(trim(adjustl(entry(1:lb-1)))); ov%sel = entry(lb+1:rb-1)
+      dot = index(address(rb:), '.') + rb - 1
+      if (dot < rb) dot = 0
     else
-      ov%group = lower(trim(adjustl(entry(1:dot-1))))
+      dot = index(address, '.')
     end if
-    ov%item = lower(trim(adjustl(entry(dot+1:eq-1))))
+    if (dot <= 1 .or. dot == len(address)) then
+      call fatal_error(error, ov%source // ': expected GROUP.ITEM=VALUE or GROUP[NAME].ITEM=VALUE'); return
+    end if
+    if (lb > 0 .and. rb > lb) then
+      ov%group = lower(trim(adjustl(address(1:lb-1)))); ov%sel = address(lb+1:rb-1)
+    else
+      ov%group = lower(trim(adjustl(address(1:dot-1))))
+    end if
+    ov%item = lower(trim(adjustl(address(dot+1:))))
     if (index(' ' // group_names // ' ', ' ' // trim(ov%group) // ' ') == 0 .or. len_trim(ov%group) == 0) then
       near = nearest_name(trim(ov%group), group_names)
       if (len(near) > 0) near = '; did you mean ''' // near // '''?'
@@ -276,8 +296,34 @@ contains
       call fatal_error(error, ov%source // ': &' // trim(ov%group) // ' is a repeated group: name one as ' // &
         & trim(ov%group) // '[NAME].' // trim(ov%item)); return
     end if
-    call parse_values(entry(eq+1:), ov%source, ov%values, error)
-  end subroutine parse_one
+  end subroutine parse_address
+
+  !> The value text of the item at `address` (GROUP.ITEM or GROUP[NAME].ITEM) of a read
+  !> scene, as the resolved scene writes it ('' if the item holds no value).
+  subroutine item_value(sc, address, text, error)
+    type(scene_t), target, intent(inout) :: sc
+    character(len=*), intent(in) :: address
+    character(len=:), allocatable, intent(out) :: text
+    type(error_type), allocatable, intent(out) :: error
+    type(override_t) :: ov
+    type(item_table) :: t
+    integer :: k, j
+    call parse_address(address, ov, error); if (allocated(error)) return
+    do k = 1, group_count(sc, trim(ov%group))
+      if (len_trim(ov%sel) > 0) then
+        call describe_group(sc, trim(ov%group), k, t, only=naming_item(trim(ov%group)))
+        if (trim(t%items(1)%s) /= trim(ov%sel)) cycle
+      end if
+      call describe_group(sc, trim(ov%group), k, t)
+      j = t%find(ov%item)
+      if (j == 0) then
+        call unknown_item(address // ': &' // trim(ov%group), ov%item, t, error); return
+      end if
+      text = value_text(t%items(j)); return
+    end do
+    call fatal_error(error, address // ': no &' // trim(ov%group) // ' group with ' // &
+      & naming_item(trim(ov%group)) // ' ''' // trim(ov%sel) // '''')
+  end subroutine item_value
 
   !> Set one override on every occurrence of its group that its selector names.
   subroutine apply_override(sc, ov, error)
@@ -299,10 +345,11 @@ contains
       if (j == 0) then
         call unknown_item(sc%file // ': ' // ov%source // ': ' // o%label, ov%item, t, error); return
       end if
-      call set_item(t%items(j), ov%values, sc%file // ': ' // ov%source // ': ' // o%label // ': ' // trim(ov%item), &
-        & error)
-      if (allocated(error)) return
-      call o%note(trim(ov%item), ov%source, size(ov%values))
+      call set_item(t%items(j), ov%values, error)
+      if (allocated(error)) then
+        call prefix_error(error, sc%file // ': ' // ov%source // ': ' // o%label // ': ' // trim(ov%item)); return
+      end if
+      call o%note_set(trim(ov%item), ov%source, size(ov%values))
       hits = hits + 1
     end do
     if (hits == 0) call fatal_error(error, sc%file // ': ' // ov%source // ': no &' // trim(ov%group) // &
@@ -313,8 +360,11 @@ contains
 
   !> The resolved scene: every group in order, every item with a value (defaults filled in,
   !> overrides applied), reals in the fewest digits that read back exactly.
-  function resolved_text(sc) result(text)
+  !> With `absolute_paths`, files given relative to the scene's folder are written absolute
+  !> (for a copy of the scene placed elsewhere).
+  function resolved_text(sc, absolute_paths) result(text)
     type(scene_t), target, intent(inout) :: sc
+    logical, intent(in), optional :: absolute_paths
     character(len=:), allocatable :: text
     type(item_table) :: t
     character(len=:), allocatable :: v
@@ -331,6 +381,9 @@ contains
         call describe_group(sc, trim(name), k, t)
         do m = 1, t%n
           v = value_text(t%items(m))
+          if (present(absolute_paths)) then
+            if (absolute_paths) v = value_text(t%items(m), sc%file)
+          end if
           if (len(v) > 0) call append('  ' // trim(t%items(m)%name) // ' = ' // v // new_line('a'))
         end do
         call append('/' // new_line('a'))
@@ -351,6 +404,13 @@ contains
       n = n + len(s)
     end subroutine append
   end function resolved_text
+
+  !> The scene's fingerprint: 'sha256:' and the hex digest of its resolved text.
+  function scene_fingerprint(sc) result(s)
+    type(scene_t), target, intent(inout) :: sc
+    character(len=:), allocatable :: s
+    s = 'sha256:' // sha256_hex(resolved_text(sc))
+  end function scene_fingerprint
 
   !> The groups and items of the tables, one item a line: name, type and count, default,
   !> range or choices, unit, meaning (tab-separated, groups as '&name' lines).

@@ -35,19 +35,22 @@ module pymr_io_namelist_parse
     type(item_text), allocatable :: items(:)
   end type group_text
 
-  character(len=*), parameter :: blanks = ' ' // achar(9) // achar(13)
 
 contains
 
   !> Parse the whole text of a namelist file (`where` prefixes messages: the file name).
+  !> The groups are groups(1:n_groups).
   subroutine parse_namelist(text, where, groups, n_groups, error)
     character(len=*), intent(in) :: text, where
     type(group_text), allocatable, intent(out) :: groups(:)
     integer, intent(out) :: n_groups
     type(error_type), allocatable, intent(out) :: error
-    integer :: i, line
-    allocate(groups(16))
-    n_groups = 0; i = 1; line = 1
+    integer :: i, line, k, n_names
+    character(len=name_len) :: names(64)
+    integer :: counts(64)
+    ! at most one group per '&' or '$': one allocation, no copies of parsed groups
+    allocate(groups(max(1, count_groups_bound(text))))
+    n_groups = 0; i = 1; line = 1; n_names = 0
     do
       call skip_space(text, i, line, .true.)
       if (i > len(text)) exit
@@ -55,13 +58,30 @@ contains
         call fatal_error(error, where // ':' // itoa(line) // ': text outside a group: ''' // &
           & snippet(text, i) // ''' (a group starts with &NAME and ends with /)'); return
       end if
-      if (n_groups == size(groups)) call grow_groups(groups)
       n_groups = n_groups + 1
       call parse_group(text, i, line, where, groups(n_groups), error); if (allocated(error)) return
-      groups(n_groups)%index = count(groups(1:n_groups)%name == groups(n_groups)%name)
+      ! running number among the groups of its name (few distinct names: a short list)
+      k = findloc(names(1:n_names), groups(n_groups)%name, 1)
+      if (k == 0 .and. n_names < size(names)) then
+        n_names = n_names + 1; k = n_names
+        names(k) = groups(n_groups)%name; counts(k) = 0
+      end if
+      if (k > 0) then
+        counts(k) = counts(k) + 1
+        groups(n_groups)%index = counts(k)
+      end if
     end do
-    groups = groups(1:n_groups)
   end subroutine parse_namelist
+
+  !> Number of '&' and '$' in text: a bound on the number of groups.
+  pure integer function count_groups_bound(text) result(n)
+    character(len=*), intent(in) :: text
+    integer :: i
+    n = 0
+    do i = 1, len(text)
+      if (text(i:i) == '&' .or. text(i:i) == '$') n = n + 1
+    end do
+  end function count_groups_bound
 
   !> Parse a list of values (the text after `=` of a --set entry): tokens only, no groups.
   subroutine parse_values(text, where, values, error)
@@ -216,8 +236,7 @@ contains
     else
       j = i
       do while (j <= len(text))
-        if (index(blanks // ',' // achar(10) // '!', text(j:j)) > 0) exit
-        if (in_file .and. (text(j:j) == '/' .or. text(j:j) == '=')) exit
+        if (ends_token(text(j:j), in_file)) exit
         j = j + 1
       end do
       tok%text = text(i:j-1)
@@ -282,7 +301,7 @@ contains
           if (text(i+1:i+1) == achar(10)) exit
           i = i + 1
         end do
-      else if (index(blanks, text(i:i)) == 0) then
+      else if (.not. is_blank(text(i:i))) then
         exit
       end if
       i = i + 1
@@ -306,10 +325,31 @@ contains
     character(len=*), intent(in) :: text
     integer, intent(inout) :: i
     do while (i <= len(text))
-      if (index(blanks, text(i:i)) == 0) exit
+      if (.not. is_blank(text(i:i))) exit
       i = i + 1
     end do
   end subroutine skip_blanks
+
+  !> Blank, tab or carriage return.
+  pure logical function is_blank(c)
+    character(len=1), intent(in) :: c
+    is_blank = c == ' ' .or. c == achar(9) .or. c == achar(13)
+  end function is_blank
+
+  !> Does c end a bare token? Blanks, commas, line ends and comments do; in a file '/' and
+  !> '=' too.
+  pure logical function ends_token(c, in_file)
+    character(len=1), intent(in) :: c
+    logical, intent(in) :: in_file
+    select case (c)
+    case (' ', ',', '!', achar(9), achar(10), achar(13))
+      ends_token = .true.
+    case ('/', '=')
+      ends_token = in_file
+    case default
+      ends_token = .false.
+    end select
+  end function ends_token
 
   !> Up to 20 characters of text from i, on one line, for messages; bytes that are not
   !> printable ASCII show as '?'.
@@ -334,14 +374,6 @@ contains
     is_ident = (c >= 'a' .and. c <= 'z') .or. (c >= 'A' .and. c <= 'Z') .or. (c >= '0' .and. c <= '9') &
       & .or. c == '_'
   end function is_ident
-
-  subroutine grow_groups(a)
-    type(group_text), allocatable, intent(inout) :: a(:)
-    type(group_text), allocatable :: b(:)
-    allocate(b(2*size(a)))
-    b(1:size(a)) = a
-    call move_alloc(b, a)
-  end subroutine grow_groups
 
   subroutine grow_items(a)
     type(item_text), allocatable, intent(inout) :: a(:)

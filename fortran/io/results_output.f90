@@ -60,7 +60,7 @@ contains
     type(error_type), allocatable, intent(out) :: error
     integer :: ios, i
     character(len=256) :: msg
-    character(len=:), allocatable :: header, m
+    character(len=:), allocatable :: m
     open(newunit=self%unit, file=path, status='replace', action='write', iostat=ios, iomsg=msg)
     if (ios /= 0) then
       call fatal_error(error, path // ': cannot write the results: ' // trim(msg)); return
@@ -70,16 +70,18 @@ contains
     write(self%unit, '(a)') '# pymr ' // pymr_version // ' results'
     write(self%unit, '(a)') '# title: ' // trim(title)
     write(self%unit, '(a)') '# method: ' // trim(method)
-    header = 't'
+    ! the header piece by piece (a scene may have 10^5 markers)
+    write(self%unit, '(a)', advance='no') 't'
     do i = 1, d%n
-      header = header // ',' // trim(d%qname(i))
+      write(self%unit, '(a)', advance='no') ',' // trim(d%qname(i))
       if (i == d%n .or. d%cgrp(min(i + 1, d%n)) /= d%cgrp(i)) call add_rates(i)
     end do
     do i = 1, d%n_markers
       m = trim(d%marker_name(i))
-      header = header // ',' // m // '.x,' // m // '.y,' // m // '.z,' // m // '.vx,' // m // '.vy,' // m // '.vz'
+      write(self%unit, '(a)', advance='no') ',' // m // '.x,' // m // '.y,' // m // '.z,' // m // '.vx,' // m // &
+        & '.vy,' // m // '.vz'
     end do
-    write(self%unit, '(a)') header
+    write(self%unit, '(a)') ''
     allocate(self%row(1 + 2*d%n + 6*d%n_markers))
     allocate(character(len=25*size(self%row)) :: self%line)
   contains
@@ -87,7 +89,7 @@ contains
       integer, intent(in) :: last
       integer :: j
       do j = 1, last
-        if (d%cgrp(j) == d%cgrp(last)) header = header // ',' // trim(d%qdname(j))
+        if (d%cgrp(j) == d%cgrp(last)) write(self%unit, '(a)', advance='no') ',' // trim(d%qdname(j))
       end do
     end subroutine add_rates
   end subroutine csv_open
@@ -193,8 +195,9 @@ contains
   end subroutine csv_close
 
   !> Write the run statistics and settings as JSON.
-  subroutine write_json(path, scene_file, title, settings, d, st, error)
-    character(len=*), intent(in) :: path, scene_file, title
+  subroutine write_json(path, scene_file, title, fingerprint, settings, d, st, error)
+    !> fingerprint: 'sha256:...' of the resolved scene (pymr scene prints it).
+    character(len=*), intent(in) :: path, scene_file, title, fingerprint
     !> Integrator settings, already as JSON members ("\"method\": \"single\", ...").
     character(len=*), intent(in) :: settings
     type(model_data), intent(in) :: d
@@ -212,6 +215,7 @@ contains
     write(u, '(a)') '  "version": "' // pymr_version // '",'
     write(u, '(a)') '  "scene": "' // escape(scene_file) // '",'
     write(u, '(a)') '  "title": "' // escape(trim(title)) // '",'
+    write(u, '(a)') '  "scene_fingerprint": "' // fingerprint // '",'
     write(u, '(a,g0.10,a)') '  "cpu_time_s": ', st%cpu_time_s, ','
     write(u, '(a,g0.10,a)') '  "wall_time_s": ', st%wall_time_s, ','
     write(u, '(a,i0,a)') '  "steps_slow": ', st%steps_slow, ','

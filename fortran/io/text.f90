@@ -8,13 +8,25 @@ module pymr_io_text
 
 contains
 
-  !> Integer to text without blanks.
+  !> Integer to text without blanks (digit by digit: this runs once per item read).
   pure function itoa(i) result(s)
     integer, intent(in) :: i
     character(len=:), allocatable :: s
-    character(len=24) :: buf
-    write(buf, '(i0)') i
-    s = trim(buf)
+    character(len=12) :: buf
+    integer :: k
+    integer(8) :: v
+    v = abs(int(i, 8))
+    k = len(buf) + 1
+    do
+      k = k - 1
+      buf(k:k) = achar(iachar('0') + int(mod(v, 10_8)))
+      v = v/10
+      if (v == 0) exit
+    end do
+    if (i < 0) then
+      k = k - 1; buf(k:k) = '-'
+    end if
+    s = buf(k:)
   end function itoa
 
   !> Lower-case copy of a string.

@@ -14,6 +14,8 @@ module pymr_model_build
   use pymr_io_modal_file, only : read_modal_file
   use pymr_model_flexbody, only : flex_data, modal_nodes, undeformed_modal_moments
   use pymr_model_spatial, only : unit_axes
+  use pymr_model_names, only : name_index
+  use pymr_io_text_file, only : scene_relative
   use pymr_model, only : model_t
   use pymr_io_text, only : itoa, fmt
   implicit none
@@ -102,18 +104,17 @@ contains
     type(error_type), allocatable, intent(out) :: error
     integer :: i, j, ng
     real(dp) :: a(3, 3), e(3)
+    call first_repeat(sc%bodies%name, i, j)
+    if (j > 0) then
+      call fatal_error(error, sc%bodies(j)%origin%where('name') // ': used by another &body too (line ' // &
+        & itoa(sc%bodies(i)%origin%line) // ')'); return
+    end if
     ng = 0
     do i = 1, size(sc%bodies)
       associate(b => sc%bodies(i))
         if (len_trim(b%name) == 0) then
           call fatal_error(error, b%origin%where('name') // ': missing'); return
         end if
-        do j = 1, i - 1
-          if (sc%bodies(j)%name == b%name) then
-            call fatal_error(error, b%origin%where('name') // ': used by another &body too (line ' // &
-              & itoa(sc%bodies(j)%origin%line) // ')'); return
-          end if
-        end do
         select case (trim(b%kind))
         case ('ground')
           ng = ng + 1
@@ -215,17 +216,16 @@ contains
     type(scene_t), intent(in) :: sc
     type(error_type), allocatable, intent(out) :: error
     integer :: i, j, ip, ic
+    call first_repeat(sc%joints%name, i, j)
+    if (j > 0) then
+      call fatal_error(error, sc%joints(j)%origin%where('name') // ': used by another &joint too (line ' // &
+        & itoa(sc%joints(i)%origin%line) // ')'); return
+    end if
     do i = 1, size(sc%joints)
       associate(jt => sc%joints(i))
         if (len_trim(jt%name) == 0) then
           call fatal_error(error, jt%origin%where('name') // ': missing'); return
         end if
-        do j = 1, i - 1
-          if (sc%joints(j)%name == jt%name) then
-            call fatal_error(error, jt%origin%where('name') // ': used by another &joint too (line ' // &
-              & itoa(sc%joints(j)%origin%line) // ')'); return
-          end if
-        end do
         if (joint_ndof(jt%kind) < 0) then
           call fatal_error(error, jt%origin%where('kind') // ": missing ('revolute', 'prismatic', 'fixed', " // &
             & "'spherical' or 'free')"); return
@@ -249,12 +249,6 @@ contains
           call fatal_error(error, sc%joints(i)%origin%where() // ": child: '" // trim(jt%child) // &
             & "' is the ground; the ground can only be a parent"); return
         end if
-        do j = 1, i - 1
-          if (sc%joints(j)%child == jt%child) then
-            call fatal_error(error, sc%joints(i)%origin%where() // ": child: body '" // trim(jt%child) // &
-              & "' has two parents (also joint '" // trim(sc%joints(j)%name) // "'); a tree allows one"); return
-          end if
-        end do
         if (jt%kind == 'revolute' .or. jt%kind == 'prismatic') then
           if (norm2(jt%axis) < 1.0e-12_dp) then
             call fatal_error(error, sc%joints(i)%origin%where() // ': axis: zero length; give a direction in the parent frame')
@@ -263,7 +257,22 @@ contains
         end if
       end associate
     end do
+    call first_repeat(sc%joints%child, i, j)
+    if (j > 0) then
+      call fatal_error(error, sc%joints(j)%origin%where('child') // ": body '" // trim(sc%joints(j)%child) // &
+        & "' has two parents (also joint '" // trim(sc%joints(i)%name) // "'); a tree allows one"); return
+    end if
   end subroutine check_joints
+
+  !> The first repeated non-blank name: i < j, names(i) == names(j), j the smallest such
+  !> (sorted once, so O(n log n)); j = 0 if every name is distinct.
+  subroutine first_repeat(names, i, j)
+    character(len=*), intent(in) :: names(:)
+    integer, intent(out) :: i, j
+    type(name_index) :: idx
+    call idx%build(names)
+    call idx%duplicate(i, j)
+  end subroutine first_repeat
 
   !> A joint's q0 or qd0, when given, has one value per coordinate of the joint.
   subroutine check_coordinate_count(jt, item, error)
@@ -373,12 +382,12 @@ contains
       if (body_index(sc, sc%markers(i)%body) == 0) then
         call fatal_error(error, w // ": body: no &body named '" // trim(sc%markers(i)%body) // "'"); return
       end if
-      do j = 1, i - 1
-        if (sc%markers(j)%name == sc%markers(i)%name) then
-          call fatal_error(error, w // ': name: used by another &marker too'); return
-        end if
-      end do
     end do
+    call first_repeat(sc%markers%name, i, j)
+    if (j > 0) then
+      call fatal_error(error, sc%markers(j)%origin%where('name') // ': used by another &marker too (line ' // &
+        & itoa(sc%markers(i)%origin%line) // ')'); return
+    end if
   contains
     !> The named joint exists and has the coordinate.
     subroutine joint_coordinate(joint, coordinate, w, error)
@@ -536,7 +545,7 @@ contains
         nmb = 0
         if (bs%kind == 'beam') nmb = bs%modes_y + bs%modes_z
         if (bs%kind == 'modal') then
-          call read_modal_file(relative_to(sc%file, trim(bs%modal_file)), mfd(b), mnd(b), error)
+          call read_modal_file(scene_relative(sc%file, trim(bs%modal_file)), mfd(b), mnd(b), error)
           if (allocated(error)) then
             error%message = sc%bodies(order(b))%origin%where() // ': modal_file: ' // error%message; return
           end if
@@ -679,19 +688,6 @@ contains
     m = m + nmb
   end subroutine add_flexible
 
-  !> A path relative to the folder of `scene` (absolute paths are kept).
-  function relative_to(scene, path) result(p)
-    character(len=*), intent(in) :: scene, path
-    character(len=:), allocatable :: p
-    integer :: k
-    k = index(scene, '/', back=.true.)
-    if (path(1:1) == '/' .or. k == 0) then
-      p = path
-    else
-      p = scene(1:k) // path
-    end if
-  end function relative_to
-
   !> Children lists of every body.
   subroutine fill_children(d)
     type(model_data), intent(inout) :: d
@@ -792,7 +788,7 @@ contains
       if (sc%drives(i)%form /= 'table' .or. .not. d%effect_on(effect_joint_drives)) cycle
       j = j + 1
       d%drive_table(i) = j
-      call read_time_table(relative_to(sc%file, trim(sc%drives(i)%file)), sc%drives(i)%origin%where('file'), &
+      call read_time_table(scene_relative(sc%file, trim(sc%drives(i)%file)), sc%drives(i)%origin%where('file'), &
         & d%tables(j)%t, d%tables(j)%y, error)
       if (allocated(error)) return
     end do
@@ -801,7 +797,7 @@ contains
       j = j + 1
       d%pres_table(i) = j
       where_file = sc%motions(i)%origin%where('file')
-      call read_time_table(relative_to(sc%file, trim(sc%motions(i)%file)), where_file, d%tables(j)%t, &
+      call read_time_table(scene_relative(sc%file, trim(sc%motions(i)%file)), where_file, d%tables(j)%t, &
         & d%tables(j)%y, error)
       if (allocated(error)) return
       call spline_setup(d%tables(j), where_file, error); if (allocated(error)) return

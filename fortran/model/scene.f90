@@ -13,7 +13,7 @@ module pymr_model_scene
   public :: scene_t, body_spec, joint_spec, drive_spec, marker_spec, integrator_spec, effects_spec
   public :: spring_spec, motion_spec, load_spec, output_spec, scene_spec, max_modes_input
   public :: joint_ndof, unset, group_names, single_groups, describe_group, group_origin, group_count
-  public :: naming_item
+  public :: naming_item, complete_scene
 
   !> The groups of a scene file, in the order the resolved scene is written.
   character(len=*), parameter :: group_names = &
@@ -113,8 +113,9 @@ module pymr_model_scene
     character(len=16) :: kind = ''
     !> Joint point in the parent frame (m) and axis in the parent frame.
     real(dp) :: at(3) = 0.0_dp, axis(3) = [0.0_dp, 0.0_dp, 1.0_dp]
-    !> Initial coordinates and rates (as many as the joint has).
-    real(dp) :: q0(6) = 0.0_dp, qd0(6) = 0.0_dp
+    !> Initial coordinates and rates, one per coordinate of the joint (0 when not given:
+    !> see complete_joint); the rest stay unset.
+    real(dp) :: q0(6) = unset, qd0(6) = unset
     type(origin_t) :: origin
   end type joint_spec
 
@@ -196,7 +197,7 @@ contains
 
   subroutine describe_scene(g, t)
     type(scene_spec), target, intent(inout) :: g
-    type(item_table), intent(out) :: t
+    type(item_table), intent(inout) :: t
     call t%add('title', g%title, 'title of the run, written into the results')
     call t%add('t_end', g%t_end, 's', 'end time of the run (required)', gt=0.0_dp, le=1.0e9_dp)
     call t%add('gravity', g%gravity, 'm/s^2', 'gravity in the inertial frame (used with &effects gravity)', &
@@ -205,7 +206,7 @@ contains
 
   subroutine describe_integrator(g, t)
     type(integrator_spec), target, intent(inout) :: g
-    type(item_table), intent(out) :: t
+    type(item_table), intent(inout) :: t
     call t%add('method', g%method, 'single-rate or multirate integration', choices='single multirate')
     call t%add('h_fast', g%h_fast, 's', 'step of the fast (modal) coordinates; default h_slow', &
       & ge=1.0e-12_dp, le=1.0e3_dp)
@@ -226,7 +227,7 @@ contains
 
   subroutine describe_effects(g, t)
     type(effects_spec), target, intent(inout) :: g
-    type(item_table), intent(out) :: t
+    type(item_table), intent(inout) :: t
     call t%add('gravity', g%gravity, 'gravity (&scene gravity) on every body')
     call t%add('joint_drives', g%joint_drives, 'the &drive forces and torques')
     call t%add('modal_damping', g%modal_damping, "the flexible bodies' modal damping")
@@ -240,7 +241,7 @@ contains
 
   subroutine describe_output(g, t)
     type(output_spec), target, intent(inout) :: g
-    type(item_table), intent(out) :: t
+    type(item_table), intent(inout) :: t
     call t%add('file', g%file, 'CSV result file (relative to the working folder; default: the scene file ' // &
       & 'with .csv)')
     call t%add('dt', g%dt, 's', 'output interval; 0 = every step', ge=0.0_dp, le=1.0e9_dp)
@@ -251,7 +252,7 @@ contains
 
   subroutine describe_body(g, t)
     type(body_spec), target, intent(inout) :: g
-    type(item_table), intent(out) :: t
+    type(item_table), intent(inout) :: t
     call t%add('name', g%name, 'name of the body, unique among the bodies (required)')
     call t%add('kind', g%kind, "'ground' (the fixed base), 'rigid', 'beam' (built-in Euler-Bernoulli beam " // &
       & "along x) or 'modal' (modes from a file) (required)", choices='ground rigid beam modal')
@@ -278,12 +279,13 @@ contains
       & ge=0.0_dp, le=1.0e6_dp)
     call t%add('rayleigh_beta', g%rayleigh_beta, 's', 'Rayleigh damping: alpha + beta omega^2', &
       & ge=0.0_dp, le=1.0e3_dp)
-    call t%add('modal_file', g%modal_file, "modal data file of a 'modal' body (relative to the scene's folder)")
+    call t%add('modal_file', g%modal_file, "modal data file of a 'modal' body (relative to the scene's folder)", &
+      & scene_file=.true.)
   end subroutine describe_body
 
   subroutine describe_joint(g, t)
     type(joint_spec), target, intent(inout) :: g
-    type(item_table), intent(out) :: t
+    type(item_table), intent(inout) :: t
     call t%add('name', g%name, 'name of the joint, unique among the joints (required)')
     call t%add('kind', g%kind, "'revolute', 'prismatic' (one coordinate about or along axis), 'fixed', " // &
       & "'spherical' (rotations x, y, z) or 'free' (translations x, y, z, then rotations) (required)", &
@@ -301,7 +303,7 @@ contains
 
   subroutine describe_drive(g, t)
     type(drive_spec), target, intent(inout) :: g
-    type(item_table), intent(out) :: t
+    type(item_table), intent(inout) :: t
     call t%add('joint', g%joint, 'the joint driven (required)')
     call t%add('coordinate', g%coordinate, '-', 'which coordinate of the joint', ge=1, le=6)
     call t%add('form', g%form, "'sine': offset + amplitude sin(2 pi frequency t + phase); 'table': offset + " // &
@@ -310,12 +312,13 @@ contains
     call t%add('amplitude', g%amplitude, 'N or N m', 'amplitude of the sine', ge=-big_force, le=big_force)
     call t%add('frequency', g%frequency, 'Hz', 'frequency of the sine', ge=0.0_dp, le=1.0e6_dp)
     call t%add('phase', g%phase, 'rad', 'phase of the sine', ge=-1.0e3_dp, le=1.0e3_dp)
-    call t%add('file', g%file, "file of 'time value' lines (form 'table'; relative to the scene's folder)")
+    call t%add('file', g%file, "file of 'time value' lines (form 'table'; relative to the scene's folder)", &
+      & scene_file=.true.)
   end subroutine describe_drive
 
   subroutine describe_spring(g, t)
     type(spring_spec), target, intent(inout) :: g
-    type(item_table), intent(out) :: t
+    type(item_table), intent(inout) :: t
     call t%add('joint', g%joint, 'the joint whose coordinate the spring-damper acts on (required)')
     call t%add('coordinate', g%coordinate, '-', 'which coordinate of the joint', ge=1, le=6)
     call t%add('stiffness', g%stiffness, 'N/m or N m/rad', 'spring stiffness', ge=0.0_dp, le=big_force)
@@ -326,7 +329,7 @@ contains
 
   subroutine describe_motion(g, t)
     type(motion_spec), target, intent(inout) :: g
-    type(item_table), intent(out) :: t
+    type(item_table), intent(inout) :: t
     call t%add('joint', g%joint, 'the joint whose coordinate is prescribed (required)')
     call t%add('coordinate', g%coordinate, '-', 'which coordinate of the joint', ge=1, le=6)
     call t%add('form', g%form, "'sine': offset + amplitude sin(2 pi frequency t + phase); 'spinup': a " // &
@@ -338,38 +341,57 @@ contains
     call t%add('phase', g%phase, 'rad', 'phase of the sine', ge=-1.0e3_dp, le=1.0e3_dp)
     call t%add('rate', g%rate, 'm/s or rad/s', "final rate of form 'spinup'", ge=-big_length, le=big_length)
     call t%add('ramp_time', g%ramp_time, 's', "ramp time of form 'spinup'", gt=0.0_dp, le=1.0e9_dp)
-    call t%add('file', g%file, "file of 'time value' lines (form 'table'; relative to the scene's folder)")
+    call t%add('file', g%file, "file of 'time value' lines (form 'table'; relative to the scene's folder)", &
+      & scene_file=.true.)
   end subroutine describe_motion
 
   subroutine describe_load(g, t)
     type(load_spec), target, intent(inout) :: g
-    type(item_table), intent(out) :: t
+    type(item_table), intent(inout) :: t
     call t%add('marker', g%marker, 'the marker the force acts at (required)')
     call t%add('direction', g%direction, '-', "direction of the force in the frame of the marker's body " // &
       & '(required)', ge=-big_length, le=big_length)
     call t%add('form', g%form, "'pulse': peak sin(pi (t - start)/duration) from start to start + duration", &
       & choices='pulse')
     call t%add('peak', g%peak, 'N', 'peak force', ge=-big_force, le=big_force)
-    call t%add('start', g%start, 's', 'start time of the pulse', ge=0.0_dp, le=1.0e9_dp)
+    call t%add('start', g%start, 's', 'start time of the pulse', ge=-1.0e9_dp, le=1.0e9_dp)
     call t%add('duration', g%duration, 's', 'length of the pulse (required)', gt=0.0_dp, le=1.0e9_dp)
   end subroutine describe_load
 
   subroutine describe_marker(g, t)
     type(marker_spec), target, intent(inout) :: g
-    type(item_table), intent(out) :: t
+    type(item_table), intent(inout) :: t
     call t%add('name', g%name, 'name of the marker, unique among the markers (required)')
     call t%add('body', g%body, 'the body the marker is fixed to (required)')
     call t%add('at', g%at, 'm', "the point in the body's frame", ge=-big_length, le=big_length)
   end subroutine describe_marker
 
+  !> Defaults that depend on other items, set once the scene is read: a joint's q0 and qd0
+  !> default to 0 for each of its coordinates.
+  subroutine complete_scene(sc)
+    type(scene_t), intent(inout) :: sc
+    integer :: j, n
+    do j = 1, size(sc%joints)
+      n = max(joint_ndof(sc%joints(j)%kind), 0)
+      where (sc%joints(j)%q0(1:n) == unset) sc%joints(j)%q0(1:n) = 0.0_dp
+      where (sc%joints(j)%qd0(1:n) == unset) sc%joints(j)%qd0(1:n) = 0.0_dp
+    end do
+    ! one step given: it serves both rates
+    if (sc%integrator%h_fast == unset) sc%integrator%h_fast = sc%integrator%h_slow
+    if (sc%integrator%h_slow == unset) sc%integrator%h_slow = sc%integrator%h_fast
+  end subroutine complete_scene
+
   ! ------------------------------------------------------------ groups by their names
 
-  !> The table of occurrence k of group `name` in `sc` (the records must exist).
-  subroutine describe_group(sc, name, k, t)
+  !> The table of occurrence k of group `name` in `sc` (the records must exist); with
+  !> `only`, the table of that one item (empty if the group has no such item).
+  subroutine describe_group(sc, name, k, t, only)
     type(scene_t), target, intent(inout) :: sc
     character(len=*), intent(in) :: name
     integer, intent(in) :: k
     type(item_table), intent(out) :: t
+    character(len=*), intent(in), optional :: only
+    if (present(only)) t%only = only
     select case (name)
     case ('scene'); call describe_scene(sc%scene, t)
     case ('integrator'); call describe_integrator(sc%integrator, t)

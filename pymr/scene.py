@@ -1,0 +1,120 @@
+"""A scene as data: a namelist file with overrides, read, checked, resolved and
+fingerprinted by the kernel's own reader through the binding. Python states no scene rule:
+every address, value and check is the kernel's (``pymr scene --schema`` lists them)."""
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+from typing import Iterable, Mapping
+
+from . import _core
+from .api import SceneError, _raise, _text, format_overrides, nml_value
+
+
+class Scene:
+    """A scene file and overrides, addressed as ``--set`` addresses them::
+
+        scene = pymr.Scene("input/tank_gun_turret.nml")
+        scene["body[gun].n_elements"] = 40      # checked by the kernel at once
+        scene["integrator.method"]              # -> 'single'
+        pymr.run(scene)
+
+    Setting an item reads the scene again in the kernel: a bad address or value raises
+    :class:`SceneError` with the kernel's message and leaves the scene as it was.
+    """
+
+    def __init__(self, path: str | os.PathLike,
+                 overrides: Mapping[str, object] | Iterable[str] | None = None) -> None:
+        self.path = Path(path)
+        self._overrides: list[str] = []
+        text = format_overrides(overrides)
+        if text:
+            self._overrides = text.split("\n")
+        self._check()
+
+    # ------------------------------------------------------------------ items
+
+    def __getitem__(self, address: str) -> object:
+        value, stat, msg = _core.pymr_scene_item(str(self.path), self.overrides, address)
+        _raise(stat, msg)
+        return parse_value(_text(value))
+
+    def __setitem__(self, address: str, value: object) -> None:
+        self._overrides.append(f"{address}={nml_value(value)}")
+        try:
+            self._check()
+        except SceneError:
+            self._overrides.pop()
+            raise
+
+    @property
+    def overrides(self) -> str:
+        """The overrides as the kernel reads them (one GROUP.ITEM=VALUE a line)."""
+        return "\n".join(self._overrides)
+
+    # ------------------------------------------------------------- resolving
+
+    def resolved(self, absolute_paths: bool = False) -> str:
+        """The scene with every default filled in and every override applied, checked by
+        building its model, and a last comment line with its fingerprint. With
+        ``absolute_paths`` the files it names are written absolute (for a copy elsewhere)."""
+        return _kernel_text(str(self.path), self.overrides, 2 if absolute_paths else 0)
+
+    @property
+    def fingerprint(self) -> str:
+        """sha256 of the resolved scene (without its fingerprint line), as in OUT.json."""
+        return self.resolved().rstrip("\n").rsplit("\n", 1)[-1].removeprefix("! fingerprint ")
+
+    def write(self, path: str | os.PathLike, absolute_paths: bool = False) -> Path:
+        """Write the resolved scene to `path` (a complete scene file)."""
+        path = Path(path)
+        text = self.resolved(absolute_paths)
+        tmp = path.with_name(path.name + ".tmp")
+        with open(tmp, "w") as fh:
+            fh.write(text)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+        return path
+
+    def _check(self) -> None:
+        _kernel_text(str(self.path), self.overrides, 0)
+
+    def __repr__(self) -> str:
+        return f"Scene({str(self.path)!r}, overrides={self._overrides!r})"
+
+
+def schema() -> str:
+    """The scene's groups and items from the kernel's tables: one '&group' line per group,
+    then one line per item: name, type(count), default, range or choices, unit, meaning
+    (tab-separated)."""
+    return _kernel_text("", "", 1)
+
+
+def _kernel_text(scene: str, overrides: str, what: int) -> str:
+    with tempfile.TemporaryDirectory(prefix="pymr-scene-") as tmp:
+        out = os.path.join(tmp, "scene.txt")
+        stat, msg = _core.pymr_scene_write(scene, overrides, what, out)
+        _raise(stat, msg)
+        return Path(out).read_text()
+
+
+def parse_value(text: str) -> object:
+    """A resolved value as Python: numbers, .true./.false., quoted text, or a list of them."""
+    parts = [p.strip() for p in text.split(",")] if text and not text.startswith("'") else [text]
+    out = [_one(p) for p in parts]
+    return out[0] if len(out) == 1 else out
+
+
+def _one(p: str) -> object:
+    if p.startswith("'") and p.endswith("'") and len(p) >= 2:
+        return p[1:-1].replace("''", "'")
+    if p in (".true.", ".false."):
+        return p == ".true."
+    if p == "":
+        return None
+    try:
+        return int(p)
+    except ValueError:
+        return float(p)
