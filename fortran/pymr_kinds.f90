@@ -2,7 +2,7 @@
 module pymr_kinds
   implicit none
   private
-  public :: dp, pi, name_len, msg_len
+  public :: dp, pi, name_len
 
   !> Double precision real kind used for every real in pymr.
   integer, parameter :: dp = selected_real_kind(15, 307)
@@ -10,6 +10,4 @@ module pymr_kinds
   real(dp), parameter :: pi = 3.14159265358979323846264338327950288_dp
   !> Length of names (bodies, joints, markers, effects).
   integer, parameter :: name_len = 64
-  !> Length of error messages handed across the Python boundary.
-  integer, parameter :: msg_len = 1024
 end module pymr_kinds

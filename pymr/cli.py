@@ -135,7 +135,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return args.func(args)
     except PymrError as exc:
-        print(f"pymr: error: {exc}", file=sys.stderr)
+        for line in str(exc).splitlines() or [""]:
+            print(f"pymr: error: {line}", file=sys.stderr)
         return 1 if isinstance(exc, (SceneError, PlotError)) else 2
 
 

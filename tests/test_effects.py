@@ -135,8 +135,8 @@ def test_groups_of_an_effect_not_turned_on_are_an_error(tmp_path, groups, group,
 
 def test_modal_damping_given_but_not_turned_on_is_an_error():
     tank = Path(__file__).resolve().parent.parent / "input" / "tank_hold.nml"
-    with pytest.raises(pymr.SceneError, match=r":\d+: &body 'gun': the body gives modal damping but "
-                                               r"&effects modal_damping is not on"):
+    with pytest.raises(pymr.SceneError, match=r"--set body\[gun\].rayleigh_alpha=0.5: &body 'gun': rayleigh_alpha: "
+                                               r"the body gives modal damping but &effects modal_damping is not on"):
         pymr.model_size(tank, {"body[gun].rayleigh_alpha": 0.5})
 
 

@@ -149,7 +149,7 @@ def test_pymr_scene_command_prints_the_resolved_scene_and_the_schema(tmp_path):
     r = subprocess.run(["pymr", "scene", str(tank), "--set", "body[gun].mass=1"], capture_output=True, text=True,
                        cwd=tmp_path, timeout=60)
     assert r.returncode == 1 and r.stderr.count("\n") == 1
-    assert "mass, inertia: not items of a beam" in r.stderr
+    assert "&body 'gun': mass: not an item of a beam body" in r.stderr
 
 
 def schema_markdown() -> str:
@@ -177,3 +177,34 @@ def test_parse_value_reads_what_the_kernel_writes():
     assert parse_value("1") == 1 and parse_value("1e-6") == 1e-6 and parse_value(".false.") is False
     assert parse_value("'a, b'") == "a, b" and parse_value("'it''s'") == "it's"
     assert parse_value("0, -9.81, 0") == [0, -9.81, 0]
+
+
+def test_the_checks_report_every_fault_they_find_up_to_ten(tmp_path, mrsim):
+    """The scene's rules are checked in one pass: four independent faults give four lines
+    (exit 1), each naming file, line, group and item; fourteen give ten and a count."""
+    text = """&scene title = 'faults', t_end = 1.0 /
+&integrator method = 'single', h_slow = 1e-3 /
+&body name = 'ground', kind = 'ground' /
+&body name = 'a', kind = 'rigid', inertia = 1, 1, 1, 0, 0, 0 /
+&body name = 'b', kind = 'rigid', mass = 1.0, inertia = 1, 1, 5, 0, 0, 0 /
+&joint name = 'j1', kind = 'revolute', parent = 'ground', child = 'a' /
+&joint name = 'j2', kind = 'revolute', parent = 'a', child = 'nobody' /
+&marker name = 'm', body = 'c' /
+"""
+    (tmp_path / "four.nml").write_text(text)
+    r = subprocess.run([mrsim, "four.nml", "-o", "x.csv"], cwd=tmp_path, capture_output=True, text=True, timeout=60)
+    assert r.returncode == 1
+    assert r.stderr.splitlines() == [
+        "mrsim: error: four.nml:4: &body 'a': mass: missing (kg)",
+        "mrsim: error: four.nml:5: &body 'b': inertia: principal moments 1, 1, 5 break the triangle inequality "
+        "(no real body has them)",
+        "mrsim: error: four.nml:7: &joint 'j2': child: no &body named 'nobody'",
+        "mrsim: error: four.nml:8: &marker 'm': body: no &body named 'c'"]
+    many = text + "".join(f"&marker name = 'x{i}', body = 'nowhere' /\n" for i in range(10))
+    (tmp_path / "many.nml").write_text(many)
+    r = subprocess.run([mrsim, "many.nml", "-o", "x.csv"], cwd=tmp_path, capture_output=True, text=True, timeout=60)
+    lines = r.stderr.splitlines()
+    assert r.returncode == 1 and len(lines) == 11 and lines[-1] == "mrsim: error: (and 4 more errors)"
+    with pytest.raises(pymr.SceneError) as exc:
+        pymr.run(tmp_path / "four.nml")
+    assert len(str(exc.value).splitlines()) == 4

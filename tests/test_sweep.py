@@ -96,8 +96,8 @@ output = "{tmp_path / 'runs'}"
 "integrator.method" = "multirate"
 "integrator.h_fast" = 1e-4
 """)
-    with pytest.raises(pymr.SweepError, match=r"case0001 .*&integrator: h_slow: must be an integer multiple of "
-                                              r"h_fast, got h_slow/h_fast = 2.5"):
+    with pytest.raises(pymr.SweepError, match=r"case0001 .*--set integrator.h_slow=0.00025: &integrator: h_slow: "
+                                              r"must be an integer multiple of h_fast, got h_slow/h_fast = 2.5"):
         load_sweep(toml)
     assert not (tmp_path / "runs").exists()
 

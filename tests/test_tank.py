@@ -103,8 +103,10 @@ def test_modal_file_errors(tmp_path):
     modal = tmp_path / "bad.modal"
     modal.write_text("pymr-modal 1\nmodes 1\nfrequencies_hz 5.0\npoints 1\n0 0 0 1.0 0 1 0\n")
     scene = tmp_path / "s.nml"
-    scene.write_text(TANK.read_text().replace(
-        "name = 'gun', kind = 'beam'", "name = 'gun', kind = 'modal', modal_file = 'bad.modal' !"))
+    beam = ("  name = 'gun', kind = 'beam'\n  length = 5.3, youngs_modulus = 2.07e11, density = 7850.0\n"
+            "  r_outer = 0.11, r_inner = 0.06\n  n_elements = 20, modes_y = 2, modes_z = 2\n")
+    assert beam in TANK.read_text()
+    scene.write_text(TANK.read_text().replace(beam, "  name = 'gun', kind = 'modal', modal_file = 'bad.modal'\n"))
     with pytest.raises(pymr.SceneError, match=r"&body 'gun'.*modal_file: .*bad.modal: line 5: point 1: expected 10"):
         pymr.run(scene, tmp_path / "x.csv")
 

@@ -48,7 +48,7 @@ program mrsim
 
   call run_scene(scene, overrides, out, summary, error, restart=restart, progress_lines=progress)
   if (allocated(error)) then
-    write(error_unit, '(a)') 'mrsim: error: ' // error%message
+    call print_error_lines(error%message)
     if (error%stat == 1) stop 1, quiet=.true.
     stop 2, quiet=.true.
   end if
@@ -64,6 +64,20 @@ contains
     allocate(character(len=l) :: a)
     call get_command_argument(k, a)
   end function get_arg
+
+  !> Each line of a message as 'mrsim: error: LINE' (a scene check reports up to ten).
+  subroutine print_error_lines(msg)
+    character(len=*), intent(in) :: msg
+    integer :: i0, i
+    i0 = 1
+    do i = 1, len(msg) + 1
+      if (i <= len(msg)) then
+        if (msg(i:i) /= new_line('a')) cycle
+      end if
+      write(error_unit, '(a)') 'mrsim: error: ' // msg(i0:i-1)
+      i0 = i + 1
+    end do
+  end subroutine print_error_lines
 
   subroutine usage_error(msg)
     character(len=*), intent(in) :: msg

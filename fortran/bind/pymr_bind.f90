@@ -11,7 +11,7 @@ subroutine pymr_run_scene(scene, overrides, out, restart, stat, message, summary
   implicit none
   character(len=*), intent(in) :: scene, overrides, out, restart
   integer, intent(out) :: stat
-  character(len=1024), intent(out) :: message
+  character(len=8192), intent(out) :: message
   character(len=4096), intent(out) :: summary
   character(len=1024), intent(out) :: path
   !f2py threadsafe
@@ -35,7 +35,7 @@ subroutine pymr_model_size(scene, overrides, n, nb, n_markers, stat, message)
   implicit none
   character(len=*), intent(in) :: scene, overrides
   integer, intent(out) :: n, nb, n_markers, stat
-  character(len=1024), intent(out) :: message
+  character(len=8192), intent(out) :: message
   type(error_type), allocatable :: error
   type(scene_t) :: sc
   type(model_t) :: model
@@ -59,7 +59,7 @@ subroutine pymr_model_terms(scene, overrides, n, t, q, qd, mm, p, stat, message)
   double precision, intent(in) :: t, q(n), qd(n)
   double precision, intent(out) :: mm(n, n), p(n)
   integer, intent(out) :: stat
-  character(len=1024), intent(out) :: message
+  character(len=8192), intent(out) :: message
   !f2py integer intent(hide), depend(q) :: n = len(q)
   type(error_type), allocatable :: error
   type(scene_t) :: sc
@@ -86,7 +86,7 @@ subroutine pymr_model_accelerations(scene, overrides, n, m, t, q, qd, qdd, stat,
   double precision, intent(in) :: t(m), q(n, m), qd(n, m)
   double precision, intent(out) :: qdd(n, m)
   integer, intent(out) :: stat
-  character(len=1024), intent(out) :: message
+  character(len=8192), intent(out) :: message
   !f2py integer intent(hide), depend(q) :: n = shape(q, 0)
   !f2py integer intent(hide), depend(q) :: m = shape(q, 1)
   type(error_type), allocatable :: error
@@ -116,7 +116,7 @@ subroutine pymr_model_energy(scene, overrides, n, m, q, qd, kinetic, potential, 
   double precision, intent(in) :: q(n, m), qd(n, m)
   double precision, intent(out) :: kinetic(m), potential(m)
   integer, intent(out) :: stat
-  character(len=1024), intent(out) :: message
+  character(len=8192), intent(out) :: message
   !f2py integer intent(hide), depend(q) :: n = shape(q, 0)
   !f2py integer intent(hide), depend(q) :: m = shape(q, 1)
   type(error_type), allocatable :: error
@@ -148,7 +148,7 @@ subroutine pymr_time_evaluation(scene, overrides, n, q, qd, reps, seconds, stat,
   double precision, intent(in) :: q(n), qd(n)
   double precision, intent(out) :: seconds
   integer, intent(out) :: stat
-  character(len=1024), intent(out) :: message
+  character(len=8192), intent(out) :: message
   !f2py integer intent(hide), depend(q) :: n = len(q)
   type(error_type), allocatable :: error
   type(scene_t) :: sc
@@ -186,7 +186,7 @@ subroutine pymr_ode_test(problem, t_end, h, adaptive, rtol, atol, n_corr, nx, x,
   double precision, intent(in) :: t_end, h, rtol, atol
   double precision, intent(out) :: x(nx)
   integer, intent(out) :: steps, evals, rejected, stat
-  character(len=1024), intent(out) :: message
+  character(len=8192), intent(out) :: message
   type(error_type), allocatable :: error
   call integrate_test_ode(problem, t_end, h, adaptive /= 0, rtol, atol, n_corr, x, steps, evals, rejected, error)
   call report(error, stat, message)
@@ -246,7 +246,7 @@ subroutine pymr_write_modal(scene, overrides, body, path, stat, message)
   implicit none
   character(len=*), intent(in) :: scene, overrides, body, path
   integer, intent(out) :: stat
-  character(len=1024), intent(out) :: message
+  character(len=8192), intent(out) :: message
   type(error_type), allocatable :: error
   type(scene_t) :: sc
   type(model_t) :: model
@@ -281,7 +281,7 @@ subroutine pymr_model_open(scene, overrides, handle, n, stat, message)
   implicit none
   character(len=*), intent(in) :: scene, overrides
   integer, intent(out) :: handle, n, stat
-  character(len=1024), intent(out) :: message
+  character(len=8192), intent(out) :: message
   type(error_type), allocatable :: error
   type(scene_t) :: sc
   type(model_t), allocatable :: grown(:)
@@ -332,7 +332,7 @@ subroutine pymr_model_rhs(handle, nx, t, x, f, evals, stat, message)
   double precision, intent(in) :: t, x(nx)
   double precision, intent(out) :: f(nx)
   integer, intent(out) :: evals, stat
-  character(len=1024), intent(out) :: message
+  character(len=8192), intent(out) :: message
   !f2py integer intent(hide), depend(x) :: nx = len(x)
   type(error_type), allocatable :: error
   f = 0.0d0; evals = 0
@@ -361,7 +361,7 @@ subroutine pymr_model_marker(handle, marker, n, m, t, q, qd, pos, stat, message)
   double precision, intent(in) :: t(m), q(n, m), qd(n, m)
   double precision, intent(out) :: pos(3, m)
   integer, intent(out) :: stat
-  character(len=1024), intent(out) :: message
+  character(len=8192), intent(out) :: message
   !f2py integer intent(hide), depend(q) :: n = shape(q, 0)
   !f2py integer intent(hide), depend(q) :: m = shape(q, 1)
   type(error_type), allocatable :: error
@@ -403,7 +403,7 @@ subroutine pymr_time_fast(scene, overrides, n, q, qd, reps, split, fast_seconds,
   double precision, intent(in) :: q(n), qd(n)
   double precision, intent(out) :: fast_seconds, full_seconds
   integer, intent(out) :: stat
-  character(len=1024), intent(out) :: message
+  character(len=8192), intent(out) :: message
   !f2py integer intent(hide), depend(q) :: n = len(q)
   type(error_type), allocatable :: error
   type(scene_t) :: sc
@@ -492,7 +492,7 @@ subroutine pymr_scene_write(scene, overrides, what, path, stat, message)
   character(len=*), intent(in) :: scene, overrides, path
   integer, intent(in) :: what
   integer, intent(out) :: stat
-  character(len=1024), intent(out) :: message
+  character(len=8192), intent(out) :: message
   type(error_type), allocatable :: error
   type(scene_t), target :: sc
   type(model_t) :: model
@@ -517,7 +517,7 @@ subroutine pymr_scene_item(scene, overrides, address, value, stat, message)
   character(len=*), intent(in) :: scene, overrides, address
   character(len=4096), intent(out) :: value
   integer, intent(out) :: stat
-  character(len=1024), intent(out) :: message
+  character(len=8192), intent(out) :: message
   type(error_type), allocatable :: error
   type(scene_t), target :: sc
   character(len=:), allocatable :: text

@@ -74,6 +74,7 @@ module pymr_io_item_table
   contains
     procedure :: given => origin_given
     procedure :: count_of => origin_count
+    procedure :: line_of => origin_line
     procedure :: where => origin_where
     procedure :: note => origin_note
     procedure :: note_set => origin_note_set
@@ -555,6 +556,18 @@ contains
       if (self%items(k) == item) n = self%counts(k)
     end do
   end function origin_count
+
+  !> Line of the file that gave `item` (-k: the k-th --set that touched the group; 0: not
+  !> given).
+  pure integer function origin_line(self, item) result(line)
+    class(origin_t), intent(in) :: self
+    character(len=*), intent(in) :: item
+    integer :: k
+    line = 0
+    do k = 1, self%n
+      if (self%items(k) == item) line = self%lines(k)
+    end do
+  end function origin_line
 
   !> Prefix for a message about `item` of this group: "file:12: &body 'gun': mass", the
   !> item's own line if it was given, "file: --set ...: &body 'gun': mass" if a --set gave it,

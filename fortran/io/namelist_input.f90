@@ -4,10 +4,12 @@
 module pymr_io_namelist_input
   use pymr_kinds, only : dp, name_len
   use pymr_error, only : error_type, fatal_error, prefix_error
-  use pymr_model_scene, only : scene_t, unset, group_names, single_groups, describe_group, group_origin, &
-    & group_count, naming_item, complete_scene
-  use pymr_io_item_table, only : item_table, origin_t, set_item, value_text, nearest_name, schema_line, comma_list
-  use pymr_io_namelist_parse, only : group_text, token_t, parse_namelist, parse_values
+  use pymr_model_scene, only : scene_t, unset, group_names, single_groups, repeated_groups, describe_group, &
+    & group_origin, &
+    & group_count, naming_item, complete_scene, item_applies
+  use pymr_io_item_table, only : item_table, origin_t, set_item, value_text, nearest_name, schema_line, comma_list, &
+    & t_string
+  use pymr_io_namelist_parse, only : group_text, item_text, token_t, parse_namelist, parse_values, group_label
   use pymr_io_text, only : itoa, lower
   use pymr_io_sha256, only : sha256_hex
   implicit none
@@ -17,7 +19,7 @@ module pymr_io_namelist_input
   !> One --set entry: group[sel].item=values.
   type :: override_t
     character(len=name_len) :: group = '', sel = '', item = ''
-    character(len=:), allocatable :: source
+    character(len=:), allocatable :: source, raw
     type(token_t), allocatable :: values(:)
   end type override_t
 
@@ -48,7 +50,7 @@ contains
     if (allocated(error)) then
       error%message = file // ': ' // error%message; return
     end if
-    call parse_namelist(text, file, groups, ng, error); if (allocated(error)) return
+    call parse_namelist(text, file, repeated_groups, groups, ng, error); if (allocated(error)) return
     call check_groups(file, groups(1:ng), error); if (allocated(error)) return
     call allocate_records(sc, groups(1:ng))
     do i = 1, ng
@@ -141,7 +143,7 @@ contains
     integer :: i, j
     o => group_origin(sc, trim(g%name), g%index)
     o%file = sc%file; o%line = g%line; o%index = g%index
-    o%label = group_label(g)
+    o%label = group_label(g, size(g%items))
     do i = 1, size(g%items)
       associate(it => g%items(i))
         do j = 1, i - 1
@@ -158,6 +160,7 @@ contains
         call set_item(t%items(1), it%values, error)
         if (allocated(error)) then
           call prefix_error(error, sc%file // ':' // itoa(it%line) // ': ' // o%label // ': ' // trim(it%name))
+          call name_without_equals(sc, g, it, o%label, error)
           return
         end if
         call o%note(trim(it%name), it%line, size(it%values), room=size(g%items))
@@ -165,24 +168,27 @@ contains
     end do
   end subroutine fill_group
 
-  !> "&body 'gun'" by its naming item's value as written, or "&drive #2", "&scene".
-  function group_label(g) result(s)
+  !> A value that is the name of another item of the group most likely lost its '=':
+  !> "mass 1.0" read as values of the item before. Say so, at that name's line.
+  subroutine name_without_equals(sc, g, it, label, error)
+    type(scene_t), target, intent(inout) :: sc
     type(group_text), intent(in) :: g
-    character(len=:), allocatable :: s
-    character(len=:), allocatable :: key
-    integer :: i
-    s = '&' // trim(g%name)
-    key = naming_item(trim(g%name))
-    if (len(key) == 0) return
-    do i = 1, size(g%items)
-      if (g%items(i)%name == key .and. size(g%items(i)%values) == 1) then
-        if (g%items(i)%values(1)%quoted .and. key == 'name') then
-          s = s // ' ''' // trim(g%items(i)%values(1)%text) // ''''; return
-        end if
-      end if
+    type(item_text), intent(in) :: it
+    character(len=*), intent(in) :: label
+    type(error_type), allocatable, intent(inout) :: error
+    type(item_table) :: t
+    integer :: k
+    do k = 2, size(it%values)
+      if (it%values(k)%quoted) cycle
+      call describe_group(sc, trim(g%name), g%index, t, only=lower(it%values(k)%text))
+      if (t%n == 0) cycle
+      error%message = sc%file // ':' // itoa(it%values(k)%line) // ': ' // label // ': ' // &
+        & lower(it%values(k)%text) // ': expected ''='' after the item name'
+      if (k < size(it%values)) error%message = error%message // ', found ''' // it%values(k + 1)%text // ''''
+
+      return
     end do
-    s = s // ' #' // itoa(g%index)
-  end function group_label
+  end subroutine name_without_equals
 
   !> The single groups the file does not give still get a label and the file for messages.
   subroutine label_single_groups(sc, groups)
@@ -254,7 +260,8 @@ contains
       call fatal_error(error, ov%source // ': expected GROUP.ITEM=VALUE or GROUP[NAME].ITEM=VALUE'); return
     end if
     call parse_address(entry(1:eq-1), ov, error); if (allocated(error)) return
-    call parse_values(entry(eq+1:), ov%source, ov%values, error)
+    ov%raw = trim(adjustl(entry(eq+1:)))
+    call parse_values(entry(eq+1:), ov%source // ': ' // address_label(ov) // ': ' // trim(ov%item), ov%values, error)
   end subroutine parse_one
 
   !> GROUP.ITEM or GROUP[NAME].ITEM into ov's group, selector and item.
@@ -297,6 +304,14 @@ contains
         & trim(ov%group) // '[NAME].' // trim(ov%item)); return
     end if
   end subroutine parse_address
+
+  !> "&body 'gun'" or "&integrator" for the group an address names.
+  function address_label(ov) result(s)
+    type(override_t), intent(in) :: ov
+    character(len=:), allocatable :: s
+    s = '&' // trim(ov%group)
+    if (len_trim(ov%sel) > 0) s = s // ' ''' // trim(ov%sel) // ''''
+  end function address_label
 
   !> The value text of the item at `address` (GROUP.ITEM or GROUP[NAME].ITEM) of a read
   !> scene, as the resolved scene writes it ('' if the item holds no value).
@@ -345,7 +360,13 @@ contains
       if (j == 0) then
         call unknown_item(sc%file // ': ' // ov%source // ': ' // o%label, ov%item, t, error); return
       end if
-      call set_item(t%items(j), ov%values, error)
+      if (t%items(j)%type == t_string .and. t%items(j)%count == 1 .and. size(ov%values) > 1 .and. &
+        & .not. any(ov%values%quoted)) then
+        ! a bare text of several words on the command line is one text: --set scene.title=a run
+        call set_item(t%items(j), [token_t(ov%raw, .true.)], error)
+      else
+        call set_item(t%items(j), ov%values, error)
+      end if
       if (allocated(error)) then
         call prefix_error(error, sc%file // ': ' // ov%source // ': ' // o%label // ': ' // trim(ov%item)); return
       end if
@@ -380,6 +401,7 @@ contains
         call append('&' // trim(name) // new_line('a'))
         call describe_group(sc, trim(name), k, t)
         do m = 1, t%n
+          if (.not. item_applies(sc, trim(name), k, t%items(m)%name)) cycle
           v = value_text(t%items(m))
           if (present(absolute_paths)) then
             if (absolute_paths) v = value_text(t%items(m), sc%file)

@@ -12,12 +12,14 @@ module pymr_io_namelist_parse
   use pymr_io_text, only : itoa, lower
   implicit none
   private
-  public :: token_t, item_text, group_text, parse_namelist, parse_values
+  public :: token_t, item_text, group_text, parse_namelist, parse_values, group_label
 
   !> One value as written: its text (without quotes) and whether it was quoted.
   type :: token_t
     character(len=:), allocatable :: text
     logical :: quoted = .false.
+    !> Line of the token in the file (0 for a --set value).
+    integer :: line = 0
   end type token_t
 
   !> One `item = values` of a group.
@@ -32,6 +34,8 @@ module pymr_io_namelist_parse
   type :: group_text
     character(len=name_len) :: name = ''
     integer :: line = 0, index = 0
+    !> A repeated group (numbered in messages when it has no name).
+    logical :: numbered = .false.
     type(item_text), allocatable :: items(:)
   end type group_text
 
@@ -40,8 +44,10 @@ contains
 
   !> Parse the whole text of a namelist file (`where` prefixes messages: the file name).
   !> The groups are groups(1:n_groups).
-  subroutine parse_namelist(text, where, groups, n_groups, error)
-    character(len=*), intent(in) :: text, where
+  !> `repeated` lists the groups that may appear more than once (blank-separated): their
+  !> occurrences are numbered in messages.
+  subroutine parse_namelist(text, where, repeated, groups, n_groups, error)
+    character(len=*), intent(in) :: text, where, repeated
     type(group_text), allocatable, intent(out) :: groups(:)
     integer, intent(out) :: n_groups
     type(error_type), allocatable, intent(out) :: error
@@ -59,17 +65,21 @@ contains
           & snippet(text, i) // ''' (a group starts with &NAME and ends with /)'); return
       end if
       n_groups = n_groups + 1
-      call parse_group(text, i, line, where, groups(n_groups), error); if (allocated(error)) return
-      ! running number among the groups of its name (few distinct names: a short list)
-      k = findloc(names(1:n_names), groups(n_groups)%name, 1)
-      if (k == 0 .and. n_names < size(names)) then
-        n_names = n_names + 1; k = n_names
-        names(k) = groups(n_groups)%name; counts(k) = 0
-      end if
-      if (k > 0) then
-        counts(k) = counts(k) + 1
-        groups(n_groups)%index = counts(k)
-      end if
+      associate(g => groups(n_groups))
+        g%name = lower(text(i+1:ident_end(text, i+1)))
+        ! running number among the groups of its name (few distinct names: a short list)
+        k = findloc(names(1:n_names), g%name, 1)
+        if (k == 0 .and. n_names < size(names)) then
+          n_names = n_names + 1; k = n_names
+          names(k) = g%name; counts(k) = 0
+        end if
+        if (k > 0) then
+          counts(k) = counts(k) + 1
+          g%index = counts(k)
+        end if
+        g%numbered = index(' ' // repeated // ' ', ' ' // trim(g%name) // ' ') > 0
+        call parse_group(text, i, line, where, g, error); if (allocated(error)) return
+      end associate
     end do
   end subroutine parse_namelist
 
@@ -96,7 +106,10 @@ contains
       if (i > len(text)) exit
       if (n == size(values)) call grow_tokens(values)
       n = n + 1
-      call read_token(text, i, line, .false., where, values(n), error); if (allocated(error)) return
+      call read_token(text, i, line, .false., values(n), error)
+      if (allocated(error)) then
+        error%message = where // ': ' // error%message; return
+      end if
     end do
     values = values(1:n)
     if (n == 0) call fatal_error(error, where // ': no value given')
@@ -106,26 +119,21 @@ contains
   subroutine parse_group(text, i, line, where, g, error)
     character(len=*), intent(in) :: text, where
     integer, intent(inout) :: i, line
-    type(group_text), intent(out) :: g
+    type(group_text), intent(inout) :: g
     type(error_type), allocatable, intent(out) :: error
-    integer :: j, n_items
-    character(len=:), allocatable :: name
-    j = i + 1
-    do while (j <= len(text))
-      if (.not. is_ident(text(j:j))) exit
-      j = j + 1
-    end do
+    integer :: j, n_items, name_start, name_end
+    j = ident_end(text, i + 1) + 1
     if (j == i + 1) then
       call fatal_error(error, where // ':' // itoa(line) // ': a group name must follow ''' // text(i:i) // ''''); return
     end if
-    g%name = lower(text(i+1:j-1)); g%line = line
+    g%line = line
     allocate(g%items(8)); n_items = 0
     i = j
     do
       call skip_separators(text, i, line)
       if (i > len(text)) then
-        call fatal_error(error, where // ':' // itoa(g%line) // ': &' // trim(g%name) // ': the group is not ' // &
-          & 'closed (a / must end it)'); return
+        call fatal_error(error, where // ':' // itoa(g%line) // ': ' // group_label(g, n_items) // ': the group ' // &
+          & 'is not closed (a / must end it)'); return
       end if
       if (text(i:i) == '/') then
         i = i + 1; exit
@@ -133,95 +141,131 @@ contains
       if (group_end(text, i)) then
         i = i + 4; exit
       end if
-      call read_name(text, i, line, where, g%name, name, error); if (allocated(error)) return
+      if (text(i:i) == '&' .or. text(i:i) == '$') then
+        call fatal_error(error, where // ':' // itoa(g%line) // ': ' // group_label(g, n_items) // ': the group ' // &
+          & 'is not closed: a / must end it before the ' // snippet(text, i) // ' on line ' // itoa(line)); return
+      end if
+      call read_name(text, i, line, name_start, name_end, error)
+      if (allocated(error)) then
+        error%message = where // ':' // itoa(line) // ': ' // group_label(g, n_items) // ': ' // error%message; return
+      end if
       if (n_items == size(g%items)) call grow_items(g%items)
       n_items = n_items + 1
-      g%items(n_items)%name = name; g%items(n_items)%line = line
-      call read_item_values(text, i, line, where, g%name, g%items(n_items), error); if (allocated(error)) return
+      g%items(n_items)%name = lower(text(name_start:name_end))
+      g%items(n_items)%line = line
+      call read_item_values(text, i, line, g%items(n_items), error)
+      if (allocated(error)) then
+        error%message = where // ':' // itoa(line) // ': ' // group_label(g, n_items - 1) // ': ' // &
+          & trim(g%items(n_items)%name) // ': ' // error%message; return
+      end if
     end do
     g%items = g%items(1:n_items)
   end subroutine parse_group
 
-  !> An item name followed by '=' at text(i:); i ends past the '='.
-  subroutine read_name(text, i, line, where, group, name, error)
-    character(len=*), intent(in) :: text, where, group
+  !> An item name followed by '=' at text(i:); on return name_start:name_end is the name
+  !> in text and i is past the '='. Messages name no place (the caller prefixes it).
+  subroutine read_name(text, i, line, name_start, name_end, error)
+    character(len=*), intent(in) :: text
     integer, intent(inout) :: i, line
-    character(len=:), allocatable, intent(out) :: name
+    integer, intent(out) :: name_start, name_end
     type(error_type), allocatable, intent(out) :: error
-    integer :: j
-    character(len=:), allocatable :: at
-    at = where // ':' // itoa(line) // ': &' // trim(group) // ': '
-    j = i
-    do while (j <= len(text))
-      if (.not. is_ident(text(j:j))) exit
-      j = j + 1
-    end do
-    if (j == i) then
-      call fatal_error(error, at // 'expected an item name, found ''' // snippet(text, i) // ''''); return
+    name_start = i
+    name_end = ident_end(text, i)
+    if (name_end < i) then
+      if (text(i:i) == '=') then
+        call fatal_error(error, 'expected an item name before ''' // snippet(text, i) // ''''); return
+      end if
+      call fatal_error(error, 'expected an item name, found ''' // snippet(text, i) // ''''); return
     end if
-    name = lower(text(i:j-1))
-    i = j
+    i = name_end + 1
     call skip_blanks(text, i)
     if (i <= len(text)) then
       if (text(i:i) == '(') then
-        call fatal_error(error, at // name // ': subscripts are not read: give all the values of the item'); return
+        call fatal_error(error, lower(text(name_start:name_end)) // ': subscripts are not read: give all the ' // &
+          & 'values of the item'); return
       end if
       if (text(i:i) == '=') then
         i = i + 1; return
       end if
     end if
-    call fatal_error(error, at // name // ': expected ''='' after the item name, found ''' // snippet(text, i) // '''')
+    call fatal_error(error, lower(text(name_start:name_end)) // ': expected ''='' after the item name, found ''' // &
+      & snippet(text, i) // '''')
   end subroutine read_name
 
-  !> The values of one item: tokens up to the next `name =`, the group's '/' or its end.
-  subroutine read_item_values(text, i, line, where, group, item, error)
-    character(len=*), intent(in) :: text, where, group
+  !> The values of one item: tokens up to the next `name =`, the group's '/' or its end,
+  !> or a '&' or '=' that the group's loop reports.
+  subroutine read_item_values(text, i, line, item, error)
+    character(len=*), intent(in) :: text
     integer, intent(inout) :: i, line
     type(item_text), intent(inout) :: item
     type(error_type), allocatable, intent(out) :: error
-    integer :: n, j
+    integer :: n
     allocate(item%values(4)); n = 0
     do
       call skip_separators(text, i, line)
       if (i > len(text)) exit
       if (text(i:i) == '/' .or. group_end(text, i)) exit
       if (starts_item(text, i)) exit
-      if (text(i:i) == '&' .or. text(i:i) == '$' .or. text(i:i) == '=') then
-        j = i
-        call fatal_error(error, where // ':' // itoa(line) // ': &' // trim(group) // ': ' // trim(item%name) // &
-          & ': unexpected ''' // &
-          & snippet(text, j) // ''' (is the / closing the group before it missing?)'); return
-      end if
+      if (text(i:i) == '&' .or. text(i:i) == '$' .or. text(i:i) == '=') exit
       if (n == size(item%values)) call grow_tokens(item%values)
       n = n + 1
-      call read_token(text, i, line, .true., where // ':' // itoa(line) // ': &' // trim(group) // ': ' // &
-        & trim(item%name), &
-        & item%values(n), error)
+      call read_token(text, i, line, .true., item%values(n), error)
       if (allocated(error)) return
     end do
     item%values = item%values(1:n)
   end subroutine read_item_values
 
+  !> "&body 'gun'" when the items so far name the group with a quoted name, "&drive #2"
+  !> for another repeated group, "&scene" for a single one.
+  function group_label(g, n_items) result(s)
+    type(group_text), intent(in) :: g
+    integer, intent(in) :: n_items
+    character(len=:), allocatable :: s
+    integer :: k
+    s = '&' // trim(g%name)
+    do k = 1, min(n_items, size(g%items))
+      if (g%items(k)%name /= 'name' .or. .not. allocated(g%items(k)%values)) cycle
+      if (size(g%items(k)%values) /= 1) cycle
+      if (g%items(k)%values(1)%quoted) then
+        s = s // ' ''' // g%items(k)%values(1)%text // ''''; return
+      end if
+    end do
+    if (g%numbered) s = s // ' #' // itoa(g%index)
+  end function group_label
+
+  !> Last position of the identifier starting at text(i:) (i - 1 if none).
+  pure integer function ident_end(text, i) result(j)
+    character(len=*), intent(in) :: text
+    integer, intent(in) :: i
+    j = i
+    do while (j <= len(text))
+      if (.not. is_ident(text(j:j))) exit
+      j = j + 1
+    end do
+    j = j - 1
+  end function ident_end
+
   !> One value token at text(i:): a quoted string (on one line) or a bare token. In a file
   !> (`in_file`) a bare token ends at '/', which closes the group; in a --set value it does not.
-  subroutine read_token(text, i, line, in_file, where, tok, error)
-    character(len=*), intent(in) :: text, where
+  subroutine read_token(text, i, line, in_file, tok, error)
+    character(len=*), intent(in) :: text
     integer, intent(inout) :: i, line
     logical, intent(in) :: in_file
     type(token_t), intent(out) :: tok
     type(error_type), allocatable, intent(out) :: error
     character(len=1) :: q
     integer :: j, n_quotes
+    tok%line = line
     if (text(i:i) == '''' .or. text(i:i) == '"') then
       q = text(i:i)
       tok%quoted = .true.
       j = i + 1; n_quotes = 0
       do
         if (j > len(text)) then
-          call fatal_error(error, where // ': the string is not closed (a string ends on its own line)'); return
+          call fatal_error(error, 'the string is not closed (a string ends on its own line)'); return
         end if
         if (text(j:j) == achar(10)) then
-          call fatal_error(error, where // ': the string is not closed on its line'); return
+          call fatal_error(error, 'the string is not closed on its line'); return
         end if
         if (text(j:j) == q) then
           if (j == len(text)) exit

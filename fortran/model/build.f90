@@ -2,8 +2,9 @@
 !> joints expanded into one-coordinate primitives, the effect plan, work arrays.
 module pymr_model_build
   use pymr_kinds, only : dp, name_len, pi
-  use pymr_error, only : error_type, fatal_error
-  use pymr_model_scene, only : scene_t, body_spec, joint_spec, joint_ndof, unset
+  use pymr_error, only : error_type, fatal_error, error_list
+  use pymr_model_scene, only : scene_t, body_spec, joint_spec, joint_ndof, unset, body_items
+  use pymr_io_item_table, only : origin_t
   use pymr_model_types, only : model_data, prim_revolute, prim_prismatic, effect_gravity, effect_joint_drives, &
     & effect_modal_damping, effect_joint_springs, effect_geometric_stiffening, effect_base_motion, n_effects, &
     & effect_firing_load, effect_deformation_inertia, &
@@ -53,112 +54,163 @@ contains
   subroutine check_scene(sc, error)
     type(scene_t), intent(in) :: sc
     type(error_type), allocatable, intent(out) :: error
-    call check_settings(sc, error); if (allocated(error)) return
-    call check_bodies(sc, error); if (allocated(error)) return
-    call check_joints(sc, error); if (allocated(error)) return
-    call check_loads_markers(sc, error); if (allocated(error)) return
+    type(error_list) :: errs
+    integer :: n0
+    call check_settings(sc, errs)
+    n0 = errs%n
+    call check_unique_names(sc, errs)
+    ! names given twice make every reference to them ambiguous: nothing more to check
+    if (errs%n > n0) then
+      call errs%take(error); return
+    end if
+    call check_bodies(sc, errs)
+    call check_joints(sc, errs)
+    call check_loads_markers(sc, errs)
+    call errs%take(error)
   end subroutine check_scene
 
-  subroutine check_settings(sc, error)
+  !> Bodies, joints and markers each have names of their own.
+  subroutine check_unique_names(sc, errs)
     type(scene_t), intent(in) :: sc
-    type(error_type), allocatable, intent(out) :: error
+    type(error_list), intent(inout) :: errs
+    integer :: i, j
+    call first_repeat(sc%bodies%name, i, j)
+    if (j > 0) then
+      call errs%add(sc%bodies(j)%origin%where('name') // ': used by another &body too (line ' // &
+        & itoa(sc%bodies(i)%origin%line) // ')')
+    end if
+    call first_repeat(sc%joints%name, i, j)
+    if (j > 0) then
+      call errs%add(sc%joints(j)%origin%where('name') // ': used by another &joint too (line ' // &
+        & itoa(sc%joints(i)%origin%line) // ')')
+    end if
+    call first_repeat(sc%markers%name, i, j)
+    if (j > 0) then
+      call errs%add(sc%markers(j)%origin%where('name') // ': used by another &marker too (line ' // &
+        & itoa(sc%markers(i)%origin%line) // ')')
+    end if
+  end subroutine check_unique_names
+
+  subroutine check_settings(sc, errs)
+    type(scene_t), intent(in) :: sc
+    type(error_list), intent(inout) :: errs
     real(dp) :: hf, hs, r
-    character(len=:), allocatable :: w
-    w = sc%file // ': &integrator: '
+    character(len=:), allocatable :: step_item
+    ! a rule on both steps names the one the scene (or a --set) gave last
+    step_item = 'h_slow'
+    associate(o => sc%integrator%origin)
+      if (o%given('h_fast') .and. (.not. o%given('h_slow') .or. (o%line_of('h_fast') < 0 .and. &
+        & o%line_of('h_slow') >= 0))) step_item = 'h_fast'
+    end associate
     if (sc%scene%t_end == unset) then
-      call fatal_error(error, sc%file // ': &scene: t_end: missing (the end time of the run in s)'); return
+      call errs%add(sc%scene%origin%where('t_end') // ': missing (the end time of the run in s)'); return
     end if
     associate(s => sc%integrator)
       hf = s%h_fast; hs = s%h_slow
       if (hf == unset .and. hs == unset) then
-        call fatal_error(error, w // 'h_slow: missing (the step in s; h_fast for the modal coordinates)'); return
+        call errs%add(w('h_slow') // ': missing (the step in s; h_fast for the modal coordinates)'); return
       end if
       if (hf == unset) hf = hs
       if (hs == unset) hs = hf
       r = hs/hf
       if (r < 1.0_dp - 1.0e-9_dp .or. abs(r - nint(r)) > 1.0e-9_dp*r) then
-        call fatal_error(error, w // 'h_slow: must be an integer multiple of h_fast, got h_slow/h_fast = ' // fmt(r))
+        if (step_item == 'h_slow') then
+          call errs%add(w(step_item) // ': must be an integer multiple of h_fast, got h_slow/h_fast = ' // fmt(r))
+        else
+          call errs%add(w(step_item) // ': h_slow must be an integer multiple of h_fast, got h_slow/h_fast = ' // &
+            & fmt(r))
+        end if
         return
       end if
       if (trim(s%method) == 'single' .and. nint(r) /= 1) then
-        call fatal_error(error, w // "h_slow: method 'single' takes one step for all coordinates: set h_fast = " &
+        call errs%add(w(step_item) // ": method 'single' takes one step for all coordinates: set h_fast = " &
           & // "h_slow, or method = 'multirate'"); return
       end if
       if (trim(s%method) == 'multirate') then
         if (s%n_corrector /= 1) then
-          call fatal_error(error, w // "n_corrector: multirate uses PECE (n_corrector = 1)"); return
+          call errs%add(w('n_corrector') // ": multirate uses PECE (n_corrector = 1)"); return
         end if
       end if
       if (.not. s%adaptive .and. sc%output%dt > 0.0_dp) then
         r = sc%output%dt/hs
         if (abs(r - nint(r)) > 1.0e-9_dp*r .or. nint(r) < 1) then
-          call fatal_error(error, sc%file // ': &output: dt: must be a multiple of the step h_slow = ' // fmt(hs) &
+          call errs%add(sc%output%origin%where('dt') // ': must be a multiple of the step h_slow = ' // fmt(hs) &
             & // ' s, got ' // fmt(sc%output%dt)); return
         end if
       end if
     end associate
+  contains
+    function w(item) result(s)
+      character(len=*), intent(in) :: item
+      character(len=:), allocatable :: s
+      s = sc%integrator%origin%where(item)
+    end function w
   end subroutine check_settings
 
-  subroutine check_bodies(sc, error)
+  subroutine check_bodies(sc, errs)
     type(scene_t), intent(in) :: sc
-    type(error_type), allocatable, intent(out) :: error
-    integer :: i, j, ng
+    type(error_list), intent(inout) :: errs
+    type(error_type), allocatable :: error
+    integer :: i, ng
     real(dp) :: a(3, 3), e(3)
-    call first_repeat(sc%bodies%name, i, j)
-    if (j > 0) then
-      call fatal_error(error, sc%bodies(j)%origin%where('name') // ': used by another &body too (line ' // &
-        & itoa(sc%bodies(i)%origin%line) // ')'); return
-    end if
     ng = 0
-    do i = 1, size(sc%bodies)
+    each_bodies: do i = 1, size(sc%bodies)
       associate(b => sc%bodies(i))
         if (len_trim(b%name) == 0) then
-          call fatal_error(error, b%origin%where('name') // ': missing'); return
+          call errs%add(b%origin%where('name') // ': missing'); cycle each_bodies
+        end if
+        call check_kind_items(b, error)
+        if (allocated(error)) then
+          call errs%add(error%message); cycle each_bodies
         end if
         select case (trim(b%kind))
         case ('ground')
           ng = ng + 1
+          if (ng == 2) call errs%add(b%origin%where('kind') // ": a second ground (the tree has one fixed base): " // &
+            & 'join this body to the first ground with a fixed joint')
         case ('rigid')
           if (b%mass == unset) then
-            call fatal_error(error, sc%bodies(i)%origin%where() // ': mass: missing (kg)'); return
+            call errs%add(sc%bodies(i)%origin%where('mass') // ': missing (kg)'); cycle each_bodies
           end if
           if (any(b%inertia == unset)) then
-            call fatal_error(error, sc%bodies(i)%origin%where() // ': inertia: missing (6 values: Ixx Iyy Izz Ixy Ixz Iyz)')
-            return
+            call errs%add(sc%bodies(i)%origin%where('inertia') // ': missing (6 values: Ixx Iyy Izz Ixy Ixz Iyz)')
+            cycle each_bodies
           end if
           a = inertia_matrix(b%inertia)
           call eig3(a, e)
           if (minval(e) <= 0.0_dp) then
-            call fatal_error(error, sc%bodies(i)%origin%where() // ': inertia: not positive definite (smallest principal ' // &
-              & 'moment ' // fmt(minval(e)) // ' kg m^2)'); return
+            call errs%add(sc%bodies(i)%origin%where('inertia') // ': not positive definite (smallest principal ' // &
+              & 'moment ' // fmt(minval(e)) // ' kg m^2)'); cycle each_bodies
           end if
           if (2*maxval(e) > sum(e)*(1.0_dp + 1.0e-12_dp)) then
-            call fatal_error(error, sc%bodies(i)%origin%where() // ': inertia: principal moments ' // fmt(e(1)) // ', ' // &
-              & fmt(e(2)) // ', ' // fmt(e(3)) // ' break the triangle inequality (no real body has them)'); return
+            call errs%add(sc%bodies(i)%origin%where('inertia') // ': principal moments ' // fmt(e(1)) // ', ' // &
+              & fmt(e(2)) // ', ' // fmt(e(3)) // ' break the triangle inequality (no real body has them)'); cycle each_bodies
           end if
         case ('beam')
-          call check_beam(sc, i, error); if (allocated(error)) return
+          call check_beam(sc, i, error)
+          if (allocated(error)) then
+            call errs%add(error%message); cycle each_bodies
+          end if
         case ('modal')
           if (len_trim(b%modal_file) == 0) then
-            call fatal_error(error, sc%bodies(i)%origin%where() // ': modal_file: missing (the file with the mode data)')
-            return
+            call errs%add(sc%bodies(i)%origin%where('modal_file') // ': missing (the file with the mode data)')
+            cycle each_bodies
           end if
-          call check_damping(sc, i, error); if (allocated(error)) return
+          call check_damping(sc, i, error)
+          if (allocated(error)) then
+            call errs%add(error%message); cycle each_bodies
+          end if
         case default
-          call fatal_error(error, sc%bodies(i)%origin%where() // ": kind: missing ('ground', 'rigid', 'beam' or 'modal')")
-          return
+          call errs%add(sc%bodies(i)%origin%where('kind') // ": missing ('ground', 'rigid', 'beam' or 'modal')")
+          cycle each_bodies
         end select
       end associate
-    end do
+    end do each_bodies
     if (ng == 0) then
-      call fatal_error(error, sc%file // ": &body: no body has kind = 'ground' (the fixed base of the tree)"); return
-    end if
-    if (ng > 1) then
-      call fatal_error(error, sc%file // ": &body: " // itoa(ng) // " bodies have kind = 'ground'; " // &
-        & 'give one and join the others to it with fixed joints'); return
+      call errs%add(sc%file // ": &body: no body has kind = 'ground' (the fixed base of the tree)"); return
     end if
     if (size(sc%bodies) < 2) then
-      call fatal_error(error, sc%file // ': &body: the scene has only the ground: add a moving body'); return
+      call errs%add(sc%file // ': &body: the scene has only the ground: add a moving body'); return
     end if
   end subroutine check_bodies
 
@@ -170,10 +222,6 @@ contains
     character(len=:), allocatable :: w
     w = sc%bodies(i)%origin%where()
     associate(b => sc%bodies(i))
-      if (b%mass /= unset .or. any(b%inertia /= unset)) then
-        call fatal_error(error, w // ': mass, inertia: not items of a beam (its mass follows from density and ' // &
-          & 'section); remove them'); return
-      end if
       call positive(b%length, 'length', '(m)'); if (allocated(error)) return
       call positive(b%youngs_modulus, 'youngs_modulus', '(Pa)'); if (allocated(error)) return
       call positive(b%density, 'density', '(kg/m^3)'); if (allocated(error)) return
@@ -184,22 +232,24 @@ contains
             & ', got ' // fmt(b%r_inner)); return
         end if
         if (b%area /= unset .or. b%iy /= unset .or. b%iz /= unset) then
-          call fatal_error(error, w // ': area, iy, iz: give either r_outer (and r_inner) or area, iy and iz'); return
+          call fatal_error(error, b%origin%where('r_outer') // ': give either r_outer (and r_inner) or area, iy ' // &
+            & 'and iz'); return
         end if
       else
         if (b%area == unset .and. b%iy == unset .and. b%iz == unset) then
-          call fatal_error(error, w // ': r_outer: missing (or give area, iy and iz for the section)'); return
+          call fatal_error(error, b%origin%where('r_outer') // ': missing (or give area, iy and iz for the section)')
+          return
         end if
         call positive(b%area, 'area', '(m^2)'); if (allocated(error)) return
         call positive(b%iy, 'iy', '(m^4)'); if (allocated(error)) return
         call positive(b%iz, 'iz', '(m^4)'); if (allocated(error)) return
       end if
       if (b%modes_y > 2*b%n_elements) then
-        call fatal_error(error, w // ': modes_y: must be 0 to 2*n_elements = ' // itoa(2*b%n_elements) // &
+        call fatal_error(error, b%origin%where('modes_y') // ': must be 0 to 2*n_elements = ' // itoa(2*b%n_elements) // &
           & ', got ' // itoa(b%modes_y)); return
       end if
       if (b%modes_z > 2*b%n_elements) then
-        call fatal_error(error, w // ': modes_z: must be 0 to 2*n_elements = ' // itoa(2*b%n_elements) // &
+        call fatal_error(error, b%origin%where('modes_z') // ': must be 0 to 2*n_elements = ' // itoa(2*b%n_elements) // &
           & ', got ' // itoa(b%modes_z)); return
       end if
       call check_damping(sc, i, error); if (allocated(error)) return
@@ -208,58 +258,64 @@ contains
     subroutine positive(x, item, unit)
       real(dp), intent(in) :: x
       character(len=*), intent(in) :: item, unit
-      if (x == unset) call fatal_error(error, w // ': ' // item // ': missing ' // unit)
+      if (x == unset) call fatal_error(error, sc%bodies(i)%origin%where(item) // ': missing ' // unit)
     end subroutine positive
   end subroutine check_beam
 
-  subroutine check_joints(sc, error)
+  subroutine check_joints(sc, errs)
     type(scene_t), intent(in) :: sc
-    type(error_type), allocatable, intent(out) :: error
+    type(error_list), intent(inout) :: errs
+    type(error_type), allocatable :: error
     integer :: i, j, ip, ic
-    call first_repeat(sc%joints%name, i, j)
-    if (j > 0) then
-      call fatal_error(error, sc%joints(j)%origin%where('name') // ': used by another &joint too (line ' // &
-        & itoa(sc%joints(i)%origin%line) // ')'); return
-    end if
-    do i = 1, size(sc%joints)
+    character(len=name_len) :: children(size(sc%joints))
+    each_joints: do i = 1, size(sc%joints)
       associate(jt => sc%joints(i))
         if (len_trim(jt%name) == 0) then
-          call fatal_error(error, jt%origin%where('name') // ': missing'); return
+          call errs%add(jt%origin%where('name') // ': missing'); cycle each_joints
         end if
         if (joint_ndof(jt%kind) < 0) then
-          call fatal_error(error, jt%origin%where('kind') // ": missing ('revolute', 'prismatic', 'fixed', " // &
-            & "'spherical' or 'free')"); return
+          call errs%add(jt%origin%where('kind') // ": missing ('revolute', 'prismatic', 'fixed', " // &
+            & "'spherical' or 'free')"); cycle each_joints
         end if
-        call check_coordinate_count(jt, 'q0', error); if (allocated(error)) return
-        call check_coordinate_count(jt, 'qd0', error); if (allocated(error)) return
+        call check_coordinate_count(jt, 'q0', error)
+        if (allocated(error)) then
+          call errs%add(error%message); cycle each_joints
+        end if
+        call check_coordinate_count(jt, 'qd0', error)
+        if (allocated(error)) then
+          call errs%add(error%message); cycle each_joints
+        end if
         ip = body_index(sc, jt%parent); ic = body_index(sc, jt%child)
         if (ip == 0) then
-          call fatal_error(error, sc%joints(i)%origin%where() // ": parent: no &body named '" // trim(jt%parent) // "'")
-          return
+          call errs%add(sc%joints(i)%origin%where('parent') // ": no &body named '" // trim(jt%parent) // "'")
+          cycle each_joints
         end if
         if (ic == 0) then
-          call fatal_error(error, sc%joints(i)%origin%where() // ": child: no &body named '" // trim(jt%child) // "'")
-          return
+          call errs%add(sc%joints(i)%origin%where('child') // ": no &body named '" // trim(jt%child) // "'")
+          cycle each_joints
         end if
         if (ip == ic) then
-          call fatal_error(error, sc%joints(i)%origin%where() // ": child: the joint joins body '" // trim(jt%child) // &
-            & "' to itself (a cycle)"); return
+          call errs%add(sc%joints(i)%origin%where('child') // ": the joint joins body '" // trim(jt%child) // &
+            & "' to itself (a cycle)"); cycle each_joints
         end if
         if (sc%bodies(ic)%kind == 'ground') then
-          call fatal_error(error, sc%joints(i)%origin%where() // ": child: '" // trim(jt%child) // &
-            & "' is the ground; the ground can only be a parent"); return
+          call errs%add(sc%joints(i)%origin%where('child') // ": '" // trim(jt%child) // &
+            & "' is the ground; the ground can only be a parent"); cycle each_joints
         end if
         if (jt%kind == 'revolute' .or. jt%kind == 'prismatic') then
           if (norm2(jt%axis) < 1.0e-12_dp) then
-            call fatal_error(error, sc%joints(i)%origin%where() // ': axis: zero length; give a direction in the parent frame')
-            return
+            call errs%add(sc%joints(i)%origin%where('axis') // ': zero length; give a direction in the parent frame')
+            cycle each_joints
           end if
         end if
       end associate
-    end do
-    call first_repeat(sc%joints%child, i, j)
+    end do each_joints
+    ! a joint from a body to itself is reported above, not again as a second parent
+    children = sc%joints%child
+    where (sc%joints%parent == sc%joints%child) children = ''
+    call first_repeat(children, i, j)
     if (j > 0) then
-      call fatal_error(error, sc%joints(j)%origin%where('child') // ": body '" // trim(sc%joints(j)%child) // &
+      call errs%add(sc%joints(j)%origin%where('child') // ": body '" // trim(sc%joints(j)%child) // &
         & "' has two parents (also joint '" // trim(sc%joints(i)%name) // "'); a tree allows one"); return
     end if
   end subroutine check_joints
@@ -273,6 +329,32 @@ contains
     call idx%build(names)
     call idx%duplicate(i, j)
   end subroutine first_repeat
+
+  !> The item by which a body gives its damping (for messages).
+  pure function damping_item(b) result(item)
+    type(body_spec), intent(in) :: b
+    character(len=:), allocatable :: item
+    item = 'modal_damping'
+    if (b%origin%given('modal_damping')) return
+    if (b%origin%given('rayleigh_alpha')) item = 'rayleigh_alpha'
+    if (b%origin%given('rayleigh_beta')) item = 'rayleigh_beta'
+  end function damping_item
+
+  !> A body takes the items of its kind only: a beam's mass follows from its density and
+  !> section, a rigid body has no elastic items, and so on.
+  subroutine check_kind_items(b, error)
+    type(body_spec), intent(in) :: b
+    type(error_type), allocatable, intent(out) :: error
+    character(len=:), allocatable :: takes
+    integer :: k
+    takes = body_items(b%kind)
+    if (len(takes) == 0) return
+    do k = 1, b%origin%n
+      if (index(' ' // takes // ' ', ' ' // trim(b%origin%items(k)) // ' ') > 0) cycle
+      call fatal_error(error, b%origin%where(trim(b%origin%items(k))) // ': not an item of a ' // trim(b%kind) // &
+        & ' body (it takes ' // takes // ')'); return
+    end do
+  end subroutine check_kind_items
 
   !> A joint's q0 or qd0, when given, has one value per coordinate of the joint.
   subroutine check_coordinate_count(jt, item, error)
@@ -288,66 +370,80 @@ contains
     end if
   end subroutine check_coordinate_count
 
-  subroutine check_loads_markers(sc, error)
+  subroutine check_loads_markers(sc, errs)
     type(scene_t), intent(in) :: sc
-    type(error_type), allocatable, intent(out) :: error
+    type(error_list), intent(inout) :: errs
+    type(error_type), allocatable :: error
     integer :: i, j, k
     character(len=:), allocatable :: w
-    do i = 1, size(sc%drives)
+    each_drives: do i = 1, size(sc%drives)
       w = sc%drives(i)%origin%where()
-      call joint_coordinate(sc%drives(i)%joint, sc%drives(i)%coordinate, w, error); if (allocated(error)) return
+      call joint_coordinate(sc%drives(i)%origin, sc%drives(i)%joint, sc%drives(i)%coordinate, error)
+      if (allocated(error)) then
+        call errs%add(error%message); cycle each_drives
+      end if
       associate(dr => sc%drives(i))
-        call check_table_form(w, dr%form, dr%file, [dr%amplitude, dr%frequency, dr%phase], error)
-        if (allocated(error)) return
+        call check_table_form(sc%drives(i)%origin, dr%form, dr%file, [dr%amplitude, dr%frequency, dr%phase], error)
+        if (allocated(error)) then
+          call errs%add(error%message); cycle each_drives
+        end if
       end associate
       if (.not. sc%effects%joint_drives .and. .not. sc%effects%origin%given('joint_drives')) then
-        call fatal_error(error, w // ': the scene gives drives but &effects joint_drives is not on: set ' // &
-          & 'joint_drives = .true. in &effects (or .false. to ignore the drives on purpose)'); return
+        call errs%add(w // ': the scene gives drives but &effects joint_drives is not on: set ' // &
+          & 'joint_drives = .true. in &effects (or .false. to ignore the drives on purpose)'); cycle each_drives
       end if
-    end do
-    do i = 1, size(sc%springs)
+    end do each_drives
+    each_springs: do i = 1, size(sc%springs)
       w = sc%springs(i)%origin%where()
-      call joint_coordinate(sc%springs(i)%joint, sc%springs(i)%coordinate, w, error); if (allocated(error)) return
-      if (.not. sc%effects%joint_springs .and. .not. sc%effects%origin%given('joint_springs')) then
-        call fatal_error(error, w // ': the scene gives springs but &effects joint_springs is not on: set ' // &
-          & 'joint_springs = .true. in &effects (or .false. to ignore the springs on purpose)'); return
+      call joint_coordinate(sc%springs(i)%origin, sc%springs(i)%joint, sc%springs(i)%coordinate, error)
+      if (allocated(error)) then
+        call errs%add(error%message); cycle each_springs
       end if
-    end do
-    do i = 1, size(sc%motions)
+      if (.not. sc%effects%joint_springs .and. .not. sc%effects%origin%given('joint_springs')) then
+        call errs%add(w // ': the scene gives springs but &effects joint_springs is not on: set ' // &
+          & 'joint_springs = .true. in &effects (or .false. to ignore the springs on purpose)'); cycle each_springs
+      end if
+    end do each_springs
+    each_motions: do i = 1, size(sc%motions)
       w = sc%motions(i)%origin%where()
-      call joint_coordinate(sc%motions(i)%joint, sc%motions(i)%coordinate, w, error); if (allocated(error)) return
+      call joint_coordinate(sc%motions(i)%origin, sc%motions(i)%joint, sc%motions(i)%coordinate, error)
+      if (allocated(error)) then
+        call errs%add(error%message); cycle each_motions
+      end if
       do j = 1, i - 1
         if (sc%motions(j)%joint == sc%motions(i)%joint .and. sc%motions(j)%coordinate == sc%motions(i)%coordinate) then
-          call fatal_error(error, w // ': coordinate ' // itoa(sc%motions(i)%coordinate) // " of joint '" // &
-            & trim(sc%motions(i)%joint) // "' is already prescribed by &motion #" // itoa(j)); return
+          call errs%add(sc%motions(i)%origin%where('coordinate') // ': ' // itoa(sc%motions(i)%coordinate) // " of joint '" // &
+            & trim(sc%motions(i)%joint) // "' is already prescribed by &motion #" // itoa(j)); cycle each_motions
         end if
       end do
       associate(mo => sc%motions(i))
-        call check_table_form(w, mo%form, mo%file, [mo%amplitude, mo%frequency, mo%phase], error)
-        if (allocated(error)) return
+        call check_table_form(sc%motions(i)%origin, mo%form, mo%file, [mo%amplitude, mo%frequency, mo%phase], error)
+        if (allocated(error)) then
+          call errs%add(error%message); cycle each_motions
+        end if
       end associate
       if (sc%motions(i)%form == 'spinup' .and. sc%motions(i)%ramp_time == unset) then
-        call fatal_error(error, w // ": ramp_time: missing (form 'spinup' needs the ramp time, s)"); return
+        call errs%add(sc%motions(i)%origin%where('ramp_time') // ": missing (form 'spinup' needs the ramp time, s)"); cycle each_motions
       end if
       if (.not. sc%effects%base_motion .and. .not. sc%effects%origin%given('base_motion')) then
-        call fatal_error(error, w // ': the scene prescribes motion but &effects base_motion is not on: set ' // &
-          & 'base_motion = .true. in &effects (or .false. to leave the joint free on purpose)'); return
+        call errs%add(w // ': the scene prescribes motion but &effects base_motion is not on: set ' // &
+          & 'base_motion = .true. in &effects (or .false. to leave the joint free on purpose)'); cycle each_motions
       end if
-    end do
-    do i = 1, size(sc%bodies)
+    end do each_motions
+    each_bodies: do i = 1, size(sc%bodies)
       associate(b => sc%bodies(i))
         if (b%kind /= 'beam' .and. b%kind /= 'modal') cycle
         if (any(b%modal_damping /= unset .and. b%modal_damping /= 0.0_dp) .or. b%rayleigh_alpha /= 0.0_dp .or. &
           & b%rayleigh_beta /= 0.0_dp) then
           if (.not. sc%effects%modal_damping .and. .not. sc%effects%origin%given('modal_damping')) then
-            call fatal_error(error, sc%bodies(i)%origin%where() // ': the body gives modal damping but &effects ' // &
+            call errs%add(sc%bodies(i)%origin%where(damping_item(b)) // ': the body gives modal damping but &effects ' // &
               & 'modal_damping is not on: set modal_damping = .true. in &effects (or .false. to ignore it on purpose)')
-            return
+            cycle each_bodies
           end if
         end if
       end associate
-    end do
-    do i = 1, size(sc%loads)
+    end do each_bodies
+    each_loads: do i = 1, size(sc%loads)
       associate(ld => sc%loads(i))
         w = ld%origin%where()
         k = 0
@@ -355,82 +451,83 @@ contains
           if (sc%markers(j)%name == ld%marker) k = j
         end do
         if (k == 0) then
-          call fatal_error(error, w // ": marker: no &marker named '" // trim(ld%marker) // "'"); return
+          call errs%add(ld%origin%where('marker') // ": no &marker named '" // trim(ld%marker) // "'"); cycle each_loads
         end if
         if (norm2(ld%direction) < 1.0e-12_dp) then
-          call fatal_error(error, w // ': direction: missing or zero (a direction in the body frame of the ' // &
-            & "marker's body)"); return
+          call errs%add(ld%origin%where('direction') // ': missing or zero (a direction in the body frame of the ' // &
+            & "marker's body)"); cycle each_loads
         end if
         if (ld%duration == unset) then
-          call fatal_error(error, w // ': duration: missing (the pulse length, s)'); return
+          call errs%add(ld%origin%where('duration') // ': missing (the pulse length, s)'); cycle each_loads
         end if
         if (.not. sc%effects%firing_load .and. .not. sc%effects%origin%given('firing_load')) then
-          call fatal_error(error, w // ': the scene gives loads but &effects firing_load is not on: set ' // &
-            & 'firing_load = .true. in &effects (or .false. to ignore the loads on purpose)'); return
+          call errs%add(w // ': the scene gives loads but &effects firing_load is not on: set ' // &
+            & 'firing_load = .true. in &effects (or .false. to ignore the loads on purpose)'); cycle each_loads
         end if
       end associate
-    end do
+    end do each_loads
     if (sc%effects%geometric_stiffening .and. .not. any(sc%bodies%kind == 'beam')) then
-      call fatal_error(error, sc%file // ': &effects: geometric_stiffening: the scene has no beam (only built-in ' // &
+      call errs%add(sc%file // ': &effects: geometric_stiffening: the scene has no beam (only built-in ' // &
         & "beams, kind = 'beam', carry a geometric stiffness)"); return
     end if
-    do i = 1, size(sc%markers)
+    each_markers: do i = 1, size(sc%markers)
       w = sc%markers(i)%origin%where()
       if (len_trim(sc%markers(i)%name) == 0) then
-        call fatal_error(error, w // ': name: missing'); return
+        call errs%add(sc%markers(i)%origin%where('name') // ': missing'); cycle each_markers
       end if
       if (body_index(sc, sc%markers(i)%body) == 0) then
-        call fatal_error(error, w // ": body: no &body named '" // trim(sc%markers(i)%body) // "'"); return
+        call errs%add(sc%markers(i)%origin%where('body') // ": no &body named '" // trim(sc%markers(i)%body) // "'"); cycle each_markers
       end if
-    end do
-    call first_repeat(sc%markers%name, i, j)
-    if (j > 0) then
-      call fatal_error(error, sc%markers(j)%origin%where('name') // ': used by another &marker too (line ' // &
-        & itoa(sc%markers(i)%origin%line) // ')'); return
-    end if
+    end do each_markers
   contains
     !> The named joint exists and has the coordinate.
-    subroutine joint_coordinate(joint, coordinate, w, error)
-      character(len=*), intent(in) :: joint, w
+    subroutine joint_coordinate(o, joint, coordinate, error)
+      type(origin_t), intent(in) :: o
+      character(len=*), intent(in) :: joint
       integer, intent(in) :: coordinate
       type(error_type), allocatable, intent(out) :: error
       integer :: jj, kk, ndof
+      if (len_trim(joint) == 0) then
+        call fatal_error(error, o%where('joint') // ': missing (the joint it acts on)'); return
+      end if
       kk = 0
       do jj = 1, size(sc%joints)
         if (sc%joints(jj)%name == joint) kk = jj
       end do
       if (kk == 0) then
-        call fatal_error(error, w // ": joint: no &joint named '" // trim(joint) // "'"); return
+        call fatal_error(error, o%where('joint') // ": no &joint named '" // trim(joint) // "'"); return
       end if
       ndof = joint_ndof(sc%joints(kk)%kind)
       if (coordinate < 1 .or. coordinate > ndof) then
-        call fatal_error(error, w // ': coordinate: joint ''' // trim(joint) // ''' has ' // itoa(ndof) // &
-          & ' coordinates, got ' // itoa(coordinate)); return
+        call fatal_error(error, o%where('coordinate') // ': joint ''' // trim(joint) // ''' has ' // itoa(ndof) // &
+          & trim(merge(' coordinate ', ' coordinates', ndof == 1)) // ', got ' // itoa(coordinate)); return
       end if
     end subroutine joint_coordinate
   end subroutine check_loads_markers
 
   !> A group's form 'table' needs a file and no sine items; other forms take no file.
-  !> `w` names the group; `sine_items` are its amplitude, frequency and phase.
-  subroutine check_table_form(w, form, file, sine_items, error)
-    character(len=*), intent(in) :: w, form, file
+  !> `o` is the group's origin; `sine_items` are its amplitude, frequency and phase.
+  subroutine check_table_form(o, form, file, sine_items, error)
+    type(origin_t), intent(in) :: o
+    character(len=*), intent(in) :: form, file
     real(dp), intent(in) :: sine_items(3)
     type(error_type), allocatable, intent(out) :: error
     character(len=*), parameter :: names(3) = [character(len=9) :: 'amplitude', 'frequency', 'phase']
     integer :: k
     if (trim(form) == 'table') then
       if (len_trim(file) == 0) then
-        call fatal_error(error, w // ": file: missing (form 'table' reads the history from a file of " // &
+        call fatal_error(error, o%where('file') // ": missing (form 'table' reads the history from a file of " // &
           & "'time value' lines)"); return
       end if
       do k = 1, 3
         if (sine_items(k) /= 0.0_dp) then
-          call fatal_error(error, w // ': ' // trim(names(k)) // ": not used by form 'table' (the file gives " // &
+          call fatal_error(error, o%where(trim(names(k))) // ": not used by form 'table' (the file gives " // &
             & 'the history; offset adds a constant)'); return
         end if
       end do
     else if (len_trim(file) > 0) then
-      call fatal_error(error, w // ": file: only form 'table' reads a file (form is '" // trim(form) // "')"); return
+      call fatal_error(error, o%where('file') // ": only form 'table' reads a file (form is '" // trim(form) // &
+        & "')"); return
     end if
   end subroutine check_table_form
 

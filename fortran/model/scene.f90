@@ -12,14 +12,15 @@ module pymr_model_scene
   private
   public :: scene_t, body_spec, joint_spec, drive_spec, marker_spec, integrator_spec, effects_spec
   public :: spring_spec, motion_spec, load_spec, output_spec, scene_spec, max_modes_input
-  public :: joint_ndof, unset, group_names, single_groups, describe_group, group_origin, group_count
-  public :: naming_item, complete_scene
+  public :: joint_ndof, unset, group_names, single_groups, repeated_groups, describe_group, group_origin, group_count
+  public :: naming_item, complete_scene, body_items, item_applies
 
   !> The groups of a scene file, in the order the resolved scene is written.
   character(len=*), parameter :: group_names = &
     & 'scene integrator effects output body joint drive spring motion load marker'
-  !> The groups that may appear at most once.
+  !> The groups that may appear at most once, and those that may repeat.
   character(len=*), parameter :: single_groups = 'scene integrator effects output'
+  character(len=*), parameter :: repeated_groups = 'body joint drive spring motion load marker'
 
   !> Bounds that keep every physical value far from overflow in the model's arithmetic.
   real(dp), parameter :: big_length = 1.0e6_dp, big_force = 1.0e12_dp, big_mass = 1.0e12_dp
@@ -380,6 +381,33 @@ contains
     if (sc%integrator%h_fast == unset) sc%integrator%h_fast = sc%integrator%h_slow
     if (sc%integrator%h_slow == unset) sc%integrator%h_slow = sc%integrator%h_fast
   end subroutine complete_scene
+
+  !> The items a body of each kind takes ('' for an unknown kind: no rule).
+  pure function body_items(kind) result(s)
+    character(len=*), intent(in) :: kind
+    character(len=:), allocatable :: s
+    select case (trim(kind))
+    case ('ground'); s = 'name kind'
+    case ('rigid'); s = 'name kind mass com inertia'
+    case ('beam')
+      s = 'name kind length youngs_modulus density r_outer r_inner area iy iz n_elements modes_y modes_z ' // &
+        & 'modal_damping rayleigh_alpha rayleigh_beta'
+    case ('modal'); s = 'name kind modal_file modal_damping rayleigh_alpha rayleigh_beta'
+    case default; s = ''
+    end select
+  end function body_items
+
+  !> Does `item` apply to occurrence k of group `name`? (A body takes its kind's items.)
+  logical function item_applies(sc, name, k, item)
+    type(scene_t), intent(in) :: sc
+    character(len=*), intent(in) :: name, item
+    integer, intent(in) :: k
+    character(len=:), allocatable :: takes
+    item_applies = .true.
+    if (name /= 'body') return
+    takes = body_items(sc%bodies(k)%kind)
+    if (len(takes) > 0) item_applies = index(' ' // takes // ' ', ' ' // trim(item) // ' ') > 0
+  end function item_applies
 
   ! ------------------------------------------------------------ groups by their names
 
