@@ -19,7 +19,7 @@ module pymr_io_namelist_input
   !> One --set entry: group[sel].item=values.
   type :: override_t
     character(len=name_len) :: group = '', sel = '', item = ''
-    character(len=:), allocatable :: source, raw
+    character(len=:), allocatable :: source
     type(token_t), allocatable :: values(:)
   end type override_t
 
@@ -138,7 +138,6 @@ contains
     type(scene_t), target, intent(inout) :: sc
     type(group_text), intent(in) :: g
     type(error_type), allocatable, intent(out) :: error
-    type(item_table) :: t
     type(origin_t), pointer :: o
     integer :: i, j
     o => group_origin(sc, trim(g%name), g%index)
@@ -152,21 +151,62 @@ contains
               & ': given twice in the group (also on line ' // itoa(g%items(j)%line) // ')'); return
           end if
         end do
-        call describe_group(sc, trim(g%name), g%index, t, only=it%name)
-        if (t%n == 0) then
-          call describe_group(sc, trim(g%name), g%index, t)
-          call unknown_item(sc%file // ':' // itoa(it%line) // ': ' // o%label, it%name, t, error); return
-        end if
-        call set_item(t%items(1), it%values, error)
+        call set_record_item(sc, trim(g%name), g%index, trim(it%name), it%values, &
+          & sc%file // ':' // itoa(it%line) // ': ' // o%label, error)
         if (allocated(error)) then
-          call prefix_error(error, sc%file // ':' // itoa(it%line) // ': ' // o%label // ': ' // trim(it%name))
-          call name_without_equals(sc, g, it, o%label, error)
-          return
+          call name_without_equals(sc, g, it, o%label, error); return
         end if
         call o%note(trim(it%name), it%line, size(it%values), room=size(g%items))
       end associate
     end do
   end subroutine fill_group
+
+  !> Set `item` of occurrence k of group `name` from its tokens, through the group's table;
+  !> `where` ("file:12: &body 'gun'") prefixes errors.
+  subroutine set_record_item(sc, name, k, item, values, where, error)
+    type(scene_t), target, intent(inout) :: sc
+    character(len=*), intent(in) :: name, item, where
+    integer, intent(in) :: k
+    type(token_t), intent(in) :: values(:)
+    type(error_type), allocatable, intent(out) :: error
+    type(item_table) :: t
+    type(token_t) :: joined(1)
+    call describe_group(sc, name, k, t, only=item)
+    if (t%n == 0) then
+      call describe_group(sc, name, k, t)
+      call unknown_item(where, item, t, error); return
+    end if
+    if (t%items(1)%type == t_string .and. t%items(1)%count == 1 .and. size(values) > 1 .and. &
+      & all(values%line == 0) .and. .not. any(values%quoted)) then
+      ! a bare text of several words on the command line is one text: --set scene.title=a run
+      joined(1)%text = join_words(values); joined(1)%quoted = .true.
+      call set_item(t%items(1), joined, error)
+    else
+      call set_item(t%items(1), values, error)
+    end if
+    if (allocated(error)) call prefix_error(error, where // ': ' // item)
+  end subroutine set_record_item
+
+  !> Does occurrence k of group `name` carry the name `sel` (its naming item's value)?
+  logical function selected(sc, name, k, sel)
+    type(scene_t), target, intent(inout) :: sc
+    character(len=*), intent(in) :: name, sel
+    integer, intent(in) :: k
+    type(item_table) :: t
+    call describe_group(sc, name, k, t, only=naming_item(name))
+    selected = trim(t%items(1)%s) == trim(sel)
+  end function selected
+
+  !> Bare words joined by one blank.
+  function join_words(values) result(s)
+    type(token_t), intent(in) :: values(:)
+    character(len=:), allocatable :: s
+    integer :: k
+    s = values(1)%text
+    do k = 2, size(values)
+      s = s // ' ' // values(k)%text
+    end do
+  end function join_words
 
   !> A value that is the name of another item of the group most likely lost its '=':
   !> "mass 1.0" read as values of the item before. Say so, at that name's line.
@@ -260,7 +300,6 @@ contains
       call fatal_error(error, ov%source // ': expected GROUP.ITEM=VALUE or GROUP[NAME].ITEM=VALUE'); return
     end if
     call parse_address(entry(1:eq-1), ov, error); if (allocated(error)) return
-    ov%raw = trim(adjustl(entry(eq+1:)))
     call parse_values(entry(eq+1:), ov%source // ': ' // address_label(ov) // ': ' // trim(ov%item), ov%values, error)
   end subroutine parse_one
 
@@ -326,8 +365,7 @@ contains
     call parse_address(address, ov, error); if (allocated(error)) return
     do k = 1, group_count(sc, trim(ov%group))
       if (len_trim(ov%sel) > 0) then
-        call describe_group(sc, trim(ov%group), k, t, only=naming_item(trim(ov%group)))
-        if (trim(t%items(1)%s) /= trim(ov%sel)) cycle
+        if (.not. selected(sc, trim(ov%group), k, ov%sel)) cycle
       end if
       call describe_group(sc, trim(ov%group), k, t)
       j = t%find(ov%item)
@@ -345,31 +383,17 @@ contains
     type(scene_t), target, intent(inout) :: sc
     type(override_t), intent(in) :: ov
     type(error_type), allocatable, intent(out) :: error
-    type(item_table) :: t
     type(origin_t), pointer :: o
-    integer :: k, j, hits
+    integer :: k, hits
     hits = 0
     do k = 1, group_count(sc, trim(ov%group))
-      call describe_group(sc, trim(ov%group), k, t)
       if (len_trim(ov%sel) > 0) then
-        j = t%find(naming_item(trim(ov%group)))
-        if (trim(t%items(j)%s) /= trim(ov%sel)) cycle
+        if (.not. selected(sc, trim(ov%group), k, ov%sel)) cycle
       end if
       o => group_origin(sc, trim(ov%group), k)
-      j = t%find(ov%item)
-      if (j == 0) then
-        call unknown_item(sc%file // ': ' // ov%source // ': ' // o%label, ov%item, t, error); return
-      end if
-      if (t%items(j)%type == t_string .and. t%items(j)%count == 1 .and. size(ov%values) > 1 .and. &
-        & .not. any(ov%values%quoted)) then
-        ! a bare text of several words on the command line is one text: --set scene.title=a run
-        call set_item(t%items(j), [token_t(ov%raw, .true.)], error)
-      else
-        call set_item(t%items(j), ov%values, error)
-      end if
-      if (allocated(error)) then
-        call prefix_error(error, sc%file // ': ' // ov%source // ': ' // o%label // ': ' // trim(ov%item)); return
-      end if
+      call set_record_item(sc, trim(ov%group), k, trim(ov%item), ov%values, sc%file // ': ' // ov%source // ': ' // &
+        & o%label, error)
+      if (allocated(error)) return
       call o%note_set(trim(ov%item), ov%source, size(ov%values))
       hits = hits + 1
     end do

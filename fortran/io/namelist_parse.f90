@@ -83,6 +83,33 @@ contains
     end do
   end subroutine parse_namelist
 
+  !> Number of '=' outside quotes from text(i:) to the next '/' or '&' outside quotes: a bound
+  !> on the number of items of the group starting there.
+  pure integer function count_equals(text, i) result(n)
+    character(len=*), intent(in) :: text
+    integer, intent(in) :: i
+    integer :: j
+    character(len=1) :: q
+    n = 0; q = ' '; j = i
+    do while (j <= len(text))
+      if (q /= ' ') then
+        if (text(j:j) == q .or. text(j:j) == achar(10)) q = ' '
+      else
+        select case (text(j:j))
+        case ('''', '"'); q = text(j:j)
+        case ('='); n = n + 1
+        case ('/', '&', '$'); exit
+        case ('!')
+          do while (j < len(text))
+            if (text(j+1:j+1) == achar(10)) exit
+            j = j + 1
+          end do
+        end select
+      end if
+      j = j + 1
+    end do
+  end function count_equals
+
   !> Number of '&' and '$' in text: a bound on the number of groups.
   pure integer function count_groups_bound(text) result(n)
     character(len=*), intent(in) :: text
@@ -100,7 +127,7 @@ contains
     type(error_type), allocatable, intent(out) :: error
     integer :: i, line, n
     allocate(values(4)); n = 0
-    i = 1; line = 1
+    i = 1; line = 0   ! a --set value has no line in a file
     do
       call skip_separators(text, i, line)
       if (i > len(text)) exit
@@ -127,7 +154,8 @@ contains
       call fatal_error(error, where // ':' // itoa(line) // ': a group name must follow ''' // text(i:i) // ''''); return
     end if
     g%line = line
-    allocate(g%items(8)); n_items = 0
+    ! one item per '=' at most: sized once
+    allocate(g%items(max(1, count_equals(text, j)))); n_items = 0
     i = j
     do
       call skip_separators(text, i, line)
@@ -145,11 +173,14 @@ contains
         call fatal_error(error, where // ':' // itoa(g%line) // ': ' // group_label(g, n_items) // ': the group ' // &
           & 'is not closed: a / must end it before the ' // snippet(text, i) // ' on line ' // itoa(line)); return
       end if
-      call read_name(text, i, line, name_start, name_end, error)
+      call read_name(text, i, name_start, name_end, error)
       if (allocated(error)) then
         error%message = where // ':' // itoa(line) // ': ' // group_label(g, n_items) // ': ' // error%message; return
       end if
-      if (n_items == size(g%items)) call grow_items(g%items)
+      if (n_items == size(g%items)) then
+        call fatal_error(error, where // ':' // itoa(line) // ': ' // group_label(g, n_items) // ': more items ' // &
+          & 'than the group has ''='' signs'); return
+      end if
       n_items = n_items + 1
       g%items(n_items)%name = lower(text(name_start:name_end))
       g%items(n_items)%line = line
@@ -164,9 +195,9 @@ contains
 
   !> An item name followed by '=' at text(i:); on return name_start:name_end is the name
   !> in text and i is past the '='. Messages name no place (the caller prefixes it).
-  subroutine read_name(text, i, line, name_start, name_end, error)
+  subroutine read_name(text, i, name_start, name_end, error)
     character(len=*), intent(in) :: text
-    integer, intent(inout) :: i, line
+    integer, intent(inout) :: i
     integer, intent(out) :: name_start, name_end
     type(error_type), allocatable, intent(out) :: error
     name_start = i
@@ -418,14 +449,6 @@ contains
     is_ident = (c >= 'a' .and. c <= 'z') .or. (c >= 'A' .and. c <= 'Z') .or. (c >= '0' .and. c <= '9') &
       & .or. c == '_'
   end function is_ident
-
-  subroutine grow_items(a)
-    type(item_text), allocatable, intent(inout) :: a(:)
-    type(item_text), allocatable :: b(:)
-    allocate(b(2*size(a)))
-    b(1:size(a)) = a
-    call move_alloc(b, a)
-  end subroutine grow_items
 
   subroutine grow_tokens(a)
     type(token_t), allocatable, intent(inout) :: a(:)

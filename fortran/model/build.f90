@@ -219,8 +219,6 @@ contains
     type(scene_t), intent(in) :: sc
     integer, intent(in) :: i
     type(error_type), allocatable, intent(out) :: error
-    character(len=:), allocatable :: w
-    w = sc%bodies(i)%origin%where()
     associate(b => sc%bodies(i))
       call positive(b%length, 'length', '(m)'); if (allocated(error)) return
       call positive(b%youngs_modulus, 'youngs_modulus', '(Pa)'); if (allocated(error)) return
@@ -373,79 +371,52 @@ contains
   subroutine check_loads_markers(sc, errs)
     type(scene_t), intent(in) :: sc
     type(error_list), intent(inout) :: errs
-    type(error_type), allocatable :: error
     integer :: i, j, k
-    character(len=:), allocatable :: w
     each_drives: do i = 1, size(sc%drives)
-      w = sc%drives(i)%origin%where()
-      call joint_coordinate(sc%drives(i)%origin, sc%drives(i)%joint, sc%drives(i)%coordinate, error)
-      if (allocated(error)) then
-        call errs%add(error%message); cycle each_drives
-      end if
       associate(dr => sc%drives(i))
-        call check_table_form(sc%drives(i)%origin, dr%form, dr%file, [dr%amplitude, dr%frequency, dr%phase], error)
-        if (allocated(error)) then
-          call errs%add(error%message); cycle each_drives
-        end if
+        if (.not. joint_coordinate(dr%origin, dr%joint, dr%coordinate)) cycle each_drives
+        if (.not. table_form(dr%origin, dr%form, dr%file, [dr%amplitude, dr%frequency, dr%phase])) cycle each_drives
+        if (forgotten(sc%effects%joint_drives, 'joint_drives')) &
+          & call errs%add(dr%origin%where() // effect_not_on('the scene gives drives', 'joint_drives'))
       end associate
-      if (.not. sc%effects%joint_drives .and. .not. sc%effects%origin%given('joint_drives')) then
-        call errs%add(w // ': the scene gives drives but &effects joint_drives is not on: set ' // &
-          & 'joint_drives = .true. in &effects (or .false. to ignore the drives on purpose)'); cycle each_drives
-      end if
     end do each_drives
     each_springs: do i = 1, size(sc%springs)
-      w = sc%springs(i)%origin%where()
-      call joint_coordinate(sc%springs(i)%origin, sc%springs(i)%joint, sc%springs(i)%coordinate, error)
-      if (allocated(error)) then
-        call errs%add(error%message); cycle each_springs
-      end if
-      if (.not. sc%effects%joint_springs .and. .not. sc%effects%origin%given('joint_springs')) then
-        call errs%add(w // ': the scene gives springs but &effects joint_springs is not on: set ' // &
-          & 'joint_springs = .true. in &effects (or .false. to ignore the springs on purpose)'); cycle each_springs
-      end if
+      associate(sp => sc%springs(i))
+        if (.not. joint_coordinate(sp%origin, sp%joint, sp%coordinate)) cycle each_springs
+        if (forgotten(sc%effects%joint_springs, 'joint_springs')) &
+          & call errs%add(sp%origin%where() // effect_not_on('the scene gives springs', 'joint_springs'))
+      end associate
     end do each_springs
     each_motions: do i = 1, size(sc%motions)
-      w = sc%motions(i)%origin%where()
-      call joint_coordinate(sc%motions(i)%origin, sc%motions(i)%joint, sc%motions(i)%coordinate, error)
-      if (allocated(error)) then
-        call errs%add(error%message); cycle each_motions
-      end if
-      do j = 1, i - 1
-        if (sc%motions(j)%joint == sc%motions(i)%joint .and. sc%motions(j)%coordinate == sc%motions(i)%coordinate) then
-          call errs%add(sc%motions(i)%origin%where('coordinate') // ': ' // itoa(sc%motions(i)%coordinate) // " of joint '" // &
-            & trim(sc%motions(i)%joint) // "' is already prescribed by &motion #" // itoa(j)); cycle each_motions
-        end if
-      end do
       associate(mo => sc%motions(i))
-        call check_table_form(sc%motions(i)%origin, mo%form, mo%file, [mo%amplitude, mo%frequency, mo%phase], error)
-        if (allocated(error)) then
-          call errs%add(error%message); cycle each_motions
-        end if
+        if (.not. joint_coordinate(mo%origin, mo%joint, mo%coordinate)) cycle each_motions
+        do j = 1, i - 1
+          if (sc%motions(j)%joint == mo%joint .and. sc%motions(j)%coordinate == mo%coordinate) then
+            call errs%add(mo%origin%where('coordinate') // ': ' // itoa(mo%coordinate) // " of joint '" // &
+              & trim(mo%joint) // "' is already prescribed by &motion #" // itoa(j)); cycle each_motions
+          end if
+        end do
+        if (.not. table_form(mo%origin, mo%form, mo%file, [mo%amplitude, mo%frequency, mo%phase])) cycle each_motions
       end associate
       if (sc%motions(i)%form == 'spinup' .and. sc%motions(i)%ramp_time == unset) then
         call errs%add(sc%motions(i)%origin%where('ramp_time') // ": missing (form 'spinup' needs the ramp time, s)"); cycle each_motions
       end if
-      if (.not. sc%effects%base_motion .and. .not. sc%effects%origin%given('base_motion')) then
-        call errs%add(w // ': the scene prescribes motion but &effects base_motion is not on: set ' // &
-          & 'base_motion = .true. in &effects (or .false. to leave the joint free on purpose)'); cycle each_motions
-      end if
+      if (forgotten(sc%effects%base_motion, 'base_motion')) &
+        & call errs%add(sc%motions(i)%origin%where() // effect_not_on('the scene prescribes motion', 'base_motion'))
     end do each_motions
     each_bodies: do i = 1, size(sc%bodies)
       associate(b => sc%bodies(i))
         if (b%kind /= 'beam' .and. b%kind /= 'modal') cycle
         if (any(b%modal_damping /= unset .and. b%modal_damping /= 0.0_dp) .or. b%rayleigh_alpha /= 0.0_dp .or. &
           & b%rayleigh_beta /= 0.0_dp) then
-          if (.not. sc%effects%modal_damping .and. .not. sc%effects%origin%given('modal_damping')) then
-            call errs%add(sc%bodies(i)%origin%where(damping_item(b)) // ': the body gives modal damping but &effects ' // &
-              & 'modal_damping is not on: set modal_damping = .true. in &effects (or .false. to ignore it on purpose)')
-            cycle each_bodies
-          end if
+          if (forgotten(sc%effects%modal_damping, 'modal_damping')) &
+            & call errs%add(b%origin%where(damping_item(b)) // effect_not_on('the body gives modal damping', &
+            & 'modal_damping'))
         end if
       end associate
     end do each_bodies
     each_loads: do i = 1, size(sc%loads)
       associate(ld => sc%loads(i))
-        w = ld%origin%where()
         k = 0
         do j = 1, size(sc%markers)
           if (sc%markers(j)%name == ld%marker) k = j
@@ -460,18 +431,15 @@ contains
         if (ld%duration == unset) then
           call errs%add(ld%origin%where('duration') // ': missing (the pulse length, s)'); cycle each_loads
         end if
-        if (.not. sc%effects%firing_load .and. .not. sc%effects%origin%given('firing_load')) then
-          call errs%add(w // ': the scene gives loads but &effects firing_load is not on: set ' // &
-            & 'firing_load = .true. in &effects (or .false. to ignore the loads on purpose)'); cycle each_loads
-        end if
+        if (forgotten(sc%effects%firing_load, 'firing_load')) &
+          & call errs%add(ld%origin%where() // effect_not_on('the scene gives loads', 'firing_load'))
       end associate
     end do each_loads
     if (sc%effects%geometric_stiffening .and. .not. any(sc%bodies%kind == 'beam')) then
-      call errs%add(sc%file // ': &effects: geometric_stiffening: the scene has no beam (only built-in ' // &
+      call errs%add(sc%effects%origin%where('geometric_stiffening') // ': the scene has no beam (only built-in ' // &
         & "beams, kind = 'beam', carry a geometric stiffness)"); return
     end if
     each_markers: do i = 1, size(sc%markers)
-      w = sc%markers(i)%origin%where()
       if (len_trim(sc%markers(i)%name) == 0) then
         call errs%add(sc%markers(i)%origin%where('name') // ': missing'); cycle each_markers
       end if
@@ -480,29 +448,56 @@ contains
       end if
     end do each_markers
   contains
-    !> The named joint exists and has the coordinate.
-    subroutine joint_coordinate(o, joint, coordinate, error)
+    !> An effect whose data the scene gives is off without being turned off on purpose.
+    logical function forgotten(on, effect)
+      logical, intent(in) :: on
+      character(len=*), intent(in) :: effect
+      forgotten = .not. on .and. .not. sc%effects%origin%given(effect)
+    end function forgotten
+
+    !> ": the scene gives X but &effects E is not on: ..." for a forgotten effect.
+    function effect_not_on(what, effect) result(s)
+      character(len=*), intent(in) :: what, effect
+      character(len=:), allocatable :: s
+      s = ': ' // what // ' but &effects ' // effect // ' is not on: set ' // effect // ' = .true. in &effects ' // &
+        & '(or .false. to leave it out on purpose)'
+    end function effect_not_on
+
+    !> The named joint exists and has the coordinate (else the error is added).
+    logical function joint_coordinate(o, joint, coordinate) result(ok)
       type(origin_t), intent(in) :: o
       character(len=*), intent(in) :: joint
       integer, intent(in) :: coordinate
-      type(error_type), allocatable, intent(out) :: error
       integer :: jj, kk, ndof
+      ok = .false.
       if (len_trim(joint) == 0) then
-        call fatal_error(error, o%where('joint') // ': missing (the joint it acts on)'); return
+        call errs%add(o%where('joint') // ': missing (the joint it acts on)'); return
       end if
       kk = 0
       do jj = 1, size(sc%joints)
         if (sc%joints(jj)%name == joint) kk = jj
       end do
       if (kk == 0) then
-        call fatal_error(error, o%where('joint') // ": no &joint named '" // trim(joint) // "'"); return
+        call errs%add(o%where('joint') // ": no &joint named '" // trim(joint) // "'"); return
       end if
       ndof = joint_ndof(sc%joints(kk)%kind)
       if (coordinate < 1 .or. coordinate > ndof) then
-        call fatal_error(error, o%where('coordinate') // ': joint ''' // trim(joint) // ''' has ' // itoa(ndof) // &
+        call errs%add(o%where('coordinate') // ': joint ''' // trim(joint) // ''' has ' // itoa(ndof) // &
           & trim(merge(' coordinate ', ' coordinates', ndof == 1)) // ', got ' // itoa(coordinate)); return
       end if
-    end subroutine joint_coordinate
+      ok = .true.
+    end function joint_coordinate
+
+    !> A group's form and file agree (else the error is added).
+    logical function table_form(o, form, file, sine_items) result(ok)
+      type(origin_t), intent(in) :: o
+      character(len=*), intent(in) :: form, file
+      real(dp), intent(in) :: sine_items(3)
+      type(error_type), allocatable :: error
+      call check_table_form(o, form, file, sine_items, error)
+      ok = .not. allocated(error)
+      if (.not. ok) call errs%add(error%message)
+    end function table_form
   end subroutine check_loads_markers
 
   !> A group's form 'table' needs a file and no sine items; other forms take no file.
