@@ -194,6 +194,7 @@ contains
     eps = 1.0e-9_dp*h
     k_out = 1
     t_next = dt_out
+    csv%digits = sc%output%precision
     if (restarting) then
       call start_stepper(sc, model, x, st, .true., error)
       if (.not. allocated(error)) call read_checkpoint(restart, st%multirate, st%abm, st%mr, model, prog, error)

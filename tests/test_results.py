@@ -6,6 +6,7 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 import pymr
 
@@ -112,3 +113,18 @@ def test_csv_numbers_with_three_digit_exponents_round_trip(tmp_path):
             assert int(exponent) == int(f"{x:.16e}".split("e")[1]), (text, x)
             assert len(mantissa.lstrip("-").replace(".", "")) == 17, text
             assert float(cells[f"s{i}.qd"]) == 0.0
+
+
+def test_output_precision_sets_the_digits_written(tmp_path):
+    """&output precision = 8 writes every value in 8 significant digits, each the value of the
+    full-precision run rounded to 8 digits (within half a unit in the 8th digit)."""
+    scene = ROOT / "input" / "pendulum.nml"
+    full = pymr.run(scene, tmp_path / "full.csv", overrides={"scene.t_end": 0.5})
+    short = pymr.run(scene, tmp_path / "short.csv", overrides={"scene.t_end": 0.5, "output.precision": 8})
+    nonzero = full.data != 0
+    assert np.all(np.abs(short.data - full.data)[nonzero] <= 0.5e-7 * np.abs(full.data)[nonzero] * (1 + 1e-9))
+    assert np.array_equal(short.data[~nonzero], full.data[~nonzero])
+    row = [c for c in (tmp_path / "short.csv").read_text().splitlines() if not c.startswith("#")][5].split(",")
+    assert all(len(c.split("e")[0].lstrip("-").replace(".", "")) == 8 for c in row if c != "0.0")
+    with pytest.raises(pymr.SceneError, match=r"&output: precision: must be in \[6, 17\], got 20"):
+        pymr.run(scene, overrides={"output.precision": 20})

@@ -16,12 +16,14 @@ module pymr_io_fast_format
 
 contains
 
-  !> Append the text of x to buf at position pos (advanced past the text).
-  pure subroutine put_real(x, buf, pos)
+  !> Append the text of x to buf at position pos (advanced past the text), in `digits`
+  !> significant digits (17, the default, reads back to x; fewer are rounded).
+  pure subroutine put_real(x, buf, pos, digits)
     real(dp), intent(in) :: x
     character(len=*), intent(inout) :: buf
     integer, intent(inout) :: pos
-    integer :: e, i, ae, hi, lo
+    integer, intent(in), optional :: digits
+    integer :: e, i, ae, hi, lo, nd
     integer(int64) :: dgt
     real(dp) :: m
     character(len=17) :: dstr
@@ -45,8 +47,10 @@ contains
     ! decimal exponent from the binary one (log10(2) = 0.30103...); the checks of m
     ! below correct the estimate by one either way
     e = floor((exponent(x) - 1)*0.30102999566398120_dp)
+    nd = 17
+    if (present(digits)) nd = digits
     if (abs(e) > 21) then
-      call put_real_exact(abs(x), buf, pos); return
+      call put_real_exact(abs(x), nd, buf, pos); return
     end if
     m = scale_by_pow10(abs(x), -e)
     if (m >= 10.0_dp) then
@@ -58,10 +62,11 @@ contains
     else if (m < 1.0_dp) then
       m = m*10.0_dp; e = e - 1
     end if
-    dgt = nint(m*1.0e16_dp, int64)
-    if (dgt >= 100000000000000000_int64) then
+    dgt = nint(m*10.0_dp**(nd - 1), int64)
+    if (dgt >= 10_int64**nd) then
       dgt = dgt/10; e = e + 1
     end if
+    if (nd < 17) dgt = dgt*10_int64**(17 - nd)
     ! digits two at a time, in two 32-bit halves (9 + 8): fewer and cheaper divisions
     hi = int(dgt/100000000_int64)
     lo = int(dgt - 100000000_int64*hi)
@@ -74,8 +79,8 @@ contains
       hi = hi/100
     end do
     dstr(1:1) = achar(iachar('0') + hi)
-    buf(pos:pos) = dstr(1:1); buf(pos+1:pos+1) = '.'; buf(pos+2:pos+17) = dstr(2:17)
-    pos = pos + 18
+    buf(pos:pos) = dstr(1:1); buf(pos+1:pos+1) = '.'; buf(pos+2:pos+nd) = dstr(2:nd)
+    pos = pos + nd + 1
     buf(pos:pos) = 'e'
     buf(pos+1:pos+1) = merge('-', '+', e < 0)
     ae = abs(e)
@@ -85,16 +90,18 @@ contains
     pos = pos + 5
   end subroutine put_real
 
-  !> Append the text of x > 0 by a formatted WRITE, correctly rounded to 17 digits: the path
+  !> Append the text of x > 0 by a formatted WRITE, correctly rounded to `digits` digits: the path
   !> for magnitudes beyond 1e+-21, where a power of ten is not exact in double precision
   !> (subnormal numbers included).
-  pure subroutine put_real_exact(x, buf, pos)
+  pure subroutine put_real_exact(x, digits, buf, pos)
     real(dp), intent(in) :: x
+    integer, intent(in) :: digits
     character(len=*), intent(inout) :: buf
     integer, intent(inout) :: pos
-    character(len=24) :: text
+    character(len=24) :: text, form
     integer :: p
-    write(text, '(es24.16e3)') x
+    write(form, '(a,i0,a)') '(es24.', digits - 1, 'e3)'
+    write(text, form) x
     text = adjustl(text)
     p = index(text, 'E')
     text(p:p) = 'e'

@@ -30,6 +30,8 @@ module pymr_io_results_output
     character(len=:), allocatable :: path
     real(dp), allocatable :: row(:)
     character(len=:), allocatable :: line
+    !> Significant digits per value (&output precision).
+    integer :: digits = 17
   contains
     procedure :: open => csv_open
     procedure :: reopen => csv_reopen
@@ -183,7 +185,7 @@ contains
       if (i > 1) then
         self%line(pos:pos) = ','; pos = pos + 1
       end if
-      call put_real(self%row(i), self%line, pos)
+      call put_real(self%row(i), self%line, pos, self%digits)
     end do
     write(self%unit, '(a)') self%line(1:pos-1)
   end subroutine write_values

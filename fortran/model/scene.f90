@@ -66,6 +66,8 @@ module pymr_model_scene
     !> (default: the CSV path with .ckpt).
     real(dp) :: checkpoint_dt = 0.0_dp
     character(len=512) :: checkpoint_file = ''
+    !> Significant digits written per value.
+    integer :: precision = 17
     type(origin_t) :: origin
   end type output_spec
 
@@ -249,6 +251,8 @@ contains
     call t%add('checkpoint_dt', g%checkpoint_dt, 's', 'checkpoint interval of simulated time; 0 = none', &
       & ge=0.0_dp, le=1.0e9_dp)
     call t%add('checkpoint_file', g%checkpoint_file, 'checkpoint file (default: the CSV file with .ckpt)')
+    call t%add('precision', g%precision, '-', 'significant digits written per value (17 read back exactly)', &
+      & ge=6, le=17)
   end subroutine describe_output
 
   subroutine describe_body(g, t)
