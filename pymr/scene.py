@@ -28,6 +28,7 @@ class Scene:
                  overrides: Mapping[str, object] | Iterable[str] | None = None) -> None:
         self.path = Path(path)
         self._overrides: list[str] = []
+        self._resolved: str | None = None      # the kernel's text for the current overrides
         text = format_overrides(overrides)
         if text:
             self._overrides = text.split("\n")
@@ -46,6 +47,7 @@ class Scene:
             self._check()
         except SceneError:
             self._overrides.pop()
+            self._check()
             raise
 
     @property
@@ -58,8 +60,11 @@ class Scene:
     def resolved(self, absolute_paths: bool = False) -> str:
         """The scene with every default filled in and every override applied, checked by
         building its model, and a last comment line with its fingerprint. With
-        ``absolute_paths`` the files it names are written absolute (for a copy elsewhere)."""
-        return _kernel_text(str(self.path), self.overrides, 2 if absolute_paths else 0)
+        ``absolute_paths`` the files it names are written absolute (for a copy elsewhere).
+        The text is the kernel's reading of the file when the Scene was made or last set."""
+        if absolute_paths:
+            return _kernel_text(str(self.path), self.overrides, 2)
+        return self._resolved
 
     @property
     def fingerprint(self) -> str:
@@ -79,7 +84,8 @@ class Scene:
         return path
 
     def _check(self) -> None:
-        _kernel_text(str(self.path), self.overrides, 0)
+        self._resolved = None
+        self._resolved = _kernel_text(str(self.path), self.overrides, 0)
 
     def __repr__(self) -> str:
         return f"Scene({str(self.path)!r}, overrides={self._overrides!r})"

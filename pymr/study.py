@@ -51,9 +51,10 @@ class Case:
 class Study:
     """The runs of a work-precision study of one scene and marker."""
 
-    def __init__(self, scene: str | os.PathLike, marker: str | None = None, quick: bool = False,
+    def __init__(self, scene: str | os.PathLike | Scene, marker: str | None = None, quick: bool = False,
                  progress=print):
-        self.scene = Path(scene)
+        # a path or a pymr.Scene (its overrides apply to every run of the study)
+        self.scene = scene if isinstance(scene, Scene) else Scene(scene)
         self.quick = quick
         self.say = progress or (lambda *a, **k: None)
         probe = run(self.scene, overrides={"output.dt": 0.0, "scene.t_end": 1e-6})
@@ -62,11 +63,11 @@ class Study:
         self.x0 = np.concatenate([q[0], qd[0]])      # the initial state [q; qd]
         markers = sorted({c.rsplit(".", 1)[0] for c in probe.columns if c.endswith(".x")})
         if not markers:
-            raise PymrError(f"{self.scene}: the scene has no &marker to measure the error at")
+            raise PymrError(f"{self.scene.path}: the scene has no &marker to measure the error at")
         if marker is None:
             marker = markers[0]
         if marker not in markers:
-            raise PymrError(f"{self.scene}: no marker {marker!r} (markers: {', '.join(markers)})")
+            raise PymrError(f"{self.scene.path}: no marker {marker!r} (markers: {', '.join(markers)})")
         self.marker = marker
         self.h0 = float(probe.stats["integrator"]["h_slow"])
         self.t_end = self._t_end()
@@ -77,7 +78,7 @@ class Study:
         self.cases: list[Case] = []
 
     def _t_end(self) -> float:
-        return float(Scene(self.scene)["scene.t_end"])
+        return float(self.scene["scene.t_end"])
 
     # ------------------------------------------------------------------ reference
 
@@ -256,7 +257,7 @@ class Study:
         for ax in axes:
             ax.grid(True, which="both", alpha=0.3)
         axes[1].legend(fontsize=7, ncol=2)
-        fig.suptitle(f"work-precision: {self.scene.name} (reference: pymr rtol 1e-11; DOP853 agrees to "
+        fig.suptitle(f"work-precision: {self.scene.path.name} (reference: pymr rtol 1e-11; DOP853 agrees to "
                      f"{self.ref_check:.1e} m)")
         fig.tight_layout()
         fig.savefig(path, dpi=110)

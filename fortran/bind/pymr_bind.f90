@@ -488,9 +488,11 @@ subroutine pymr_scene_write(scene, overrides, what, path, stat, message)
   use pymr_run, only : load_model
   use pymr_io_namelist_input, only : resolved_text, schema_text, scene_fingerprint
   use pymr_io_text_file, only : write_text_file
+  use pymr_io_sha256, only : sha256_hex
   implicit none
   character(len=*), intent(in) :: scene, overrides, path
   integer, intent(in) :: what
+  character(len=:), allocatable :: text
   integer, intent(out) :: stat
   character(len=8192), intent(out) :: message
   type(error_type), allocatable :: error
@@ -500,8 +502,14 @@ subroutine pymr_scene_write(scene, overrides, what, path, stat, message)
     call write_text_file(path, schema_text(), error)
   else
     call load_model(scene, overrides, sc, model, error)
-    if (.not. allocated(error)) call write_text_file(path, resolved_text(sc, what == 2) // '! fingerprint ' // &
-      & scene_fingerprint(sc) // new_line('a'), error)
+    if (.not. allocated(error)) then
+      text = resolved_text(sc, what == 2)
+      if (what == 2) then
+        call write_text_file(path, text // '! fingerprint ' // scene_fingerprint(sc) // new_line('a'), error)
+      else
+        call write_text_file(path, text // '! fingerprint sha256:' // sha256_hex(text) // new_line('a'), error)
+      end if
+    end if
   end if
   call report(error, stat, message)
 end subroutine pymr_scene_write
