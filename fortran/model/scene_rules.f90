@@ -1,0 +1,557 @@
+!> The rules a scene must keep beyond each item's own type and range (which the item tables
+!> in model/scene.f90 state): required items, items of a body's kind, names unique and
+!> referring to what exists, one ground, coordinates within their joints, effects turned on
+!> for the groups that need them, steps that fit together. check_scene applies them all in
+!> one pass and reports up to ten faults, each naming file, line, group and item.
+module pymr_model_scene_rules
+  use pymr_kinds, only : dp, name_len
+  use pymr_error, only : error_type, fatal_error, error_list
+  use pymr_model_scene, only : scene_t, body_spec, joint_spec, joint_ndof, unset, body_items
+  use pymr_io_item_table, only : origin_t
+  use pymr_model_names, only : name_index
+  use pymr_io_text, only : itoa, fmt
+  implicit none
+  private
+  public :: check_scene, body_index, inertia_matrix
+
+contains
+
+  !> Index of the body called `name`, 0 if none.
+  integer function body_index(sc, name)
+    type(scene_t), intent(in) :: sc
+    character(len=*), intent(in) :: name
+    integer :: i
+    body_index = 0
+    do i = 1, size(sc%bodies)
+      if (sc%bodies(i)%name == name) then
+        body_index = i; return
+      end if
+    end do
+  end function body_index
+
+  !> Every check that needs no tree: values, names, kinds, integrator and output settings.
+  subroutine check_scene(sc, error)
+    type(scene_t), intent(in) :: sc
+    type(error_type), allocatable, intent(out) :: error
+    type(error_list) :: errs
+    integer :: n0
+    call check_settings(sc, errs)
+    n0 = errs%n
+    call check_unique_names(sc, errs)
+    ! names given twice make every reference to them ambiguous: nothing more to check
+    if (errs%n > n0) then
+      call errs%take(error); return
+    end if
+    call check_bodies(sc, errs)
+    call check_joints(sc, errs)
+    call check_loads_markers(sc, errs)
+    call errs%take(error)
+  end subroutine check_scene
+
+  !> Bodies, joints and markers each have names of their own.
+  subroutine check_unique_names(sc, errs)
+    type(scene_t), intent(in) :: sc
+    type(error_list), intent(inout) :: errs
+    integer :: i, j
+    call first_repeat(sc%bodies%name, i, j)
+    if (j > 0) then
+      call errs%add(sc%bodies(j)%origin%where('name') // ': used by another &body too (line ' // &
+        & itoa(sc%bodies(i)%origin%line) // ')')
+    end if
+    call first_repeat(sc%joints%name, i, j)
+    if (j > 0) then
+      call errs%add(sc%joints(j)%origin%where('name') // ': used by another &joint too (line ' // &
+        & itoa(sc%joints(i)%origin%line) // ')')
+    end if
+    call first_repeat(sc%markers%name, i, j)
+    if (j > 0) then
+      call errs%add(sc%markers(j)%origin%where('name') // ': used by another &marker too (line ' // &
+        & itoa(sc%markers(i)%origin%line) // ')')
+    end if
+  end subroutine check_unique_names
+
+  subroutine check_settings(sc, errs)
+    type(scene_t), intent(in) :: sc
+    type(error_list), intent(inout) :: errs
+    real(dp) :: hf, hs, r
+    character(len=:), allocatable :: step_item
+    ! a rule on both steps names the one the scene (or a --set) gave last
+    step_item = 'h_slow'
+    associate(o => sc%integrator%origin)
+      if (o%given('h_fast') .and. (.not. o%given('h_slow') .or. (o%line_of('h_fast') < 0 .and. &
+        & o%line_of('h_slow') >= 0))) step_item = 'h_fast'
+    end associate
+    if (sc%scene%t_end == unset) then
+      call errs%add(sc%scene%origin%where('t_end') // ': missing (the end time of the run in s)'); return
+    end if
+    associate(s => sc%integrator)
+      hf = s%h_fast; hs = s%h_slow
+      if (hf == unset .and. hs == unset) then
+        call errs%add(w('h_slow') // ': missing (the step in s; h_fast for the modal coordinates)'); return
+      end if
+      if (hf == unset) hf = hs
+      if (hs == unset) hs = hf
+      r = hs/hf
+      if (r < 1.0_dp - 1.0e-9_dp .or. abs(r - nint(r)) > 1.0e-9_dp*r) then
+        if (step_item == 'h_slow') then
+          call errs%add(w(step_item) // ': must be an integer multiple of h_fast, got h_slow/h_fast = ' // fmt(r))
+        else
+          call errs%add(w(step_item) // ': h_slow must be an integer multiple of h_fast, got h_slow/h_fast = ' // &
+            & fmt(r))
+        end if
+        return
+      end if
+      if (trim(s%method) == 'single' .and. nint(r) /= 1) then
+        call errs%add(w(step_item) // ": method 'single' takes one step for all coordinates: set h_fast = " &
+          & // "h_slow, or method = 'multirate'"); return
+      end if
+      if (trim(s%method) == 'multirate') then
+        if (s%n_corrector /= 1) then
+          call errs%add(w('n_corrector') // ": multirate uses PECE (n_corrector = 1)"); return
+        end if
+      end if
+      if (.not. s%adaptive .and. sc%output%dt > 0.0_dp) then
+        r = sc%output%dt/hs
+        if (abs(r - nint(r)) > 1.0e-9_dp*r .or. nint(r) < 1) then
+          call errs%add(sc%output%origin%where('dt') // ': must be a multiple of the step h_slow = ' // fmt(hs) &
+            & // ' s, got ' // fmt(sc%output%dt)); return
+        end if
+      end if
+    end associate
+  contains
+    function w(item) result(s)
+      character(len=*), intent(in) :: item
+      character(len=:), allocatable :: s
+      s = sc%integrator%origin%where(item)
+    end function w
+  end subroutine check_settings
+
+  subroutine check_bodies(sc, errs)
+    type(scene_t), intent(in) :: sc
+    type(error_list), intent(inout) :: errs
+    type(error_type), allocatable :: error
+    integer :: i, ng
+    real(dp) :: a(3, 3), e(3)
+    ng = 0
+    each_bodies: do i = 1, size(sc%bodies)
+      associate(b => sc%bodies(i))
+        if (len_trim(b%name) == 0) then
+          call errs%add(b%origin%where('name') // ': missing'); cycle each_bodies
+        end if
+        call check_kind_items(b, error)
+        if (allocated(error)) then
+          call errs%add(error%message); cycle each_bodies
+        end if
+        select case (trim(b%kind))
+        case ('ground')
+          ng = ng + 1
+          if (ng == 2) call errs%add(b%origin%where('kind') // ": a second ground (the tree has one fixed base): " // &
+            & 'join this body to the first ground with a fixed joint')
+        case ('rigid')
+          if (b%mass == unset) then
+            call errs%add(sc%bodies(i)%origin%where('mass') // ': missing (kg)'); cycle each_bodies
+          end if
+          if (any(b%inertia == unset)) then
+            call errs%add(sc%bodies(i)%origin%where('inertia') // ': missing (6 values: Ixx Iyy Izz Ixy Ixz Iyz)')
+            cycle each_bodies
+          end if
+          a = inertia_matrix(b%inertia)
+          call eig3(a, e)
+          if (minval(e) <= 0.0_dp) then
+            call errs%add(sc%bodies(i)%origin%where('inertia') // ': not positive definite (smallest principal ' // &
+              & 'moment ' // fmt(minval(e)) // ' kg m^2)'); cycle each_bodies
+          end if
+          if (2*maxval(e) > sum(e)*(1.0_dp + 1.0e-12_dp)) then
+            call errs%add(sc%bodies(i)%origin%where('inertia') // ': principal moments ' // fmt(e(1)) // ', ' // &
+              & fmt(e(2)) // ', ' // fmt(e(3)) // ' break the triangle inequality (no real body has them)'); cycle each_bodies
+          end if
+        case ('beam')
+          call check_beam(sc, i, error)
+          if (allocated(error)) then
+            call errs%add(error%message); cycle each_bodies
+          end if
+        case ('modal')
+          if (len_trim(b%modal_file) == 0) then
+            call errs%add(sc%bodies(i)%origin%where('modal_file') // ': missing (the file with the mode data)')
+            cycle each_bodies
+          end if
+          call check_damping(sc, i, error)
+          if (allocated(error)) then
+            call errs%add(error%message); cycle each_bodies
+          end if
+        case default
+          call errs%add(sc%bodies(i)%origin%where('kind') // ": missing ('ground', 'rigid', 'beam' or 'modal')")
+          cycle each_bodies
+        end select
+      end associate
+    end do each_bodies
+    if (ng == 0) then
+      call errs%add(sc%file // ": &body: no body has kind = 'ground' (the fixed base of the tree)"); return
+    end if
+    if (size(sc%bodies) < 2) then
+      call errs%add(sc%file // ': &body: the scene has only the ground: add a moving body'); return
+    end if
+  end subroutine check_bodies
+
+  !> Items of a built-in beam.
+  subroutine check_beam(sc, i, error)
+    type(scene_t), intent(in) :: sc
+    integer, intent(in) :: i
+    type(error_type), allocatable, intent(out) :: error
+    associate(b => sc%bodies(i))
+      call positive(b%length, 'length', '(m)'); if (allocated(error)) return
+      call positive(b%youngs_modulus, 'youngs_modulus', '(Pa)'); if (allocated(error)) return
+      call positive(b%density, 'density', '(kg/m^3)'); if (allocated(error)) return
+      if (b%r_outer /= unset) then
+        call positive(b%r_outer, 'r_outer', '(m)'); if (allocated(error)) return
+        if (b%r_inner >= b%r_outer) then
+          call fatal_error(error, b%origin%where('r_inner') // ': must be below r_outer = ' // fmt(b%r_outer) // &
+            & ', got ' // fmt(b%r_inner)); return
+        end if
+        if (b%area /= unset .or. b%iy /= unset .or. b%iz /= unset) then
+          call fatal_error(error, b%origin%where('r_outer') // ': give either r_outer (and r_inner) or area, iy ' // &
+            & 'and iz'); return
+        end if
+      else
+        if (b%area == unset .and. b%iy == unset .and. b%iz == unset) then
+          call fatal_error(error, b%origin%where('r_outer') // ': missing (or give area, iy and iz for the section)')
+          return
+        end if
+        call positive(b%area, 'area', '(m^2)'); if (allocated(error)) return
+        call positive(b%iy, 'iy', '(m^4)'); if (allocated(error)) return
+        call positive(b%iz, 'iz', '(m^4)'); if (allocated(error)) return
+      end if
+      if (b%modes_y > 2*b%n_elements) then
+        call fatal_error(error, b%origin%where('modes_y') // ': must be 0 to 2*n_elements = ' // itoa(2*b%n_elements) // &
+          & ', got ' // itoa(b%modes_y)); return
+      end if
+      if (b%modes_z > 2*b%n_elements) then
+        call fatal_error(error, b%origin%where('modes_z') // ': must be 0 to 2*n_elements = ' // itoa(2*b%n_elements) // &
+          & ', got ' // itoa(b%modes_z)); return
+      end if
+      call check_damping(sc, i, error); if (allocated(error)) return
+    end associate
+  contains
+    subroutine positive(x, item, unit)
+      real(dp), intent(in) :: x
+      character(len=*), intent(in) :: item, unit
+      if (x == unset) call fatal_error(error, sc%bodies(i)%origin%where(item) // ': missing ' // unit)
+    end subroutine positive
+  end subroutine check_beam
+
+  subroutine check_joints(sc, errs)
+    type(scene_t), intent(in) :: sc
+    type(error_list), intent(inout) :: errs
+    type(error_type), allocatable :: error
+    integer :: i, j, ip, ic
+    character(len=name_len) :: children(size(sc%joints))
+    each_joints: do i = 1, size(sc%joints)
+      associate(jt => sc%joints(i))
+        if (len_trim(jt%name) == 0) then
+          call errs%add(jt%origin%where('name') // ': missing'); cycle each_joints
+        end if
+        if (joint_ndof(jt%kind) < 0) then
+          call errs%add(jt%origin%where('kind') // ": missing ('revolute', 'prismatic', 'fixed', " // &
+            & "'spherical' or 'free')"); cycle each_joints
+        end if
+        call check_coordinate_count(jt, 'q0', error)
+        if (allocated(error)) then
+          call errs%add(error%message); cycle each_joints
+        end if
+        call check_coordinate_count(jt, 'qd0', error)
+        if (allocated(error)) then
+          call errs%add(error%message); cycle each_joints
+        end if
+        ip = body_index(sc, jt%parent); ic = body_index(sc, jt%child)
+        if (ip == 0) then
+          call errs%add(sc%joints(i)%origin%where('parent') // ": no &body named '" // trim(jt%parent) // "'")
+          cycle each_joints
+        end if
+        if (ic == 0) then
+          call errs%add(sc%joints(i)%origin%where('child') // ": no &body named '" // trim(jt%child) // "'")
+          cycle each_joints
+        end if
+        if (ip == ic) then
+          call errs%add(sc%joints(i)%origin%where('child') // ": the joint joins body '" // trim(jt%child) // &
+            & "' to itself (a cycle)"); cycle each_joints
+        end if
+        if (sc%bodies(ic)%kind == 'ground') then
+          call errs%add(sc%joints(i)%origin%where('child') // ": '" // trim(jt%child) // &
+            & "' is the ground; the ground can only be a parent"); cycle each_joints
+        end if
+        if (jt%kind == 'revolute' .or. jt%kind == 'prismatic') then
+          if (norm2(jt%axis) < 1.0e-12_dp) then
+            call errs%add(sc%joints(i)%origin%where('axis') // ': zero length; give a direction in the parent frame')
+            cycle each_joints
+          end if
+        end if
+      end associate
+    end do each_joints
+    ! a joint from a body to itself is reported above, not again as a second parent
+    children = sc%joints%child
+    where (sc%joints%parent == sc%joints%child) children = ''
+    call first_repeat(children, i, j)
+    if (j > 0) then
+      call errs%add(sc%joints(j)%origin%where('child') // ": body '" // trim(sc%joints(j)%child) // &
+        & "' has two parents (also joint '" // trim(sc%joints(i)%name) // "'); a tree allows one"); return
+    end if
+  end subroutine check_joints
+
+  !> The first repeated non-blank name: i < j, names(i) == names(j), j the smallest such
+  !> (sorted once, so O(n log n)); j = 0 if every name is distinct.
+  subroutine first_repeat(names, i, j)
+    character(len=*), intent(in) :: names(:)
+    integer, intent(out) :: i, j
+    type(name_index) :: idx
+    call idx%build(names)
+    call idx%duplicate(i, j)
+  end subroutine first_repeat
+
+  !> The item by which a body gives its damping (for messages).
+  pure function damping_item(b) result(item)
+    type(body_spec), intent(in) :: b
+    character(len=:), allocatable :: item
+    item = 'modal_damping'
+    if (b%origin%given('modal_damping')) return
+    if (b%origin%given('rayleigh_alpha')) item = 'rayleigh_alpha'
+    if (b%origin%given('rayleigh_beta')) item = 'rayleigh_beta'
+  end function damping_item
+
+  !> A body takes the items of its kind only: a beam's mass follows from its density and
+  !> section, a rigid body has no elastic items, and so on.
+  subroutine check_kind_items(b, error)
+    type(body_spec), intent(in) :: b
+    type(error_type), allocatable, intent(out) :: error
+    character(len=:), allocatable :: takes
+    integer :: k
+    takes = body_items(b%kind)
+    if (len(takes) == 0) return
+    do k = 1, b%origin%n
+      if (index(' ' // takes // ' ', ' ' // trim(b%origin%items(k)) // ' ') > 0) cycle
+      call fatal_error(error, b%origin%where(trim(b%origin%items(k))) // ': not an item of a ' // trim(b%kind) // &
+        & ' body (it takes ' // takes // ')'); return
+    end do
+  end subroutine check_kind_items
+
+  !> A joint's q0 or qd0, when given, has one value per coordinate of the joint.
+  subroutine check_coordinate_count(jt, item, error)
+    type(joint_spec), intent(in) :: jt
+    character(len=*), intent(in) :: item
+    type(error_type), allocatable, intent(out) :: error
+    integer :: n
+    n = jt%origin%count_of(item)
+    if (n > 0 .and. n /= joint_ndof(jt%kind)) then
+      call fatal_error(error, jt%origin%where(item) // ': a ' // trim(jt%kind) // ' joint has ' // &
+        & itoa(joint_ndof(jt%kind)) // trim(merge(' coordinate ', ' coordinates', joint_ndof(jt%kind) == 1)) // &
+        & ', got ' // itoa(n) // ' values')
+    end if
+  end subroutine check_coordinate_count
+
+  subroutine check_loads_markers(sc, errs)
+    type(scene_t), intent(in) :: sc
+    type(error_list), intent(inout) :: errs
+    integer :: i, j, k
+    each_drives: do i = 1, size(sc%drives)
+      associate(dr => sc%drives(i))
+        if (.not. joint_coordinate(dr%origin, dr%joint, dr%coordinate)) cycle each_drives
+        if (.not. table_form(dr%origin, dr%form, dr%file, [dr%amplitude, dr%frequency, dr%phase])) cycle each_drives
+        if (forgotten(sc%effects%joint_drives, 'joint_drives')) &
+          & call errs%add(dr%origin%where() // effect_not_on('the scene gives drives', 'joint_drives'))
+      end associate
+    end do each_drives
+    each_springs: do i = 1, size(sc%springs)
+      associate(sp => sc%springs(i))
+        if (.not. joint_coordinate(sp%origin, sp%joint, sp%coordinate)) cycle each_springs
+        if (forgotten(sc%effects%joint_springs, 'joint_springs')) &
+          & call errs%add(sp%origin%where() // effect_not_on('the scene gives springs', 'joint_springs'))
+      end associate
+    end do each_springs
+    each_motions: do i = 1, size(sc%motions)
+      associate(mo => sc%motions(i))
+        if (.not. joint_coordinate(mo%origin, mo%joint, mo%coordinate)) cycle each_motions
+        do j = 1, i - 1
+          if (sc%motions(j)%joint == mo%joint .and. sc%motions(j)%coordinate == mo%coordinate) then
+            call errs%add(mo%origin%where('coordinate') // ': ' // itoa(mo%coordinate) // " of joint '" // &
+              & trim(mo%joint) // "' is already prescribed by &motion #" // itoa(j)); cycle each_motions
+          end if
+        end do
+        if (.not. table_form(mo%origin, mo%form, mo%file, [mo%amplitude, mo%frequency, mo%phase])) cycle each_motions
+      end associate
+      if (sc%motions(i)%form == 'spinup' .and. sc%motions(i)%ramp_time == unset) then
+        call errs%add(sc%motions(i)%origin%where('ramp_time') // ": missing (form 'spinup' needs the ramp time, s)"); cycle each_motions
+      end if
+      if (forgotten(sc%effects%base_motion, 'base_motion')) &
+        & call errs%add(sc%motions(i)%origin%where() // effect_not_on('the scene prescribes motion', 'base_motion'))
+    end do each_motions
+    each_bodies: do i = 1, size(sc%bodies)
+      associate(b => sc%bodies(i))
+        if (b%kind /= 'beam' .and. b%kind /= 'modal') cycle
+        if (any(b%modal_damping /= unset .and. b%modal_damping /= 0.0_dp) .or. b%rayleigh_alpha /= 0.0_dp .or. &
+          & b%rayleigh_beta /= 0.0_dp) then
+          if (forgotten(sc%effects%modal_damping, 'modal_damping')) &
+            & call errs%add(b%origin%where(damping_item(b)) // effect_not_on('the body gives modal damping', &
+            & 'modal_damping'))
+        end if
+      end associate
+    end do each_bodies
+    each_loads: do i = 1, size(sc%loads)
+      associate(ld => sc%loads(i))
+        k = 0
+        do j = 1, size(sc%markers)
+          if (sc%markers(j)%name == ld%marker) k = j
+        end do
+        if (k == 0) then
+          call errs%add(ld%origin%where('marker') // ": no &marker named '" // trim(ld%marker) // "'"); cycle each_loads
+        end if
+        if (norm2(ld%direction) < 1.0e-12_dp) then
+          call errs%add(ld%origin%where('direction') // ': missing or zero (a direction in the body frame of the ' // &
+            & "marker's body)"); cycle each_loads
+        end if
+        if (ld%duration == unset) then
+          call errs%add(ld%origin%where('duration') // ': missing (the pulse length, s)'); cycle each_loads
+        end if
+        if (forgotten(sc%effects%firing_load, 'firing_load')) &
+          & call errs%add(ld%origin%where() // effect_not_on('the scene gives loads', 'firing_load'))
+      end associate
+    end do each_loads
+    if (sc%effects%geometric_stiffening .and. .not. any(sc%bodies%kind == 'beam')) then
+      call errs%add(sc%effects%origin%where('geometric_stiffening') // ': the scene has no beam (only built-in ' // &
+        & "beams, kind = 'beam', carry a geometric stiffness)"); return
+    end if
+    each_markers: do i = 1, size(sc%markers)
+      if (len_trim(sc%markers(i)%name) == 0) then
+        call errs%add(sc%markers(i)%origin%where('name') // ': missing'); cycle each_markers
+      end if
+      if (body_index(sc, sc%markers(i)%body) == 0) then
+        call errs%add(sc%markers(i)%origin%where('body') // ": no &body named '" // trim(sc%markers(i)%body) // "'"); cycle each_markers
+      end if
+    end do each_markers
+  contains
+    !> An effect whose data the scene gives is off without being turned off on purpose.
+    logical function forgotten(on, effect)
+      logical, intent(in) :: on
+      character(len=*), intent(in) :: effect
+      forgotten = .not. on .and. .not. sc%effects%origin%given(effect)
+    end function forgotten
+
+    !> ": the scene gives X but &effects E is not on: ..." for a forgotten effect.
+    function effect_not_on(what, effect) result(s)
+      character(len=*), intent(in) :: what, effect
+      character(len=:), allocatable :: s
+      s = ': ' // what // ' but &effects ' // effect // ' is not on: set ' // effect // ' = .true. in &effects ' // &
+        & '(or .false. to leave it out on purpose)'
+    end function effect_not_on
+
+    !> The named joint exists and has the coordinate (else the error is added).
+    logical function joint_coordinate(o, joint, coordinate) result(ok)
+      type(origin_t), intent(in) :: o
+      character(len=*), intent(in) :: joint
+      integer, intent(in) :: coordinate
+      integer :: jj, kk, ndof
+      ok = .false.
+      if (len_trim(joint) == 0) then
+        call errs%add(o%where('joint') // ': missing (the joint it acts on)'); return
+      end if
+      kk = 0
+      do jj = 1, size(sc%joints)
+        if (sc%joints(jj)%name == joint) kk = jj
+      end do
+      if (kk == 0) then
+        call errs%add(o%where('joint') // ": no &joint named '" // trim(joint) // "'"); return
+      end if
+      ndof = joint_ndof(sc%joints(kk)%kind)
+      if (coordinate < 1 .or. coordinate > ndof) then
+        call errs%add(o%where('coordinate') // ': joint ''' // trim(joint) // ''' has ' // itoa(ndof) // &
+          & trim(merge(' coordinate ', ' coordinates', ndof == 1)) // ', got ' // itoa(coordinate)); return
+      end if
+      ok = .true.
+    end function joint_coordinate
+
+    !> A group's form and file agree (else the error is added).
+    logical function table_form(o, form, file, sine_items) result(ok)
+      type(origin_t), intent(in) :: o
+      character(len=*), intent(in) :: form, file
+      real(dp), intent(in) :: sine_items(3)
+      type(error_type), allocatable :: error
+      call check_table_form(o, form, file, sine_items, error)
+      ok = .not. allocated(error)
+      if (.not. ok) call errs%add(error%message)
+    end function table_form
+  end subroutine check_loads_markers
+
+  !> A group's form 'table' needs a file and no sine items; other forms take no file.
+  !> `o` is the group's origin; `sine_items` are its amplitude, frequency and phase.
+  subroutine check_table_form(o, form, file, sine_items, error)
+    type(origin_t), intent(in) :: o
+    character(len=*), intent(in) :: form, file
+    real(dp), intent(in) :: sine_items(3)
+    type(error_type), allocatable, intent(out) :: error
+    character(len=*), parameter :: names(3) = [character(len=9) :: 'amplitude', 'frequency', 'phase']
+    integer :: k
+    if (trim(form) == 'table') then
+      if (len_trim(file) == 0) then
+        call fatal_error(error, o%where('file') // ": missing (form 'table' reads the history from a file of " // &
+          & "'time value' lines)"); return
+      end if
+      do k = 1, 3
+        if (sine_items(k) /= 0.0_dp) then
+          call fatal_error(error, o%where(trim(names(k))) // ": not used by form 'table' (the file gives " // &
+            & 'the history; offset adds a constant)'); return
+        end if
+      end do
+    else if (len_trim(file) > 0) then
+      call fatal_error(error, o%where('file') // ": only form 'table' reads a file (form is '" // trim(form) // &
+        & "')"); return
+    end if
+  end subroutine check_table_form
+
+  !> Modal damping of body i: fractions in [0, 1) given contiguously from the first mode;
+  !> Rayleigh coefficients >= 0.
+  subroutine check_damping(sc, i, error)
+    type(scene_t), intent(in) :: sc
+    integer, intent(in) :: i
+    type(error_type), allocatable, intent(out) :: error
+    integer :: ng
+    associate(b => sc%bodies(i))
+      ng = count(b%modal_damping /= unset)
+      if (b%kind == 'beam' .and. ng > 1 .and. ng /= b%modes_y + b%modes_z) then
+        call fatal_error(error, b%origin%where('modal_damping') // ': give one value or one per mode (' // &
+          & itoa(b%modes_y + b%modes_z) // ' modes), got ' // itoa(ng)); return
+      end if
+    end associate
+  end subroutine check_damping
+
+  !> 3x3 inertia from Ixx Iyy Izz Ixy Ixz Iyz (products enter as given: I(1,2) = Ixy).
+  pure function inertia_matrix(v) result(a)
+    real(dp), intent(in) :: v(6)
+    real(dp) :: a(3, 3)
+    a = reshape([v(1), v(4), v(5), v(4), v(2), v(6), v(5), v(6), v(3)], [3, 3])
+  end function inertia_matrix
+
+  !> Eigenvalues of a symmetric 3x3 matrix (Jacobi sweeps; enough for input checks).
+  pure subroutine eig3(a0, e)
+    real(dp), intent(in) :: a0(3, 3)
+    real(dp), intent(out) :: e(3)
+    real(dp) :: a(3, 3), th, c, s, t, g(3, 3)
+    integer :: sweep, p, q, i
+    a = a0
+    do sweep = 1, 50
+      if (abs(a(1, 2)) + abs(a(1, 3)) + abs(a(2, 3)) <= 1.0e-15_dp*sum(abs(a))) exit
+      do p = 1, 2
+        do q = p + 1, 3
+          if (a(p, q) == 0.0_dp) cycle
+          th = (a(q, q) - a(p, p))/(2*a(p, q))
+          t = sign(1.0_dp, th)/(abs(th) + sqrt(th*th + 1))
+          c = 1/sqrt(t*t + 1); s = t*c
+          g = 0.0_dp
+          do i = 1, 3
+            g(i, i) = 1.0_dp
+          end do
+          g(p, p) = c; g(q, q) = c; g(p, q) = s; g(q, p) = -s
+          a = matmul(transpose(g), matmul(a, g))
+        end do
+      end do
+    end do
+    e = [a(1, 1), a(2, 2), a(3, 3)]
+  end subroutine eig3
+end module pymr_model_scene_rules
