@@ -208,3 +208,14 @@ def test_the_checks_report_every_fault_they_find_up_to_ten(tmp_path, mrsim):
     with pytest.raises(pymr.SceneError) as exc:
         pymr.run(tmp_path / "four.nml")
     assert len(str(exc.value).splitlines()) == 4
+
+
+def test_import_from_the_source_tree_says_the_kernel_is_not_built():
+    """From the checkout root, `import pymr` finds the source folder, which has no compiled
+    kernel: the error says so and how to build it (not a circular-import error)."""
+    import sys
+    r = subprocess.run([sys.executable, "-c", "import pymr"], cwd=ROOT, capture_output=True, text=True, timeout=60)
+    assert r.returncode == 1
+    last = r.stderr.strip().splitlines()[-1]
+    assert last.startswith("ImportError: pymr's compiled kernel (pymr._core) is not here")
+    assert "bash .ci/setup" in last
