@@ -280,7 +280,7 @@ contains
       if (coupling == coupling_split) then
         call sys%sync_rhs(0.0_dp, mr%zs(:, 0), mr%zf(:, 0), mr%fs, mr%ff, error); if (allocated(error)) return
       end if
-      call mr%step(sys, error); if (allocated(error)) return
+      call mr%advance(sys, error); if (allocated(error)) return
       g(:, j) = [reshape(mr%zs, [2*ns*(nq + 1)]), reshape(mr%zf, [2*nf*(nq + 1)])]
     end do
     call geev_real(g, wr, wi, vr, 'the linearised macro step', error); if (allocated(error)) return

@@ -8,9 +8,9 @@ module pymr_run
   use pymr_io_namelist_input, only : read_scene, scene_fingerprint
   use pymr_model_build, only : build_model
   use pymr_model, only : model_t
-  use pymr_integrator_abm, only : abm_integrator, hinit
-  use pymr_integrator_multirate, only : multirate_integrator, coupling_full, coupling_split
-  use pymr_integrator_control, only : step_control
+  use pymr_integrator_multirate, only : coupling_full, coupling_split
+  use pymr_integrator_stepper, only : stepper_t, step_counts
+  use pymr_stepper_setup, only : start_stepper
   use pymr_io_results_output, only : csv_writer, json_path, write_json, run_stats
   use pymr_model_kinematics, only : forward_kinematics, marker_motion
   use pymr_clock, only : thread_cpu_time
@@ -31,96 +31,7 @@ module pymr_run
   real(dp), volatile :: progress_t = 0.0_dp, progress_t_end = 0.0_dp
   logical, volatile :: progress_running = .false.
 
-  !> The time stepper of a run: single-rate ABM or multirate.
-  type :: stepper
-    logical :: multirate = .false.
-    type(abm_integrator) :: abm
-    type(multirate_integrator) :: mr
-  contains
-    procedure :: time => stepper_time
-    procedure :: advance => stepper_advance
-    procedure :: value_at => stepper_value_at
-  end type stepper
-
 contains
-
-  pure real(dp) function stepper_time(self)
-    class(stepper), intent(in) :: self
-    if (self%multirate) then
-      stepper_time = self%mr%t
-    else
-      stepper_time = self%abm%t
-    end if
-  end function stepper_time
-
-  subroutine stepper_advance(self, model, error)
-    class(stepper), intent(inout) :: self
-    type(model_t), intent(inout) :: model
-    type(error_type), allocatable, intent(out) :: error
-    if (self%multirate) then
-      call self%mr%step(model, error)
-    else
-      call self%abm%step(model, error)
-    end if
-  end subroutine stepper_advance
-
-  pure subroutine stepper_value_at(self, t, x)
-    class(stepper), intent(in) :: self
-    real(dp), intent(in) :: t
-    real(dp), intent(out) :: x(:)
-    if (self%multirate) then
-      call self%mr%value_at(t, x)
-    else
-      call self%abm%value_at(t, x)
-    end if
-  end subroutine stepper_value_at
-
-  !> Set up the stepper for the scene and start it at (0, x); with `restarting`, only set
-  !> it up (its state comes from a checkpoint).
-  subroutine start_stepper(sc, model, x, st, restarting, error)
-    type(scene_t), intent(in) :: sc
-    type(model_t), intent(inout) :: model
-    real(dp), intent(in) :: x(:)
-    type(stepper), intent(inout) :: st
-    logical, intent(in) :: restarting
-    type(error_type), allocatable, intent(out) :: error
-    type(step_control) :: ctl
-    integer :: k, coupling
-    real(dp) :: hs, h0
-    real(dp), allocatable :: f0(:)
-    st%multirate = trim(sc%integrator%method) == 'multirate'
-    if (st%multirate) then
-      if (model%n_fast() == 0 .or. model%n_slow() == 0) then
-        call fatal_error(error, sc%file // ": &integrator: method: 'multirate' needs slow (joint) and fast " // &
-          & "(modal) coordinates; this scene has " // itoa(model%n_slow()) // ' and ' // &
-          & itoa(model%n_fast()) // ": use method = 'single'"); return
-      end if
-    end if
-    ctl%rtol = sc%integrator%rtol; ctl%atol = sc%integrator%atol
-    if (sc%integrator%h_min > 0.0_dp) ctl%h_min = sc%integrator%h_min
-    if (sc%integrator%h_max > 0.0_dp) ctl%h_max = sc%integrator%h_max
-    if (st%multirate) then
-      k = nint(sc%integrator%h_slow/sc%integrator%h_fast)
-      hs = sc%integrator%h_slow
-      if (sc%integrator%adaptive .and. .not. restarting) then
-        ! start single-rate (k = 1) at h_fast, or less if the tolerances ask for it; the
-        ! controller then chooses k
-        call st%abm%init(size(x), .true., ctl, 1)
-        allocate(f0(size(x)))
-        call model%eval(0.0_dp, x, f0, error); if (allocated(error)) return
-        call hinit(st%abm, model, 0.0_dp, x, f0, h0, error); if (allocated(error)) return
-        k = 1
-        hs = min(sc%integrator%h_fast, h0)
-      end if
-      coupling = merge(coupling_split, coupling_full, sc%integrator%coupling == 'split')
-      call model%init_partition()
-      call st%mr%init(model%n_slow(), model%n_fast(), k, coupling, sc%integrator%adaptive, ctl, sc%integrator%k_max)
-      if (.not. restarting) call st%mr%start(model, 0.0_dp, x, hs, error)
-    else
-      call st%abm%init(size(x), sc%integrator%adaptive, ctl, sc%integrator%n_corrector)
-      if (.not. restarting) call st%abm%start(model, 0.0_dp, x, sc%integrator%h_slow, error)
-    end if
-  end subroutine start_stepper
 
   !> Read and build the model of a scene (with overrides).
   subroutine load_model(file, overrides, sc, model, error)
@@ -165,7 +76,7 @@ contains
     logical, intent(in), optional :: progress_lines
     type(scene_t), target :: sc
     type(model_t) :: model
-    type(stepper) :: st
+    class(stepper_t), allocatable :: st
     type(csv_writer) :: csv
     type(run_stats) :: stats
     type(run_progress) :: prog
@@ -197,7 +108,7 @@ contains
     csv%digits = sc%output%precision
     if (restarting) then
       call start_stepper(sc, model, x, st, .true., error)
-      if (.not. allocated(error)) call read_checkpoint(restart, st%multirate, st%abm, st%mr, model, prog, error)
+      if (.not. allocated(error)) call read_checkpoint(restart, st, model, prog, error)
       if (.not. allocated(error)) call csv%reopen(path, model%d, prog%rows, error)
       if (allocated(error)) then
         call csv%close()
@@ -250,7 +161,7 @@ contains
         flush(csv%unit)
         prog = run_progress(rows=stats%rows, k_out=k_out, t_next=t_next, cpu_s=thread_cpu_time() - cpu0, &
           & t_checkpoint=st%time())
-        call write_checkpoint(ckpt_path, st%multirate, st%abm, st%mr, model, prog, error); if (allocated(error)) exit
+        call write_checkpoint(ckpt_path, st, model, prog, error); if (allocated(error)) exit
         t_ckpt = (floor(st%time()/sc%output%checkpoint_dt + 1.0e-9_dp) + 1)*sc%output%checkpoint_dt
       end if
       call st%advance(model, error); if (allocated(error)) exit
@@ -314,22 +225,17 @@ contains
     end if
   end function checkpoint_default
 
-  !> Step and evaluation counts of a run.
+  !> Step and evaluation counts of a run: steps from the stepper, evaluations from the model.
   subroutine fill_stats(st, model, stats)
-    type(stepper), intent(in) :: st
+    class(stepper_t), intent(in) :: st
     type(model_t), intent(in) :: model
     type(run_stats), intent(inout) :: stats
-    if (st%multirate) then
-      stats%steps_slow = st%mr%steps_slow; stats%steps_fast = st%mr%steps_fast
-      stats%rhs_fast = model%evals_split + model%d%evals_fast_rows
-      stats%rhs_full = model%d%evals
-      stats%h_last = st%mr%hs
-      stats%rejected_steps = st%mr%rejected; stats%ratio_last = st%mr%k
-    else
-      stats%steps_slow = st%abm%steps; stats%steps_fast = st%abm%steps
-      stats%rhs_full = st%abm%evals; stats%rhs_fast = 0
-      stats%rejected_steps = st%abm%rejected; stats%h_last = st%abm%h
-    end if
+    type(step_counts) :: c
+    c = st%counts()
+    stats%steps_slow = c%steps_slow; stats%steps_fast = c%steps_fast
+    stats%rejected_steps = c%rejected; stats%h_last = c%h_last; stats%ratio_last = c%ratio
+    stats%rhs_full = model%d%evals
+    stats%rhs_fast = model%evals_split + model%d%evals_fast_rows
   end subroutine fill_stats
 
   !> [q0; qd0] from the joints' q0 and qd0 in model coordinate order.

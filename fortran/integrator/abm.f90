@@ -9,12 +9,13 @@ module pymr_integrator_abm
   use pymr_integrator_nordsieck, only : nq, corrector_l, nordsieck_predict, nordsieck_correct, &
     & nordsieck_rescale, nordsieck_value, nordsieck_from_history
   use pymr_integrator_control, only : step_control, error_weights, wrms_norm
+  use pymr_integrator_stepper, only : stepper_t, step_counts
   implicit none
   private
   public :: abm_integrator, rk4_step, check_finite, hinit
 
   !> Nordsieck ABM integrator state.
-  type :: abm_integrator
+  type, extends(stepper_t) :: abm_integrator
     !> Number of state components.
     integer :: n = 0
     !> Time of the Nordsieck array (s) and current step (s).
@@ -33,8 +34,13 @@ module pymr_integrator_abm
   contains
     procedure :: init => abm_init
     procedure :: start => abm_start
-    procedure :: step => abm_step
+    procedure :: advance => abm_step
+    procedure :: time => abm_time
     procedure :: value_at => abm_value_at
+    procedure :: save => abm_save
+    procedure :: load => abm_load
+    procedure :: counts => abm_counts
+    procedure :: name => abm_name
   end type abm_integrator
 
 contains
@@ -202,6 +208,38 @@ contains
     real(dp), intent(out) :: x(:)
     call nordsieck_value(self%z, (t - self%t)/self%h, x)
   end subroutine abm_value_at
+
+  pure real(dp) function abm_time(self)
+    class(abm_integrator), intent(in) :: self
+    abm_time = self%t
+  end function abm_time
+
+  subroutine abm_save(self, unit, ios)
+    class(abm_integrator), intent(in) :: self
+    integer, intent(in) :: unit
+    integer, intent(out) :: ios
+    write(unit, iostat=ios) self%t, self%h, self%z, self%steps, self%rejected, self%evals
+  end subroutine abm_save
+
+  subroutine abm_load(self, unit, ios)
+    class(abm_integrator), intent(inout) :: self
+    integer, intent(in) :: unit
+    integer, intent(out) :: ios
+    read(unit, iostat=ios) self%t, self%h, self%z, self%steps, self%rejected, self%evals
+  end subroutine abm_load
+
+  pure function abm_counts(self) result(c)
+    class(abm_integrator), intent(in) :: self
+    type(step_counts) :: c
+    c%steps_slow = self%steps; c%steps_fast = self%steps
+    c%rejected = self%rejected; c%h_last = self%h; c%ratio = 1
+  end function abm_counts
+
+  pure function abm_name(self) result(s)
+    class(abm_integrator), intent(in) :: self
+    character(len=:), allocatable :: s
+    s = 'single'
+  end function abm_name
 
   !> Error naming the first non-finite component of v (component map(i) of the system).
   subroutine check_finite(sys, t, v, what, error, map)

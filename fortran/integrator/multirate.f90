@@ -10,7 +10,8 @@
 module pymr_integrator_multirate
   use pymr_kinds, only : dp
   use pymr_error, only : error_type, fatal_error, stat_solver
-  use pymr_integrator_ode, only : partitioned_system
+  use pymr_integrator_ode, only : ode_system, partitioned_system
+  use pymr_integrator_stepper, only : stepper_t, step_counts
   use pymr_integrator_nordsieck, only : nq, nordsieck_predict, nordsieck_correct, nordsieck_value, &
     & nordsieck_from_history, nordsieck_rescale, corrector_l
   use pymr_integrator_abm, only : rk4_step, check_finite
@@ -23,7 +24,7 @@ module pymr_integrator_multirate
   integer, parameter :: coupling_full = 1, coupling_split = 2
 
   !> Multirate integrator state.
-  type :: multirate_integrator
+  type, extends(stepper_t) :: multirate_integrator
     !> Slow and fast coordinates, step ratio k = H/h, coupling.
     integer :: ns = 0, nf = 0, k = 1, coupling = coupling_full
     !> Time of the Nordsieck arrays (s), slow step H and fast step h (s).
@@ -46,8 +47,13 @@ module pymr_integrator_multirate
   contains
     procedure :: init => mr_init
     procedure :: start => mr_start
-    procedure :: step => mr_step
+    procedure :: advance => mr_advance
+    procedure :: time => mr_time
     procedure :: value_at => mr_value_at
+    procedure :: save => mr_save
+    procedure :: load => mr_load
+    procedure :: counts => mr_counts
+    procedure :: name => mr_name
   end type multirate_integrator
 
 contains
@@ -76,7 +82,69 @@ contains
   !> Start at (t0, x0), x0 = [q_s; q_f; qd_s; qd_f]: classical RK4 steps of size h on the
   !> coupled system up to t0 + 2H (local error O(h^5)), recording the derivatives that
   !> build the slow array (at t0, t0 + H, t0 + 2H) and the fast one (last three fast points).
-  subroutine mr_start(self, sys, t0, x0, hs, error)
+  !> Start at (t0, x0) with the macro step hs (the stepper interface: the system must be
+  !> partitioned into slow and fast coordinates).
+  subroutine mr_start(self, sys, t0, x0, h, error)
+    class(multirate_integrator), intent(inout) :: self
+    class(ode_system), intent(inout) :: sys
+    real(dp), intent(in) :: t0, x0(:), h
+    type(error_type), allocatable, intent(out) :: error
+    select type (sys)
+    class is (partitioned_system)
+      call start_partitioned(self, sys, t0, x0, h, error)
+    class default
+      call fatal_error(error, 'multirate integration needs a system partitioned into slow and fast coordinates')
+    end select
+  end subroutine mr_start
+
+  !> One macro step (the stepper interface).
+  subroutine mr_advance(self, sys, error)
+    class(multirate_integrator), intent(inout) :: self
+    class(ode_system), intent(inout) :: sys
+    type(error_type), allocatable, intent(out) :: error
+    select type (sys)
+    class is (partitioned_system)
+      call mr_step(self, sys, error)
+    class default
+      call fatal_error(error, 'multirate integration needs a system partitioned into slow and fast coordinates')
+    end select
+  end subroutine mr_advance
+
+  pure real(dp) function mr_time(self)
+    class(multirate_integrator), intent(in) :: self
+    mr_time = self%t
+  end function mr_time
+
+  subroutine mr_save(self, unit, ios)
+    class(multirate_integrator), intent(in) :: self
+    integer, intent(in) :: unit
+    integer, intent(out) :: ios
+    write(unit, iostat=ios) self%k, self%t, self%hs, self%hf, self%zs, self%zf, self%steps_slow, self%steps_fast, &
+      & self%evals_slow, self%evals_fast, self%evals_start, self%rejected
+  end subroutine mr_save
+
+  subroutine mr_load(self, unit, ios)
+    class(multirate_integrator), intent(inout) :: self
+    integer, intent(in) :: unit
+    integer, intent(out) :: ios
+    read(unit, iostat=ios) self%k, self%t, self%hs, self%hf, self%zs, self%zf, self%steps_slow, self%steps_fast, &
+      & self%evals_slow, self%evals_fast, self%evals_start, self%rejected
+  end subroutine mr_load
+
+  pure function mr_counts(self) result(c)
+    class(multirate_integrator), intent(in) :: self
+    type(step_counts) :: c
+    c%steps_slow = self%steps_slow; c%steps_fast = self%steps_fast
+    c%rejected = self%rejected; c%h_last = self%hs; c%ratio = self%k
+  end function mr_counts
+
+  pure function mr_name(self) result(s)
+    class(multirate_integrator), intent(in) :: self
+    character(len=:), allocatable :: s
+    s = 'multirate'
+  end function mr_name
+
+  subroutine start_partitioned(self, sys, t0, x0, hs, error)
     class(multirate_integrator), intent(inout) :: self
     class(partitioned_system), intent(inout) :: sys
     real(dp), intent(in) :: t0, x0(:), hs
@@ -118,7 +186,7 @@ contains
       real(dp) :: r(2*nf)
       r = [v(ns+1:n), v(n+ns+1:2*n)]
     end function fast_part
-  end subroutine mr_start
+  end subroutine start_partitioned
 
   !> One macro step. Fixed steps: `try_macro_step` once. Adaptive: the slow corrector's
   !> error estimate sets the next macro step H, the largest fast one sets the fast step h,

@@ -75,7 +75,7 @@ contains
     call integ%init(nx, adaptive, ctl, n_corr)
     call integ%start(sys, 0.0_dp, x0, h, error); if (allocated(error)) return
     do while (integ%t < t_end - 1.0e-9_dp*integ%h)
-      call integ%step(sys, error); if (allocated(error)) return
+      call integ%advance(sys, error); if (allocated(error)) return
     end do
     call integ%value_at(t_end, x)
     steps = integ%steps; evals = integ%evals; rejected = integ%rejected

@@ -53,6 +53,8 @@ module pymr_model
     procedure :: sync_rhs => model_sync_rhs
     procedure :: fast_rhs => model_fast_rhs
     procedure :: init_partition => model_init_partition
+    procedure :: save_run => model_save_run
+    procedure :: load_run => model_load_run
   end type model_t
 
 contains
@@ -418,4 +420,34 @@ contains
     write(buf, '(es12.5)') t
     s = trim(adjustl(buf)) // ' s'
   end function time_text
+  !> Write the model's per-run state to an open unformatted stream unit: its evaluation
+  !> counters and effect timings, and the held multirate terms when the run partitioned it.
+  subroutine model_save_run(self, unit, ios)
+    class(model_t), intent(in) :: self
+    integer, intent(in) :: unit
+    integer, intent(out) :: ios
+    write(unit, iostat=ios) allocated(self%lff)
+    if (ios == 0 .and. allocated(self%lff)) write(unit, iostat=ios) self%lff, self%le, self%mfs, self%xfs, &
+      & self%qrest, self%yf, self%mffinv, self%yrest, self%mff_factored, self%evals_split
+    if (ios == 0) write(unit, iostat=ios) self%d%evals, self%d%evals_fast_rows, self%d%effect_evals, &
+      & self%d%effect_timed, self%d%effect_cpu
+  end subroutine model_save_run
+
+  !> Read what model_save_run wrote into a model built from the same scene (partitioned
+  !> the same way); ios /= 0 when it is not.
+  subroutine model_load_run(self, unit, ios)
+    class(model_t), intent(inout) :: self
+    integer, intent(in) :: unit
+    integer, intent(out) :: ios
+    logical :: partitioned
+    read(unit, iostat=ios) partitioned
+    if (ios /= 0) return
+    if (partitioned .neqv. allocated(self%lff)) then
+      ios = 1; return
+    end if
+    if (partitioned) read(unit, iostat=ios) self%lff, self%le, self%mfs, self%xfs, self%qrest, self%yf, &
+      & self%mffinv, self%yrest, self%mff_factored, self%evals_split
+    if (ios == 0) read(unit, iostat=ios) self%d%evals, self%d%evals_fast_rows, self%d%effect_evals, &
+      & self%d%effect_timed, self%d%effect_cpu
+  end subroutine model_load_run
 end module pymr_model
