@@ -1,11 +1,19 @@
 !> LAPACK wrappers: each routine is called once here, sizes come from the
-!> arrays, and a non-zero `info` becomes a sentence naming the matrix.
+!> arrays, and a non-zero `info` becomes a sentence naming the matrix. LAPACK's own error
+!> handler XERBLA, which prints and stops the process (with status 0), is replaced at the end
+!> of this file by one that records the fault and returns: the routine then returns a
+!> negative `info`, which the wrappers turn into an error.
 module pymr_lapack
   use pymr_kinds, only : dp
   use pymr_error, only : error_type, fatal_error, stat_solver
   implicit none
   private
   public :: potrf, potrs, sygvd, ptsv, geev_complex, geev_real, factor_inverse
+  public :: illegal_argument_probe
+
+  !> The last fault LAPACK reported to XERBLA: routine and argument number.
+  character(len=32), public :: xerbla_routine = ''
+  integer, public :: xerbla_argument = 0
 
   !> Cholesky solve for one (vector) or several (matrix) right-hand sides.
   interface potrs
@@ -228,4 +236,25 @@ contains
     call dgeev('N', 'V', n, a, n, wr, wi, dum, 1, vr, n, work, size(work), info)
     if (info /= 0) call fatal_error(error, 'eigenvalue solver dgeev failed for ' // what, stat_solver)
   end subroutine geev_real
+
+  !> A call with an illegal argument (dpotrf with uplo 'X'): for the test that XERBLA
+  !> returns. Gives LAPACK's info.
+  subroutine illegal_argument_probe(info)
+    integer, intent(out) :: info
+    real(dp) :: a(1, 1)
+    a = 1.0_dp
+    call dpotrf('X', 1, a, 1, info)
+  end subroutine illegal_argument_probe
 end module pymr_lapack
+
+!> LAPACK's error handler, called with the routine's name and the number of the argument
+!> found illegal. Reference LAPACK prints and stops the process; pymr's records the fault
+!> and returns, so the routine returns info < 0 and the caller reports it as an error.
+subroutine xerbla(srname, info)
+  use pymr_lapack, only : xerbla_routine, xerbla_argument
+  implicit none
+  character(len=*), intent(in) :: srname
+  integer, intent(in) :: info
+  xerbla_routine = srname
+  xerbla_argument = info
+end subroutine xerbla

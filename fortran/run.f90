@@ -16,6 +16,7 @@ module pymr_run
   use pymr_clock, only : thread_cpu_time
   use pymr_model_effects, only : prescribed_motion
   use pymr_io_text, only : itoa
+  use pymr_io_text_file, only : absolute_path, scene_relative
   use pymr_preflight, only : check_step_stability, check_mass_matrix
   use pymr_io_checkpoint, only : run_progress, write_checkpoint, read_checkpoint
   implicit none
@@ -42,6 +43,41 @@ contains
     call read_scene(file, overrides, sc, error); if (allocated(error)) return
     call build_model(sc, model, error)
   end subroutine load_model
+
+  !> The output must not overwrite what the run reads (the scene, its modal and table files)
+  !> nor collide with its own statistics file.
+  subroutine check_output_path(sc, path, error)
+    type(scene_t), intent(in) :: sc
+    character(len=*), intent(in) :: path
+    type(error_type), allocatable, intent(out) :: error
+    character(len=:), allocatable :: target
+    integer :: i
+    target = absolute_path(path)
+    if (absolute_path(json_path(path)) == target) then
+      call fatal_error(error, sc%file // ': output ' // path // ': the results and their statistics would both ' // &
+        & 'be ' // json_path(path) // ' (give a .csv file)'); return
+    end if
+    if (reads(sc%file, 'the scene')) return
+    do i = 1, size(sc%bodies)
+      if (len_trim(sc%bodies(i)%modal_file) == 0) cycle
+      if (reads(scene_relative(sc%file, trim(sc%bodies(i)%modal_file)), 'a modal file of the scene')) return
+    end do
+    do i = 1, size(sc%drives)
+      if (len_trim(sc%drives(i)%file) == 0) cycle
+      if (reads(scene_relative(sc%file, trim(sc%drives(i)%file)), 'a table file of the scene')) return
+    end do
+    do i = 1, size(sc%motions)
+      if (len_trim(sc%motions(i)%file) == 0) cycle
+      if (reads(scene_relative(sc%file, trim(sc%motions(i)%file)), 'a table file of the scene')) return
+    end do
+  contains
+    logical function reads(file, what)
+      character(len=*), intent(in) :: file, what
+      reads = absolute_path(file) == target .or. absolute_path(file) == absolute_path(json_path(path))
+      if (reads) call fatal_error(error, sc%file // ': output ' // path // ': would overwrite ' // what // &
+        & ' (' // file // '); choose another results file')
+    end function reads
+  end subroutine check_output_path
 
   !> Output path: the command line's, else &output file, else the scene's name with .csv.
   function default_output(sc, out) result(path)
@@ -94,6 +130,7 @@ contains
     call load_model(file, overrides, sc, model, error); if (allocated(error)) return
     n = model%d%n
     path = default_output(sc, out)
+    call check_output_path(sc, path, error); if (allocated(error)) return
     ckpt_path = trim(sc%output%checkpoint_file)
     if (len(ckpt_path) == 0) ckpt_path = checkpoint_default(path)
     cpu0 = thread_cpu_time(); call system_clock(c0, rate)

@@ -535,3 +535,16 @@ subroutine pymr_scene_item(scene, overrides, address, value, stat, message)
   if (.not. allocated(error)) value = text
   call report(error, stat, message)
 end subroutine pymr_scene_item
+
+!> LAPACK called with an illegal argument: info and the routine pymr's XERBLA recorded
+!> (the process goes on; the reference XERBLA would have stopped it).
+subroutine pymr_xerbla_probe(info, routine, argument)
+  use pymr_lapack, only : illegal_argument_probe, xerbla_routine, xerbla_argument
+  implicit none
+  integer, intent(out) :: info, argument
+  character(len=32), intent(out) :: routine
+  xerbla_routine = ''; xerbla_argument = 0
+  call illegal_argument_probe(info)
+  routine = xerbla_routine
+  argument = xerbla_argument
+end subroutine pymr_xerbla_probe

@@ -333,8 +333,41 @@ contains
     if (index(v, achar(10)) > 0 .or. index(v, achar(13)) > 0) then
       call fatal_error(error, 'the text spans lines'); return
     end if
+    if (.not. clean_text(v)) then
+      call fatal_error(error, 'the text holds control characters or bytes that are not UTF-8'); return
+    end if
     it%s = v
   end subroutine set_string
+
+  !> Is t valid UTF-8 text without control characters (tab aside)?
+  pure logical function clean_text(t)
+    character(len=*), intent(in) :: t
+    integer :: i, c, n, k
+    clean_text = .false.
+    i = 1
+    do while (i <= len(t))
+      c = iachar(t(i:i))
+      if (c < 32 .and. c /= 9 .or. c == 127) return
+      if (c < 128) then
+        n = 0
+      else if (c >= 194 .and. c <= 223) then
+        n = 1
+      else if (c >= 224 .and. c <= 239) then
+        n = 2
+      else if (c >= 240 .and. c <= 244) then
+        n = 3
+      else
+        return
+      end if
+      if (i + n > len(t)) return
+      do k = 1, n
+        c = iachar(t(i+k:i+k))
+        if (c < 128 .or. c > 191) return
+      end do
+      i = i + n + 1
+    end do
+    clean_text = .true.
+  end function clean_text
 
   !> A number token: [sign] digits [. digits] [(e|d) [sign] digits], or nan/inf (read, then
   !> refused as not finite). Anything else, or a quoted token, is not a number.

@@ -246,16 +246,22 @@ contains
     close(u)
   end subroutine write_json
 
-  !> Escape backslashes and quotes for JSON strings.
+  !> A JSON string's content: backslashes and quotes escaped, control characters as \uXXXX.
   function escape(s) result(r)
     character(len=*), intent(in) :: s
     character(len=:), allocatable :: r
+    character(len=6) :: u
     integer :: i
     r = ''
     do i = 1, len(s)
       select case (s(i:i))
-      case ('\', '"'); r = r // '\' // s(i:i)
-      case default; r = r // s(i:i)
+      case ('\', '"')
+        r = r // '\' // s(i:i)
+      case (achar(0):achar(31), achar(127))
+        write(u, '(a,z4.4)') '\u', iachar(s(i:i))
+        r = r // u
+      case default
+        r = r // s(i:i)
       end select
     end do
   end function escape

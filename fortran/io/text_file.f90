@@ -108,6 +108,12 @@ contains
     k = index(buf, c_null_char) - 1
     if (k < 1) return
     p = buf(1:k) // '/' // path
+    ! one spelling for one file: no './' segments
+    k = index(p, '/./')
+    do while (k > 0)
+      p = p(1:k) // p(k+3:)
+      k = index(p, '/./')
+    end do
   end function absolute_path
 
   !> Move `old` over `new` (atomic on one file system).
