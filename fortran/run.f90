@@ -5,7 +5,7 @@ module pymr_run
   use pymr_kinds, only : dp
   use pymr_error, only : error_type, fatal_error
   use pymr_model_scene, only : scene_t
-  use pymr_io_namelist_input, only : read_scene, scene_fingerprint
+  use pymr_io_namelist_input, only : read_scene, scene_fingerprint, checkpoint_identity
   use pymr_model_build, only : build_model
   use pymr_model, only : model_t
   use pymr_integrator_multirate, only : coupling_full, coupling_split
@@ -121,7 +121,7 @@ contains
     integer :: n, k_out
     integer(8) :: c0, c1, rate, c_line
     logical :: restarting, lines
-    character(len=:), allocatable :: path, ckpt_path
+    character(len=:), allocatable :: path, ckpt_path, settings, fingerprint
 
     restarting = .false.
     if (present(restart)) restarting = len_trim(restart) > 0
@@ -131,6 +131,7 @@ contains
     n = model%d%n
     path = default_output(sc, out)
     call check_output_path(sc, path, error); if (allocated(error)) return
+    call checkpoint_identity(sc, settings, fingerprint)
     ckpt_path = trim(sc%output%checkpoint_file)
     if (len(ckpt_path) == 0) ckpt_path = checkpoint_default(path)
     cpu0 = thread_cpu_time(); call system_clock(c0, rate)
@@ -145,7 +146,8 @@ contains
     csv%digits = sc%output%precision
     if (restarting) then
       call start_stepper(sc, model, x, st, .true., error)
-      if (.not. allocated(error)) call read_checkpoint(restart, st, model, prog, error)
+      if (.not. allocated(error)) call read_checkpoint(restart, st, model, prog, settings, fingerprint, &
+        & sc%scene%t_end, error)
       if (.not. allocated(error)) call csv%reopen(path, model%d, prog%rows, error)
       if (allocated(error)) then
         call csv%close()
@@ -198,7 +200,7 @@ contains
         flush(csv%unit)
         prog = run_progress(rows=stats%rows, k_out=k_out, t_next=t_next, cpu_s=thread_cpu_time() - cpu0, &
           & t_checkpoint=st%time())
-        call write_checkpoint(ckpt_path, st, model, prog, error); if (allocated(error)) exit
+        call write_checkpoint(ckpt_path, st, model, prog, settings, fingerprint, error); if (allocated(error)) exit
         t_ckpt = (floor(st%time()/sc%output%checkpoint_dt + 1.0e-9_dp) + 1)*sc%output%checkpoint_dt
       end if
       call st%advance(model, error); if (allocated(error)) exit

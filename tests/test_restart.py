@@ -81,3 +81,34 @@ def test_bad_restarts_are_one_line_errors(tmp_path):
         pymr.run(TANK, tmp_path / "other.csv", restart=tmp_path / "job.ckpt")
     with pytest.raises(pymr.SceneError, match=r"&output: checkpoint_dt: must be in \[0, 1e\+9\], got -1"):
         pymr.run(TANK, out, overrides={"output.checkpoint_dt": -1.0})
+
+
+def test_a_restart_refuses_a_checkpoint_that_does_not_belong_to_its_scene(tmp_path):
+    """A checkpoint carries the integrator settings, the model's fingerprint, pymr's version,
+    its time and a checksum: a restart with other settings, of another scene of the same
+    size, from a damaged file, or with t_end not after the checkpoint is one line saying so.
+    A longer t_end and another output are allowed (they are what a restart is for)."""
+    out = tmp_path / "job.csv"
+    pymr.run(TANK, out, overrides={"scene.t_end": 0.3, "output.checkpoint_dt": 0.2})
+    ckpt = tmp_path / "job.ckpt"
+    with pytest.raises(pymr.SceneError, match=r"job.ckpt: the checkpoint was written with other integrator "
+                                               r"settings: h_fast = 0.0001 then, h_fast = 5e-5 now"):
+        pymr.run(TANK, out, overrides={"integrator.h_slow": 5e-5, "integrator.h_fast": 5e-5}, restart=ckpt)
+    with pytest.raises(pymr.SceneError, match=r"job.ckpt: the checkpoint is of another scene \(its bodies, joints, "
+                                               r"loads or effects differ"):
+        pymr.run(TANK, out, overrides={"body[turret].mass": 9001.0}, restart=ckpt)
+    with pytest.raises(pymr.SceneError, match=r"job.ckpt: t_end = 0.15 s is not after the checkpoint's time 0.2 s"):
+        pymr.run(TANK, out, overrides={"scene.t_end": 0.15}, restart=ckpt)
+    data = bytearray(ckpt.read_bytes())
+    for where in (200, len(data) // 2, len(data) - 70):       # a flipped byte anywhere: header, states
+        bad = bytearray(data)
+        bad[where] ^= 0x01
+        (tmp_path / "bad.ckpt").write_bytes(bytes(bad))
+        with pytest.raises(pymr.SceneError, match=r"bad.ckpt: the checkpoint is damaged or truncated \(its checksum "
+                                                   r"does not match\)"):
+            pymr.run(TANK, out, restart=tmp_path / "bad.ckpt")
+    (tmp_path / "short.ckpt").write_bytes(bytes(data[:len(data) // 3]))
+    with pytest.raises(pymr.SceneError, match=r"short.ckpt: the checkpoint is damaged or truncated"):
+        pymr.run(TANK, out, restart=tmp_path / "short.ckpt")
+    res = pymr.run(TANK, out, overrides={"scene.t_end": 0.4, "output.dt": 1e-3}, restart=ckpt)
+    assert res.t[-1] == pytest.approx(0.4)

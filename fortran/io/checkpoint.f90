@@ -1,24 +1,27 @@
 !> Checkpoint files: the full state of a run at a step boundary, so that a run stopped
 !> by a wall-time limit continues from its last checkpoint exactly as if uninterrupted.
 !>
-!> Unformatted stream layout: a tag and version, the model's size and the stepper's name, the
-!> run's output bookkeeping (rows written, next output time, CPU time so far), the stepper's
+!> Unformatted stream layout: a tag and version, pymr's version, the model's size, the stepper's
+!> name, the time, the integrator settings and the model's fingerprint (what a restart must
+!> match), the run's output bookkeeping (rows written, next output time, CPU time so far), the stepper's
 !> state (its own save), and the model's per-run state (held multirate terms, evaluation and
-!> effect counters). Written to PATH.tmp, checked, flushed and renamed, so a run killed while
-!> writing keeps the previous checkpoint.
+!> effect counters), and last a sha256 checksum of everything before it. Written to PATH.tmp,
+!> checked, flushed and renamed, so a run killed while writing keeps the previous checkpoint.
 module pymr_io_checkpoint
   use pymr_io_text_file, only : rename_file, sync_file
   use pymr_kinds, only : dp
   use pymr_error, only : error_type, fatal_error
   use pymr_integrator_stepper, only : stepper_t
   use pymr_model, only : model_t
-  use pymr_io_text, only : itoa
+  use pymr_io_text, only : itoa, fmt
+  use pymr_io_sha256, only : sha256_hex
+  use pymr_io_results_output, only : pymr_version
   implicit none
   private
   public :: run_progress, write_checkpoint, read_checkpoint
 
   character(len=8), parameter :: tag = 'PYMRCKPT'
-  integer, parameter :: version = 2
+  integer, parameter :: version = 3
 
   !> Output bookkeeping of a run at a checkpoint.
   type :: run_progress
@@ -28,24 +31,28 @@ module pymr_io_checkpoint
 
 contains
 
-  !> Write the state of the run (any stepper) and model to `path`: every write and the close
-  !> checked, flushed to the disk, then renamed over the previous checkpoint.
-  subroutine write_checkpoint(path, st, model, prog, error)
-    character(len=*), intent(in) :: path
+  !> Write the state of the run (any stepper) and model to `path`: a header that names the
+  !> scene (its integrator settings and model fingerprint), pymr's version and the time,
+  !> then the states, then a sha256 checksum of all of it. Every write and the close are
+  !> checked; the file is flushed to the disk and renamed over the previous checkpoint.
+  subroutine write_checkpoint(path, st, model, prog, settings, fingerprint, error)
+    character(len=*), intent(in) :: path, settings, fingerprint
     class(stepper_t), intent(in) :: st
     type(model_t), intent(in) :: model
     type(run_progress), intent(in) :: prog
     type(error_type), allocatable, intent(out) :: error
     integer :: u, ios
     character(len=256) :: msg
-    character(len=16) :: name
+    character(len=16) :: name, ver
+    character(len=:), allocatable :: body
     open(newunit=u, file=path // '.tmp', access='stream', form='unformatted', status='replace', action='write', &
       & iostat=ios, iomsg=msg)
     if (ios /= 0) then
       call fatal_error(error, path // ': cannot write the checkpoint: ' // trim(msg)); return
     end if
-    name = st%name()
-    write(u, iostat=ios) tag, version, model%d%n, model%d%nj, name
+    name = st%name(); ver = pymr_version
+    write(u, iostat=ios) tag, version, ver, model%d%n, model%d%nj, name, st%time(), len(settings), settings, &
+      & fingerprint_field(fingerprint)
     if (ios == 0) write(u, iostat=ios) prog%rows, prog%k_out, prog%t_next, prog%cpu_s, prog%t_checkpoint
     if (ios == 0) call st%save(u, ios)
     if (ios == 0) call model%save_run(u, ios)
@@ -54,6 +61,13 @@ contains
       call fatal_error(error, path // ': cannot write the checkpoint (disk full?)'); return
     end if
     close(u, iostat=ios, iomsg=msg)
+    if (ios == 0) call read_bytes(path // '.tmp', body, ios)
+    if (ios == 0) then
+      open(newunit=u, file=path // '.tmp', access='stream', form='unformatted', status='old', action='write', &
+        & position='append', iostat=ios, iomsg=msg)
+      if (ios == 0) write(u, iostat=ios) sha256_hex(body)
+      if (ios == 0) close(u, iostat=ios, iomsg=msg)
+    end if
     if (ios /= 0) then
       call fatal_error(error, path // ': cannot write the checkpoint: ' // trim(msg)); return
     end if
@@ -62,44 +76,126 @@ contains
   end subroutine write_checkpoint
 
   !> Read a checkpoint into a stepper set up for the same scene (not started) and its model.
-  subroutine read_checkpoint(path, st, model, prog, error)
-    character(len=*), intent(in) :: path
+  !> Refused, saying what differs: a damaged file (checksum), another pymr version, another
+  !> stepper or model size, other integrator settings, another model, a t_end not after it.
+  subroutine read_checkpoint(path, st, model, prog, settings, fingerprint, t_end, error)
+    character(len=*), intent(in) :: path, settings, fingerprint
     class(stepper_t), intent(inout) :: st
     type(model_t), intent(inout) :: model
     type(run_progress), intent(out) :: prog
+    real(dp), intent(in) :: t_end
     type(error_type), allocatable, intent(out) :: error
-    integer :: u, ios, ver, n, nj
+    integer :: u, ios, ver, n, nj, ls
     logical :: exists
     character(len=8) :: got
-    character(len=16) :: name
+    character(len=16) :: name, pv
+    character(len=71) :: fp
     character(len=256) :: msg
+    character(len=:), allocatable :: bytes, saved
+    real(dp) :: t
     inquire(file=path, exist=exists)
     if (.not. exists) then
       call fatal_error(error, path // ': checkpoint not found'); return
+    end if
+    call read_bytes(path, bytes, ios)
+    if (ios /= 0) then
+      call fatal_error(error, path // ': cannot read the checkpoint'); return
+    end if
+    if (len(bytes) < 8 + 64) then
+      call fatal_error(error, path // ': not a pymr checkpoint'); return
+    end if
+    if (bytes(1:8) /= tag) then
+      call fatal_error(error, path // ': not a pymr checkpoint'); return
+    end if
+    if (sha256_hex(bytes(1:len(bytes) - 64)) /= bytes(len(bytes) - 63:)) then
+      call fatal_error(error, path // ': the checkpoint is damaged or truncated (its checksum does not match)'); return
     end if
     open(newunit=u, file=path, access='stream', form='unformatted', status='old', action='read', iostat=ios, &
       & iomsg=msg)
     if (ios /= 0) then
       call fatal_error(error, path // ': cannot read the checkpoint: ' // trim(msg)); return
     end if
-    read(u, iostat=ios) got, ver, n, nj, name
-    if (ios /= 0 .or. got /= tag) then
-      close(u); call fatal_error(error, path // ': not a pymr checkpoint'); return
-    end if
-    if (ver /= version) then
+    read(u, iostat=ios) got, ver
+    if (ios == 0 .and. ver /= version) then
       close(u); call fatal_error(error, path // ': checkpoint version ' // itoa(ver) // ', this pymr reads ' // &
         & itoa(version)); return
     end if
-    if (n /= model%d%n .or. nj /= model%d%nj .or. name /= st%name()) then
-      close(u)
-      call fatal_error(error, path // ': the checkpoint is of another model (' // itoa(n) // ' coordinates, ' // &
-        & trim(name) // '); the scene has ' // itoa(model%d%n) // ' coordinates, ' // st%name())
-      return
+    if (ios == 0) read(u, iostat=ios) pv, n, nj, name, t, ls
+    if (ios == 0) then
+      allocate(character(len=ls) :: saved)
+      read(u, iostat=ios) saved, fp
+    end if
+    if (ios /= 0) then
+      close(u); call fatal_error(error, path // ': the checkpoint is truncated or damaged'); return
+    end if
+    call compare_identity(error); if (allocated(error)) then
+      close(u); return
     end if
     read(u, iostat=ios) prog%rows, prog%k_out, prog%t_next, prog%cpu_s, prog%t_checkpoint
     if (ios == 0) call st%load(u, ios)
     if (ios == 0) call model%load_run(u, ios)
     close(u)
     if (ios /= 0) call fatal_error(error, path // ': the checkpoint is truncated or damaged')
+  contains
+    subroutine compare_identity(error)
+      type(error_type), allocatable, intent(out) :: error
+      if (pv /= pymr_version) then
+        call fatal_error(error, path // ': the checkpoint was written by pymr ' // trim(pv) // '; this is pymr ' // &
+          & pymr_version); return
+      end if
+      if (n /= model%d%n .or. nj /= model%d%nj .or. name /= st%name()) then
+        call fatal_error(error, path // ': the checkpoint is of another model (' // itoa(n) // ' coordinates, ' // &
+          & trim(name) // '); the scene has ' // itoa(model%d%n) // ' coordinates, ' // st%name()); return
+      end if
+      if (saved /= settings) then
+        call fatal_error(error, path // ': the checkpoint was written with other integrator settings: ' // &
+          & first_difference(saved, settings)); return
+      end if
+      if (fp /= fingerprint_field(fingerprint)) then
+        call fatal_error(error, path // ': the checkpoint is of another scene (its bodies, joints, loads or ' // &
+          & 'effects differ: model fingerprint ' // fp(8:19) // '..., the scene''s ' // fingerprint(8:19) // '...)')
+        return
+      end if
+      if (.not. (t_end > t)) then
+        call fatal_error(error, path // ': t_end = ' // fmt(t_end) // ' s is not after the checkpoint''s time ' // &
+          & fmt(t) // ' s'); return
+      end if
+    end subroutine compare_identity
   end subroutine read_checkpoint
+
+  !> A fingerprint in the fixed width of the checkpoint header.
+  pure function fingerprint_field(fp) result(s)
+    character(len=*), intent(in) :: fp
+    character(len=71) :: s
+    s = fp
+  end function fingerprint_field
+
+  !> "h_slow = 0.0001 then, h_slow = 5e-05 now": the first line where two texts differ.
+  function first_difference(a, b) result(s)
+    character(len=*), intent(in) :: a, b
+    character(len=:), allocatable :: s
+    integer :: ia, ib, ea, eb
+    ia = 1; ib = 1
+    do
+      ea = index(a(ia:) // new_line('a'), new_line('a')) + ia - 2
+      eb = index(b(ib:) // new_line('a'), new_line('a')) + ib - 2
+      if (a(ia:ea) /= b(ib:eb) .or. ea >= len(a) .or. eb >= len(b)) exit
+      ia = ea + 2; ib = eb + 2
+    end do
+    s = trim(adjustl(a(ia:min(ea, len(a))))) // ' then, ' // trim(adjustl(b(ib:min(eb, len(b))))) // ' now'
+  end function first_difference
+
+  !> A whole file's bytes.
+  subroutine read_bytes(path, bytes, ios)
+    character(len=*), intent(in) :: path
+    character(len=:), allocatable, intent(out) :: bytes
+    integer, intent(out) :: ios
+    integer :: u, sz
+    open(newunit=u, file=path, access='stream', form='unformatted', status='old', action='read', iostat=ios)
+    if (ios /= 0) return
+    inquire(unit=u, size=sz)
+    allocate(character(len=max(sz, 0)) :: bytes)
+    if (sz > 0) read(u, iostat=ios) bytes
+    close(u)
+  end subroutine read_bytes
 end module pymr_io_checkpoint

@@ -15,6 +15,7 @@ module pymr_io_namelist_input
   implicit none
   private
   public :: read_scene, read_scene_text, resolved_text, schema_text, scene_fingerprint, item_value
+  public :: checkpoint_identity
 
   !> One --set entry: group[sel].item=values.
   type :: override_t
@@ -407,9 +408,11 @@ contains
   !> overrides applied), reals in the fewest digits that read back exactly.
   !> With `absolute_paths`, files given relative to the scene's folder are written absolute
   !> (for a copy of the scene placed elsewhere).
-  function resolved_text(sc, absolute_paths) result(text)
+  function resolved_text(sc, absolute_paths, groups) result(text)
     type(scene_t), target, intent(inout) :: sc
     logical, intent(in), optional :: absolute_paths
+    !> Only these groups (blank-separated; default all).
+    character(len=*), intent(in), optional :: groups
     character(len=:), allocatable :: text
     type(item_table) :: t
     character(len=:), allocatable :: v
@@ -421,6 +424,10 @@ contains
     do while (i <= len(group_names))
       j = index(group_names(i:) // ' ', ' ') + i - 2
       name = group_names(i:j)
+      i = j + 2
+      if (present(groups)) then
+        if (index(' ' // groups // ' ', ' ' // trim(name) // ' ') == 0) cycle
+      end if
       do k = 1, group_count(sc, trim(name))
         call append('&' // trim(name) // new_line('a'))
         call describe_group(sc, trim(name), k, t)
@@ -434,7 +441,6 @@ contains
         end do
         call append('/' // new_line('a'))
       end do
-      i = j + 2
     end do
     text = text(1:n)
   contains
@@ -450,6 +456,21 @@ contains
       n = n + len(s)
     end subroutine append
   end function resolved_text
+
+  !> What a checkpoint must share with the scene that continues it: the integrator's
+  !> settings (its resolved group), and the fingerprint of the model (every group but
+  !> &integrator and &output, without t_end: a restart may run further or write elsewhere).
+  subroutine checkpoint_identity(sc, settings, model_fingerprint)
+    type(scene_t), target, intent(inout) :: sc
+    character(len=:), allocatable, intent(out) :: settings, model_fingerprint
+    real(dp) :: t_end
+    settings = resolved_text(sc, groups='integrator')
+    t_end = sc%scene%t_end
+    sc%scene%t_end = unset
+    model_fingerprint = 'sha256:' // sha256_hex(resolved_text(sc, groups='scene effects body joint drive spring ' // &
+      & 'motion load marker'))
+    sc%scene%t_end = t_end
+  end subroutine checkpoint_identity
 
   !> The scene's fingerprint: 'sha256:' and the hex digest of its resolved text.
   function scene_fingerprint(sc) result(s)
