@@ -3,7 +3,7 @@
 module pymr_run
   use, intrinsic :: iso_fortran_env, only : error_unit
   use pymr_kinds, only : dp
-  use pymr_error, only : error_type, fatal_error
+  use pymr_error, only : error_type, fatal_error, stat_solver
   use pymr_model_scene, only : scene_t
   use pymr_io_namelist_input, only : read_scene, scene_fingerprint, checkpoint_identity
   use pymr_model_build, only : build_model
@@ -15,7 +15,7 @@ module pymr_run
   use pymr_model_kinematics, only : forward_kinematics, marker_motion
   use pymr_clock, only : thread_cpu_time
   use pymr_model_effects, only : prescribed_motion
-  use pymr_io_text, only : itoa
+  use pymr_io_text, only : itoa, fmt
   use pymr_io_text_file, only : absolute_path, scene_relative
   use pymr_preflight, only : check_step_stability, check_mass_matrix
   use pymr_io_checkpoint, only : run_progress, write_checkpoint, read_checkpoint
@@ -122,6 +122,7 @@ contains
     integer(8) :: c0, c1, rate, c_line
     logical :: restarting, lines
     character(len=:), allocatable :: path, ckpt_path, settings, fingerprint
+    type(error_type), allocatable :: json_error
 
     restarting = .false.
     if (present(restart)) restarting = len_trim(restart) > 0
@@ -161,19 +162,19 @@ contains
       call csv%write_row(model%d, 0.0_dp, x(1:n), x(n+1:)); stats%rows = 1
       call check_mass_matrix(model, x, file // ': ', error)
       if (allocated(error)) then
-        call csv%close(); return
+        call csv%discard(); return
       end if
       if (.not. sc%integrator%adaptive .and. sc%integrator%stability_check) then
         call check_step_stability(model, x, h, merge(sc%integrator%h_fast, h, sc%integrator%h_fast > 0.0_dp), &
           & sc%integrator%method == 'multirate', merge(coupling_split, coupling_full, sc%integrator%coupling == 'split'), &
           & sc%scene%t_end, file // ': &integrator: ', error)
         if (allocated(error)) then
-          call csv%close(); return
+          call csv%discard(); return
         end if
       end if
       call start_stepper(sc, model, x, st, .false., error)
       if (allocated(error)) then
-        call csv%close()
+        call csv%discard()
         if (index(error%message, file) /= 1) error%message = file // ': ' // error%message
         return
       end if
@@ -203,6 +204,10 @@ contains
         call write_checkpoint(ckpt_path, st, model, prog, settings, fingerprint, error); if (allocated(error)) exit
         t_ckpt = (floor(st%time()/sc%output%checkpoint_dt + 1.0e-9_dp) + 1)*sc%output%checkpoint_dt
       end if
+      if (csv%ios /= 0) then
+        call fatal_error(error, 'at t = ' // fmt(st%time()) // ' s: ' // csv%partial // ': cannot write the ' // &
+          & 'results: ' // trim(csv%io_message), stat_solver); exit
+      end if
       call st%advance(model, error); if (allocated(error)) exit
       progress_t = st%time()
       if (lines) then
@@ -220,15 +225,20 @@ contains
         call csv%write_row(model%d, sc%scene%t_end, x(1:n), x(n+1:)); stats%rows = stats%rows + 1
       end if
     end if
-    call csv%close()
-    if (allocated(error)) then
-      error%message = file // ': ' // error%message; return
-    end if
+    if (.not. allocated(error)) call csv%finish(error)
     cpu1 = thread_cpu_time(); call system_clock(c1)
     stats%cpu_time_s = cpu1 - cpu0; stats%wall_time_s = real(c1 - c0, dp)/real(rate, dp)
     call fill_stats(st, model, stats)
+    if (allocated(error)) then
+      ! the rows written so far stay in PATH.partial, described by PATH.json.partial
+      call csv%close()
+      error%message = file // ': ' // error%message
+      call write_json(json_path(path) // '.partial', file, sc%scene%title, scene_fingerprint(sc), &
+        & settings_json(sc), model%d, stats, 'failed', error%message, st%time(), json_error)
+      return
+    end if
     call write_json(json_path(path), file, sc%scene%title, scene_fingerprint(sc), settings_json(sc), model%d, &
-      & stats, error)
+      & stats, 'complete', '', sc%scene%t_end, error)
     if (allocated(error)) return
     summary = summary_text(sc, model, stats, path, x)
     if (present(written)) written = path

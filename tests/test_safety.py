@@ -58,3 +58,63 @@ def test_an_output_that_would_overwrite_the_input_is_refused(tmp_path, mrsim):
         assert r.stderr.startswith("mrsim: error: s.nml: " + message), r.stderr
         assert scene.read_bytes() == before
     assert not (tmp_path / "out.json").exists()
+
+
+def run_mrsim(mrsim, args, cwd):
+    return subprocess.run([mrsim, *args], cwd=cwd, capture_output=True, text=True, timeout=300)
+
+
+def test_refused_and_failed_runs_leave_the_earlier_complete_result(tmp_path, mrsim):
+    """An earlier complete result stays as it was after a run refused before its first step
+    (a stiff step) and after a run that fails on the way (multirate k = 50 forced past the
+    stability check); the failed run's rows stay in OUT.csv.partial, described by
+    OUT.json.partial with status 'failed', the error and the time reached."""
+    tank = ROOT / "input" / "tank_gun_turret.nml"
+    good = run_mrsim(mrsim, [str(tank), "-o", "out.csv", "--quiet", "--set", "scene.t_end=0.05"], tmp_path)
+    assert good.returncode == 0, good.stderr
+    csv_before, json_before = (tmp_path / "out.csv").read_bytes(), (tmp_path / "out.json").read_bytes()
+    assert json.loads(json_before)["status"] == "complete"
+    assert not (tmp_path / "out.csv.partial").exists()
+    refused = run_mrsim(mrsim, [str(ROOT / "input" / "hard" / "stiff_barrel.nml"), "-o", "out.csv"], tmp_path)
+    assert refused.returncode == 1 and "is not stable" in refused.stderr
+    assert not (tmp_path / "out.csv.partial").exists()
+    failed = run_mrsim(mrsim, [str(tank), "-o", "out.csv", "--set", "integrator.method=multirate", "--set",
+                               "integrator.h_fast=1e-4", "--set", "integrator.h_slow=5e-3", "--set",
+                               "output.dt=5e-3", "--set", "integrator.stability_check=.false."], tmp_path)
+    assert failed.returncode == 2 and "at t = " in failed.stderr
+    assert (tmp_path / "out.csv").read_bytes() == csv_before
+    assert (tmp_path / "out.json").read_bytes() == json_before
+    partial = json.loads((tmp_path / "out.json.partial").read_text())
+    assert partial["status"] == "failed" and "effective mass matrix M_e" in partial["error"]
+    rows = [ln for ln in (tmp_path / "out.csv.partial").read_text().splitlines() if not ln.startswith("#")][1:]
+    assert len(rows) >= 2 and float(rows[-1].split(",")[0]) <= partial["t_reached"] + 1e-12
+
+
+@pytest.mark.parametrize("delay", [0.15, 0.45, 0.9])
+def test_a_run_killed_at_any_moment_loses_nothing(tmp_path, mrsim, delay):
+    """A run killed (SIGKILL) at a moment: the earlier complete result is untouched; the
+    restart from the last checkpoint (if one was written) ends with results equal to an
+    uninterrupted run's, row for row."""
+    import signal
+    import time
+    scene = ROOT / "input" / "hard" / "tank_long.nml"
+    common = ["--quiet", "--set", "scene.t_end=40", "--set", "output.checkpoint_dt=2"]
+    assert run_mrsim(mrsim, [str(scene), "-o", "full.csv", *common], tmp_path).returncode == 0
+    earlier = run_mrsim(mrsim, [str(scene), "-o", "out.csv", "--quiet", "--set", "scene.t_end=1"], tmp_path)
+    assert earlier.returncode == 0
+    before = (tmp_path / "out.csv").read_bytes()
+    job = subprocess.Popen([mrsim, str(scene), "-o", "out.csv", *common], cwd=tmp_path)
+    time.sleep(delay)
+    job.send_signal(signal.SIGKILL)
+    job.wait(timeout=60)
+    if job.returncode == 0:           # it finished first: a complete result
+        assert (tmp_path / "out.csv").read_bytes() == (tmp_path / "full.csv").read_bytes()
+        return
+    assert (tmp_path / "out.csv").read_bytes() == before
+    if (tmp_path / "out.ckpt").exists():
+        again = run_mrsim(mrsim, [str(scene), "-o", "out.csv", *common, "--restart", "out.ckpt"], tmp_path)
+        assert again.returncode == 0, again.stderr
+        rows = [ln for ln in (tmp_path / "out.csv").read_text().splitlines() if not ln.startswith("#")]
+        full = [ln for ln in (tmp_path / "full.csv").read_text().splitlines() if not ln.startswith("#")]
+        assert rows == full
+        assert not (tmp_path / "out.csv.partial").exists()

@@ -2,12 +2,13 @@
 !> (run statistics), as fixed in ARCHITECTURE.md.
 module pymr_io_results_output
   use pymr_kinds, only : dp
-  use pymr_error, only : error_type, fatal_error
+  use pymr_error, only : error_type, fatal_error, stat_solver
   use pymr_model_types, only : model_data, n_effects, effect_names
   use pymr_model_effects, only : impose_prescribed_state
   use pymr_model_kinematics, only : forward_kinematics, marker_motion
   use pymr_io_fast_format, only : put_real
   use pymr_io_text, only : itoa
+  use pymr_io_text_file, only : write_text_file, sync_file, rename_file
   implicit none
   private
   public :: csv_writer, json_path, write_json, run_stats, pymr_version
@@ -23,11 +24,17 @@ module pymr_io_results_output
     integer :: ratio_last = 1
   end type run_stats
 
-  !> An open CSV result file.
+  !> A CSV result file being written: rows stream to PATH.partial, which replaces PATH only
+  !> when the run ends well (finish); a failed run leaves it as it is, a refused one removes
+  !> it (discard), so an earlier complete PATH is never lost.
   type :: csv_writer
     integer :: unit = 0
     logical :: opened = .false.
-    character(len=:), allocatable :: path
+    !> The results file, and the partial file written until the run is complete.
+    character(len=:), allocatable :: path, partial
+    !> The status and message of the first write that failed (0: none).
+    integer :: ios = 0
+    character(len=256) :: io_message = ''
     real(dp), allocatable :: row(:)
     character(len=:), allocatable :: line
     !> Significant digits per value (&output precision).
@@ -37,6 +44,8 @@ module pymr_io_results_output
     procedure :: reopen => csv_reopen
     procedure :: write_row => csv_write_row
     procedure :: close => csv_close
+    procedure :: finish => csv_finish
+    procedure :: discard => csv_discard
   end type csv_writer
 
 contains
@@ -63,27 +72,30 @@ contains
     integer :: ios, i
     character(len=256) :: msg
     character(len=:), allocatable :: m
-    open(newunit=self%unit, file=path, status='replace', action='write', iostat=ios, iomsg=msg)
-    if (ios /= 0) then
-      call fatal_error(error, path // ': cannot write the results: ' // trim(msg)); return
-    end if
     self%path = path
+    self%partial = path // '.partial'
+    open(newunit=self%unit, file=self%partial, status='replace', action='write', iostat=ios, iomsg=msg)
+    if (ios /= 0) then
+      call fatal_error(error, self%partial // ': cannot write the results: ' // trim(msg)); return
+    end if
     self%opened = .true.
-    write(self%unit, '(a)') '# pymr ' // pymr_version // ' results'
-    write(self%unit, '(a)') '# title: ' // trim(title)
-    write(self%unit, '(a)') '# method: ' // trim(method)
+    call put('# pymr ' // pymr_version // ' results', .true.)
+    call put('# title: ' // trim(title), .true.)
+    call put('# method: ' // trim(method), .true.)
     ! the header piece by piece (a scene may have 10^5 markers)
-    write(self%unit, '(a)', advance='no') 't'
+    call put('t', .false.)
     do i = 1, d%n
-      write(self%unit, '(a)', advance='no') ',' // trim(d%qname(i))
+      call put(',' // trim(d%qname(i)), .false.)
       if (i == d%n .or. d%cgrp(min(i + 1, d%n)) /= d%cgrp(i)) call add_rates(i)
     end do
     do i = 1, d%n_markers
       m = trim(d%marker_name(i))
-      write(self%unit, '(a)', advance='no') ',' // m // '.x,' // m // '.y,' // m // '.z,' // m // '.vx,' // m // &
-        & '.vy,' // m // '.vz'
+      call put(',' // m // '.x,' // m // '.y,' // m // '.z,' // m // '.vx,' // m // '.vy,' // m // '.vz', .false.)
     end do
-    write(self%unit, '(a)') ''
+    call put('', .true.)
+    if (self%ios /= 0) then
+      call fatal_error(error, self%partial // ': cannot write the results: ' // trim(self%io_message)); return
+    end if
     allocate(self%row(1 + 2*d%n + 6*d%n_markers))
     allocate(character(len=25*size(self%row)) :: self%line)
   contains
@@ -91,13 +103,26 @@ contains
       integer, intent(in) :: last
       integer :: j
       do j = 1, last
-        if (d%cgrp(j) == d%cgrp(last)) write(self%unit, '(a)', advance='no') ',' // trim(d%qdname(j))
+        if (d%cgrp(j) == d%cgrp(last)) call put(',' // trim(d%qdname(j)), .false.)
       end do
     end subroutine add_rates
+
+    subroutine put(text, line_end)
+      character(len=*), intent(in) :: text
+      logical, intent(in) :: line_end
+      if (self%ios /= 0) return
+      if (line_end) then
+        write(self%unit, '(a)', iostat=self%ios, iomsg=self%io_message) text
+      else
+        write(self%unit, '(a)', advance='no', iostat=self%ios, iomsg=self%io_message) text
+      end if
+    end subroutine put
   end subroutine csv_open
 
-  !> Restart: keep the comment lines, the header and the first `rows` rows of the CSV file a
-  !> checkpointed run wrote (dropping rows it wrote after its checkpoint), and append.
+  !> Restart: the comment lines, the header and the first `rows` rows of the results the
+  !> checkpointed run wrote (its partial file if it was stopped, else its complete file),
+  !> written whole to a new partial file that then replaces the old one, and append. The
+  !> source stays intact until its replacement is complete.
   subroutine csv_reopen(self, path, d, rows, error)
     class(csv_writer), intent(inout) :: self
     character(len=*), intent(in) :: path
@@ -106,23 +131,30 @@ contains
     type(error_type), allocatable, intent(out) :: error
     integer :: u, ios, k, keep
     character(len=256) :: msg
-    character(len=:), allocatable :: buf
+    character(len=:), allocatable :: buf, source
     type :: line_t
       character(len=:), allocatable :: s
     end type line_t
     type(line_t), allocatable :: lines(:)
     logical :: exists
     keep = rows + 4
-    inquire(file=path, exist=exists)
+    self%path = path
+    self%partial = path // '.partial'
+    source = self%partial
+    inquire(file=source, exist=exists)
+    if (.not. exists) then
+      source = path
+      inquire(file=source, exist=exists)
+    end if
     if (.not. exists) then
       call fatal_error(error, path // ': the results of the checkpointed run are missing (restart needs them)')
       return
     end if
     allocate(character(len=25*(1 + 2*d%n + 6*d%n_markers) + 64*d%n + 1024) :: buf)
     allocate(lines(keep))
-    open(newunit=u, file=path, status='old', action='read', iostat=ios, iomsg=msg)
+    open(newunit=u, file=source, status='old', action='read', iostat=ios, iomsg=msg)
     if (ios /= 0) then
-      call fatal_error(error, path // ': cannot read the results: ' // trim(msg)); return
+      call fatal_error(error, source // ': cannot read the results: ' // trim(msg)); return
     end if
     do k = 1, keep
       read(u, '(a)', iostat=ios) buf
@@ -131,17 +163,24 @@ contains
     end do
     close(u)
     if (k <= keep) then
-      call fatal_error(error, path // ': has ' // itoa(max(k - 5, 0)) // ' result rows, the checkpoint expects ' // &
+      call fatal_error(error, source // ': has ' // itoa(max(k - 5, 0)) // ' result rows, the checkpoint expects ' // &
         & itoa(rows) // ': the file belongs to another run'); return
     end if
-    open(newunit=self%unit, file=path, status='replace', action='write', iostat=ios, iomsg=msg)
-    if (ios /= 0) then
-      call fatal_error(error, path // ': cannot write the results: ' // trim(msg)); return
-    end if
+    open(newunit=u, file=self%partial // '.tmp', status='replace', action='write', iostat=ios, iomsg=msg)
     do k = 1, keep
-      write(self%unit, '(a)') lines(k)%s
+      if (ios == 0) write(u, '(a)', iostat=ios, iomsg=msg) lines(k)%s
     end do
-    self%path = path
+    if (ios == 0) close(u, iostat=ios, iomsg=msg)
+    if (ios /= 0) then
+      call fatal_error(error, self%partial // ': cannot write the results: ' // trim(msg)); return
+    end if
+    call sync_file(self%partial // '.tmp', error); if (allocated(error)) return
+    call rename_file(self%partial // '.tmp', self%partial, error); if (allocated(error)) return
+    open(newunit=self%unit, file=self%partial, status='old', action='write', position='append', iostat=ios, &
+      & iomsg=msg)
+    if (ios /= 0) then
+      call fatal_error(error, self%partial // ': cannot write the results: ' // trim(msg)); return
+    end if
     self%opened = .true.
     allocate(self%row(1 + 2*d%n + 6*d%n_markers))
     allocate(character(len=25*size(self%row)) :: self%line)
@@ -187,63 +226,98 @@ contains
       end if
       call put_real(self%row(i), self%line, pos, self%digits)
     end do
-    write(self%unit, '(a)') self%line(1:pos-1)
+    if (self%ios /= 0) return
+    write(self%unit, '(a)', iostat=self%ios, iomsg=self%io_message) self%line(1:pos-1)
   end subroutine write_values
 
+  !> Close the partial file, leaving it in place (a failed run's rows).
   subroutine csv_close(self)
     class(csv_writer), intent(inout) :: self
-    if (self%opened) close(self%unit)
+    if (self%opened) close(self%unit, iostat=self%ios)
     self%opened = .false.
   end subroutine csv_close
 
-  !> Write the run statistics and settings as JSON.
-  subroutine write_json(path, scene_file, title, fingerprint, settings, d, st, error)
+  !> Close, remove the partial file (a run refused before its first step).
+  subroutine csv_discard(self)
+    class(csv_writer), intent(inout) :: self
+    integer :: ios
+    if (self%opened) close(self%unit, status='delete', iostat=ios)
+    self%opened = .false.
+  end subroutine csv_discard
+
+  !> The run ended well: close (checked), flush to the disk, and put the complete file in place.
+  subroutine csv_finish(self, error)
+    class(csv_writer), intent(inout) :: self
+    type(error_type), allocatable, intent(out) :: error
+    integer :: ios
+    character(len=256) :: msg
+    if (self%ios /= 0) then
+      call fatal_error(error, self%partial // ': cannot write the results: ' // trim(self%io_message), stat_solver)
+      return
+    end if
+    close(self%unit, iostat=ios, iomsg=msg)
+    self%opened = .false.
+    if (ios /= 0) then
+      call fatal_error(error, self%partial // ': cannot write the results: ' // trim(msg), stat_solver); return
+    end if
+    call sync_file(self%partial, error); if (allocated(error)) return
+    call rename_file(self%partial, self%path, error)
+  end subroutine csv_finish
+
+  !> Write the run statistics and settings as JSON (through path.tmp, checked, flushed,
+  !> renamed): `status` 'complete' or 'failed', with the failure's message and the time
+  !> reached.
+  subroutine write_json(path, scene_file, title, fingerprint, settings, d, st, status, failure, t_reached, error)
     !> fingerprint: 'sha256:...' of the resolved scene (pymr scene prints it).
-    character(len=*), intent(in) :: path, scene_file, title, fingerprint
+    character(len=*), intent(in) :: path, scene_file, title, fingerprint, status, failure
     !> Integrator settings, already as JSON members ("\"method\": \"single\", ...").
     character(len=*), intent(in) :: settings
     type(model_data), intent(in) :: d
     type(run_stats), intent(in) :: st
+    real(dp), intent(in) :: t_reached
     type(error_type), allocatable, intent(out) :: error
-    integer :: u, ios, i
+    integer :: i
     real(dp) :: cpu
-    character(len=256) :: msg
-    logical :: first
-    open(newunit=u, file=path, status='replace', action='write', iostat=ios, iomsg=msg)
-    if (ios /= 0) then
-      call fatal_error(error, path // ': cannot write the statistics: ' // trim(msg)); return
-    end if
-    write(u, '(a)') '{'
-    write(u, '(a)') '  "version": "' // pymr_version // '",'
-    write(u, '(a)') '  "scene": "' // escape(scene_file) // '",'
-    write(u, '(a)') '  "title": "' // escape(trim(title)) // '",'
-    write(u, '(a)') '  "scene_fingerprint": "' // fingerprint // '",'
-    write(u, '(a,g0.10,a)') '  "cpu_time_s": ', st%cpu_time_s, ','
-    write(u, '(a,g0.10,a)') '  "wall_time_s": ', st%wall_time_s, ','
-    write(u, '(a,i0,a)') '  "steps_slow": ', st%steps_slow, ','
-    write(u, '(a,i0,a)') '  "steps_fast": ', st%steps_fast, ','
-    write(u, '(a,i0,a)') '  "rhs_full": ', st%rhs_full, ','
-    write(u, '(a,i0,a)') '  "rhs_fast": ', st%rhs_fast, ','
-    write(u, '(a,i0,a)') '  "rejected_steps": ', st%rejected_steps, ','
-    write(u, '(a,g0.10,a)') '  "h_last": ', st%h_last, ','
-    write(u, '(a,i0,a)') '  "step_ratio_last": ', st%ratio_last, ','
-    write(u, '(a,i0,a)') '  "rows": ', st%rows, ','
-    write(u, '(a,i0,a)') '  "n_coordinates": ', d%n, ','
-    write(u, '(a)', advance='no') '  "effects": {'
-    first = .true.
+    character(len=:), allocatable :: text
+    character(len=128) :: buf
+    text = '{' // new_line('a')
+    call put('  "version": "' // pymr_version // '",')
+    call put('  "status": "' // status // '",')
+    if (len(failure) > 0) call put('  "error": "' // escape(failure) // '",')
+    write(buf, '(a,g0.17,a)') '  "t_reached": ', t_reached, ','; call put(trim(buf))
+    call put('  "scene": "' // escape(scene_file) // '",')
+    call put('  "title": "' // escape(trim(title)) // '",')
+    call put('  "scene_fingerprint": "' // fingerprint // '",')
+    write(buf, '(a,g0.10,a)') '  "cpu_time_s": ', st%cpu_time_s, ','; call put(trim(buf))
+    write(buf, '(a,g0.10,a)') '  "wall_time_s": ', st%wall_time_s, ','; call put(trim(buf))
+    write(buf, '(a,i0,a)') '  "steps_slow": ', st%steps_slow, ','; call put(trim(buf))
+    write(buf, '(a,i0,a)') '  "steps_fast": ', st%steps_fast, ','; call put(trim(buf))
+    write(buf, '(a,i0,a)') '  "rhs_full": ', st%rhs_full, ','; call put(trim(buf))
+    write(buf, '(a,i0,a)') '  "rhs_fast": ', st%rhs_fast, ','; call put(trim(buf))
+    write(buf, '(a,i0,a)') '  "rejected_steps": ', st%rejected_steps, ','; call put(trim(buf))
+    write(buf, '(a,g0.10,a)') '  "h_last": ', st%h_last, ','; call put(trim(buf))
+    write(buf, '(a,i0,a)') '  "step_ratio_last": ', st%ratio_last, ','; call put(trim(buf))
+    write(buf, '(a,i0,a)') '  "rows": ', st%rows, ','; call put(trim(buf))
+    write(buf, '(a,i0,a)') '  "n_coordinates": ', d%n, ','; call put(trim(buf))
+    text = text // '  "effects": {'
     do i = 1, n_effects
       if (.not. d%effect_on(i)) cycle
-      if (.not. first) write(u, '(a)', advance='no') ', '
+      if (text(len(text):len(text)) /= '{') text = text // ', '
       cpu = 0.0_dp
       if (d%effect_timed(i) > 0) cpu = d%effect_cpu(i)*real(d%effect_evals(i), dp)/real(d%effect_timed(i), dp)
-      write(u, '(a,i0,a,es12.5,a)', advance='no') '"' // trim(effect_names(i)) // '": {"evaluations": ', &
-        & d%effect_evals(i), ', "cpu_time_s": ', cpu, '}'
-      first = .false.
+      write(buf, '(a,i0,a,es12.5,a)') '": {"evaluations": ', d%effect_evals(i), ', "cpu_time_s": ', cpu, '}'
+      text = text // '"' // trim(effect_names(i)) // trim(buf)
     end do
-    write(u, '(a)') '},'
-    write(u, '(a)') '  "integrator": {' // settings // '}'
-    write(u, '(a)') '}'
-    close(u)
+    call put('},')
+    call put('  "integrator": {' // settings // '}')
+    call put('}')
+    call write_text_file(path, text, error)
+    if (allocated(error)) error%message = error%message // ' (the statistics)'
+  contains
+    subroutine put(line)
+      character(len=*), intent(in) :: line
+      text = text // line // new_line('a')
+    end subroutine put
   end subroutine write_json
 
   !> A JSON string's content: backslashes and quotes escaped, control characters as \uXXXX.
