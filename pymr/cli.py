@@ -131,13 +131,17 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    try:
+        args = build_parser().parse_args(argv)
+    except SystemExit as exc:          # argparse: a bad command line is bad input, status 1
+        return 0 if exc.code in (0, None) else 1
     try:
         return args.func(args)
     except PymrError as exc:
         for line in str(exc).splitlines() or [""]:
             print(f"pymr: error: {line}", file=sys.stderr)
-        return 1 if isinstance(exc, (SceneError, PlotError)) else 2
+        from .sweep import SweepError
+        return 1 if isinstance(exc, (SceneError, PlotError, SweepError)) else 2
 
 
 if __name__ == "__main__":

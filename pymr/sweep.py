@@ -30,6 +30,7 @@ import itertools
 import math
 import os
 import re
+import sys
 import time
 import tomllib
 from dataclasses import dataclass, field
@@ -69,8 +70,10 @@ def load_sweep(path: str | os.PathLike) -> Sweep:
         spec = tomllib.loads(path.read_text())
     except FileNotFoundError:
         raise SweepError(f"{path}: not found") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise SweepError(f"{path}: {exc}") from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError, IsADirectoryError) as exc:
+        raise SweepError(f"{path}: not a TOML sweep file ({exc})") from None
+    if not isinstance(spec.get("scene", ""), str):
+        raise SweepError(f"{path}: scene: must be a file name (a string)")
     for key in spec:
         if key not in ("scene", "output", "metric", "grid", "fixed", "reference"):
             raise SweepError(f"{path}: unknown key {key!r} (known: scene, output, metric, grid, fixed, reference)")
@@ -147,7 +150,11 @@ def reference_positions(sw: Sweep) -> np.ndarray | None:
 def run_sweep(sw: Sweep, scheduler: str | None = None, workers: int = 2) -> list[dict]:
     """Run every case on Dask (a LocalCluster of `workers` processes, or the scheduler at
     `scheduler`) and write the summary CSV; returns its rows."""
-    from dask.distributed import Client, LocalCluster
+    try:
+        from dask.distributed import Client, LocalCluster
+    except ImportError:
+        raise SweepError("pymr sweep runs its cases on Dask, which is not installed: "
+                         "pip install 'dask[distributed]' (or write SLURM files with --emit-slurm)") from None
     sw.output.mkdir(parents=True, exist_ok=True)
     ref = reference_positions(sw)
     cases = sw.cases
@@ -242,4 +249,8 @@ def main(toml: str, scheduler: str | None = None, workers: int = 2, emit: str | 
     for r in rows:
         params = ", ".join(f"{k}={r[k]}" for k in sw.grid)
         print(f"  {r['case']}  {params}  metric {r['metric']:.4g}  cpu {r['cpu_time_s']:.3f} s  {r['status'][:90]}")
+    if failed:
+        print(f"pymr: error: {failed} of {len(rows)} cases failed: "
+              + ", ".join(r["case"] for r in rows if r["status"] != "ok"), file=sys.stderr)
+        return 2
     return 0

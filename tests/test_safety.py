@@ -118,3 +118,20 @@ def test_a_run_killed_at_any_moment_loses_nothing(tmp_path, mrsim, delay):
         full = [ln for ln in (tmp_path / "full.csv").read_text().splitlines() if not ln.startswith("#")]
         assert rows == full
         assert not (tmp_path / "out.csv.partial").exists()
+
+
+def test_open_models_keep_their_handles_however_many_are_open():
+    """Nine models open at once (the handle table grows twice): each still answers with its
+    own scene's right-hand side, equal to a fresh evaluation of it."""
+    import numpy as np
+    scenes = [ROOT / "input" / "pendulum.nml", ROOT / "input" / "double_pendulum.nml",
+              ROOT / "input" / "tank_gun_turret.nml"]
+    models = [pymr.Model(scenes[k % 3]) for k in range(9)]
+    try:
+        for k, model in enumerate(models):
+            with pymr.Model(scenes[k % 3]) as fresh:
+                x = 0.01 * np.arange(1, 2 * fresh.n + 1)
+                assert np.array_equal(model.rhs(0.0, x), fresh.rhs(0.0, x))
+    finally:
+        for model in models:
+            model.close()

@@ -132,3 +132,32 @@ def test_bad_sweep_files_are_one_line_errors(tmp_path, text, message):
     with pytest.raises(SweepError, match=message) as exc:
         load_sweep(toml)
     assert str(exc.value).startswith(str(toml)) and "\n" not in str(exc.value)
+
+
+def test_sweep_command_exit_statuses(tmp_path):
+    """pymr sweep: a sweep file that is not TOML (binary bytes) is one line and exit 1; a sweep
+    whose case fails runs the others, lists the failed case and exits 2. A bad command line
+    is exit 1 too."""
+    (tmp_path / "bin.toml").write_bytes(bytes(range(256)))
+    r = subprocess.run(["pymr", "sweep", "bin.toml"], cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert r.returncode == 1 and r.stderr.count("\n") == 1 and "not a TOML sweep file" in r.stderr, r.stderr
+    (tmp_path / "fail.toml").write_text(f"""
+scene = "{TANK}"
+metric = "final:elevation.q"
+output = "runs"
+[grid]
+"integrator.h_slow" = [5e-3, 2e-4]
+[fixed]
+"integrator.method" = "multirate"
+"integrator.h_fast" = 1e-4
+"integrator.stability_check" = false
+"output.dt" = 1e-2
+"scene.t_end" = 0.3
+""")
+    r = subprocess.run(["pymr", "sweep", "fail.toml", "--workers", "1"], cwd=tmp_path, capture_output=True, text=True,
+                       timeout=300)
+    assert r.returncode == 2, r.stderr
+    assert "pymr: error: 1 of 2 cases failed: case0000" in r.stderr
+    assert (tmp_path / "runs" / "summary.csv").exists()
+    r = subprocess.run(["pymr", "run"], cwd=tmp_path, capture_output=True, text=True, timeout=60)
+    assert r.returncode == 1

@@ -296,8 +296,11 @@ subroutine pymr_model_open(scene, overrides, handle, n, stat, message)
     if (.not. open_flags(k)) exit
   end do
   if (k > size(open_flags)) then
+    ! a larger table keeps every open model under its handle
     allocate(grown(2*size(open_models)), flags(2*size(open_flags)))
     flags = .false.
+    grown(1:size(open_models)) = open_models
+    flags(1:size(open_flags)) = open_flags
     call move_alloc(grown, open_models)
     call move_alloc(flags, open_flags)
   end if
