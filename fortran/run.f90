@@ -79,6 +79,22 @@ contains
     end function reads
   end subroutine check_output_path
 
+  !> The results file the run would write, refused above &output max_bytes: rows from t_end
+  !> and the output interval (every step of a fixed-step run when dt is 0), 25 bytes a value.
+  subroutine check_output_size(sc, model, dt_out, error)
+    type(scene_t), intent(in) :: sc
+    type(model_t), intent(in) :: model
+    real(dp), intent(in) :: dt_out
+    type(error_type), allocatable, intent(out) :: error
+    real(dp) :: rows, bytes
+    if (dt_out <= 0.0_dp) return          ! adaptive, every step: bounded by max_steps
+    rows = sc%scene%t_end/dt_out + 2
+    bytes = rows*25.0_dp*(1 + 2*model%d%n + 6*model%d%n_markers)
+    if (bytes > sc%output%max_bytes) call fatal_error(error, sc%output%origin%where('dt') // ': the results would ' // &
+      & 'take about ' // fmt(bytes) // ' bytes (' // fmt(rows) // ' rows), more than max_bytes = ' // &
+      & fmt(sc%output%max_bytes) // ' (a larger dt, or raise max_bytes in &output)')
+  end subroutine check_output_size
+
   !> Output path: the command line's, else &output file, else the scene's name with .csv.
   function default_output(sc, out) result(path)
     type(scene_t), intent(in) :: sc
@@ -123,6 +139,7 @@ contains
     logical :: restarting, lines
     character(len=:), allocatable :: path, ckpt_path, settings, fingerprint
     type(error_type), allocatable :: json_error
+    type(step_counts) :: done
 
     restarting = .false.
     if (present(restart)) restarting = len_trim(restart) > 0
@@ -158,6 +175,7 @@ contains
       stats%rows = prog%rows; k_out = prog%k_out; t_next = prog%t_next
       cpu0 = cpu0 - prog%cpu_s
     else
+      call check_output_size(sc, model, dt_out, error); if (allocated(error)) return
       call csv%open(path, model%d, sc%scene%title, method_label(sc), error); if (allocated(error)) return
       call csv%write_row(model%d, 0.0_dp, x(1:n), x(n+1:)); stats%rows = 1
       call check_mass_matrix(model, x, file // ': ', error)
@@ -209,6 +227,11 @@ contains
           & 'results: ' // trim(csv%io_message), stat_solver); exit
       end if
       call st%advance(model, error); if (allocated(error)) exit
+      done = st%counts()
+      if (done%steps_fast > sc%integrator%max_steps) then
+        call fatal_error(error, 'at t = ' // fmt(st%time()) // ' s: the run took more than max_steps = ' // &
+          & itoa(sc%integrator%max_steps) // ' steps (&integrator max_steps lifts the limit)', stat_solver); exit
+      end if
       progress_t = st%time()
       if (lines) then
         call system_clock(c1)
@@ -352,8 +375,13 @@ contains
     integer :: i, n
     n = model%d%n
     s = 'scene: ' // trim(sc%scene%title) // new_line('a')
-    write(buf, '(a,g0.6,a,i0,a,i0,a,i0,a,i0,a)') 'simulated 0 to ', sc%scene%t_end, ' s: ', st%steps_slow, ' steps (', &
-      & st%steps_fast, ' fast), ', st%rejected_steps, ' rejected, ', st%rhs_full, ' full evaluations'
+    if (st%steps_fast /= st%steps_slow) then
+      write(buf, '(a,i0,a,i0,a,i0,a,i0,a)') 'simulated 0 to ' // fmt(sc%scene%t_end) // ' s: ', st%steps_slow, &
+        & ' steps (', st%steps_fast, ' fast), ', st%rejected_steps, ' rejected, ', st%rhs_full, ' full evaluations'
+    else
+      write(buf, '(a,i0,a,i0,a,i0,a)') 'simulated 0 to ' // fmt(sc%scene%t_end) // ' s: ', st%steps_slow, &
+        & ' steps, ', st%rejected_steps, ' rejected, ', st%rhs_full, ' full evaluations'
+    end if
     if (st%rhs_fast > 0) write(buf, '(a,a,i0,a)') trim(buf), ', ', st%rhs_fast, ' fast-only'
     s = s // trim(buf) // new_line('a')
     write(buf, '(a,f10.4,a,f10.4,a)') 'cpu time ', st%cpu_time_s, ' s, wall time ', st%wall_time_s, ' s'

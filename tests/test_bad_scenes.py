@@ -192,7 +192,7 @@ SET_FAULTS = [
     SetFault("output_dt_negative", "output.dt=-1", "output.dt", -1.0,
              r": &output: dt: must be in \[0, 1e\+9\], got -1$"),
     SetFault("rtol_1e-300", "integrator.rtol=1e-300", "integrator.rtol", 1e-300,
-             r": &integrator: rtol: must be in \[1e-14, 1\], got 1e-300$"),
+             r": &integrator: rtol: must be in \[2.22045e-14, 1\], got 1e-300$"),
     SetFault("title_too_long", "scene.title=" + "x" * 300, "scene.title", "x" * 300,
              r": &scene: title: the text is longer than 256 characters$"),
     SetFault("duplicate_body_name", "body[bob].name=ground", "body[bob].name", "ground",

@@ -432,10 +432,10 @@ def test_python_m_pymr_overrides_take_effect(tmp_path):
 
 # ------------------------------------------------------------- a failed run: exit status 2
 
-# Adaptive steps with h_min equal to the first step and a tolerance no step can meet:
-# the first step is rejected and the next would be below h_min (step size underflow).
-UNDERFLOW = replaced("h_slow = 1.0e-3",
-                     "h_slow = 1.0e-3, adaptive = .true., h_min = 1.0e-3, rtol = 1.0e-14, atol = 1.0e-16")
+# Adaptive steps on the stiff barrel with h_min = 1e-4 s: its 1015 Hz mode needs steps below
+# 6.7e-5 s to stay stable, so the controller's next step falls below h_min (step size underflow).
+UNDERFLOW = (Path(__file__).resolve().parent.parent / "input" / "hard" / "stiff_barrel.nml").read_text().replace(
+    "  h_slow = 1.0e-4\n", "  h_slow = 1.0e-4\n  adaptive = .true.\n  h_min = 1.0e-4\n")
 
 
 def test_mrsim_solver_failure_exit_2(mrsim, tmp_path):

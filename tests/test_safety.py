@@ -135,3 +135,22 @@ def test_open_models_keep_their_handles_however_many_are_open():
     finally:
         for model in models:
             model.close()
+
+
+def test_work_is_bounded_before_and_during_the_run(tmp_path):
+    """A fixed-step run needing more than max_steps is refused before it starts (naming the
+    count), an adaptive one stops at the limit with exit 2 and the time; results beyond
+    max_bytes are refused; rtol below 100 machine epsilons is refused."""
+    scene = tmp_path / "p.nml"
+    scene.write_text(PENDULUM)
+    with pytest.raises(pymr.SceneError, match=r"p.nml:\d+: &integrator: h_slow: the run would take 1e\+12 steps of "
+                                               r"0.001 s to t_end = 1e\+9 s, more than max_steps = 100000000"):
+        pymr.run(scene, overrides={"scene.t_end": 1e9})
+    with pytest.raises(pymr.SolverError, match=r"at t = [\d.e+-]+ s: the run took more than max_steps = 50 steps"):
+        pymr.run(scene, tmp_path / "a.csv", overrides={"integrator.adaptive": True, "integrator.max_steps": 50,
+                                                        "scene.t_end": 10.0})
+    with pytest.raises(pymr.SceneError, match=r"&output: dt: the results would take about [\d.e+]+ bytes "
+                                               r"\([\d.e+]+ rows\), more than max_bytes = 1e\+6"):
+        pymr.run(scene, overrides={"scene.t_end": 1000.0, "output.max_bytes": 1e6})
+    with pytest.raises(pymr.SceneError, match=r"rtol: must be in \[2.22045e-14, 1\], got 1e-15"):
+        pymr.run(scene, overrides={"integrator.adaptive": True, "integrator.rtol": 1e-15})

@@ -10,6 +10,7 @@ module pymr_integrator_abm
     & nordsieck_rescale, nordsieck_value, nordsieck_from_history
   use pymr_integrator_control, only : step_control, error_weights, wrms_norm
   use pymr_integrator_stepper, only : stepper_t, step_counts
+  use pymr_io_text, only : fmt
   implicit none
   private
   public :: abm_integrator, rk4_step, check_finite, hinit
@@ -150,7 +151,6 @@ contains
     class(ode_system), intent(inout) :: sys
     type(error_type), allocatable, intent(out) :: error
     real(dp) :: err, eta, tn
-    character(len=96) :: buf
     do
       tn = self%t + self%h
       call try_step(self, sys, tn, error); if (allocated(error)) return
@@ -165,9 +165,8 @@ contains
       self%rejected = self%rejected + 1
       eta = self%ctl%ratio(err, .false.)
       if (eta*self%h < self%ctl%h_min) then
-        write(buf, '(a,es10.3,a,es10.3,a)') 'step size underflow at t = ', self%t, ' s (step ', &
-          & eta*self%h, ' s below h_min)'
-        call fatal_error(error, trim(buf), stat_solver)
+        call fatal_error(error, 'step size underflow at t = ' // fmt(self%t) // ' s (step ' // fmt(eta*self%h) // &
+          & ' s below h_min)', stat_solver)
         return
       end if
       call nordsieck_rescale(self%z, eta)

@@ -12,6 +12,7 @@ module pymr_integrator_multirate
   use pymr_error, only : error_type, fatal_error, stat_solver
   use pymr_integrator_ode, only : ode_system, partitioned_system
   use pymr_integrator_stepper, only : stepper_t, step_counts
+  use pymr_io_text, only : fmt
   use pymr_integrator_nordsieck, only : nq, nordsieck_predict, nordsieck_correct, nordsieck_value, &
     & nordsieck_from_history, nordsieck_rescale, corrector_l
   use pymr_integrator_abm, only : rk4_step, check_finite
@@ -198,7 +199,6 @@ contains
     type(error_type), allocatable, intent(out) :: error
     real(dp) :: err_s, err_f, hs_new, hf_new, hs0, hf0
     integer :: k_new
-    character(len=120) :: buf
     if (.not. self%adaptive) then
       call try_macro_step(self, sys, err_s, err_f, error); if (allocated(error)) return
       call finish_macro_step(self, sys, error)
@@ -216,9 +216,8 @@ contains
       hf_new = self%hf*min(self%ctl%ratio(err_f, err_f <= 1.0_dp), 1.0_dp)
       call choose_ratio(self, hs_new, hf_new, k_new)
       if (hf_new < self%ctl%h_min) then
-        write(buf, '(a,es10.3,a,es10.3,a)') 'step size underflow at t = ', self%t, ' s (fast step ', hf_new, &
-          & ' s below h_min)'
-        call fatal_error(error, trim(buf), stat_solver); return
+        call fatal_error(error, 'step size underflow at t = ' // fmt(self%t) // ' s (fast step ' // fmt(hf_new) // &
+          & ' s below h_min)', stat_solver); return
       end if
       ! back to the start of the macro step, with the arrays' own scaling
       self%zs = self%zs0; self%zf = self%zf0

@@ -44,6 +44,8 @@ module pymr_model_scene
     integer :: k_max = 50
     !> Refuse fixed steps that the pre-flight check finds unstable (.false.: run anyway).
     logical :: stability_check = .true.
+    !> Most (fast) steps a run may take.
+    integer :: max_steps = 100000000
     !> Multirate coupling of the fast substeps: 'full' (the paper's) or 'split'.
     character(len=16) :: coupling = 'split'
     type(origin_t) :: origin
@@ -68,6 +70,8 @@ module pymr_model_scene
     character(len=512) :: checkpoint_file = ''
     !> Significant digits written per value.
     integer :: precision = 17
+    !> Largest results file a run may write (bytes).
+    real(dp) :: max_bytes = 1.0e10_dp
     type(origin_t) :: origin
   end type output_spec
 
@@ -216,7 +220,8 @@ contains
     call t%add('h_slow', g%h_slow, 's', 'step of the slow (joint) coordinates, the step of a single-rate run; ' // &
       & 'default h_fast', ge=1.0e-12_dp, le=1.0e3_dp)
     call t%add('adaptive', g%adaptive, 'adaptive steps from the local error estimate')
-    call t%add('rtol', g%rtol, '-', 'relative tolerance of the local error (adaptive)', ge=1.0e-14_dp, le=1.0_dp)
+    call t%add('rtol', g%rtol, '-', 'relative tolerance of the local error (adaptive)', ge=100*epsilon(1.0_dp), &
+      & le=1.0_dp)
     call t%add('atol', g%atol, 'state units', 'absolute tolerance of the local error (adaptive)', &
       & ge=1.0e-20_dp, le=1.0e6_dp)
     call t%add('h_min', g%h_min, 's', 'smallest adaptive step; 0 = 1e-12 s', ge=0.0_dp, le=1.0e3_dp)
@@ -226,6 +231,8 @@ contains
       & "whole model, 'split' holds the slow terms", choices='full split')
     call t%add('k_max', g%k_max, '-', 'largest step ratio H/h of adaptive multirate', ge=1, le=100000)
     call t%add('stability_check', g%stability_check, 'refuse fixed steps that the pre-flight check finds unstable')
+    call t%add('max_steps', g%max_steps, '-', 'most (fast) steps a run may take: a fixed-step run needing more is ' // &
+      & 'refused, an adaptive one stops', ge=1, le=2000000000)
   end subroutine describe_integrator
 
   subroutine describe_effects(g, t)
@@ -253,6 +260,8 @@ contains
     call t%add('checkpoint_file', g%checkpoint_file, 'checkpoint file (default: the CSV file with .ckpt)')
     call t%add('precision', g%precision, '-', 'significant digits written per value (17 read back exactly)', &
       & ge=6, le=17)
+    call t%add('max_bytes', g%max_bytes, 'bytes', 'largest results file a run may write: a run whose output ' // &
+      & 'would exceed it is refused', ge=1.0e3_dp, le=1.0e15_dp)
   end subroutine describe_output
 
   subroutine describe_body(g, t)

@@ -117,6 +117,12 @@ contains
             & // ' s, got ' // fmt(sc%output%dt)); return
         end if
       end if
+      ! bounded work: a fixed-step run's steps are known before it starts
+      if (.not. s%adaptive .and. sc%scene%t_end/hf > real(s%max_steps, dp)) then
+        call errs%add(w(step_item) // ': the run would take ' // fmt(sc%scene%t_end/hf) // ' steps of ' // &
+          & fmt(hf) // ' s to t_end = ' // fmt(sc%scene%t_end) // ' s, more than max_steps = ' // itoa(s%max_steps) // &
+          & ' (raise it in &integrator if you mean it)'); return
+      end if
     end associate
   contains
     function w(item) result(s)
