@@ -6,9 +6,10 @@
 module pymr_lapack
   use pymr_kinds, only : dp
   use pymr_error, only : error_type, fatal_error, stat_solver
+  use pymr_io_text, only : itoa
   implicit none
   private
-  public :: potrf, potrs, sygvd, ptsv, geev_complex, geev_real, factor_inverse
+  public :: potrf, potrs, sygvd, ptsv, geev_complex, geev_real, factor_inverse, band_solve
   public :: illegal_argument_probe
 
   !> The last fault LAPACK reported to XERBLA: routine and argument number.
@@ -21,6 +22,12 @@ module pymr_lapack
   end interface potrs
 
   interface
+    subroutine dgbsv(n, kl, ku, nrhs, ab, ldab, ipiv, b, ldb, info)
+      import :: dp
+      integer, intent(in) :: n, kl, ku, nrhs, ldab, ldb
+      real(dp), intent(inout) :: ab(ldab, *), b(ldb, *)
+      integer, intent(out) :: ipiv(*), info
+    end subroutine dgbsv
     subroutine dpotrf(uplo, n, a, lda, info)
       import :: dp
       character(len=1), intent(in) :: uplo
@@ -187,18 +194,12 @@ contains
     if (info == 0) return
     write(buf, '(i0)') info
     if (info > n) then
-      call fatal_error(error, 'leading minor ' // trim(adjustl(itoa(info - n))) // ' of ' &
+      call fatal_error(error, 'leading minor ' // itoa(info - n) // ' of ' &
         & // what // ' is not positive definite (dsygvd)', stat_solver)
     else
       call fatal_error(error, 'eigenvalue solver dsygvd failed for ' // what // ' (info ' // trim(buf) // ')', &
         & stat_solver)
     end if
-  contains
-    pure function itoa(i) result(s)
-      integer, intent(in) :: i
-      character(len=24) :: s
-      write(s, '(i0)') i
-    end function itoa
   end subroutine sygvd
 
   !> Eigenvalues w of the complex square matrix a (overwritten), LAPACK zgeev.
@@ -236,6 +237,31 @@ contains
     call dgeev('N', 'V', n, a, n, wr, wi, dum, 1, vr, n, work, size(work), info)
     if (info /= 0) call fatal_error(error, 'eigenvalue solver dgeev failed for ' // what, stat_solver)
   end subroutine geev_real
+
+  !> Solve A x = b for a symmetric banded A given by its lower band a (a(1 + i - j, j) = A(i, j)),
+  !> not necessarily definite: LAPACK dgbsv with partial pivoting; b becomes x.
+  subroutine band_solve(a, b, what, error)
+    real(dp), intent(in) :: a(:, :)
+    real(dp), intent(inout) :: b(:)
+    character(len=*), intent(in) :: what
+    type(error_type), allocatable, intent(out) :: error
+    real(dp), allocatable :: ab(:, :)
+    integer, allocatable :: ipiv(:)
+    integer :: n, kd, i, j, info
+    n = size(a, 2); kd = size(a, 1) - 1
+    allocate(ab(3*kd + 1, n), ipiv(n))
+    ab = 0.0_dp
+    do j = 1, n
+      do i = j, min(n, j + kd)
+        ab(2*kd + 1 + i - j, j) = a(1 + i - j, j)       ! A(i, j), below the diagonal
+        ab(2*kd + 1 + j - i, i) = a(1 + i - j, j)       ! A(j, i), above it
+      end do
+    end do
+    call dgbsv(n, kd, kd, 1, ab, 3*kd + 1, ipiv, b, n, info)
+    if (info /= 0) call fatal_error(error, 'banded solver dgbsv failed for ' // what // ' (info ' // &
+      & itoa(info) // ')', stat_solver)
+  end subroutine band_solve
+
 
   !> A call with an illegal argument (dpotrf with uplo 'X'): for the test that XERBLA
   !> returns. Gives LAPACK's info.

@@ -5,11 +5,15 @@
 module pymr_model_beam_modes
   use pymr_kinds, only : dp, pi
   use pymr_error, only : error_type
-  use pymr_lapack, only : sygvd
+  use pymr_lapack, only : sygvd, band_solve
   use pymr_model_flexbody, only : flex_data, flex_invariants, point_shapes
   implicit none
   private
   public :: beam_point_load_stiffness, beam_shape, build_beam, beam_point_shapes, gauss4
+
+  !> Beams with more elements take the banded eigensolver (the dense one is kept below it,
+  !> so the results of smaller beams stay as they were).
+  integer, parameter :: dense_elements = 100
 
   !> Gauss-Legendre points and weights on [0, 1] (exact for degree 7): the nodes
   !> +-0.8611363115940526, +-0.3399810435848563 of [-1, 1] halved and shifted.
@@ -161,7 +165,7 @@ contains
 
   !> Lowest `nm` modes of one bending plane: nodal vectors (with the clamped node 0 as zeros),
   !> M-normalised, signed so that the tip displacement is positive.
-  subroutine plane_modes(ei, rhoa, le, ne, nm, what, v, lam, error)
+  recursive subroutine plane_modes(ei, rhoa, le, ne, nm, what, v, lam, error)
     real(dp), intent(in) :: ei, rhoa, le
     integer, intent(in) :: ne, nm
     character(len=*), intent(in) :: what
@@ -171,8 +175,6 @@ contains
     real(dp) :: ke(4, 4), me(4, 4), nn(4), dn(4)
     integer :: nd, el, g, i0, i, j, k
     nd = 2*ne
-    allocate(kk(nd, nd), mm(nd, nd), w(nd), v(nd + 2, nm), lam(nm))
-    kk = 0.0_dp; mm = 0.0_dp
     ke = reshape([12.0_dp, 6*le, -12.0_dp, 6*le, 6*le, 4*le**2, -6*le, 2*le**2, &
       & -12.0_dp, -6*le, 12.0_dp, -6*le, 6*le, 2*le**2, -6*le, 4*le**2], [4, 4])*ei/le**3
     me = 0.0_dp
@@ -182,6 +184,11 @@ contains
         me(:, j) = me(:, j) + rhoa*le*gauss4(2, g)*nn*nn(j)
       end do
     end do
+    if (ne > dense_elements) then
+      call plane_modes_banded(ei, rhoa, le, ke, me, ne, nm, what, v, lam, error); return
+    end if
+    allocate(kk(nd, nd), mm(nd, nd), w(nd), v(nd + 2, nm), lam(nm))
+    kk = 0.0_dp; mm = 0.0_dp
     do el = 1, ne
       i0 = 2*(el - 1) - 2        ! global index offset (node 0 removed)
       do j = 1, 4
@@ -204,6 +211,87 @@ contains
       lam(k) = 1.0_dp/w(nd + 1 - k)
     end do
   end subroutine plane_modes
+
+  !> Modes of a long beam (more than dense_elements elements) from the banded matrices: each
+  !> mode by inverse iteration with (K - sigma M) (LAPACK's banded LU), sigma the mode's
+  !> eigenvalue on a coarse mesh, then its eigenvalue as the Rayleigh quotient summed
+  !> element by element. Work and memory grow as the number of elements, not its cube and
+  !> square.
+  recursive subroutine plane_modes_banded(ei, rhoa, le, ke, me, ne, nm, what, v, lam, error)
+    real(dp), intent(in) :: ei, rhoa, le, ke(4, 4), me(4, 4)
+    integer, intent(in) :: ne, nm
+    character(len=*), intent(in) :: what
+    real(dp), allocatable, intent(out) :: v(:, :), lam(:)
+    type(error_type), allocatable, intent(out) :: error
+    integer, parameter :: kd = 3
+    real(dp), allocatable :: kb(:, :), mb(:, :), a(:, :), x(:), y(:)
+    integer :: nd, el, i0, i, j, k, it
+    real(dp) :: sigma
+    nd = 2*ne
+    allocate(kb(kd + 1, nd), mb(kd + 1, nd), x(nd), y(nd), v(nd + 2, nm), lam(nm))
+    kb = 0.0_dp; mb = 0.0_dp
+    do el = 1, ne
+      i0 = 2*(el - 1) - 2        ! global index offset (node 0 removed)
+      do j = 1, 4
+        do i = j, 4
+          if (i0 + j < 1) cycle
+          kb(1 + i - j, i0 + j) = kb(1 + i - j, i0 + j) + ke(i, j)
+          mb(1 + i - j, i0 + j) = mb(1 + i - j, i0 + j) + me(i, j)
+        end do
+      end do
+    end do
+    v = 0.0_dp
+    if (nm == 0) return
+    ! shifts: the eigenvalues of the same beam on a coarse mesh (dense, accurate to about 1e-4
+    ! for the modes kept); inverse iteration then converges to the fine mesh's modes
+    block
+      real(dp), allocatable :: vc(:, :)
+      integer :: nc
+      nc = max(dense_elements, 8*nm)
+      call plane_modes(ei, rhoa, le*ne/nc, nc, nm, what, vc, lam, error); if (allocated(error)) return
+    end block
+    do k = 1, nm
+      sigma = lam(k)
+      a = kb - sigma*mb
+      x = [(1.0_dp + 0.1_dp*sin(real(i, dp)), i = 1, nd)]
+      do it = 1, 6
+        y = band_product(mb, x)
+        call band_solve(a, y, what, error); if (allocated(error)) return
+        x = y/norm2(y)
+      end do
+      x = x/sqrt(dot_product(x, band_product(mb, x)))
+      if (x(nd - 1) < 0.0_dp) x = -x
+      v(3:, k) = x
+      ! the Rayleigh quotient of the converged mode, element by element: more accurate than
+      ! the banded solver's eigenvalue, which the Cholesky of the ill-conditioned K limits
+      lam(k) = element_energy(ke, v(:, k))/element_energy(me, v(:, k))
+    end do
+  contains
+    !> sum over elements of x_e' A_e x_e, x with the clamped node's two zeros in front.
+    pure real(dp) function element_energy(ae, x) result(e)
+      real(dp), intent(in) :: ae(4, 4), x(:)
+      integer :: el
+      e = 0.0_dp
+      do el = 1, ne
+        e = e + dot_product(x(2*el-1:2*el+2), matmul(ae, x(2*el-1:2*el+2)))
+      end do
+    end function element_energy
+
+    !> y = B x for the symmetric banded B (lower band).
+    pure function band_product(b, x) result(y)
+      real(dp), intent(in) :: b(:, :), x(:)
+      real(dp) :: y(size(x))
+      integer :: i, j
+      y = 0.0_dp
+      do j = 1, size(x)
+        y(j) = y(j) + b(1, j)*x(j)
+        do i = j + 1, min(size(x), j + kd)
+          y(i) = y(i) + b(1 + i - j, j)*x(j)
+          y(j) = y(j) + b(1 + i - j, j)*x(i)
+        end do
+      end do
+    end function band_product
+  end subroutine plane_modes_banded
 
   !> Translational and rotational mode shapes (3 x m) at point r of the body frame:
   !> Hermite interpolation at x = r(1); the section's small rotation carries the offset
