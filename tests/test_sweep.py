@@ -56,14 +56,11 @@ def test_sweep_on_a_local_cluster_equals_the_cases_run_one_by_one(tmp_path):
     assert float(summary[3]["metric"]) == rows[3]["metric"]
 
 
-def test_a_failing_case_is_recorded_and_the_others_run(tmp_path):
-    """A case whose run breaks down (multirate k = 50 with the stability check off: the
-    linearised macro step grows by 1.42 per step) is recorded with its error; the others run
-    and equal the same overrides run alone."""
-    toml = tmp_path / "bad.toml"
-    toml.write_text(f"""
-scene = "{TANK}"
+#: Two cases; the first (multirate k = 50 with the stability check off) breaks down.
+FAILING_CASE = """
+scene = "{scene}"
 metric = "final:elevation.q"
+{top}
 [grid]
 "integrator.h_slow" = [5e-3, 2e-4]
 [fixed]
@@ -71,7 +68,16 @@ metric = "final:elevation.q"
 "integrator.h_fast" = 1e-4
 "integrator.stability_check" = false
 "output.dt" = 1e-2
-""")
+{extra}
+"""
+
+
+def test_a_failing_case_is_recorded_and_the_others_run(tmp_path):
+    """A case whose run breaks down (multirate k = 50 with the stability check off: the
+    linearised macro step grows by 1.42 per step) is recorded with its error; the others run
+    and equal the same overrides run alone."""
+    toml = tmp_path / "bad.toml"
+    toml.write_text(FAILING_CASE.format(scene=TANK, top="", extra=""))
     rows = run_sweep(load_sweep(toml), workers=2)
     assert rows[0]["status"].startswith("error: ") and "effective mass matrix M_e" in rows[0]["status"]
     assert np.isnan(rows[0]["metric"])
@@ -141,19 +147,8 @@ def test_sweep_command_exit_statuses(tmp_path):
     (tmp_path / "bin.toml").write_bytes(bytes(range(256)))
     r = subprocess.run(["pymr", "sweep", "bin.toml"], cwd=tmp_path, capture_output=True, text=True, timeout=120)
     assert r.returncode == 1 and r.stderr.count("\n") == 1 and "not a TOML sweep file" in r.stderr, r.stderr
-    (tmp_path / "fail.toml").write_text(f"""
-scene = "{TANK}"
-metric = "final:elevation.q"
-output = "runs"
-[grid]
-"integrator.h_slow" = [5e-3, 2e-4]
-[fixed]
-"integrator.method" = "multirate"
-"integrator.h_fast" = 1e-4
-"integrator.stability_check" = false
-"output.dt" = 1e-2
-"scene.t_end" = 0.3
-""")
+    (tmp_path / "fail.toml").write_text(FAILING_CASE.format(scene=TANK, top='output = "runs"',
+                                                            extra='"scene.t_end" = 0.3'))
     r = subprocess.run(["pymr", "sweep", "fail.toml", "--workers", "1"], cwd=tmp_path, capture_output=True, text=True,
                        timeout=300)
     assert r.returncode == 2, r.stderr
