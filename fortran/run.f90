@@ -149,7 +149,8 @@ contains
     n = model%d%n
     path = default_output(sc, out)
     call check_output_path(sc, path, error); if (allocated(error)) return
-    call checkpoint_identity(sc, settings, fingerprint)
+    ! what a checkpoint must share with its scene (only needed when there are checkpoints)
+    if (restarting .or. sc%output%checkpoint_dt > 0.0_dp) call checkpoint_identity(sc, settings, fingerprint)
     ckpt_path = trim(sc%output%checkpoint_file)
     if (len(ckpt_path) == 0) ckpt_path = checkpoint_default(path)
     cpu0 = thread_cpu_time(); call system_clock(c0, rate)
