@@ -16,7 +16,7 @@ module pymr_run
   use pymr_clock, only : thread_cpu_time
   use pymr_model_effects, only : prescribed_motion
   use pymr_io_text, only : itoa, fmt
-  use pymr_io_text_file, only : absolute_path, scene_relative
+  use pymr_io_text_file, only : absolute_path, scene_relative, acquire_lock, release_lock
   use pymr_preflight, only : check_step_stability, check_mass_matrix
   use pymr_io_checkpoint, only : run_progress, write_checkpoint, read_checkpoint
   implicit none
@@ -126,6 +126,21 @@ contains
     character(len=*), intent(in), optional :: restart
     !> Print a progress line to stderr about every second (mrsim --progress).
     logical, intent(in), optional :: progress_lines
+    character(len=:), allocatable :: locked
+    call run_locked(file, overrides, out, summary, error, locked, written, restart, progress_lines)
+    if (allocated(locked)) call release_lock(locked)
+  end subroutine run_scene
+
+  !> The run, holding OUT.lock from the moment its output is known (`locked` names it for
+  !> the caller to release), so that two runs never write the same results.
+  subroutine run_locked(file, overrides, out, summary, error, locked, written, restart, progress_lines)
+    character(len=*), intent(in) :: file, overrides, out
+    character(len=:), allocatable, intent(out) :: summary
+    type(error_type), allocatable, intent(out) :: error
+    character(len=:), allocatable, intent(out) :: locked
+    character(len=:), allocatable, intent(out), optional :: written
+    character(len=*), intent(in), optional :: restart
+    logical, intent(in), optional :: progress_lines
     type(scene_t), target :: sc
     type(model_t) :: model
     class(stepper_t), allocatable :: st
@@ -149,6 +164,8 @@ contains
     n = model%d%n
     path = default_output(sc, out)
     call check_output_path(sc, path, error); if (allocated(error)) return
+    call acquire_lock(path, error); if (allocated(error)) return
+    locked = path
     ! what a checkpoint must share with its scene (only needed when there are checkpoints)
     if (restarting .or. sc%output%checkpoint_dt > 0.0_dp) call checkpoint_identity(sc, settings, fingerprint)
     ckpt_path = trim(sc%output%checkpoint_file)
@@ -266,7 +283,7 @@ contains
     if (allocated(error)) return
     summary = summary_text(sc, model, stats, path, x)
     if (present(written)) written = path
-  end subroutine run_scene
+  end subroutine run_locked
 
   !> One progress line on stderr: simulated time, percent, wall time and its estimate to go.
   subroutine progress_line(t, t_end, c0, rate)

@@ -154,3 +154,25 @@ def test_work_is_bounded_before_and_during_the_run(tmp_path):
         pymr.run(scene, overrides={"scene.t_end": 1000.0, "output.max_bytes": 1e6})
     with pytest.raises(pymr.SceneError, match=r"rtol: must be in \[2.22045e-14, 1\], got 1e-15"):
         pymr.run(scene, overrides={"integrator.adaptive": True, "integrator.rtol": 1e-15})
+
+
+def test_two_runs_never_write_the_same_results(tmp_path, mrsim):
+    """While a run writes out.csv it holds out.csv.lock (its process id): a second run to the
+    same output is refused with exit 1, and runs after it (or after a killed run, whose lock
+    names a process that no longer lives) go ahead."""
+    import time
+    scene = ROOT / "input" / "hard" / "tank_long.nml"
+    first = subprocess.Popen([mrsim, str(scene), "-o", "out.csv", "--quiet"], cwd=tmp_path)
+    for _ in range(200):
+        if (tmp_path / "out.csv.lock").exists():
+            break
+        time.sleep(0.005)
+    second = run_mrsim(mrsim, [str(scene), "-o", "out.csv", "--set", "scene.t_end=1"], tmp_path)
+    assert first.wait(timeout=120) == 0
+    assert second.returncode == 1, second.stderr
+    assert f"another run (process {first.pid}) is writing these results" in second.stderr
+    assert not (tmp_path / "out.csv.lock").exists()
+    (tmp_path / "out.csv.lock").write_text("999999999\n")          # a dead process's lock
+    again = run_mrsim(mrsim, [str(scene), "-o", "out.csv", "--quiet", "--set", "scene.t_end=1"], tmp_path)
+    assert again.returncode == 0, again.stderr
+    assert not (tmp_path / "out.csv.lock").exists()

@@ -4,9 +4,10 @@
 module pymr_io_text_file
   use, intrinsic :: iso_c_binding, only : c_char, c_int, c_null_char, c_size_t, c_ptr, c_associated
   use pymr_error, only : error_type, fatal_error
+  use pymr_io_text, only : itoa
   implicit none
   private
-  public :: write_text_file, rename_file, sync_file, scene_relative, absolute_path
+  public :: write_text_file, rename_file, sync_file, scene_relative, absolute_path, acquire_lock, release_lock
 
   interface
     function c_rename(old, new) bind(c, name='rename') result(r)
@@ -30,6 +31,15 @@ module pymr_io_text_file
       integer(c_int), value :: fd
       integer(c_int) :: r
     end function c_close
+    function c_getpid() bind(c, name='getpid') result(pid)
+      import :: c_int
+      integer(c_int) :: pid
+    end function c_getpid
+    function c_kill(pid, sig) bind(c, name='kill') result(r)
+      import :: c_int
+      integer(c_int), value :: pid, sig
+      integer(c_int) :: r
+    end function c_kill
     function c_getcwd(buf, size) bind(c, name='getcwd') result(p)
       import :: c_char, c_size_t, c_ptr
       character(kind=c_char), intent(out) :: buf(*)
@@ -115,6 +125,44 @@ contains
       k = index(p, '/./')
     end do
   end function absolute_path
+
+  !> Take PATH.lock for this process: refused while another living process holds it (a
+  !> lock left by a killed run is taken over).
+  subroutine acquire_lock(path, error)
+    character(len=*), intent(in) :: path
+    type(error_type), allocatable, intent(out) :: error
+    integer :: u, ios, attempt, pid
+    do attempt = 1, 2
+      open(newunit=u, file=path // '.lock', status='new', action='write', iostat=ios)
+      if (ios == 0) then
+        write(u, '(i0)', iostat=ios) c_getpid()
+        close(u)
+        return
+      end if
+      pid = 0
+      open(newunit=u, file=path // '.lock', status='old', action='read', iostat=ios)
+      if (ios == 0) then
+        read(u, *, iostat=ios) pid
+        close(u)
+      end if
+      if (pid > 0) then
+        if (c_kill(int(pid, c_int), 0_c_int) == 0) then
+          call fatal_error(error, path // ': another run (process ' // itoa(pid) // ') is writing these ' // &
+            & 'results; wait for it or choose another output'); return
+        end if
+      end if
+      call release_lock(path)          ! left by a run that no longer lives
+    end do
+    call fatal_error(error, path // ': cannot take the lock ' // path // '.lock')
+  end subroutine acquire_lock
+
+  !> Remove PATH.lock.
+  subroutine release_lock(path)
+    character(len=*), intent(in) :: path
+    integer :: u, ios
+    open(newunit=u, file=path // '.lock', status='old', iostat=ios)
+    if (ios == 0) close(u, status='delete', iostat=ios)
+  end subroutine release_lock
 
   !> Move `old` over `new` (atomic on one file system).
   subroutine rename_file(old, new, error)
