@@ -149,10 +149,22 @@ def model_size(scene: str | os.PathLike, overrides=None) -> tuple[int, int, int]
     return int(n), int(nb), int(nm)
 
 
+def _states(q, qd) -> tuple[np.ndarray, np.ndarray]:
+    """q and qd as float arrays of one shape (ValueError naming qd otherwise)."""
+    q = np.asarray(q, dtype=float)
+    qd = np.asarray(qd, dtype=float)
+    if q.shape != qd.shape:
+        raise ValueError(f"qd: shape {qd.shape} differs from q's {q.shape}")
+    return q, qd
+
+
 def model_terms(scene: str | os.PathLike, q, qd, t: float = 0.0, overrides=None):
     """Mass matrix M and right-hand side P of ``M qdd = P`` at (t, q, qd)."""
-    q = np.ascontiguousarray(q, dtype=float)
-    qd = np.ascontiguousarray(qd, dtype=float)
+    q, qd = _states(q, qd)
+    if q.ndim != 1:
+        raise ValueError(f"q: one state of shape (n,) expected, got shape {q.shape}")
+    q = np.ascontiguousarray(q)
+    qd = np.ascontiguousarray(qd)
     mm, p, stat, msg = _core.pymr_model_terms(*_scene_and_overrides(scene, overrides), t, q, qd)
     _raise(stat, msg)
     return mm, p
@@ -160,7 +172,7 @@ def model_terms(scene: str | os.PathLike, q, qd, t: float = 0.0, overrides=None)
 
 def model_accelerations(scene: str | os.PathLike, t, q, qd, overrides=None) -> np.ndarray:
     """Accelerations for one state (q of shape (n,)) or many (shape (m, n), t of shape (m,))."""
-    q = np.asarray(q, dtype=float)
+    q, qd = _states(q, qd)
     single = q.ndim == 1
     q2 = np.asfortranarray(np.atleast_2d(q).T)
     qd2 = np.asfortranarray(np.atleast_2d(np.asarray(qd, dtype=float)).T)
@@ -172,6 +184,7 @@ def model_accelerations(scene: str | os.PathLike, t, q, qd, overrides=None) -> n
 
 def model_energy(scene: str | os.PathLike, q, qd, overrides=None) -> tuple[np.ndarray, np.ndarray]:
     """Kinetic and potential (gravity, when on) energy for states q, qd of shape (m, n)."""
+    q, qd = _states(q, qd)
     q2 = np.asfortranarray(np.atleast_2d(np.asarray(q, dtype=float)).T)
     qd2 = np.asfortranarray(np.atleast_2d(np.asarray(qd, dtype=float)).T)
     ke, pe, stat, msg = _core.pymr_model_energy(*_scene_and_overrides(scene, overrides), q2, qd2)
@@ -199,7 +212,10 @@ class Model:
         self.handle, self.n, self.evaluations = int(handle), int(n), 0
 
     def rhs(self, t: float, x) -> np.ndarray:
-        f, evals, stat, msg = _core.pymr_model_rhs(self.handle, float(t), np.asarray(x, dtype=float))
+        x = np.asarray(x, dtype=float)
+        if x.shape != (2 * self.n,):
+            raise ValueError(f"x: the state [q; qd] of shape ({2 * self.n},) expected, got shape {x.shape}")
+        f, evals, stat, msg = _core.pymr_model_rhs(self.handle, float(t), x)
         if stat:
             _raise(stat, msg)
         self.evaluations = int(evals)

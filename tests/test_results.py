@@ -128,3 +128,19 @@ def test_output_precision_sets_the_digits_written(tmp_path):
     assert all(len(c.split("e")[0].lstrip("-").replace(".", "")) == 8 for c in row if c != "0.0")
     with pytest.raises(pymr.SceneError, match=r"&output: precision: must be in \[6, 17\], got 20"):
         pymr.run(scene, overrides={"output.precision": 20})
+
+
+def test_negative_zero_keeps_its_sign_in_the_csv(tmp_path):
+    """A slider at rest at -0.0 is written as -0.0 (and read back with its sign)."""
+    scene = tmp_path / "z.nml"
+    scene.write_text("&scene title = 'signed zero', t_end = 0.002 /\n&integrator method = 'single', h_slow = 1.0e-3 /\n"
+                     "&body name = 'ground', kind = 'ground' /\n"
+                     "&body name = 'b', kind = 'rigid', mass = 1.0, inertia = 1.0, 1.0, 1.0, 0.0, 0.0, 0.0 /\n"
+                     "&joint name = 's', kind = 'prismatic', parent = 'ground', child = 'b', axis = 1.0, 0.0, 0.0, "
+                     "q0 = -0.0 /\n")
+    out = tmp_path / "z.csv"
+    pymr.run(scene, out)
+    lines = [ln for ln in out.read_text().splitlines() if not ln.startswith("#")]
+    first = dict(zip(lines[0].split(","), lines[1].split(",")))
+    assert first["s.q"] == "-0.0" and np.signbit(float(first["s.q"]))
+    assert first["s.qd"] == "0.0"

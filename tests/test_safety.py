@@ -176,3 +176,19 @@ def test_two_runs_never_write_the_same_results(tmp_path, mrsim):
     again = run_mrsim(mrsim, [str(scene), "-o", "out.csv", "--quiet", "--set", "scene.t_end=1"], tmp_path)
     assert again.returncode == 0, again.stderr
     assert not (tmp_path / "out.csv.lock").exists()
+
+
+def test_wrong_shapes_and_closed_models_raise_pymr_errors_naming_the_argument():
+    import numpy as np
+    tank = ROOT / "input" / "tank_gun_turret.nml"
+    n = pymr.model_size(tank)[0]
+    with pytest.raises(ValueError, match=r"qd: shape \(5,\) differs from q's \(6,\)"):
+        pymr.model_terms(tank, np.zeros(n), np.zeros(n - 1))
+    with pytest.raises(ValueError, match=r"qd: shape"):
+        pymr.model_energy(tank, np.zeros((3, n)), np.zeros((2, n)))
+    model = pymr.Model(tank)
+    with pytest.raises(ValueError, match=rf"x: the state \[q; qd\] of shape \({2 * n},\) expected, got shape \(3,\)"):
+        model.rhs(0.0, np.zeros(3))
+    model.close()
+    with pytest.raises(pymr.PymrError, match=r"closed|no open model"):
+        model.rhs(0.0, np.zeros(2 * n))

@@ -39,7 +39,12 @@ contains
       return
     end if
     if (x == 0.0_dp) then
-      buf(pos:pos+2) = '0.0'; pos = pos + 3; return
+      if (sign(1.0_dp, x) < 0.0_dp) then
+        buf(pos:pos+3) = '-0.0'; pos = pos + 4
+      else
+        buf(pos:pos+2) = '0.0'; pos = pos + 3
+      end if
+      return
     end if
     if (x < 0.0_dp) then
       buf(pos:pos) = '-'; pos = pos + 1
