@@ -15,7 +15,7 @@ module pymr_io_item_table
   implicit none
   private
   public :: item_t, item_table, origin_t, unset, t_real, t_integer, t_logical, t_string
-  public :: nearest_name, value_text, is_unset, set_item, schema_line, comma_list
+  public :: suggestion, value_text, is_unset, set_item, schema_line, comma_list
 
   !> Marker for "not given, no default" in real items.
   real(dp), parameter :: unset = -huge(1.0_dp)
@@ -629,14 +629,20 @@ contains
 
   ! ------------------------------------------------------------------------- helpers
 
-  !> ", did you mean 'x'?" for the closest of `names` (blank-separated) to `word`, or ''.
-  function suggestion(word, names) result(s)
+  !> "; did you mean 'x'?" for the closest of `names` (blank-separated) to `word`, or ''.
+  !> With `group`, the name is written as a group: "; did you mean &x?".
+  function suggestion(word, names, group) result(s)
     character(len=*), intent(in) :: word, names
+    logical, intent(in), optional :: group
     character(len=:), allocatable :: s
     character(len=:), allocatable :: best
     best = nearest_name(word, names)
     s = ''
-    if (len(best) > 0) s = '; did you mean ''' // best // '''?'
+    if (len(best) == 0) return
+    s = '; did you mean ''' // best // '''?'
+    if (present(group)) then
+      if (group) s = '; did you mean &' // best // '?'
+    end if
   end function suggestion
 
   !> The name of `names` (blank-separated) nearest to `word` by edit distance, if within

@@ -7,7 +7,7 @@ module pymr_io_namelist_input
   use pymr_model_scene, only : scene_t, unset, group_names, single_groups, repeated_groups, describe_group, &
     & group_origin, &
     & group_count, naming_item, complete_scene, item_applies
-  use pymr_io_item_table, only : item_table, origin_t, set_item, value_text, nearest_name, schema_line, comma_list, &
+  use pymr_io_item_table, only : item_table, origin_t, set_item, value_text, suggestion, schema_line, comma_list, &
     & t_string
   use pymr_io_namelist_parse, only : group_text, item_text, token_t, parse_namelist, parse_values, group_label
   use pymr_io_text, only : itoa, lower
@@ -99,14 +99,11 @@ contains
     type(group_text), intent(in) :: groups(:)
     type(error_type), allocatable, intent(out) :: error
     integer :: i
-    character(len=:), allocatable :: near
     do i = 1, size(groups)
       associate(g => groups(i))
         if (index(' ' // group_names // ' ', ' ' // trim(g%name) // ' ') == 0) then
-          near = nearest_name(trim(g%name), group_names)
-          if (len(near) > 0) near = '; did you mean &' // near // '?'
           call fatal_error(error, file // ':' // itoa(g%line) // ': &' // trim(g%name) // ': unknown group (known: ' &
-            & // comma_list(group_names) // ')' // near); return
+            & // comma_list(group_names) // ')' // suggestion(trim(g%name), group_names, group=.true.)); return
         end if
         if (g%index > 1 .and. index(' ' // single_groups // ' ', ' ' // trim(g%name) // ' ') > 0) then
           call fatal_error(error, file // ':' // itoa(g%line) // ': &' // trim(g%name) // ': group given twice ' // &
@@ -255,16 +252,14 @@ contains
     character(len=*), intent(in) :: where, name
     type(item_table), intent(in) :: t
     type(error_type), allocatable, intent(out) :: error
-    character(len=:), allocatable :: names, near
+    character(len=:), allocatable :: names
     integer :: k
     names = ''
     do k = 1, t%n
       names = names // ' ' // trim(t%items(k)%name)
     end do
-    near = nearest_name(trim(name), names)
-    if (len(near) > 0) near = '; did you mean ''' // near // '''?'
     call fatal_error(error, where // ': unknown item ''' // trim(name) // ''' (known: ' // comma_list(names) // ')' &
-      & // near)
+      & // suggestion(trim(name), names))
   end subroutine unknown_item
 
   ! ------------------------------------------------------------------------ overrides
@@ -310,7 +305,6 @@ contains
     type(override_t), intent(inout) :: ov
     type(error_type), allocatable, intent(out) :: error
     integer :: dot, lb, rb
-    character(len=:), allocatable :: near
     if (.not. allocated(ov%source)) ov%source = address
     lb = index(address, '['); rb = index(address, ']', back=.true.)
     if (lb > 0 .and. rb > lb) then
@@ -329,10 +323,8 @@ contains
     end if
     ov%item = lower(trim(adjustl(address(dot+1:))))
     if (index(' ' // group_names // ' ', ' ' // trim(ov%group) // ' ') == 0 .or. len_trim(ov%group) == 0) then
-      near = nearest_name(trim(ov%group), group_names)
-      if (len(near) > 0) near = '; did you mean ''' // near // '''?'
       call fatal_error(error, ov%source // ': unknown group ''' // trim(ov%group) // ''' (known: ' // &
-        & comma_list(group_names) // ')' // near); return
+        & comma_list(group_names) // ')' // suggestion(trim(ov%group), group_names)); return
     end if
     if (index(' ' // single_groups // ' ', ' ' // trim(ov%group) // ' ') > 0) then
       if (len_trim(ov%sel) > 0) then
