@@ -1,11 +1,13 @@
-!> Pre-flight stability check of fixed-step runs (issue 6, hard case 1).
+!> Pre-flight stability check of fixed-step runs (issue 6, hard case 1), for any stepper.
 !>
 !> The model is linearised at its initial state: M, and K = -dP/dq, D = -dP/dqd by central
 !> differences. Each eigenvalue lambda of [0 I; -M^-1 K  -M^-1 D] with Re lambda <= 0 is a
 !> vibration the step must resolve stably: the PECE growth factor at lambda h (see
 !> pymr_integrator_stability) must not exceed 1. A mode is charged to the coordinate that
-!> carries most of its kinetic energy, and so to the step of that coordinate's partition
-!> (h_fast for modal coordinates in multirate runs, h_slow otherwise).
+!> carries most of its kinetic energy, and so to the step the stepper takes on that kind of
+!> coordinate (its `pece` steps). A multirate stepper is then applied to the linearised model
+!> itself: the growth of its macro step, by power iteration on its whole state, must stay
+!> below `run_growth` over the run.
 module pymr_preflight
   use pymr_kinds, only : dp, pi
   use pymr_error, only : error_type, fatal_error, stat_input
@@ -14,8 +16,7 @@ module pymr_preflight
   use pymr_model_types, only : model_data
   use pymr_integrator_stability, only : pece_growth, pece_limit
   use pymr_integrator_ode, only : partitioned_system
-  use pymr_integrator_multirate, only : multirate_integrator, coupling_split
-  use pymr_integrator_nordsieck, only : nq
+  use pymr_integrator_stepper, only : stepper_t, pece_steps, step_counts
   use pymr_io_text, only : itoa
   implicit none
   private
@@ -26,12 +27,17 @@ module pymr_preflight
   !> undamped mode on the edge) passes; a real instability multiplies it by far more.
   real(dp), parameter :: run_growth = 10.0_dp
 
-  !> The model linearised at a state, M qdd = -(K q + C qd), as a partitioned system
-  !> whose fast right-hand sides copy the model's two couplings: the multirate integrator
-  !> applied to it gives the linearised macro-step map.
+  !> Steppers whose whole state has at most this many components get the spectral radius
+  !> of their macro-step map from its matrix (LAPACK dgeev); larger ones by power iteration
+  !> (at most max_iterations macro steps). A Krylov (Arnoldi) estimate was tried and
+  !> dropped: on the stiff barrel its Ritz values lay outside the spectrum (non-normal map).
+  integer, parameter :: max_exact_state = 400, max_iterations = 3000
+
+  !> The model linearised at a state, M qdd = -(K q + C qd), as a partitioned system: a
+  !> stepper applied to it gives its linearised step map.
   type, extends(partitioned_system) :: linear_system
     integer :: ns = 0, nf = 0
-    real(dp), allocatable :: minv(:, :), k(:, :), c(:, :), mffinv(:, :), mfs(:, :), kf(:), df(:), yrest(:)
+    real(dp), allocatable :: minv(:, :), k(:, :), c(:, :), mffinv(:, :), mfs(:, :), kf(:), df(:)
   contains
     procedure :: eval => lin_eval
     procedure :: component_name => lin_name
@@ -39,22 +45,23 @@ module pymr_preflight
     procedure :: n_fast => lin_n_fast
     procedure :: sync_rhs => lin_sync
     procedure :: fast_rhs => lin_fast
+    procedure :: force_response => lin_response
   end type linear_system
 
 contains
 
   !> Refuse (error naming the body and mode, its frequency and the largest stable step)
-  !> a fixed step that cannot be stable at the initial state x = [q; qd].
-  !> `h_slow`, `h_fast`: the steps of the joint and modal coordinates (equal single-rate).
-  subroutine check_step_stability(model, x, h_slow, h_fast, multirate, coupling, t_end, where, error)
+  !> fixed steps of the stepper `st` (made, not started) that cannot be stable at the
+  !> initial state x = [q; qd].
+  subroutine check_step_stability(model, x, st, label, t_end, where, error)
     type(model_t), intent(inout) :: model
-    real(dp), intent(in) :: x(:), h_slow, h_fast
+    real(dp), intent(in) :: x(:)
+    class(stepper_t), intent(in) :: st
+    !> What the stepper is, for messages ("coupling 'response'").
+    character(len=*), intent(in) :: label
     !> Length of the run (s): a step is refused when the linearised growth over the whole
     !> run would exceed `run_growth`.
     real(dp), intent(in) :: t_end
-    logical, intent(in) :: multirate
-    !> Multirate coupling (coupling_full or coupling_split).
-    integer, intent(in) :: coupling
     character(len=*), intent(in) :: where
     type(error_type), allocatable, intent(out) :: error
     integer :: n, i, j, dom, worst
@@ -64,8 +71,11 @@ contains
     real(dp) :: del, h, ratio, worst_ratio
     complex(dp) :: lam, worst_lam
     character(len=32) :: b1, b2, b3, b4
+    type(pece_steps) :: steps
+    type(step_counts) :: counts
     n = model%d%n
     if (n == 0) return
+    steps = st%pece(); counts = st%counts()
     ! the linearisation must not count as the run's evaluations
     call save_counters(model, counters)
     q = x(1:n); qd = x(n+1:2*n)
@@ -112,9 +122,8 @@ contains
       dom = maxloc(wgt, 1)
       ! only vibrations and decays: growing modes are physical, not numerical
       if (abs(lam) > 0.0_dp .and. wr(i) <= 1.0e-9_dp*abs(lam)) then
-        ! multirate: modes of the joint coordinates are judged by the macro-step map below
-        h = h_slow
-        if (multirate) h = merge(h_fast, 0.0_dp, dom > model%d%nj)
+        ! a step of 0: modes of that kind are judged by the macro-step map below
+        h = merge(steps%h_modal, steps%h_joint, dom > model%d%nj)
         if (h > 0.0_dp .and. log(pece_growth(lam*h))*t_end/h > log(run_growth)) then
           ratio = h/pece_limit(lam)
           if (ratio > worst_ratio) then
@@ -126,16 +135,15 @@ contains
       i = i + 1
     end do
     if (worst == 0) then
-      if (multirate) call check_macro_step(model, m, k, c, h_slow, h_fast, coupling, t_end, where, error)
+      if (counts%ratio > 1) call check_macro_step(model, m, k, c, st, label, t_end, where, error)
       return
     end if
-    h = h_slow
-    if (multirate .and. worst > model%d%nj) h = h_fast
+    h = merge(steps%h_modal, steps%h_joint, worst > model%d%nj)
     write(b1, '(es9.2)') h
     write(b2, '(f0.1)') abs(worst_lam)/(2.0_dp*pi)
     write(b3, '(f5.3)') abs(worst_lam)*h
     write(b4, '(es9.2)') pece_limit(worst_lam)
-    call fatal_error(error, where // merge('h_fast', 'h_slow', multirate .and. worst > model%d%nj) // &
+    call fatal_error(error, where // trim(merge(steps%item_modal, steps%item_joint, worst > model%d%nj)) // &
       & ': a fixed step of ' // trim(adjustl(b1)) // ' s is not stable for ' // coordinate_name(model, worst) // ' (' // &
       & trim(b2) // ' Hz, omega*h = ' // trim(b3) // '); the largest stable step is ' // trim(adjustl(b4)) // &
       & ' s (the ABM PECE method is stable up to omega*h = 0.430 on an undamped mode): take a smaller step, ' // &
@@ -197,40 +205,43 @@ contains
     model%d%effect_cpu = c%effect_cpu
   end subroutine restore_counters
 
-  !> Multirate runs: the spectral radius of the linearised macro-step map, computed by
-  !> applying the multirate integrator itself to the linearised model from each unit
-  !> Nordsieck array. Above 1 the run is refused, naming the coordinate that carries the
-  !> growing motion and the largest stable step ratio at this h_fast.
-  subroutine check_macro_step(model, m, k, c, h_slow, h_fast, coupling, t_end, where, error)
+  !> Multirate runs: the growth per macro step of the stepper itself applied to the model
+  !> linearised at the initial state (power iteration on its whole state). When the growth
+  !> over the run would exceed run_growth the run is refused, naming the coordinate that
+  !> carries the growing motion and the largest stable step ratio at this fast step.
+  subroutine check_macro_step(model, m, k, c, st, label, t_end, where, error)
     type(model_t), intent(in) :: model
-    real(dp), intent(in) :: m(:, :), k(:, :), c(:, :), h_slow, h_fast, t_end
-    integer, intent(in) :: coupling
-    character(len=*), intent(in) :: where
+    real(dp), intent(in) :: m(:, :), k(:, :), c(:, :), t_end
+    class(stepper_t), intent(in) :: st
+    character(len=*), intent(in) :: label, where
     type(error_type), allocatable, intent(out) :: error
     type(linear_system) :: sys
-    integer :: kr, ks, dom, d2
-    real(dp) :: rho, r2
+    integer :: kr, ks, dom, d2, k_run
+    real(dp) :: rho, r2, hf
     character(len=32) :: b1, b2, b3
+    type(step_counts) :: counts
+    type(pece_steps) :: steps
     call linear_model(model, m, k, c, sys, error); if (allocated(error)) return
-    kr = max(1, nint(h_slow/h_fast))
-    call macro_growth(sys, kr, h_fast, coupling, rho, dom, error); if (allocated(error)) return
-    if (log(rho)*t_end/(kr*h_fast) <= log(run_growth)) return
+    counts = st%counts(); steps = st%pece()
+    k_run = counts%ratio; kr = k_run
+    hf = steps%h_modal
+    call macro_growth(sys, m, st, kr, hf, t_end, rho, dom, error); if (allocated(error)) return
+    if (log(rho)*t_end/(kr*hf) <= log(run_growth)) return
     ! the largest stable ratio below kr (stability need not be monotone in k: scan all)
     ks = 0
-    do kr = 1, max(1, nint(h_slow/h_fast)) - 1
-      call macro_growth(sys, kr, h_fast, coupling, r2, d2, error); if (allocated(error)) return
-      if (log(r2)*t_end/(kr*h_fast) <= log(run_growth)) ks = kr
+    do kr = 1, k_run - 1
+      call macro_growth(sys, m, st, kr, hf, t_end, r2, d2, error); if (allocated(error)) return
+      if (log(r2)*t_end/(kr*hf) <= log(run_growth)) ks = kr
     end do
-    kr = max(1, nint(h_slow/h_fast))
-    write(b1, '(es9.2)') h_slow
+    kr = k_run
+    write(b1, '(es9.2)') kr*hf
     write(b2, '(f0.4)') rho
-    write(b3, '(es9.2)') h_fast
+    write(b3, '(es9.2)') hf
     call fatal_error(error, where // 'h_slow: the multirate macro step of ' // trim(adjustl(b1)) // ' s (k = ' // &
-      & itoa(kr) // ", coupling '" // trim(merge('split', 'full ', coupling == coupling_split)) // &
-      & "') is not stable: linearised at the initial state, one macro step multiplies the motion of " // &
-      & coordinate_name(model, dom) // ' by ' // trim(b2) // '; at h_fast = ' // trim(adjustl(b3)) // &
-      & ' s the largest stable ratio is k = ' // itoa(ks) // ' (growth below 10 over the run; or use ' // &
-      & 'adaptive = .true.)')
+      & itoa(kr) // ', ' // label // ') is not stable: linearised at the initial state, one macro step multiplies ' // &
+      & 'the motion of ' // coordinate_name(model, dom) // ' by ' // trim(b2) // '; at h_fast = ' // &
+      & trim(adjustl(b3)) // ' s the largest stable ratio is k = ' // itoa(ks) // ' (growth below 10 over the ' // &
+      & 'run; or use adaptive = .true.)')
   end subroutine check_macro_step
 
   !> The linearised model as a partitioned system (slow = joint coordinates).
@@ -246,57 +257,103 @@ contains
     sys%k = k; sys%c = c
     l = m
     call potrf(l, 'the mass matrix at the initial state', error); if (allocated(error)) return
-    allocate(sys%minv(n, n), sys%mffinv(nf, nf), sys%kf(nf), sys%df(nf), sys%yrest(nf))
+    allocate(sys%minv(n, n), sys%mffinv(nf, nf), sys%kf(nf), sys%df(nf))
     call factor_inverse(l, sys%minv, 'the mass matrix', error); if (allocated(error)) return
     l = m(ns+1:, ns+1:)
     call potrf(l, 'M_ff at the initial state', error); if (allocated(error)) return
     call factor_inverse(l, sys%mffinv, 'M_ff', error); if (allocated(error)) return
     sys%mfs = m(ns+1:, 1:ns)
     call modal_stiffness_damping(model%d, sys%kf, sys%df)
-    sys%yrest = 0.0_dp
   end subroutine linear_model
 
-  !> Spectral radius rho of one multirate macro step (ratio kr, fast step hf) on the linear
-  !> system, and the coordinate `dom` carrying most of its dominant eigenvector.
-  subroutine macro_growth(sys, kr, hf, coupling, rho, dom, error)
+  !> Growth rho per macro step (ratio kr, fast step hf) of the stepper `proto` applied to
+  !> the linear system, and the coordinate `dom` whose kinetic energy dominates the growing
+  !> motion. The stepper is started at rest and taken past its start-up phase; then its
+  !> macro step is a linear map of its whole state vector.
+  subroutine macro_growth(sys, m, proto, kr, hf, t_end, rho, dom, error)
     type(linear_system), intent(inout) :: sys
-    integer, intent(in) :: kr, coupling
-    real(dp), intent(in) :: hf
+    real(dp), intent(in) :: m(:, :)
+    class(stepper_t), intent(in) :: proto
+    integer, intent(in) :: kr
+    real(dp), intent(in) :: hf, t_end
     real(dp), intent(out) :: rho
     integer, intent(out) :: dom
     type(error_type), allocatable, intent(out) :: error
-    type(multirate_integrator) :: mr
-    integer :: ns, nf, nz, j, top, i
-    real(dp), allocatable :: g(:, :), z(:), wr(:), wi(:), vr(:, :), wgt(:)
-    ns = sys%ns; nf = sys%nf
-    nz = 2*(ns + nf)*(nq + 1)
-    allocate(g(nz, nz), z(nz), wr(nz), wi(nz), vr(nz, nz))
-    call mr%init(ns, nf, kr, coupling)
+    class(stepper_t), allocatable :: st
+    real(dp), allocatable :: v(:), x0(:)
+    integer :: n, i
+    n = sys%ns + sys%nf
+    allocate(st, source=proto)
+    call st%set_ratio(kr)
+    allocate(x0(2*n))
+    x0 = 0.0_dp
+    call st%start(sys, 0.0_dp, x0, hf, error); if (allocated(error)) return
+    do i = 1, 4
+      call st%advance(sys, error); if (allocated(error)) return
+    end do
+    allocate(v(st%state_size()))
+    if (size(v) <= max_exact_state) then
+      call map_radius(sys, st, v, rho, error)
+    else
+      call power_radius(sys, st, v, min(max_iterations, max(300, 4*nint(t_end/(kr*hf)))), rho, error)
+    end if
+    if (allocated(error)) return
+    dom = maxloc([(m(i, i)*(v(i)**2 + v(n + i)**2), i = 1, n)], 1)
+  end subroutine macro_growth
+
+  !> Spectral radius of the macro-step map from its matrix (one macro step per column);
+  !> v: the dominant eigenvector (its real part).
+  subroutine map_radius(sys, st, v, rho, error)
+    type(linear_system), intent(inout) :: sys
+    class(stepper_t), intent(inout) :: st
+    real(dp), intent(out) :: v(:), rho
+    type(error_type), allocatable, intent(out) :: error
+    real(dp), allocatable :: g(:, :), wr(:), wi(:), vr(:, :)
+    integer :: j, nz, top
+    nz = size(v)
+    allocate(g(nz, nz), wr(nz), wi(nz), vr(nz, nz))
     do j = 1, nz
-      z = 0.0_dp; z(j) = 1.0_dp
-      mr%zs = reshape(z(1:2*ns*(nq + 1)), [2*ns, nq + 1])
-      mr%zf = reshape(z(2*ns*(nq + 1) + 1:), [2*nf, nq + 1])
-      mr%t = 0.0_dp; mr%hs = kr*hf; mr%hf = hf
-      if (coupling == coupling_split) then
-        call sys%sync_rhs(0.0_dp, mr%zs(:, 0), mr%zf(:, 0), mr%fs, mr%ff, error); if (allocated(error)) return
-      end if
-      call mr%advance(sys, error); if (allocated(error)) return
-      g(:, j) = [reshape(mr%zs, [2*ns*(nq + 1)]), reshape(mr%zf, [2*nf*(nq + 1)])]
+      v = 0.0_dp; v(j) = 1.0_dp
+      call st%set_state(v)
+      call st%advance(sys, error); if (allocated(error)) return
+      call st%get_state(g(:, j))
     end do
     call geev_real(g, wr, wi, vr, 'the linearised macro step', error); if (allocated(error)) return
     top = maxloc(hypot(wr, wi), 1)
     rho = hypot(wr(top), wi(top))
-    ! coordinate weights from the value columns z(:, 0) of the slow and fast arrays
-    allocate(wgt(ns + nf))
     if (wi(top) < 0.0_dp .and. top > 1) top = top - 1
-    do i = 1, ns
-      wgt(i) = abs(vr(i, top))
+    v = vr(:, top)
+  end subroutine map_radius
+
+  !> Growth per macro step by power iteration from a fixed start with every component
+  !> present (the geometric mean over the second half of `iters` steps). The norm leaves
+  !> out the positions' values: a joint without stiffness drifts at constant rate, which is
+  !> motion, not growth.
+  subroutine power_radius(sys, st, v, iters, rho, error)
+    type(linear_system), intent(inout) :: sys
+    class(stepper_t), intent(inout) :: st
+    real(dp), intent(out) :: v(:), rho
+    integer, intent(in) :: iters
+    type(error_type), allocatable, intent(out) :: error
+    real(dp) :: g, logsum
+    integer :: n, i, it
+    n = sys%ns + sys%nf
+    do i = 1, size(v)
+      v(i) = sin(12.9898_dp*i)
     end do
-    do i = 1, nf
-      wgt(ns + i) = abs(vr(2*ns*(nq + 1) + i, top))
+    logsum = 0.0_dp
+    rho = huge(1.0_dp)
+    do it = 1, iters
+      v = v/norm2(v(n+1:))
+      call st%set_state(v)
+      call st%advance(sys, error); if (allocated(error)) return
+      call st%get_state(v)
+      g = norm2(v(n+1:))
+      if (.not. (g > 0.0_dp .and. g <= huge(g))) return
+      if (2*it > iters) logsum = logsum + log(g)
     end do
-    dom = maxloc(wgt, 1)
-  end subroutine macro_growth
+    rho = exp(logsum/(iters - iters/2))
+  end subroutine power_radius
 
   !> "body 'gun', mode 8" for a modal coordinate, "joint coordinate 'elevation.q'" else.
   function coordinate_name(model, ic) result(s)
@@ -361,25 +418,26 @@ contains
     a = matmul(self%minv, p)
     fs = [xs(ns+1:), a(1:ns)]
     ff = [xf(nf+1:), a(ns+1:)]
-    ! held for 'split': M_ff^-1 times the fast forces without their modal stiffness and damping
-    self%yrest = matmul(self%mffinv, p(ns+1:) + self%kf*xf(1:nf) + self%df*xf(nf+1:))
   end subroutine lin_sync
 
-  subroutine lin_fast(self, t, xs, xf, acc_s, split, ff, error)
+  subroutine lin_response(self, g, kf, df, error)
+    class(linear_system), intent(inout) :: self
+    real(dp), intent(out) :: g(:, :), kf(:), df(:)
+    type(error_type), allocatable, intent(out) :: error
+    g = self%minv(:, self%ns+1:)
+    kf = self%kf; df = self%df
+  end subroutine lin_response
+
+  subroutine lin_fast(self, t, xs, xf, acc_s, ff, error)
     class(linear_system), intent(inout) :: self
     real(dp), intent(in) :: t, xs(:), xf(:), acc_s(:)
-    logical, intent(in) :: split
     real(dp), intent(out) :: ff(:)
     type(error_type), allocatable, intent(out) :: error
     real(dp) :: p(self%ns + self%nf)
     integer :: ns, nf
     ns = self%ns; nf = self%nf
-    if (split) then
-      ff(nf+1:) = self%yrest - matmul(self%mffinv, self%kf*xf(1:nf) + self%df*xf(nf+1:) + matmul(self%mfs, acc_s))
-    else
-      p = forces(self, xs, xf)
-      ff(nf+1:) = matmul(self%mffinv, p(ns+1:) - matmul(self%mfs, acc_s))
-    end if
+    p = forces(self, xs, xf)
+    ff(nf+1:) = matmul(self%mffinv, p(ns+1:) - matmul(self%mfs, acc_s))
     ff(1:nf) = xf(nf+1:)
   end subroutine lin_fast
 end module pymr_preflight

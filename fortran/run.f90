@@ -8,9 +8,8 @@ module pymr_run
   use pymr_io_namelist_input, only : read_scene, scene_fingerprint, checkpoint_identity
   use pymr_model_build, only : build_model
   use pymr_model, only : model_t
-  use pymr_integrator_multirate, only : coupling_full, coupling_split
   use pymr_integrator_stepper, only : stepper_t, step_counts
-  use pymr_stepper_setup, only : start_stepper
+  use pymr_stepper_setup, only : make_stepper, stepper_label
   use pymr_io_results_output, only : csv_writer, json_path, write_json, run_stats
   use pymr_model_kinematics, only : forward_kinematics, marker_motion
   use pymr_clock, only : thread_cpu_time
@@ -148,7 +147,7 @@ contains
     type(run_stats) :: stats
     type(run_progress) :: prog
     real(dp), allocatable :: x(:)
-    real(dp) :: h, dt_out, t_next, eps, cpu0, cpu1, t_ckpt
+    real(dp) :: h, h0, dt_out, t_next, eps, cpu0, cpu1, t_ckpt
     integer :: n, k_out
     integer(8) :: c0, c1, rate, c_line
     logical :: restarting, lines
@@ -180,9 +179,13 @@ contains
     k_out = 1
     t_next = dt_out
     csv%digits = sc%output%precision
+    call make_stepper(sc, model, x, st, h0, error)
+    if (allocated(error)) then
+      if (index(error%message, file) /= 1) error%message = file // ': ' // error%message
+      return
+    end if
     if (restarting) then
-      call start_stepper(sc, model, x, st, .true., error)
-      if (.not. allocated(error)) call read_checkpoint(restart, st, model, prog, settings, fingerprint, &
+      call read_checkpoint(restart, st, model, prog, settings, fingerprint, &
         & sc%scene%t_end, error)
       if (.not. allocated(error)) call csv%reopen(path, model%d, prog%rows, error)
       if (allocated(error)) then
@@ -201,14 +204,15 @@ contains
         call csv%discard(); return
       end if
       if (.not. sc%integrator%adaptive .and. sc%integrator%stability_check) then
-        call check_step_stability(model, x, h, merge(sc%integrator%h_fast, h, sc%integrator%h_fast > 0.0_dp), &
-          & sc%integrator%method == 'multirate', merge(coupling_split, coupling_full, sc%integrator%coupling == 'split'), &
-          & sc%scene%t_end, file // ': &integrator: ', error)
+        stats%preflight_cpu_s = thread_cpu_time()
+        call check_step_stability(model, x, st, stepper_label(sc), sc%scene%t_end, file // ': &integrator: ', error)
         if (allocated(error)) then
           call csv%discard(); return
         end if
+        stats%preflight_cpu_s = thread_cpu_time() - stats%preflight_cpu_s
+        cpu0 = cpu0 + stats%preflight_cpu_s
       end if
-      call start_stepper(sc, model, x, st, .false., error)
+      call st%start(model, 0.0_dp, x, h0, error)
       if (allocated(error)) then
         call csv%discard()
         if (index(error%message, file) /= 1) error%message = file // ': ' // error%message
@@ -325,7 +329,7 @@ contains
     stats%steps_slow = c%steps_slow; stats%steps_fast = c%steps_fast
     stats%rejected_steps = c%rejected; stats%h_last = c%h_last; stats%ratio_last = c%ratio
     stats%rhs_full = model%d%evals
-    stats%rhs_fast = model%evals_split + model%d%evals_fast_rows
+    stats%rhs_fast = model%d%evals_fast_rows + c%evals_fast
   end subroutine fill_stats
 
   !> [q0; qd0] from the joints' q0 and qd0 in model coordinate order.
@@ -403,7 +407,9 @@ contains
     if (st%rhs_fast > 0) write(buf, '(a,a,i0,a)') trim(buf), ', ', st%rhs_fast, ' fast-only'
     s = s // trim(buf) // new_line('a')
     write(buf, '(a,f10.4,a,f10.4,a)') 'cpu time ', st%cpu_time_s, ' s, wall time ', st%wall_time_s, ' s'
-    s = s // trim(buf) // new_line('a')
+    s = s // trim(buf)
+    if (st%preflight_cpu_s > 0.0_dp) s = s // ' (pre-flight stability check: ' // fmt(st%preflight_cpu_s) // ' s CPU)'
+    s = s // new_line('a')
     call forward_kinematics(model%d, x(1:n), x(n+1:))
     do i = 1, min(model%d%n_markers, max_summary_markers)
       call marker_motion(model%d, i, x(1:n), x(n+1:), r, v)

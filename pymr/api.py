@@ -170,6 +170,20 @@ def model_terms(scene: str | os.PathLike, q, qd, t: float = 0.0, overrides=None)
     return mm, p
 
 
+def force_response(scene: str | os.PathLike, q, qd, t: float = 0.0, overrides=None):
+    """The 'response' coupling's terms at (t, q, qd): ``g = M^-1 E`` (shape (n, nf)), the
+    response of every acceleration to a unit force on each modal coordinate, and the modal
+    stiffness ``kf`` and damping ``df`` (shape (nf,)) of the fast forces ``kf a + df ad``."""
+    q, qd = _states(q, qd)
+    if q.ndim != 1:
+        raise ValueError(f"q: one state of shape (n,) expected, got shape {q.shape}")
+    nf, g, kf, df, stat, msg = _core.pymr_force_response(*_scene_and_overrides(scene, overrides), t,
+                                                        np.ascontiguousarray(q), np.ascontiguousarray(qd))
+    _raise(stat, msg)
+    nf = int(nf)
+    return g[:, :nf].copy(), kf[:nf].copy(), df[:nf].copy()
+
+
 def model_accelerations(scene: str | os.PathLike, t, q, qd, overrides=None) -> np.ndarray:
     """Accelerations for one state (q of shape (n,)) or many (shape (m, n), t of shape (m,))."""
     q, qd = _states(q, qd)
@@ -241,14 +255,3 @@ class Model:
 
     def __exit__(self, *exc) -> None:
         self.close()
-
-
-def time_fast_evaluation(scene: str | os.PathLike, q, qd, split: bool, reps: int = 2000,
-                         overrides=None) -> tuple[float, float]:
-    """CPU seconds of one multirate fast right-hand side (``split`` or 'full' coupling) and
-    of one full evaluation at (q, qd)."""
-    fast, full, stat, msg = _core.pymr_time_fast(*_scene_and_overrides(scene, overrides),
-                                                  np.asarray(q, dtype=float), np.asarray(qd, dtype=float),
-                                                  reps, int(split))
-    _raise(stat, msg)
-    return float(fast), float(full)

@@ -1,6 +1,7 @@
-"""Multirate Nordsieck integration on the tank: reduction to single-rate at k = 1, the
-convergence order at fixed step ratio, the two couplings, statistics, and failures of
-the effective mass matrix."""
+"""Multirate Nordsieck integration with the paper's coupling ('full', the baseline) on the
+tank: reduction to single-rate at k = 1, the convergence order at fixed step ratio,
+statistics, adaptive control, and failures of the effective mass matrix. The 'response'
+coupling has its own tests (test_response.py)."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -27,11 +28,10 @@ def muzzle_dev(a: pymr.Results, b: pymr.Results) -> float:
     return float(np.abs(a.marker("muzzle")[0] - b.marker("muzzle")[0][idx]).max())
 
 
-@pytest.mark.parametrize("coupling", ["full", "split"])
-def test_ratio_one_reproduces_single_rate(tmp_path, coupling):
+def test_ratio_one_reproduces_single_rate(tmp_path):
     """With k = 1 the macro step is one synchronised PECE step: the single-rate method."""
     single = pymr.run(TANK, tmp_path / "s.csv")
-    multi = pymr.run(TANK, tmp_path / "m.csv", overrides=multirate(coupling, 1))
+    multi = pymr.run(TANK, tmp_path / "m.csv", overrides=multirate("full", 1))
     scale = np.maximum(np.abs(single.data).max(axis=0), 1e-300)
     assert (np.abs(multi.data - single.data).max(axis=0) / scale).max() < 1e-12
     assert multi.stats["rhs_fast"] == 0
@@ -52,12 +52,12 @@ def test_full_coupling_converges_at_order_three(tmp_path):
     assert orders == pytest.approx([3.0, 3.0], abs=0.2)
 
 
-@pytest.mark.parametrize("coupling", ["full", "split"])
-def test_flexible_chain_converges_at_order_three(coupling):
+def test_flexible_chain_converges_at_order_three():
     """Flexible bodies carrying flexible bodies: M_ff varies with the state and the fast
     rows need the inertia of the links below. At k = 4 the deviation of all joint and
     modal coordinates from single-rate at the same h_fast falls at order 3 (measured
-    3.22 for both couplings); a fast-row term left stale would stall it at O(1)."""
+    3.22); a fast-row term left stale would stall it at O(1)."""
+    coupling = "full"
     chain = ROOT / "input" / "flexible_chain.nml"
     devs = []
     for h in (2.5e-5, 1.25e-5):
@@ -69,22 +69,14 @@ def test_flexible_chain_converges_at_order_three(coupling):
     assert np.log2(devs[0] / devs[1]) == pytest.approx(3.2, abs=0.3)
 
 
-def test_split_matches_full_at_ratio_ten(tmp_path):
-    """'split' holds the slowly varying terms over the macro step; at k = 10 its muzzle
-    deviation from case 1 stays within 10 % of the paper's 'full' coupling, with one
-    full evaluation per macro step and the rest fast-only."""
-    case1 = pymr.run(TANK, tmp_path / "c1.csv")
+def test_full_coupling_statistics_at_ratio_ten(tmp_path):
+    """k = 10: 998 macro steps after the start-up (2 macro steps of RK4), 9 fast steps each."""
     full = pymr.run(TANK, tmp_path / "full.csv", overrides=multirate("full", 10))
-    split = pymr.run(TANK, tmp_path / "split.csv", overrides=multirate("split", 10))
-    d_full, d_split = muzzle_dev(full, case1), muzzle_dev(split, case1)
-    assert d_split == pytest.approx(d_full, rel=0.1)
-    # 998 macro steps after the start-up (2 macro steps of RK4), 9 fast steps each
-    for res in (full, split):
-        assert res.stats["steps_slow"] == 1000 and res.stats["steps_fast"] == 10000
-        assert res.stats["rhs_fast"] == 998 * 9
+    assert full.stats["steps_slow"] == 1000 and full.stats["steps_fast"] == 10000
+    assert full.stats["rhs_fast"] == 998 * 9
     # start-up: 20 RK4 steps (3 stage evaluations each; the 4th is the derivative at each of
-    # the 21 points, which builds the Nordsieck arrays) + 1 sync; then one sync per macro step
-    assert split.stats["rhs_full"] == full.stats["rhs_full"] == 20 * 3 + 21 + 1 + 998
+    # the 21 points, which builds the Nordsieck arrays); then one sync per macro step
+    assert full.stats["rhs_full"] == 20 * 3 + 21 + 998
 
 
 def test_effective_mass_matrix_failure_is_named(tmp_path):
@@ -108,7 +100,7 @@ def test_effective_mass_matrix_failure_is_named(tmp_path):
 
 
 def test_multirate_input_errors(tmp_path):
-    with pytest.raises(pymr.SceneError, match=r"&integrator: coupling: 'loose' is not one of: full, split"):
+    with pytest.raises(pymr.SceneError, match=r"&integrator: coupling: 'loose' is not one of: response, full"):
         pymr.run(TANK, tmp_path / "x.csv", overrides=multirate("loose", 10))
     with pytest.raises(pymr.SceneError, match=r"integer multiple of h_fast, got h_slow/h_fast = 2.5"):
         pymr.run(TANK, tmp_path / "x.csv", overrides={"integrator.method": "multirate", "integrator.h_slow": 2.5e-4})
@@ -153,7 +145,7 @@ def test_adaptive_multirate_with_k_max_one_is_adaptive_pece(tmp_path, tank_refer
     """k_max = 1 keeps every macro step synchronised: no fast-only evaluation, and the muzzle
     error matches adaptive single-rate PECE at the same tolerance within a factor 2
     (measured 1.07e-5 and 1.28e-5 m at rtol 1e-4; the norms differ: per partition here)."""
-    multi = pymr.run(TANK, tmp_path / "m.csv", overrides=adaptive("split", 1e-4, **{"integrator.k_max": 1}))
+    multi = pymr.run(TANK, tmp_path / "m.csv", overrides=adaptive("full", 1e-4, **{"integrator.k_max": 1}))
     single = pymr.run(TANK, tmp_path / "s.csv", overrides={"integrator.adaptive": True, "integrator.rtol": 1e-4,
                                                            "integrator.atol": 1e-6, "output.dt": 1e-3})
     assert multi.stats["rhs_fast"] == 0 and multi.stats["step_ratio_last"] == 1

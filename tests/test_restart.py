@@ -16,11 +16,13 @@ TANK = ROOT / "input" / "tank_gun_turret.nml"
 
 METHODS = {
     "single": {},
-    "multirate split": {"integrator.method": "multirate", "integrator.h_slow": 1e-3, "integrator.h_fast": 1e-4},
+    "multirate response": {"integrator.method": "multirate", "integrator.h_slow": 1e-3, "integrator.h_fast": 1e-4},
     "multirate full": {"integrator.method": "multirate", "integrator.coupling": "full", "integrator.h_slow": 1e-3,
                        "integrator.h_fast": 1e-4},
     "adaptive": {"integrator.adaptive": True, "integrator.rtol": 1e-7},
     "adaptive multirate": {"integrator.method": "multirate", "integrator.adaptive": True, "integrator.rtol": 1e-6},
+    "adaptive multirate full": {"integrator.method": "multirate", "integrator.coupling": "full",
+                                "integrator.adaptive": True, "integrator.rtol": 1e-6},
 }
 
 

@@ -80,7 +80,8 @@ def test_refused_and_failed_runs_leave_the_earlier_complete_result(tmp_path, mrs
     assert not (tmp_path / "out.csv.partial").exists()
     failed = run_mrsim(mrsim, [str(tank), "-o", "out.csv", "--set", "integrator.method=multirate", "--set",
                                "integrator.h_fast=1e-4", "--set", "integrator.h_slow=5e-3", "--set",
-                               "output.dt=5e-3", "--set", "integrator.stability_check=.false."], tmp_path)
+                               "output.dt=5e-3", "--set", "integrator.stability_check=.false.", "--set",
+                               "integrator.coupling='full'"], tmp_path)
     assert failed.returncode == 2 and "at t = " in failed.stderr
     assert (tmp_path / "out.csv").read_bytes() == csv_before
     assert (tmp_path / "out.json").read_bytes() == json_before

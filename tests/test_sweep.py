@@ -22,7 +22,7 @@ output = "out"
 metric = "deviation:muzzle"
 [grid]
 "integrator.h_slow" = [5e-4, 1e-3]
-"integrator.coupling" = ["full", "split"]
+"integrator.coupling" = ["full", "response"]
 "body[gun].modal_damping" = [0.0, 0.02]
 [fixed]
 "integrator.method" = "multirate"
@@ -52,7 +52,7 @@ def test_sweep_on_a_local_cluster_equals_the_cases_run_one_by_one(tmp_path):
         dev = np.linalg.norm(alone.marker("muzzle")[0] - ref.marker("muzzle")[0], axis=1).max()
         assert row["metric"] == dev
     summary = list(csv.DictReader(open(sw.output / "summary.csv")))
-    assert len(summary) == 8 and summary[3]["integrator.coupling"] == "split"
+    assert len(summary) == 8 and summary[3]["integrator.coupling"] == "response"
     assert float(summary[3]["metric"]) == rows[3]["metric"]
 
 
@@ -65,6 +65,7 @@ metric = "final:elevation.q"
 "integrator.h_slow" = [5e-3, 2e-4]
 [fixed]
 "integrator.method" = "multirate"
+"integrator.coupling" = "full"
 "integrator.h_fast" = 1e-4
 "integrator.stability_check" = false
 "output.dt" = 1e-2
@@ -82,7 +83,8 @@ def test_a_failing_case_is_recorded_and_the_others_run(tmp_path):
     assert rows[0]["status"].startswith("error: ") and "effective mass matrix M_e" in rows[0]["status"]
     assert np.isnan(rows[0]["metric"])
     assert rows[1]["status"] == "ok"
-    alone = pymr.run(TANK, overrides={"integrator.method": "multirate", "integrator.h_fast": 1e-4,
+    alone = pymr.run(TANK, overrides={"integrator.method": "multirate", "integrator.coupling": "full",
+                                      "integrator.h_fast": 1e-4,
                                       "integrator.h_slow": 2e-4, "integrator.stability_check": False,
                                       "output.dt": 1e-2})
     assert rows[1]["metric"] == alone["elevation.q"][-1]

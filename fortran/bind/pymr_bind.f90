@@ -73,6 +73,44 @@ subroutine pymr_model_terms(scene, overrides, n, t, q, qd, mm, p, stat, message)
   mm = model%d%mm; p = model%d%p
 end subroutine pymr_model_terms
 
+!> The 'response' coupling's fast-force response at (t, q, qd): after one synchronised
+!> (Schur complement) evaluation, g(:, 1:nf) = M^-1 E and the fast force coefficients
+!> kf(1:nf), df(1:nf) (g, kf and df are n wide; nf columns are used).
+subroutine pymr_force_response(scene, overrides, n, t, q, qd, nf, g, kf, df, stat, message)
+  use pymr_error, only : error_type, fatal_error
+  use pymr_bind_support, only : report
+  use pymr_model_scene, only : scene_t
+  use pymr_model, only : model_t
+  use pymr_run, only : load_model
+  implicit none
+  character(len=*), intent(in) :: scene, overrides
+  integer, intent(in) :: n
+  double precision, intent(in) :: t, q(n), qd(n)
+  integer, intent(out) :: nf
+  double precision, intent(out) :: g(n, n), kf(n), df(n)
+  integer, intent(out) :: stat
+  character(len=8192), intent(out) :: message
+  !f2py integer intent(hide), depend(q) :: n = len(q)
+  type(error_type), allocatable :: error
+  type(scene_t) :: sc
+  type(model_t) :: model
+  double precision, allocatable :: f(:)
+  g = 0.0d0; kf = 0.0d0; df = 0.0d0; nf = 0
+  call load_model(scene, overrides, sc, model, error)
+  if (.not. allocated(error) .and. model%d%n /= n) call fatal_error(error, 'q has the wrong length')
+  if (.not. allocated(error)) then
+    nf = model%n_fast()
+    if (nf == 0 .or. model%n_slow() == 0) call fatal_error(error, 'the scene has no slow or no fast coordinates')
+  end if
+  if (.not. allocated(error)) then
+    call model%init_partition()
+    allocate(f(2*n))
+    call model%eval(t, [q, qd], f, error)
+  end if
+  if (.not. allocated(error)) call model%force_response(g(:, 1:nf), kf(1:nf), df(1:nf), error)
+  call report(error, stat, message)
+end subroutine pymr_force_response
+
 !> Accelerations qdd(n, m) for m states (t(m), q(n,m), qd(n,m)) of one model.
 subroutine pymr_model_accelerations(scene, overrides, n, m, t, q, qd, qdd, stat, message)
   use pymr_error, only : error_type, fatal_error
@@ -389,66 +427,6 @@ subroutine pymr_model_marker(handle, marker, n, m, t, q, qd, pos, stat, message)
     end do
   end associate
 end subroutine pymr_model_marker
-
-!> CPU seconds of one fast right-hand side of the multirate method ('full' coupling:
-!> the fast rows assembled; 'split': held terms) and of one full evaluation, at (q, qd):
-!> the weights that turn fast evaluations into full-evaluation equivalents.
-subroutine pymr_time_fast(scene, overrides, n, q, qd, reps, split, fast_seconds, full_seconds, stat, message)
-  use pymr_error, only : error_type, fatal_error
-  use pymr_bind_support, only : report
-  use pymr_model_scene, only : scene_t
-  use pymr_model, only : model_t
-  use pymr_run, only : load_model
-  use pymr_clock, only : thread_cpu_time
-  implicit none
-  character(len=*), intent(in) :: scene, overrides
-  integer, intent(in) :: n, reps, split
-  double precision, intent(in) :: q(n), qd(n)
-  double precision, intent(out) :: fast_seconds, full_seconds
-  integer, intent(out) :: stat
-  character(len=8192), intent(out) :: message
-  !f2py integer intent(hide), depend(q) :: n = len(q)
-  type(error_type), allocatable :: error
-  type(scene_t) :: sc
-  type(model_t) :: model
-  double precision, allocatable :: x(:), f(:), xs(:), xf(:), fs(:), ff(:), acc(:)
-  double precision :: c0
-  integer :: k, ns, nf
-  fast_seconds = 0.0d0; full_seconds = 0.0d0
-  call load_model(scene, overrides, sc, model, error)
-  if (.not. allocated(error) .and. model%d%n /= n) call fatal_error(error, 'q has the wrong length')
-  if (.not. allocated(error)) then
-    ns = model%d%nj; nf = n - ns
-    if (ns == 0 .or. nf == 0) call fatal_error(error, 'the scene has no slow or no fast coordinates')
-  end if
-  if (.not. allocated(error)) then
-    x = [q, qd]
-    allocate(f(2*n))
-    c0 = thread_cpu_time()
-    do k = 1, reps
-      call model%eval(0.0d0, x, f, error)
-      if (allocated(error)) exit
-    end do
-    full_seconds = (thread_cpu_time() - c0)/max(reps, 1)
-  end if
-  if (.not. allocated(error)) then
-    call model%init_partition()
-    xs = [q(1:ns), qd(1:ns)]; xf = [q(ns+1:), qd(ns+1:)]
-    allocate(fs(2*ns), ff(2*nf))
-    call model%sync_rhs(0.0d0, xs, xf, fs, ff, error)
-    acc = fs(ns+1:)
-  end if
-  if (.not. allocated(error)) then
-    c0 = thread_cpu_time()
-    do k = 1, reps
-      call model%fast_rhs(0.0d0, xs, xf, acc, split /= 0, ff, error)
-      if (allocated(error)) exit
-    end do
-    fast_seconds = (thread_cpu_time() - c0)/max(reps, 1)
-  end if
-  call report(error, stat, message)
-end subroutine pymr_time_fast
-
 
 !> Index (1-based; 0 when absent) of the marker called `name` in an open model.
 subroutine pymr_model_marker_index(handle, name, k)

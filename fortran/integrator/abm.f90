@@ -9,7 +9,7 @@ module pymr_integrator_abm
   use pymr_integrator_nordsieck, only : nq, corrector_l, nordsieck_predict, nordsieck_correct, &
     & nordsieck_rescale, nordsieck_value, nordsieck_from_history
   use pymr_integrator_control, only : step_control, error_weights, wrms_norm
-  use pymr_integrator_stepper, only : stepper_t, step_counts
+  use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps
   use pymr_io_text, only : fmt
   implicit none
   private
@@ -42,6 +42,10 @@ module pymr_integrator_abm
     procedure :: load => abm_load
     procedure :: counts => abm_counts
     procedure :: name => abm_name
+    procedure :: pece => abm_steps
+    procedure :: state_size => abm_state_size
+    procedure :: get_state => abm_get_state
+    procedure :: set_state => abm_set_state
   end type abm_integrator
 
 contains
@@ -239,6 +243,31 @@ contains
     character(len=:), allocatable :: s
     s = 'single'
   end function abm_name
+
+  !> One step h for every coordinate (&integrator h_slow).
+  pure function abm_steps(self) result(s)
+    class(abm_integrator), intent(in) :: self
+    type(pece_steps) :: s
+    s%h_joint = self%h; s%h_modal = self%h
+  end function abm_steps
+
+  pure integer function abm_state_size(self)
+    class(abm_integrator), intent(in) :: self
+    abm_state_size = size(self%z)
+  end function abm_state_size
+
+  !> The Nordsieck array, column by column (its value column, the state, first).
+  pure subroutine abm_get_state(self, v)
+    class(abm_integrator), intent(in) :: self
+    real(dp), intent(out) :: v(:)
+    v = reshape(self%z, [size(self%z)])
+  end subroutine abm_get_state
+
+  pure subroutine abm_set_state(self, v)
+    class(abm_integrator), intent(inout) :: self
+    real(dp), intent(in) :: v(:)
+    self%z = reshape(v, shape(self%z))
+  end subroutine abm_set_state
 
   !> Error naming the first non-finite component of v (component map(i) of the system).
   subroutine check_finite(sys, t, v, what, error, map)

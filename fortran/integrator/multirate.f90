@@ -1,4 +1,5 @@
-!> Multirate Nordsieck ABM integration (METHOD.md section 4; paper eqs. 33-43).
+!> Multirate Nordsieck ABM integration with the paper's coupling, 'full' (docs/method.md
+!> section 4; paper eqs. 33-43): the baseline that the 'response' coupling is measured against.
 !>
 !> A macro step of size H = k h: the fast coordinates take k - 1 ABM steps of size h,
 !> each evaluating the fast equation with the slow state and accelerations extrapolated
@@ -11,7 +12,7 @@ module pymr_integrator_multirate
   use pymr_kinds, only : dp
   use pymr_error, only : error_type, fatal_error, stat_solver
   use pymr_integrator_ode, only : ode_system, partitioned_system
-  use pymr_integrator_stepper, only : stepper_t, step_counts
+  use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps
   use pymr_io_text, only : fmt
   use pymr_integrator_nordsieck, only : nq, nordsieck_predict, nordsieck_correct, nordsieck_value, &
     & nordsieck_from_history, nordsieck_rescale, corrector_l
@@ -19,15 +20,12 @@ module pymr_integrator_multirate
   use pymr_integrator_control, only : step_control, error_weights, wrms_norm
   implicit none
   private
-  public :: multirate_integrator, coupling_full, coupling_split
-
-  !> Coupling of the fast substeps: full evaluation (the paper's) or split (held terms).
-  integer, parameter :: coupling_full = 1, coupling_split = 2
+  public :: multirate_integrator
 
   !> Multirate integrator state.
   type, extends(stepper_t) :: multirate_integrator
-    !> Slow and fast coordinates, step ratio k = H/h, coupling.
-    integer :: ns = 0, nf = 0, k = 1, coupling = coupling_full
+    !> Slow and fast coordinates, step ratio k = H/h.
+    integer :: ns = 0, nf = 0, k = 1
     !> Time of the Nordsieck arrays (s), slow step H and fast step h (s).
     real(dp) :: t = 0.0_dp, hs = 0.0_dp, hf = 0.0_dp
     !> Slow Nordsieck array (2ns, 0:3) scaled with H, fast one (2nf, 0:3) scaled with h.
@@ -55,19 +53,24 @@ module pymr_integrator_multirate
     procedure :: load => mr_load
     procedure :: counts => mr_counts
     procedure :: name => mr_name
+    procedure :: pece => mr_steps
+    procedure :: state_size => mr_state_size
+    procedure :: get_state => mr_get_state
+    procedure :: set_state => mr_set_state
+    procedure :: set_ratio => mr_set_ratio
   end type multirate_integrator
 
 contains
 
-  !> Allocate for ns slow and nf fast coordinates, step ratio k, coupling; adaptive runs
-  !> control both steps with `ctl` and keep the ratio within [1, k_max].
-  subroutine mr_init(self, ns, nf, k, coupling, adaptive, ctl, k_max)
+  !> Allocate for ns slow and nf fast coordinates, step ratio k; adaptive runs control
+  !> both steps with `ctl` and keep the ratio within [1, k_max].
+  subroutine mr_init(self, ns, nf, k, adaptive, ctl, k_max)
     class(multirate_integrator), intent(inout) :: self
-    integer, intent(in) :: ns, nf, k, coupling
+    integer, intent(in) :: ns, nf, k
     logical, intent(in), optional :: adaptive
     type(step_control), intent(in), optional :: ctl
     integer, intent(in), optional :: k_max
-    self%ns = ns; self%nf = nf; self%k = k; self%coupling = coupling
+    self%ns = ns; self%nf = nf; self%k = k
     if (present(adaptive)) self%adaptive = adaptive
     if (present(ctl)) self%ctl = ctl
     self%k_max = max(k, 1)
@@ -83,8 +86,8 @@ contains
   !> Start at (t0, x0), x0 = [q_s; q_f; qd_s; qd_f]: classical RK4 steps of size h on the
   !> coupled system up to t0 + 2H (local error O(h^5)), recording the derivatives that
   !> build the slow array (at t0, t0 + H, t0 + 2H) and the fast one (last three fast points).
-  !> Start at (t0, x0) with the macro step hs (the stepper interface: the system must be
-  !> partitioned into slow and fast coordinates).
+  !> Start at (t0, x0) with the fast step h, macro step k h (the stepper interface: the
+  !> system must be partitioned into slow and fast coordinates).
   subroutine mr_start(self, sys, t0, x0, h, error)
     class(multirate_integrator), intent(inout) :: self
     class(ode_system), intent(inout) :: sys
@@ -92,7 +95,7 @@ contains
     type(error_type), allocatable, intent(out) :: error
     select type (sys)
     class is (partitioned_system)
-      call start_partitioned(self, sys, t0, x0, h, error)
+      call start_partitioned(self, sys, t0, x0, self%k*h, error)
     class default
       call fatal_error(error, 'multirate integration needs a system partitioned into slow and fast coordinates')
     end select
@@ -145,6 +148,50 @@ contains
     s = 'multirate'
   end function mr_name
 
+  !> PECE steps of size h on the modal coordinates only: the joints' vibrations are
+  !> judged by the macro-step map.
+  pure function mr_steps(self) result(s)
+    class(multirate_integrator), intent(in) :: self
+    type(pece_steps) :: s
+    s%h_modal = self%hf; s%item_modal = 'h_fast'
+  end function mr_steps
+
+  pure integer function mr_state_size(self)
+    class(multirate_integrator), intent(in) :: self
+    mr_state_size = size(self%zs) + size(self%zf)
+  end function mr_state_size
+
+  !> [q; qd] from both arrays' value columns, then their higher columns.
+  pure subroutine mr_get_state(self, v)
+    class(multirate_integrator), intent(in) :: self
+    real(dp), intent(out) :: v(:)
+    integer :: ns, nf, n, m
+    ns = self%ns; nf = self%nf; n = ns + nf
+    v(1:ns) = self%zs(1:ns, 0); v(ns+1:n) = self%zf(1:nf, 0)
+    v(n+1:n+ns) = self%zs(ns+1:, 0); v(n+ns+1:2*n) = self%zf(nf+1:, 0)
+    m = 2*ns*nq
+    v(2*n+1:2*n+m) = reshape(self%zs(:, 1:), [m])
+    v(2*n+m+1:) = reshape(self%zf(:, 1:), [2*nf*nq])
+  end subroutine mr_get_state
+
+  pure subroutine mr_set_state(self, v)
+    class(multirate_integrator), intent(inout) :: self
+    real(dp), intent(in) :: v(:)
+    integer :: ns, nf, n, m
+    ns = self%ns; nf = self%nf; n = ns + nf
+    self%zs(1:ns, 0) = v(1:ns); self%zf(1:nf, 0) = v(ns+1:n)
+    self%zs(ns+1:, 0) = v(n+1:n+ns); self%zf(nf+1:, 0) = v(n+ns+1:2*n)
+    m = 2*ns*nq
+    self%zs(:, 1:) = reshape(v(2*n+1:2*n+m), [2*ns, nq])
+    self%zf(:, 1:) = reshape(v(2*n+m+1:), [2*nf, nq])
+  end subroutine mr_set_state
+
+  pure subroutine mr_set_ratio(self, k)
+    class(multirate_integrator), intent(inout) :: self
+    integer, intent(in) :: k
+    self%k = k
+  end subroutine mr_set_ratio
+
   subroutine start_partitioned(self, sys, t0, x0, hs, error)
     class(multirate_integrator), intent(inout) :: self
     class(partitioned_system), intent(inout) :: sys
@@ -170,10 +217,6 @@ contains
     end do
     call nordsieck_from_history(slow_part(x), fsl(:, 2), fsl(:, 1), fsl(:, 0), self%hs, self%zs)
     call nordsieck_from_history(fast_part(x), ffa(:, nsteps), ffa(:, nsteps - 1), ffa(:, nsteps - 2), self%hf, self%zf)
-    ! one synchronised evaluation at the start point sets the terms 'split' holds
-    call sys%sync_rhs(t, self%zs(:, 0), self%zf(:, 0), self%fs, self%ff, error)
-    self%evals_start = self%evals_start + 1
-    if (allocated(error)) return
     self%t = t0 + 2*hs
     self%steps_slow = 2; self%steps_fast = nsteps
   contains
@@ -223,12 +266,6 @@ contains
       self%zs = self%zs0; self%zf = self%zf0
       self%hs = hs0; self%hf = hf0
       call rescale_steps(self, hs_new, hf_new, k_new)
-      ! 'split' holds terms from the last synchronised evaluation: take them at the start again
-      if (self%coupling == coupling_split) then
-        call sys%sync_rhs(self%t, self%zs(:, 0), self%zf(:, 0), self%fs, self%ff, error)
-        self%evals_slow = self%evals_slow + 1
-        if (allocated(error)) return
-      end if
     end do
     call finish_macro_step(self, sys, error); if (allocated(error)) return
     hs_new = min(self%hs*self%ctl%ratio(err_s, .true.), self%ctl%h_max)
@@ -290,7 +327,7 @@ contains
       ti = self%t + i*self%hf
       call slow_extrapolation(self, s)
       call nordsieck_predict(self%zf, self%wp)
-      call sys%fast_rhs(ti, self%xs, self%wp(:, 0), self%acc, self%coupling == coupling_split, self%ff, error)
+      call sys%fast_rhs(ti, self%xs, self%wp(:, 0), self%acc, self%ff, error)
       self%evals_fast = self%evals_fast + 1
       if (allocated(error)) return
       self%ff = self%hf*self%ff
@@ -316,8 +353,7 @@ contains
     ! the quadratic extrapolation's error s(s+1)(s+2)/6 over the step, it displaces the
     ! fast state by 0.106 H^2 d and its rates by 0.375 H d; this error bounds H.
     call slow_extrapolation(self, 1.0_dp)
-    call sys%fast_rhs(self%t + self%hs, self%xs, self%wp(:, 0), self%acc, self%coupling == coupling_split, &
-      & self%fx, error)
+    call sys%fast_rhs(self%t + self%hs, self%xs, self%wp(:, 0), self%acc, self%fx, error)
     self%evals_fast = self%evals_fast + 1
     if (allocated(error)) return
     nf = self%nf

@@ -27,9 +27,13 @@ module pymr_integrator_ode
     !> M_e qdd_s = Q_e, then qdd_f from M_ff qdd_f = Q_f - M_fs qdd_s.
     procedure(sync_iface), deferred :: sync_rhs
     !> Fast derivative [qd_f; qdd_f] from M_ff qdd_f = Q_f - M_fs acc_s with given slow
-    !> accelerations; `split` reuses the terms held from the last slow evaluation and
-    !> recomputes only the elastic and damping forces.
+    !> accelerations (the fast rows assembled at the full state).
     procedure(fast_iface), deferred :: fast_rhs
+    !> After a synchronised evaluation: g = M^-1 E (n x nf, rows in the order of q), the
+    !> accelerations of all coordinates per unit generalised force on each fast coordinate,
+    !> and the coefficients of the fast forces that are linear in the fast state: the
+    !> elastic and damping forces kf a + df ad (the 'response' coupling).
+    procedure(response_iface), deferred :: force_response
   end type partitioned_system
   abstract interface
     subroutine eval_iface(self, t, x, f, error)
@@ -54,14 +58,19 @@ module pymr_integrator_ode
       real(dp), intent(out) :: fs(:), ff(:)
       type(error_type), allocatable, intent(out) :: error
     end subroutine sync_iface
-    subroutine fast_iface(self, t, xs, xf, acc_s, split, ff, error)
+    subroutine fast_iface(self, t, xs, xf, acc_s, ff, error)
       import :: partitioned_system, dp, error_type
       class(partitioned_system), intent(inout) :: self
       real(dp), intent(in) :: t, xs(:), xf(:), acc_s(:)
-      logical, intent(in) :: split
       real(dp), intent(out) :: ff(:)
       type(error_type), allocatable, intent(out) :: error
     end subroutine fast_iface
+    subroutine response_iface(self, g, kf, df, error)
+      import :: partitioned_system, dp, error_type
+      class(partitioned_system), intent(inout) :: self
+      real(dp), intent(out) :: g(:, :), kf(:), df(:)
+      type(error_type), allocatable, intent(out) :: error
+    end subroutine response_iface
     function name_iface(self, i) result(name)
       import :: ode_system
       class(ode_system), intent(in) :: self

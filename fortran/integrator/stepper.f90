@@ -1,14 +1,18 @@
-!> The one interface of pymr's time steppers (single-rate Nordsieck ABM, multirate): start,
-!> advance one step, the time reached, dense output inside the last step, save and load of
-!> the whole state, and the counts of what was done. The run loop and the checkpoint use
-!> nothing else; which stepper a scene gets is chosen once, when it is made.
+!> The one interface of pymr's time steppers (single-rate Nordsieck ABM, multirate with the
+!> 'response' or the paper's 'full' coupling): start, advance one step, the time reached,
+!> dense output inside the last step, save and load of the whole state, the counts of what
+!> was done, and the linear-stability data of the pre-flight check (the steps its PECE
+!> formula takes per kind of coordinate; its whole state as a vector, so that the check can
+!> apply the stepper itself to the linearised model). The run loop, the checkpoint and the
+!> pre-flight check use nothing else; which stepper a scene gets is chosen once, when it
+!> is made.
 module pymr_integrator_stepper
   use pymr_kinds, only : dp
   use pymr_error, only : error_type
   use pymr_integrator_ode, only : ode_system
   implicit none
   private
-  public :: stepper_t, step_counts
+  public :: stepper_t, step_counts, pece_steps
 
   !> What a stepper has done (its system counts the evaluations).
   type :: step_counts
@@ -18,7 +22,18 @@ module pymr_integrator_stepper
     integer :: rejected = 0, ratio = 1
     !> The last (slow) step (s).
     real(dp) :: h_last = 0.0_dp
+    !> Fast right-hand sides the stepper computed itself, without the model (the
+    !> 'response' coupling's surrogate evaluations).
+    integer :: evals_fast = 0
   end type step_counts
+
+  !> The fixed steps a stepper's PECE formula takes on vibrations carried mostly by joint
+  !> and by modal coordinates (0: none, such modes are judged by the macro-step map alone),
+  !> and the &integrator items that set them.
+  type :: pece_steps
+    real(dp) :: h_joint = 0.0_dp, h_modal = 0.0_dp
+    character(len=8) :: item_joint = 'h_slow', item_modal = 'h_slow'
+  end type pece_steps
 
   type, abstract :: stepper_t
   contains
@@ -30,6 +45,12 @@ module pymr_integrator_stepper
     procedure(load_iface), deferred :: load
     procedure(counts_iface), deferred :: counts
     procedure(name_iface), deferred :: name
+    procedure(steps_iface), deferred :: pece
+    procedure(state_size_iface), deferred :: state_size
+    procedure(get_state_iface), deferred :: get_state
+    procedure(set_state_iface), deferred :: set_state
+    !> Step ratio H/h for the next steps (multirate; nothing for single-rate).
+    procedure :: set_ratio => no_ratio
   end type stepper_t
 
   abstract interface
@@ -83,5 +104,35 @@ module pymr_integrator_stepper
       class(stepper_t), intent(in) :: self
       character(len=:), allocatable :: s
     end function name_iface
+    !> Its fixed steps, for the pre-flight check.
+    pure function steps_iface(self) result(s)
+      import :: stepper_t, pece_steps
+      class(stepper_t), intent(in) :: self
+      type(pece_steps) :: s
+    end function steps_iface
+    !> Length of its whole state as a vector.
+    pure integer function state_size_iface(self)
+      import :: stepper_t
+      class(stepper_t), intent(in) :: self
+    end function state_size_iface
+    !> Its whole state as a vector v: v(1:2n) the state [q; qd] at its time, then the rest
+    !> (higher Nordsieck columns, histories) in an order of its own.
+    pure subroutine get_state_iface(self, v)
+      import :: stepper_t, dp
+      class(stepper_t), intent(in) :: self
+      real(dp), intent(out) :: v(:)
+    end subroutine get_state_iface
+    pure subroutine set_state_iface(self, v)
+      import :: stepper_t, dp
+      class(stepper_t), intent(inout) :: self
+      real(dp), intent(in) :: v(:)
+    end subroutine set_state_iface
   end interface
+
+contains
+
+  pure subroutine no_ratio(self, k)
+    class(stepper_t), intent(inout) :: self
+    integer, intent(in) :: k
+  end subroutine no_ratio
 end module pymr_integrator_stepper

@@ -25,15 +25,11 @@ module pymr_model
   !> Slow coordinates are the joint coordinates (1..nj), fast ones the modal coordinates.
   type, extends(partitioned_system) :: model_t
     type(model_data) :: d
-    !> Multirate work: Cholesky factors of M_ff and M_e, M_fs, M_ff^-1 M_fs, and the fast
-    !> generalised forces without their elastic and damping parts (held for 'split').
-    real(dp), allocatable :: lff(:, :), le(:, :), mfs(:, :), xfs(:, :), qrest(:), yf(:)
-    !> Held for 'split': M_ff^-1 and M_ff^-1 times the held fast forces.
-    real(dp), allocatable :: mffinv(:, :), yrest(:)
+    !> Multirate work: Cholesky factors of M_ff and M_e, M_fs, M_ff^-1 M_fs, M_ff^-1 Q_f and
+    !> M_ff^-1 (held when M_ff is constant; the 'response' coupling's g uses it).
+    real(dp), allocatable :: lff(:, :), le(:, :), mfs(:, :), xfs(:, :), yf(:), mffinv(:, :)
     !> Modal stiffness omega^2 and damping 2 zeta omega (0 when the effect is off) per fast coordinate.
     real(dp), allocatable :: kf(:), df(:)
-    !> Split fast evaluations.
-    integer :: evals_split = 0
     !> Full coordinates and rates assembled from the slow and fast states.
     real(dp), allocatable :: qw(:), qdw(:)
     !> Once partitioned (multirate), eval solves through the Schur complement too.
@@ -52,6 +48,7 @@ module pymr_model
     procedure :: n_fast => model_n_fast
     procedure :: sync_rhs => model_sync_rhs
     procedure :: fast_rhs => model_fast_rhs
+    procedure :: force_response => model_force_response
     procedure :: init_partition => model_init_partition
     procedure :: save_run => model_save_run
     procedure :: load_run => model_load_run
@@ -269,10 +266,10 @@ contains
     class(model_t), intent(inout) :: self
     integer :: ns, nf, b
     ns = self%d%nj; nf = self%d%n - ns
-    if (allocated(self%lff)) deallocate(self%lff, self%le, self%mfs, self%xfs, self%qrest, self%yf, self%kf, self%df, &
-      & self%qw, self%qdw, self%mffinv, self%yrest, self%xsw, self%xfw, self%fsw, self%ffw)
-    allocate(self%lff(nf, nf), self%le(ns, ns), self%mfs(nf, ns), self%xfs(nf, ns), self%qrest(nf), self%yf(nf), &
-      & self%kf(nf), self%df(nf), self%qw(ns + nf), self%qdw(ns + nf), self%mffinv(nf, nf), self%yrest(nf), &
+    if (allocated(self%lff)) deallocate(self%lff, self%le, self%mfs, self%xfs, self%yf, self%kf, self%df, &
+      & self%qw, self%qdw, self%mffinv, self%xsw, self%xfw, self%fsw, self%ffw)
+    allocate(self%lff(nf, nf), self%le(ns, ns), self%mfs(nf, ns), self%xfs(nf, ns), self%yf(nf), &
+      & self%kf(nf), self%df(nf), self%qw(ns + nf), self%qdw(ns + nf), self%mffinv(nf, nf), &
       & self%xsw(2*ns), self%xfw(2*nf), self%fsw(2*ns), self%ffw(2*nf))
     self%partitioned = .true.
     self%mff_fixed = .true.
@@ -284,7 +281,7 @@ contains
   end subroutine model_init_partition
 
   !> Per fast (modal) coordinate: modal stiffness omega^2 and damping (2 zeta omega + ...;
-  !> 0 when modal_damping is off), the forces 'split' recomputes in every fast step.
+  !> 0 when modal_damping is off): the fast forces kf a + df ad linear in the fast state.
   pure subroutine modal_stiffness_damping(d, kf, df)
     type(model_data), intent(in) :: d
     real(dp), intent(out) :: kf(:), df(:)
@@ -319,8 +316,8 @@ contains
 
   !> Derivatives from one full evaluation: fs = [qd_s; qdd_s] with M_e qdd_s = Q_e,
   !> M_e = M_ss - M_sf M_ff^-1 M_fs, Q_e = Q_s - M_sf M_ff^-1 Q_f (LAPACK Cholesky of M_ff
-  !> and M_e), and ff = [qd_f; qdd_f] with qdd_f = M_ff^-1 (Q_f - M_fs qdd_s). Holds M_ff,
-  !> M_fs and the fast forces without elastic and damping parts for 'split' fast steps.
+  !> and M_e), and ff = [qd_f; qdd_f] with qdd_f = M_ff^-1 (Q_f - M_fs qdd_s). Holds the
+  !> factors for force_response.
   subroutine model_sync_rhs(self, t, xs, xf, fs, ff, error)
     class(model_t), intent(inout) :: self
     real(dp), intent(in) :: t, xs(:), xf(:)
@@ -352,50 +349,49 @@ contains
         call prefix_error(error, 'at t = ' // time_text(t)); return
       end if
       call potrs(self%le, fs(ns+1:), 'M_e', error); if (allocated(error)) return
-      self%qrest = p(ns+1:) + self%kf*xf(1:nf) + self%df*xf(nf+1:)
       ff(nf+1:) = self%yf - matmul(self%xfs, fs(ns+1:))
-      self%yrest = matmul(self%mffinv, self%qrest)
     end associate
     fs(1:ns) = xs(ns+1:)
     ff(1:nf) = xf(nf+1:)
   end subroutine model_sync_rhs
 
-  !> Fast derivative ff = [qd_f; qdd_f] with M_ff qdd_f = Q_f - M_fs acc_s. Full coupling
-  !> assembles the model at (t, xs, xf); split coupling holds M_ff, M_fs and the slowly
-  !> varying forces from the last slow evaluation and recomputes only the elastic and
-  !> damping forces -omega^2 a - 2 zeta omega ad.
-  subroutine model_fast_rhs(self, t, xs, xf, acc_s, split, ff, error)
+  !> Fast derivative ff = [qd_f; qdd_f] with M_ff qdd_f = Q_f - M_fs acc_s: the modal
+  !> rows assembled at (t, xs, xf) (the 'full' coupling's fast steps).
+  subroutine model_fast_rhs(self, t, xs, xf, acc_s, ff, error)
     class(model_t), intent(inout) :: self
     real(dp), intent(in) :: t, xs(:), xf(:), acc_s(:)
-    logical, intent(in) :: split
     real(dp), intent(out) :: ff(:)
     type(error_type), allocatable, intent(out) :: error
-    integer :: ns, nf, j
+    integer :: ns, nf
     ns = self%d%nj; nf = self%d%n - ns
-    if (split) then
-      ! qdd_f = M_ff^-1 (Q_rest - K a - D ad) - M_ff^-1 M_fs acc_s, all held but K a + D ad
-      ff(nf+1:) = self%yrest
-      do j = 1, nf
-        ff(nf + 1:) = ff(nf + 1:) - self%mffinv(:, j)*(self%kf(j)*xf(j) + self%df(j)*xf(nf + j))
-      end do
-      do j = 1, ns
-        ff(nf + 1:) = ff(nf + 1:) - self%xfs(:, j)*acc_s(j)
-      end do
-      self%evals_split = self%evals_split + 1
-      if (self%d%effect_on(effect_modal_damping)) &
-        & self%d%effect_evals(effect_modal_damping) = self%d%effect_evals(effect_modal_damping) + 1
-    else
-      call gather(self, xs, xf)
-      call self%terms(t, self%qw, self%qdw, fast_only=.true.)
-      call factor_ff(self, t, error); if (allocated(error)) return
-      ff(nf+1:) = self%d%p(ns+1:) - matmul(self%d%mm(ns+1:, 1:ns), acc_s)
-      call potrs(self%lff, ff(nf+1:), 'M_ff', error)
-    end if
+    call gather(self, xs, xf)
+    call self%terms(t, self%qw, self%qdw, fast_only=.true.)
+    call factor_ff(self, t, error); if (allocated(error)) return
+    ff(nf+1:) = self%d%p(ns+1:) - matmul(self%d%mm(ns+1:, 1:ns), acc_s)
+    call potrs(self%lff, ff(nf+1:), 'M_ff', error)
     ff(1:nf) = xf(nf+1:)
   end subroutine model_fast_rhs
 
-  !> M_ff^-1 from its Cholesky factor, held for 'split' fast steps (and, when M_ff is
-  !> constant, for every synchronised evaluation).
+  !> The fast-force response g = M^-1 E of the last synchronised evaluation, from its
+  !> Schur complement factors: with X = M_ff^-1 M_fs, the joint rows are
+  !> g_s = -M_e^-1 X^T and the modal rows g_f = M_ff^-1 - X g_s (block inverse of M);
+  !> kf, df: modal stiffness omega^2 and damping per fast coordinate.
+  subroutine model_force_response(self, g, kf, df, error)
+    class(model_t), intent(inout) :: self
+    real(dp), intent(out) :: g(:, :), kf(:), df(:)
+    type(error_type), allocatable, intent(out) :: error
+    integer :: ns
+    real(dp) :: gs(self%d%nj, self%d%n - self%d%nj)
+    ns = self%d%nj
+    gs = transpose(self%xfs)
+    call potrs(self%le, gs, 'M_e', error); if (allocated(error)) return
+    g(1:ns, :) = -gs
+    g(ns+1:, :) = self%mffinv + matmul(self%xfs, gs)
+    kf = self%kf; df = self%df
+  end subroutine model_force_response
+
+  !> M_ff^-1 from its Cholesky factor (held when M_ff is constant, for every synchronised
+  !> evaluation; force_response uses it).
   subroutine hold_inverse(self, error)
     class(model_t), intent(inout) :: self
     type(error_type), allocatable, intent(out) :: error
@@ -428,7 +424,7 @@ contains
     integer, intent(out) :: ios
     write(unit, iostat=ios) allocated(self%lff)
     if (ios == 0 .and. allocated(self%lff)) write(unit, iostat=ios) self%lff, self%le, self%mfs, self%xfs, &
-      & self%qrest, self%yf, self%mffinv, self%yrest, self%mff_factored, self%evals_split
+      & self%yf, self%mffinv, self%mff_factored
     if (ios == 0) write(unit, iostat=ios) self%d%evals, self%d%evals_fast_rows, self%d%effect_evals, &
       & self%d%effect_timed, self%d%effect_cpu
   end subroutine model_save_run
@@ -445,8 +441,8 @@ contains
     if (partitioned .neqv. allocated(self%lff)) then
       ios = 1; return
     end if
-    if (partitioned) read(unit, iostat=ios) self%lff, self%le, self%mfs, self%xfs, self%qrest, self%yf, &
-      & self%mffinv, self%yrest, self%mff_factored, self%evals_split
+    if (partitioned) read(unit, iostat=ios) self%lff, self%le, self%mfs, self%xfs, self%yf, &
+      & self%mffinv, self%mff_factored
     if (ios == 0) read(unit, iostat=ios) self%d%evals, self%d%evals_fast_rows, self%d%effect_evals, &
       & self%d%effect_timed, self%d%effect_cpu
   end subroutine model_load_run

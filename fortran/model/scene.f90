@@ -46,8 +46,9 @@ module pymr_model_scene
     logical :: stability_check = .true.
     !> Most (fast) steps a run may take.
     integer :: max_steps = 100000000
-    !> Multirate coupling of the fast substeps: 'full' (the paper's) or 'split'.
-    character(len=16) :: coupling = 'split'
+    !> Multirate coupling of the fast steps: 'response' (linear response of all
+    !> coordinates to the fast forces) or 'full' (the paper's).
+    character(len=16) :: coupling = 'response'
     type(origin_t) :: origin
   end type integrator_spec
 
@@ -227,8 +228,9 @@ contains
     call t%add('h_min', g%h_min, 's', 'smallest adaptive step; 0 = 1e-12 s', ge=0.0_dp, le=1.0e3_dp)
     call t%add('h_max', g%h_max, 's', 'largest adaptive step; 0 = no limit', ge=0.0_dp, le=1.0e9_dp)
     call t%add('n_corrector', g%n_corrector, '-', 'corrector evaluations per step (1 = PECE)', ge=1, le=10)
-    call t%add('coupling', g%coupling, "multirate coupling of the fast substeps: 'full' re-evaluates the " // &
-      & "whole model, 'split' holds the slow terms", choices='full split')
+    call t%add('coupling', g%coupling, "multirate coupling of the fast steps: 'response' moves every " // &
+      & "coordinate by its linear response to the fast forces, 'full' re-evaluates the modal rows (the paper's)", &
+      & choices='response full')
     call t%add('k_max', g%k_max, '-', 'largest step ratio H/h of adaptive multirate', ge=1, le=100000)
     call t%add('stability_check', g%stability_check, 'refuse fixed steps that the pre-flight check finds unstable')
     call t%add('max_steps', g%max_steps, '-', 'most (fast) steps a run may take: a fixed-step run needing more is ' // &

@@ -110,13 +110,6 @@ contains
           call errs%add(w('n_corrector') // ": multirate uses PECE (n_corrector = 1)"); return
         end if
       end if
-      if (.not. s%adaptive .and. sc%output%dt > 0.0_dp) then
-        r = sc%output%dt/hs
-        if (abs(r - nint(r)) > 1.0e-9_dp*r .or. nint(r) < 1) then
-          call errs%add(sc%output%origin%where('dt') // ': must be a multiple of the step h_slow = ' // fmt(hs) &
-            & // ' s, got ' // fmt(sc%output%dt)); return
-        end if
-      end if
       ! bounded work: a fixed-step run's steps are known before it starts
       if (.not. s%adaptive .and. sc%scene%t_end/hf > real(s%max_steps, dp)) then
         call errs%add(w(step_item) // ': the run would take ' // fmt(sc%scene%t_end/hf) // ' steps of ' // &

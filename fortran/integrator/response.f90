@@ -1,0 +1,405 @@
+!> Multirate integration by fast linear response: the 'response' coupling (docs/method.md,
+!> section "The response coupling").
+!>
+!> One Nordsieck ABM array of the whole state [q; qd] advances with the fast step h. Every
+!> k-th step (a macro step H = k h) evaluates the model in full; the k - 1 steps between
+!> use a cheap surrogate of the accelerations, built from the last full evaluations:
+!>
+!>   qdd(t, x) ~ qdd^(t) - g (kf (a - a^(t)) + df (ad - ad^(t)))
+!>
+!> where qdd^, a^ and ad^ are the accelerations and the fast (modal) state of the last
+!> four full evaluations extrapolated to t by one cubic (the same weights for all of them),
+!> and g = M^-1 E is the response of every acceleration to a unit force on each modal
+!> coordinate, at the last full evaluation. The surrogate is the extrapolated acceleration
+!> corrected by the linear response of all coordinates, joints included, to the elastic and
+!> damping forces of the fast state's departure from its extrapolation: the fast motion the
+!> joints take from the flexible bodies is integrated at the fast rate, the rest of the
+!> acceleration, smooth once that response is removed, comes from the slow-rate history.
+!> A step costs one product of g (n x nf) with a vector instead of a model evaluation.
+!>
+!> Adaptive runs control the fast step by the ABM corrector's estimate and the macro step
+!> by the surrogate's error, measured at every full evaluation as the difference of the
+!> full and the surrogate accelerations at the same state.
+module pymr_integrator_response
+  use pymr_kinds, only : dp
+  use pymr_error, only : error_type, fatal_error, stat_solver
+  use pymr_integrator_ode, only : ode_system, partitioned_system
+  use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps
+  use pymr_integrator_nordsieck, only : nq, corrector_l, nordsieck_predict, nordsieck_rescale, nordsieck_value
+  use pymr_integrator_abm, only : abm_integrator, check_finite
+  use pymr_integrator_control, only : step_control, error_weights, wrms_norm
+  use pymr_io_text, only : fmt
+  implicit none
+  private
+  public :: response_integrator, extrapolation_weights
+
+  !> Full evaluations the surrogate extrapolates from (a cubic).
+  integer, parameter :: n_hist = 4
+  !> The surrogate's error d at the end of a macro step, grown like the cubic
+  !> extrapolation's error s(s+1)(s+2)(s+3)/24 over it, displaces the state by
+  !> pos_weight H^2 d and the rates by vel_weight H d (integrals of that polynomial).
+  real(dp), parameter :: vel_weight = 0.3486_dp, pos_weight = 0.09375_dp
+
+  type, extends(stepper_t) :: response_integrator
+    !> Coordinates (n = ns + nf), step ratio k and its adaptive bound; fast steps of the next
+    !> macro step (k, but k - 2 after the start's two steps: macro steps end on multiples of
+    !> k h in fixed-step runs).
+    integer :: n = 0, ns = 0, nf = 0, k = 1, k_max = 1, kn = 1
+    !> Time of the Nordsieck array, fast step (s); start and fast step of the last macro step.
+    real(dp) :: t = 0.0_dp, h = 0.0_dp, t_macro = 0.0_dp, hb = 0.0_dp
+    !> Nordsieck array (2n, 0:3) scaled with h; the arrays after each fast step of the last
+    !> macro step (dense output, scaled with hb), kb of them.
+    real(dp), allocatable :: z(:, :), zbuf(:, :, :)
+    integer :: kb = 0
+    !> History of full evaluations, oldest first: nh times, accelerations (n, nh), fast
+    !> states [a; ad] (2nf, nh); g of the newest, and the fast force coefficients.
+    integer :: nh = 0
+    real(dp) :: th(n_hist) = 0.0_dp
+    real(dp), allocatable :: hq(:, :), hy(:, :), g(:, :), kf(:), df(:)
+    !> The full evaluation of the macro step being tried, kept until it is accepted.
+    real(dp) :: tp = 0.0_dp
+    real(dp), allocatable :: qp(:), yp(:), gp(:, :)
+    !> Adaptive control of both steps.
+    logical :: adaptive = .false.
+    type(step_control) :: ctl
+    !> Counters: macro steps, fast steps, rejected macro steps, surrogate evaluations.
+    integer :: steps_slow = 0, steps_fast = 0, rejected = 0, evals_surrogate = 0
+    !> Work arrays.
+    real(dp), allocatable :: zp(:, :), z0(:, :), f(:), fs(:), x(:), cor(:), w(:), e(:), yhat(:), dforce(:)
+  contains
+    procedure :: init => rs_init
+    procedure :: start => rs_start
+    procedure :: advance => rs_advance
+    procedure :: time => rs_time
+    procedure :: value_at => rs_value_at
+    procedure :: save => rs_save
+    procedure :: load => rs_load
+    procedure :: counts => rs_counts
+    procedure :: name => rs_name
+    procedure :: pece => rs_steps
+    procedure :: state_size => rs_state_size
+    procedure :: get_state => rs_get_state
+    procedure :: set_state => rs_set_state
+    procedure :: set_ratio => rs_set_ratio
+  end type response_integrator
+
+contains
+
+  !> Allocate for ns slow (joint) and nf fast (modal) coordinates, step ratio k; adaptive
+  !> runs control both steps with ctl and keep k within [1, k_max].
+  subroutine rs_init(self, ns, nf, k, adaptive, ctl, k_max)
+    class(response_integrator), intent(inout) :: self
+    integer, intent(in) :: ns, nf, k
+    logical, intent(in) :: adaptive
+    type(step_control), intent(in) :: ctl
+    integer, intent(in) :: k_max
+    integer :: n
+    n = ns + nf
+    self%n = n; self%ns = ns; self%nf = nf
+    self%adaptive = adaptive; self%ctl = ctl
+    self%k_max = max(1, k_max, merge(1, k, adaptive))
+    self%k = min(max(1, k), self%k_max)
+    allocate(self%z(2*n, 0:nq), self%zp(2*n, 0:nq), self%z0(2*n, 0:nq), self%zbuf(2*n, 0:nq, self%k_max))
+    allocate(self%hq(n, n_hist), self%hy(2*nf, n_hist), self%g(n, nf), self%kf(nf), self%df(nf))
+    allocate(self%qp(n), self%yp(2*nf), self%gp(n, nf))
+    allocate(self%f(2*n), self%fs(2*n), self%x(2*n), self%cor(2*n), self%w(2*n), self%e(2*n), self%yhat(2*nf), &
+      & self%dforce(nf))
+  end subroutine rs_init
+
+  !> Start at (t0, x0) with the fast step h (adaptive: bounded by the tolerances): a full
+  !> evaluation at t0 opens the history, the single-rate start (two Runge-Kutta steps)
+  !> builds the Nordsieck array. Until the history holds four full evaluations every fast
+  !> step evaluates in full.
+  subroutine rs_start(self, sys, t0, x0, h, error)
+    class(response_integrator), intent(inout) :: self
+    class(ode_system), intent(inout) :: sys
+    real(dp), intent(in) :: t0, x0(:), h
+    type(error_type), allocatable, intent(out) :: error
+    type(abm_integrator) :: boot
+    select type (sys)
+    class is (partitioned_system)
+      call sys%eval(t0, x0, self%f, error); if (allocated(error)) return
+      call check_finite(sys, t0, self%f, 'derivative', error); if (allocated(error)) return
+      call record_evaluation(self, sys, t0, x0, self%f, error); if (allocated(error)) return
+      call commit_evaluation(self)
+      call boot%init(2*self%n, self%adaptive, self%ctl, 1)
+      call boot%start(sys, t0, x0, h, error); if (allocated(error)) return
+      self%z = boot%z; self%t = boot%t; self%h = boot%h
+      self%zbuf(:, :, 1) = self%z; self%kb = 1; self%t_macro = self%t - self%h; self%hb = self%h
+      self%steps_fast = 2; self%steps_slow = 0
+      self%kn = self%k
+      if (self%k > 2 .and. .not. self%adaptive) self%kn = self%k - 2
+    class default
+      call fatal_error(error, "the 'response' coupling needs a system partitioned into slow and fast coordinates")
+    end select
+  end subroutine rs_start
+
+  !> One accepted macro step. Adaptive: a step whose fast or surrogate error exceeds the
+  !> tolerance is retried from its start with the steps the errors ask for.
+  subroutine rs_advance(self, sys, error)
+    class(response_integrator), intent(inout) :: self
+    class(ode_system), intent(inout) :: sys
+    type(error_type), allocatable, intent(out) :: error
+    real(dp) :: err_f, err_s, t0, h0
+    select type (sys)
+    class is (partitioned_system)
+      t0 = self%t; h0 = self%h
+      if (self%adaptive) then
+        self%z0 = self%z
+        call error_weights(self%ctl, self%z(:, 0), self%w)
+      end if
+      do
+        call try_macro_step(self, sys, err_f, err_s, error); if (allocated(error)) return
+        if (.not. self%adaptive) exit
+        if (err_f <= 1.0_dp .and. err_s <= 1.0_dp) exit
+        self%rejected = self%rejected + 1
+        ! back to the start of the macro step (the array scaled with the step just tried)
+        self%z = self%z0; self%t = t0
+        call nordsieck_rescale(self%z, self%h/h0)
+        call resize_steps(self, err_f, err_s, .false., error); if (allocated(error)) return
+      end do
+      call commit_evaluation(self)
+      self%steps_slow = self%steps_slow + 1
+      self%kn = self%k
+      call check_finite(sys, self%t, self%z(:, 0), 'state', error); if (allocated(error)) return
+      if (self%adaptive) call resize_steps(self, err_f, err_s, .true., error)
+    class default
+      call fatal_error(error, "the 'response' coupling needs a system partitioned into slow and fast coordinates")
+    end select
+  end subroutine rs_advance
+
+  !> k fast steps from (t, z): surrogate evaluations, then a full one at the macro step's
+  !> end (every step is a full one until the history is complete). err_f: largest
+  !> weighted corrector estimate of the fast steps; err_s: weighted state error of the
+  !> surrogate over the macro step (adaptive runs only).
+  subroutine try_macro_step(self, sys, err_f, err_s, error)
+    class(response_integrator), intent(inout) :: self
+    class(partitioned_system), intent(inout) :: sys
+    real(dp), intent(out) :: err_f, err_s
+    type(error_type), allocatable, intent(out) :: error
+    integer :: j, n, m
+    real(dp) :: tn, hm
+    n = self%n
+    err_f = 0.0_dp; err_s = 0.0_dp
+    self%t_macro = self%t
+    do j = 1, self%kn
+      tn = self%t + self%h
+      call nordsieck_predict(self%z, self%zp)
+      self%x = self%zp(:, 0)
+      if (j == self%kn .or. self%nh < n_hist) then
+        call sys%eval(tn, self%x, self%f, error); if (allocated(error)) return
+        call check_finite(sys, tn, self%f, 'derivative', error); if (allocated(error)) return
+      else
+        call surrogate(self, tn, self%x, self%f)
+      end if
+      self%cor = self%h*self%f - self%zp(:, 1)
+      do m = 0, nq
+        self%z(:, m) = self%zp(:, m) + corrector_l(m)*self%cor
+      end do
+      self%t = tn
+      self%zbuf(:, :, j) = self%z
+      ! the fast steps' own error (the full step's correction also holds the surrogate's
+      ! error, which err_s measures)
+      if (self%adaptive .and. (j < self%kn .or. self%kn == 1 .or. self%nh < n_hist)) &
+        & err_f = max(err_f, wrms_norm(corrector_l(0)*self%cor, self%w))
+    end do
+    self%kb = self%kn; self%hb = self%h
+    self%steps_fast = self%steps_fast + self%kn
+    ! the macro step's full evaluation (at the predicted state x) joins the history on acceptance
+    if (self%adaptive .and. self%nh == n_hist .and. self%kn > 1) then
+      call surrogate(self, tn, self%x, self%fs)
+      hm = self%kn*self%h
+      self%e(1:n) = pos_weight*hm**2*(self%f(n+1:) - self%fs(n+1:))
+      self%e(n+1:) = vel_weight*hm*(self%f(n+1:) - self%fs(n+1:))
+      err_s = wrms_norm(self%e, self%w)
+    end if
+    call record_evaluation(self, sys, tn, self%x, self%f, error)
+  end subroutine try_macro_step
+
+  !> Surrogate derivative f = [qd; qdd^ - g (kf (a - a^) + df (ad - ad^))] at (t, x).
+  subroutine surrogate(self, t, x, f)
+    class(response_integrator), intent(inout) :: self
+    real(dp), intent(in) :: t, x(:)
+    real(dp), intent(out) :: f(:)
+    real(dp) :: wt(n_hist)
+    integer :: i, n, ns, nf
+    n = self%n; ns = self%ns; nf = self%nf
+    call extrapolation_weights(self%th, t, wt)
+    f(n+1:) = wt(1)*self%hq(:, 1)
+    self%yhat = wt(1)*self%hy(:, 1)
+    do i = 2, n_hist
+      f(n+1:) = f(n+1:) + wt(i)*self%hq(:, i)
+      self%yhat = self%yhat + wt(i)*self%hy(:, i)
+    end do
+    self%dforce = self%kf*(x(ns+1:n) - self%yhat(1:nf)) + self%df*(x(n+ns+1:) - self%yhat(nf+1:))
+    do i = 1, nf
+      f(n+1:) = f(n+1:) - self%g(:, i)*self%dforce(i)
+    end do
+    f(1:n) = x(n+1:)
+    self%evals_surrogate = self%evals_surrogate + 1
+  end subroutine surrogate
+
+  !> Lagrange weights w_i(t) of the polynomial through the points th(i).
+  pure subroutine extrapolation_weights(th, t, w)
+    real(dp), intent(in) :: th(:), t
+    real(dp), intent(out) :: w(:)
+    integer :: i, j
+    do i = 1, size(th)
+      w(i) = 1.0_dp
+      do j = 1, size(th)
+        if (j /= i) w(i) = w(i)*(t - th(j))/(th(i) - th(j))
+      end do
+    end do
+  end subroutine extrapolation_weights
+
+  !> Keep the full evaluation f at (t, x) and the model's force response as pending.
+  subroutine record_evaluation(self, sys, t, x, f, error)
+    class(response_integrator), intent(inout) :: self
+    class(partitioned_system), intent(inout) :: sys
+    real(dp), intent(in) :: t, x(:), f(:)
+    type(error_type), allocatable, intent(out) :: error
+    integer :: n, ns
+    n = self%n; ns = self%ns
+    self%tp = t
+    self%qp = f(n+1:)
+    self%yp = [x(ns+1:n), x(n+ns+1:)]
+    call sys%force_response(self%gp, self%kf, self%df, error)
+  end subroutine record_evaluation
+
+  !> The pending full evaluation joins the history (the oldest leaves when it is full).
+  pure subroutine commit_evaluation(self)
+    class(response_integrator), intent(inout) :: self
+    if (self%nh == n_hist) then
+      self%th(1:n_hist-1) = self%th(2:); self%hq(:, 1:n_hist-1) = self%hq(:, 2:)
+      self%hy(:, 1:n_hist-1) = self%hy(:, 2:)
+    else
+      self%nh = self%nh + 1
+    end if
+    self%th(self%nh) = self%tp; self%hq(:, self%nh) = self%qp; self%hy(:, self%nh) = self%yp
+    self%g = self%gp
+  end subroutine commit_evaluation
+
+  !> New fast step and ratio from the errors of a macro step (accepted or not): the fast
+  !> step from the corrector's estimate, the macro step from the surrogate's, k = H/h
+  !> within [1, k_max]. The array is rescaled to the new fast step.
+  subroutine resize_steps(self, err_f, err_s, accepted, error)
+    class(response_integrator), intent(inout) :: self
+    real(dp), intent(in) :: err_f, err_s
+    logical, intent(in) :: accepted
+    type(error_type), allocatable, intent(out) :: error
+    real(dp) :: h_new, hm_new
+    h_new = self%h*self%ctl%ratio(err_f, accepted .or. err_f <= 1.0_dp)
+    if (.not. accepted .and. err_f <= 1.0_dp) h_new = min(h_new, self%h)
+    h_new = min(h_new, self%ctl%h_max)
+    hm_new = self%kn*self%h*self%ctl%ratio(err_s, accepted .or. err_s <= 1.0_dp)
+    if (.not. accepted .and. err_s <= 1.0_dp) hm_new = min(hm_new, self%kn*self%h)
+    if (h_new < self%ctl%h_min) then
+      call fatal_error(error, 'step size underflow at t = ' // fmt(self%t) // ' s (fast step ' // fmt(h_new) // &
+        & ' s below h_min)', stat_solver); return
+    end if
+    self%k = min(max(1, floor(hm_new/h_new)), self%k_max)
+    self%kn = self%k
+    if (h_new /= self%h) then
+      call nordsieck_rescale(self%z, h_new/self%h)
+      self%h = h_new
+    end if
+  end subroutine resize_steps
+
+  pure real(dp) function rs_time(self)
+    class(response_integrator), intent(in) :: self
+    rs_time = self%t
+  end function rs_time
+
+  !> State at t inside the last macro step, from the Nordsieck array of its fast step.
+  pure subroutine rs_value_at(self, t, x)
+    class(response_integrator), intent(in) :: self
+    real(dp), intent(in) :: t
+    real(dp), intent(out) :: x(:)
+    integer :: j
+    j = min(max(ceiling((t - self%t_macro)/self%hb - 1.0e-9_dp), 1), self%kb)
+    call nordsieck_value(self%zbuf(:, :, j), (t - (self%t_macro + j*self%hb))/self%hb, x)
+  end subroutine rs_value_at
+
+  subroutine rs_save(self, unit, ios)
+    class(response_integrator), intent(in) :: self
+    integer, intent(in) :: unit
+    integer, intent(out) :: ios
+    write(unit, iostat=ios) self%k, self%kn, self%t, self%h, self%t_macro, self%hb, self%kb, self%z, &
+      & self%zbuf(:, :, 1:self%kb), self%nh, self%th, self%hq, self%hy, self%g, self%kf, self%df, self%steps_slow, self%steps_fast, &
+      & self%rejected, self%evals_surrogate
+  end subroutine rs_save
+
+  subroutine rs_load(self, unit, ios)
+    class(response_integrator), intent(inout) :: self
+    integer, intent(in) :: unit
+    integer, intent(out) :: ios
+    read(unit, iostat=ios) self%k, self%kn, self%t, self%h, self%t_macro, self%hb, self%kb
+    if (ios /= 0) return
+    if (self%kb < 1 .or. self%kb > self%k_max .or. self%k < 1 .or. self%k > self%k_max .or. self%kn < 1 .or. &
+      & self%kn > self%k_max) then
+      ios = 1; return
+    end if
+    read(unit, iostat=ios) self%z, self%zbuf(:, :, 1:self%kb), self%nh, self%th, self%hq, self%hy, self%g, &
+      & self%kf, self%df, self%steps_slow, self%steps_fast, self%rejected, self%evals_surrogate
+  end subroutine rs_load
+
+  pure function rs_counts(self) result(c)
+    class(response_integrator), intent(in) :: self
+    type(step_counts) :: c
+    c%steps_slow = self%steps_slow; c%steps_fast = self%steps_fast
+    c%rejected = self%rejected; c%h_last = self%k*self%h; c%ratio = self%k
+    c%evals_fast = self%evals_surrogate
+  end function rs_counts
+
+  !> PECE steps of size h on every coordinate (&integrator h_fast).
+  pure function rs_steps(self) result(s)
+    class(response_integrator), intent(in) :: self
+    type(pece_steps) :: s
+    s%h_joint = self%h; s%h_modal = self%h
+    s%item_joint = 'h_fast'; s%item_modal = 'h_fast'
+  end function rs_steps
+
+  pure integer function rs_state_size(self)
+    class(response_integrator), intent(in) :: self
+    rs_state_size = size(self%z) + size(self%hq) + size(self%hy)
+  end function rs_state_size
+
+  !> The Nordsieck array (its value column first), then the history's accelerations and
+  !> fast states.
+  pure subroutine rs_get_state(self, v)
+    class(response_integrator), intent(in) :: self
+    real(dp), intent(out) :: v(:)
+    integer :: a, b
+    a = size(self%z); b = a + size(self%hq)
+    v(1:a) = reshape(self%z, [a])
+    v(a+1:b) = reshape(self%hq, [size(self%hq)])
+    v(b+1:) = reshape(self%hy, [size(self%hy)])
+  end subroutine rs_get_state
+
+  pure subroutine rs_set_state(self, v)
+    class(response_integrator), intent(inout) :: self
+    real(dp), intent(in) :: v(:)
+    integer :: a, b
+    a = size(self%z); b = a + size(self%hq)
+    self%z = reshape(v(1:a), shape(self%z))
+    self%hq = reshape(v(a+1:b), shape(self%hq))
+    self%hy = reshape(v(b+1:), shape(self%hy))
+  end subroutine rs_set_state
+
+  !> Step ratio k (the dense-output buffer grows with it).
+  pure subroutine rs_set_ratio(self, k)
+    class(response_integrator), intent(inout) :: self
+    integer, intent(in) :: k
+    if (k > size(self%zbuf, 3)) then
+      deallocate(self%zbuf)
+      allocate(self%zbuf(2*self%n, 0:nq, k))
+    end if
+    self%k = k; self%kn = k; self%k_max = max(self%k_max, k)
+  end subroutine rs_set_ratio
+
+  pure function rs_name(self) result(s)
+    class(response_integrator), intent(in) :: self
+    character(len=:), allocatable :: s
+    s = 'multirate'
+  end function rs_name
+end module pymr_integrator_response
