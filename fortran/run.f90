@@ -9,7 +9,7 @@ module pymr_run
   use pymr_model_build, only : build_model
   use pymr_model, only : model_t
   use pymr_integrator_stepper, only : stepper_t, step_counts
-  use pymr_stepper_setup, only : make_stepper, stepper_label
+  use pymr_stepper_setup, only : make_stepper, stepper_label, method_label
   use pymr_io_results_output, only : csv_writer, json_path, write_json, run_stats
   use pymr_model_kinematics, only : forward_kinematics, marker_motion
   use pymr_clock, only : thread_cpu_time
@@ -355,21 +355,6 @@ contains
       call prescribed_motion(model%d, i, 0.0_dp, x(model%d%pres_coord(i)), x(n + model%d%pres_coord(i)), fdd)
     end do
   end subroutine initial_state
-
-  function method_label(sc) result(s)
-    type(scene_t), intent(in) :: sc
-    character(len=:), allocatable :: s
-    character(len=64) :: buf
-    if (sc%integrator%adaptive) then
-      write(buf, '(a,es9.2,a,es9.2)') ' adaptive rtol=', sc%integrator%rtol, ' atol=', sc%integrator%atol
-    else if (sc%integrator%method == 'multirate') then
-      write(buf, '(a,es10.3,a,es10.3,a)') ' h_slow=', sc%integrator%h_slow, ' h_fast=', sc%integrator%h_fast, &
-        & ' coupling=' // trim(sc%integrator%coupling)
-    else
-      write(buf, '(a,es10.3)') ' fixed h=', sc%integrator%h_slow
-    end if
-    s = trim(sc%integrator%method) // trim(buf)
-  end function method_label
 
   !> Integrator settings as JSON members.
   function settings_json(sc) result(s)

@@ -13,7 +13,7 @@ module pymr_stepper_setup
   use pymr_io_text, only : itoa
   implicit none
   private
-  public :: make_stepper, stepper_label
+  public :: make_stepper, stepper_label, method_label
 
 contains
 
@@ -53,6 +53,22 @@ contains
       s = 'single-rate'
     end if
   end function stepper_label
+
+  !> The method and its steps or tolerances, for the results' header.
+  function method_label(sc) result(s)
+    type(scene_t), intent(in) :: sc
+    character(len=:), allocatable :: s
+    character(len=64) :: buf
+    if (sc%integrator%adaptive) then
+      write(buf, '(a,es9.2,a,es9.2)') ' adaptive rtol=', sc%integrator%rtol, ' atol=', sc%integrator%atol
+    else if (sc%integrator%method == 'multirate') then
+      write(buf, '(a,es10.3,a,es10.3,a)') ' h_slow=', sc%integrator%h_slow, ' h_fast=', sc%integrator%h_fast, &
+        & ' coupling=' // trim(sc%integrator%coupling)
+    else
+      write(buf, '(a,es10.3)') ' fixed h=', sc%integrator%h_slow
+    end if
+    s = trim(sc%integrator%method) // trim(buf)
+  end function method_label
 
   subroutine make_multirate(sc, model, x, ctl, st, h0, error)
     type(scene_t), intent(in) :: sc

@@ -28,6 +28,7 @@ module pymr_integrator_response
   use pymr_integrator_nordsieck, only : nq, corrector_l, nordsieck_predict, nordsieck_rescale, nordsieck_value
   use pymr_integrator_abm, only : abm_integrator, check_finite
   use pymr_integrator_control, only : step_control, error_weights, wrms_norm
+  use pymr_integrator_stability, only : pece_limit
   use pymr_io_text, only : fmt
   implicit none
   private
@@ -39,6 +40,13 @@ module pymr_integrator_response
   !> extrapolation's error s(s+1)(s+2)(s+3)/24 over it, displaces the state by
   !> pos_weight H^2 d and the rates by vel_weight H d (integrals of that polynomial).
   real(dp), parameter :: vel_weight = 0.3486_dp, pos_weight = 0.09375_dp
+  !> Adaptive runs: macro steps in a row that may break down (a failed factorisation, a
+  !> non-finite value) and be retried smaller before the run stops.
+  integer, parameter :: max_breakdowns = 10
+  !> Adaptive fast steps stay below this fraction of the PECE stability limit of the
+  !> highest modal frequency: beyond it the error estimate only sees the instability once
+  !> a macro step has grown it, and the step ratio rule would keep trying.
+  real(dp), parameter :: stability_margin = 0.9_dp
 
   type, extends(stepper_t) :: response_integrator
     !> Coordinates (n = ns + nf), step ratio k and its adaptive bound; fast steps of the next
@@ -59,9 +67,10 @@ module pymr_integrator_response
     !> The full evaluation of the macro step being tried, kept until it is accepted.
     real(dp) :: tp = 0.0_dp
     real(dp), allocatable :: qp(:), yp(:), gp(:, :)
-    !> Adaptive control of both steps.
+    !> Adaptive control of both steps; the largest fast step it takes (s).
     logical :: adaptive = .false.
     type(step_control) :: ctl
+    real(dp) :: h_stable = huge(1.0_dp)
     !> Counters: macro steps, fast steps, rejected macro steps, surrogate evaluations.
     integer :: steps_slow = 0, steps_fast = 0, rejected = 0, evals_surrogate = 0
     !> Work arrays.
@@ -122,6 +131,8 @@ contains
       call check_finite(sys, t0, self%f, 'derivative', error); if (allocated(error)) return
       call record_evaluation(self, sys, t0, x0, self%f, error); if (allocated(error)) return
       call commit_evaluation(self)
+      if (self%adaptive .and. any(self%kf > 0.0_dp)) &
+        & self%h_stable = stability_margin*pece_limit(cmplx(0.0_dp, sqrt(maxval(self%kf)), dp))
       call boot%init(2*self%n, self%adaptive, self%ctl, 1)
       call boot%start(sys, t0, x0, h, error); if (allocated(error)) return
       self%z = boot%z; self%t = boot%t; self%h = boot%h
@@ -135,12 +146,15 @@ contains
   end subroutine rs_start
 
   !> One accepted macro step. Adaptive: a step whose fast or surrogate error exceeds the
-  !> tolerance is retried from its start with the steps the errors ask for.
+  !> tolerance is retried from its start with the steps the errors ask for; one that broke
+  !> down (a step beyond the fast stability limit grows until a factorisation fails) is
+  !> retried with both steps at the smallest ratio, up to max_breakdowns times in a row.
   subroutine rs_advance(self, sys, error)
     class(response_integrator), intent(inout) :: self
     class(ode_system), intent(inout) :: sys
     type(error_type), allocatable, intent(out) :: error
     real(dp) :: err_f, err_s, t0, h0
+    integer :: breakdowns
     select type (sys)
     class is (partitioned_system)
       t0 = self%t; h0 = self%h
@@ -148,9 +162,18 @@ contains
         self%z0 = self%z
         call error_weights(self%ctl, self%z(:, 0), self%w)
       end if
+      breakdowns = 0
       do
-        call try_macro_step(self, sys, err_f, err_s, error); if (allocated(error)) return
+        call try_macro_step(self, sys, err_f, err_s, error)
+        if (allocated(error)) then
+          if (.not. self%adaptive .or. breakdowns == max_breakdowns) return
+          breakdowns = breakdowns + 1
+          deallocate(error)
+          err_f = huge(1.0_dp); err_s = huge(1.0_dp)
+        end if
         if (.not. self%adaptive) exit
+        if (.not. err_f <= huge(1.0_dp)) err_f = huge(1.0_dp)     ! NaN: rejected, steps shrunk most
+        if (.not. err_s <= huge(1.0_dp)) err_s = huge(1.0_dp)
         if (err_f <= 1.0_dp .and. err_s <= 1.0_dp) exit
         self%rejected = self%rejected + 1
         ! back to the start of the macro step (the array scaled with the step just tried)
@@ -290,7 +313,7 @@ contains
     real(dp) :: h_new, hm_new
     h_new = self%h*self%ctl%ratio(err_f, accepted .or. err_f <= 1.0_dp)
     if (.not. accepted .and. err_f <= 1.0_dp) h_new = min(h_new, self%h)
-    h_new = min(h_new, self%ctl%h_max)
+    h_new = min(h_new, self%ctl%h_max, self%h_stable)
     hm_new = self%kn*self%h*self%ctl%ratio(err_s, accepted .or. err_s <= 1.0_dp)
     if (.not. accepted .and. err_s <= 1.0_dp) hm_new = min(hm_new, self%kn*self%h)
     if (h_new < self%ctl%h_min) then
