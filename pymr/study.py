@@ -2,42 +2,69 @@
 
 Each method runs the scene at a range of steps or tolerances. Its error is the largest
 distance over the run between a marker's position and the reference's, at common output
-times; its cost is the run's CPU time and its full-evaluation equivalents (fast-only
-evaluations of the multirate method weighted by their measured cost against a full one).
+times (fixed-step runs write the rows between their steps from dense output, so every run
+shares one grid). Its cost is the MEDIAN CPU time of ``repeats`` runs (the kernel's
+integration CPU, without the pre-flight stability check) and its full-evaluation
+equivalents ``rhs_full + w * rhs_fast``.
+
+The weight ``w`` of a fast-only evaluation is measured per coupling from whole runs, so it
+holds the integrator's own work per step, not only the right-hand side: ``c_full`` is the
+CPU per step of a fixed single-rate run at the scene's h_slow, ``c_fast`` the CPU of a
+fixed multirate run at k = 10 less its full evaluations at ``c_full``, per fast-only
+evaluation; ``w = c_fast / c_full``.
+
+Methods: pymr single-rate (fixed steps, adaptive), multirate with the 'response' coupling
+(fixed at several ratios and fast steps, adaptive) and with the paper's 'full' coupling
+(fixed, adaptive); peers on the same right-hand side: scipy's DOP853 and LSODA, SUNDIALS
+CVODE Adams and BDF through scikit-SUNDAE when it is installed. The peers' CPU time
+includes the Python call of every evaluation; their evaluation counts do not depend on it.
 
 The reference is pymr's adaptive single-rate run at rtol 1e-11, cross-checked against
 scipy's DOP853 at rtol 1e-12 driving pymr's own right-hand side through the binding.
-Peers on the same right-hand side: scipy's DOP853 and LSODA, and SUNDIALS CVODE (Adams)
-through scikit-SUNDAE when it is installed. Their CPU time includes the Python call of
-every evaluation; the evaluation counts do not depend on it.
 """
 from __future__ import annotations
 
 import csv
 import math
 import os
+import re
+import statistics
 import tempfile
+import textwrap
 import time
 from dataclasses import dataclass, asdict
 from pathlib import Path
 
 import numpy as np
 
-from .api import Model, PymrError, run, time_fast_evaluation
+from .api import Model, PymrError, run
 from .scene import Scene
 
-#: Step factors (times the scene's h_slow) of single-rate fixed steps, and fast steps of multirate.
-SINGLE_FACTORS = (8.0, 4.0, 2.0, 1.0, 0.5)
-FAST_FACTORS = (2.0, 1.0, 0.5, 0.25)
-RATIOS = (2, 5, 10, 20)
+#: Fixed steps of single-rate (times the scene's h_slow).
+SINGLE_FACTORS = (8.0, 4.0, 2.0, 1.0, 0.5, 0.25)
+#: Multirate couplings, and per coupling the fast steps (times h_slow) and step ratios of
+#: its fixed-step cases. 'response' is stable at any ratio (only h_fast is bound), so its
+#: grid reaches large ratios; the 'full' coupling's macro step is stability bound.
+COUPLINGS = ("response", "full")
+FAST_FACTORS = {"response": (4.0, 2.0, 1.0, 0.5, 0.25), "full": (2.0, 1.0, 0.5, 0.25)}
+RATIOS = {"response": (5, 10, 20, 40), "full": (2, 5, 10, 20, 40)}
 ADAPTIVE_RTOLS = tuple(10.0**-e for e in range(3, 11))
-MULTIRATE_RTOLS = tuple(10.0**-e for e in range(3, 9))
+MULTIRATE_RTOLS = tuple(10.0**-e for e in range(3, 11))
 PEER_RTOLS = tuple(10.0**-e for e in range(3, 11))
+PEERS = ("DOP853", "LSODA", "CVODE Adams", "CVODE BDF")
+#: Step ratio of the multirate runs that measure the cost of a fast-only evaluation (the
+#: smaller ones are tried when the pre-flight check refuses it).
+WEIGHT_RATIOS = (10, 5, 2)
+#: Error levels (m) of the front summary.
+FRONT_ERRORS = (1e-4, 1e-5, 1e-6)
+#: Single-rate and 'response' multirate families: the two sides of the front summary's ratio.
+SINGLE_FAMILIES = ("single fixed", "single adaptive")
+MULTIRATE_FAMILIES = ("response fixed", "response adaptive")
 
 
 @dataclass
 class Case:
-    """One run of the study."""
+    """One case of the study (its CPU time is the median over the study's repeats)."""
     method: str
     setting: str
     error_m: float = math.nan
@@ -46,16 +73,33 @@ class Case:
     rhs_fast: int = 0
     equivalents: float = math.nan
     status: str = "ok"
+    runs: int = 0          # runs the CPU time is the median of
+
+    @property
+    def family(self) -> str:
+        """The method without its step ratio: 'response fixed k=10' -> 'response fixed'."""
+        return self.method.split(" k=")[0]
+
+
+def _short_reason(status: str) -> str:
+    """The gist of a refusal or failure, for the figure's note."""
+    m = re.search(r"largest stable (ratio is k = \d+|step is \S+ s)", status)
+    if m:
+        return m.group(0)
+    return status.split(":", 1)[-1].strip()[:100]
 
 
 class Study:
     """The runs of a work-precision study of one scene and marker."""
 
     def __init__(self, scene: str | os.PathLike | Scene, marker: str | None = None, quick: bool = False,
-                 progress=print):
+                 progress=print, repeats: int = 5):
         # a path or a pymr.Scene (its overrides apply to every run of the study)
         self.scene = scene if isinstance(scene, Scene) else Scene(scene)
         self.quick = quick
+        if int(repeats) < 1:
+            raise ValueError(f"repeats: at least 1 run per case, got {repeats}")
+        self.repeats = int(repeats)
         self.say = progress or (lambda *a, **k: None)
         probe = run(self.scene, overrides={"output.dt": 0.0, "scene.t_end": 1e-6})
         q, qd = probe.coordinates()
@@ -71,11 +115,17 @@ class Study:
         self.marker = marker
         self.h0 = float(probe.stats["integrator"]["h_slow"])
         self.t_end = self._t_end()
-        # common output times: every 40 h0 is a multiple of every fixed step and macro step
-        self.dt = 40 * self.h0
+        # common output times for every run (dense output between steps): every 40 h0, at
+        # most about 2000 of them
+        self.dt = max(40 * self.h0, self.t_end / 2000)
         self.grid = np.arange(0.0, self.t_end + 0.5 * self.dt, self.dt)
         self.grid = self.grid[self.grid <= self.t_end + 1e-12]
         self.cases: list[Case] = []
+        self.weight: dict[str, float] = {}
+        self.c_fast: dict[str, float] = {}
+        self.weight_ratio: dict[str, int] = {}
+        self.c_full = math.nan
+        self.ref_check = math.nan
 
     def _t_end(self) -> float:
         return float(self.scene["scene.t_end"])
@@ -83,13 +133,13 @@ class Study:
     # ------------------------------------------------------------------ reference
 
     def reference(self) -> None:
-        self.say(f"reference: pymr adaptive rtol 1e-11 (cross-check: DOP853 rtol 1e-12) ...")
-        res = self._pymr({"integrator.adaptive": True, "integrator.rtol": 1e-11, "integrator.atol": 1e-13})
+        self.say("reference: pymr adaptive rtol 1e-11 (cross-check: DOP853 rtol 1e-12) ...")
+        res = self._pymr({"integrator.method": "single", "integrator.adaptive": True, "integrator.rtol": 1e-11,
+                          "integrator.atol": 1e-13})
         self.ref = res.marker(self.marker)[0]
         from scipy.integrate import solve_ivp
         with Model(self.scene) as model:
-            x0 = self.x0
-            sol = solve_ivp(model.rhs, (0.0, self.t_end), x0, method="DOP853", t_eval=self.grid, rtol=1e-12,
+            sol = solve_ivp(model.rhs, (0.0, self.t_end), self.x0, method="DOP853", t_eval=self.grid, rtol=1e-12,
                             atol=1e-14)
             if not sol.success:
                 raise PymrError(f"reference DOP853 failed: {sol.message}")
@@ -108,115 +158,212 @@ class Study:
     def _error(self, t: np.ndarray, pos: np.ndarray) -> float:
         idx = np.searchsorted(self.grid, t - 1e-9)
         keep = (idx < len(self.grid)) & (np.abs(self.grid[np.minimum(idx, len(self.grid) - 1)] - t) < 1e-9)
+        if keep.sum() != len(self.grid):
+            raise PymrError(f"the run wrote rows at {int(keep.sum())} of the study's {len(self.grid)} common "
+                            "output times")
         return float(np.linalg.norm(pos[keep] - self.ref[idx[keep]], axis=1).max())
 
-    def _pymr_case(self, method: str, setting: str, over: dict, weight: float = 0.0) -> Case:
+    @staticmethod
+    def _refusal(exc: PymrError) -> str:
+        status = "refused" if "not stable" in str(exc) else "failed"
+        return status + ": " + str(exc).split(": ", 1)[-1]
+
+    def _pymr_case(self, method: str, setting: str, over: dict, repeats: int | None = None) -> Case:
+        """Run one pymr case `repeats` times (default: the study's) in a row: the error and
+        evaluation counts of the first run (they do not change between runs), the median
+        CPU time of all of them."""
         case = Case(method, setting)
         try:
             res = self._pymr(over)
         except PymrError as exc:
-            case.status = "refused" if "not stable" in str(exc) else "failed"
-            case.status += ": " + str(exc).split(": ", 1)[-1]
+            case.status = self._refusal(exc)
             return case
         case.error_m = self._error(res.t, res.marker(self.marker)[0])
-        case.cpu_s = float(res.stats["cpu_time_s"])
         case.rhs_full, case.rhs_fast = int(res.stats["rhs_full"]), int(res.stats["rhs_fast"])
-        case.equivalents = case.rhs_full + weight * case.rhs_fast
+        coupling = res.stats["integrator"].get("coupling", "response")
+        if case.rhs_fast == 0:
+            case.equivalents = float(case.rhs_full)
+        else:
+            case.equivalents = case.rhs_full + self.weight.get(coupling, math.nan) * case.rhs_fast
+        cpu = [float(res.stats["cpu_time_s"])]
+        cpu += [self._pymr_cpu(over) for _ in range((repeats or self.repeats) - 1)]
+        self._set_cpu(case, cpu)
         return case
 
-    def weights(self) -> None:
-        """Cost of a fast evaluation against a full one, per coupling (at the initial state)."""
-        x0 = self.x0
-        q, qd = x0[:self.n], x0[self.n:]
-        self.weight = {}
-        for coupling in ("full", "split"):
-            fast, full = time_fast_evaluation(self.scene, q, qd, coupling == "split")
-            self.weight[coupling] = fast / full
-        self.say(f"fast evaluation / full evaluation: 'full' {self.weight['full']:.3f}, "
-                 f"'split' {self.weight['split']:.3f}")
+    def _pymr_cpu(self, over: dict) -> float:
+        return float(self._pymr(over).stats["cpu_time_s"])
 
-    def run_all(self) -> list[Case]:
-        self.reference()
-        self.weights()
+    @staticmethod
+    def _set_cpu(case: Case, cpu: list[float]) -> None:
+        case.cpu_s = float(statistics.median(cpu))
+        case.runs = len(cpu)
+
+    def _multirate(self, coupling: str, k: int, h_fast: float) -> dict:
+        return {"integrator.method": "multirate", "integrator.coupling": coupling, "integrator.adaptive": False,
+                "integrator.h_fast": h_fast, "integrator.h_slow": k * h_fast}
+
+    def weights(self) -> None:
+        """Measured cost of a fast-only evaluation against a full one, per coupling, with the
+        integrator's own work: c_full = CPU per step of fixed single-rate at h_slow;
+        c_fast = (CPU of fixed multirate at k = 10 - rhs_full c_full) / rhs_fast; medians
+        over the repeats (the three runs interleaved, so that a slow spell of the machine
+        falls on all of them); weight = c_fast / c_full, at least 0."""
         h0 = self.h0
-        single = SINGLE_FACTORS[1:4] if self.quick else SINGLE_FACTORS
-        for f in single:
+        single = {"integrator.method": "single", "integrator.adaptive": False, "integrator.h_slow": h0,
+                  "integrator.h_fast": h0}
+        self._pymr(single)                                   # warm up (caches, first touch)
+        multi = {}
+        for coupling in COUPLINGS:                          # the largest ratio the pre-flight check passes
+            for k in WEIGHT_RATIOS:
+                try:
+                    self._pymr(self._multirate(coupling, k, h0))
+                except PymrError as exc:
+                    if "not stable" not in str(exc):
+                        raise
+                    continue
+                multi[coupling] = k
+                break
+        samples = {c: [] for c in multi}
+        per_step = []
+        for _ in range(self.repeats):
+            s = self._pymr(single).stats
+            per_step.append(float(s["cpu_time_s"]) / int(s["steps_fast"]))
+            for coupling, k in multi.items():
+                samples[coupling].append(self._pymr(self._multirate(coupling, k, h0)).stats)
+        self.c_full = float(statistics.median(per_step))
+        self.weight, self.c_fast, self.weight_ratio = {}, {}, dict(multi)
+        for coupling in COUPLINGS:
+            if coupling not in multi:
+                self.c_fast[coupling] = self.weight[coupling] = math.nan
+                continue
+            self.c_fast[coupling] = float(statistics.median(
+                (float(s["cpu_time_s"]) - int(s["rhs_full"]) * self.c_full) / max(int(s["rhs_fast"]), 1)
+                for s in samples[coupling]))
+            self.weight[coupling] = max(0.0, self.c_fast[coupling] / self.c_full)
+        self.say(self.weights_text())
+
+    def weights_text(self) -> str:
+        parts = [f"'{c}' {self.weight.get(c, math.nan):.3f} (c_fast {self.c_fast.get(c, math.nan) * 1e6:.3f} us "
+                 f"at k = {self.weight_ratio.get(c, '-')})" for c in COUPLINGS]
+        return (f"measured weight w = c_fast / c_full of a fast-only evaluation (c_full {self.c_full * 1e6:.3f} us "
+                f"per single-rate step): " + ", ".join(parts))
+
+    def specs(self) -> list[tuple]:
+        """The study's cases: ("pymr", method, setting, overrides) or ("peer", name, rtol)."""
+        h0 = self.h0
+        quick = self.quick
+        out: list[tuple] = []
+        for f in (SINGLE_FACTORS[1:4] if quick else SINGLE_FACTORS):
             h = f * h0
-            self._add(self._pymr_case("single fixed", f"h={h:.3g}", {"integrator.h_slow": h, "integrator.h_fast": h}))
-        ratios = (2, 10) if self.quick else RATIOS
-        fasts = FAST_FACTORS[1:3] if self.quick else FAST_FACTORS
-        for coupling in ("full", "split"):
+            out.append(("pymr", "single fixed", f"h={h:.3g}", {
+                "integrator.method": "single", "integrator.adaptive": False, "integrator.h_slow": h,
+                "integrator.h_fast": h}))
+        for rtol in (ADAPTIVE_RTOLS[::3] if quick else ADAPTIVE_RTOLS):
+            out.append(("pymr", "single adaptive", f"rtol={rtol:.0e}", {
+                "integrator.method": "single", "integrator.adaptive": True, "integrator.rtol": rtol,
+                "integrator.atol": rtol * 1e-2}))
+        for coupling in COUPLINGS:
+            ratios = RATIOS[coupling][1::2] if quick else RATIOS[coupling]
+            fasts = FAST_FACTORS[coupling][2:4] if quick else FAST_FACTORS[coupling]
             for k in ratios:
                 for f in fasts:
                     hf = f * h0
-                    self._add(self._pymr_case(f"multirate k={k} {coupling}", f"h_fast={hf:.3g}", {
-                        "integrator.method": "multirate", "integrator.coupling": coupling,
-                        "integrator.h_fast": hf, "integrator.h_slow": k * hf}, self.weight[coupling]))
-        rtols = ADAPTIVE_RTOLS[::3] if self.quick else ADAPTIVE_RTOLS
-        for rtol in rtols:
-            self._add(self._pymr_case("adaptive single", f"rtol={rtol:.0e}", {
-                "integrator.adaptive": True, "integrator.rtol": rtol, "integrator.atol": rtol * 1e-2}))
-        mrtols = MULTIRATE_RTOLS[::3] if self.quick else MULTIRATE_RTOLS
-        for coupling in ("full", "split"):
-            for rtol in mrtols:
-                self._add(self._pymr_case(f"adaptive multirate {coupling}", f"rtol={rtol:.0e}", {
+                    out.append(("pymr", f"{coupling} fixed k={k}", f"h_fast={hf:.3g}",
+                                self._multirate(coupling, k, hf)))
+            for rtol in (MULTIRATE_RTOLS[::3] if quick else MULTIRATE_RTOLS):
+                out.append(("pymr", f"{coupling} adaptive", f"rtol={rtol:.0e}", {
                     "integrator.method": "multirate", "integrator.coupling": coupling, "integrator.adaptive": True,
                     "integrator.rtol": rtol, "integrator.atol": rtol * 1e-2, "integrator.h_fast": h0,
-                    "integrator.h_slow": h0}, self.weight[coupling]))
-        prtols = PEER_RTOLS[::3] if self.quick else PEER_RTOLS
-        for name in ("DOP853", "LSODA", "CVODE Adams"):
-            for rtol in prtols:
-                self._add(self._peer(name, rtol))
+                    "integrator.h_slow": h0}))
+        for name in PEERS:
+            for rtol in (PEER_RTOLS[::3] if quick else PEER_RTOLS):
+                out.append(("peer", name, rtol))
+        return out
+
+    def run_all(self) -> list[Case]:
+        """Every case: a first pass for the errors, evaluation counts and a first CPU time,
+        then repeats - 1 timing passes over all cases (interleaved, so that a slow spell of
+        the machine spreads over many cases instead of spoiling the median of one)."""
+        self.reference()
+        self.weights()
+        specs = self.specs()
+        self.say(f"pass 1 of {self.repeats}: errors and evaluations of {len(specs)} cases")
+        first = []
+        for spec in specs:
+            case = self._pymr_case(*spec[1:], repeats=1) if spec[0] == "pymr" else self._peer(*spec[1:], repeats=1)
+            self._add(case)
+            first.append(case)
+        samples = [[c.cpu_s] for c in first]
+        for p in range(2, self.repeats + 1):
+            self.say(f"pass {p} of {self.repeats}: CPU times")
+            for spec, case, cpu in zip(specs, first, samples):
+                if case.status != "ok":
+                    continue
+                if spec[0] == "pymr":
+                    cpu.append(self._pymr_cpu(spec[3]))
+                else:
+                    with Model(self.scene) as model:
+                        cpu.append(self._peer_run(model, *spec[1:])[2])
+        for case, cpu in zip(first, samples):
+            if case.status == "ok":
+                self._set_cpu(case, cpu)
         return self.cases
 
     def _add(self, case: Case) -> None:
         self.cases.append(case)
         if case.status == "ok":
-            self.say(f"  {case.method:<26} {case.setting:<16} error {case.error_m:9.2e} m  CPU {case.cpu_s:8.4f} s  "
+            self.say(f"  {case.method:<22} {case.setting:<16} error {case.error_m:9.2e} m  CPU {case.cpu_s:8.4f} s  "
                      f"full-eval equivalents {case.equivalents:10.0f}")
         else:
-            self.say(f"  {case.method:<26} {case.setting:<16} {case.status[:110]}")
+            self.say(f"  {case.method:<22} {case.setting:<16} {case.status[:110]}")
 
-    def _peer(self, name: str, rtol: float) -> Case:
-        case = Case(name, f"rtol={rtol:.0e}")
+    def _peer_run(self, model: Model, name: str, rtol: float):
+        """One peer run on `model`'s right-hand side: (t, y, CPU seconds, evaluations, status)."""
+        e0 = model.evaluations
         x0 = self.x0
+        try:
+            if name.startswith("CVODE"):
+                from sksundae.cvode import CVODE
+
+                def f(t, y, yp):
+                    yp[:] = model.rhs(t, y)
+                solver = CVODE(f, method=name.split()[1], rtol=rtol, atol=rtol * 1e-2, max_num_steps=10**7)
+                c0 = time.process_time()
+                sol = solver.solve(self.grid, x0)
+                cpu = time.process_time() - c0
+                t, y = sol.t, sol.y
+            else:
+                from scipy.integrate import solve_ivp
+                c0 = time.process_time()
+                sol = solve_ivp(model.rhs, (0.0, self.t_end), x0, method=name, t_eval=self.grid, rtol=rtol,
+                                atol=rtol * 1e-2)
+                cpu = time.process_time() - c0
+                t, y = sol.t, sol.y.T
+        except PymrError as exc:
+            return None, None, math.nan, model.evaluations - e0, f"failed: {exc}"[:140]
+        status = "ok" if sol.success else f"failed: {sol.message}"
+        return np.asarray(t), y, cpu, model.evaluations - e0, status
+
+    def _peer(self, name: str, rtol: float, repeats: int | None = None) -> Case:
+        """A scipy or CVODE run on pymr's right-hand side, `repeats` times in a row (median CPU)."""
+        case = Case(name, f"rtol={rtol:.0e}")
+        if name.startswith("CVODE"):
+            try:
+                import sksundae.cvode  # noqa: F401
+            except ImportError:
+                case.status = "skipped: scikit-sundae is not installed (pip install scikit-sundae)"
+                return case
         n = self.n
         with Model(self.scene) as model:
-            try:
-                if name == "CVODE Adams":
-                    try:
-                        from sksundae.cvode import CVODE
-                    except ImportError:
-                        case.status = "skipped: scikit-sundae is not installed (pip install scikit-sundae)"
-                        return case
-
-                    def f(t, y, yp):
-                        yp[:] = model.rhs(t, y)
-                    solver = CVODE(f, method="Adams", rtol=rtol, atol=rtol * 1e-2, max_num_steps=10**7)
-                    c0 = time.process_time()
-                    sol = solver.solve(self.grid, x0)
-                    case.cpu_s = time.process_time() - c0
-                    if not sol.success:
-                        case.status = f"failed: {sol.message}"
-                        return case
-                    t, y = sol.t, sol.y
-                else:
-                    from scipy.integrate import solve_ivp
-                    c0 = time.process_time()
-                    sol = solve_ivp(model.rhs, (0.0, self.t_end), x0, method=name, t_eval=self.grid, rtol=rtol,
-                                    atol=rtol * 1e-2)
-                    case.cpu_s = time.process_time() - c0
-                    if not sol.success:
-                        case.status = f"failed: {sol.message}"
-                        return case
-                    t, y = sol.t, sol.y.T
-            except PymrError as exc:
-                case.status = f"failed: {exc}"[:140]
+            t, y, cpu, evals, status = self._peer_run(model, name, rtol)
+            if status != "ok":
+                case.status = status
                 return case
-            pos = model.marker(self.marker, t, y[:, :n], y[:, n:])
-            case.rhs_full = model.evaluations
-        case.error_m = self._error(np.asarray(t), pos)
+            case.rhs_full = evals
+            case.error_m = self._error(t, model.marker(self.marker, t, y[:, :n], y[:, n:]))
+            cpus = [cpu] + [self._peer_run(model, name, rtol)[2] for _ in range((repeats or self.repeats) - 1)]
         case.equivalents = float(case.rhs_full)
+        self._set_cpu(case, cpus)
         return case
 
     # ---------------------------------------------------------------- reporting
@@ -229,59 +376,150 @@ class Study:
                 w.writerow(asdict(c))
 
     def best_at(self, error: float) -> dict[str, Case]:
-        """Per method family, the cheapest case (by CPU) with error <= `error`."""
+        """Per method family (the method without its step ratio), the fastest case (by median
+        CPU) with error <= `error`."""
         best: dict[str, Case] = {}
         for c in self.cases:
             if c.status != "ok" or not c.error_m <= error:
                 continue
-            if c.method not in best or c.cpu_s < best[c.method].cpu_s:
-                best[c.method] = c
+            fam = c.family
+            if fam not in best or c.cpu_s < best[fam].cpu_s:
+                best[fam] = c
         return best
 
-    def plot(self, path: Path) -> None:
+    def front_summary(self, errors=FRONT_ERRORS) -> list[dict]:
+        """Per error level: the fastest case of each family with error <= level ("best"),
+        the fastest single-rate case (fixed or adaptive, "single"), the fastest 'response'
+        multirate case (fixed or adaptive, "multirate"), and "ratio" = multirate CPU /
+        single-rate CPU (nan when either has no case that accurate)."""
+        out = []
+        for level in errors:
+            best = self.best_at(level)
+            single = [best[f] for f in SINGLE_FAMILIES if f in best]
+            multi = [best[f] for f in MULTIRATE_FAMILIES if f in best]
+            s = min(single, key=lambda c: c.cpu_s) if single else None
+            m = min(multi, key=lambda c: c.cpu_s) if multi else None
+            ratio = m.cpu_s / s.cpu_s if s and m else math.nan
+            out.append({"error": level, "best": best, "single": s, "multirate": m, "ratio": ratio})
+        return out
+
+    def front_text(self, errors=FRONT_ERRORS) -> str:
+        lines = ["front: fastest case of each family (median CPU) with error <= level"]
+        order = list(dict.fromkeys(c.family for c in self.cases))
+        for row in self.front_summary(errors):
+            lines.append(f"  error <= {row['error']:.0e} m")
+            for fam in order:
+                c = row["best"].get(fam)
+                if c is None:
+                    lines.append(f"    {fam:<18} {'(none this accurate)':<30}")
+                else:
+                    lines.append(f"    {fam:<18} {' '.join(x for x in (c.method[len(fam):].strip(), c.setting) if x):<30} "
+                                 f"error {c.error_m:8.2e} m  CPU {c.cpu_s:8.4f} s  equivalents {c.equivalents:9.0f}")
+            s, m = row["single"], row["multirate"]
+            if s and m:
+                lines.append(f"    fastest 'response' multirate / fastest single-rate: {m.cpu_s:.4f} s "
+                             f"({m.method} {m.setting}) / {s.cpu_s:.4f} s ({s.method} {s.setting}) "
+                             f"= {row['ratio']:.2f}")
+            else:
+                lines.append("    fastest 'response' multirate / fastest single-rate: n/a (a side has no case "
+                             "this accurate)")
+        return "\n".join(lines)
+
+    def refused(self) -> list[Case]:
+        """The fixed-step multirate cases the pre-flight stability check refused."""
+        return [c for c in self.cases if " fixed k=" in c.method and c.status.startswith("refused")]
+
+    def refused_text(self) -> str:
+        ref = self.refused()
+        if not ref:
+            return "fixed multirate cases refused by the pre-flight check: none"
+        return "fixed multirate cases refused by the pre-flight check:\n" + "\n".join(
+            f"  {c.method:<22} {c.setting:<16} {_short_reason(c.status)}" for c in ref)
+
+    def not_plotted(self) -> list[str]:
+        """One line per case that is not a point of the figure (refused, failed, skipped)."""
+        return [f"{c.method} {c.setting}: {c.status.split(':', 1)[0]} ({_short_reason(c.status)})"
+                for c in self.cases if c.status != "ok"]
+
+    def plot(self, path: Path) -> str:
+        """The figure: error against median CPU time and against full-evaluation
+        equivalents. A case that is not a point (refused, failed, skipped) is counted in its
+        method's legend entry and named in a note under the axes, which this returns."""
         import matplotlib
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
-        fig, axes = plt.subplots(1, 2, figsize=(13, 5.5), sharey=True)
+        notes = self.not_plotted()
+        note = "not plotted: " + "; ".join(notes) if notes else ""
+        wrapped = textwrap.fill(note, 190) if note else ""
+        extra = 0.16 * (wrapped.count("\n") + 1) if note else 0.0
+        fig, axes = plt.subplots(1, 2, figsize=(16, 6.2 + extra), sharey=True)
         methods = list(dict.fromkeys(c.method for c in self.cases))
+        colours = {"single": plt.cm.Greys, "response": plt.cm.Blues, "full": plt.cm.Oranges}
+        counts = {fam: 0 for fam in colours}
+        shades = {fam: sum(1 for m in methods if m.split()[0] == fam) for fam in colours}
+        peer_colours = iter(["tab:green", "tab:purple", "tab:olive", "tab:brown", "tab:pink"])
         for method in methods:
-            ok = [c for c in self.cases if c.method == method and c.status == "ok"]
-            if not ok:
-                continue
-            style = "-o" if "adaptive" in method else ("--s" if method in ("DOP853", "LSODA", "CVODE Adams") else ":^")
+            cases = [c for c in self.cases if c.method == method]
+            ok = [c for c in cases if c.status == "ok"]
+            head = method.split()[0]
+            if head in colours:
+                counts[head] += 1
+                colour = colours[head](0.45 + 0.5 * counts[head] / max(shades[head], 1))
+                style = "-o" if "adaptive" in method else ":^"
+            else:
+                colour = next(peer_colours, None)
+                style = "--s"
+            kinds = [c.status.split(":", 1)[0] for c in cases if c.status != "ok"]
+            label = method
+            if kinds:      # a case that is not a point is named in the legend and in the note below
+                label += " (" + ", ".join(f"{kinds.count(k)} {k}" for k in dict.fromkeys(kinds)) + ")"
             for ax, key in zip(axes, ("cpu_s", "equivalents")):
-                ax.loglog([getattr(c, key) for c in ok], [c.error_m for c in ok], style, label=method, ms=4)
-        axes[0].set_xlabel("CPU time (s)")
-        axes[1].set_xlabel("full-evaluation equivalents")
+                pts = sorted(((getattr(c, key), c.error_m) for c in ok if np.isfinite(getattr(c, key))))
+                ax.loglog([p[0] for p in pts], [p[1] for p in pts], style, label=label, ms=4, color=colour)
+        for level in FRONT_ERRORS:
+            for ax in axes:
+                ax.axhline(level, color="0.6", lw=0.6, ls="-.")
+        axes[0].set_xlabel(f"CPU time (s), median of {self.repeats} runs" if self.repeats > 1 else "CPU time (s)")
+        w = ", ".join(f"{c} {self.weight[c]:.3f}" for c in COUPLINGS if c in self.weight)
+        axes[1].set_xlabel(f"full-evaluation equivalents (rhs_full + w rhs_fast; measured w: {w})")
         axes[0].set_ylabel(f"largest error of marker '{self.marker}' (m)")
         for ax in axes:
             ax.grid(True, which="both", alpha=0.3)
-        axes[1].legend(fontsize=7, ncol=2)
+        axes[1].legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
         fig.suptitle(f"work-precision: {self.scene.path.name} (reference: pymr rtol 1e-11; DOP853 agrees to "
                      f"{self.ref_check:.1e} m)")
-        fig.tight_layout()
+        if note:
+            fig.text(0.01, 0.01, wrapped, fontsize=7, va="bottom", ha="left", color="firebrick")
+        fig.tight_layout(rect=(0, extra / (6.2 + extra) + (0.02 if note else 0.0), 1, 1))
         fig.savefig(path, dpi=110)
         plt.close(fig)
+        return note
 
     def table(self) -> str:
-        lines = [f"{'method':<26} {'setting':<16} {'error (m)':>10} {'CPU (s)':>9} {'full evals':>10} "
+        lines = [f"{'method':<22} {'setting':<16} {'error (m)':>10} {'CPU (s)':>9} {'full evals':>10} "
                  f"{'fast evals':>10} {'equivalents':>11}  status"]
         for c in self.cases:
             if c.status == "ok":
-                lines.append(f"{c.method:<26} {c.setting:<16} {c.error_m:10.2e} {c.cpu_s:9.4f} {c.rhs_full:10d} "
+                lines.append(f"{c.method:<22} {c.setting:<16} {c.error_m:10.2e} {c.cpu_s:9.4f} {c.rhs_full:10d} "
                              f"{c.rhs_fast:10d} {c.equivalents:11.0f}  ok")
             else:
-                lines.append(f"{c.method:<26} {c.setting:<16} {'':>10} {'':>9} {'':>10} {'':>10} {'':>11}  "
-                             f"{c.status[:110]}")
+                lines.append(f"{c.method:<22} {c.setting:<16} {'':>10} {'':>9} {'':>10} {'':>10} {'':>11}  "
+                             f"{c.status.split(':', 1)[0]}: {_short_reason(c.status)}")
         return "\n".join(lines)
 
 
-def main(scene: str, marker: str | None = None, output: str | None = None, quick: bool = False) -> int:
-    study = Study(scene, marker, quick=quick)
+def main(scene: str, marker: str | None = None, output: str | None = None, quick: bool = False,
+         repeats: int | None = 5) -> int:
+    study = Study(scene, marker, quick=quick, repeats=5 if repeats is None else repeats)
     study.run_all()
     prefix = Path(output) if output else Path(Path(scene).stem + "_study")
     print()
     print(study.table())
+    print()
+    print(study.weights_text())
+    print(study.refused_text())
+    print()
+    print(study.front_text())
     study.write_csv(prefix.with_suffix(".csv"))
     study.plot(prefix.with_suffix(".png"))
     print(f"written: {prefix.with_suffix('.csv')}, {prefix.with_suffix('.png')}")

@@ -1,22 +1,25 @@
 """pymr study: references that agree, tolerance proportionality of adaptive runs on the
-tank, peers on the same right-hand side, and the table, CSV and figure it writes."""
+tank, the measured cost weights of fast-only evaluations, refused cases, the peers
+(scipy, CVODE Adams and BDF) on the same right-hand side, the front summary, and the
+table, CSV and figure it writes."""
 from __future__ import annotations
 
 import csv
+import math
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 import pymr
-from pymr.study import Study
+from pymr.study import Case, Study
 
 TANK = Path(__file__).resolve().parent.parent / "input" / "tank_gun_turret.nml"
 
 
 @pytest.fixture(scope="module")
 def study() -> Study:
-    s = Study(TANK, "muzzle", quick=True, progress=None)
+    s = Study(TANK, "muzzle", quick=True, progress=None, repeats=3)
     s.reference()
     s.weights()
     return s
@@ -24,9 +27,10 @@ def study() -> Study:
 
 def test_reference_is_cross_checked_by_dop853_on_the_same_rhs(study):
     """pymr at rtol 1e-11 and scipy's DOP853 at 1e-12 (through the binding's right-hand side)
-    agree on the muzzle to 1.8e-12 m (measured)."""
+    agree on the muzzle to 1.8e-12 m (measured). The common grid is every 40 h = 4 ms."""
     assert study.ref_check < 1e-10
-    assert study.ref.shape == (len(study.grid), 3)
+    assert len(study.grid) == 251 and study.grid[-1] == pytest.approx(1.0)
+    assert study.ref.shape == (251, 3)
 
 
 def test_model_rhs_through_the_binding_equals_the_kernel_accelerations():
@@ -44,39 +48,123 @@ def test_adaptive_error_falls_tenfold_per_decade_of_rtol(study):
     1e-3, 1e-5, 1e-8 (10.0x per decade)."""
     errs = []
     for rtol in (1e-3, 1e-5, 1e-8):
-        c = study._pymr_case("adaptive single", f"{rtol}", {"integrator.adaptive": True, "integrator.rtol": rtol,
-                                                            "integrator.atol": rtol * 1e-2})
-        assert c.status == "ok"
+        c = study._pymr_case("single adaptive", f"{rtol}", {"integrator.adaptive": True, "integrator.rtol": rtol,
+                                                            "integrator.atol": rtol * 1e-2}, repeats=1)
+        assert c.status == "ok" and c.runs == 1
         errs.append(c.error_m)
     per_decade = np.diff(np.log10(errs)) / np.diff(np.log10([1e-3, 1e-5, 1e-8]))
     assert per_decade == pytest.approx([1.0, 1.0], abs=0.1)
 
 
 def test_fast_evaluations_are_weighted_by_their_measured_cost(study):
-    """A 'split' fast evaluation costs about 1 % of a full one, a 'full' one about 45 %
-    (measured 0.010 and 0.445); multirate cases count rhs_full + weight * rhs_fast."""
-    assert 0 < study.weight["split"] < 0.1 < study.weight["full"] < 1.0
-    c = study._pymr_case("multirate k=10 split", "h_fast=1e-4", {
-        "integrator.method": "multirate", "integrator.coupling": "split", "integrator.h_fast": 1e-4,
-        "integrator.h_slow": 1e-3}, study.weight["split"])
-    assert c.equivalents == pytest.approx(c.rhs_full + study.weight["split"] * c.rhs_fast)
+    """Weights measured from whole runs (integrator work included): a 'response' surrogate
+    step costs about 8 % of a full single-rate step, a 'full' coupling fast step about 48 %
+    (measured 0.073-0.088 and 0.478-0.56 over several studies; c_full 3.2-4.0 us per
+    step). Multirate cases count rhs_full + w rhs_fast, single-rate cases rhs_full; the
+    Table 1 case (k = 10, h_fast = 1e-4 s) makes 1000 macro steps of 10 fast steps, so
+    its full plus fast-only evaluations are the 10000 steps plus a few of the start."""
+    w = study.weight
+    assert 0 < w["response"] < 0.3 and 0.1 < w["full"] < 1.5
+    assert w["response"] < w["full"]                 # the surrogate is cheaper than the fast rows of 'full'
+    assert study.weight_ratio == {"response": 10, "full": 10}
+    for coupling in ("response", "full"):
+        assert w[coupling] == pytest.approx(study.c_fast[coupling] / study.c_full)
+        c = study._pymr_case(f"{coupling} fixed k=10", "h_fast=1e-4", study._multirate(coupling, 10, 1e-4),
+                             repeats=2)
+        assert c.status == "ok" and c.runs == 2
+        assert 10000 <= c.rhs_full + c.rhs_fast <= 10100 and 1000 <= c.rhs_full <= 1100
+        assert c.equivalents == pytest.approx(c.rhs_full + w[coupling] * c.rhs_fast)
+    single = study._pymr_case("single fixed", "h=1e-4", {}, repeats=1)
+    assert single.rhs_fast == 0 and single.equivalents == single.rhs_full == 10007
 
 
-def test_refused_steps_are_recorded_not_fatal(study):
-    c = study._pymr_case("multirate k=40 full", "h_fast=1e-4", {
-        "integrator.method": "multirate", "integrator.h_fast": 1e-4, "integrator.h_slow": 4e-3})
-    assert c.status.startswith("refused") and "largest stable ratio" in c.status and np.isnan(c.error_m)
+def test_refused_cases_are_recorded_not_fatal(study):
+    """The 'full' coupling at k = 40, h_fast = 1e-4 s is refused by the pre-flight check
+    (its largest stable ratio is 33); the 'response' coupling at the same steps runs, its
+    macro step of 4 ms bound only by accuracy (muzzle error measured 6.0e-6 m), with one
+    full evaluation per macro step besides the first macro steps: at most 250 + 3 * 40 +
+    a few. Its rows between steps come from dense output (k = 40, h_fast = 2e-4 s: the
+    macro step of 8 ms spans two 4 ms output times; measured 8.2e-5 m)."""
+    full = study._pymr_case("full fixed k=40", "h_fast=1e-4", study._multirate("full", 40, 1e-4), repeats=1)
+    assert full.status.startswith("refused") and "largest stable ratio is k = 33" in full.status
+    assert np.isnan(full.error_m) and np.isnan(full.cpu_s)
+    resp = study._pymr_case("response fixed k=40", "h_fast=1e-4", study._multirate("response", 40, 1e-4),
+                            repeats=1)
+    assert resp.status == "ok" and resp.error_m < 1e-5 and resp.rhs_full <= 250 + 3 * 40 + 10
+    wide = study._pymr_case("response fixed k=40", "h_fast=2e-4", study._multirate("response", 40, 2e-4),
+                            repeats=1)
+    assert wide.status == "ok" and 1e-5 < wide.error_m < 1e-3   # every one of the 251 grid times compared
+
+
+def test_cvode_bdf_reaches_the_accuracy_of_its_tolerance(study):
+    """SUNDIALS CVODE with BDF (dense Newton, difference-quotient Jacobian, whose
+    evaluations Model.evaluations counts) on the tank at rtol 1e-6: muzzle error below
+    1e-4 m (measured 6.3e-7 m with 3934 evaluations)."""
+    pytest.importorskip("sksundae")
+    c = study._peer("CVODE BDF", 1e-6, repeats=1)
+    assert c.status == "ok"
+    assert c.error_m < 1e-4 and c.rhs_full > 1000 and c.equivalents == c.rhs_full
+
+
+def _front_cases() -> list[Case]:
+    def ok(method, setting, err, cpu):
+        return Case(method, setting, error_m=err, cpu_s=cpu, rhs_full=100, equivalents=100.0, runs=5)
+    return [
+        ok("single fixed", "h=4e-4", 1.4e-5, 0.009),
+        ok("single fixed", "h=2e-4", 8.7e-7, 0.017),
+        ok("single adaptive", "rtol=1e-4", 1.2e-5, 0.010),
+        ok("single adaptive", "rtol=1e-5", 1.2e-6, 0.018),
+        ok("response fixed k=40", "h_fast=4e-4", 1.2e-4, 0.0017),     # fastest of all, never accurate enough
+        ok("response fixed k=20", "h_fast=2e-4", 6.3e-6, 0.0026),
+        ok("response fixed k=40", "h_fast=1e-4", 6.0e-6, 0.0034),
+        ok("response fixed k=20", "h_fast=1e-4", 8.6e-7, 0.0041),
+        ok("response adaptive", "rtol=1e-5", 1.7e-6, 0.0060),
+        ok("full fixed k=2", "h_fast=1e-4", 9.0e-7, 0.0010),           # fast, but not the 'response' coupling
+        Case("full fixed k=40", "h_fast=1e-4", status="refused: largest stable ratio is k = 33"),
+        Case("response fixed k=80", "h_fast=1e-4", error_m=1e-9, cpu_s=1e-4, status="failed: made up"),
+        ok("CVODE BDF", "rtol=1e-5", 4.5e-6, 0.035),
+    ]
+
+
+def test_front_summary_picks_the_fastest_accurate_case_of_each_family():
+    """Hand-made cases: at 1e-5 m the fastest single-rate case is fixed h = 2e-4 (0.017 s:
+    h = 4e-4 and rtol 1e-4 miss the level), the fastest 'response' case k = 20, h_fast =
+    2e-4 (0.0026 s; k = 40, h_fast = 4e-4 misses it): ratio 0.0026 / 0.017. The 'full'
+    coupling's faster case and the failed case with a made-up error do not count; at
+    1e-7 m no single-rate case qualifies."""
+    s = Study.__new__(Study)
+    s.cases = _front_cases()
+    rows = s.front_summary(errors=(1e-4, 1e-5, 1e-6, 1e-7))
+    assert [r["error"] for r in rows] == [1e-4, 1e-5, 1e-6, 1e-7]
+    r4, r5, r6, r7 = rows
+    assert (r4["single"].setting, r4["multirate"].setting) == ("h=4e-4", "h_fast=2e-4")
+    assert r4["ratio"] == pytest.approx(0.0026 / 0.009)
+    assert set(r5["best"]) == {"single fixed", "single adaptive", "response fixed", "response adaptive",
+                               "full fixed", "CVODE BDF"}
+    assert r5["best"]["single adaptive"].setting == "rtol=1e-5"
+    assert r5["best"]["response fixed"].method == "response fixed k=20"
+    assert (r5["single"].setting, r5["multirate"].method, r5["multirate"].setting) == \
+        ("h=2e-4", "response fixed k=20", "h_fast=2e-4")
+    assert r5["ratio"] == pytest.approx(0.0026 / 0.017)
+    assert r6["multirate"].setting == "h_fast=1e-4" and r6["ratio"] == pytest.approx(0.0041 / 0.017)
+    assert r6["best"]["full fixed"].cpu_s == 0.0010 and "CVODE BDF" not in r6["best"]
+    assert r7["single"] is None and r7["multirate"] is None and math.isnan(r7["ratio"])
+    text = s.front_text(errors=(1e-5,))
+    assert "= 0.15" in text and "(none this accurate)" not in text
+    assert [c.setting for c in s.refused()] == ["h_fast=1e-4"]
 
 
 def test_peers_table_csv_and_figure(study, tmp_path):
-    """DOP853 and CVODE (when installed) on the kernel's right-hand side reach the accuracy
-    of their tolerance; the table, CSV and PNG hold every case."""
+    """DOP853 and CVODE Adams (when installed) on the kernel's right-hand side reach the
+    accuracy of their tolerance; the table, CSV and PNG hold every case, and the refused
+    case is named in the table and in the figure's note, not silently left out."""
     study.cases = []
-    study._add(study._peer("DOP853", 1e-6))
-    study._add(study._peer("CVODE Adams", 1e-6))
-    study._add(study._pymr_case("single fixed", "h=1e-4", {}))
-    dop, cvode, fixed = study.cases
-    assert dop.status == "ok" and dop.error_m < 1e-6 and dop.rhs_full > 1000
+    study._add(study._peer("DOP853", 1e-6, repeats=2))
+    study._add(study._peer("CVODE Adams", 1e-6, repeats=2))
+    study._add(study._pymr_case("single fixed", "h=1e-4", {}, repeats=2))
+    study._add(study._pymr_case("full fixed k=40", "h_fast=0.0001", study._multirate("full", 40, 1e-4)))
+    dop, cvode, fixed, refused = study.cases
+    assert dop.status == "ok" and dop.error_m < 1e-6 and dop.rhs_full > 1000 and dop.runs == 2
     if cvode.status == "ok":
         assert cvode.error_m < 1e-6
     else:
@@ -84,8 +172,41 @@ def test_peers_table_csv_and_figure(study, tmp_path):
     assert fixed.error_m == pytest.approx(5.5e-8, rel=0.05)        # measured 5.50e-8 m
     study.write_csv(tmp_path / "s.csv")
     rows = list(csv.DictReader(open(tmp_path / "s.csv")))
-    assert [r["method"] for r in rows] == ["DOP853", "CVODE Adams", "single fixed"]
-    assert float(rows[2]["error_m"]) == fixed.error_m
-    study.plot(tmp_path / "s.png")
+    assert [r["method"] for r in rows] == ["DOP853", "CVODE Adams", "single fixed", "full fixed k=40"]
+    assert float(rows[2]["error_m"]) == fixed.error_m and rows[3]["status"].startswith("refused")
+    note = study.plot(tmp_path / "s.png")
     assert (tmp_path / "s.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    assert "single fixed" in study.table()
+    assert "full fixed k=40 h_fast=0.0001: refused (largest stable ratio is k = 33)" in note
+    table = study.table()
+    assert "single fixed" in table and "refused: largest stable ratio is k = 33" in table
+    assert "full fixed k=40" in study.refused_text()
+    with pytest.raises(ValueError, match="repeats"):
+        Study(TANK, "muzzle", repeats=0)
+
+
+def test_cpu_time_is_the_median_of_the_repeats():
+    """Median, not mean or minimum: of 0.5, 0.1, 0.3 and 9.0 s it is 0.4 s."""
+    c = Case("single fixed", "h=1e-4")
+    Study._set_cpu(c, [0.5, 0.1, 0.3, 9.0])
+    assert c.cpu_s == pytest.approx(0.4) and c.runs == 4
+
+
+def test_quick_study_end_to_end(tmp_path, capsys):
+    """`pymr study --quick` on the tank, 2 runs per case: 32 cases (single-rate 3 fixed
+    steps and 3 tolerances; per coupling 2 ratios x 2 fast steps and 3 tolerances; 4 peers
+    x 3 tolerances), none refused (the quick grid's 'full' ratios 5 and 20 at h_fast
+    5e-5 and 2.5e-5 s are within the stability limit of 33 at 1e-4 s), the weights, the
+    refusals and a front with its ratio at every level printed."""
+    from pymr import study as study_mod
+    assert study_mod.main(str(TANK), "muzzle", output=str(tmp_path / "q"), quick=True, repeats=2) == 0
+    out = capsys.readouterr().out
+    rows = list(csv.DictReader(open(tmp_path / "q.csv")))
+    assert len(rows) == 32
+    assert sum(r["method"].startswith("response fixed") for r in rows) == 4
+    assert all(r["status"] == "ok" or r["status"].startswith("skipped") for r in rows)
+    assert all(int(r["runs"]) == 2 for r in rows if r["status"] == "ok")
+    h1 = next(r for r in rows if r["method"] == "single fixed" and r["setting"] == "h=0.0001")
+    assert float(h1["error_m"]) == pytest.approx(5.5e-8, rel=0.05)
+    assert "refused by the pre-flight check: none" in out and "measured weight w" in out
+    assert out.count("fastest 'response' multirate / fastest single-rate: ") == 3 and "n/a" not in out
+    assert (tmp_path / "q.png").stat().st_size > 10000

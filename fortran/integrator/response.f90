@@ -25,7 +25,8 @@ module pymr_integrator_response
   use pymr_error, only : error_type, fatal_error, stat_solver
   use pymr_integrator_ode, only : ode_system, partitioned_system
   use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps
-  use pymr_integrator_nordsieck, only : nq, corrector_l, nordsieck_predict, nordsieck_rescale, nordsieck_value
+  use pymr_integrator_nordsieck, only : nq, corrector_l, nordsieck_predict, nordsieck_correct, nordsieck_rescale, &
+    & nordsieck_value
   use pymr_integrator_abm, only : abm_integrator, check_finite
   use pymr_integrator_control, only : step_control, error_weights, wrms_norm
   use pymr_integrator_stability, only : pece_limit
@@ -200,7 +201,7 @@ contains
     class(partitioned_system), intent(inout) :: sys
     real(dp), intent(out) :: err_f, err_s
     type(error_type), allocatable, intent(out) :: error
-    integer :: j, n, m
+    integer :: j, n
     real(dp) :: tn, hm
     n = self%n
     err_f = 0.0_dp; err_s = 0.0_dp
@@ -215,10 +216,7 @@ contains
       else
         call surrogate(self, tn, self%x, self%f)
       end if
-      self%cor = self%h*self%f - self%zp(:, 1)
-      do m = 0, nq
-        self%z(:, m) = self%zp(:, m) + corrector_l(m)*self%cor
-      end do
+      call nordsieck_correct(self%zp, self%h*self%f, self%z, self%cor)
       self%t = tn
       self%zbuf(:, :, j) = self%z
       ! the fast steps' own error (the full step's correction also holds the surrogate's
