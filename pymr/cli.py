@@ -43,7 +43,7 @@ def _cmd_modal_file(args: argparse.Namespace) -> int:
 
 def _cmd_study(args: argparse.Namespace) -> int:
     from . import study
-    return study.main(args.scene, marker=args.marker, output=args.output, quick=args.quick)
+    return study.main(args.scene, marker=args.marker, output=args.output, quick=args.quick, repeats=args.repeats)
 
 
 def _cmd_plot(args: argparse.Namespace) -> int:
@@ -104,6 +104,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--marker", help="marker whose position error is measured (default: the first by name)")
     s.add_argument("-o", "--output", help="prefix of the CSV and PNG written (default: SCENE_study)")
     s.add_argument("--quick", action="store_true", help="fewer steps and tolerances (a smoke run)")
+    s.add_argument("--repeats", type=int, default=5, help="runs per case; the CPU time is their median (default 5)")
     s.set_defaults(func=_cmd_study)
     w = sub.add_parser("sweep", help="run a parameter sweep (SWEEP.toml) on Dask, or emit SLURM job-array files")
     w.add_argument("sweep", help="sweep file (TOML: scene, output, metric, [grid], [fixed], [reference])")

@@ -40,18 +40,33 @@ import numpy as np
 from .api import Model, PymrError, run
 from .scene import Scene
 
-#: Fixed steps of single-rate (times the scene's h_slow).
-SINGLE_FACTORS = (8.0, 4.0, 2.0, 1.0, 0.5, 0.25)
+
+
+def _steps(largest: float, smallest: float) -> tuple[float, ...]:
+    """Step factors from `largest` down to `smallest`, sqrt(2) apart (a fourth-order method's
+    error changes 4x between neighbours)."""
+    n = round(2 * math.log2(largest / smallest))
+    return tuple(largest * 2.0 ** (-j / 2) for j in range(n + 1))
+
+
+#: Fixed steps of single-rate (times the scene's h_slow). Fixed steps need not divide the
+#: output interval or t_end (rows between steps come from dense output).
+SINGLE_FACTORS = _steps(8.0, 0.25)
 #: Multirate couplings, and per coupling the fast steps (times h_slow) and step ratios of
 #: its fixed-step cases. 'response' is stable at any ratio (only h_fast is bound), so its
 #: grid reaches large ratios; the 'full' coupling's macro step is stability bound.
 COUPLINGS = ("response", "full")
-FAST_FACTORS = {"response": (4.0, 2.0, 1.0, 0.5, 0.25), "full": (2.0, 1.0, 0.5, 0.25)}
+FAST_FACTORS = {"response": _steps(4.0, 0.25), "full": _steps(2.0, 0.25)}
 RATIOS = {"response": (5, 10, 20, 40), "full": (2, 5, 10, 20, 40)}
-ADAPTIVE_RTOLS = tuple(10.0**-e for e in range(3, 11))
-MULTIRATE_RTOLS = tuple(10.0**-e for e in range(3, 11))
-PEER_RTOLS = tuple(10.0**-e for e in range(3, 11))
+#: Tolerances of every adaptive method, pymr's and the peers': 1e-3 to 1e-10, half a decade apart.
+TOLERANCES = tuple(10.0 ** (-e / 2) for e in range(6, 21))
+ADAPTIVE_RTOLS = MULTIRATE_RTOLS = PEER_RTOLS = TOLERANCES
 PEERS = ("DOP853", "LSODA", "CVODE Adams", "CVODE BDF")
+#: The small grid of quick=True (a smoke run, the tests).
+QUICK_SINGLE_FACTORS = (4.0, 2.0, 1.0)
+QUICK_FAST_FACTORS = {"response": (1.0, 0.5), "full": (0.5, 0.25)}
+QUICK_RATIOS = {"response": (10, 40), "full": (5, 20)}
+QUICK_TOLERANCES = (1e-3, 1e-6, 1e-9)
 #: Step ratio of the multirate runs that measure the cost of a fast-only evaluation (the
 #: smaller ones are tried when the pre-flight check refuses it).
 WEIGHT_RATIOS = (10, 5, 2)
@@ -253,30 +268,30 @@ class Study:
         h0 = self.h0
         quick = self.quick
         out: list[tuple] = []
-        for f in (SINGLE_FACTORS[1:4] if quick else SINGLE_FACTORS):
+        for f in (QUICK_SINGLE_FACTORS if quick else SINGLE_FACTORS):
             h = f * h0
             out.append(("pymr", "single fixed", f"h={h:.3g}", {
                 "integrator.method": "single", "integrator.adaptive": False, "integrator.h_slow": h,
                 "integrator.h_fast": h}))
-        for rtol in (ADAPTIVE_RTOLS[::3] if quick else ADAPTIVE_RTOLS):
-            out.append(("pymr", "single adaptive", f"rtol={rtol:.0e}", {
+        for rtol in (QUICK_TOLERANCES if quick else ADAPTIVE_RTOLS):
+            out.append(("pymr", "single adaptive", f"rtol={rtol:.1e}", {
                 "integrator.method": "single", "integrator.adaptive": True, "integrator.rtol": rtol,
                 "integrator.atol": rtol * 1e-2}))
         for coupling in COUPLINGS:
-            ratios = RATIOS[coupling][1::2] if quick else RATIOS[coupling]
-            fasts = FAST_FACTORS[coupling][2:4] if quick else FAST_FACTORS[coupling]
+            ratios = QUICK_RATIOS[coupling] if quick else RATIOS[coupling]
+            fasts = QUICK_FAST_FACTORS[coupling] if quick else FAST_FACTORS[coupling]
             for k in ratios:
                 for f in fasts:
                     hf = f * h0
                     out.append(("pymr", f"{coupling} fixed k={k}", f"h_fast={hf:.3g}",
                                 self._multirate(coupling, k, hf)))
-            for rtol in (MULTIRATE_RTOLS[::3] if quick else MULTIRATE_RTOLS):
-                out.append(("pymr", f"{coupling} adaptive", f"rtol={rtol:.0e}", {
+            for rtol in (QUICK_TOLERANCES if quick else MULTIRATE_RTOLS):
+                out.append(("pymr", f"{coupling} adaptive", f"rtol={rtol:.1e}", {
                     "integrator.method": "multirate", "integrator.coupling": coupling, "integrator.adaptive": True,
                     "integrator.rtol": rtol, "integrator.atol": rtol * 1e-2, "integrator.h_fast": h0,
                     "integrator.h_slow": h0}))
         for name in PEERS:
-            for rtol in (PEER_RTOLS[::3] if quick else PEER_RTOLS):
+            for rtol in (QUICK_TOLERANCES if quick else PEER_RTOLS):
                 out.append(("peer", name, rtol))
         return out
 
@@ -346,7 +361,7 @@ class Study:
 
     def _peer(self, name: str, rtol: float, repeats: int | None = None) -> Case:
         """A scipy or CVODE run on pymr's right-hand side, `repeats` times in a row (median CPU)."""
-        case = Case(name, f"rtol={rtol:.0e}")
+        case = Case(name, f"rtol={rtol:.1e}")
         if name.startswith("CVODE"):
             try:
                 import sksundae.cvode  # noqa: F401
@@ -465,7 +480,7 @@ class Study:
             if head in colours:
                 counts[head] += 1
                 colour = colours[head](0.45 + 0.5 * counts[head] / max(shades[head], 1))
-                style = "-o" if "adaptive" in method else ":^"
+                style = "-o" if "adaptive" in method else ":" + "^v<>Dp"[counts[head] % 6]   # a marker per ratio
             else:
                 colour = next(peer_colours, None)
                 style = "--s"
