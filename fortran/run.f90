@@ -237,12 +237,14 @@ contains
       end if
       if (st%time() >= sc%scene%t_end - eps) exit
       if (st%time() >= t_ckpt - eps) then
-        ! the rows up to now are on disk before the checkpoint that counts them
-        flush(csv%unit)
-        prog = run_progress(rows=stats%rows, k_out=k_out, t_next=t_next, cpu_s=thread_cpu_time() - cpu0, &
-          & t_checkpoint=st%time())
-        call write_checkpoint(ckpt_path, st, model, prog, settings, fingerprint, error); if (allocated(error)) exit
-        t_ckpt = (floor(st%time()/sc%output%checkpoint_dt + 1.0e-9_dp) + 1)*sc%output%checkpoint_dt
+        ! the rows up to now are on disk (checked) before the checkpoint that counts them
+        call csv%flush_rows()
+        if (csv%ios == 0) then
+          prog = run_progress(rows=stats%rows, k_out=k_out, t_next=t_next, cpu_s=thread_cpu_time() - cpu0, &
+            & t_checkpoint=st%time())
+          call write_checkpoint(ckpt_path, st, model, prog, settings, fingerprint, error); if (allocated(error)) exit
+          t_ckpt = (floor(st%time()/sc%output%checkpoint_dt + 1.0e-9_dp) + 1)*sc%output%checkpoint_dt
+        end if
       end if
       if (csv%ios /= 0) then
         call fatal_error(error, 'at t = ' // fmt(st%time()) // ' s: ' // csv%partial // ': cannot write the ' // &

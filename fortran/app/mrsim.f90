@@ -6,14 +6,29 @@
 !> "mrsim: error: <message>", and status 1 (bad input) or 2 (failed run).
 program mrsim
   use, intrinsic :: iso_fortran_env, only : error_unit, output_unit
+  use, intrinsic :: iso_c_binding, only : c_int, c_funptr, c_intptr_t
   use pymr_error, only : error_type
   use pymr_run, only : run_scene
   implicit none
+  interface
+    function c_signal(sig, handler) bind(c, name='signal') result(old)
+      import :: c_int, c_funptr
+      integer(c_int), value :: sig
+      type(c_funptr), value :: handler
+      type(c_funptr) :: old
+    end function c_signal
+  end interface
+  !> SIGXFSZ (Linux): a write past the file-size limit (ulimit -f) then fails with EFBIG,
+  !> which the run reports as a failed write (exit 2), instead of a signal that the
+  !> compiler's runtime turns into a backtrace. SIG_IGN is the handler value 1.
+  integer(c_int), parameter :: sigxfsz = 25
+  type(c_funptr) :: previous
   character(len=:), allocatable :: scene, out, overrides, summary, arg, restart
   type(error_type), allocatable :: error
   integer :: i, nargs
   logical :: quiet, progress
 
+  previous = c_signal(sigxfsz, transfer(1_c_intptr_t, previous))
   scene = ''; out = ''; overrides = ''; restart = ''; quiet = .false.; progress = .false.
   nargs = command_argument_count()
   i = 1

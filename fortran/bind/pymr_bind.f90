@@ -111,6 +111,26 @@ subroutine pymr_force_response(scene, overrides, n, t, q, qd, nf, g, kf, df, sta
   call report(error, stat, message)
 end subroutine pymr_force_response
 
+!> The CSV writer's text of m reals in `digits` significant digits, as character codes
+!> (text(:, i) is value i, blank padded): for round-trip tests of the formatter.
+subroutine pymr_format_reals(m, x, digits, text)
+  use pymr_io_fast_format, only : put_real
+  implicit none
+  integer, intent(in) :: m, digits
+  double precision, intent(in) :: x(m)
+  integer(kind=1), intent(out) :: text(32, m)
+  !f2py integer intent(hide), depend(x) :: m = len(x)
+  character(len=32) :: buf
+  integer :: i, j, pos
+  do i = 1, m
+    buf = ''; pos = 1
+    call put_real(x(i), buf, pos, digits)
+    do j = 1, 32
+      text(j, i) = int(iachar(buf(j:j)), 1)
+    end do
+  end do
+end subroutine pymr_format_reals
+
 !> Accelerations qdd(n, m) for m states (t(m), q(n,m), qd(n,m)) of one model.
 subroutine pymr_model_accelerations(scene, overrides, n, m, t, q, qd, qdd, stat, message)
   use pymr_error, only : error_type, fatal_error

@@ -8,9 +8,10 @@
 !> effect counters), and last a sha256 checksum of everything before it. Written to PATH.tmp,
 !> checked, flushed and renamed, so a run killed while writing keeps the previous checkpoint.
 module pymr_io_checkpoint
-  use pymr_io_text_file, only : rename_file, sync_file
+  use, intrinsic :: iso_fortran_env, only : int64
+  use pymr_io_text_file, only : rename_file, sync_file, check_size
   use pymr_kinds, only : dp
-  use pymr_error, only : error_type, fatal_error
+  use pymr_error, only : error_type, fatal_error, stat_solver
   use pymr_integrator_stepper, only : stepper_t
   use pymr_model, only : model_t
   use pymr_io_text, only : itoa, fmt
@@ -42,13 +43,14 @@ contains
     type(run_progress), intent(in) :: prog
     type(error_type), allocatable, intent(out) :: error
     integer :: u, ios
+    integer(int64) :: pos
     character(len=256) :: msg
     character(len=16) :: name, ver
     character(len=:), allocatable :: body
     open(newunit=u, file=path // '.tmp', access='stream', form='unformatted', status='replace', action='write', &
       & iostat=ios, iomsg=msg)
     if (ios /= 0) then
-      call fatal_error(error, path // ': cannot write the checkpoint: ' // trim(msg)); return
+      call fatal_error(error, path // ': cannot write the checkpoint: ' // trim(msg), stat_solver); return
     end if
     name = st%name(); ver = pymr_version
     write(u, iostat=ios) tag, version, ver, model%d%n, model%d%nj, name, st%time(), len(settings), settings, &
@@ -58,9 +60,15 @@ contains
     if (ios == 0) call model%save_run(u, ios)
     if (ios /= 0) then
       close(u, status='delete', iostat=ios)
-      call fatal_error(error, path // ': cannot write the checkpoint (disk full?)'); return
+      call fatal_error(error, path // ': cannot write the checkpoint (disk full?)', stat_solver); return
     end if
+    ! what the runtime wrote: the file's size must match it (a refused write is not reported)
+    inquire(unit=u, pos=pos)
     close(u, iostat=ios, iomsg=msg)
+    if (ios == 0) call check_size(path // '.tmp', pos - 1, error)
+    if (allocated(error)) then
+      error%message = error%message // ' (the checkpoint)'; return
+    end if
     if (ios == 0) call read_bytes(path // '.tmp', body, ios)
     if (ios == 0) then
       open(newunit=u, file=path // '.tmp', access='stream', form='unformatted', status='old', action='write', &
@@ -69,7 +77,11 @@ contains
       if (ios == 0) close(u, iostat=ios, iomsg=msg)
     end if
     if (ios /= 0) then
-      call fatal_error(error, path // ': cannot write the checkpoint: ' // trim(msg)); return
+      call fatal_error(error, path // ': cannot write the checkpoint: ' // trim(msg), stat_solver); return
+    end if
+    call check_size(path // '.tmp', int(len(body) + 64, int64), error)
+    if (allocated(error)) then
+      error%message = error%message // ' (the checkpoint)'; return
     end if
     call sync_file(path // '.tmp', error); if (allocated(error)) return
     call rename_file(path // '.tmp', path, error)

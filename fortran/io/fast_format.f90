@@ -1,7 +1,10 @@
 !> Fast formatting of reals for the CSV writer: 17 significant digits in E notation
 !> ("-1.2345678901234567e+002"), about ten times faster than a formatted WRITE.
-!> Values of magnitude 1e-21 to 1e22 read back to a few units in the last place; beyond
-!> that (and for subnormal numbers) a formatted WRITE gives the correctly rounded digits.
+!> For magnitudes 1e-21 to 1e22 the digits come from x 10^-e carried in double-double
+!> arithmetic (error-free products and quotients by exact powers of ten, Dekker's
+!> splitting): they are correctly rounded (up to exact ties), so 17 digits read back to x.
+!> Beyond that range (subnormal numbers included) a formatted WRITE gives the correctly
+!> rounded digits.
 module pymr_io_fast_format
   use pymr_kinds, only : dp
   use, intrinsic :: iso_fortran_env, only : int64
@@ -25,7 +28,7 @@ contains
     integer, intent(in), optional :: digits
     integer :: e, i, ae, hi, lo, nd
     integer(int64) :: dgt
-    real(dp) :: m
+    real(dp) :: m, ml, th, tl
     character(len=17) :: dstr
     if (x /= x) then
       buf(pos:pos+2) = 'nan'; pos = pos + 3; return
@@ -57,17 +60,19 @@ contains
     if (abs(e) > 21) then
       call put_real_exact(abs(x), nd, buf, pos); return
     end if
-    m = scale_by_pow10(abs(x), -e)
+    call scale_by_pow10(abs(x), -e, m, ml)
     if (m >= 10.0_dp) then
       e = e + 1
-      m = scale_by_pow10(abs(x), -e)
-    end if
-    if (m >= 10.0_dp) then
-      m = m/10.0_dp; e = e + 1
+      call scale_by_pow10(abs(x), -e, m, ml)
     else if (m < 1.0_dp) then
-      m = m*10.0_dp; e = e - 1
+      e = e - 1
+      call scale_by_pow10(abs(x), -e, m, ml)
     end if
-    dgt = nint(m*10.0_dp**(nd - 1), int64)
+    ! m + ml times 10^(nd-1) < 1e17: its high part is a double in [1e16, 1e17) when nd = 17,
+    ! an integer; the low part carries the rest
+    call two_product(m, 10.0_dp**(nd - 1), th, tl)
+    tl = tl + ml*10.0_dp**(nd - 1)
+    dgt = nint(th, int64) + nint(tl + (th - anint(th)), int64)
     if (dgt >= 10_int64**nd) then
       dgt = dgt/10; e = e + 1
     end if
@@ -114,17 +119,32 @@ contains
     pos = pos + len_trim(text)
   end subroutine put_real_exact
 
-  !> x * 10**k with the power formed exactly when it can be (|k| <= 22).
-  pure function scale_by_pow10(x, k) result(y)
+  !> x 10^k as the double-double m + ml, for |k| <= 22 (10^|k| exact): a product by the
+  !> power (error-free), or a quotient with its remainder (exact by Sterbenz's lemma).
+  pure subroutine scale_by_pow10(x, k, m, ml)
     real(dp), intent(in) :: x
     integer, intent(in) :: k
-    real(dp) :: y
-    if (k >= 0 .and. k <= 22) then
-      y = x*(10.0_dp**k)
-    else if (k < 0 .and. k >= -22) then
-      y = x/(10.0_dp**(-k))
+    real(dp), intent(out) :: m, ml
+    real(dp) :: p, ph, pl
+    p = 10.0_dp**abs(k)
+    if (k >= 0) then
+      call two_product(x, p, m, ml)
     else
-      y = x*(10.0_dp**k)
+      m = x/p
+      call two_product(m, p, ph, pl)
+      ml = ((x - ph) - pl)/p
     end if
-  end function scale_by_pow10
+  end subroutine scale_by_pow10
+
+  !> a b = p + e exactly (Dekker: both factors split into 26-bit halves).
+  pure subroutine two_product(a, b, p, e)
+    real(dp), intent(in) :: a, b
+    real(dp), intent(out) :: p, e
+    real(dp), parameter :: splitter = 134217729.0_dp      ! 2^27 + 1
+    real(dp) :: c, ah, al, bh, bl
+    p = a*b
+    c = splitter*a; ah = c - (c - a); al = a - ah
+    c = splitter*b; bh = c - (c - b); bl = b - bh
+    e = ((ah*bh - p) + ah*bl + al*bh) + al*bl
+  end subroutine two_product
 end module pymr_io_fast_format

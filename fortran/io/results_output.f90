@@ -2,13 +2,14 @@
 !> (run statistics), as fixed in ARCHITECTURE.md.
 module pymr_io_results_output
   use pymr_kinds, only : dp
+  use, intrinsic :: iso_fortran_env, only : int64
   use pymr_error, only : error_type, fatal_error, stat_solver
   use pymr_model_types, only : model_data, n_effects, effect_names
   use pymr_model_effects, only : impose_prescribed_state
   use pymr_model_kinematics, only : forward_kinematics, marker_motion
   use pymr_io_fast_format, only : put_real
   use pymr_io_text, only : itoa
-  use pymr_io_text_file, only : write_text_file, sync_file, rename_file
+  use pymr_io_text_file, only : write_text_file, sync_file, rename_file, file_size, check_size
   implicit none
   private
   public :: csv_writer, json_path, write_json, run_stats, pymr_version
@@ -37,6 +38,12 @@ module pymr_io_results_output
     !> The status and message of the first write that failed (0: none).
     integer :: ios = 0
     character(len=256) :: io_message = ''
+    !> Bytes written to the file so far, and rows since the file's size was last checked
+    !> against them: the Fortran runtime does not report a write that the disk refused
+    !> (gfortran 12 drops the data of a full disk or a file-size limit with status 0), so the
+    !> size on disk is compared with what was written, every `check_rows` rows and at the end.
+    integer(int64) :: written = 0
+    integer :: unchecked = 0
     real(dp), allocatable :: row(:)
     character(len=:), allocatable :: line
     !> Significant digits per value (&output precision).
@@ -48,7 +55,11 @@ module pymr_io_results_output
     procedure :: close => csv_close
     procedure :: finish => csv_finish
     procedure :: discard => csv_discard
+    procedure :: flush_rows => csv_flush_rows
   end type csv_writer
+
+  !> Rows between checks of the file's size against the bytes written.
+  integer, parameter :: check_rows = 256
 
 contains
 
@@ -115,8 +126,10 @@ contains
       if (self%ios /= 0) return
       if (line_end) then
         write(self%unit, '(a)', iostat=self%ios, iomsg=self%io_message) text
+        self%written = self%written + len(text) + 1
       else
         write(self%unit, '(a)', advance='no', iostat=self%ios, iomsg=self%io_message) text
+        self%written = self%written + len(text)
       end if
     end subroutine put
   end subroutine csv_open
@@ -176,6 +189,8 @@ contains
     if (ios /= 0) then
       call fatal_error(error, self%partial // ': cannot write the results: ' // trim(msg)); return
     end if
+    call check_size(self%partial // '.tmp', sum([(int(len(lines(k)%s) + 1, int64), k = 1, keep)]), error)
+    if (allocated(error)) return
     call sync_file(self%partial // '.tmp', error); if (allocated(error)) return
     call rename_file(self%partial // '.tmp', self%partial, error); if (allocated(error)) return
     open(newunit=self%unit, file=self%partial, status='old', action='write', position='append', iostat=ios, &
@@ -184,6 +199,7 @@ contains
       call fatal_error(error, self%partial // ': cannot write the results: ' // trim(msg)); return
     end if
     self%opened = .true.
+    self%written = file_size(self%partial)
     allocate(self%row(1 + 2*d%n + 6*d%n_markers))
     allocate(character(len=25*size(self%row)) :: self%line)
   end subroutine csv_reopen
@@ -230,7 +246,27 @@ contains
     end do
     if (self%ios /= 0) return
     write(self%unit, '(a)', iostat=self%ios, iomsg=self%io_message) self%line(1:pos-1)
+    self%written = self%written + pos
+    self%unchecked = self%unchecked + 1
+    if (self%unchecked >= check_rows) call self%flush_rows()
   end subroutine write_values
+
+  !> Hand the rows written so far to the system and check that the file holds them all
+  !> (a refused write sets ios and io_message, which the run reports with its time).
+  subroutine csv_flush_rows(self)
+    class(csv_writer), intent(inout) :: self
+    integer(int64) :: size_now
+    self%unchecked = 0
+    if (self%ios /= 0 .or. .not. self%opened) return
+    flush(self%unit, iostat=self%ios, iomsg=self%io_message)
+    if (self%ios /= 0) return
+    size_now = file_size(self%partial)
+    if (size_now /= self%written) then
+      self%ios = -1
+      self%io_message = 'the disk took ' // itoa(size_now) // ' of ' // itoa(self%written) // &
+        & ' bytes (the file system is full, or a file-size limit is reached)'
+    end if
+  end subroutine csv_flush_rows
 
   !> Close the partial file, leaving it in place (a failed run's rows).
   subroutine csv_close(self)
@@ -253,6 +289,7 @@ contains
     type(error_type), allocatable, intent(out) :: error
     integer :: ios
     character(len=256) :: msg
+    call self%flush_rows()
     if (self%ios /= 0) then
       call fatal_error(error, self%partial // ': cannot write the results: ' // trim(self%io_message), stat_solver)
       return

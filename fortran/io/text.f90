@@ -6,16 +6,27 @@ module pymr_io_text
   private
   public :: itoa, lower, fmt, decimal_text, exact_text
 
+  !> Integer (default or 64-bit) to text without blanks.
+  interface itoa
+    module procedure itoa_default, itoa_long
+  end interface itoa
+
 contains
 
-  !> Integer to text without blanks (digit by digit: this runs once per item read).
-  pure function itoa(i) result(s)
+  pure function itoa_default(i) result(s)
     integer, intent(in) :: i
     character(len=:), allocatable :: s
-    character(len=12) :: buf
+    s = itoa_long(int(i, 8))
+  end function itoa_default
+
+  !> Digit by digit: this runs once per item read.
+  pure function itoa_long(i) result(s)
+    integer(8), intent(in) :: i
+    character(len=:), allocatable :: s
+    character(len=21) :: buf
     integer :: k
     integer(8) :: v
-    v = abs(int(i, 8))
+    v = abs(i)
     k = len(buf) + 1
     do
       k = k - 1
@@ -27,7 +38,7 @@ contains
       k = k - 1; buf(k:k) = '-'
     end if
     s = buf(k:)
-  end function itoa
+  end function itoa_long
 
   !> Lower-case copy of a string.
   pure function lower(s) result(r)

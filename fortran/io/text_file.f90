@@ -2,12 +2,14 @@
 !> the disk (fsync), then renamed over PATH, so a complete earlier file is never lost to a
 !> failed or killed write.
 module pymr_io_text_file
-  use, intrinsic :: iso_c_binding, only : c_char, c_int, c_null_char, c_size_t, c_ptr, c_associated
-  use pymr_error, only : error_type, fatal_error
+  use, intrinsic :: iso_c_binding, only : c_char, c_int, c_long, c_null_char, c_size_t, c_ptr, c_associated
+  use, intrinsic :: iso_fortran_env, only : int64
+  use pymr_error, only : error_type, fatal_error, stat_solver
   use pymr_io_text, only : itoa
   implicit none
   private
-  public :: write_text_file, rename_file, sync_file, scene_relative, absolute_path, acquire_lock, release_lock
+  public :: write_text_file, rename_file, sync_file, check_size, file_size, scene_relative, absolute_path, acquire_lock, &
+    & release_lock
 
   interface
     function c_rename(old, new) bind(c, name='rename') result(r)
@@ -35,6 +37,12 @@ module pymr_io_text_file
       import :: c_int
       integer(c_int) :: pid
     end function c_getpid
+    function c_lseek(fd, offset, whence) bind(c, name='lseek') result(r)
+      import :: c_int, c_long
+      integer(c_int), value :: fd, whence
+      integer(c_long), value :: offset
+      integer(c_long) :: r
+    end function c_lseek
     function c_kill(pid, sig) bind(c, name='kill') result(r)
       import :: c_int
       integer(c_int), value :: pid, sig
@@ -50,7 +58,8 @@ module pymr_io_text_file
 
 contains
 
-  !> Write `text` to `path` (through path.tmp, fsync and rename).
+  !> Write `text` to `path` (through path.tmp, fsync and rename). The file's size is checked
+  !> against the text: the Fortran runtime does not report a write the disk refused.
   subroutine write_text_file(path, text, error)
     character(len=*), intent(in) :: path, text
     type(error_type), allocatable, intent(out) :: error
@@ -70,9 +79,40 @@ contains
     if (ios /= 0) then
       call fatal_error(error, path // ': cannot write: ' // trim(msg)); return
     end if
+    call check_size(path // '.tmp', int(len(text), int64), error); if (allocated(error)) return
     call sync_file(path // '.tmp', error); if (allocated(error)) return
     call rename_file(path // '.tmp', path, error)
   end subroutine write_text_file
+
+  !> The size of a file on the disk, from the system (-1 when it cannot be opened): what the
+  !> Fortran runtime reports for a file it has open is what it believes it wrote.
+  function file_size(path) result(sz)
+    character(len=*), intent(in) :: path
+    integer(int64) :: sz
+    integer(c_int) :: fd
+    integer(c_int), parameter :: o_rdonly = 0, seek_end = 2
+    sz = -1
+    fd = c_open(path // c_null_char, o_rdonly)
+    if (fd < 0) return
+    sz = int(c_lseek(fd, 0_c_long, seek_end), int64)
+    if (c_close(fd) /= 0) sz = -1
+  end function file_size
+
+  !> A closed file must hold the `expected` bytes written to it; if not, it is removed and
+  !> the error says how much the disk took.
+  subroutine check_size(path, expected, error)
+    character(len=*), intent(in) :: path
+    integer(int64), intent(in) :: expected
+    type(error_type), allocatable, intent(out) :: error
+    integer(int64) :: got
+    integer :: u, ios
+    got = file_size(path)
+    if (got == expected) return
+    open(newunit=u, file=path, status='old', iostat=ios)
+    if (ios == 0) close(u, status='delete', iostat=ios)
+    call fatal_error(error, path // ': cannot write: the disk took ' // itoa(got) // ' of ' // itoa(expected) // &
+      & ' bytes (the file system is full, or a file-size limit is reached)', stat_solver)
+  end subroutine check_size
 
   !> Make the kernel write a closed file's data to the disk (fsync).
   subroutine sync_file(path, error)
@@ -132,12 +172,20 @@ contains
     character(len=*), intent(in) :: path
     type(error_type), allocatable, intent(out) :: error
     integer :: u, ios, attempt, pid
+    logical :: held
+    character(len=256) :: msg
     do attempt = 1, 2
-      open(newunit=u, file=path // '.lock', status='new', action='write', iostat=ios)
+      open(newunit=u, file=path // '.lock', status='new', action='write', iostat=ios, iomsg=msg)
       if (ios == 0) then
         write(u, '(i0)', iostat=ios) c_getpid()
         close(u)
         return
+      end if
+      inquire(file=path // '.lock', exist=held)
+      if (.not. held) then
+        ! no lock there, and none can be made: the folder is missing or not writable
+        call fatal_error(error, path // ': cannot write in its folder ' // folder_of(path) // ' (' // trim(msg) // &
+          & '): the results could not be written'); return
       end if
       pid = 0
       open(newunit=u, file=path // '.lock', status='old', action='read', iostat=ios)
@@ -155,6 +203,21 @@ contains
     end do
     call fatal_error(error, path // ': cannot take the lock ' // path // '.lock')
   end subroutine acquire_lock
+
+  !> The folder part of a path ('.' for a bare file name).
+  function folder_of(path) result(s)
+    character(len=*), intent(in) :: path
+    character(len=:), allocatable :: s
+    integer :: k
+    k = index(path, '/', back=.true.)
+    if (k == 0) then
+      s = '.'
+    else if (k == 1) then
+      s = '/'
+    else
+      s = path(1:k-1)
+    end if
+  end function folder_of
 
   !> Remove PATH.lock.
   subroutine release_lock(path)
