@@ -2,11 +2,13 @@
 !> arrays, and a non-zero `info` becomes a sentence naming the matrix. LAPACK's own error
 !> handler XERBLA, which prints and stops the process (with status 0), is replaced at the end
 !> of this file by one that records the fault and returns: the routine then returns a
-!> negative `info`, which the wrappers turn into an error.
+!> negative `info`, which the wrappers turn into an error. Before each call the input is
+!> checked: a non-finite entry, or one beyond 1e150 where LAPACK's products and norms
+!> overflow, is an error naming the matrix instead of a call.
 module pymr_lapack
   use pymr_kinds, only : dp
   use pymr_error, only : error_type, fatal_error, stat_solver
-  use pymr_io_text, only : itoa
+  use pymr_io_text, only : itoa, fmt
   implicit none
   private
   public :: potrf, potrs, sygvd, ptsv, geev_complex, geev_real, factor_inverse, band_solve
@@ -15,6 +17,9 @@ module pymr_lapack
   !> The last fault LAPACK reported to XERBLA: routine and argument number.
   character(len=32), public :: xerbla_routine = ''
   integer, public :: xerbla_argument = 0
+
+  !> Largest entry (in size) handed to LAPACK.
+  real(dp), parameter :: max_entry = 1.0e150_dp
 
   !> Cholesky solve for one (vector) or several (matrix) right-hand sides.
   interface potrs
@@ -88,6 +93,7 @@ contains
     integer :: info
     character(len=24) :: buf
     if (size(dg) == 0) return
+    call check_vector([dg, e, b], 'dptsv', what, error); if (allocated(error)) return
     call dptsv(size(dg), 1, dg, e, b, size(b), info)
     if (info == 0) return
     write(buf, '(i0)') info
@@ -108,6 +114,7 @@ contains
     character(len=24) :: buf
     if (present(minor)) minor = 0
     if (size(a, 1) == 0) return
+    call check_matrix(a, 'dpotrf', what, error); if (allocated(error)) return
     call dpotrf('L', size(a, 1), a, size(a, 1), info)
     if (info == 0) return
     if (present(minor)) minor = max(info, 0)
@@ -130,6 +137,7 @@ contains
     integer :: info
     character(len=24) :: buf
     if (size(a, 1) == 0) return
+    call check_vector(b, 'dpotrs', 'the right-hand side for ' // what, error); if (allocated(error)) return
     call dpotrs('L', size(a, 1), 1, a, size(a, 1), b, size(b), info)
     if (info /= 0) then
       write(buf, '(i0)') -info
@@ -149,6 +157,8 @@ contains
     integer :: info
     character(len=24) :: buf
     if (size(a, 1) == 0) return
+    call check_matrix(b, 'dpotrs', 'the right-hand sides for ' // what, error)
+    if (allocated(error)) return
     call dpotrs('L', size(a, 1), size(b, 2), a, size(a, 1), b, size(b, 1), info)
     if (info /= 0) then
       write(buf, '(i0)') -info
@@ -187,6 +197,9 @@ contains
     character(len=24) :: buf
     n = size(k, 1)
     if (n == 0) return
+    call check_matrix(k, 'dsygvd', 'the stiffness matrix for ' // what, error)
+    if (allocated(error)) return
+    call check_matrix(m, 'dsygvd', what, error); if (allocated(error)) return
     call dsygvd(1, 'V', 'L', n, k, n, m, n, lambda, wq, -1, iwq, -1, info)
     lwork = int(wq(1)); liwork = iwq(1)
     allocate(work(lwork), iwork(liwork))
@@ -214,6 +227,8 @@ contains
     real(dp) :: rwork(2*size(a, 1))
     n = size(a, 1)
     if (n == 0) return
+    call check_matrix(real(a), 'zgeev', what, error)
+    if (.not. allocated(error)) call check_matrix(aimag(a), 'zgeev', what, error); if (allocated(error)) return
     call zgeev('N', 'N', n, a, n, w, vl, 1, vr, 1, wq, -1, rwork, info)
     allocate(work(max(1, int(real(wq(1))))))
     call zgeev('N', 'N', n, a, n, w, vl, 1, vr, 1, work, size(work), rwork, info)
@@ -232,6 +247,7 @@ contains
     real(dp), allocatable :: work(:)
     n = size(a, 1)
     if (n == 0) return
+    call check_matrix(a, 'dgeev', what, error); if (allocated(error)) return
     call dgeev('N', 'V', n, a, n, wr, wi, dum, 1, vr, n, wq, -1, info)
     allocate(work(max(1, int(wq(1)))))
     call dgeev('N', 'V', n, a, n, wr, wi, dum, 1, vr, n, work, size(work), info)
@@ -249,6 +265,8 @@ contains
     integer, allocatable :: ipiv(:)
     integer :: n, kd, i, j, info
     n = size(a, 2); kd = size(a, 1) - 1
+    call check_matrix(a, 'dgbsv', what, error)
+    if (.not. allocated(error)) call check_vector(b, 'dgbsv', what, error); if (allocated(error)) return
     allocate(ab(3*kd + 1, n), ipiv(n))
     ab = 0.0_dp
     do j = 1, n
@@ -262,6 +280,47 @@ contains
       & itoa(info) // ')', stat_solver)
   end subroutine band_solve
 
+
+  !> Before a LAPACK call: every entry of its input finite, and below `max_entry` in size
+  !> (larger ones overflow in LAPACK's products and norms), else an error naming the matrix.
+  subroutine check_vector(a, routine, what, error)
+    real(dp), intent(in) :: a(:)
+    character(len=*), intent(in) :: routine, what
+    type(error_type), allocatable, intent(out) :: error
+    integer :: i
+    do i = 1, size(a)
+      if (.not. abs(a(i)) <= max_entry) then
+        call entry_error(a(i), routine, what, error); return
+      end if
+    end do
+  end subroutine check_vector
+
+  subroutine check_matrix(a, routine, what, error)
+    real(dp), intent(in) :: a(:, :)
+    character(len=*), intent(in) :: routine, what
+    type(error_type), allocatable, intent(out) :: error
+    integer :: i, j
+    do j = 1, size(a, 2)
+      do i = 1, size(a, 1)
+        if (.not. abs(a(i, j)) <= max_entry) then
+          call entry_error(a(i, j), routine, what, error); return
+        end if
+      end do
+    end do
+  end subroutine check_matrix
+
+  subroutine entry_error(x, routine, what, error)
+    real(dp), intent(in) :: x
+    character(len=*), intent(in) :: routine, what
+    type(error_type), allocatable, intent(out) :: error
+    if (x /= x .or. abs(x) > huge(x)) then
+      call fatal_error(error, routine // ': ' // what // ' has a non-finite entry (' // fmt(x) // '); not solved', &
+        & stat_solver)
+    else
+      call fatal_error(error, routine // ': ' // what // ' has an entry of ' // fmt(x) // ', beyond ' // &
+        & fmt(max_entry) // ' where LAPACK overflows; not solved', stat_solver)
+    end if
+  end subroutine entry_error
 
   !> A call with an illegal argument (dpotrf with uplo 'X'): for the test that XERBLA
   !> returns. Gives LAPACK's info.
