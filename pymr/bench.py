@@ -3,6 +3,7 @@ process; ratios are formed within the same run. Tests never assert wall time."""
 from __future__ import annotations
 
 import json
+import re
 import statistics
 import tempfile
 from pathlib import Path
@@ -233,7 +234,9 @@ def print_table1(rows: list[dict]) -> None:
         paper = PAPER_TABLE1.get(r["ratio"]) if r["coupling"] in ("single", "full") else None
         ptxt = f"{paper[0]:>11.2f} {paper[1]:>14.3f}" if paper else f"{'':>11} {'':>14}"
         if r["status"] != "ok":
-            print(f"{r['coupling']:>8} {r['ratio']:>5} {r['h_slow']:>9.1e}  failed: {r['error'][:80]} | {ptxt}")
+            m = re.search(r"largest stable ratio is k = \d+", r["error"])
+            why = f"refused by the pre-flight check ({m.group(0)})" if m else "failed: " + r["error"][-60:]
+            print(f"{r['coupling']:>8} {r['ratio']:>5} {r['h_slow']:>9.1e}  {why} | {ptxt}")
             continue
         print(f"{r['coupling']:>8} {r['ratio']:>5} {r['h_slow']:>9.1e} {r['median_cpu_s']:>9.4f} {r['speedup']:>8.2f} "
               f"{r['rhs_full']:>10} {r['rhs_fast']:>10} {r['muzzle_dev_m']:>12.3e} {r['muzzle_err_m']:>9.2e} | {ptxt}")

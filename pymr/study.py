@@ -148,9 +148,11 @@ class Study:
     # ------------------------------------------------------------------ reference
 
     def reference(self) -> None:
-        self.say("reference: pymr adaptive rtol 1e-11 (cross-check: DOP853 rtol 1e-12) ...")
+        self.say("reference: pymr adaptive rtol 1e-11, steps at most h_slow/10 (cross-check: DOP853 rtol 1e-12) ...")
+        # the step bound keeps the adaptive start from its first large steps, whose error in
+        # undamped stiff modes would floor the reference (stiff barrel: 5e-10 m without it)
         res = self._pymr({"integrator.method": "single", "integrator.adaptive": True, "integrator.rtol": 1e-11,
-                          "integrator.atol": 1e-13})
+                          "integrator.atol": 1e-13, "integrator.h_max": self.h0 / 10})
         self.ref = res.marker(self.marker)[0]
         from scipy.integrate import solve_ivp
         with Model(self.scene) as model:
@@ -219,14 +221,21 @@ class Study:
 
     def weights(self) -> None:
         """Measured cost of a fast-only evaluation against a full one, per coupling, with the
-        integrator's own work: c_full = CPU per step of fixed single-rate at h_slow;
+        integrator's own work: c_full = CPU per step of fixed single-rate at h_slow (halved until stable);
         c_fast = (CPU of fixed multirate at k = 10 - rhs_full c_full) / rhs_fast; medians
         over the repeats (the three runs interleaved, so that a slow spell of the machine
         falls on all of them); weight = c_fast / c_full, at least 0."""
         h0 = self.h0
-        single = {"integrator.method": "single", "integrator.adaptive": False, "integrator.h_slow": h0,
-                  "integrator.h_fast": h0}
-        self._pymr(single)                                   # warm up (caches, first touch)
+        while True:                                          # the scene's step, halved until it is stable
+            single = {"integrator.method": "single", "integrator.adaptive": False, "integrator.h_slow": h0,
+                      "integrator.h_fast": h0}
+            try:
+                self._pymr(single)                           # also the warm-up (caches, first touch)
+                break
+            except PymrError as exc:
+                if "not stable" not in str(exc) or h0 < 1e-3 * self.h0:
+                    raise
+                h0 /= 2
         multi = {}
         for coupling in COUPLINGS:                          # the largest ratio the pre-flight check passes
             for k in WEIGHT_RATIOS:
@@ -304,10 +313,17 @@ class Study:
         specs = self.specs()
         self.say(f"pass 1 of {self.repeats}: errors and evaluations of {len(specs)} cases")
         first = []
-        for spec in specs:
+        limited: set[str] = set()
+        i = 0
+        while i < len(specs):
+            spec = specs[i]
             case = self._pymr_case(*spec[1:], repeats=1) if spec[0] == "pymr" else self._peer(*spec[1:], repeats=1)
             self._add(case)
             first.append(case)
+            extra = self._at_stable_step(spec, case, limited)
+            if extra:
+                specs.append(extra)
+            i += 1
         samples = [[c.cpu_s] for c in first]
         for p in range(2, self.repeats + 1):
             self.say(f"pass {p} of {self.repeats}: CPU times")
@@ -323,6 +339,23 @@ class Study:
             if case.status == "ok":
                 self._set_cpu(case, cpu)
         return self.cases
+
+    def _at_stable_step(self, spec: tuple, case: Case, limited: set[str]) -> tuple | None:
+        """A fixed-step family whose step the pre-flight check refused for a vibration's
+        stability gets one more case, at the largest stable step the refusal names (less
+        0.5 %): the grid would otherwise leave out its fastest stable run."""
+        m = re.search(r"the largest stable step is ([0-9.Ee+-]+) s", case.status)
+        if spec[0] != "pymr" or m is None or case.method in limited:
+            return None
+        limited.add(case.method)
+        h = 0.995 * float(m.group(1))
+        over = dict(spec[3])
+        if over.get("integrator.method") == "multirate":
+            k = round(float(over["integrator.h_slow"]) / float(over["integrator.h_fast"]))
+            over.update({"integrator.h_fast": h, "integrator.h_slow": k * h})
+            return ("pymr", case.method, f"h_fast={h:.3g} (stable limit)", over)
+        over.update({"integrator.h_fast": h, "integrator.h_slow": h})
+        return ("pymr", case.method, f"h={h:.3g} (stable limit)", over)
 
     def _add(self, case: Case) -> None:
         self.cases.append(case)
@@ -452,9 +485,15 @@ class Study:
             f"  {c.method:<22} {c.setting:<16} {_short_reason(c.status)}" for c in ref)
 
     def not_plotted(self) -> list[str]:
-        """One line per case that is not a point of the figure (refused, failed, skipped)."""
-        return [f"{c.method} {c.setting}: {c.status.split(':', 1)[0]} ({_short_reason(c.status)})"
-                for c in self.cases if c.status != "ok"]
+        """The cases that are not points of the figure (refused, failed, skipped): one entry
+        per method and reason, naming the settings."""
+        groups: dict[tuple, list[str]] = {}
+        for c in self.cases:
+            if c.status != "ok":
+                key = (c.method, c.status.split(":", 1)[0], _short_reason(c.status))
+                groups.setdefault(key, []).append(c.setting)
+        return [f"{method} {', '.join(settings)}: {kind} ({reason})"
+                for (method, kind, reason), settings in groups.items()]
 
     def plot(self, path: Path) -> str:
         """The figure: error against median CPU time and against full-evaluation

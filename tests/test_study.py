@@ -210,3 +210,37 @@ def test_quick_study_end_to_end(tmp_path, capsys):
     assert "refused by the pre-flight check: none" in out and "measured weight w" in out
     assert out.count("fastest 'response' multirate / fastest single-rate: ") == 3 and "n/a" not in out
     assert (tmp_path / "q.png").stat().st_size > 10000
+
+
+def test_a_refused_fixed_step_family_gets_a_case_at_its_largest_stable_step(tmp_path):
+    """The stiff barrel's top mode refuses the step 7.07e-5 s; the refusal names the largest
+    stable step (6.74e-5 s), and the family gets one case at 0.995 of it, which the
+    pre-flight check passes - once per family, and only for such refusals."""
+    stiff = Path(__file__).resolve().parent.parent / "input" / "hard" / "stiff_barrel.nml"
+    s = Study(stiff, "muzzle", quick=True, progress=None)
+    h = 7.07e-5
+    short = {"scene.t_end": 0.02, "output.dt": 1e-3}
+
+    def refused(method, over):
+        with pytest.raises(pymr.SceneError) as exc:
+            pymr.run(stiff, tmp_path / "x.csv", overrides={**over, **short})
+        return Case(method, "", status="refused: " + str(exc.value))
+
+    single = ("pymr", "single fixed", f"h={h}", {"integrator.method": "single", "integrator.adaptive": False,
+                                                 "integrator.h_slow": h, "integrator.h_fast": h})
+    case = refused("single fixed", single[3])
+    assert "largest stable step is 6.74E-05 s" in case.status
+    limited: set[str] = set()
+    extra = s._at_stable_step(single, case, limited)
+    assert extra[3]["integrator.h_slow"] == pytest.approx(0.995 * 6.74e-5)
+    assert s._at_stable_step(single, case, limited) is None
+    pymr.run(stiff, tmp_path / "ok.csv", overrides={**extra[3], **short})          # passes the check
+    multi = ("pymr", "response fixed k=10", "h_fast=7.07e-05", {
+        "integrator.method": "multirate", "integrator.coupling": "response", "integrator.adaptive": False,
+        "integrator.h_fast": h, "integrator.h_slow": 10 * h})
+    extra = s._at_stable_step(multi, refused("response fixed k=10", multi[3]), limited)
+    assert extra[3]["integrator.h_fast"] == pytest.approx(0.995 * 6.74e-5)
+    assert extra[3]["integrator.h_slow"] == pytest.approx(10 * extra[3]["integrator.h_fast"])
+    pymr.run(stiff, tmp_path / "ok.csv", overrides={**extra[3], **short})
+    assert s._at_stable_step(multi, Case("full fixed k=40", "", status="refused: ... largest stable ratio is k = 33"),
+                             limited) is None

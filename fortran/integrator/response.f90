@@ -134,8 +134,10 @@ contains
       call commit_evaluation(self)
       if (self%adaptive .and. any(self%kf > 0.0_dp)) &
         & self%h_stable = stability_margin*pece_limit(cmplx(0.0_dp, sqrt(maxval(self%kf)), dp))
+      ! adaptive: the first steps too stay within the fast stability limit (larger ones
+      ! leave an error in the undamped stiff modes that no later step removes)
       call boot%init(2*self%n, self%adaptive, self%ctl, 1)
-      call boot%start(sys, t0, x0, h, error); if (allocated(error)) return
+      call boot%start(sys, t0, x0, min(h, self%h_stable), error); if (allocated(error)) return
       self%z = boot%z; self%t = boot%t; self%h = boot%h
       self%zbuf(:, :, 1) = self%z; self%kb = 1; self%t_macro = self%t - self%h; self%hb = self%h
       self%steps_fast = 2; self%steps_slow = 0
