@@ -29,7 +29,6 @@ module pymr_integrator_response
     & nordsieck_value
   use pymr_integrator_abm, only : abm_integrator, check_finite
   use pymr_integrator_control, only : step_control, error_weights, wrms_norm
-  use pymr_integrator_stability, only : pece_limit
   use pymr_io_text, only : fmt
   implicit none
   private
@@ -44,10 +43,6 @@ module pymr_integrator_response
   !> Adaptive runs: macro steps in a row that may break down (a failed factorisation, a
   !> non-finite value) and be retried smaller before the run stops.
   integer, parameter :: max_breakdowns = 10
-  !> Adaptive fast steps stay below this fraction of the PECE stability limit of the
-  !> highest modal frequency: beyond it the error estimate only sees the instability once
-  !> a macro step has grown it, and the step ratio rule would keep trying.
-  real(dp), parameter :: stability_margin = 0.9_dp
 
   type, extends(stepper_t) :: response_integrator
     !> Coordinates (n = ns + nf), step ratio k and its adaptive bound; fast steps of the next
@@ -68,10 +63,9 @@ module pymr_integrator_response
     !> The full evaluation of the macro step being tried, kept until it is accepted.
     real(dp) :: tp = 0.0_dp
     real(dp), allocatable :: qp(:), yp(:), gp(:, :)
-    !> Adaptive control of both steps; the largest fast step it takes (s).
+    !> Adaptive control of both steps (ctl%h_max bounds the fast step).
     logical :: adaptive = .false.
     type(step_control) :: ctl
-    real(dp) :: h_stable = huge(1.0_dp)
     !> Counters: macro steps, fast steps, rejected macro steps, surrogate evaluations.
     integer :: steps_slow = 0, steps_fast = 0, rejected = 0, evals_surrogate = 0
     !> Work arrays.
@@ -132,12 +126,8 @@ contains
       call check_finite(sys, t0, self%f, 'derivative', error); if (allocated(error)) return
       call record_evaluation(self, sys, t0, x0, self%f, error); if (allocated(error)) return
       call commit_evaluation(self)
-      if (self%adaptive .and. any(self%kf > 0.0_dp)) &
-        & self%h_stable = stability_margin*pece_limit(cmplx(0.0_dp, sqrt(maxval(self%kf)), dp))
-      ! adaptive: the first steps too stay within the fast stability limit (larger ones
-      ! leave an error in the undamped stiff modes that no later step removes)
       call boot%init(2*self%n, self%adaptive, self%ctl, 1)
-      call boot%start(sys, t0, x0, min(h, self%h_stable), error); if (allocated(error)) return
+      call boot%start(sys, t0, x0, h, error); if (allocated(error)) return
       self%z = boot%z; self%t = boot%t; self%h = boot%h
       self%zbuf(:, :, 1) = self%z; self%kb = 1; self%t_macro = self%t - self%h; self%hb = self%h
       self%steps_fast = 2; self%steps_slow = 0
@@ -313,7 +303,7 @@ contains
     real(dp) :: h_new, hm_new
     h_new = self%h*self%ctl%ratio(err_f, accepted .or. err_f <= 1.0_dp)
     if (.not. accepted .and. err_f <= 1.0_dp) h_new = min(h_new, self%h)
-    h_new = min(h_new, self%ctl%h_max, self%h_stable)
+    h_new = min(h_new, self%ctl%h_max)
     hm_new = self%kn*self%h*self%ctl%ratio(err_s, accepted .or. err_s <= 1.0_dp)
     if (.not. accepted .and. err_s <= 1.0_dp) hm_new = min(hm_new, self%kn*self%h)
     if (h_new < self%ctl%h_min) then
