@@ -34,13 +34,18 @@ module pymr_run
 contains
 
   !> Read and build the model of a scene (with overrides).
-  subroutine load_model(file, overrides, sc, model, error)
+  subroutine load_model(file, overrides, sc, model, error, n)
     character(len=*), intent(in) :: file, overrides
     type(scene_t), intent(out) :: sc
     type(model_t), intent(out) :: model
     type(error_type), allocatable, intent(out) :: error
+    !> The number of coordinates the caller's arrays hold (the binding): another is an error.
+    integer, intent(in), optional :: n
     call read_scene(file, overrides, sc, error); if (allocated(error)) return
-    call build_model(sc, model, error)
+    call build_model(sc, model, error); if (allocated(error)) return
+    if (present(n)) then
+      if (model%d%n /= n) call fatal_error(error, 'q has the wrong length')
+    end if
   end subroutine load_model
 
   !> The output must not overwrite what the run reads (the scene, its modal and table files)

@@ -65,8 +65,7 @@ subroutine pymr_model_terms(scene, overrides, n, t, q, qd, mm, p, stat, message)
   type(scene_t) :: sc
   type(model_t) :: model
   mm = 0.0d0; p = 0.0d0
-  call load_model(scene, overrides, sc, model, error)
-  if (.not. allocated(error) .and. model%d%n /= n) call fatal_error(error, 'q has the wrong length')
+  call load_model(scene, overrides, sc, model, error, n)
   call report(error, stat, message)
   if (stat /= 0) return
   call model%terms(t, q, qd)
@@ -96,8 +95,7 @@ subroutine pymr_force_response(scene, overrides, n, t, q, qd, nf, g, kf, df, sta
   type(model_t) :: model
   double precision, allocatable :: f(:)
   g = 0.0d0; kf = 0.0d0; df = 0.0d0; nf = 0
-  call load_model(scene, overrides, sc, model, error)
-  if (.not. allocated(error) .and. model%d%n /= n) call fatal_error(error, 'q has the wrong length')
+  call load_model(scene, overrides, sc, model, error, n)
   if (.not. allocated(error)) then
     nf = model%n_fast()
     if (nf == 0 .or. model%n_slow() == 0) call fatal_error(error, 'the scene has no slow or no fast coordinates')
@@ -152,8 +150,7 @@ subroutine pymr_model_accelerations(scene, overrides, n, m, t, q, qd, qdd, stat,
   type(model_t) :: model
   integer :: k
   qdd = 0.0d0
-  call load_model(scene, overrides, sc, model, error)
-  if (.not. allocated(error) .and. model%d%n /= n) call fatal_error(error, 'q has the wrong length')
+  call load_model(scene, overrides, sc, model, error, n)
   do k = 1, m
     if (allocated(error)) exit
     call model%accelerations(t(k), q(:, k), qd(:, k), qdd(:, k), error)
@@ -182,8 +179,7 @@ subroutine pymr_model_energy(scene, overrides, n, m, q, qd, kinetic, potential, 
   type(model_t) :: model
   integer :: k
   kinetic = 0.0d0; potential = 0.0d0
-  call load_model(scene, overrides, sc, model, error)
-  if (.not. allocated(error) .and. model%d%n /= n) call fatal_error(error, 'q has the wrong length')
+  call load_model(scene, overrides, sc, model, error, n)
   call report(error, stat, message)
   if (stat /= 0) return
   do k = 1, m
@@ -215,8 +211,7 @@ subroutine pymr_time_evaluation(scene, overrides, n, q, qd, reps, seconds, stat,
   double precision :: c0, c1
   integer :: k
   seconds = 0.0d0
-  call load_model(scene, overrides, sc, model, error)
-  if (.not. allocated(error) .and. model%d%n /= n) call fatal_error(error, 'q has the wrong length')
+  call load_model(scene, overrides, sc, model, error, n)
   if (.not. allocated(error)) then
     allocate(qdd(n))
     c0 = thread_cpu_time()
