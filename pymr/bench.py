@@ -115,6 +115,12 @@ def main(what: str, repeats: int | None = None, json_path: str | None = None) ->
         if json_path:
             Path(json_path).write_text(json.dumps(rows, indent=2))
         return 0
+    if what == "spacecraft":
+        rows = bench_spacecraft(repeats=repeats or 5)
+        print_spacecraft(rows)
+        if json_path:
+            Path(json_path).write_text(json.dumps(rows, indent=2))
+        return 0
     if what == "table1":
         # runs of 5-30 ms are noisy on a shared machine: 21 interleaved repeats by default
         rows = bench_table1(repeats=max(repeats or 21, 5))
@@ -242,3 +248,62 @@ def print_table1(rows: list[dict]) -> None:
               f"{r['rhs_full']:>10} {r['rhs_fast']:>10} {r['muzzle_dev_m']:>12.3e} {r['muzzle_err_m']:>9.2e} | {ptxt}")
     print("dev case 1: the muzzle's largest distance from case 1 (the paper's measure); error: from the converged "
           "motion (single-rate h = 1e-5 s)")
+
+
+#: The spacecraft's cases (README "Where the scales separate"): name -> overrides.
+SPACECRAFT_CASES = {
+    "single-rate fixed h = 3e-5 s": {"integrator.adaptive": False, "integrator.h_slow": 3e-5, "integrator.h_fast": 3e-5},
+    "single-rate adaptive rtol 1e-4": {"integrator.rtol": 1e-4, "integrator.atol": 1e-7},
+    "multirate 'full' k = 10, h_fast = 2.5e-5": {
+        "integrator.method": "multirate", "integrator.coupling": "full", "integrator.adaptive": False,
+        "integrator.h_slow": 2.5e-4, "integrator.h_fast": 2.5e-5},
+    "multirate 'response' k = 10, h_fast = 3e-5": {
+        "integrator.method": "multirate", "integrator.adaptive": False, "integrator.h_slow": 3e-4,
+        "integrator.h_fast": 3e-5},
+    "multirate 'response' k = 100, h_fast = 3e-5": {
+        "integrator.method": "multirate", "integrator.adaptive": False, "integrator.h_slow": 3e-3,
+        "integrator.h_fast": 3e-5},
+    "multirate 'response' adaptive rtol 1e-4, k_max 1000": {
+        "integrator.method": "multirate", "integrator.rtol": 1e-4, "integrator.atol": 1e-7, "integrator.k_max": 1000},
+    "multirate 'response' adaptive rtol 1e-6, k_max 1000": {
+        "integrator.method": "multirate", "integrator.rtol": 1e-6, "integrator.atol": 1e-9, "integrator.k_max": 1000},
+}
+
+
+def bench_spacecraft(repeats: int = 5) -> list[dict]:
+    """The flexible spacecraft over 2 s: each case's right-boom tip error against single-rate
+    adaptive steps at rtol 1e-10, its CPU (median of `repeats` runs interleaved over the
+    cases) and pre-flight CPU, and its speed against the fastest single-rate case."""
+    from .api import run
+    scene = _scene_path("spacecraft.nml")
+    with tempfile.TemporaryDirectory(prefix="pymr-spacecraft-") as tmp:
+        ref = run(scene, Path(tmp) / "ref.csv", overrides={"integrator.rtol": 1e-10, "integrator.atol": 1e-13,
+                                                          "output.dt": 1e-3})
+        tip = ref.marker("tip_right")[0]
+        travel = float(np.linalg.norm(tip - tip[0], axis=1).max())
+        cpu: dict[str, list] = {name: [] for name in SPACECRAFT_CASES}
+        last = {}
+        for _ in range(repeats):
+            for name, over in SPACECRAFT_CASES.items():
+                res = run(scene, Path(tmp) / "case.csv", overrides={**over, "output.dt": 1e-3})
+                cpu[name].append(res.stats["cpu_time_s"])
+                last[name] = res
+    rows = []
+    for name, res in last.items():
+        err = float(np.linalg.norm(res.marker("tip_right")[0] - tip, axis=1).max())
+        rows.append({"case": name, "tip_error_m": err, "travel_m": travel, "median_cpu_s": statistics.median(cpu[name]),
+                     "preflight_cpu_s": float(res.stats.get("preflight_cpu_s", 0.0)), "rhs_full": res.stats["rhs_full"],
+                     "rhs_fast": res.stats["rhs_fast"], "rejected": res.stats["rejected_steps"]})
+    fastest_single = min(r["median_cpu_s"] for r in rows if r["case"].startswith("single"))
+    for r in rows:
+        r["speed_vs_fastest_single"] = fastest_single / r["median_cpu_s"]
+    return rows
+
+
+def print_spacecraft(rows: list[dict]) -> None:
+    print(f"pymr bench spacecraft: 0-2 s, right boom tip (travel {rows[0]['travel_m']:.3f} m); error against "
+          "single-rate adaptive rtol 1e-10; median CPU of interleaved repeats")
+    print(f"{'case':<52} {'tip error m':>11} {'CPU s':>8} {'pre-flight s':>12} {'x fastest single':>16}")
+    for r in rows:
+        print(f"{r['case']:<52} {r['tip_error_m']:>11.1e} {r['median_cpu_s']:>8.3f} {r['preflight_cpu_s']:>12.3f} "
+              f"{r['speed_vs_fastest_single']:>16.1f}")

@@ -90,7 +90,7 @@ def build_parser() -> argparse.ArgumentParser:
     m.add_argument("-q", "--quiet", action="store_true")
     m.set_defaults(func=_cmd_modal_file)
     b = sub.add_parser("bench", help="benchmarks that print figures")
-    b.add_argument("what", choices=["rhs", "table1", "effects"],
+    b.add_argument("what", choices=["rhs", "table1", "effects", "spacecraft"],
                    help="rhs: cost of one model evaluation vs chain length; table1: the paper's Table 1 "
                         "(tank, step ratios 1-50, both couplings); effects: cost of one tank evaluation "
                         "with each effect on and off")
