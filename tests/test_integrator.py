@@ -7,10 +7,12 @@ Nordsieck representation (Pascal predictor, step rescaling C(alpha)).
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+import pymr
 from pymr import _core
 
 # ---------------------------------------------------------------------------------------------
@@ -287,3 +289,17 @@ def test_step_ratio_exponent_matches_the_order_of_the_error_estimate():
     # the bounds: growth at most 4x, a rejected step at least 0.2x
     assert _core.pymr_step_ratio(1e-9, 1) == 4.0
     assert _core.pymr_step_ratio(1e9, 0) == pytest.approx(0.2)
+
+
+@pytest.mark.parametrize("over, steps", [({}, 70000),
+                                         ({"integrator.method": "multirate", "integrator.h_slow": 1e-3}, 70000),
+                                         ({"integrator.method": "multirate", "integrator.coupling": "full",
+                                           "integrator.h_slow": 5e-4}, 70000)])
+def test_fixed_steps_reach_t_end_in_the_counted_number_of_steps(tmp_path, over, steps):
+    """Fixed steps of 1e-4 s to t_end = 7 s: exactly 70,000 fast steps, every stepper (the time
+    is t0 + n h, not a sum of steps: summed, 7 s took 70,001 steps, one past t_end), and the
+    last row is at t_end."""
+    tank = Path(__file__).resolve().parent.parent / "input" / "tank_gun_turret.nml"
+    res = pymr.run(tank, tmp_path / "x.csv", overrides={"scene.t_end": 7.0, "output.dt": 0.5, **over})
+    assert res.stats["steps_fast"] == steps
+    assert res.t[-1] == 7.0 and len(res.t) == 15

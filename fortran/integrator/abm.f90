@@ -19,8 +19,9 @@ module pymr_integrator_abm
   type, extends(stepper_t) :: abm_integrator
     !> Number of state components.
     integer :: n = 0
-    !> Time of the Nordsieck array (s) and current step (s).
-    real(dp) :: t = 0.0_dp, h = 0.0_dp
+    !> Time of the Nordsieck array (s) and current step (s); the start time (fixed steps
+    !> reach t0 + n h with an integer n, not a sum of steps).
+    real(dp) :: t = 0.0_dp, h = 0.0_dp, t0 = 0.0_dp
     !> Nordsieck array z(n, 0:3) at time t, scaled with h.
     real(dp), allocatable :: z(:, :)
     !> Number of corrector evaluations per step (1 = PECE).
@@ -94,6 +95,7 @@ contains
     if (allocated(error)) return
     call check_finite(sys, t0 + 2*hs, x, 'state', error); if (allocated(error)) return
     call nordsieck_from_history(x, f2, f1, f0, hs, self%z)
+    self%t0 = t0
     self%t = t0 + 2*hs
     self%h = hs
     self%steps = 2
@@ -157,6 +159,7 @@ contains
     real(dp) :: err, eta, tn
     do
       tn = self%t + self%h
+      if (.not. self%adaptive) tn = self%t0 + (self%steps + 1)*self%h
       call try_step(self, sys, tn, error); if (allocated(error)) return
       if (.not. self%adaptive) exit
       call error_weights(self%ctl, self%z(:, 0), self%w)
@@ -221,14 +224,14 @@ contains
     class(abm_integrator), intent(in) :: self
     integer, intent(in) :: unit
     integer, intent(out) :: ios
-    write(unit, iostat=ios) self%t, self%h, self%z, self%steps, self%rejected, self%evals
+    write(unit, iostat=ios) self%t, self%h, self%t0, self%z, self%steps, self%rejected, self%evals
   end subroutine abm_save
 
   subroutine abm_load(self, unit, ios)
     class(abm_integrator), intent(inout) :: self
     integer, intent(in) :: unit
     integer, intent(out) :: ios
-    read(unit, iostat=ios) self%t, self%h, self%z, self%steps, self%rejected, self%evals
+    read(unit, iostat=ios) self%t, self%h, self%t0, self%z, self%steps, self%rejected, self%evals
   end subroutine abm_load
 
   pure function abm_counts(self) result(c)

@@ -26,8 +26,9 @@ module pymr_integrator_multirate
   type, extends(stepper_t) :: multirate_integrator
     !> Slow and fast coordinates, step ratio k = H/h.
     integer :: ns = 0, nf = 0, k = 1
-    !> Time of the Nordsieck arrays (s), slow step H and fast step h (s).
-    real(dp) :: t = 0.0_dp, hs = 0.0_dp, hf = 0.0_dp
+    !> Time of the Nordsieck arrays (s), slow step H and fast step h (s), start time (fixed
+    !> steps end at t0 + n H with an integer n, not a sum of steps).
+    real(dp) :: t = 0.0_dp, hs = 0.0_dp, hf = 0.0_dp, t0 = 0.0_dp
     !> Slow Nordsieck array (2ns, 0:3) scaled with H, fast one (2nf, 0:3) scaled with h.
     real(dp), allocatable :: zs(:, :), zf(:, :)
     !> Counters: macro (slow) steps, fast steps, slow and fast evaluations, rejected macro steps.
@@ -123,7 +124,7 @@ contains
     class(multirate_integrator), intent(in) :: self
     integer, intent(in) :: unit
     integer, intent(out) :: ios
-    write(unit, iostat=ios) self%k, self%t, self%hs, self%hf, self%zs, self%zf, self%steps_slow, self%steps_fast, &
+    write(unit, iostat=ios) self%k, self%t, self%hs, self%hf, self%t0, self%zs, self%zf, self%steps_slow, self%steps_fast, &
       & self%evals_slow, self%evals_fast, self%evals_start, self%rejected
   end subroutine mr_save
 
@@ -131,7 +132,7 @@ contains
     class(multirate_integrator), intent(inout) :: self
     integer, intent(in) :: unit
     integer, intent(out) :: ios
-    read(unit, iostat=ios) self%k, self%t, self%hs, self%hf, self%zs, self%zf, self%steps_slow, self%steps_fast, &
+    read(unit, iostat=ios) self%k, self%t, self%hs, self%hf, self%t0, self%zs, self%zf, self%steps_slow, self%steps_fast, &
       & self%evals_slow, self%evals_fast, self%evals_start, self%rejected
   end subroutine mr_load
 
@@ -217,6 +218,7 @@ contains
     end do
     call nordsieck_from_history(slow_part(x), fsl(:, 2), fsl(:, 1), fsl(:, 0), self%hs, self%zs)
     call nordsieck_from_history(fast_part(x), ffa(:, nsteps), ffa(:, nsteps - 1), ffa(:, nsteps - 2), self%hf, self%zf)
+    self%t0 = t0
     self%t = t0 + 2*hs
     self%steps_slow = 2; self%steps_fast = nsteps
   contains
@@ -303,7 +305,7 @@ contains
     self%zs = self%zn
     self%zf = self%wn
     self%steps_fast = self%steps_fast + 1
-    self%t = self%t + self%hs
+    self%t = macro_end(self)
     self%steps_slow = self%steps_slow + 1
     call check_finite(sys, self%t, self%zs(:, 0), 'state', error, self%slow_map); if (allocated(error)) return
     call check_finite(sys, self%t, self%zf(:, 0), 'state', error, self%fast_map)
@@ -338,7 +340,7 @@ contains
     end do
     call nordsieck_predict(self%zs, self%zp)
     call nordsieck_predict(self%zf, self%wp)
-    call sys%sync_rhs(self%t + self%hs, self%zp(:, 0), self%wp(:, 0), self%fs, self%ff, error)
+    call sys%sync_rhs(macro_end(self), self%zp(:, 0), self%wp(:, 0), self%fs, self%ff, error)
     self%evals_slow = self%evals_slow + 1
     if (allocated(error)) return
     call nordsieck_correct(self%zp, self%hs*self%fs, self%zn, self%gs)
@@ -361,6 +363,16 @@ contains
     self%fx(nf+1:) = 0.375_dp*self%hs*(self%ff(nf+1:) - self%fx(nf+1:))
     err_s = max(err_s, wrms_norm(self%fx, self%wf))
   end subroutine try_macro_step
+
+  !> End of the macro step being taken: t + H, or with fixed steps t0 + n H.
+  pure real(dp) function macro_end(self)
+    class(multirate_integrator), intent(in) :: self
+    if (self%adaptive) then
+      macro_end = self%t + self%hs
+    else
+      macro_end = self%t0 + (self%steps_slow + 1)*self%hs
+    end if
+  end function macro_end
 
   !> Positions of the slow state [q_s; qd_s] in the full state [q_s; q_f; qd_s; qd_f].
   pure function slow_index(ns, nf) result(idx)

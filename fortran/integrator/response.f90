@@ -49,8 +49,9 @@ module pymr_integrator_response
     !> macro step (k, but k - 2 after the start's two steps: macro steps end on multiples of
     !> k h in fixed-step runs).
     integer :: n = 0, ns = 0, nf = 0, k = 1, k_max = 1, kn = 1
-    !> Time of the Nordsieck array, fast step (s); start and fast step of the last macro step.
-    real(dp) :: t = 0.0_dp, h = 0.0_dp, t_macro = 0.0_dp, hb = 0.0_dp
+    !> Time of the Nordsieck array, fast step (s); start and fast step of the last macro step;
+    !> the run's start (fixed steps reach t0 + n h with an integer n, not a sum of steps).
+    real(dp) :: t = 0.0_dp, h = 0.0_dp, t_macro = 0.0_dp, hb = 0.0_dp, t0 = 0.0_dp
     !> Nordsieck array (2n, 0:3) scaled with h; the arrays after each fast step of the last
     !> macro step (dense output, scaled with hb), kb of them.
     real(dp), allocatable :: z(:, :), zbuf(:, :, :)
@@ -128,7 +129,7 @@ contains
       call commit_evaluation(self)
       call boot%init(2*self%n, self%adaptive, self%ctl, 1)
       call boot%start(sys, t0, x0, h, error); if (allocated(error)) return
-      self%z = boot%z; self%t = boot%t; self%h = boot%h
+      self%z = boot%z; self%t = boot%t; self%h = boot%h; self%t0 = t0
       self%zbuf(:, :, 1) = self%z; self%kb = 1; self%t_macro = self%t - self%h; self%hb = self%h
       self%steps_fast = 2; self%steps_slow = 0
       self%kn = self%k
@@ -200,6 +201,7 @@ contains
     self%t_macro = self%t
     do j = 1, self%kn
       tn = self%t + self%h
+      if (.not. self%adaptive) tn = self%t0 + (self%steps_fast + j)*self%h
       call nordsieck_predict(self%z, self%zp)
       self%x = self%zp(:, 0)
       if (j == self%kn .or. self%nh < n_hist) then
@@ -337,7 +339,7 @@ contains
     class(response_integrator), intent(in) :: self
     integer, intent(in) :: unit
     integer, intent(out) :: ios
-    write(unit, iostat=ios) self%k, self%kn, self%t, self%h, self%t_macro, self%hb, self%kb, self%z, &
+    write(unit, iostat=ios) self%k, self%kn, self%t, self%h, self%t_macro, self%hb, self%t0, self%kb, self%z, &
       & self%zbuf(:, :, 1:self%kb), self%nh, self%th, self%hq, self%hy, self%g, self%kf, self%df, self%steps_slow, self%steps_fast, &
       & self%rejected, self%evals_surrogate
   end subroutine rs_save
@@ -346,7 +348,7 @@ contains
     class(response_integrator), intent(inout) :: self
     integer, intent(in) :: unit
     integer, intent(out) :: ios
-    read(unit, iostat=ios) self%k, self%kn, self%t, self%h, self%t_macro, self%hb, self%kb
+    read(unit, iostat=ios) self%k, self%kn, self%t, self%h, self%t_macro, self%hb, self%t0, self%kb
     if (ios /= 0) return
     if (self%kb < 1 .or. self%kb > self%k_max .or. self%k < 1 .or. self%k > self%k_max .or. self%kn < 1 .or. &
       & self%kn > self%k_max) then
