@@ -57,7 +57,8 @@ def _scene_path(name: str) -> Path:
     for base in (INPUT, Path.cwd() / "input"):
         if (base / name).exists():
             return base / name
-    raise FileNotFoundError(f"input/{name} not found (run from the pymr checkout)")
+    from .api import SceneError
+    raise SceneError(f"input/{name} not found: pymr bench runs the scenes of the pymr checkout (run it from there)")
 
 
 def bench_scenes(repeats: int = 7) -> list[dict]:

@@ -60,6 +60,8 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="pymr", description="Flexible multibody dynamics with multirate "
                                 "Nordsieck Adams integration.")
+    from . import __version__
+    p.add_argument("--version", action="version", version=f"pymr {__version__}")
     sub = p.add_subparsers(dest="command", required=True)
     r = sub.add_parser("run", help="run a scene (namelist file) and write OUT.csv and OUT.json")
     r.add_argument("scene", help="scene namelist file")

@@ -15,6 +15,7 @@ Every case below is a small valid scene with one thing broken, written to ``tmp_
 """
 from __future__ import annotations
 
+import os
 import re
 import shutil
 import subprocess
@@ -467,3 +468,16 @@ def test_python_m_pymr_solver_failure_exit_2(tmp_path):
     line = error_line(r.stderr, "pymr: error: ")
     assert "step size underflow" in line
     check_single_line(r.stderr, "pymr: error: ")
+
+
+def test_version_and_bench_outside_the_checkout(tmp_path, mrsim):
+    """`mrsim --version` and `pymr --version` print the package's version and exit 0;
+    `pymr bench table1` outside the checkout is one line naming what is missing, exit 1."""
+    r = subprocess.run([mrsim, "--version"], capture_output=True, text=True, timeout=30)
+    assert r.returncode == 0 and r.stdout.strip() == f"mrsim (pymr) {pymr.__version__}"
+    r = subprocess.run(["pymr", "--version"], capture_output=True, text=True, timeout=30)
+    assert r.returncode == 0 and r.stdout.strip() == f"pymr {pymr.__version__}"
+    r = subprocess.run(["pymr", "bench", "table1"], cwd=tmp_path, capture_output=True, text=True, timeout=60,
+                       env={**os.environ, "PYTHONPATH": ""})
+    assert r.returncode == 1 and r.stderr.count("\n") == 1, r.stderr
+    assert "input/tank_gun_turret.nml not found" in r.stderr

@@ -9,6 +9,7 @@ program mrsim
   use, intrinsic :: iso_c_binding, only : c_int, c_funptr, c_intptr_t
   use pymr_error, only : error_type
   use pymr_run, only : run_scene
+  use pymr_io_results_output, only : pymr_version
   implicit none
   interface
     function c_signal(sig, handler) bind(c, name='signal') result(old)
@@ -35,9 +36,12 @@ program mrsim
   do while (i <= nargs)
     arg = get_arg(i)
     select case (arg)
+    case ('--version')
+      write(output_unit, '(a)') 'mrsim (pymr) ' // pymr_version
+      stop
     case ('-h', '--help')
       write(output_unit, '(a)') 'usage: mrsim SCENE.nml [-o OUT.csv] [--set GROUP.KEY=VALUE ...] [--restart CKPT] ' &
-        & // '[--progress] [--quiet]'
+        & // '[--progress] [--quiet] | --version'
       stop
     case ('-o', '--output')
       if (i == nargs) call usage_error(arg // ' needs a file name')
