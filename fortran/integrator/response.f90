@@ -104,7 +104,7 @@ contains
     self%adaptive = adaptive; self%ctl = ctl
     self%k_max = max(1, k_max, merge(1, k, adaptive))
     self%k = min(max(1, k), self%k_max)
-    allocate(self%z(2*n, 0:nq), self%zp(2*n, 0:nq), self%z0(2*n, 0:nq), self%zbuf(2*n, 0:nq, self%k_max))
+    allocate(self%z(2*n, 0:nq), self%zp(2*n, 0:nq), self%z0(2*n, 0:nq), self%zbuf(2*n, 0:nq, self%k))
     allocate(self%hq(n, n_hist), self%hy(2*nf, n_hist), self%g(n, nf), self%kf(nf), self%df(nf))
     allocate(self%qp(n), self%yp(2*nf), self%gp(n, nf))
     allocate(self%f(2*n), self%fs(2*n), self%x(2*n), self%cor(2*n), self%w(2*n), self%e(2*n), self%yhat(2*nf), &
@@ -199,6 +199,7 @@ contains
     n = self%n
     err_f = 0.0_dp; err_s = 0.0_dp
     self%t_macro = self%t
+    call hold_steps(self, self%kn)
     do j = 1, self%kn
       tn = self%t + self%h
       if (.not. self%adaptive) tn = self%t0 + (self%steps_fast + j)*self%h
@@ -354,6 +355,7 @@ contains
       & self%kn > self%k_max) then
       ios = 1; return
     end if
+    call hold_steps(self, self%kb)
     read(unit, iostat=ios) self%z, self%zbuf(:, :, 1:self%kb), self%nh, self%th, self%hq, self%hy, self%g, &
       & self%kf, self%df, self%steps_slow, self%steps_fast, self%rejected, self%evals_surrogate
   end subroutine rs_load
@@ -401,16 +403,24 @@ contains
     self%hy = reshape(v(b+1:), shape(self%hy))
   end subroutine rs_set_state
 
-  !> Step ratio k (the dense-output buffer grows with it).
+  !> Step ratio k.
   pure subroutine rs_set_ratio(self, k)
     class(response_integrator), intent(inout) :: self
     integer, intent(in) :: k
-    if (k > size(self%zbuf, 3)) then
-      deallocate(self%zbuf)
-      allocate(self%zbuf(2*self%n, 0:nq, k))
-    end if
     self%k = k; self%kn = k; self%k_max = max(self%k_max, k)
   end subroutine rs_set_ratio
+
+  !> Room in the dense-output buffer for a macro step of k fast steps: it grows (doubling)
+  !> with the ratio actually taken, not with k_max (up to 100,000).
+  pure subroutine hold_steps(self, k)
+    class(response_integrator), intent(inout) :: self
+    integer, intent(in) :: k
+    integer :: room
+    if (k <= size(self%zbuf, 3)) return
+    room = max(k, min(2*size(self%zbuf, 3), self%k_max))
+    deallocate(self%zbuf)
+    allocate(self%zbuf(2*self%n, 0:nq, room))
+  end subroutine hold_steps
 
   pure function rs_name(self) result(s)
     class(response_integrator), intent(in) :: self
