@@ -20,7 +20,7 @@ module pymr_preflight
   use pymr_io_text, only : itoa
   implicit none
   private
-  public :: check_step_stability, check_mass_matrix
+  public :: check_step_stability, check_mass_matrix, normal_modes
 
   !> Largest growth of a linearised perturbation over a whole run that is accepted: a
   !> step whose growth factor per step is above 1 only by roundoff-sized amounts (an
@@ -65,10 +65,8 @@ contains
     character(len=*), intent(in) :: where
     type(error_type), allocatable, intent(out) :: error
     integer :: n, i, j, dom, worst
-    type(model_data) :: counters
-    real(dp), allocatable :: q(:), qd(:), m(:, :), lm(:, :), k(:, :), c(:, :), a(:, :), wr(:), wi(:), vr(:, :)
-    real(dp), allocatable :: p0(:), pp(:), pm(:), wgt(:)
-    real(dp) :: del, h, ratio, worst_ratio
+    real(dp), allocatable :: m(:, :), k(:, :), c(:, :), a(:, :), wr(:), wi(:), vr(:, :), wgt(:)
+    real(dp) :: h, ratio, worst_ratio
     complex(dp) :: lam, worst_lam
     character(len=32) :: b1, b2, b3, b4
     type(pece_steps) :: steps
@@ -76,35 +74,10 @@ contains
     n = model%d%n
     if (n == 0) return
     steps = st%pece(); counts = st%counts()
-    ! the linearisation must not count as the run's evaluations
-    call save_counters(model, counters)
-    q = x(1:n); qd = x(n+1:2*n)
-    allocate(k(n, n), c(n, n), a(2*n, 2*n), wr(2*n), wi(2*n), vr(2*n, 2*n), wgt(n))
-    call model%terms(0.0_dp, q, qd)
-    m = 0.5_dp*(model%d%mm + transpose(model%d%mm))
-    p0 = model%d%p
-    do j = 1, n
-      del = 1.0e-6_dp*max(1.0_dp, abs(q(j)))
-      q(j) = x(j) + del; call model%terms(0.0_dp, q, qd); pp = model%d%p
-      q(j) = x(j) - del; call model%terms(0.0_dp, q, qd); pm = model%d%p
-      q(j) = x(j)
-      k(:, j) = -(pp - pm)/(2.0_dp*del)
-      del = 1.0e-6_dp*max(1.0_dp, abs(qd(j)))
-      qd(j) = x(n + j) + del; call model%terms(0.0_dp, q, qd); pp = model%d%p
-      qd(j) = x(n + j) - del; call model%terms(0.0_dp, q, qd); pm = model%d%p
-      qd(j) = x(n + j)
-      c(:, j) = -(pp - pm)/(2.0_dp*del)
-    end do
-    call restore_counters(model, counters)
-    lm = m
-    call potrf(lm, 'the mass matrix at the initial state', error); if (allocated(error)) return
-    a = 0.0_dp
-    do i = 1, n
-      a(i, n + i) = 1.0_dp
-    end do
-    a(n+1:, 1:n) = -k
-    a(n+1:, n+1:) = -c
-    call potrs(lm, a(n+1:, :), 'the mass matrix', error); if (allocated(error)) return
+    allocate(wgt(n))
+    call linearise(model, 0.0_dp, x, m, k, c)
+    call state_matrix(m, k, c, a, error); if (allocated(error)) return
+    allocate(wr(2*n), wi(2*n), vr(2*n, 2*n))
     call geev_real(a, wr, wi, vr, 'the linearised model', error); if (allocated(error)) return
     worst = 0; worst_ratio = 1.0_dp; worst_lam = (0.0_dp, 0.0_dp)
     i = 1
@@ -149,6 +122,113 @@ contains
       & ' s (the ABM PECE method is stable up to omega*h = 0.430 on an undamped mode): take a smaller step, ' // &
       & 'or adaptive = .true.')
   end subroutine check_step_stability
+
+  !> The model linearised at (t, x = [q; qd]): M (symmetrised), K = -dP/dq and C = -dP/dqd
+  !> by central differences with increments 1e-6 max(1, |x_j|). Its evaluations do not count
+  !> as the run's.
+  subroutine linearise(model, t, x, m, k, c)
+    type(model_t), intent(inout) :: model
+    real(dp), intent(in) :: t, x(:)
+    real(dp), allocatable, intent(out) :: m(:, :), k(:, :), c(:, :)
+    type(model_data) :: counters
+    real(dp), allocatable :: q(:), qd(:), pp(:), pm(:)
+    real(dp) :: del
+    integer :: n, j
+    n = model%d%n
+    call save_counters(model, counters)
+    q = x(1:n); qd = x(n+1:2*n)
+    allocate(k(n, n), c(n, n))
+    call model%terms(t, q, qd)
+    m = 0.5_dp*(model%d%mm + transpose(model%d%mm))
+    do j = 1, n
+      del = 1.0e-6_dp*max(1.0_dp, abs(q(j)))
+      q(j) = x(j) + del; call model%terms(t, q, qd); pp = model%d%p
+      q(j) = x(j) - del; call model%terms(t, q, qd); pm = model%d%p
+      q(j) = x(j)
+      k(:, j) = -(pp - pm)/(2.0_dp*del)
+      del = 1.0e-6_dp*max(1.0_dp, abs(qd(j)))
+      qd(j) = x(n + j) + del; call model%terms(t, q, qd); pp = model%d%p
+      qd(j) = x(n + j) - del; call model%terms(t, q, qd); pm = model%d%p
+      qd(j) = x(n + j)
+      c(:, j) = -(pp - pm)/(2.0_dp*del)
+    end do
+    call restore_counters(model, counters)
+  end subroutine linearise
+
+  !> The first-order state matrix [0 I; -M^-1 K  -M^-1 C] of the linearised model.
+  subroutine state_matrix(m, k, c, a, error)
+    real(dp), intent(in) :: m(:, :), k(:, :), c(:, :)
+    real(dp), allocatable, intent(out) :: a(:, :)
+    type(error_type), allocatable, intent(out) :: error
+    real(dp), allocatable :: lm(:, :)
+    integer :: n, i
+    n = size(m, 1)
+    allocate(a(2*n, 2*n))
+    lm = m
+    call potrf(lm, 'the mass matrix at the linearisation state', error); if (allocated(error)) return
+    a = 0.0_dp
+    do i = 1, n
+      a(i, n + i) = 1.0_dp
+    end do
+    a(n+1:, 1:n) = -k
+    a(n+1:, n+1:) = -c
+    call potrs(lm, a(n+1:, :), 'the mass matrix', error)
+  end subroutine state_matrix
+
+  !> Natural modes of the model linearised at (t, x): for each vibration (complex pair of
+  !> eigenvalues lambda of the state matrix, one taken), the undamped natural frequency
+  !> |lambda|/(2 pi) (Hz), the damping ratio -Re(lambda)/|lambda|, and the mode shape in the
+  !> coordinates (the eigenvector's position part, scaled so that its largest component is
+  !> 1, real part), sorted by frequency; nm of them.
+  subroutine normal_modes(model, t, x, freq, zeta, shapes, nm, error)
+    type(model_t), intent(inout) :: model
+    real(dp), intent(in) :: t, x(:)
+    real(dp), intent(out) :: freq(:), zeta(:), shapes(:, :)
+    integer, intent(out) :: nm
+    type(error_type), allocatable, intent(out) :: error
+    real(dp), allocatable :: m(:, :), k(:, :), c(:, :), a(:, :), wr(:), wi(:), vr(:, :)
+    complex(dp), allocatable :: v(:)
+    integer :: n, i, j, top
+    integer, allocatable :: order(:)
+    real(dp), allocatable :: f(:), z(:), s(:, :)
+    n = model%d%n
+    nm = 0
+    call linearise(model, t, x, m, k, c)
+    call state_matrix(m, k, c, a, error); if (allocated(error)) return
+    allocate(wr(2*n), wi(2*n), vr(2*n, 2*n), f(n), z(n), s(n, n), v(n))
+    call geev_real(a, wr, wi, vr, 'the linearised model', error); if (allocated(error)) return
+    do i = 1, 2*n - 1
+      ! one of each complex pair (wi > 0); eigenvalues at roundoff size are drift, not vibration
+      if (wi(i) <= 0.0_dp .or. nm == n) cycle
+      if (hypot(wr(i), wi(i)) <= 1.0e-8_dp*maxval(hypot(wr, wi))) cycle
+      nm = nm + 1
+      f(nm) = hypot(wr(i), wi(i))/(2.0_dp*pi)
+      z(nm) = -wr(i)/hypot(wr(i), wi(i))
+      v = cmplx(vr(1:n, i), vr(1:n, i + 1), dp)
+      top = maxloc(abs(v), 1)
+      v = v/v(top)
+      s(:, nm) = real(v, dp)
+    end do
+    order = sort_index(f(1:nm))
+    do j = 1, nm
+      freq(j) = f(order(j)); zeta(j) = z(order(j)); shapes(:, j) = s(:, order(j))
+    end do
+  end subroutine normal_modes
+
+  !> Indices that sort v ascending (insertion sort: a model has few modes).
+  pure function sort_index(v) result(idx)
+    real(dp), intent(in) :: v(:)
+    integer :: idx(size(v)), i, j, tmp
+    idx = [(i, i = 1, size(v))]
+    do i = 2, size(v)
+      tmp = idx(i); j = i - 1
+      do while (j >= 1)
+        if (v(idx(j)) <= v(tmp)) exit
+        idx(j + 1) = idx(j); j = j - 1
+      end do
+      idx(j + 1) = tmp
+    end do
+  end function sort_index
 
   !> The mass matrix at the initial state must be positive definite: a body without mass
   !> or inertia at the end of a chain, or joint axes that leave a motion without inertia,

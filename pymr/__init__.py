@@ -8,7 +8,7 @@ from __future__ import annotations
 from .results import Results, load_results
 from .api import (PymrError, SceneError, SolverError, run, model_terms, model_accelerations,
                   model_energy, model_size, write_modal_file, Model,
-                  force_response)
+                  force_response, modes)
 
 from .scene import Scene, schema
 from .plot import PlotError
@@ -18,5 +18,5 @@ __version__ = "0.1.0"
 
 __all__ = ["PymrError", "SceneError", "SolverError", "Results", "load_results", "run",
            "model_terms", "model_accelerations", "model_energy", "model_size", "write_modal_file",
-           "Model", "force_response", "PlotError", "SweepError", "Scene", "schema",
+           "Model", "force_response", "modes", "PlotError", "SweepError", "Scene", "schema",
            "__version__"]

@@ -184,6 +184,22 @@ def force_response(scene: str | os.PathLike, q, qd, t: float = 0.0, overrides=No
     return g[:, :nf].copy(), kf[:nf].copy(), df[:nf].copy()
 
 
+def modes(scene: str | os.PathLike, q, qd, t: float = 0.0, overrides=None):
+    """Natural modes of the model linearised at (t, q, qd), by the pre-flight check's
+    linearisation (central differences of P, LAPACK dgeev of the state matrix): frequencies
+    (Hz, ascending), damping ratios, and shapes (shape (n, number of modes): each column the
+    coordinates' motion, its largest component 1). Drifting motions (a free joint) are not
+    modes and are left out."""
+    q, qd = _states(q, qd)
+    if q.ndim != 1:
+        raise ValueError(f"q: one state of shape (n,) expected, got shape {q.shape}")
+    nm, freq, zeta, shapes, stat, msg = _core.pymr_modes(*_scene_and_overrides(scene, overrides), t,
+                                                          np.ascontiguousarray(q), np.ascontiguousarray(qd))
+    _raise(stat, msg)
+    nm = int(nm)
+    return freq[:nm].copy(), zeta[:nm].copy(), shapes[:, :nm].copy()
+
+
 def model_accelerations(scene: str | os.PathLike, t, q, qd, overrides=None) -> np.ndarray:
     """Accelerations for one state (q of shape (n,)) or many (shape (m, n), t of shape (m,))."""
     q, qd = _states(q, qd)

@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+import numpy as np
+
 from .api import PymrError, SceneError, run
 from .plot import PlotError
 
@@ -38,6 +40,35 @@ def _cmd_modal_file(args: argparse.Namespace) -> int:
     write_modal_file(args.scene, args.body, args.output, overrides=args.set or None)
     if not args.quiet:
         print(f"wrote the modes of beam {args.body!r} to {args.output}")
+    return 0
+
+
+def _cmd_modes(args: argparse.Namespace) -> int:
+    """Natural modes at the initial state, or at time T of the run (--at T)."""
+    import csv
+    import re
+    from .api import modes
+    over = list(args.set or [])
+    at = 0.0 if args.at is None else float(args.at)
+    if at < 0.0:
+        raise SceneError(f"--at {args.at}: a time at or after the start of the run (s)")
+    res = run(args.scene, overrides=over + [f"scene.t_end={at if at > 0 else 1e-9}", "output.dt=0.0"])
+    q, qd = res.coordinates()
+    names = [c for c in res.columns if re.search(r"\.(q\d*|a\d+)$", c)]
+    freq, zeta, shapes = modes(args.scene, q[-1], qd[-1], t=float(res.t[-1]) if at > 0 else 0.0, overrides=over)
+    print(f"natural modes of {args.scene} linearised at t = {float(res.t[-1]) if at > 0 else 0.0:g} s "
+          f"({len(freq)} vibrations; drifting motions left out)")
+    print(f"{'mode':>4} {'frequency Hz':>13} {'damping ratio':>13}  largest motion")
+    for i, (f, z) in enumerate(zip(freq, zeta), 1):
+        big = int(np.argmax(np.abs(shapes[:, i - 1])))
+        print(f"{i:>4} {f:>13.5g} {z:>13.4g}  {names[big] if big < len(names) else big}")
+    if args.output:
+        with open(args.output, "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(["mode", "frequency_hz", "damping_ratio", *names])
+            for i in range(len(freq)):
+                w.writerow([i + 1, repr(float(freq[i])), repr(float(zeta[i])), *[repr(float(v)) for v in shapes[:, i]]])
+        print(f"written: {args.output}")
     return 0
 
 
@@ -100,6 +131,13 @@ def build_parser() -> argparse.ArgumentParser:
                    help="timing repeats, median reported (default 7 for rhs and effects, 21 for table1)")
     b.add_argument("--json", help="also write the figures to this JSON file")
     b.set_defaults(func=_cmd_bench)
+    md = sub.add_parser("modes", help="natural frequencies, damping ratios and mode shapes of the model "
+                        "linearised at the initial state (or at time T of the run)")
+    md.add_argument("scene", help="scene namelist file")
+    md.add_argument("--at", metavar="T", help="linearise at time T of the run (s) instead of at the initial state")
+    md.add_argument("--set", action="append", metavar="GROUP.ITEM=VALUE", help="override (repeatable)")
+    md.add_argument("-o", "--output", help="write the modes to this CSV file (mode, frequency, damping, shape)")
+    md.set_defaults(func=_cmd_modes)
     s = sub.add_parser("study", help="work-precision study: error against CPU time and evaluations for every "
                        "method (fixed, multirate, adaptive, scipy DOP853/LSODA, CVODE)")
     s.add_argument("scene", help="scene namelist file (with at least one &marker)")

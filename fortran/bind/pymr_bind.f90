@@ -129,6 +129,33 @@ subroutine pymr_format_reals(m, x, digits, text)
   end do
 end subroutine pymr_format_reals
 
+!> Natural modes of the model linearised at (t, q, qd) (the pre-flight check's
+!> linearisation): nm modes, frequency (Hz), damping ratio and shape in the coordinates.
+subroutine pymr_modes(scene, overrides, n, t, q, qd, nm, freq, zeta, shapes, stat, message)
+  use pymr_error, only : error_type
+  use pymr_bind_support, only : report
+  use pymr_model_scene, only : scene_t
+  use pymr_model, only : model_t
+  use pymr_run, only : load_model
+  use pymr_preflight, only : normal_modes
+  implicit none
+  character(len=*), intent(in) :: scene, overrides
+  integer, intent(in) :: n
+  double precision, intent(in) :: t, q(n), qd(n)
+  integer, intent(out) :: nm
+  double precision, intent(out) :: freq(n), zeta(n), shapes(n, n)
+  integer, intent(out) :: stat
+  character(len=8192), intent(out) :: message
+  !f2py integer intent(hide), depend(q) :: n = len(q)
+  type(error_type), allocatable :: error
+  type(scene_t) :: sc
+  type(model_t) :: model
+  freq = 0.0d0; zeta = 0.0d0; shapes = 0.0d0; nm = 0
+  call load_model(scene, overrides, sc, model, error, n)
+  if (.not. allocated(error)) call normal_modes(model, t, [q, qd], freq, zeta, shapes, nm, error)
+  call report(error, stat, message)
+end subroutine pymr_modes
+
 !> Accelerations qdd(n, m) for m states (t(m), q(n,m), qd(n,m)) of one model.
 subroutine pymr_model_accelerations(scene, overrides, n, m, t, q, qd, qdd, stat, message)
   use pymr_error, only : error_type, fatal_error
