@@ -85,7 +85,8 @@ def _cmd_plot(args: argparse.Namespace) -> int:
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
     from . import sweep
-    return sweep.main(args.sweep, scheduler=args.scheduler, workers=args.workers, emit=args.emit_slurm)
+    return sweep.main(args.sweep, scheduler=args.scheduler, workers=args.workers, emit=args.emit_slurm,
+                      collect_from=args.collect)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -153,6 +154,8 @@ def build_parser() -> argparse.ArgumentParser:
     w.add_argument("--workers", type=int, default=2, help="LocalCluster worker processes (default 2)")
     w.add_argument("--emit-slurm", metavar="DIR", help="write the case namelists and a SLURM job-array script "
                    "running mrsim per case to DIR instead of running")
+    w.add_argument("--collect", metavar="DIR", help="after the SLURM job array ran: the summary (DIR/summary.csv) "
+                   "of the cases' results in DIR")
     w.set_defaults(func=_cmd_sweep)
     pl = sub.add_parser("plot", help="plot result files, overlaid (the tank: muzzle position, velocity and "
                         "modal coordinates, the paper's Figs. 5-7; other scenes: markers and joints)")

@@ -122,29 +122,59 @@ def run_case(scene: str, overrides: dict, out: str, metric: str, reference: np.n
         row["status"] = f"error: {exc}"
         return row
     row["cpu_time_s"] = float(res.stats["cpu_time_s"])
-    if metric:
-        kind, what = metric.split(":", 1)
-        try:
-            if kind == "deviation":
-                pos = res.marker(what)[0]
-                if reference is None or len(reference) != len(pos):
-                    row["status"] = "error: the case's output times differ from the reference's"
-                    return row
-                row["metric"] = float(np.linalg.norm(pos - reference, axis=1).max())
-            elif kind == "final":
-                row["metric"] = float(res[what][-1])
-            else:
-                row["metric"] = float(np.abs(res[what]).max())
-        except KeyError as exc:
-            row["status"] = f"error: {exc.args[0]}"
+    row["metric"], row["status"] = case_metric(res, metric, reference)
     return row
 
 
-def reference_positions(sw: Sweep) -> np.ndarray | None:
+def case_metric(res, metric: str, reference: np.ndarray | None) -> tuple[float, str]:
+    """The sweep's metric of one case's results, and its status ('ok' or the error)."""
+    if not metric:
+        return math.nan, "ok"
+    kind, what = metric.split(":", 1)
+    try:
+        if kind == "deviation":
+            pos = res.marker(what)[0]
+            if reference is None or len(reference) != len(pos):
+                return math.nan, "error: the case's output times differ from the reference's"
+            return float(np.linalg.norm(pos - reference, axis=1).max()), "ok"
+        if kind == "final":
+            return float(res[what][-1]), "ok"
+        return float(np.abs(res[what]).max()), "ok"
+    except KeyError as exc:
+        return math.nan, f"error: {exc.args[0]}"
+
+
+def reference_positions(sw: Sweep, folder: Path | None = None) -> np.ndarray | None:
     if not sw.metric.startswith("deviation:"):
         return None
-    res = run(sw.scene, sw.output / "reference.csv", overrides={**sw.fixed, **sw.reference}, progress=False)
+    res = run(sw.scene, (folder or sw.output) / "reference.csv", overrides={**sw.fixed, **sw.reference},
+              progress=False)
     return res.marker(sw.metric.split(":", 1)[1])[0]
+
+
+def collect(sw: Sweep, folder: str | os.PathLike) -> list[dict]:
+    """The summary of a sweep run as a SLURM job array (``--emit-slurm``): each case's
+    complete results in `folder` give its metric and CPU time; a case without them is
+    recorded as missing (not run yet, or failed: its caseNNNN.json.partial says why). The
+    deviation metric's reference is run here. Writes folder/summary.csv."""
+    folder = Path(folder)
+    if not (folder / "sweep.slurm").exists():
+        raise SweepError(f"{folder}: no sweep.slurm here (emit the cases with --emit-slurm first)")
+    ref = reference_positions(sw, folder)
+    rows = []
+    for i, case in enumerate(sw.cases):
+        row = {"case": case_name(i), **case, "metric": math.nan, "cpu_time_s": math.nan}
+        out = folder / f"{case_name(i)}.csv"
+        if not out.exists():
+            partial = folder / f"{case_name(i)}.json.partial"
+            row["status"] = ("failed: see " + partial.name) if partial.exists() else "missing: no results yet"
+        else:
+            res = load_results(out)
+            row["cpu_time_s"] = float(res.stats.get("cpu_time_s", math.nan))
+            row["metric"], row["status"] = case_metric(res, sw.metric, ref)
+        rows.append(row)
+    write_summary(sw, rows, folder)
+    return rows
 
 
 def run_sweep(sw: Sweep, scheduler: str | None = None, workers: int = 2) -> list[dict]:
@@ -183,8 +213,8 @@ def run_sweep(sw: Sweep, scheduler: str | None = None, workers: int = 2) -> list
     return rows
 
 
-def write_summary(sw: Sweep, rows: list[dict]) -> Path:
-    path = sw.output / "summary.csv"
+def write_summary(sw: Sweep, rows: list[dict], folder: Path | None = None) -> Path:
+    path = (folder or sw.output) / "summary.csv"
     fields = ["case", *sw.grid, "metric", "cpu_time_s", "status"]
     with open(path, "w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=fields, extrasaction="ignore")
@@ -206,7 +236,11 @@ def case_namelist(base: Path, overrides: dict, dest: Path) -> None:
 
 
 def emit_slurm(sw: Sweep, folder: str | os.PathLike, time_limit: str = "01:00:00") -> Path:
-    """Case namelists and a SLURM job-array script running mrsim per case, in `folder`."""
+    """Case namelists and a SLURM job-array script running mrsim per case, in `folder`. The
+    script names the mrsim of this installation by its absolute path (a compute node need
+    not have it on its PATH); the environment variable PYMR_MRSIM overrides it."""
+    from ._locate import mrsim_path
+    exe = mrsim_path() or "mrsim"
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     cases = sw.cases
@@ -227,25 +261,34 @@ def emit_slurm(sw: Sweep, folder: str | os.PathLike, time_limit: str = "01:00:00
 #SBATCH --cpus-per-task=1
 #SBATCH --time={time_limit}
 #SBATCH --output=slurm-%A_%a.out
+# Then collect the summary: pymr sweep {sw.path} --collect {folder}
 set -euo pipefail
 cd "${{SLURM_SUBMIT_DIR:-$(dirname "$0")}}"
 case=$(printf 'case%04d' "${{SLURM_ARRAY_TASK_ID}}")
-mrsim "$case.nml" -o "$case.csv" --quiet
+MRSIM="${{PYMR_MRSIM:-{exe}}}"
+"$MRSIM" "$case.nml" -o "$case.csv" --quiet
 """)
     script.chmod(0o755)
     return script
 
 
-def main(toml: str, scheduler: str | None = None, workers: int = 2, emit: str | None = None) -> int:
+def main(toml: str, scheduler: str | None = None, workers: int = 2, emit: str | None = None,
+         collect_from: str | None = None) -> int:
     sw = load_sweep(toml)
     if emit:
         script = emit_slurm(sw, emit)
-        print(f"wrote {len(sw.cases)} case namelists and {script} (submit with: cd {emit} && sbatch sweep.slurm)")
+        print(f"wrote {len(sw.cases)} case namelists and {script} (submit with: cd {emit} && sbatch sweep.slurm; "
+              f"then: pymr sweep {toml} --collect {emit})")
         return 0
     t0 = time.time()
-    rows = run_sweep(sw, scheduler=scheduler, workers=workers)
+    if collect_from:
+        rows = collect(sw, collect_from)
+        where = Path(collect_from) / "summary.csv"
+    else:
+        rows = run_sweep(sw, scheduler=scheduler, workers=workers)
+        where = sw.output / "summary.csv"
     failed = sum(r["status"] != "ok" for r in rows)
-    print(f"{len(rows)} cases, {failed} failed, {time.time() - t0:.1f} s: {sw.output / 'summary.csv'}")
+    print(f"{len(rows)} cases, {failed} failed, {time.time() - t0:.1f} s: {where}")
     for r in rows:
         params = ", ".join(f"{k}={r[k]}" for k in sw.grid)
         print(f"  {r['case']}  {params}  metric {r['metric']:.4g}  cpu {r['cpu_time_s']:.3f} s  {r['status'][:90]}")

@@ -116,7 +116,7 @@ def test_emitted_slurm_cases_run_by_mrsim_equal_the_override_runs(tmp_path, mrsi
     sw = load_sweep(toml)
     script = emit_slurm(sw, tmp_path / "slurm")
     text = script.read_text()
-    assert "#SBATCH --array=0-7" in text and 'mrsim "$case.nml" -o "$case.csv"' in text
+    assert "#SBATCH --array=0-7" in text and '"$MRSIM" "$case.nml" -o "$case.csv"' in text
     assert sorted(p.name for p in (tmp_path / "slurm").glob("case*.nml")) == [f"case{i:04d}.nml" for i in range(8)]
     for i in (0, 5):
         r = subprocess.run([mrsim, f"case{i:04d}.nml", "-o", f"case{i:04d}.csv", "--quiet"],
@@ -158,3 +158,29 @@ def test_sweep_command_exit_statuses(tmp_path):
     assert (tmp_path / "runs" / "summary.csv").exists()
     r = subprocess.run(["pymr", "run"], cwd=tmp_path, capture_output=True, text=True, timeout=60)
     assert r.returncode == 1
+
+
+def test_a_slurm_sweep_is_collected_into_its_summary(tmp_path, mrsim):
+    """--emit-slurm names this installation's mrsim by its absolute path (PYMR_MRSIM
+    overrides it); after two of the eight tasks ran, --collect writes the summary: those two
+    with the metric run_case gives for the same case, the six others missing, exit 2."""
+    toml = tmp_path / "tank.toml"
+    toml.write_text(GRID.format(scene=TANK))
+    sw = load_sweep(toml)
+    folder = tmp_path / "slurm"
+    text = emit_slurm(sw, folder).read_text()
+    assert f'MRSIM="${{PYMR_MRSIM:-{mrsim}}}"' in text and f"--collect {folder}" in text
+    for i in (1, 6):
+        r = subprocess.run([mrsim, f"case{i:04d}.nml", "-o", f"case{i:04d}.csv", "--quiet"], cwd=folder,
+                           capture_output=True, text=True)
+        assert r.returncode == 0, r.stderr
+    r = subprocess.run(["pymr", "sweep", str(toml), "--collect", str(folder)], capture_output=True, text=True,
+                       timeout=300)
+    assert r.returncode == 2 and "6 of 8 cases failed" in r.stderr, r.stderr
+    rows = list(csv.DictReader((folder / "summary.csv").open()))
+    assert [row["status"] for row in rows].count("ok") == 2
+    assert all(row["status"].startswith("missing") for i, row in enumerate(rows) if i not in (1, 6))
+    from pymr.sweep import reference_positions, run_case
+    ref = reference_positions(sw, tmp_path)
+    alone = run_case(str(TANK), {**sw.fixed, **sw.cases[6]}, str(tmp_path / "alone.csv"), sw.metric, ref)
+    assert float(rows[6]["metric"]) == pytest.approx(alone["metric"], rel=1e-12)
