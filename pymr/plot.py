@@ -129,7 +129,7 @@ def layout(runs: Sequence[Results], markers: Sequence[str] | None = None,
     jcols = [c for j in joints for c in first.joint_columns(j)]
     rows += _chunks(jcols, "joint coordinate (rad or m)")
     for b in bodies:
-        rows += _chunks(first.modal_columns(b), f"{b} modal coordinate")
+        rows += _chunks(first.modal_columns(b), f"{b} modal coordinate (m kg^0.5)")
     if not rows:
         raise PlotError(f"{_name(first, 0)}: nothing to plot (no markers, joints or modal coordinates)")
     return rows
