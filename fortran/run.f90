@@ -4,7 +4,7 @@ module pymr_run
   use, intrinsic :: iso_fortran_env, only : error_unit
   use pymr_kinds, only : dp
   use pymr_error, only : error_type, fatal_error, stat_solver
-  use pymr_model_scene, only : scene_t
+  use pymr_model_scene, only : scene_t, unset
   use pymr_io_namelist_input, only : read_scene, scene_fingerprint, checkpoint_identity
   use pymr_model_build, only : build_model
   use pymr_model, only : model_t
@@ -355,6 +355,16 @@ contains
           x(model%d%c0(b) + m - 1) = sc%joints(j)%q0(m)
           x(n + model%d%c0(b) + m - 1) = sc%joints(j)%qd0(m)
         end do
+      end do
+    end do
+    ! flexible bodies: their initial modal state when given (0 else)
+    do b = 2, model%d%nb
+      if (model%d%nm(b) == 0) cycle
+      do j = 1, size(sc%bodies)
+        if (sc%bodies(j)%name /= model%d%body_name(b)) cycle
+        m = model%d%nm(b)
+        if (sc%bodies(j)%a0(1) /= unset) x(model%d%a0(b):model%d%a0(b) + m - 1) = sc%bodies(j)%a0(1:m)
+        if (sc%bodies(j)%ad0(1) /= unset) x(n + model%d%a0(b):n + model%d%a0(b) + m - 1) = sc%bodies(j)%ad0(1:m)
       end do
     end do
     ! prescribed coordinates start on their functions

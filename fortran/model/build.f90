@@ -37,6 +37,24 @@ contains
 
 
   !> Modal damping forces per unit modal rate of flexible body i: 2 zeta_k omega_k +
+  !> The initial modal state of body i, when given, holds one value per mode (m of them: a
+  !> modal file's count is known only now).
+  subroutine check_modal_state(sc, i, m, error)
+    type(scene_t), intent(in) :: sc
+    integer, intent(in) :: i, m
+    type(error_type), allocatable, intent(out) :: error
+    associate(b => sc%bodies(i))
+      if (count(b%a0 /= unset) > 0 .and. count(b%a0 /= unset) /= m) then
+        call fatal_error(error, b%origin%where('a0') // ': give one value per mode (' // itoa(m) // ' modes), got ' // &
+          & itoa(count(b%a0 /= unset))); return
+      end if
+      if (count(b%ad0 /= unset) > 0 .and. count(b%ad0 /= unset) /= m) then
+        call fatal_error(error, b%origin%where('ad0') // ': give one value per mode (' // itoa(m) // ' modes), ' // &
+          & 'got ' // itoa(count(b%ad0 /= unset)))
+      end if
+    end associate
+  end subroutine check_modal_state
+
   !> alpha + beta omega_k^2.
   subroutine set_damping(sc, i, fd, error)
     type(scene_t), intent(in) :: sc
@@ -172,6 +190,7 @@ contains
       end if
       if (d%nm(b) > 0) then
         call set_damping(sc, i, d%flex(b), error); if (allocated(error)) return
+        call check_modal_state(sc, i, d%flex(b)%m, error); if (allocated(error)) return
       end if
     end do
     call fill_children(d)

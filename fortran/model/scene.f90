@@ -109,6 +109,8 @@ module pymr_model_scene
     !> value for every mode or one per mode; or Rayleigh damping alpha + beta omega^2 (1/s).
     real(dp) :: modal_damping(max_modes_input) = unset
     real(dp) :: rayleigh_alpha = 0.0_dp, rayleigh_beta = 0.0_dp
+    !> Initial modal coordinates and rates of a flexible body, one per mode (0 when not given).
+    real(dp) :: a0(max_modes_input) = unset, ad0(max_modes_input) = unset
     !> Modal data file of a 'modal' body (relative to the scene file's folder).
     character(len=512) :: modal_file = ''
     type(origin_t) :: origin
@@ -297,6 +299,10 @@ contains
       & ge=0.0_dp, le=1.0e3_dp)
     call t%add('modal_file', g%modal_file, "modal data file of a 'modal' body (relative to the scene's folder)", &
       & scene_file=.true.)
+    call t%add('a0', g%a0, 'm kg^0.5', 'initial modal coordinates of a flexible body, one per mode (default 0)', &
+      & ge=-big_length, le=big_length, variable=.true.)
+    call t%add('ad0', g%ad0, 'm kg^0.5/s', 'initial modal rates of a flexible body, one per mode (default 0)', &
+      & ge=-big_length, le=big_length, variable=.true.)
   end subroutine describe_body
 
   subroutine describe_joint(g, t)
@@ -406,8 +412,8 @@ contains
     case ('rigid'); s = 'name kind mass com inertia'
     case ('beam')
       s = 'name kind length youngs_modulus density r_outer r_inner area iy iz n_elements modes_y modes_z ' // &
-        & 'modal_damping rayleigh_alpha rayleigh_beta'
-    case ('modal'); s = 'name kind modal_file modal_damping rayleigh_alpha rayleigh_beta'
+        & 'modal_damping rayleigh_alpha rayleigh_beta a0 ad0'
+    case ('modal'); s = 'name kind modal_file modal_damping rayleigh_alpha rayleigh_beta a0 ad0'
     case default; s = ''
     end select
   end function body_items

@@ -504,7 +504,8 @@ contains
     end if
   end subroutine check_table_form
 
-  !> Modal damping of body i: fractions in [0, 1) given contiguously from the first mode;
+  !> Modal damping of body i: fractions in [0, 1) given contiguously from the first mode; its
+  !> initial modal state: one value per mode;
   !> Rayleigh coefficients >= 0.
   subroutine check_damping(sc, i, error)
     type(scene_t), intent(in) :: sc
@@ -516,6 +517,15 @@ contains
       if (b%kind == 'beam' .and. ng > 1 .and. ng /= b%modes_y + b%modes_z) then
         call fatal_error(error, b%origin%where('modal_damping') // ': give one value or one per mode (' // &
           & itoa(b%modes_y + b%modes_z) // ' modes), got ' // itoa(ng)); return
+      end if
+      if (b%kind == 'beam' .and. count(b%a0 /= unset) > 0 .and. count(b%a0 /= unset) /= b%modes_y + b%modes_z) then
+        call fatal_error(error, b%origin%where('a0') // ': give one value per mode (' // &
+          & itoa(b%modes_y + b%modes_z) // ' modes), got ' // itoa(count(b%a0 /= unset))); return
+      end if
+      if (b%kind == 'beam' .and. count(b%ad0 /= unset) > 0 .and. count(b%ad0 /= unset) /= b%modes_y + b%modes_z) &
+        & then
+        call fatal_error(error, b%origin%where('ad0') // ': give one value per mode (' // &
+          & itoa(b%modes_y + b%modes_z) // ' modes), got ' // itoa(count(b%ad0 /= unset))); return
       end if
     end associate
   end subroutine check_damping
