@@ -158,13 +158,17 @@ def _states(q, qd) -> tuple[np.ndarray, np.ndarray]:
     return q, qd
 
 
-def model_terms(scene: str | os.PathLike, q, qd, t: float = 0.0, overrides=None):
-    """Mass matrix M and right-hand side P of ``M qdd = P`` at (t, q, qd)."""
+def _one_state(q, qd) -> tuple[np.ndarray, np.ndarray]:
+    """q and qd of one state (shape (n,)), contiguous, for the kernel."""
     q, qd = _states(q, qd)
     if q.ndim != 1:
         raise ValueError(f"q: one state of shape (n,) expected, got shape {q.shape}")
-    q = np.ascontiguousarray(q)
-    qd = np.ascontiguousarray(qd)
+    return np.ascontiguousarray(q), np.ascontiguousarray(qd)
+
+
+def model_terms(scene: str | os.PathLike, q, qd, t: float = 0.0, overrides=None):
+    """Mass matrix M and right-hand side P of ``M qdd = P`` at (t, q, qd)."""
+    q, qd = _one_state(q, qd)
     mm, p, stat, msg = _core.pymr_model_terms(*_scene_and_overrides(scene, overrides), t, q, qd)
     _raise(stat, msg)
     return mm, p
@@ -174,11 +178,8 @@ def force_response(scene: str | os.PathLike, q, qd, t: float = 0.0, overrides=No
     """The 'response' coupling's terms at (t, q, qd): ``g = M^-1 E`` (shape (n, nf)), the
     response of every acceleration to a unit force on each modal coordinate, and the modal
     stiffness ``kf`` and damping ``df`` (shape (nf,)) of the fast forces ``kf a + df ad``."""
-    q, qd = _states(q, qd)
-    if q.ndim != 1:
-        raise ValueError(f"q: one state of shape (n,) expected, got shape {q.shape}")
     nf, g, kf, df, stat, msg = _core.pymr_force_response(*_scene_and_overrides(scene, overrides), t,
-                                                        np.ascontiguousarray(q), np.ascontiguousarray(qd))
+                                                        *_one_state(q, qd))
     _raise(stat, msg)
     nf = int(nf)
     return g[:, :nf].copy(), kf[:nf].copy(), df[:nf].copy()
@@ -190,11 +191,8 @@ def modes(scene: str | os.PathLike, q, qd, t: float = 0.0, overrides=None):
     (Hz, ascending), damping ratios, and shapes (shape (n, number of modes): each column the
     coordinates' motion, its largest component 1). Drifting motions (a free joint) are not
     modes and are left out."""
-    q, qd = _states(q, qd)
-    if q.ndim != 1:
-        raise ValueError(f"q: one state of shape (n,) expected, got shape {q.shape}")
     nm, freq, zeta, shapes, stat, msg = _core.pymr_modes(*_scene_and_overrides(scene, overrides), t,
-                                                          np.ascontiguousarray(q), np.ascontiguousarray(qd))
+                                                          *_one_state(q, qd))
     _raise(stat, msg)
     nm = int(nm)
     return freq[:nm].copy(), zeta[:nm].copy(), shapes[:, :nm].copy()

@@ -55,8 +55,9 @@ def _cmd_modes(args: argparse.Namespace) -> int:
     res = run(args.scene, overrides=over + [f"scene.t_end={at if at > 0 else 1e-9}", "output.dt=0.0"])
     q, qd = res.coordinates()
     names = [c for c in res.columns if re.search(r"\.(q\d*|a\d+)$", c)]
-    freq, zeta, shapes = modes(args.scene, q[-1], qd[-1], t=float(res.t[-1]) if at > 0 else 0.0, overrides=over)
-    print(f"natural modes of {args.scene} linearised at t = {float(res.t[-1]) if at > 0 else 0.0:g} s "
+    t = float(res.t[-1]) if at > 0 else 0.0
+    freq, zeta, shapes = modes(args.scene, q[-1], qd[-1], t=t, overrides=over)
+    print(f"natural modes of {args.scene} linearised at t = {t:g} s "
           f"({len(freq)} vibrations; drifting motions left out)")
     print(f"{'mode':>4} {'frequency Hz':>13} {'damping ratio':>13}  largest motion")
     for i, (f, z) in enumerate(zip(freq, zeta), 1):

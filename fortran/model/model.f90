@@ -200,7 +200,7 @@ contains
       end if
       qdd = d%p
       call potrs(d%lf, qdd, 'the mass matrix', error)
-      if (allocated(error)) call prefix_error(error, 'at t = ' // time_text(t))
+      call add_time(error, t)
     end associate
   end subroutine model_accelerations
 
@@ -338,9 +338,9 @@ contains
         call factor_ff(self, t, error); if (allocated(error)) return
         call hold_inverse(self, error); if (allocated(error)) return
         self%xfs = self%mfs
-        call potrs(self%lff, self%xfs, 'M_ff', error); if (timed_failure(error, t)) return
+        call potrs(self%lff, self%xfs, 'M_ff', error); call add_time(error, t); if (allocated(error)) return
         self%yf = p(ns+1:)
-        call potrs(self%lff, self%yf, 'M_ff', error); if (timed_failure(error, t)) return
+        call potrs(self%lff, self%yf, 'M_ff', error); call add_time(error, t); if (allocated(error)) return
       end if
       self%le = mm(1:ns, 1:ns) - matmul(mm(1:ns, ns+1:), self%xfs)
       fs(ns+1:) = p(1:ns) - matmul(mm(1:ns, ns+1:), self%yf)
@@ -349,7 +349,7 @@ contains
         if (minor > 0) error%message = error%message // ' (coordinate ' // trim(self%d%qname(minor)) // ')'
         call prefix_error(error, 'at t = ' // time_text(t)); return
       end if
-      call potrs(self%le, fs(ns+1:), 'M_e', error); if (timed_failure(error, t)) return
+      call potrs(self%le, fs(ns+1:), 'M_e', error); call add_time(error, t); if (allocated(error)) return
       ff(nf+1:) = self%yf - matmul(self%xfs, fs(ns+1:))
     end associate
     fs(1:ns) = xs(ns+1:)
@@ -370,7 +370,7 @@ contains
     call factor_ff(self, t, error); if (allocated(error)) return
     ff(nf+1:) = self%d%p(ns+1:) - matmul(self%d%mm(ns+1:, 1:ns), acc_s)
     call potrs(self%lff, ff(nf+1:), 'M_ff', error)
-    if (allocated(error)) call prefix_error(error, 'at t = ' // time_text(t))
+    call add_time(error, t)
     ff(1:nf) = xf(nf+1:)
   end subroutine model_fast_rhs
 
@@ -392,13 +392,12 @@ contains
     kf = self%kf; df = self%df
   end subroutine model_force_response
 
-  !> True after a failed call: the error then names the time (for the run's message).
-  logical function timed_failure(error, t)
+  !> After a failed call: the error names the time (for the run's message).
+  subroutine add_time(error, t)
     type(error_type), allocatable, intent(inout) :: error
     real(dp), intent(in) :: t
-    timed_failure = allocated(error)
-    if (timed_failure) call prefix_error(error, 'at t = ' // time_text(t))
-  end function timed_failure
+    if (allocated(error)) call prefix_error(error, 'at t = ' // time_text(t))
+  end subroutine add_time
 
   !> M_ff^-1 from its Cholesky factor (held when M_ff is constant, for every synchronised
   !> evaluation; force_response uses it).
