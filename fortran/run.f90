@@ -124,8 +124,9 @@ contains
     character(len=*), intent(in) :: file, overrides, out
     character(len=:), allocatable, intent(out) :: summary
     type(error_type), allocatable, intent(out) :: error
-    !> The CSV file written.
-    character(len=:), allocatable, intent(out), optional :: written
+    !> The CSV file written (a required argument: gfortran 12 gave an optional deferred-length
+    !> one, passed on to run_locked, a garbage length when the output path was the default).
+    character(len=:), allocatable, intent(out) :: written
     !> Checkpoint to continue from ('' or absent: a new run).
     character(len=*), intent(in), optional :: restart
     !> Print a progress line to stderr about every second (mrsim --progress).
@@ -142,7 +143,7 @@ contains
     character(len=:), allocatable, intent(out) :: summary
     type(error_type), allocatable, intent(out) :: error
     character(len=:), allocatable, intent(out) :: locked
-    character(len=:), allocatable, intent(out), optional :: written
+    character(len=:), allocatable, intent(out) :: written
     character(len=*), intent(in), optional :: restart
     logical, intent(in), optional :: progress_lines
     type(scene_t), target :: sc
@@ -293,7 +294,7 @@ contains
       & stats, 'complete', '', sc%scene%t_end, error)
     if (allocated(error)) return
     summary = summary_text(sc, model, stats, path, x)
-    if (present(written)) written = path
+    written = path
   end subroutine run_locked
 
   !> One progress line on stderr: simulated time, percent, wall time and its estimate to go.

@@ -126,3 +126,20 @@ def test_mrsim_writes_muzzle_motion(tmp_path, mrsim):
     assert np.abs(vel[0]).max() == 0.0
     assert res.stats["rhs_full"] > 0 and res.stats["steps_slow"] == 500
     assert set(res.stats["effects"]) == {"gravity", "joint_drives", "deformation_inertia"}
+
+
+def test_the_readme_s_first_command_writes_the_scene_s_own_output(tmp_path):
+    """`pymr run input/tank_gun_turret.nml` with no -o (the README's first command): the
+    results go to the scene's &output file beside the working folder, the summary is printed
+    and the status is 0. (gfortran 12 returned the default path with a garbage length, and
+    this command ended in a UnicodeDecodeError.)"""
+    import shutil
+    import subprocess
+    scene = tmp_path / "tank.nml"
+    shutil.copy(Path(__file__).resolve().parent.parent / "input" / "tank_gun_turret.nml", scene)
+    r = subprocess.run(["pymr", "run", "tank.nml", "--no-progress"], cwd=tmp_path, capture_output=True, text=True,
+                       timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert "results: tank_gun_turret.csv, tank_gun_turret.json" in r.stdout
+    res = pymr.load_results(tmp_path / "tank_gun_turret.csv")
+    assert res.t[-1] == 1.0 and res.stats["status"] == "complete"

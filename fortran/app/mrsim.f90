@@ -24,7 +24,7 @@ program mrsim
   !> compiler's runtime turns into a backtrace. SIG_IGN is the handler value 1.
   integer(c_int), parameter :: sigxfsz = 25
   type(c_funptr) :: previous
-  character(len=:), allocatable :: scene, out, overrides, summary, arg, restart
+  character(len=:), allocatable :: scene, out, overrides, summary, arg, restart, written
   type(error_type), allocatable :: error
   integer :: i, nargs
   logical :: quiet, progress
@@ -65,7 +65,7 @@ program mrsim
   end do
   if (len(scene) == 0) call usage_error('no scene file (usage: mrsim SCENE.nml [-o OUT.csv] [--set G.K=V ...])')
 
-  call run_scene(scene, overrides, out, summary, error, restart=restart, progress_lines=progress)
+  call run_scene(scene, overrides, out, summary, error, written, restart=restart, progress_lines=progress)
   if (allocated(error)) then
     call print_error_lines(error%message)
     if (error%stat == 1) stop 1, quiet=.true.
