@@ -20,7 +20,7 @@ module pymr_run
   use pymr_io_checkpoint, only : run_progress, write_checkpoint, read_checkpoint
   implicit none
   private
-  public :: run_scene, load_model, default_output, progress_t, progress_t_end, progress_running
+  public :: run_scene, load_model, initial_state, default_output, progress_t, progress_t_end, progress_running
 
   !> Markers whose final motion the summary prints (the results hold them all).
   integer, parameter :: max_summary_markers = 10
@@ -384,7 +384,8 @@ contains
         & '", "h_fast": ', g%h_fast, ', "h_slow": ', g%h_slow, ', "rtol": ', g%rtol, ', "atol": ', g%atol, &
         & ', "h_min": ', g%h_min, ', "h_max": ', g%h_max, ', "n_corrector": ', g%n_corrector, ', "t_end": ', sc%scene%t_end
       s = '"method": "' // trim(g%method) // trim(buf) // ', "adaptive": ' // trim(merge('true ', 'false', g%adaptive)) &
-        & // ', "coupling": "' // trim(g%coupling) // '"'
+        & // ', "coupling": "' // trim(g%coupling) // '", "formula": "' // trim(g%formula) // '", "order": ' // &
+        & itoa(g%order)
     end associate
   end function settings_json
 

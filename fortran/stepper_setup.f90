@@ -7,6 +7,7 @@ module pymr_stepper_setup
   use pymr_model, only : model_t
   use pymr_integrator_stepper, only : stepper_t
   use pymr_integrator_abm, only : abm_integrator, hinit
+  use pymr_integrator_adams, only : adams_integrator
   use pymr_integrator_multirate, only : multirate_integrator
   use pymr_integrator_response, only : response_integrator
   use pymr_integrator_control, only : step_control
@@ -31,11 +32,18 @@ contains
     type(error_type), allocatable, intent(out) :: error
     type(step_control) :: ctl
     type(abm_integrator), allocatable :: abm
+    type(adams_integrator), allocatable :: adams
     ctl%rtol = sc%integrator%rtol; ctl%atol = sc%integrator%atol
     if (sc%integrator%h_min > 0.0_dp) ctl%h_min = sc%integrator%h_min
     if (sc%integrator%h_max > 0.0_dp) ctl%h_max = sc%integrator%h_max
     if (trim(sc%integrator%method) == 'multirate') then
       call make_multirate(sc, model, x, ctl, st, h0, error)
+    else if (sc%integrator%formula == 'adams') then
+      allocate(adams)
+      call adams%init(size(x), sc%integrator%order, ctl, sc%integrator%corrector == 'newton')
+      h0 = sc%integrator%h_slow
+      adams%h = h0
+      call move_alloc(adams, st)
     else
       allocate(abm)
       call abm%init(size(x), sc%integrator%adaptive, stable_control(ctl, model), sc%integrator%n_corrector)

@@ -198,6 +198,17 @@ def modes(scene: str | os.PathLike, q, qd, t: float = 0.0, overrides=None):
     return freq[:nm].copy(), zeta[:nm].copy(), shapes[:, :nm].copy()
 
 
+def step_history(scene: str | os.PathLike, overrides=None, max_steps: int = 200_000):
+    """The run's own stepper from the initial state to t_end, without output: arrays of the
+    time reached, the step taken and the method's order at each accepted step (entry 0 is
+    the start: its step 0, its order the starting one). More than ``max_steps`` steps is an
+    error."""
+    t, h, q, nh, stat, msg = _core.pymr_step_history(*_scene_and_overrides(scene, overrides), int(max_steps) + 1)
+    _raise(stat, msg)
+    nh = int(nh)
+    return t[:nh].copy(), h[:nh].copy(), q[:nh].copy()
+
+
 def model_accelerations(scene: str | os.PathLike, t, q, qd, overrides=None) -> np.ndarray:
     """Accelerations for one state (q of shape (n,)) or many (shape (m, n), t of shape (m,))."""
     q, qd = _states(q, qd)

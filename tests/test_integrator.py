@@ -33,14 +33,22 @@ def exact(problem: int, t: float) -> np.ndarray:
     raise ValueError(problem)
 
 
-NX = {1: 2, 2: 1, 3: 4}
+NX = {1: 2, 2: 1, 3: 4, 4: 2}
 
 
-def integrate(problem, t_end, h, adaptive=False, rtol=1e-6, atol=1e-8, n_corr=1):
-    x, steps, evals, rejected, stat, message = _core.pymr_ode_test(
-        problem, t_end, h, 1 if adaptive else 0, rtol, atol, n_corr, NX[problem])
+def run_ode(problem, t_end, h, adaptive=False, rtol=1e-6, atol=1e-8, n_corr=1, order=-1, nmax=1):
+    """pymr_ode_test: order -1 is the paper's ABM4, 0-12 formula 'adams' (adaptive). Returns
+    the final state, counts and the (time, step, order) of the first nmax accepted steps."""
+    x, steps, evals, rejected, th, hh, qh, stat, message = _core.pymr_ode_test(
+        problem, t_end, h, 1 if adaptive else 0, rtol, atol, n_corr, order, NX[problem], nmax)
     assert stat == 0, message.decode(errors="replace").strip() if isinstance(message, bytes) else message
-    return np.array(x, dtype=float), int(steps), int(evals), int(rejected)
+    k = min(int(steps), nmax)
+    return (np.array(x, dtype=float), int(steps), int(evals), int(rejected),
+            (th[:k].copy(), hh[:k].copy(), qh[:k].copy()))
+
+
+def integrate(problem, t_end, h, adaptive=False, rtol=1e-6, atol=1e-8, n_corr=1, order=-1):
+    return run_ode(problem, t_end, h, adaptive, rtol, atol, n_corr, order)[:4]
 
 
 def global_error(problem, t_end, **kw):

@@ -256,19 +256,23 @@ end subroutine pymr_time_evaluation
 !> problem 1: harmonic oscillator x'' = -x, x(0) = 1, x'(0) = 0 (state [x, x']).
 !> problem 2: y' = -2 t y^2, y(0) = 1 (solution 1/(1+t^2)).
 !> problem 3: Kepler orbit, eccentricity 0.5 (state [x, y, vx, vy]).
-subroutine pymr_ode_test(problem, t_end, h, adaptive, rtol, atol, n_corr, nx, x, steps, evals, rejected, &
-    & stat, message)
+!> problem 4: x'' + 2 zeta w x' + w^2 x = w^2 [t >= 1], w = 2 pi, zeta = 0.05, at rest at 0.
+!> order < 0: the paper's ABM4 (n_corr evaluations per step); 0-12: formula 'adams'.
+!> th, hh, qh: time, step and order of the first nmax accepted steps.
+subroutine pymr_ode_test(problem, t_end, h, adaptive, rtol, atol, n_corr, order, nx, nmax, x, steps, evals, &
+    & rejected, th, hh, qh, stat, message)
   use pymr_error, only : error_type
   use pymr_bind_support, only : report
   use pymr_test_odes, only : integrate_test_ode
   implicit none
-  integer, intent(in) :: problem, adaptive, n_corr, nx
+  integer, intent(in) :: problem, adaptive, n_corr, order, nx, nmax
   double precision, intent(in) :: t_end, h, rtol, atol
-  double precision, intent(out) :: x(nx)
-  integer, intent(out) :: steps, evals, rejected, stat
+  double precision, intent(out) :: x(nx), th(nmax), hh(nmax)
+  integer, intent(out) :: steps, evals, rejected, qh(nmax), stat
   character(len=8192), intent(out) :: message
   type(error_type), allocatable :: error
-  call integrate_test_ode(problem, t_end, h, adaptive /= 0, rtol, atol, n_corr, x, steps, evals, rejected, error)
+  call integrate_test_ode(problem, t_end, h, adaptive /= 0, rtol, atol, n_corr, order, x, steps, evals, rejected, &
+    & th, hh, qh, error)
   call report(error, stat, message)
 end subroutine pymr_ode_test
 
@@ -571,3 +575,20 @@ subroutine pymr_xerbla_probe(info, routine, argument)
   routine = xerbla_routine
   argument = xerbla_argument
 end subroutine pymr_xerbla_probe
+
+!> Step and order history of a scene's run (no output): time reached, step and order of
+!> each accepted step (entry 1: the start), nh entries, at most nmax.
+subroutine pymr_step_history(scene, overrides, nmax, t, h, q, nh, stat, message)
+  use pymr_error, only : error_type
+  use pymr_bind_support, only : report
+  use pymr_history, only : step_history
+  implicit none
+  character(len=*), intent(in) :: scene, overrides
+  integer, intent(in) :: nmax
+  double precision, intent(out) :: t(nmax), h(nmax)
+  integer, intent(out) :: q(nmax), nh, stat
+  character(len=8192), intent(out) :: message
+  type(error_type), allocatable :: error
+  call step_history(scene, overrides, t, h, q, nh, error)
+  call report(error, stat, message)
+end subroutine pymr_step_history

@@ -51,6 +51,8 @@ module pymr_integrator_stepper
     procedure(set_state_iface), deferred :: set_state
     !> Step ratio H/h for the next steps (multirate; nothing for single-rate).
     procedure :: set_ratio => no_ratio
+    !> Order of the method in the last step (4 for the paper's ABM4).
+    procedure :: order => order_four
   end type stepper_t
 
   abstract interface
@@ -130,6 +132,11 @@ module pymr_integrator_stepper
   end interface
 
 contains
+
+  pure integer function order_four(self)
+    class(stepper_t), intent(in) :: self
+    order_four = 4
+  end function order_four
 
   pure subroutine no_ratio(self, k)
     class(stepper_t), intent(inout) :: self

@@ -4,12 +4,19 @@ module pymr_test_odes
   use pymr_error, only : error_type, fatal_error
   use pymr_integrator_ode, only : ode_system
   use pymr_integrator_abm, only : abm_integrator
+  use pymr_integrator_adams, only : adams_integrator
+  use pymr_integrator_stepper, only : stepper_t, step_counts
   use pymr_integrator_control, only : step_control
   implicit none
   private
   public :: test_ode, integrate_test_ode
 
-  !> Problem 1: oscillator; 2: y' = -2 t y^2; 3: Kepler orbit (e = 0.5).
+  !> Problem 4's angular frequency (rad/s) and damping ratio.
+  real(dp), parameter :: w4 = 8*atan(1.0_dp), zeta4 = 0.05_dp
+
+  !> Problem 1: oscillator; 2: y' = -2 t y^2; 3: Kepler orbit (e = 0.5); 4: a lightly damped
+  !> oscillator (1 Hz, damping ratio 0.05) at rest until a constant force turns on at t = 1
+  !> (static deflection 1).
   type, extends(ode_system) :: test_ode
     integer :: problem = 1
   contains
@@ -34,6 +41,8 @@ contains
     case (3)
       r3 = norm2(x(1:2))**3
       f = [x(3), x(4), -x(1)/r3, -x(2)/r3]
+    case (4)
+      f = [x(2), w4**2*(merge(1.0_dp, 0.0_dp, t >= 1.0_dp) - x(1)) - 2*zeta4*w4*x(2)]
     end select
   end subroutine test_eval
 
@@ -47,22 +56,31 @@ contains
   end function test_name
 
   !> Integrate problem from 0 to t_end (exactly, fixed step h must divide t_end; adaptive
-  !> runs end by interpolation) and return the final state.
-  subroutine integrate_test_ode(problem, t_end, h, adaptive, rtol, atol, n_corr, x, steps, evals, rejected, error)
-    integer, intent(in) :: problem, n_corr
+  !> runs end by interpolation) and return the final state. order < 0: the paper's ABM4
+  !> (fixed or adaptive); 0-12: formula 'adams' (adaptive) of variable or that order.
+  !> th, hh, qh: time, step and order of each accepted step (as many as they hold).
+  subroutine integrate_test_ode(problem, t_end, h, adaptive, rtol, atol, n_corr, order, x, steps, evals, rejected, &
+      & th, hh, qh, error)
+    integer, intent(in) :: problem, n_corr, order
+    real(dp), intent(out) :: th(:), hh(:)
+    integer, intent(out) :: qh(:)
     real(dp), intent(in) :: t_end, h, rtol, atol
     logical, intent(in) :: adaptive
     real(dp), intent(out) :: x(:)
     integer, intent(out) :: steps, evals, rejected
     type(error_type), allocatable, intent(out) :: error
     type(test_ode) :: sys
-    type(abm_integrator) :: integ
+    class(stepper_t), allocatable :: integ
+    type(abm_integrator), allocatable :: abm
+    type(adams_integrator), allocatable :: adams
     type(step_control) :: ctl
     real(dp), allocatable :: x0(:)
-    integer :: nx
-    steps = 0; evals = 0; rejected = 0; x = 0.0_dp
-    nx = merge(2, merge(1, 4, problem == 2), problem == 1)
-    if (problem < 1 .or. problem > 3 .or. size(x) /= nx) then
+    real(dp) :: t_prev
+    integer :: nx, k
+    type(step_counts) :: c
+    steps = 0; evals = 0; rejected = 0; x = 0.0_dp; th = 0.0_dp; hh = 0.0_dp; qh = 0
+    nx = merge(1, merge(4, 2, problem == 3), problem == 2)
+    if (problem < 1 .or. problem > 4 .or. size(x) /= nx) then
       call fatal_error(error, 'unknown test problem or wrong state size'); return
     end if
     sys%problem = problem
@@ -70,14 +88,36 @@ contains
     case (1); x0 = [1.0_dp, 0.0_dp]
     case (2); x0 = [1.0_dp]
     case (3); x0 = [0.5_dp, 0.0_dp, 0.0_dp, sqrt(3.0_dp)]
+    case (4); x0 = [0.0_dp, 0.0_dp]
     end select
     ctl%rtol = rtol; ctl%atol = atol
-    call integ%init(nx, adaptive, ctl, n_corr)
+    if (order < 0) then
+      allocate(abm)
+      call abm%init(nx, adaptive, ctl, n_corr)
+      call move_alloc(abm, integ)
+    else
+      allocate(adams)
+      call adams%init(nx, order, ctl, n_corr == 0)
+      call move_alloc(adams, integ)
+    end if
     call integ%start(sys, 0.0_dp, x0, h, error); if (allocated(error)) return
-    do while (integ%t < t_end - 1.0e-9_dp*integ%h)
+    k = 0
+    do
+      c = integ%counts()
+      if (integ%time() >= t_end - 1.0e-9_dp*c%h_last) exit
+      t_prev = integ%time()
       call integ%advance(sys, error); if (allocated(error)) return
+      k = k + 1
+      if (k <= size(th)) then
+        th(k) = integ%time(); hh(k) = integ%time() - t_prev; qh(k) = integ%order()
+      end if
     end do
     call integ%value_at(t_end, x)
-    steps = integ%steps; evals = integ%evals; rejected = integ%rejected
+    select type (integ)
+    type is (abm_integrator)
+      steps = integ%steps; evals = integ%evals; rejected = integ%rejected
+    type is (adams_integrator)
+      steps = integ%steps; evals = integ%evals; rejected = integ%rejected
+    end select
   end subroutine integrate_test_ode
 end module pymr_test_odes

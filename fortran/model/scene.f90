@@ -49,6 +49,14 @@ module pymr_model_scene
     !> Multirate coupling of the fast steps: 'response' (linear response of all
     !> coordinates to the fast forces) or 'full' (the paper's).
     character(len=16) :: coupling = 'response'
+    !> The Adams formula: 'adams' (variable step and order, iterated corrector) or 'abm4'
+    !> (the paper's PECE of order 4); '' until the scene is complete: 'adams' for adaptive
+    !> single-rate runs, else 'abm4'.
+    character(len=8) :: formula = ''
+    !> Order of 'adams': 0 = variable (1 to 12), 1-12 = that order.
+    integer :: order = 0
+    !> Iteration of the 'adams' corrector: 'newton' or 'fixed-point'.
+    character(len=12) :: corrector = 'newton'
     type(origin_t) :: origin
   end type integrator_spec
 
@@ -233,6 +241,14 @@ contains
     call t%add('coupling', g%coupling, "multirate coupling of the fast steps: 'response' moves every " // &
       & "coordinate by its linear response to the fast forces, 'full' re-evaluates the modal rows (the paper's)", &
       & choices='response full')
+    call t%add('formula', g%formula, "the Adams formula: 'adams' (variable step and order 1-12, corrector " // &
+      & "iterated to convergence; the default of adaptive single-rate runs) or 'abm4' (the paper's order-4 " // &
+      & "predictor-corrector; the default, and the formula, of fixed-step and multirate runs)", choices='adams abm4')
+    call t%add('order', g%order, '-', "order of formula 'adams': 0 = variable (1 to 12, from the error " // &
+      & 'estimates), 1-12 = that order', ge=0, le=12)
+    call t%add('corrector', g%corrector, "iteration of the 'adams' corrector to convergence: 'newton' (chord " // &
+      & "iteration with a difference Jacobian, refreshed every 20 steps) or 'fixed-point' (no Jacobian)", &
+      & choices='newton fixed-point')
     call t%add('k_max', g%k_max, '-', 'largest step ratio H/h of adaptive multirate', ge=1, le=100000)
     call t%add('stability_check', g%stability_check, 'refuse fixed steps that the pre-flight check finds unstable')
     call t%add('max_steps', g%max_steps, '-', 'most (fast) steps a run may take: a fixed-step run needing more is ' // &
@@ -401,6 +417,9 @@ contains
     ! one step given: it serves both rates
     if (sc%integrator%h_fast == unset) sc%integrator%h_fast = sc%integrator%h_slow
     if (sc%integrator%h_slow == unset) sc%integrator%h_slow = sc%integrator%h_fast
+    if (len_trim(sc%integrator%formula) == 0) then
+      sc%integrator%formula = merge('adams', 'abm4 ', sc%integrator%adaptive .and. sc%integrator%method == 'single')
+    end if
   end subroutine complete_scene
 
   !> The items a body of each kind takes ('' for an unknown kind: no rule).

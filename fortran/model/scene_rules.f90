@@ -110,6 +110,14 @@ contains
           call errs%add(w('n_corrector') // ": multirate uses PECE (n_corrector = 1)"); return
         end if
       end if
+      if (s%formula == 'adams' .and. (.not. s%adaptive .or. trim(s%method) /= 'single')) then
+        call errs%add(w('formula') // ": 'adams' takes adaptive steps at one rate: set adaptive = .true. " // &
+          & "and method = 'single', or formula = 'abm4'"); return
+      end if
+      if (s%formula == 'abm4' .and. sc%integrator%origin%given('order') .and. s%order /= 4) then
+        call errs%add(w('order') // ": formula 'abm4' (the paper's) is of order 4; orders 0 (variable) to 12 " // &
+          & "need formula = 'adams' with adaptive steps at one rate"); return
+      end if
       ! bounded work: a fixed-step run's steps are known before it starts
       if (.not. s%adaptive .and. sc%scene%t_end/hf > real(s%max_steps, dp)) then
         call errs%add(w(step_item) // ': the run would take ' // fmt(sc%scene%t_end/hf) // ' steps of ' // &

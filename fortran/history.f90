@@ -1,0 +1,47 @@
+!> The step and order history of a scene's run, for studies and tests: the run's own
+!> stepper from the initial state to t_end, without output, recording each accepted step.
+module pymr_history
+  use pymr_kinds, only : dp
+  use pymr_error, only : error_type, fatal_error
+  use pymr_model_scene, only : scene_t
+  use pymr_model, only : model_t
+  use pymr_integrator_stepper, only : stepper_t
+  use pymr_stepper_setup, only : make_stepper
+  use pymr_run, only : load_model, initial_state
+  use pymr_io_text, only : itoa
+  implicit none
+  private
+  public :: step_history
+
+contains
+
+  !> Time reached, step taken and order of every accepted step (t(1) the start, h(1) and
+  !> q(1) the first step's), nh of them; more than size(t) is an error.
+  subroutine step_history(file, overrides, t, h, q, nh, error)
+    character(len=*), intent(in) :: file, overrides
+    real(dp), intent(out) :: t(:), h(:)
+    integer, intent(out) :: q(:), nh
+    type(error_type), allocatable, intent(out) :: error
+    type(scene_t) :: sc
+    type(model_t) :: model
+    class(stepper_t), allocatable :: st
+    real(dp), allocatable :: x(:)
+    real(dp) :: h0, t_prev
+    nh = 0; t = 0.0_dp; h = 0.0_dp; q = 0
+    call load_model(file, overrides, sc, model, error); if (allocated(error)) return
+    allocate(x(2*model%d%n))
+    call initial_state(sc, model, x)
+    call make_stepper(sc, model, x, st, h0, error); if (allocated(error)) return
+    call st%start(model, 0.0_dp, x, h0, error); if (allocated(error)) return
+    nh = 1; t(1) = st%time(); q(1) = st%order()
+    do while (st%time() < sc%scene%t_end*(1.0_dp - 1.0e-12_dp))
+      if (nh >= size(t)) then
+        call fatal_error(error, 'the run takes more than ' // itoa(size(t) - 1) // ' steps'); return
+      end if
+      t_prev = st%time()
+      call st%advance(model, error); if (allocated(error)) return
+      nh = nh + 1
+      t(nh) = st%time(); h(nh) = t(nh) - t_prev; q(nh) = st%order()
+    end do
+  end subroutine step_history
+end module pymr_history

@@ -1,0 +1,616 @@
+!> Variable-step, variable-order Adams-Moulton method in Nordsieck form, orders 1 to 12
+!> (docs/method.md section 3.3). The derivation follows the analyses of Byrne and Hindmarsh
+!> and of Jackson and Sacks-Davis ("fixed-leading-coefficient" form, as in CVODE).
+!>
+!> At order q the Nordsieck array z(:, 0:q) holds [y, h y', ..., h^q y^(q)/q!] at t_n. A step
+!> predicts z by the Pascal matrix and corrects z = z(0) + e l, where the correction e solves
+!> h f(t_n, z(0)_0 + e) = z(0)_1 + l_1 e by fixed-point iteration. The vector l makes the
+!> corrected polynomial's derivative equal f at t_n and equal the old derivative at the q-1
+!> earlier points, whatever the earlier steps were: l_j = m_(j-1)/(j M0), m the coefficients of
+!> Lambda(x) = prod_(j<q) (1 + x/xi_j), xi_j = (t_n - t_(n-j))/h, M0 = int_(-1)^0 Lambda.
+!> From the same polynomials come the local error estimates at orders q-1, q and q+1, which
+!> choose the next step and order.
+module pymr_integrator_adams
+  use pymr_kinds, only : dp
+  use pymr_error, only : error_type, fatal_error, stat_solver
+  use pymr_integrator_ode, only : ode_system
+  use pymr_integrator_control, only : step_control, error_weights, wrms_norm
+  use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps
+  use pymr_integrator_abm, only : check_finite
+  use pymr_io_text, only : fmt, itoa
+  use pymr_lapack, only : lu_factor, lu_solve
+  implicit none
+  private
+  public :: adams_integrator, adams_coefficients, adams_lower_order, max_order
+
+  !> Highest order.
+  integer, parameter :: max_order = 12
+
+  ! The step and order rules (their reasons in docs/method.md section 3.3).
+  !> The chosen step aims at a local error of 1/bias of the tolerance: at the same order and
+  !> at q-1 1/15, at q+1 1/25 (its estimate, from a difference of two corrections, is the
+  !> least sure); addon keeps the ratio finite when an estimate is zero.
+  real(dp), parameter :: bias_down = 15.0_dp, bias_same = 15.0_dp, bias_up = 25.0_dp, addon = 1.0e-6_dp
+  !> Largest growth of the step after the first step (whose estimate is cautious), after
+  !> any other step, and the least gain worth a change of step or order.
+  real(dp), parameter :: grow_first = 1.0e4_dp, grow_max = 10.0_dp, gain_min = 1.5_dp
+  !> Step ratio bounds after a failed error test (the second failure and later: at most
+  !> shrink_repeat), and after a corrector that did not converge.
+  real(dp), parameter :: shrink_min = 0.1_dp, shrink_repeat = 0.2_dp, shrink_corrector = 0.25_dp
+  !> Error-test failures in one step before the order is lowered, and before the run stops;
+  !> corrector failures before it stops.
+  integer, parameter :: fails_to_lower = 3, max_error_fails = 7, max_corrector_fails = 10
+  !> Fixed-point corrector: most iterations; the iteration error allowed, as a fraction of
+  !> the local error test; memory of the convergence rate; divergence when a correction grows
+  !> by this factor.
+  integer, parameter :: max_iterations = 3
+  !> Newton: steps a Jacobian serves at most (one that fails to converge is renewed at
+  !> once); relative change of gamma that refactors I - gamma J.
+  integer, parameter :: jac_max_age = 400
+  real(dp), parameter :: gamma_change = 0.3_dp
+  real(dp), parameter :: corrector_share = 0.1_dp, rate_memory = 0.3_dp, diverge = 2.0_dp
+
+  !> The stepper's whole state.
+  type, extends(stepper_t) :: adams_integrator
+    integer :: n = 0
+    !> Current order, and the highest the run may use (max_order when variable).
+    integer :: q = 1, q_top = max_order
+    !> Order fixed at q_top (reached from order 1 at the start): no lowering by choice.
+    logical :: fixed = .false.
+    !> Time of z (s), and the step z is scaled with (the next step's).
+    real(dp) :: t = 0.0_dp, h = 0.0_dp
+    !> Nordsieck array z(n, 0:max_order) (columns above q are zero).
+    real(dp), allocatable :: z(:, :)
+    !> The previous accepted steps, latest first (s).
+    real(dp) :: tau(max_order + 1) = 0.0_dp
+    !> Steps to wait before the next order choice; growth bound of the next step.
+    integer :: wait = 2
+    real(dp) :: eta_max = grow_first
+    !> Correction of the step before an order choice and its scale, for the q+1 estimate.
+    real(dp), allocatable :: e_saved(:)
+    real(dp) :: tq5_saved = 0.0_dp
+    logical :: have_saved = .false.
+    !> Measured convergence rate of the fixed-point iteration, and the h/l_1 it was measured at.
+    real(dp) :: rate = 1.0_dp, gamma_rate = 0.0_dp
+    type(step_control) :: ctl
+    !> Newton (chord) iteration of the corrector instead of fixed-point: the Jacobian J by
+    !> differences, the LU factors of I - gamma J, the gamma they hold, steps since J.
+    logical :: newton = .false.
+    real(dp), allocatable :: jac(:, :), lu(:, :)
+    integer, allocatable :: piv(:)
+    real(dp) :: gamma_lu = 0.0_dp
+    integer :: jac_age = 1000
+    logical :: jac_fresh = .false.
+    !> Counts: accepted and rejected steps, evaluations, corrector failures, steps per order.
+    integer :: steps = 0, rejected = 0, evals = 0, corrector_fails = 0
+    integer :: order_steps(max_order) = 0
+    !> Work: the step's coefficients, predicted array kept for a retry, correction, iterate,
+    !> derivative, weights.
+    real(dp) :: l(0:max_order) = 0.0_dp, tq(5) = 0.0_dp
+    real(dp), allocatable :: z_old(:, :), e(:), y(:), f(:), w(:), e_new(:)
+  contains
+    procedure :: init => adams_init
+    procedure :: start => adams_start
+    procedure :: advance => adams_advance
+    procedure :: time => adams_time
+    procedure :: value_at => adams_value_at
+    procedure :: save => adams_save
+    procedure :: load => adams_load
+    procedure :: counts => adams_counts
+    procedure :: name => adams_name
+    procedure :: pece => adams_steps
+    procedure :: state_size => adams_state_size
+    procedure :: get_state => adams_get_state
+    procedure :: set_state => adams_set_state
+    procedure :: order => adams_order
+  end type adams_integrator
+
+contains
+
+  !> Allocate for n components; order 0 = variable (1 to 12), 1-12 = that order.
+  subroutine adams_init(self, n, order, ctl, newton)
+    class(adams_integrator), intent(inout) :: self
+    integer, intent(in) :: n, order
+    type(step_control), intent(in) :: ctl
+    logical, intent(in) :: newton
+    self%n = n
+    self%fixed = order > 0
+    self%q_top = merge(order, max_order, order > 0)
+    self%ctl = ctl
+    if (allocated(self%z)) deallocate(self%z, self%z_old, self%e, self%e_saved, self%y, self%f, self%w, self%e_new)
+    allocate(self%z(n, 0:max_order), self%z_old(n, 0:max_order), self%e(n), self%e_saved(n), self%y(n), &
+      & self%f(n), self%w(n), self%e_new(n))
+    self%z = 0.0_dp; self%e_saved = 0.0_dp
+    self%newton = newton
+    if (allocated(self%jac)) deallocate(self%jac, self%lu, self%piv)
+    if (newton) allocate(self%jac(n, n), self%lu(n, n), self%piv(n))
+    self%jac_age = jac_max_age; self%gamma_lu = 0.0_dp
+    self%steps = 0; self%rejected = 0; self%evals = 0; self%corrector_fails = 0; self%order_steps = 0
+  end subroutine adams_init
+
+  !> Start at (t0, x0) at order 1 with a first step from the tolerances (at most h).
+  subroutine adams_start(self, sys, t0, x0, h, error)
+    class(adams_integrator), intent(inout) :: self
+    class(ode_system), intent(inout) :: sys
+    real(dp), intent(in) :: t0, x0(:), h
+    type(error_type), allocatable, intent(out) :: error
+    call sys%eval(t0, x0, self%f, error); self%evals = self%evals + 1
+    if (allocated(error)) return
+    call check_finite(sys, t0, self%f, 'derivative', error); if (allocated(error)) return
+    call first_step(self, sys, t0, x0, h, error); if (allocated(error)) return
+    self%z = 0.0_dp
+    self%z(:, 0) = x0
+    self%z(:, 1) = self%h*self%f
+    self%t = t0; self%q = 1; self%tau = 0.0_dp
+    self%wait = 2; self%eta_max = grow_first; self%have_saved = .false.
+    self%rate = 1.0_dp; self%gamma_rate = 0.0_dp
+  end subroutine adams_start
+
+  !> The first step (into self%h; f holds f(t0, x0)). Order 1's local error is
+  !> h^2/2 ||y''||: the step that makes it 1 in the weighted norm is sqrt(2/||y''||), with
+  !> y'' from a difference of f, refined up to four times; half of it is taken, as y'' is
+  !> known at t0 only. Bounds: h_up, h_max, and no component moved by more than a tenth of
+  !> its size plus its tolerance.
+  subroutine first_step(self, sys, t0, x0, h_up, error)
+    class(adams_integrator), intent(inout) :: self
+    class(ode_system), intent(inout) :: sys
+    real(dp), intent(in) :: t0, x0(:), h_up
+    type(error_type), allocatable, intent(out) :: error
+    real(dp) :: hub, hlb, hg, hnew, ydd, move
+    integer :: it
+    call error_weights(self%ctl, x0, self%w)
+    hub = min(h_up, self%ctl%h_max)
+    move = maxval(abs(self%f)/(0.1_dp*abs(x0) + 1.0_dp/self%w))
+    if (move*hub > 1.0_dp) hub = 1.0_dp/move
+    hlb = max(self%ctl%h_min, 100*epsilon(1.0_dp)*max(abs(t0), hub))
+    if (hub <= hlb) then
+      self%h = max(hub, self%ctl%h_min); return
+    end if
+    hg = sqrt(hlb*hub)
+    hnew = hg
+    do it = 1, 4
+      self%y = x0 + hg*self%f
+      call sys%eval(t0 + hg, self%y, self%e_new, error); self%evals = self%evals + 1
+      if (allocated(error)) return
+      ydd = wrms_norm((self%e_new - self%f)/hg, self%w)
+      if (ydd /= ydd .or. ydd > huge(1.0_dp)) then
+        hnew = hg*0.2_dp
+      else if (ydd*hub**2 > 2.0_dp) then
+        hnew = sqrt(2.0_dp/ydd)
+      else
+        hnew = sqrt(hg*hub)
+      end if
+      if (hnew > 0.5_dp*hg .and. hnew < 2.0_dp*hg) exit
+      hg = hnew
+    end do
+    self%h = min(max(0.5_dp*hnew, hlb), hub)
+  end subroutine first_step
+
+  !> One accepted step: predict, correct to convergence, test the local error; on a
+  !> failure restore the array and retry smaller (and lower the order after repeated
+  !> failures). After it, choose the next step and order.
+  subroutine adams_advance(self, sys, error)
+    class(adams_integrator), intent(inout) :: self
+    class(ode_system), intent(inout) :: sys
+    type(error_type), allocatable, intent(out) :: error
+    integer :: error_fails, corr_fails
+    real(dp) :: tn, acnrm, dsm
+    logical :: converged
+    error_fails = 0; corr_fails = 0
+    call error_weights(self%ctl, self%z(:, 0), self%w)
+    do
+      self%z_old(:, 0:self%q) = self%z(:, 0:self%q)
+      tn = self%t + self%h
+      call predict(self%z, self%q)
+      call adams_coefficients(self%q, [self%h, self%tau], self%l, self%tq)
+      call correct(self, sys, tn, converged, acnrm, error); if (allocated(error)) return
+      if (.not. converged .and. self%newton .and. .not. self%jac_fresh) then
+        ! retry the same step with a new Jacobian
+        self%z(:, 0:self%q) = self%z_old(:, 0:self%q)
+        self%jac_age = jac_max_age
+        cycle
+      end if
+      if (.not. converged) then
+        self%z(:, 0:self%q) = self%z_old(:, 0:self%q)
+        corr_fails = corr_fails + 1; self%corrector_fails = self%corrector_fails + 1
+        if (corr_fails >= max_corrector_fails) then
+          call fatal_error(error, 'at t = ' // fmt(self%t) // ' s: the corrector did not converge in ' // &
+            & itoa(corr_fails) // ' tries down to the step ' // fmt(self%h) // ' s', stat_solver); return
+        end if
+        call shrink(self, shrink_corrector, error); if (allocated(error)) return
+        cycle
+      end if
+      dsm = acnrm*self%tq(2)
+      if (dsm <= 1.0_dp) exit
+      self%z(:, 0:self%q) = self%z_old(:, 0:self%q)
+      error_fails = error_fails + 1; self%rejected = self%rejected + 1
+      if (error_fails >= max_error_fails) then
+        call fatal_error(error, 'at t = ' // fmt(self%t) // ' s: the local error test failed ' // &
+          & itoa(error_fails) // ' times in one step, down to the step ' // fmt(self%h) // ' s', stat_solver); return
+      end if
+      call after_error_failure(self, sys, dsm, error_fails, error); if (allocated(error)) return
+    end do
+    call accept(self, sys, tn, error); if (allocated(error)) return
+    call choose_next(self, dsm)
+  end subroutine adams_advance
+
+  !> Fixed-point iteration for the correction e of the predicted array z (not changed):
+  !> e <- (h f(t_n, z_0 + e) - z_1)/l_1. Converged when the iteration error, estimated from
+  !> the last change and the measured convergence rate, is below corrector_share of the
+  !> error test; failed when it diverges or needs more than max_iterations. The rate is
+  !> carried to the next step scaled by h/l_1 (the iteration's Lipschitz factor).
+  subroutine correct(self, sys, tn, converged, acnrm, error)
+    class(adams_integrator), intent(inout) :: self
+    class(ode_system), intent(inout) :: sys
+    real(dp), intent(in) :: tn
+    logical, intent(out) :: converged
+    real(dp), intent(out) :: acnrm
+    type(error_type), allocatable, intent(out) :: error
+    real(dp) :: gamma, del, delp, dcon
+    integer :: m
+    converged = .false.; acnrm = 0.0_dp; delp = 0.0_dp
+    gamma = self%h/self%l(1)
+    if (.not. self%newton .and. self%gamma_rate > 0.0_dp) self%rate = min(1.0_dp, self%rate*gamma/self%gamma_rate)
+    self%gamma_rate = gamma
+    self%e = 0.0_dp
+    self%y = self%z(:, 0)
+    self%jac_fresh = .false.
+    do m = 0, max_iterations - 1
+      call sys%eval(tn, self%y, self%f, error); self%evals = self%evals + 1
+      if (allocated(error)) return
+      call check_finite(sys, tn, self%f, 'derivative', error); if (allocated(error)) return
+      if (m == 0 .and. self%newton) then
+        call newton_setup(self, sys, tn, gamma, error); if (allocated(error)) return
+      end if
+      self%e_new = (self%h*self%f - self%z(:, 1))/self%l(1)
+      if (self%newton) then
+        ! chord step: (I - gamma J) delta = e_new - e
+        self%e_new = self%e_new - self%e
+        call lu_solve(self%lu, self%piv, self%e_new, 'I - gamma J of the corrector', error)
+        if (allocated(error)) return
+        self%e_new = self%e + self%e_new
+      end if
+      del = wrms_norm(self%e_new - self%e, self%w)
+      self%e = self%e_new
+      self%y = self%z(:, 0) + self%e
+      if (m > 0) then
+        self%rate = max(rate_memory*self%rate, del/delp)
+      end if
+      dcon = del*min(1.0_dp, self%rate)/(corrector_share/self%tq(2))
+      if (dcon <= 1.0_dp) then
+        converged = .true.
+        acnrm = merge(del, wrms_norm(self%e, self%w), m == 0)
+        return
+      end if
+      if (m > 0 .and. del > diverge*delp) return
+      delp = del
+    end do
+  end subroutine correct
+
+  !> Before a Newton iteration (f holds f(tn, y) at the prediction y): a new Jacobian by
+  !> forward differences when the last is 20 steps old or failed to converge, new LU factors
+  !> of I - gamma J when J is new or gamma changed by more than 30 %.
+  subroutine newton_setup(self, sys, tn, gamma, error)
+    class(adams_integrator), intent(inout) :: self
+    class(ode_system), intent(inout) :: sys
+    real(dp), intent(in) :: tn, gamma
+    type(error_type), allocatable, intent(out) :: error
+    integer :: j
+    real(dp) :: sigma, yj
+    self%jac_age = self%jac_age + 1
+    if (self%jac_age > jac_max_age) then
+      do j = 1, self%n
+        yj = self%y(j)
+        sigma = sqrt(epsilon(1.0_dp))*max(abs(yj), 1.0_dp/self%w(j))
+        self%y(j) = yj + sigma
+        call sys%eval(tn, self%y, self%e_new, error); self%evals = self%evals + 1
+        self%y(j) = yj
+        if (allocated(error)) return
+        self%jac(:, j) = (self%e_new - self%f)/sigma
+      end do
+      self%jac_age = 0; self%jac_fresh = .true.; self%gamma_lu = 0.0_dp
+    end if
+    if (abs(gamma/max(self%gamma_lu, tiny(1.0_dp)) - 1.0_dp) <= gamma_change) return
+    self%lu = -gamma*self%jac
+    do j = 1, self%n
+      self%lu(j, j) = self%lu(j, j) + 1.0_dp
+    end do
+    call lu_factor(self%lu, self%piv, 'I - gamma J of the corrector at t = ' // fmt(tn) // ' s', error)
+    self%gamma_lu = gamma; self%rate = 1.0_dp; self%gamma_rate = gamma
+  end subroutine newton_setup
+
+  !> Take the step: z = z(0) + e l (z holds the prediction), shift the step history, count, and keep the correction
+  !> for the q+1 estimate one step before an order choice.
+  subroutine accept(self, sys, tn, error)
+    class(adams_integrator), intent(inout) :: self
+    class(ode_system), intent(inout) :: sys
+    real(dp), intent(in) :: tn
+    type(error_type), allocatable, intent(out) :: error
+    integer :: j
+    do j = 0, self%q
+      self%z(:, j) = self%z(:, j) + self%l(j)*self%e
+    end do
+    self%t = tn
+    self%steps = self%steps + 1
+    self%order_steps(self%q) = self%order_steps(self%q) + 1
+    self%tau(2:) = self%tau(:max_order)
+    self%tau(1) = self%h
+    call check_finite(sys, tn, self%z(:, 0), 'state', error); if (allocated(error)) return
+    self%wait = self%wait - 1
+    if (self%wait == 1 .and. self%q < self%q_top) then
+      self%e_saved = self%e; self%tq5_saved = self%tq(5); self%have_saved = .true.
+    end if
+  end subroutine accept
+
+  !> The next step and order from the error estimates at q-1, q and q+1 (every other step
+  !> once q+1 steps were taken at the current order). A change must gain at least gain_min
+  !> in step size; the step after a failure keeps its size.
+  subroutine choose_next(self, dsm)
+    class(adams_integrator), intent(inout) :: self
+    real(dp), intent(in) :: dsm
+    real(dp) :: eta, eta_dn, eta_up, cquot
+    integer :: q_new
+    if (self%eta_max <= 1.0_dp) then
+      self%wait = max(self%wait, 2); self%eta_max = grow_max; return
+    end if
+    q_new = self%q
+    eta = ratio(bias_same*dsm, self%q + 1)
+    if (self%wait == 0) then
+      self%wait = 2
+      eta_dn = 0.0_dp; eta_up = 0.0_dp
+      if (self%q > 1 .and. .not. self%fixed) &
+        & eta_dn = ratio(bias_down*wrms_norm(self%z(:, self%q), self%w)*self%tq(1), self%q)
+      if (self%q < self%q_top .and. self%have_saved) then
+        cquot = self%tq(5)/self%tq5_saved*(self%h/self%tau(2))**(self%q + 1)
+        eta_up = ratio(bias_up*wrms_norm(self%e - cquot*self%e_saved, self%w)*self%tq(3), self%q + 2)
+      end if
+      if (self%fixed .and. self%q < self%q_top) then
+        ! a fixed order is reached from order 1 as soon as the history allows
+        q_new = self%q + 1; eta = eta_up
+      else if (max(eta_up, eta_dn) > eta .and. max(eta_up, eta_dn) >= gain_min) then
+        q_new = merge(self%q + 1, self%q - 1, eta_up > eta_dn)
+        eta = max(eta_up, eta_dn)
+      end if
+    end if
+    if (eta < gain_min) eta = 1.0_dp
+    eta = min(eta, self%eta_max, self%ctl%h_max/self%h)
+    self%eta_max = grow_max
+    if (q_new < self%q) then
+      call adams_lower_order(self%z, self%q, self%tau, self%h)
+      self%q = q_new; self%wait = self%q + 1
+    else if (q_new > self%q) then
+      self%z(:, q_new) = 0.0_dp
+      self%q = q_new; self%wait = self%q + 1
+    end if
+    if (eta /= 1.0_dp) call rescale(self, eta)
+  end subroutine choose_next
+
+  !> After a failed error test: a smaller step from the estimate; from the third failure on,
+  !> the order is lowered (at order 1 the derivative column is evaluated afresh).
+  subroutine after_error_failure(self, sys, dsm, fails, error)
+    class(adams_integrator), intent(inout) :: self
+    class(ode_system), intent(inout) :: sys
+    real(dp), intent(in) :: dsm
+    integer, intent(in) :: fails
+    type(error_type), allocatable, intent(out) :: error
+    real(dp) :: eta
+    if (fails < fails_to_lower) then
+      eta = max(shrink_min, ratio(bias_same*dsm, self%q + 1))
+      if (fails >= 2) eta = min(eta, shrink_repeat)
+      call shrink(self, eta, error); return
+    end if
+    if (self%q > 1) then
+      call adams_lower_order(self%z, self%q, self%tau, self%h)
+      self%q = self%q - 1; self%wait = self%q + 1
+      call shrink(self, shrink_min, error); return
+    end if
+    call shrink(self, shrink_min, error); if (allocated(error)) return
+    call sys%eval(self%t, self%z(:, 0), self%f, error); self%evals = self%evals + 1
+    if (allocated(error)) return
+    self%z(:, 1) = self%h*self%f
+    self%wait = 10
+  end subroutine after_error_failure
+
+  !> Retry with the step eta*h (no growth on the step after), stopping below h_min.
+  subroutine shrink(self, eta, error)
+    class(adams_integrator), intent(inout) :: self
+    real(dp), intent(in) :: eta
+    type(error_type), allocatable, intent(out) :: error
+    if (eta*self%h < self%ctl%h_min) then
+      call fatal_error(error, 'step size underflow at t = ' // fmt(self%t) // ' s (step ' // fmt(eta*self%h) // &
+        & ' s below h_min)', stat_solver); return
+    end if
+    call rescale(self, eta)
+    self%eta_max = 1.0_dp
+  end subroutine shrink
+
+  !> Step h -> eta h: column j of z times eta^j.
+  pure subroutine rescale(self, eta)
+    class(adams_integrator), intent(inout) :: self
+    real(dp), intent(in) :: eta
+    integer :: j
+    do j = 1, self%q
+      self%z(:, j) = self%z(:, j)*eta**j
+    end do
+    self%h = eta*self%h
+  end subroutine rescale
+
+  !> Step ratio that brings an error estimate (already times its bias) to 1 for a method
+  !> whose error is O(h^p).
+  pure real(dp) function ratio(err, p)
+    real(dp), intent(in) :: err
+    integer, intent(in) :: p
+    ratio = 1.0_dp/(err**(1.0_dp/p) + addon)
+  end function ratio
+
+  !> Pascal predictor in place on columns 0..q: z_i <- sum_(j>=i) binomial(j, i) z_j.
+  pure subroutine predict(z, q)
+    real(dp), intent(inout) :: z(:, 0:)
+    integer, intent(in) :: q
+    integer :: k, j
+    do k = 1, q
+      do j = q, k, -1
+        z(:, j - 1) = z(:, j - 1) + z(:, j)
+      end do
+    end do
+  end subroutine predict
+
+  !> The corrector vector l(0:q) and the error constants tq of order q, for the step s(1)
+  !> after the steps s(2), s(3), ... (latest first). With xi_j = (s(1) + ... + s(j))/s(1),
+  !> Lambda(x) = prod_(j<q) (1 + x/xi_j) = sum m_i x^i, M0 = int_(-1)^0 Lambda,
+  !> M1 = -int_(-1)^0 x Lambda:
+  !>  - l_0 = 1, l_j = m_(j-1)/(j M0);
+  !>  - tq(2) = M1/(M0 xi_q): local error at order q per unit correction;
+  !>  - tq(1): local error at order q-1 per unit of z_q, q |int_(-1)^0 x prod_(j<q-1) (x + xi_j)|;
+  !>  - tq(3): local error at order q+1 per unit difference of successive corrections,
+  !>    M2/((q+1) M0), M2 = -int_(-1)^0 x Lambda(x) (1 + x/xi_q);
+  !>  - tq(5) = xi_q/l_q, the scale of the correction (h^(q+1) y^(q+1) tq(5)/(q q!));
+  !>  - tq(4) unused.
+  pure subroutine adams_coefficients(q, s, l, tq)
+    integer, intent(in) :: q
+    real(dp), intent(in) :: s(:)
+    real(dp), intent(out) :: l(0:), tq(5)
+    real(dp) :: m(0:max_order + 1), p(0:max_order + 1), xi(max_order + 1), m0
+    integer :: i, j
+    do j = 1, q
+      xi(j) = sum(s(1:j))/s(1)
+    end do
+    m = 0.0_dp; m(0) = 1.0_dp
+    p = m
+    do j = 1, q - 1
+      if (j == q - 1) p = m
+      do i = j, 1, -1
+        m(i) = m(i) + m(i - 1)/xi(j)
+      end do
+    end do
+    m0 = alt_integral(m, q - 1, 1)
+    l = 0.0_dp; l(0) = 1.0_dp
+    do i = 1, q
+      l(i) = m(i - 1)/(i*m0)
+    end do
+    tq = 0.0_dp
+    tq(2) = alt_integral(m, q - 1, 2)/(m0*xi(q))
+    tq(5) = xi(q)/l(q)
+    if (q >= 2) tq(1) = q*alt_integral(p, q - 2, 2)/p(q - 2)
+    do i = q, 1, -1
+      m(i) = m(i) + m(i - 1)/xi(q)
+    end do
+    tq(3) = alt_integral(m, q, 2)/(m0*(q + 1))
+  end subroutine adams_coefficients
+
+  !> sum_(i=0..k) (-1)^i a_i/(i+d): int_(-1)^0 of sum a_i x^i (d = 1), or minus that of
+  !> x sum a_i x^i (d = 2).
+  pure real(dp) function alt_integral(a, k, d)
+    real(dp), intent(in) :: a(0:)
+    integer, intent(in) :: k, d
+    integer :: i
+    alt_integral = 0.0_dp
+    do i = 0, k
+      alt_integral = alt_integral + (-1)**i*a(i)/(i + d)
+    end do
+  end function alt_integral
+
+  !> Lower the order q of z at t_n by one: remove z_q r(x), r(x) = q int_0^x u prod_(j<q-1)
+  !> (u + xi_j) du with xi_j = (tau(1) + ... + tau(j))/h, so that the derivative still equals
+  !> its old values at t_n and the q-2 points before (r' vanishes there) and y_n is kept.
+  pure subroutine adams_lower_order(z, q, tau, h)
+    real(dp), intent(inout) :: z(:, 0:)
+    integer, intent(in) :: q
+    real(dp), intent(in) :: tau(:), h
+    real(dp) :: c(0:max_order + 1), xi
+    integer :: i, j
+    if (q < 2) return
+    c = 0.0_dp; c(1) = 1.0_dp
+    do j = 1, q - 2
+      xi = sum(tau(1:j))/h
+      do i = j + 1, 1, -1
+        c(i) = c(i - 1) + xi*c(i)
+      end do
+      c(0) = xi*c(0)
+    end do
+    do j = 2, q - 1
+      z(:, j) = z(:, j) - q*c(j - 1)/j*z(:, q)
+    end do
+    z(:, q) = 0.0_dp
+  end subroutine adams_lower_order
+
+  !> The current order's polynomial inside the last step (dense output).
+  pure subroutine adams_value_at(self, t, x)
+    class(adams_integrator), intent(in) :: self
+    real(dp), intent(in) :: t
+    real(dp), intent(out) :: x(:)
+    real(dp) :: s
+    integer :: j
+    s = (t - self%t)/self%h
+    x = self%z(:, self%q)
+    do j = self%q - 1, 0, -1
+      x = self%z(:, j) + s*x
+    end do
+  end subroutine adams_value_at
+
+  pure real(dp) function adams_time(self)
+    class(adams_integrator), intent(in) :: self
+    adams_time = self%t
+  end function adams_time
+
+  pure integer function adams_order(self)
+    class(adams_integrator), intent(in) :: self
+    adams_order = self%q
+  end function adams_order
+
+  subroutine adams_save(self, unit, ios)
+    class(adams_integrator), intent(in) :: self
+    integer, intent(in) :: unit
+    integer, intent(out) :: ios
+    write(unit, iostat=ios) self%t, self%h, self%q, self%z, self%tau, self%wait, self%eta_max, self%e_saved, &
+      & self%tq5_saved, self%have_saved, self%rate, self%gamma_rate, self%steps, self%rejected, self%evals, &
+      & self%corrector_fails, self%order_steps
+  end subroutine adams_save
+
+  subroutine adams_load(self, unit, ios)
+    class(adams_integrator), intent(inout) :: self
+    integer, intent(in) :: unit
+    integer, intent(out) :: ios
+    read(unit, iostat=ios) self%t, self%h, self%q, self%z, self%tau, self%wait, self%eta_max, self%e_saved, &
+      & self%tq5_saved, self%have_saved, self%rate, self%gamma_rate, self%steps, self%rejected, self%evals, &
+      & self%corrector_fails, self%order_steps
+  end subroutine adams_load
+
+  pure function adams_counts(self) result(c)
+    class(adams_integrator), intent(in) :: self
+    type(step_counts) :: c
+    c%steps_slow = self%steps; c%steps_fast = self%steps
+    c%rejected = self%rejected; c%h_last = self%h; c%ratio = 1
+  end function adams_counts
+
+  pure function adams_name(self) result(s)
+    class(adams_integrator), intent(in) :: self
+    character(len=:), allocatable :: s
+    s = 'adams'
+  end function adams_name
+
+  !> Adaptive only: the pre-flight check of fixed steps never asks; its step for all.
+  pure function adams_steps(self) result(s)
+    class(adams_integrator), intent(in) :: self
+    type(pece_steps) :: s
+    s%h_joint = self%h; s%h_modal = self%h
+  end function adams_steps
+
+  pure integer function adams_state_size(self)
+    class(adams_integrator), intent(in) :: self
+    adams_state_size = size(self%z)
+  end function adams_state_size
+
+  !> The Nordsieck array, column by column (the state first).
+  pure subroutine adams_get_state(self, v)
+    class(adams_integrator), intent(in) :: self
+    real(dp), intent(out) :: v(:)
+    v = reshape(self%z, [size(self%z)])
+  end subroutine adams_get_state
+
+  pure subroutine adams_set_state(self, v)
+    class(adams_integrator), intent(inout) :: self
+    real(dp), intent(in) :: v(:)
+    self%z = reshape(v, shape(self%z))
+  end subroutine adams_set_state
+end module pymr_integrator_adams
