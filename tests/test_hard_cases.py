@@ -161,22 +161,26 @@ def test_singular_mass_matrix_is_named_before_the_first_step(tmp_path):
 
 # ------------------------------------------------------------------- 6. impulse
 
-def test_firing_impulse_adaptive_steps_shrink_recover_and_converge(tmp_path):
+@pytest.mark.parametrize("formula, per_decade", [("abm4", (0.85, 1.15)), ("adams", (0.6, 1.15))])
+def test_firing_impulse_adaptive_steps_shrink_recover_and_converge(tmp_path, formula, per_decade):
     """tank_firing.nml with adaptive steps: at the onset of the 10 ms, 1 MN pulse the step
-    shrinks below a third of the typical (median) step before it (measured 2.6e-5 against
-    4.1e-4 s at rtol 1e-4) and grows back afterwards (median 3.8e-4 s after 0.6 s); the muzzle error against rtol 1e-10 falls
-    10x per decade of rtol (measured 3.2e-5, 3.0e-7, 3.2e-9 m at 1e-4, 1e-6, 1e-8)."""
+    shrinks below a third of the typical (median) step before it and grows back afterwards
+    (at rtol 1e-4: 'abm4' 1.8e-5 against 4.0e-4 s, median 3.8e-4 s after 0.6 s; 'adams'
+    1.0e-4 against 8.5e-4 s, 9.9e-4 s after). The muzzle error against rtol 1e-10 falls
+    with rtol: 10x per decade for the paper's fixed order (measured 3.2e-5, 3.0e-7, 3.2e-9 m
+    at 1e-4, 1e-6, 1e-8), as rtol^(q/(q+1)) for variable order (5.7e-6, 2.3e-7, 2.1e-9 m)."""
     scene = ROOT / "input" / "tank_firing.nml"
 
     def adaptive(rtol, dt=1e-3):
-        return {"integrator.adaptive": True, "integrator.rtol": rtol, "integrator.atol": rtol * 1e-2, "output.dt": dt}
+        return {"integrator.adaptive": True, "integrator.rtol": rtol, "integrator.atol": rtol * 1e-2, "output.dt": dt,
+                "integrator.formula": formula}
     ref = pymr.run(scene, tmp_path / "ref.csv", overrides=adaptive(1e-10))
     errs = []
     for rtol in (1e-4, 1e-6, 1e-8):
         res = pymr.run(scene, tmp_path / f"a{rtol}.csv", overrides=adaptive(rtol))
         errs.append(np.abs(res.marker("muzzle")[0] - ref.marker("muzzle")[0]).max())
-    assert np.log10(errs[0] / errs[1]) / 2 == pytest.approx(1.0, abs=0.15)
-    assert np.log10(errs[1] / errs[2]) / 2 == pytest.approx(1.0, abs=0.15)
+    for k in range(2):
+        assert per_decade[0] <= np.log10(errs[k] / errs[k + 1]) / 2 <= per_decade[1]
     steps = pymr.run(scene, tmp_path / "steps.csv", overrides=adaptive(1e-4, dt=0.0))
     t = steps.t
     h, tm = np.diff(t), t[1:]
@@ -193,14 +197,14 @@ def test_firing_impulse_adaptive_steps_shrink_recover_and_converge(tmp_path):
 
 
 def test_adaptive_steps_stay_within_the_top_mode_s_stability_limit(tmp_path):
-    """Adaptive single-rate on the stiff barrel from rest, 0.2 s: the steps stay below 0.9 of
+    """Adaptive single-rate with the paper's formula on the stiff barrel from rest, 0.2 s: the steps stay below 0.9 of
     the PECE limit of the top modal frequency from the first one on. At rtol 1e-8 the muzzle
     is within 2e-10 m of a converged run (measured 5.2e-11; with the first steps taken from
     the tolerances alone, 1e-4 s at omega h = 0.64, the error floored at 5e-10 m for every
     rtol below 1e-8), and at rtol 1e-3 under 1 % of the steps are rejected (measured 4 of
     3372; 2021 of 24179 over 1 s before)."""
     scene = HARD / "stiff_barrel.nml"
-    over = {"scene.t_end": 0.2, "output.dt": 1e-3, "integrator.adaptive": True}
+    over = {"scene.t_end": 0.2, "output.dt": 1e-3, "integrator.adaptive": True, "integrator.formula": "abm4"}
     ref = pymr.run(scene, tmp_path / "ref.csv", overrides={**over, "integrator.rtol": 1e-11, "integrator.atol": 1e-13,
                                                           "integrator.h_max": 1e-5})
     tight = pymr.run(scene, tmp_path / "t.csv", overrides={**over, "integrator.rtol": 1e-8, "integrator.atol": 1e-10})

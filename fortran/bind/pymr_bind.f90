@@ -257,6 +257,7 @@ end subroutine pymr_time_evaluation
 !> problem 2: y' = -2 t y^2, y(0) = 1 (solution 1/(1+t^2)).
 !> problem 3: Kepler orbit, eccentricity 0.5 (state [x, y, vx, vy]).
 !> problem 4: x'' + 2 zeta w x' + w^2 x = w^2 [t >= 1], w = 2 pi, zeta = 0.05, at rest at 0.
+!> problem 5: y' = -y, y(0) = 1.
 !> order < 0: the paper's ABM4 (n_corr evaluations per step); 0-12: formula 'adams'.
 !> th, hh, qh: time, step and order of the first nmax accepted steps.
 subroutine pymr_ode_test(problem, t_end, h, adaptive, rtol, atol, n_corr, order, nx, nmax, x, steps, evals, &
@@ -592,3 +593,17 @@ subroutine pymr_step_history(scene, overrides, nmax, t, h, q, nh, stat, message)
   call step_history(scene, overrides, t, h, q, nh, error)
   call report(error, stat, message)
 end subroutine pymr_step_history
+
+!> Formula 'adams' for tests: the corrector vector l(0:q) and error constants tq(1:5) of
+!> order q for the step s(1) after the steps s(2:) (op 1); or z(n, 0:q) lowered to order
+!> q-1 with the past steps s(1:) and the step h = s(1) it is scaled with (op 2, into zout).
+subroutine pymr_adams_kernel(op, q, m, s, n, z, l, tq, zout)
+  use pymr_integrator_adams, only : adams_coefficients, adams_lower_order
+  implicit none
+  integer, intent(in) :: op, q, m, n
+  double precision, intent(in) :: s(m), z(n, 0:q)
+  double precision, intent(out) :: l(0:12), tq(5), zout(n, 0:q)
+  l = 0.0d0; tq = 0.0d0; zout = z
+  if (op == 1) call adams_coefficients(q, s, l, tq)
+  if (op == 2) call adams_lower_order(zout, q, s, s(1))
+end subroutine pymr_adams_kernel

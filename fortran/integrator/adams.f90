@@ -57,6 +57,9 @@ module pymr_integrator_adams
     integer :: q = 1, q_top = max_order
     !> Order fixed at q_top (reached from order 1 at the start): no lowering by choice.
     logical :: fixed = .false.
+    !> Error control on; off: steps of the given size at the order held (tests that start
+    !> from an exact array and measure the order).
+    logical :: adaptive = .true.
     !> Time of z (s), and the step z is scaled with (the next step's).
     real(dp) :: t = 0.0_dp, h = 0.0_dp
     !> Nordsieck array z(n, 0:max_order) (columns above q are zero).
@@ -221,7 +224,7 @@ contains
         cycle
       end if
       dsm = acnrm*self%tq(2)
-      if (dsm <= 1.0_dp) exit
+      if (dsm <= 1.0_dp .or. .not. self%adaptive) exit
       self%z(:, 0:self%q) = self%z_old(:, 0:self%q)
       error_fails = error_fails + 1; self%rejected = self%rejected + 1
       if (error_fails >= max_error_fails) then
@@ -231,7 +234,7 @@ contains
       call after_error_failure(self, sys, dsm, error_fails, error); if (allocated(error)) return
     end do
     call accept(self, sys, tn, error); if (allocated(error)) return
-    call choose_next(self, dsm)
+    if (self%adaptive) call choose_next(self, dsm)
   end subroutine adams_advance
 
   !> Fixed-point iteration for the correction e of the predicted array z (not changed):
@@ -564,7 +567,8 @@ contains
     integer, intent(out) :: ios
     write(unit, iostat=ios) self%t, self%h, self%q, self%z, self%tau, self%wait, self%eta_max, self%e_saved, &
       & self%tq5_saved, self%have_saved, self%rate, self%gamma_rate, self%steps, self%rejected, self%evals, &
-      & self%corrector_fails, self%order_steps
+      & self%corrector_fails, self%order_steps, self%gamma_lu, self%jac_age
+    if (ios == 0 .and. self%newton) write(unit, iostat=ios) self%jac, self%lu, self%piv
   end subroutine adams_save
 
   subroutine adams_load(self, unit, ios)
@@ -573,7 +577,8 @@ contains
     integer, intent(out) :: ios
     read(unit, iostat=ios) self%t, self%h, self%q, self%z, self%tau, self%wait, self%eta_max, self%e_saved, &
       & self%tq5_saved, self%have_saved, self%rate, self%gamma_rate, self%steps, self%rejected, self%evals, &
-      & self%corrector_fails, self%order_steps
+      & self%corrector_fails, self%order_steps, self%gamma_lu, self%jac_age
+    if (ios == 0 .and. self%newton) read(unit, iostat=ios) self%jac, self%lu, self%piv
   end subroutine adams_load
 
   pure function adams_counts(self) result(c)

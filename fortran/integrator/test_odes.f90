@@ -16,7 +16,7 @@ module pymr_test_odes
 
   !> Problem 1: oscillator; 2: y' = -2 t y^2; 3: Kepler orbit (e = 0.5); 4: a lightly damped
   !> oscillator (1 Hz, damping ratio 0.05) at rest until a constant force turns on at t = 1
-  !> (static deflection 1).
+  !> (static deflection 1); 5: y' = -y.
   type, extends(ode_system) :: test_ode
     integer :: problem = 1
   contains
@@ -43,6 +43,8 @@ contains
       f = [x(3), x(4), -x(1)/r3, -x(2)/r3]
     case (4)
       f = [x(2), w4**2*(merge(1.0_dp, 0.0_dp, t >= 1.0_dp) - x(1)) - 2*zeta4*w4*x(2)]
+    case (5)
+      f = -x
     end select
   end subroutine test_eval
 
@@ -79,8 +81,8 @@ contains
     integer :: nx, k
     type(step_counts) :: c
     steps = 0; evals = 0; rejected = 0; x = 0.0_dp; th = 0.0_dp; hh = 0.0_dp; qh = 0
-    nx = merge(1, merge(4, 2, problem == 3), problem == 2)
-    if (problem < 1 .or. problem > 4 .or. size(x) /= nx) then
+    nx = merge(1, merge(4, 2, problem == 3), problem == 2 .or. problem == 5)
+    if (problem < 1 .or. problem > 5 .or. size(x) /= nx) then
       call fatal_error(error, 'unknown test problem or wrong state size'); return
     end if
     sys%problem = problem
@@ -89,6 +91,7 @@ contains
     case (2); x0 = [1.0_dp]
     case (3); x0 = [0.5_dp, 0.0_dp, 0.0_dp, sqrt(3.0_dp)]
     case (4); x0 = [0.0_dp, 0.0_dp]
+    case (5); x0 = [1.0_dp]
     end select
     ctl%rtol = rtol; ctl%atol = atol
     if (order < 0) then
@@ -100,7 +103,15 @@ contains
       call adams%init(nx, order, ctl, n_corr == 0)
       call move_alloc(adams, integ)
     end if
-    call integ%start(sys, 0.0_dp, x0, h, error); if (allocated(error)) return
+    select type (integ)
+    type is (adams_integrator)
+      if (.not. adaptive) then
+        call exact_start(integ, problem, order, h, error); if (allocated(error)) return
+      end if
+    end select
+    if (.not. (order > 0 .and. .not. adaptive)) then
+      call integ%start(sys, 0.0_dp, x0, h, error); if (allocated(error)) return
+    end if
     k = 0
     do
       c = integ%counts()
@@ -120,4 +131,36 @@ contains
       steps = integ%steps; evals = integ%evals; rejected = integ%rejected
     end select
   end subroutine integrate_test_ode
+
+  !> Fixed steps h of formula 'adams' at the order `order` from the exact Nordsieck array,
+  !> so that the measured order is the method's own: problem 1 (x = cos t: its j-th
+  !> derivative at 0 is cos(j pi/2), that of x' = -sin t is -sin(j pi/2)) or problem 2
+  !> (y = 1/(1 + t^2) = sum (-1)^k t^(2k): h^j y^(j)(0)/j! = h^j (-1)^(j/2) for even j) or
+  !> problem 5 (y = exp(-t): (-h)^j/j!).
+  subroutine exact_start(st, problem, order, h, error)
+    type(adams_integrator), intent(inout) :: st
+    integer, intent(in) :: problem, order
+    real(dp), intent(in) :: h
+    type(error_type), allocatable, intent(out) :: error
+    real(dp) :: half_pi, fact
+    integer :: j
+    if (problem > 2 .and. problem /= 5 .or. order < 1) then
+      call fatal_error(error, "fixed steps of formula 'adams' need problem 1, 2 or 5 and an order 1-12"); return
+    end if
+    half_pi = 2*atan(1.0_dp)
+    st%adaptive = .false.
+    st%z = 0.0_dp
+    fact = 1.0_dp
+    do j = 0, order
+      if (j > 0) fact = fact*j
+      if (problem == 5) then
+        st%z(:, j) = (-h)**j/fact
+      else if (problem == 1) then
+        st%z(:, j) = h**j/fact*[cos(j*half_pi), -sin(j*half_pi)]
+      else if (mod(j, 2) == 0) then
+        st%z(:, j) = h**j*(-1)**(j/2)
+      end if
+    end do
+    st%q = order; st%h = h; st%t = 0.0_dp; st%tau = h
+  end subroutine exact_start
 end module pymr_test_odes

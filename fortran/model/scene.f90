@@ -53,7 +53,7 @@ module pymr_model_scene
     !> (the paper's PECE of order 4); '' until the scene is complete: 'adams' for adaptive
     !> single-rate runs, else 'abm4'.
     character(len=8) :: formula = ''
-    !> Order of 'adams': 0 = variable (1 to 12), 1-12 = that order.
+    !> Order of 'adams': 0 = variable (1 to 12), 1-12 = that order ('abm4': 4).
     integer :: order = 0
     !> Iteration of the 'adams' corrector: 'newton' or 'fixed-point'.
     character(len=12) :: corrector = 'newton'
@@ -245,7 +245,7 @@ contains
       & "iterated to convergence; the default of adaptive single-rate runs) or 'abm4' (the paper's order-4 " // &
       & "predictor-corrector; the default, and the formula, of fixed-step and multirate runs)", choices='adams abm4')
     call t%add('order', g%order, '-', "order of formula 'adams': 0 = variable (1 to 12, from the error " // &
-      & 'estimates), 1-12 = that order', ge=0, le=12)
+      & "estimates), 1-12 = that order; formula 'abm4' is of order 4", ge=0, le=12)
     call t%add('corrector', g%corrector, "iteration of the 'adams' corrector to convergence: 'newton' (chord " // &
       & "iteration with a difference Jacobian, refreshed every 20 steps) or 'fixed-point' (no Jacobian)", &
       & choices='newton fixed-point')
@@ -420,6 +420,8 @@ contains
     if (len_trim(sc%integrator%formula) == 0) then
       sc%integrator%formula = merge('adams', 'abm4 ', sc%integrator%adaptive .and. sc%integrator%method == 'single')
     end if
+    ! the paper's formula is of order 4 (a scene written back states it)
+    if (sc%integrator%formula == 'abm4' .and. .not. sc%integrator%origin%given('order')) sc%integrator%order = 4
   end subroutine complete_scene
 
   !> The items a body of each kind takes ('' for an unknown kind: no rule).
