@@ -12,7 +12,7 @@ module pymr_lapack
   implicit none
   private
   public :: potrf, potrs, sygvd, ptsv, geev_complex, geev_real, factor_inverse, band_solve
-  public :: lu_factor, lu_solve
+  public :: lu_factor
   public :: illegal_argument_probe
 
   !> The last fault LAPACK reported to XERBLA: routine and argument number.
@@ -34,15 +34,6 @@ module pymr_lapack
       real(dp), intent(inout) :: a(lda, *)
       integer, intent(out) :: ipiv(*), info
     end subroutine dgetrf
-    subroutine dgetrs(trans, n, nrhs, a, lda, ipiv, b, ldb, info)
-      import :: dp
-      character(len=1), intent(in) :: trans
-      integer, intent(in) :: n, nrhs, lda, ldb
-      real(dp), intent(in) :: a(lda, *)
-      integer, intent(in) :: ipiv(*)
-      real(dp), intent(inout) :: b(ldb, *)
-      integer, intent(out) :: info
-    end subroutine dgetrs
     subroutine dgbsv(n, kl, ku, nrhs, ab, ldab, ipiv, b, ldb, info)
       import :: dp
       integer, intent(in) :: n, kl, ku, nrhs, ldab, ldb
@@ -115,21 +106,6 @@ contains
       call fatal_error(error, 'dgetrf: argument ' // itoa(-info) // ' had an illegal value for ' // what, stat_solver)
     end if
   end subroutine lu_factor
-
-  !> Solve A x = b in place with the factors from `lu_factor`.
-  subroutine lu_solve(a, piv, b, what, error)
-    real(dp), intent(in) :: a(:, :)
-    integer, intent(in) :: piv(:)
-    real(dp), intent(inout), contiguous :: b(:)
-    character(len=*), intent(in) :: what
-    type(error_type), allocatable, intent(out) :: error
-    integer :: info
-    if (size(a, 1) == 0) return
-    call check_vector(b, 'dgetrs', 'the right-hand side for ' // what, error); if (allocated(error)) return
-    call dgetrs('N', size(a, 1), 1, a, size(a, 1), piv, b, size(b), info)
-    if (info /= 0) call fatal_error(error, 'dgetrs: argument ' // itoa(-info) // ' had an illegal value for ' // &
-      & what, stat_solver)
-  end subroutine lu_solve
 
   !> Solve T x = b in place for the symmetric positive definite tridiagonal T with
   !> diagonal `dg` and off-diagonal `e` (both overwritten by its factor).

@@ -13,9 +13,10 @@ CPU per step of a fixed single-rate run at the scene's h_slow, ``c_fast`` the CP
 fixed multirate run at k = 10 less its full evaluations at ``c_full``, per fast-only
 evaluation; ``w = c_fast / c_full``.
 
-Methods: pymr single-rate (fixed steps, adaptive), multirate with the 'response' coupling
+Methods: pymr single-rate (fixed steps and adaptive with the paper's order-4 formula 'abm4';
+adaptive with formula 'adams' of variable order 1-12), multirate with the 'response' coupling
 (fixed at several ratios and fast steps, adaptive) and with the paper's 'full' coupling
-(fixed, adaptive); peers on the same right-hand side: scipy's DOP853 and LSODA, SUNDIALS
+(fixed, adaptive); peers on the same right-hand side: scipy's DOP853, Radau and LSODA, SUNDIALS
 CVODE Adams and BDF through scikit-SUNDAE when it is installed. The peers' CPU time
 includes the Python call of every evaluation; their evaluation counts do not depend on it.
 
@@ -61,7 +62,11 @@ RATIOS = {"response": (5, 10, 20, 40), "full": (2, 5, 10, 20, 40)}
 #: Tolerances of every adaptive method, pymr's and the peers': 1e-3 to 1e-10, half a decade apart.
 TOLERANCES = tuple(10.0 ** (-e / 2) for e in range(6, 21))
 ADAPTIVE_RTOLS = MULTIRATE_RTOLS = PEER_RTOLS = TOLERANCES
-PEERS = ("DOP853", "LSODA", "CVODE Adams", "CVODE BDF")
+#: The two variable-order codes, pymr's formula 'adams' and CVODE Adams, are compared on a
+#: grid twice as fine (a quarter decade): their error is not monotone in rtol within a
+#: factor 2-3, as the order they choose changes.
+ORDER_RTOLS = tuple(10.0 ** (-e / 4) for e in range(12, 41))
+PEERS = ("DOP853", "Radau", "LSODA", "CVODE Adams", "CVODE BDF")
 #: The small grid of quick=True (a smoke run, the tests).
 QUICK_SINGLE_FACTORS = (4.0, 2.0, 1.0)
 QUICK_FAST_FACTORS = {"response": (1.0, 0.5), "full": (0.5, 0.25)}
@@ -73,7 +78,13 @@ WEIGHT_RATIOS = (10, 5, 2)
 #: Error levels (m) of the front summary.
 FRONT_ERRORS = (1e-4, 1e-5, 1e-6)
 #: Single-rate and 'response' multirate families: the two sides of the front summary's ratio.
-SINGLE_FAMILIES = ("single fixed", "single adaptive")
+SINGLE_FAMILIES = ("single fixed", "abm4 adaptive", "adams adaptive")
+#: pymr's fixed-order families (the paper's formula), against which variable order is compared.
+FIXED_ORDER_FAMILIES = ("single fixed", "abm4 adaptive")
+#: Error levels (m) of the variable-order summary.
+ORDER_ERRORS = (1e-5, 1e-6, 1e-7, 1e-8)
+#: Tolerances of the step and order histories of formula 'adams'.
+HISTORY_RTOLS = (1e-4, 1e-8)
 MULTIRATE_FAMILIES = ("response fixed", "response adaptive")
 
 
@@ -282,10 +293,11 @@ class Study:
             out.append(("pymr", "single fixed", f"h={h:.3g}", {
                 "integrator.method": "single", "integrator.adaptive": False, "integrator.h_slow": h,
                 "integrator.h_fast": h}))
-        for rtol in (QUICK_TOLERANCES if quick else ADAPTIVE_RTOLS):
-            out.append(("pymr", "single adaptive", f"rtol={rtol:.1e}", {
-                "integrator.method": "single", "integrator.adaptive": True, "integrator.rtol": rtol,
-                "integrator.atol": rtol * 1e-2}))
+        for formula in ("abm4", "adams"):
+            for rtol in (QUICK_TOLERANCES if quick else ORDER_RTOLS if formula == "adams" else ADAPTIVE_RTOLS):
+                out.append(("pymr", f"{formula} adaptive", f"rtol={rtol:.1e}", {
+                    "integrator.method": "single", "integrator.adaptive": True, "integrator.rtol": rtol,
+                    "integrator.atol": rtol * 1e-2, "integrator.formula": formula}))
         for coupling in COUPLINGS:
             ratios = QUICK_RATIOS[coupling] if quick else RATIOS[coupling]
             fasts = QUICK_FAST_FACTORS[coupling] if quick else FAST_FACTORS[coupling]
@@ -300,7 +312,7 @@ class Study:
                     "integrator.rtol": rtol, "integrator.atol": rtol * 1e-2, "integrator.h_fast": h0,
                     "integrator.h_slow": h0}))
         for name in PEERS:
-            for rtol in (QUICK_TOLERANCES if quick else PEER_RTOLS):
+            for rtol in (QUICK_TOLERANCES if quick else ORDER_RTOLS if name == "CVODE Adams" else PEER_RTOLS):
                 out.append(("peer", name, rtol))
         return out
 
@@ -473,6 +485,67 @@ class Study:
                              "this accurate)")
         return "\n".join(lines)
 
+    def order_summary(self, errors=ORDER_ERRORS) -> list[dict]:
+        """Per error level: the fewest evaluations of formula 'adams' and of CVODE Adams that
+        reach it ("adams", "cvode": the cases, None when none does, "evals_ratio"), and the
+        CPU of the fastest 'adams' case over that of pymr's fastest fixed-order case
+        ("fixed": fixed steps or adaptive 'abm4'; "cpu_ratio")."""
+        out = []
+        for level in errors:
+            ok = [c for c in self.cases if c.status == "ok" and c.error_m <= level]
+            adams = [c for c in ok if c.family == "adams adaptive"]
+            cvode = [c for c in ok if c.family == "CVODE Adams"]
+            fixed = [c for c in ok if c.family in FIXED_ORDER_FAMILIES]
+            a = min(adams, key=lambda c: c.rhs_full, default=None)
+            v = min(cvode, key=lambda c: c.rhs_full, default=None)
+            a_cpu = min(adams, key=lambda c: c.cpu_s, default=None)
+            f = min(fixed, key=lambda c: c.cpu_s, default=None)
+            out.append({"error": level, "adams": a, "cvode": v, "fixed": f, "adams_cpu": a_cpu,
+                        "evals_ratio": a.rhs_full / v.rhs_full if a and v else math.nan,
+                        "cpu_ratio": a_cpu.cpu_s / f.cpu_s if a_cpu and f else math.nan})
+        return out
+
+    def order_text(self, errors=ORDER_ERRORS) -> str:
+        lines = ["variable order: fewest evaluations reaching each error, and CPU against pymr's fastest "
+                 "fixed-order run"]
+        for r in self.order_summary(errors):
+            a, v, f, ac = r["adams"], r["cvode"], r["fixed"], r["adams_cpu"]
+            evals = (f"'adams' {a.rhs_full} ({a.setting}) / CVODE Adams {v.rhs_full} ({v.setting}) = "
+                     f"{r['evals_ratio']:.2f}") if a and v else "evaluations: n/a (a side has no case this accurate)"
+            cpu = (f"CPU 'adams' {ac.cpu_s:.4f} s / {f.method} {f.cpu_s:.4f} s ({f.setting}) = {r['cpu_ratio']:.2f}"
+                   if ac and f else "CPU: n/a")
+            lines.append(f"  error <= {r['error']:.0e} m: {evals}; {cpu}")
+        return "\n".join(lines)
+
+    def histories(self, rtols=HISTORY_RTOLS) -> dict[float, tuple]:
+        """Step and order history of formula 'adams' at each tolerance: (t, h, order) of every
+        accepted step (pymr.step_history on the study's scene)."""
+        from .api import step_history
+        out = {}
+        for rtol in rtols:
+            out[rtol] = step_history(self.scene, {"integrator.method": "single", "integrator.adaptive": True,
+                                                  "integrator.rtol": rtol, "integrator.atol": rtol * 1e-2,
+                                                  "integrator.formula": "adams"})
+        return out
+
+    @staticmethod
+    def history_text(hist: dict) -> str:
+        lines = ["step and order history of formula 'adams' (accepted steps per order; steps in s)"]
+        for rtol, (t, h, q) in hist.items():
+            counts = ", ".join(f"{k}: {int((q[1:] == k).sum())}" for k in range(1, 13) if (q[1:] == k).any())
+            lines.append(f"  rtol {rtol:.0e}: {len(t) - 1} steps; order {counts}; step min {h[1:].min():.2e} "
+                         f"median {np.median(h[1:]):.2e} max {h[1:].max():.2e}")
+        return "\n".join(lines)
+
+    @staticmethod
+    def write_histories(hist: dict, path: Path) -> None:
+        with open(path, "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(["rtol", "t", "h", "order"])
+            for rtol, (t, h, q) in hist.items():
+                for row in zip(t[1:], h[1:], q[1:]):
+                    w.writerow([f"{rtol:.1e}", f"{row[0]:.10e}", f"{row[1]:.6e}", int(row[2])])
+
     def refused(self) -> list[Case]:
         """The fixed-step multirate cases the pre-flight stability check refused."""
         return [c for c in self.cases if " fixed k=" in c.method and c.status.startswith("refused")]
@@ -508,7 +581,8 @@ class Study:
         extra = 0.16 * (wrapped.count("\n") + 1) if note else 0.0
         fig, axes = plt.subplots(1, 2, figsize=(16, 6.2 + extra), sharey=True)
         methods = list(dict.fromkeys(c.method for c in self.cases))
-        colours = {"single": plt.cm.Greys, "response": plt.cm.Blues, "full": plt.cm.Oranges}
+        colours = {"single": plt.cm.Greys, "abm4": plt.cm.Purples, "adams": plt.cm.Reds, "response": plt.cm.Blues,
+                   "full": plt.cm.Oranges}
         counts = {fam: 0 for fam in colours}
         shades = {fam: sum(1 for m in methods if m.split()[0] == fam) for fam in colours}
         peer_colours = iter(["tab:green", "tab:purple", "tab:olive", "tab:brown", "tab:pink"])
@@ -574,7 +648,13 @@ def main(scene: str, marker: str | None = None, output: str | None = None, quick
     print(study.refused_text())
     print()
     print(study.front_text())
+    print()
+    print(study.order_text())
+    hist = study.histories()
+    print(study.history_text(hist))
+    history = prefix.with_name(prefix.name + "_history.csv")
     study.write_csv(prefix.with_suffix(".csv"))
+    study.write_histories(hist, history)
     study.plot(prefix.with_suffix(".png"))
-    print(f"written: {prefix.with_suffix('.csv')}, {prefix.with_suffix('.png')}")
+    print(f"written: {prefix.with_suffix('.csv')}, {prefix.with_suffix('.png')}, {history}")
     return 0

@@ -48,7 +48,7 @@ def test_adaptive_error_falls_tenfold_per_decade_of_rtol(study):
     1.15e-4, 1.16e-6, 1.19e-9 m at rtol 1e-3, 1e-5, 1e-8 (10.0x per decade)."""
     errs = []
     for rtol in (1e-3, 1e-5, 1e-8):
-        c = study._pymr_case("single adaptive", f"{rtol}", {"integrator.adaptive": True, "integrator.rtol": rtol,
+        c = study._pymr_case("abm4 adaptive", f"{rtol}", {"integrator.adaptive": True, "integrator.rtol": rtol,
                                                             "integrator.atol": rtol * 1e-2,
                                                             "integrator.formula": "abm4"}, repeats=1)
         assert c.status == "ok" and c.runs == 1
@@ -113,8 +113,8 @@ def _front_cases() -> list[Case]:
     return [
         ok("single fixed", "h=4e-4", 1.4e-5, 0.009),
         ok("single fixed", "h=2e-4", 8.7e-7, 0.017),
-        ok("single adaptive", "rtol=1e-4", 1.2e-5, 0.010),
-        ok("single adaptive", "rtol=1e-5", 1.2e-6, 0.018),
+        ok("abm4 adaptive", "rtol=1e-4", 1.2e-5, 0.010),
+        ok("abm4 adaptive", "rtol=1e-5", 1.2e-6, 0.018),
         ok("response fixed k=40", "h_fast=4e-4", 1.2e-4, 0.0017),     # fastest of all, never accurate enough
         ok("response fixed k=20", "h_fast=2e-4", 6.3e-6, 0.0026),
         ok("response fixed k=40", "h_fast=1e-4", 6.0e-6, 0.0034),
@@ -140,9 +140,9 @@ def test_front_summary_picks_the_fastest_accurate_case_of_each_family():
     r4, r5, r6, r7 = rows
     assert (r4["single"].setting, r4["multirate"].setting) == ("h=4e-4", "h_fast=2e-4")
     assert r4["ratio"] == pytest.approx(0.0026 / 0.009)
-    assert set(r5["best"]) == {"single fixed", "single adaptive", "response fixed", "response adaptive",
+    assert set(r5["best"]) == {"single fixed", "abm4 adaptive", "response fixed", "response adaptive",
                                "full fixed", "CVODE BDF"}
-    assert r5["best"]["single adaptive"].setting == "rtol=1e-5"
+    assert r5["best"]["abm4 adaptive"].setting == "rtol=1e-5"
     assert r5["best"]["response fixed"].method == "response fixed k=20"
     assert (r5["single"].setting, r5["multirate"].method, r5["multirate"].setting) == \
         ("h=2e-4", "response fixed k=20", "h_fast=2e-4")
@@ -193,16 +193,16 @@ def test_cpu_time_is_the_median_of_the_repeats():
 
 
 def test_quick_study_end_to_end(tmp_path, capsys):
-    """`pymr study --quick` on the tank, 2 runs per case: 32 cases (single-rate 3 fixed
-    steps and 3 tolerances; per coupling 2 ratios x 2 fast steps and 3 tolerances; 4 peers
-    x 3 tolerances), none refused (the quick grid's 'full' ratios 5 and 20 at h_fast
+    """`pymr study --quick` on the tank, 2 runs per case: 38 cases (single-rate 3 fixed
+    steps and 3 tolerances of each formula, 'abm4' and 'adams'; per coupling 2 ratios x 2
+    fast steps and 3 tolerances; 5 peers x 3 tolerances), none refused (the quick grid's 'full' ratios 5 and 20 at h_fast
     5e-5 and 2.5e-5 s are within the stability limit of 33 at 1e-4 s), the weights, the
     refusals and a front with its ratio at every level printed."""
     from pymr import study as study_mod
     assert study_mod.main(str(TANK), "muzzle", output=str(tmp_path / "q"), quick=True, repeats=2) == 0
     out = capsys.readouterr().out
     rows = list(csv.DictReader(open(tmp_path / "q.csv")))
-    assert len(rows) == 32
+    assert len(rows) == 38
     assert sum(r["method"].startswith("response fixed") for r in rows) == 4
     assert all(r["status"] == "ok" or r["status"].startswith("skipped") for r in rows)
     assert all(int(r["runs"]) == 2 for r in rows if r["status"] == "ok")
@@ -211,6 +211,10 @@ def test_quick_study_end_to_end(tmp_path, capsys):
     assert "refused by the pre-flight check: none" in out and "measured weight w" in out
     assert out.count("fastest 'response' multirate / fastest single-rate: ") == 3 and "n/a" not in out
     assert (tmp_path / "q.png").stat().st_size > 10000
+    assert "variable order: fewest evaluations" in out and "step and order history of formula 'adams'" in out
+    hist = list(csv.DictReader(open(tmp_path / "q_history.csv")))
+    assert {r["rtol"] for r in hist} == {"1.0e-04", "1.0e-08"}
+    assert all(1 <= int(r["order"]) <= 12 for r in hist)
 
 
 def test_a_refused_fixed_step_family_gets_a_case_at_its_largest_stable_step(tmp_path):
@@ -245,3 +249,21 @@ def test_a_refused_fixed_step_family_gets_a_case_at_its_largest_stable_step(tmp_
     pymr.run(stiff, tmp_path / "ok.csv", overrides={**extra[3], **short})
     assert s._at_stable_step(multi, Case("full fixed k=40", "", status="refused: ... largest stable ratio is k = 33"),
                              limited) is None
+
+
+def test_order_summary_compares_evaluations_and_cpu():
+    """Hand-made cases: at 1e-5 m the fewest 'adams' evaluations (800, rtol 1e-4; 700 at
+    rtol 1e-3 misses the level) against CVODE Adams' 1000: 0.8; the fastest 'adams' CPU
+    (0.004 s) against pymr's fastest fixed-order case (fixed h = 2e-4, 0.017 s; the faster
+    'response' case is not fixed-order single-rate): 0.24. At 1e-8 m no case qualifies."""
+    def ok(method, setting, err, cpu, evals):
+        return Case(method, setting, error_m=err, cpu_s=cpu, rhs_full=evals, equivalents=float(evals), runs=5)
+    s = Study.__new__(Study)
+    s.cases = [ok("adams adaptive", "rtol=1e-3", 3e-5, 0.003, 700), ok("adams adaptive", "rtol=1e-4", 5e-6, 0.004, 800),
+               ok("CVODE Adams", "rtol=1e-4", 5e-6, 0.03, 1000), ok("single fixed", "h=2e-4", 8e-7, 0.017, 5000),
+               ok("abm4 adaptive", "rtol=1e-5", 1e-6, 0.02, 6000), ok("response fixed k=20", "h_fast=1e-4", 1e-6, 0.002, 10)]
+    r5, r8 = s.order_summary((1e-5, 1e-8))
+    assert r5["adams"].rhs_full == 800 and r5["cvode"].rhs_full == 1000 and r5["evals_ratio"] == pytest.approx(0.8)
+    assert r5["fixed"].setting == "h=2e-4" and r5["cpu_ratio"] == pytest.approx(0.004 / 0.017)
+    assert r8["adams"] is None and math.isnan(r8["evals_ratio"]) and math.isnan(r8["cpu_ratio"])
+    assert "= 0.80" in s.order_text((1e-5,))

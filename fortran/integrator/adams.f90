@@ -18,7 +18,7 @@ module pymr_integrator_adams
   use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps
   use pymr_integrator_abm, only : check_finite
   use pymr_io_text, only : fmt, itoa
-  use pymr_lapack, only : lu_factor, lu_solve
+  use pymr_lapack, only : lu_factor
   implicit none
   private
   public :: adams_integrator, adams_coefficients, adams_lower_order, max_order
@@ -90,6 +90,9 @@ module pymr_integrator_adams
     !> Work: the step's coefficients, predicted array kept for a retry, correction, iterate,
     !> derivative, weights.
     real(dp) :: l(0:max_order) = 0.0_dp, tq(5) = 0.0_dp
+    !> The order and steps (this one, then the earlier ones) l and tq belong to.
+    integer :: q_coef = 0
+    real(dp) :: s_coef(max_order + 1) = 0.0_dp
     real(dp), allocatable :: z_old(:, :), e(:), y(:), f(:), w(:), e_new(:)
   contains
     procedure :: init => adams_init
@@ -205,7 +208,7 @@ contains
       self%z_old(:, 0:self%q) = self%z(:, 0:self%q)
       tn = self%t + self%h
       call predict(self%z, self%q)
-      call adams_coefficients(self%q, [self%h, self%tau], self%l, self%tq)
+      call set_coefficients(self)
       call correct(self, sys, tn, converged, acnrm, error); if (allocated(error)) return
       if (.not. converged .and. self%newton .and. .not. self%jac_fresh) then
         ! retry the same step with a new Jacobian
@@ -269,8 +272,7 @@ contains
       if (self%newton) then
         ! chord step: (I - gamma J) delta = e_new - e
         self%e_new = self%e_new - self%e
-        call lu_solve(self%lu, self%piv, self%e_new, 'I - gamma J of the corrector', error)
-        if (allocated(error)) return
+        call lu_substitute(self%lu, self%piv, self%e_new)
         self%e_new = self%e + self%e_new
       end if
       del = wrms_norm(self%e_new - self%e, self%w)
@@ -289,6 +291,44 @@ contains
       delp = del
     end do
   end subroutine correct
+
+  !> l and tq for the coming step, computed again only when its order or step history
+  !> changed (a step held at its size, the usual case, keeps them).
+  subroutine set_coefficients(self)
+    class(adams_integrator), intent(inout) :: self
+    integer :: q
+    q = self%q
+    if (q == self%q_coef .and. self%h == self%s_coef(1)) then
+      if (all(self%tau(1:q - 1) == self%s_coef(2:q))) return
+    end if
+    self%s_coef(1) = self%h
+    self%s_coef(2:q) = self%tau(1:q - 1)
+    self%q_coef = q
+    call adams_coefficients(q, self%s_coef(1:q), self%l, self%tq)
+  end subroutine set_coefficients
+
+  !> Solve (I - gamma J) x = b in place with the factors of dgetrf (row interchanges, then
+  !> the unit lower and the upper triangle): a few hundred flops, where a LAPACK call's own
+  !> overhead would cost as much as the tank's whole step.
+  pure subroutine lu_substitute(lu, piv, b)
+    real(dp), intent(in) :: lu(:, :)
+    integer, intent(in) :: piv(:)
+    real(dp), intent(inout) :: b(:)
+    integer :: i, n
+    real(dp) :: tmp
+    n = size(b)
+    do i = 1, n
+      if (piv(i) /= i) then
+        tmp = b(i); b(i) = b(piv(i)); b(piv(i)) = tmp
+      end if
+    end do
+    do i = 2, n
+      b(i) = b(i) - dot_product(lu(i, 1:i - 1), b(1:i - 1))
+    end do
+    do i = n, 1, -1
+      b(i) = (b(i) - dot_product(lu(i, i + 1:n), b(i + 1:n)))/lu(i, i)
+    end do
+  end subroutine lu_substitute
 
   !> Before a Newton iteration (f holds f(tn, y) at the prediction y): a new Jacobian by
   !> forward differences when the last is 20 steps old or failed to converge, new LU factors
