@@ -20,6 +20,9 @@ METHODS = {
     "multirate full": {"integrator.method": "multirate", "integrator.coupling": "full", "integrator.h_slow": 1e-3,
                        "integrator.h_fast": 1e-4},
     "adaptive": {"integrator.adaptive": True, "integrator.rtol": 1e-7},
+    "adaptive adams fixed-point order 6": {"integrator.adaptive": True, "integrator.rtol": 1e-7,
+                                           "integrator.corrector": "fixed-point", "integrator.order": 6},
+    "adaptive abm4": {"integrator.adaptive": True, "integrator.rtol": 1e-7, "integrator.formula": "abm4"},
     "adaptive multirate": {"integrator.method": "multirate", "integrator.adaptive": True, "integrator.rtol": 1e-6},
     "adaptive multirate full": {"integrator.method": "multirate", "integrator.coupling": "full",
                                 "integrator.adaptive": True, "integrator.rtol": 1e-6},
@@ -114,3 +117,12 @@ def test_a_restart_refuses_a_checkpoint_that_does_not_belong_to_its_scene(tmp_pa
         pymr.run(TANK, out, restart=tmp_path / "short.ckpt")
     res = pymr.run(TANK, out, overrides={"scene.t_end": 0.4, "output.dt": 1e-3}, restart=ckpt)
     assert res.t[-1] == pytest.approx(0.4)
+    # formula 'adams': its order and its corrector's iteration are settings of the checkpoint too
+    adams = {"integrator.adaptive": True, "scene.t_end": 0.3, "output.checkpoint_dt": 0.2}
+    pymr.run(TANK, out, overrides=adams)
+    with pytest.raises(pymr.SceneError, match=r"other integrator settings: corrector = 'newton' then, "
+                                               r"corrector = 'fixed-point' now"):
+        pymr.run(TANK, out, overrides={**adams, "scene.t_end": 0.4, "integrator.corrector": "fixed-point"},
+                 restart=ckpt)
+    with pytest.raises(pymr.SceneError, match=r"other integrator settings: order = 0 then, order = 5 now"):
+        pymr.run(TANK, out, overrides={**adams, "scene.t_end": 0.4, "integrator.order": 5}, restart=ckpt)
