@@ -7,7 +7,7 @@ module pymr_history
   use pymr_model, only : model_t
   use pymr_integrator_stepper, only : stepper_t
   use pymr_stepper_setup, only : make_stepper
-  use pymr_run, only : load_model, initial_state
+  use pymr_run, only : load_model, starting_state
   use pymr_io_text, only : itoa
   implicit none
   private
@@ -30,7 +30,7 @@ contains
     nh = 0; t = 0.0_dp; h = 0.0_dp; q = 0
     call load_model(file, overrides, sc, model, error); if (allocated(error)) return
     allocate(x(2*model%d%n))
-    call initial_state(sc, model, x)
+    call starting_state(sc, model, x, error); if (allocated(error)) return
     call make_stepper(sc, model, x, st, h0, error); if (allocated(error)) return
     call st%start(model, 0.0_dp, x, h0, error); if (allocated(error)) return
     nh = 1; t(1) = st%time(); q(1) = st%order()

@@ -11,7 +11,7 @@
 module pymr_preflight
   use pymr_kinds, only : dp, pi
   use pymr_error, only : error_type, fatal_error, stat_input
-  use pymr_lapack, only : potrf, potrs, geev_real, factor_inverse
+  use pymr_lapack, only : potrf, potrs, geev_real, factor_inverse, general_solve
   use pymr_model, only : model_t, modal_stiffness_damping
   use pymr_model_types, only : model_data
   use pymr_integrator_stability, only : pece_growth, pece_limit
@@ -20,7 +20,12 @@ module pymr_preflight
   use pymr_io_text, only : itoa
   implicit none
   private
-  public :: check_step_stability, check_mass_matrix, normal_modes
+  public :: check_step_stability, check_mass_matrix, normal_modes, static_start
+
+  !> Static start: most Newton iterations, and the change (relative to max(1, |q|)) below
+  !> which it has converged.
+  integer, parameter :: newton_max = 30
+  real(dp), parameter :: newton_tol = 1.0e-13_dp
 
   !> Largest growth of a linearised perturbation over a whole run that is accepted: a
   !> step whose growth factor per step is above 1 only by roundoff-sized amounts (an
@@ -154,6 +159,55 @@ contains
     end do
     call restore_counters(model, counters)
   end subroutine linearise
+
+  !> Static equilibrium at t = 0 of the coordinates u (the others held as given): the
+  !> generalised forces P_u(q, qd) vanish. Newton: q_u <- q_u + K_uu^-1 P_u with K = -dP/dq
+  !> of the pre-flight linearisation. `names(i)` names coordinate i for messages. Its
+  !> evaluations do not count as the run's.
+  subroutine static_start(model, u, names, x, error)
+    type(model_t), intent(inout) :: model
+    integer, intent(in) :: u(:)
+    character(len=*), intent(in) :: names(:)
+    real(dp), intent(inout) :: x(:)
+    type(error_type), allocatable, intent(out) :: error
+    type(model_data) :: counters
+    real(dp), allocatable :: m(:, :), k(:, :), c(:, :), ku(:, :), du(:)
+    character(len=:), allocatable :: why
+    integer :: it, n, worst
+    if (size(u) == 0) return
+    n = model%d%n
+    call save_counters(model, counters)
+    do it = 1, newton_max
+      call model%terms(0.0_dp, x(1:n), x(n+1:))
+      du = model%d%p(u)
+      call linearise(model, 0.0_dp, x, m, k, c)
+      ku = k(u, u)
+      call general_solve(ku, du, 'the stiffness of the coordinates to settle', error)
+      if (allocated(error)) then
+        call restore_counters(model, counters)
+        why = error%message
+        call fatal_error(error, '&scene: start: no static equilibrium at t = 0: ' // why // &
+          & ' (a joint marked settle that no spring or stiffness holds has none)', stat_input); return
+      end if
+      x(u) = x(u) + du
+      if (all(abs(du) <= newton_tol*max(1.0_dp, abs(x(u))))) then
+        call restore_counters(model, counters); return
+      end if
+    end do
+    call restore_counters(model, counters)
+    worst = maxloc(abs(du)/max(1.0_dp, abs(x(u))), 1)
+    call fatal_error(error, "&scene: start: no static equilibrium found in " // itoa(newton_max) // &
+      & ' Newton iterations (the last change of ' // trim(names(u(worst))) // ' was ' // fmt_es(du(worst)) // &
+      & '): the loads may have none', stat_input)
+  contains
+    function fmt_es(v) result(s)
+      real(dp), intent(in) :: v
+      character(len=:), allocatable :: s
+      character(len=16) :: buf
+      write(buf, '(es10.3)') v
+      s = trim(adjustl(buf))
+    end function fmt_es
+  end subroutine static_start
 
   !> The first-order state matrix [0 I; -M^-1 K  -M^-1 C] of the linearised model.
   subroutine state_matrix(m, k, c, a, error)

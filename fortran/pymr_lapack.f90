@@ -12,7 +12,7 @@ module pymr_lapack
   implicit none
   private
   public :: potrf, potrs, sygvd, ptsv, geev_complex, geev_real, factor_inverse, band_solve
-  public :: lu_factor
+  public :: lu_factor, general_solve
   public :: illegal_argument_probe
 
   !> The last fault LAPACK reported to XERBLA: routine and argument number.
@@ -28,6 +28,12 @@ module pymr_lapack
   end interface potrs
 
   interface
+    subroutine dgesv(n, nrhs, a, lda, ipiv, b, ldb, info)
+      import :: dp
+      integer, intent(in) :: n, nrhs, lda, ldb
+      real(dp), intent(inout) :: a(lda, *), b(ldb, *)
+      integer, intent(out) :: ipiv(*), info
+    end subroutine dgesv
     subroutine dgetrf(m, n, a, lda, ipiv, info)
       import :: dp
       integer, intent(in) :: m, n, lda
@@ -89,6 +95,27 @@ module pymr_lapack
   end interface
 
 contains
+
+  !> Solve A x = b in place for a general square A (LU with partial pivoting; A is
+  !> overwritten by its factors).
+  subroutine general_solve(a, b, what, error)
+    real(dp), intent(inout) :: a(:, :)
+    real(dp), intent(inout), contiguous :: b(:)
+    character(len=*), intent(in) :: what
+    type(error_type), allocatable, intent(out) :: error
+    integer, allocatable :: piv(:)
+    integer :: info
+    if (size(a, 1) == 0) return
+    call check_matrix(a, 'dgesv', what, error); if (allocated(error)) return
+    call check_vector(b, 'dgesv', 'the right-hand side for ' // what, error); if (allocated(error)) return
+    allocate(piv(size(a, 1)))
+    call dgesv(size(a, 1), 1, a, size(a, 1), piv, b, size(b), info)
+    if (info > 0) then
+      call fatal_error(error, what // ' is singular (LU dgesv: zero pivot ' // itoa(info) // ')', stat_solver)
+    else if (info < 0) then
+      call fatal_error(error, 'dgesv: argument ' // itoa(-info) // ' had an illegal value for ' // what, stat_solver)
+    end if
+  end subroutine general_solve
 
   !> LU factorisation with partial pivoting of the square `a` (in place, pivots in piv).
   subroutine lu_factor(a, piv, what, error)

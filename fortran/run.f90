@@ -16,11 +16,11 @@ module pymr_run
   use pymr_model_effects, only : prescribed_motion
   use pymr_io_text, only : itoa, fmt
   use pymr_io_text_file, only : absolute_path, scene_relative, acquire_lock, release_lock
-  use pymr_preflight, only : check_step_stability, check_mass_matrix
+  use pymr_preflight, only : check_step_stability, check_mass_matrix, static_start
   use pymr_io_checkpoint, only : run_progress, write_checkpoint, read_checkpoint
   implicit none
   private
-  public :: run_scene, load_model, initial_state, default_output, progress_t, progress_t_end, progress_running
+  public :: run_scene, load_model, starting_state, default_output, progress_t, progress_t_end, progress_running
 
   !> Markers whose final motion the summary prints (the results hold them all).
   integer, parameter :: max_summary_markers = 10
@@ -178,7 +178,11 @@ contains
     cpu0 = thread_cpu_time(); call system_clock(c0, rate)
     h = sc%integrator%h_slow
     allocate(x(2*n))
-    call initial_state(sc, model, x)
+    call starting_state(sc, model, x, error)
+    if (allocated(error)) then
+      if (index(error%message, file) /= 1) error%message = file // ': ' // error%message
+      return
+    end if
     dt_out = sc%output%dt
     if (dt_out <= 0.0_dp .and. .not. sc%integrator%adaptive) dt_out = h
     eps = 1.0e-9_dp*h
@@ -373,6 +377,34 @@ contains
       call prescribed_motion(model%d, i, 0.0_dp, x(model%d%pres_coord(i)), x(n + model%d%pres_coord(i)), fdd)
     end do
   end subroutine initial_state
+
+  !> The state a run starts from: as the scene gives it, then, for &scene start = 'static',
+  !> with the modal coordinates and those of the joints marked settle in static equilibrium.
+  subroutine starting_state(sc, model, x, error)
+    type(scene_t), intent(in) :: sc
+    type(model_t), intent(inout) :: model
+    real(dp), intent(out) :: x(:)
+    type(error_type), allocatable, intent(out) :: error
+    integer, allocatable :: u(:)
+    character(len=64), allocatable :: names(:)
+    integer :: b, j, i, n
+    call initial_state(sc, model, x)
+    if (sc%scene%start /= 'static') return
+    n = model%d%n
+    allocate(u(0))
+    do b = 2, model%d%nb
+      u = [u, (model%d%a0(b) + i, i = 0, model%d%nm(b) - 1)]
+      do j = 1, size(sc%joints)
+        if (sc%joints(j)%name /= model%d%joint_name(b) .or. .not. sc%joints(j)%settle) cycle
+        u = [u, (model%d%c0(b) + i, i = 0, model%d%nc(b) - 1)]
+      end do
+    end do
+    allocate(names(n))
+    do i = 1, n
+      names(i) = model%component_name(i)
+    end do
+    call static_start(model, u, names, x, error)
+  end subroutine starting_state
 
   !> Integrator settings as JSON members.
   function settings_json(sc) result(s)

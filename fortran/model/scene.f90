@@ -65,6 +65,9 @@ module pymr_model_scene
     character(len=256) :: title = ''
     !> End time (s) and gravity (m/s^2, inertial frame).
     real(dp) :: t_end = unset, gravity(3) = [0.0_dp, -9.81_dp, 0.0_dp]
+    !> The initial state: 'rest' (as given) or 'static' (modal coordinates, and the joints
+    !> marked settle, in static equilibrium under the forces at t = 0).
+    character(len=8) :: start = 'rest'
     type(origin_t) :: origin
   end type scene_spec
 
@@ -134,6 +137,8 @@ module pymr_model_scene
     !> Initial coordinates and rates, one per coordinate of the joint (0 when not given:
     !> see complete_joint); the rest stay unset.
     real(dp) :: q0(6) = unset, qd0(6) = unset
+    !> Free to settle in a static start (its coordinates solved with the modal ones).
+    logical :: settle = .false.
     type(origin_t) :: origin
   end type joint_spec
 
@@ -220,6 +225,9 @@ contains
     call t%add('t_end', g%t_end, 's', 'end time of the run (required)', gt=0.0_dp, le=1.0e9_dp)
     call t%add('gravity', g%gravity, 'm/s^2', 'gravity in the inertial frame (used with &effects gravity)', &
       & ge=-1.0e6_dp, le=1.0e6_dp)
+    call t%add('start', g%start, "initial state: 'rest' (as given by q0, qd0, a0, ad0) or 'static' (the modal " // &
+      & 'coordinates, and the coordinates of joints marked settle, in static equilibrium under the forces at ' // &
+      & 't = 0, solved by Newton before the run)', choices='rest static')
   end subroutine describe_scene
 
   subroutine describe_integrator(g, t)
@@ -337,6 +345,8 @@ contains
       & ge=-big_length, le=big_length, variable=.true.)
     call t%add('qd0', g%qd0, 'rad/s or m/s', 'initial rates, one per coordinate of the joint', &
       & ge=-big_length, le=big_length, variable=.true.)
+    call t%add('settle', g%settle, "free to settle in a static start (&scene start = 'static'): its coordinates " // &
+      & 'are solved for equilibrium with the modal coordinates, q0 is the first guess')
   end subroutine describe_joint
 
   subroutine describe_drive(g, t)

@@ -269,6 +269,13 @@ contains
         if (allocated(error)) then
           call errs%add(error%message); cycle each_joints
         end if
+        if (jt%settle .and. joint_ndof(jt%kind) == 0) then
+          call errs%add(jt%origin%where('settle') // ": a 'fixed' joint has no coordinates to settle"); cycle each_joints
+        end if
+        if (jt%settle .and. sc%scene%start /= 'static') then
+          call errs%add(jt%origin%where('settle') // ": joints settle only in a static start (&scene start = " // &
+            & "'static')"); cycle each_joints
+        end if
         ip = body_index(sc, jt%parent); ic = body_index(sc, jt%child)
         if (ip == 0) then
           call errs%add(sc%joints(i)%origin%where('parent') // ": no &body named '" // trim(jt%parent) // "'")
