@@ -6,7 +6,7 @@ this package runs scenes, loads results and drives studies and benchmarks.
 from __future__ import annotations
 
 from .results import Results, load_results
-from .api import (PymrError, SceneError, SolverError, run, model_terms, model_accelerations, step_history,
+from .api import (PymrError, SceneError, SolverError, run, model_terms, model_accelerations, step_history, marker_shapes,
                   model_energy, model_size, write_modal_file, Model,
                   force_response, modes)
 
@@ -17,6 +17,6 @@ from .sweep import SweepError
 __version__ = "0.1.0"
 
 __all__ = ["PymrError", "SceneError", "SolverError", "Results", "load_results", "run",
-           "model_terms", "model_accelerations", "step_history", "model_energy", "model_size", "write_modal_file",
+           "model_terms", "model_accelerations", "step_history", "marker_shapes", "model_energy", "model_size", "write_modal_file",
            "Model", "force_response", "modes", "PlotError", "SweepError", "Scene", "schema",
            "__version__"]

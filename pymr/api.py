@@ -198,6 +198,25 @@ def modes(scene: str | os.PathLike, q, qd, t: float = 0.0, overrides=None):
     return freq[:nm].copy(), zeta[:nm].copy(), shapes[:, :nm].copy()
 
 
+def marker_shapes(scene, markers, q, qd, shapes, t: float = 0.0, overrides=None) -> dict[str, np.ndarray]:
+    """Mode shapes as marker displacements: for each named marker, an array (3, modes) of
+    the derivative of its inertial position along each shape (the columns of `shapes`, as
+    :func:`modes` gives them) at (t, q, qd), by central differences of 1e-6 times the shape:
+    metres per unit of the shape's coordinates."""
+    shapes = np.asarray(shapes, dtype=float)
+    q, qd = np.asarray(q, dtype=float), np.asarray(qd, dtype=float)
+    eps = 1e-6
+    out = {}
+    with Model(scene, overrides) as model:
+        for name in markers:
+            plus = model.marker(name, np.full(shapes.shape[1], t), (q[:, None] + eps * shapes).T,
+                                np.tile(qd, (shapes.shape[1], 1)))
+            minus = model.marker(name, np.full(shapes.shape[1], t), (q[:, None] - eps * shapes).T,
+                                 np.tile(qd, (shapes.shape[1], 1)))
+            out[name] = ((plus - minus) / (2 * eps)).T.copy()
+    return out
+
+
 def step_history(scene: str | os.PathLike, overrides=None, max_steps: int = 200_000):
     """The run's own stepper from the initial state to t_end, without output: arrays of the
     time reached, the step taken and the method's order at each accepted step (entry 0 is

@@ -47,7 +47,7 @@ def _cmd_modes(args: argparse.Namespace) -> int:
     """Natural modes at the initial state, or at time T of the run (--at T)."""
     import csv
     import re
-    from .api import modes
+    from .api import modes, marker_shapes
     over = list(args.set or [])
     at = 0.0 if args.at is None else float(args.at)
     if at < 0.0:
@@ -55,20 +55,29 @@ def _cmd_modes(args: argparse.Namespace) -> int:
     res = run(args.scene, overrides=over + [f"scene.t_end={at if at > 0 else 1e-9}", "output.dt=0.0"])
     q, qd = res.coordinates()
     names = [c for c in res.columns if re.search(r"\.(q\d*|a\d+)$", c)]
-    t = float(res.t[-1]) if at > 0 else 0.0
-    freq, zeta, shapes = modes(args.scene, q[-1], qd[-1], t=t, overrides=over)
+    # the state at T, or the initial state itself (the first row, not the end of the short run)
+    k = -1 if at > 0 else 0
+    t = float(res.t[k])
+    freq, zeta, shapes = modes(args.scene, q[k], qd[k], t=t, overrides=over)
+    moves = marker_shapes(args.scene, res.markers, q[k], qd[k], shapes, t=t, overrides=over)
     print(f"natural modes of {args.scene} linearised at t = {t:g} s "
           f"({len(freq)} vibrations; drifting motions left out)")
-    print(f"{'mode':>4} {'frequency Hz':>13} {'damping ratio':>13}  largest motion")
+    print(f"{'mode':>4} {'frequency Hz':>13} {'damping ratio':>13}  largest motion (shapes scaled to 1 there)"
+          + ("; marker displacement (m)" if moves else ""))
     for i, (f, z) in enumerate(zip(freq, zeta), 1):
         big = int(np.argmax(np.abs(shapes[:, i - 1])))
-        print(f"{i:>4} {f:>13.5g} {z:>13.4g}  {names[big] if big < len(names) else big}")
+        line = f"{i:>4} {f:>13.5g} {z:>13.4g}  {names[big] if big < len(names) else big}"
+        if moves:
+            line += "; " + ", ".join(f"{m} {np.linalg.norm(d[:, i - 1]):.4g}" for m, d in moves.items())
+        print(line)
     if args.output:
+        mcols = [f"{m}.d{c}" for m in moves for c in "xyz"]
         with open(args.output, "w", newline="") as fh:
             w = csv.writer(fh)
-            w.writerow(["mode", "frequency_hz", "damping_ratio", *names])
+            w.writerow(["mode", "frequency_hz", "damping_ratio", *names, *mcols])
             for i in range(len(freq)):
-                w.writerow([i + 1, repr(float(freq[i])), repr(float(zeta[i])), *[repr(float(v)) for v in shapes[:, i]]])
+                w.writerow([i + 1, repr(float(freq[i])), repr(float(zeta[i])), *[repr(float(v)) for v in shapes[:, i]],
+                            *[repr(float(v)) for d in moves.values() for v in d[:, i]]])
         print(f"written: {args.output}")
     return 0
 

@@ -76,6 +76,19 @@ def test_damped_oscillator_has_its_damping_ratio(tmp_path):
     assert shapes.shape == (1, 1) and shapes[0, 0] == 1.0
 
 
+def test_mode_shapes_as_marker_displacements():
+    """The double pendulum hanging: a mode shape (theta1, theta2) (theta2 relative) moves
+    the tip, 2 m below the pivot and 1 m below the second joint, by (2 theta1 + theta2, 0, 0)
+    (rotations about z of the two lever arms), to 1e-8 m."""
+    scene = ROOT / "input" / "double_pendulum.nml"
+    q, qd = np.array([-np.pi / 2, 0.0]), np.zeros(2)
+    freq, zeta, shapes = pymr.modes(scene, q, qd)
+    tip = pymr.marker_shapes(scene, ["tip"], q, qd, shapes)["tip"]
+    assert tip.shape == (3, 2)
+    assert tip[0] == pytest.approx(2 * shapes[0] + shapes[1], abs=1e-8)
+    assert np.abs(tip[1:]).max() < 1e-8
+
+
 def test_modes_command_writes_the_tank_s_coupled_modes(tmp_path):
     """pymr modes on the tank at rest: the free turret and elevation joints drift (left out),
     and four vibrations remain, the barrel's modes coupled to the joints, above the clamped
@@ -90,6 +103,11 @@ def test_modes_command_writes_the_tank_s_coupled_modes(tmp_path):
     assert len(rows) == 4 and set(rows[0]) >= {"traverse.q", "elevation.q", "gun.a1", "gun.a4"}
     assert freq[0] > 6.409 and freq[2] > 40.16 and np.all(np.diff(freq) > 0)
     assert freq == pytest.approx([8.85, 20.3, 41.6, 52.9], abs=0.05)
+    assert {"muzzle.dx", "muzzle.dy", "muzzle.dz"} <= set(rows[0])      # shapes as marker displacements
+    # each mode moves the muzzle; the largest motion of each is the barrel's own bending
+    assert all(np.hypot(float(row["muzzle.dy"]), float(row["muzzle.dz"])) > 1e-3 for row in rows)
+    assert all(max(("traverse.q", "elevation.q", "gun.a1", "gun.a2", "gun.a3", "gun.a4"),
+                   key=lambda c: abs(float(row[c]))).startswith("gun.") for row in rows)
     r = subprocess.run(["pymr", "modes", str(tank), "--at", "0.5", "-o", str(out)], capture_output=True, text=True,
                        timeout=120)
     assert r.returncode == 0 and "linearised at t = 0.5 s" in r.stdout, r.stderr
