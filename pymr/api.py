@@ -289,6 +289,23 @@ class Model:
         _raise(stat, msg)
         return pos.T.copy()
 
+    def frames(self, t, q, qd, nb: int):
+        """Every body's frame origin (inertial, m) at states of shape (m, n): an array
+        (m, nb, 3), and each body's parent (1-based, 0 for the ground), for drawing."""
+        q2 = np.asfortranarray(np.atleast_2d(np.asarray(q, dtype=float)).T)
+        qd2 = np.asfortranarray(np.atleast_2d(np.asarray(qd, dtype=float)).T)
+        pos, parent, stat, msg = _core.pymr_model_frames(self.handle, int(nb), np.atleast_1d(np.asarray(t, dtype=float)),
+                                                         q2, qd2)
+        _raise(stat, msg)
+        return np.transpose(pos, (2, 1, 0)).copy(), np.asarray(parent, dtype=int)
+
+    def marker_body(self, name: str) -> int:
+        """The index (0-based, as in :meth:`frames`) of the body marker `name` is on."""
+        k = int(_core.pymr_model_marker_index(self.handle, name))
+        if k == 0:
+            raise SceneError(f"{self.scene}: no marker {name!r}")
+        return int(_core.pymr_model_marker_body(self.handle, k)) - 1
+
     def close(self) -> None:
         if self.handle:
             _core.pymr_model_close(self.handle)

@@ -87,6 +87,12 @@ def _cmd_study(args: argparse.Namespace) -> int:
     return study.main(args.scene, marker=args.marker, output=args.output, quick=args.quick, repeats=args.repeats)
 
 
+def _cmd_animate(args: argparse.Namespace) -> int:
+    from . import animate
+    return animate.main(args.csv, output=args.output, scene=args.scene, view=args.view, exaggerate=args.exaggerate,
+                        fps=args.fps, frames=args.frames)
+
+
 def _cmd_plot(args: argparse.Namespace) -> int:
     from . import plot
     return plot.main(args.csv, output=args.output, markers=args.marker, joints=args.joint,
@@ -149,6 +155,16 @@ def build_parser() -> argparse.ArgumentParser:
     md.add_argument("--set", action="append", metavar="GROUP.ITEM=VALUE", help="override (repeatable)")
     md.add_argument("-o", "--output", help="write the modes to this CSV file (mode, frequency, damping, shape)")
     md.set_defaults(func=_cmd_modes)
+    an = sub.add_parser("animate", help="animation of the moving mechanism from a run's results (GIF)")
+    an.add_argument("csv", help="results CSV (its JSON beside it names the scene)")
+    an.add_argument("-o", "--output", help="the animation file (default: the CSV's name with .gif)")
+    an.add_argument("--scene", help="the scene of the run, when the results' JSON does not name it or the run had "
+                    "--set overrides (give the resolved scene)")
+    an.add_argument("--view", default="xy", choices=["xy", "xz", "zy"], help="inertial axes across and up")
+    an.add_argument("--exaggerate", type=float, default=1.0, help="scale of the modal coordinates (deflections)")
+    an.add_argument("--fps", type=int, default=25, help="frames per second")
+    an.add_argument("--frames", type=int, default=200, help="most frames (evenly spaced output rows)")
+    an.set_defaults(func=_cmd_animate)
     s = sub.add_parser("study", help="work-precision study: error against CPU time and evaluations for every "
                        "method (fixed, multirate, adaptive, scipy DOP853/LSODA, CVODE)")
     s.add_argument("scene", help="scene namelist file (with at least one &marker)")
@@ -195,7 +211,8 @@ def main(argv: list[str] | None = None) -> int:
         for line in str(exc).splitlines() or [""]:
             print(f"pymr: error: {line}", file=sys.stderr)
         from .sweep import SweepError
-        return 1 if isinstance(exc, (SceneError, PlotError, SweepError)) else 2
+        from .animate import AnimateError
+        return 1 if isinstance(exc, (SceneError, PlotError, SweepError, AnimateError)) else 2
 
 
 if __name__ == "__main__":

@@ -607,3 +607,57 @@ subroutine pymr_adams_kernel(op, q, m, s, n, z, l, tq, zout)
   if (op == 1) call adams_coefficients(q, s, l, tq)
   if (op == 2) call adams_lower_order(zout, q, s, s(1))
 end subroutine pymr_adams_kernel
+
+!> Every body's frame (inertial origin pos(3, b, k) and its parent's index parent(b), 0 for
+!> the ground) of an open model at m states (t(m), q(n,m), qd(n,m)), for drawing.
+subroutine pymr_model_frames(handle, n, m, nb, t, q, qd, pos, parent, stat, message)
+  use pymr_error, only : error_type, fatal_error
+  use pymr_bind_support, only : report
+  use pymr_bind_models, only : open_models, check_handle
+  use pymr_model_kinematics, only : forward_kinematics
+  use pymr_model_effects, only : impose_prescribed_state
+  implicit none
+  integer, intent(in) :: handle, n, m, nb
+  double precision, intent(in) :: t(m), q(n, m), qd(n, m)
+  double precision, intent(out) :: pos(3, nb, m)
+  integer, intent(out) :: parent(nb), stat
+  character(len=8192), intent(out) :: message
+  !f2py integer intent(hide), depend(q) :: n = shape(q, 0)
+  !f2py integer intent(hide), depend(q) :: m = shape(q, 1)
+  type(error_type), allocatable :: error
+  integer :: k
+  pos = 0.0d0; parent = 0
+  call check_handle(handle, error)
+  if (.not. allocated(error)) then
+    if (open_models(handle)%d%n /= n) then
+      call fatal_error(error, 'q has the wrong length')
+    else if (open_models(handle)%d%nb /= nb) then
+      call fatal_error(error, 'nb is not the number of bodies')
+    end if
+  end if
+  call report(error, stat, message)
+  if (stat /= 0) return
+  associate(d => open_models(handle)%d)
+    parent = d%parent(1:nb)
+    do k = 1, m
+      call impose_prescribed_state(d, t(k), q(:, k), qd(:, k))
+      call forward_kinematics(d, d%qx, d%qdx)
+      pos(:, :, k) = d%pos(:, 1:nb)
+    end do
+  end associate
+end subroutine pymr_model_frames
+
+!> The body (1-based, in the model's order) marker `marker` (1-based) of an open model is on;
+!> 0 for no such marker.
+subroutine pymr_model_marker_body(handle, marker, body)
+  use pymr_bind_models, only : open_models, open_flags
+  implicit none
+  integer, intent(in) :: handle, marker
+  integer, intent(out) :: body
+  body = 0
+  if (.not. allocated(open_flags)) return
+  if (handle < 1 .or. handle > size(open_flags)) return
+  if (.not. open_flags(handle)) return
+  if (marker < 1 .or. marker > open_models(handle)%d%n_markers) return
+  body = open_models(handle)%d%marker_body(marker)
+end subroutine pymr_model_marker_body

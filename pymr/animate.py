@@ -1,0 +1,142 @@
+"""``pymr animate``: a picture of the moving mechanism from a run's results.
+
+Each output row's coordinates go back through the kernel's kinematics (``pymr.Model``): the
+frame origin of every body, joined to its parent's as the tree runs, and every marker, with
+its trail. The view is a projection on two inertial axes (``xy``, ``xz`` or ``zy``: the
+first is drawn across, the second up). Modal coordinates can be scaled (``exaggerate``) so
+that deflections of millimetres show on a mechanism of metres; the markers then move with
+the scaled deflection too.
+
+The model is rebuilt from the scene file the results name (their JSON), or the one given,
+and checked against the run: its markers, computed from the results' coordinates, must be
+the marker columns the run wrote (to 1e-9 of their size). A run whose ``--set`` overrides
+changed the geometry needs the resolved scene (``pymr scene SCENE --set ... > resolved.nml``).
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from .api import Model, PymrError, model_size
+from .results import Results, load_results
+
+VIEWS = {"xy": (0, 1), "xz": (0, 2), "zy": (2, 1)}
+
+
+class AnimateError(PymrError):
+    """Results that cannot be animated: no scene, another scene, an unknown view."""
+
+
+def scene_of(res: Results, scene: str | os.PathLike | None = None) -> Path:
+    """The scene file of the results: the one given, or the one their statistics name."""
+    path = Path(scene) if scene else (Path(res.stats["scene"]) if res.stats.get("scene") else None)
+    if path is None:
+        raise AnimateError(f"{res.path}: the results name no scene (no statistics file beside them): give --scene")
+    if not path.exists():
+        raise AnimateError(f"{res.path}: the scene {path} is not there: give --scene")
+    return path
+
+
+def check_geometry(res: Results, model: Model, path: Path, q: np.ndarray, qd: np.ndarray) -> None:
+    """The model's markers at (up to 20 of) the results' states equal the run's marker columns."""
+    rows = np.unique(np.linspace(0, len(res.t) - 1, min(20, len(res.t))).round().astype(int))
+    for m in res.markers:
+        written = res.marker(m)[0][rows]
+        again = model.marker(m, res.t[rows], q[rows], qd[rows])
+        if np.abs(again - written).max() > 1e-9 * max(1.0, np.abs(written).max()):
+            raise AnimateError(f"{res.path}: {path} is not the scene of this run (its marker {m!r} is elsewhere at "
+                               "the run's coordinates: the run may have had --set overrides); give the resolved "
+                               "scene with --scene (pymr scene SCENE --set ... > resolved.nml)")
+
+
+def motion(res: Results, scene: str | os.PathLike | None = None, exaggerate: float = 1.0,
+           rows: np.ndarray | None = None):
+    """Positions to draw at the chosen rows (default: all): (t, frames (rows, bodies, 3),
+    parent of each body (-1 for the ground), markers {name: (rows, 3)}, the body of each
+    marker {name: index})."""
+    path = scene_of(res, scene)
+    q_all, qd_all = res.coordinates()
+    q, qd, t = q_all, qd_all, res.t
+    if rows is not None:
+        q, qd, t = q[rows], qd[rows], t[rows]
+    n_joint = sum(len(res.joint_columns(j)) for j in res.joints)
+    q = q.copy()
+    q[:, n_joint:] *= exaggerate
+    n, nb, _ = model_size(path)
+    with Model(path) as model:
+        check_geometry(res, model, path, q_all, qd_all)
+        frames, parent = model.frames(t, q, qd, nb)
+        markers = {m: model.marker(m, t, q, qd) for m in res.markers}
+        on = {m: model.marker_body(m) for m in res.markers}
+    return t, frames, parent - 1, markers, on
+
+
+def animate(results: Results | str | os.PathLike, output: str | os.PathLike, scene=None, view: str = "xy",
+            exaggerate: float = 1.0, fps: int = 25, frames: int = 200) -> Path:
+    """Write the animation (GIF, or any format matplotlib's writers know by the suffix:
+    MP4 needs ffmpeg) of at most ``frames`` evenly spaced output rows; return its path."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.animation import FuncAnimation, PillowWriter
+
+    res = results if isinstance(results, Results) else load_results(results)
+    if view not in VIEWS:
+        raise AnimateError(f"view {view!r}: one of {', '.join(VIEWS)}")
+    if frames < 2 or fps < 1 or not exaggerate > 0:
+        raise AnimateError("frames (at least 2), fps (at least 1) and exaggerate (above 0) must be positive")
+    rows = np.unique(np.linspace(0, len(res.t) - 1, min(frames, len(res.t))).round().astype(int))
+    t, pos, parent, markers, on = motion(res, scene, exaggerate, rows)
+    a, b = VIEWS[view]
+    everything = np.concatenate([pos.reshape(-1, 3)] + [m for m in markers.values()])
+    lo, hi = everything.min(axis=0), everything.max(axis=0)
+    pad = 0.05 * max(hi[a] - lo[a], hi[b] - lo[b], 1e-3)
+    fig, ax = plt.subplots(figsize=(7, 6))
+    ax.set_xlim(lo[a] - pad, hi[a] + pad)
+    ax.set_ylim(lo[b] - pad, hi[b] + pad)
+    ax.set_aspect("equal")
+    ax.set_xlabel(f"{'xyz'[a]} (m)")
+    ax.set_ylabel(f"{'xyz'[b]} (m)")
+    ax.grid(True, alpha=0.3)
+    links = [ax.plot([], [], "-o", color="0.35", lw=2, ms=4)[0] for k in range(pos.shape[1]) if parent[k] >= 0]
+    dots = {m: ax.plot([], [], "o", color=f"C{i + 3}", label=m)[0] for i, m in enumerate(markers)}
+    arms = {m: ax.plot([], [], "-", color="0.35", lw=2)[0] for m in markers}     # body origin to marker
+    trails = {m: ax.plot([], [], "-", color=f"C{i + 3}", lw=0.8, alpha=0.6)[0] for i, m in enumerate(markers)}
+    if markers:
+        ax.legend(loc="upper right", fontsize=8)
+    note = f", deflections x{exaggerate:g}" if exaggerate != 1.0 else ""
+    title = ax.set_title("")
+
+    def draw(i):
+        children = [k for k in range(pos.shape[1]) if parent[k] >= 0]
+        for line, k in zip(links, children):
+            line.set_data([pos[i, parent[k], a], pos[i, k, a]], [pos[i, parent[k], b], pos[i, k, b]])
+        for m, p in markers.items():
+            dots[m].set_data([p[i, a]], [p[i, b]])
+            arms[m].set_data([pos[i, on[m], a], p[i, a]], [pos[i, on[m], b], p[i, b]])
+            trails[m].set_data(p[:i + 1, a], p[:i + 1, b])
+        title.set_text(f"{res.title or Path(res.path).stem}: t = {t[i]:.3f} s{note}")
+        return [*links, *arms.values(), *dots.values(), *trails.values(), title]
+
+    anim = FuncAnimation(fig, draw, frames=len(t), blit=False)
+    out = Path(output)
+    try:
+        if out.suffix.lower() == ".gif":
+            anim.save(out, writer=PillowWriter(fps=fps))
+        else:
+            anim.save(out, fps=fps)
+    except (OSError, ValueError, RuntimeError) as exc:
+        raise AnimateError(f"{out}: cannot write the animation ({' '.join(str(exc).split())})") from None
+    finally:
+        plt.close(fig)
+    return out
+
+
+def main(csv: str, output: str | None = None, scene: str | None = None, view: str = "xy",
+         exaggerate: float = 1.0, fps: int = 25, frames: int = 200) -> int:
+    out = Path(output) if output else Path(csv).with_suffix(".gif")
+    animate(csv, out, scene=scene, view=view, exaggerate=exaggerate, fps=fps, frames=frames)
+    print(f"wrote {out}")
+    return 0
