@@ -432,7 +432,7 @@ contains
     real(dp) :: r(3), v(3)
     integer :: i, n
     n = model%d%n
-    s = 'scene: ' // trim(sc%scene%title) // new_line('a')
+    s = 'scene: ' // trim(sc%scene%title) // new_line('a') // 'method: ' // method_label(sc) // new_line('a')
     if (st%steps_fast /= st%steps_slow) then
       write(buf, '(a,i0,a,i0,a,i0,a,i0,a)') 'simulated 0 to ' // fmt(sc%scene%t_end) // ' s: ', st%steps_slow, &
         & ' steps (', st%steps_fast, ' fast), ', st%rejected_steps, ' rejected, ', st%rhs_full, ' full evaluations'

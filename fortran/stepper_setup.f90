@@ -86,9 +86,16 @@ contains
   function method_label(sc) result(s)
     type(scene_t), intent(in) :: sc
     character(len=:), allocatable :: s
-    character(len=64) :: buf
+    character(len=96) :: buf
     if (sc%integrator%adaptive) then
-      write(buf, '(a,es9.2,a,es9.2)') ' adaptive rtol=', sc%integrator%rtol, ' atol=', sc%integrator%atol
+      write(buf, '(a,es9.2,a,es9.2)') ' rtol=', sc%integrator%rtol, ' atol=', sc%integrator%atol
+      if (sc%integrator%formula == 'adams' .and. sc%integrator%order > 0) then
+        buf = ' adaptive adams order ' // itoa(sc%integrator%order) // trim(buf)
+      else if (trim(sc%integrator%method) == 'single') then
+        buf = ' adaptive ' // trim(sc%integrator%formula) // trim(buf)
+      else
+        buf = ' adaptive' // trim(buf)
+      end if
     else if (sc%integrator%method == 'multirate') then
       write(buf, '(a,es10.3,a,es10.3,a)') ' h_slow=', sc%integrator%h_slow, ' h_fast=', sc%integrator%h_fast, &
         & ' coupling=' // trim(sc%integrator%coupling)

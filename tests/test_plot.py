@@ -146,8 +146,8 @@ def test_other_scene_markers_and_joints(double_pendulum, tmp_path):
         assert np.array_equal(line.get_xdata(), res.t)
         assert np.array_equal(line.get_ydata(), res.joint(j)[0][:, 0])
         assert np.array_equal(line.get_ydata(), res[f"{j}.q"])
-    assert res.method == "single adaptive rtol= 1.00E-09 atol= 1.00E-11"
-    assert legend_labels(fig) == ["single adaptive rtol=1.00E-09 atol=1.00E-11"]
+    assert res.method == "single adaptive adams rtol= 1.00E-09 atol= 1.00E-11"
+    assert legend_labels(fig) == ["single adaptive adams rtol=1.00E-09 atol=1.00E-11"]
 
 
 def test_cli_chosen_joint(double_pendulum, tmp_path, monkeypatch):
