@@ -12,7 +12,7 @@ module pymr_lapack
   implicit none
   private
   public :: potrf, potrs, sygvd, ptsv, geev_complex, geev_real, factor_inverse, band_solve
-  public :: lu_factor, general_solve
+  public :: lu_factor, lu_solve, general_solve
   public :: illegal_argument_probe
 
   !> The last fault LAPACK reported to XERBLA: routine and argument number.
@@ -28,12 +28,6 @@ module pymr_lapack
   end interface potrs
 
   interface
-    subroutine dgesv(n, nrhs, a, lda, ipiv, b, ldb, info)
-      import :: dp
-      integer, intent(in) :: n, nrhs, lda, ldb
-      real(dp), intent(inout) :: a(lda, *), b(ldb, *)
-      integer, intent(out) :: ipiv(*), info
-    end subroutine dgesv
     subroutine dgetrf(m, n, a, lda, ipiv, info)
       import :: dp
       integer, intent(in) :: m, n, lda
@@ -104,18 +98,35 @@ contains
     character(len=*), intent(in) :: what
     type(error_type), allocatable, intent(out) :: error
     integer, allocatable :: piv(:)
-    integer :: info
-    if (size(a, 1) == 0) return
-    call check_matrix(a, 'dgesv', what, error); if (allocated(error)) return
-    call check_vector(b, 'dgesv', 'the right-hand side for ' // what, error); if (allocated(error)) return
     allocate(piv(size(a, 1)))
-    call dgesv(size(a, 1), 1, a, size(a, 1), piv, b, size(b), info)
-    if (info > 0) then
-      call fatal_error(error, what // ' is singular (LU dgesv: zero pivot ' // itoa(info) // ')', stat_solver)
-    else if (info < 0) then
-      call fatal_error(error, 'dgesv: argument ' // itoa(-info) // ' had an illegal value for ' // what, stat_solver)
-    end if
+    call check_vector(b, 'dgetrf', 'the right-hand side for ' // what, error); if (allocated(error)) return
+    call lu_factor(a, piv, what, error); if (allocated(error)) return
+    call lu_solve(a, piv, b)
   end subroutine general_solve
+
+  !> Solve A x = b in place with the factors of `lu_factor` (row interchanges, then the unit
+  !> lower and the upper triangle). Written out, not LAPACK's dgetrs: for the small systems
+  !> of the 'adams' corrector (12 on the tank, every step) a LAPACK call's own overhead
+  !> would cost as much as the solve.
+  pure subroutine lu_solve(lu, piv, b)
+    real(dp), intent(in) :: lu(:, :)
+    integer, intent(in) :: piv(:)
+    real(dp), intent(inout) :: b(:)
+    integer :: i, n
+    real(dp) :: tmp
+    n = size(b)
+    do i = 1, n
+      if (piv(i) /= i) then
+        tmp = b(i); b(i) = b(piv(i)); b(piv(i)) = tmp
+      end if
+    end do
+    do i = 2, n
+      b(i) = b(i) - dot_product(lu(i, 1:i - 1), b(1:i - 1))
+    end do
+    do i = n, 1, -1
+      b(i) = (b(i) - dot_product(lu(i, i + 1:n), b(i + 1:n)))/lu(i, i)
+    end do
+  end subroutine lu_solve
 
   !> LU factorisation with partial pivoting of the square `a` (in place, pivots in piv).
   subroutine lu_factor(a, piv, what, error)

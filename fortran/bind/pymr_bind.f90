@@ -650,14 +650,15 @@ end subroutine pymr_model_frames
 !> The body (1-based, in the model's order) marker `marker` (1-based) of an open model is on;
 !> 0 for no such marker.
 subroutine pymr_model_marker_body(handle, marker, body)
-  use pymr_bind_models, only : open_models, open_flags
+  use pymr_error, only : error_type
+  use pymr_bind_models, only : open_models, check_handle
   implicit none
   integer, intent(in) :: handle, marker
   integer, intent(out) :: body
+  type(error_type), allocatable :: error
   body = 0
-  if (.not. allocated(open_flags)) return
-  if (handle < 1 .or. handle > size(open_flags)) return
-  if (.not. open_flags(handle)) return
+  call check_handle(handle, error)
+  if (allocated(error)) return
   if (marker < 1 .or. marker > open_models(handle)%d%n_markers) return
   body = open_models(handle)%d%marker_body(marker)
 end subroutine pymr_model_marker_body

@@ -18,7 +18,8 @@ module pymr_integrator_adams
   use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps
   use pymr_integrator_abm, only : check_finite
   use pymr_io_text, only : fmt, itoa
-  use pymr_lapack, only : lu_factor
+  use pymr_lapack, only : lu_factor, lu_solve
+  use pymr_integrator_nordsieck, only : nordsieck_predict_in_place, nordsieck_rescale, nordsieck_value
   implicit none
   private
   public :: adams_integrator, adams_coefficients, adams_lower_order, max_order
@@ -207,7 +208,7 @@ contains
     do
       self%z_old(:, 0:self%q) = self%z(:, 0:self%q)
       tn = self%t + self%h
-      call predict(self%z, self%q)
+      call nordsieck_predict_in_place(self%z(:, 0:self%q))
       call set_coefficients(self)
       call correct(self, sys, tn, converged, acnrm, error); if (allocated(error)) return
       if (.not. converged .and. self%newton .and. .not. self%jac_fresh) then
@@ -272,7 +273,7 @@ contains
       if (self%newton) then
         ! chord step: (I - gamma J) delta = e_new - e
         self%e_new = self%e_new - self%e
-        call lu_substitute(self%lu, self%piv, self%e_new)
+        call lu_solve(self%lu, self%piv, self%e_new)
         self%e_new = self%e + self%e_new
       end if
       del = wrms_norm(self%e_new - self%e, self%w)
@@ -306,29 +307,6 @@ contains
     self%q_coef = q
     call adams_coefficients(q, self%s_coef(1:q), self%l, self%tq)
   end subroutine set_coefficients
-
-  !> Solve (I - gamma J) x = b in place with the factors of dgetrf (row interchanges, then
-  !> the unit lower and the upper triangle): a few hundred flops, where a LAPACK call's own
-  !> overhead would cost as much as the tank's whole step.
-  pure subroutine lu_substitute(lu, piv, b)
-    real(dp), intent(in) :: lu(:, :)
-    integer, intent(in) :: piv(:)
-    real(dp), intent(inout) :: b(:)
-    integer :: i, n
-    real(dp) :: tmp
-    n = size(b)
-    do i = 1, n
-      if (piv(i) /= i) then
-        tmp = b(i); b(i) = b(piv(i)); b(piv(i)) = tmp
-      end if
-    end do
-    do i = 2, n
-      b(i) = b(i) - dot_product(lu(i, 1:i - 1), b(1:i - 1))
-    end do
-    do i = n, 1, -1
-      b(i) = (b(i) - dot_product(lu(i, i + 1:n), b(i + 1:n)))/lu(i, i)
-    end do
-  end subroutine lu_substitute
 
   !> Before a Newton iteration (f holds f(tn, y) at the prediction y): a new Jacobian by
   !> forward differences when the last is 20 steps old or failed to converge, new LU factors
@@ -471,10 +449,7 @@ contains
   pure subroutine rescale(self, eta)
     class(adams_integrator), intent(inout) :: self
     real(dp), intent(in) :: eta
-    integer :: j
-    do j = 1, self%q
-      self%z(:, j) = self%z(:, j)*eta**j
-    end do
+    call nordsieck_rescale(self%z(:, 0:self%q), eta)
     self%h = eta*self%h
   end subroutine rescale
 
@@ -485,18 +460,6 @@ contains
     integer, intent(in) :: p
     ratio = 1.0_dp/(err**(1.0_dp/p) + addon)
   end function ratio
-
-  !> Pascal predictor in place on columns 0..q: z_i <- sum_(j>=i) binomial(j, i) z_j.
-  pure subroutine predict(z, q)
-    real(dp), intent(inout) :: z(:, 0:)
-    integer, intent(in) :: q
-    integer :: k, j
-    do k = 1, q
-      do j = q, k, -1
-        z(:, j - 1) = z(:, j - 1) + z(:, j)
-      end do
-    end do
-  end subroutine predict
 
   !> The corrector vector l(0:q) and the error constants tq of order q, for the step s(1)
   !> after the steps s(2), s(3), ... (latest first). With xi_j = (s(1) + ... + s(j))/s(1),
@@ -582,13 +545,7 @@ contains
     class(adams_integrator), intent(in) :: self
     real(dp), intent(in) :: t
     real(dp), intent(out) :: x(:)
-    real(dp) :: s
-    integer :: j
-    s = (t - self%t)/self%h
-    x = self%z(:, self%q)
-    do j = self%q - 1, 0, -1
-      x = self%z(:, j) + s*x
-    end do
+    call nordsieck_value(self%z(:, 0:self%q), (t - self%t)/self%h, x)
   end subroutine adams_value_at
 
   pure real(dp) function adams_time(self)

@@ -4,12 +4,14 @@
 !> The predictor is the upper-triangular Pascal matrix (3rd-order Adams-Bashforth),
 !> the corrector adds `l * (h f - z(:,1))` with l = [3/8, 1, 3/4, 1/6] (4th-order
 !> Adams-Moulton). A step-size change from h to alpha*h scales column j by alpha^j.
+!> Rescaling, the value of the polynomial and the in-place Pascal predictor also serve
+!> arrays of any width z(n, 0:q) (formula 'adams', orders 1-12).
 module pymr_integrator_nordsieck
   use pymr_kinds, only : dp
   implicit none
   private
   public :: nq, corrector_l, nordsieck_predict, nordsieck_correct, nordsieck_rescale
-  public :: nordsieck_value, nordsieck_from_history
+  public :: nordsieck_value, nordsieck_from_history, nordsieck_predict_in_place
 
   !> Highest column of the Nordsieck array (cubic history).
   integer, parameter :: nq = 3
@@ -45,21 +47,39 @@ contains
     end do
   end subroutine nordsieck_correct
 
+  !> Pascal predictor in place, for an array of any width: z_i <- sum_(j>=i) binomial(j, i) z_j
+  !> by repeated synthetic division.
+  pure subroutine nordsieck_predict_in_place(z)
+    real(dp), intent(inout) :: z(:, 0:)
+    integer :: k, j, q
+    q = ubound(z, 2)
+    do k = 1, q
+      do j = q, k, -1
+        z(:, j - 1) = z(:, j - 1) + z(:, j)
+      end do
+    end do
+  end subroutine nordsieck_predict_in_place
+
   !> Rescale for a step change h -> alpha*h: column j times alpha**j (C(alpha), eq. 38).
   pure subroutine nordsieck_rescale(z, alpha)
     real(dp), intent(inout) :: z(:, 0:)
     real(dp), intent(in) :: alpha
-    z(:, 1) = alpha*z(:, 1)
-    z(:, 2) = alpha**2*z(:, 2)
-    z(:, 3) = alpha**3*z(:, 3)
+    integer :: j
+    do j = 1, ubound(z, 2)
+      z(:, j) = alpha**j*z(:, j)
+    end do
   end subroutine nordsieck_rescale
 
-  !> Value of the Nordsieck polynomial at t_n + s*h: x = sum_j z(:,j) s^j.
+  !> Value of the Nordsieck polynomial at t_n + s*h: x = sum_j z(:,j) s^j (Horner).
   pure subroutine nordsieck_value(z, s, x)
     real(dp), intent(in) :: z(:, 0:)
     real(dp), intent(in) :: s
     real(dp), intent(out) :: x(:)
-    x = z(:, 0) + s*(z(:, 1) + s*(z(:, 2) + s*z(:, 3)))
+    integer :: j
+    x = z(:, ubound(z, 2))
+    do j = ubound(z, 2) - 1, 0, -1
+      x = z(:, j) + s*x
+    end do
   end subroutine nordsieck_value
 
   !> Build a Nordsieck array from x_n and the derivatives f_n, f_{n-1}, f_{n-2} at
