@@ -10,7 +10,8 @@ module pymr_run
   use pymr_model, only : model_t
   use pymr_integrator_stepper, only : stepper_t, step_counts
   use pymr_stepper_setup, only : make_stepper, stepper_label, method_label
-  use pymr_io_results_output, only : csv_writer, json_path, write_json, run_stats
+  use pymr_io_results_output, only : csv_writer, json_path, write_json, run_stats, output_plan_of, n_work
+  use pymr_output_quantities, only : write_output_row, add_step_work
   use pymr_model_kinematics, only : forward_kinematics, marker_motion
   use pymr_clock, only : thread_cpu_time
   use pymr_model_effects, only : prescribed_motion
@@ -85,15 +86,16 @@ contains
 
   !> The results file the run would write, refused above &output max_bytes: rows from t_end
   !> and the output interval (every step of a fixed-step run when dt is 0), 25 bytes a value.
-  subroutine check_output_size(sc, model, dt_out, error)
+  subroutine check_output_size(sc, model, csv, dt_out, error)
     type(scene_t), intent(in) :: sc
     type(model_t), intent(in) :: model
+    type(csv_writer), intent(in) :: csv
     real(dp), intent(in) :: dt_out
     type(error_type), allocatable, intent(out) :: error
     real(dp) :: rows, bytes
     if (dt_out <= 0.0_dp) return          ! adaptive, every step: bounded by max_steps
     rows = sc%scene%t_end/dt_out + 2
-    bytes = rows*25.0_dp*(1 + 2*model%d%n + 6*model%d%n_markers)
+    bytes = rows*25.0_dp*(1 + merge(2*model%d%n, 0, csv%plan%coordinates) + csv%plan%extra)
     if (bytes > sc%output%max_bytes) call fatal_error(error, sc%output%origin%where('dt') // ': the results would ' // &
       & 'take about ' // fmt(bytes) // ' bytes (' // fmt(rows) // ' rows), more than max_bytes = ' // &
       & fmt(sc%output%max_bytes) // ' (a larger dt, or raise max_bytes in &output)')
@@ -153,7 +155,7 @@ contains
     type(run_stats) :: stats
     type(run_progress) :: prog
     real(dp), allocatable :: x(:)
-    real(dp) :: h, h0, dt_out, t_next, eps, cpu0, cpu1, t_ckpt
+    real(dp) :: h, h0, dt_out, t_next, eps, cpu0, cpu1, t_ckpt, t_step, work(n_work)
     integer :: n, k_out
     integer(8) :: c0, c1, rate, c_line
     logical :: restarting, lines
@@ -189,6 +191,8 @@ contains
     k_out = 1
     t_next = dt_out
     csv%digits = sc%output%precision
+    csv%plan = output_plan_of(sc%output%quantities, model%d)
+    work = 0.0_dp
     call make_stepper(sc, model, x, st, h0, error)
     if (allocated(error)) then
       if (index(error%message, file) /= 1) error%message = file // ': ' // error%message
@@ -203,13 +207,14 @@ contains
         if (index(error%message, file) /= 1) error%message = file // ': ' // error%message
         return
       end if
-      stats%rows = prog%rows; k_out = prog%k_out; t_next = prog%t_next
+      stats%rows = prog%rows; k_out = prog%k_out; t_next = prog%t_next; work = prog%work
       cpu0 = cpu0 - prog%cpu_s
     else
-      call check_output_size(sc, model, dt_out, error); if (allocated(error)) return
+      call check_output_size(sc, model, csv, dt_out, error); if (allocated(error)) return
       call csv%open(path, model%d, sc%scene%title, method_label(sc), error); if (allocated(error)) return
-      call csv%write_row(model%d, 0.0_dp, x(1:n), x(n+1:)); stats%rows = 1
       call check_mass_matrix(model, x, file // ': ', error)
+      if (.not. allocated(error)) call write_output_row(csv, model, 0.0_dp, x(1:n), x(n+1:), work, error)
+      stats%rows = 1
       if (allocated(error)) then
         call csv%discard(); return
       end if
@@ -223,6 +228,8 @@ contains
         cpu0 = cpu0 + stats%preflight_cpu_s
       end if
       call st%start(model, 0.0_dp, x, h0, error)
+      ! the start-up steps' work, from the dense output of the last
+      if (.not. allocated(error)) call add_step_work(csv%plan, st, model, 0.0_dp, st%time(), work, error)
       if (allocated(error)) then
         call csv%discard()
         if (index(error%message, file) /= 1) error%message = file // ': ' // error%message
@@ -238,20 +245,23 @@ contains
       if (dt_out > 0.0_dp) then
         do while (t_next <= min(st%time(), sc%scene%t_end) + eps)
           call st%value_at(t_next, x)
-          call csv%write_row(model%d, t_next, x(1:n), x(n+1:)); stats%rows = stats%rows + 1
+          call write_output_row(csv, model, t_next, x(1:n), x(n+1:), work, error); if (allocated(error)) exit
+          stats%rows = stats%rows + 1
           k_out = k_out + 1; t_next = k_out*dt_out
         end do
       else if (st%time() < sc%scene%t_end - eps) then
         call st%value_at(st%time(), x)
-        call csv%write_row(model%d, st%time(), x(1:n), x(n+1:)); stats%rows = stats%rows + 1
+        call write_output_row(csv, model, st%time(), x(1:n), x(n+1:), work, error)
+        stats%rows = stats%rows + 1
       end if
+      if (allocated(error)) exit
       if (st%time() >= sc%scene%t_end - eps) exit
       if (st%time() >= t_ckpt - eps) then
         ! the rows up to now are on disk (checked) before the checkpoint that counts them
         call csv%flush_rows()
         if (csv%ios == 0) then
           prog = run_progress(rows=stats%rows, k_out=k_out, t_next=t_next, cpu_s=thread_cpu_time() - cpu0, &
-            & t_checkpoint=st%time())
+            & t_checkpoint=st%time(), work=work)
           call write_checkpoint(ckpt_path, st, model, prog, settings, fingerprint, error); if (allocated(error)) exit
           t_ckpt = (floor(st%time()/sc%output%checkpoint_dt + 1.0e-9_dp) + 1)*sc%output%checkpoint_dt
         end if
@@ -260,7 +270,9 @@ contains
         call fatal_error(error, 'at t = ' // fmt(st%time()) // ' s: ' // csv%partial // ': cannot write the ' // &
           & 'results: ' // trim(csv%io_message), stat_solver); exit
       end if
+      t_step = st%time()
       call st%advance(model, error); if (allocated(error)) exit
+      call add_step_work(csv%plan, st, model, t_step, st%time(), work, error); if (allocated(error)) exit
       done = st%counts()
       if (done%steps_fast > sc%integrator%max_steps) then
         call fatal_error(error, 'at t = ' // fmt(st%time()) // ' s: the run took more than max_steps = ' // &
@@ -279,7 +291,8 @@ contains
     if (.not. allocated(error)) then
       call st%value_at(sc%scene%t_end, x)
       if (dt_out <= 0.0_dp .or. abs(t_next - dt_out - sc%scene%t_end) > eps) then
-        call csv%write_row(model%d, sc%scene%t_end, x(1:n), x(n+1:)); stats%rows = stats%rows + 1
+        call write_output_row(csv, model, sc%scene%t_end, x(1:n), x(n+1:), work, error)
+        stats%rows = stats%rows + 1
       end if
     end if
     if (.not. allocated(error)) call csv%finish(error)

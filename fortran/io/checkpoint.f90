@@ -16,18 +16,20 @@ module pymr_io_checkpoint
   use pymr_model, only : model_t
   use pymr_io_text, only : itoa, fmt
   use pymr_io_sha256, only : sha256_hex
-  use pymr_io_results_output, only : pymr_version
+  use pymr_io_results_output, only : pymr_version, n_work
   implicit none
   private
   public :: run_progress, write_checkpoint, read_checkpoint
 
   character(len=8), parameter :: tag = 'PYMRCKPT'
-  integer, parameter :: version = 3
+  integer, parameter :: version = 4
 
   !> Output bookkeeping of a run at a checkpoint.
   type :: run_progress
     integer :: rows = 0, k_out = 1
     real(dp) :: t_next = 0.0_dp, cpu_s = 0.0_dp, t_checkpoint = 0.0_dp
+    !> The works of the energy columns integrated so far (J).
+    real(dp) :: work(n_work) = 0.0_dp
   end type run_progress
 
 contains
@@ -55,7 +57,7 @@ contains
     name = st%name(); ver = pymr_version
     write(u, iostat=ios) tag, version, ver, model%d%n, model%d%nj, name, st%time(), len(settings), settings, &
       & fingerprint_field(fingerprint)
-    if (ios == 0) write(u, iostat=ios) prog%rows, prog%k_out, prog%t_next, prog%cpu_s, prog%t_checkpoint
+    if (ios == 0) write(u, iostat=ios) prog%rows, prog%k_out, prog%t_next, prog%cpu_s, prog%t_checkpoint, prog%work
     if (ios == 0) call st%save(u, ios)
     if (ios == 0) call model%save_run(u, ios)
     if (ios /= 0) then
@@ -143,7 +145,7 @@ contains
     call compare_identity(error); if (allocated(error)) then
       close(u); return
     end if
-    read(u, iostat=ios) prog%rows, prog%k_out, prog%t_next, prog%cpu_s, prog%t_checkpoint
+    read(u, iostat=ios) prog%rows, prog%k_out, prog%t_next, prog%cpu_s, prog%t_checkpoint, prog%work
     if (ios == 0) call st%load(u, ios)
     if (ios == 0) call model%load_run(u, ios)
     close(u)

@@ -51,8 +51,8 @@ module pymr_io_item_table
     !> When set, the table keeps only this item (a cheap lookup of one item of a record).
     character(len=name_len) :: only = ''
   contains
-    procedure, private :: add_real, add_reals, add_integer, add_logical, add_string
-    generic :: add => add_real, add_reals, add_integer, add_logical, add_string
+    procedure, private :: add_real, add_reals, add_integer, add_logical, add_string, add_words
+    generic :: add => add_real, add_reals, add_integer, add_logical, add_string, add_words
     procedure :: find => table_find
   end type item_table
 
@@ -183,6 +183,21 @@ contains
     call push(self, it)
   end subroutine add_string
 
+  !> A list of 1 to `most` different words, each one of `choices`, held blank-separated in x.
+  subroutine add_words(self, name, x, meaning, choices, most)
+    class(item_table), intent(inout) :: self
+    character(len=*), intent(in) :: name, meaning, choices
+    character(len=*), target, intent(inout) :: x
+    integer, intent(in) :: most
+    type(item_t) :: it
+    if (len_trim(self%only) > 0 .and. self%only /= name) return
+    it%name = name; it%type = t_string; it%unit = ''; it%meaning = meaning
+    it%s => x
+    it%choices = choices
+    it%count = most; it%variable = .true.
+    call push(self, it)
+  end subroutine add_words
+
   !> Index of the item `name` in the table (0 if none).
   pure integer function table_find(self, name) result(k)
     class(item_table), intent(in) :: self
@@ -210,7 +225,7 @@ contains
       case (t_real); call set_real(it, k, flat(k), error)
       case (t_integer); call set_integer(it, flat(k), error)
       case (t_logical); call set_logical(it, flat(k), error)
-      case (t_string); call set_string(it, flat(k), error)
+      case (t_string); call set_string(it, k, flat(k), error)
       end select
       if (allocated(error)) return
     end do
@@ -314,8 +329,10 @@ contains
       & call fatal_error(error, '''' // tok%text // ''' is quoted: write .true. or .false.')
   end subroutine set_logical
 
-  subroutine set_string(it, tok, error)
+  !> The k-th value of a string item (a word list's k-th word).
+  subroutine set_string(it, k, tok, error)
     type(item_t), intent(inout) :: it
+    integer, intent(in) :: k
     type(token_t), intent(in) :: tok
     type(error_type), allocatable, intent(out) :: error
     character(len=:), allocatable :: v
@@ -326,6 +343,12 @@ contains
         call fatal_error(error, '''' // tok%text // ''' is not one of: ' // &
           & comma_list(it%choices) // suggestion(v, it%choices)); return
       end if
+    end if
+    if (k > 1) then
+      if (index(' ' // trim(it%s) // ' ', ' ' // v // ' ') > 0) then
+        call fatal_error(error, '''' // tok%text // ''' is given twice'); return
+      end if
+      v = trim(it%s) // ' ' // v
     end if
     if (len(v) > len(it%s)) then
       call fatal_error(error, 'the text is longer than ' // itoa(len(it%s)) // ' characters'); return
@@ -491,11 +514,32 @@ contains
       s = merge('.true. ', '.false.', it%l)
       s = trim(s)
     case (t_string)
+      if (it%variable) then
+        s = quoted_words(trim(it%s)); return
+      end if
       s = quoted(trim(it%s))
       if (present(scene) .and. it%scene_file .and. len_trim(it%s) > 0) &
         & s = quoted(absolute_path(scene_relative(scene, trim(it%s))))
     end select
   end function value_text
+
+  !> "a b" -> "'a', 'b'" (a word list's values).
+  function quoted_words(words) result(s)
+    character(len=*), intent(in) :: words
+    character(len=:), allocatable :: s
+    integer :: i, j
+    s = ''
+    i = 1
+    do while (i <= len(words))
+      if (words(i:i) == ' ') then
+        i = i + 1; cycle
+      end if
+      j = index(words(i:) // ' ', ' ') + i - 2
+      s = s // merge(', ', '  ', len(s) > 0) // '''' // words(i:j) // ''''
+      i = j + 1
+    end do
+    if (len(s) > 0) s = s(3:)
+  end function quoted_words
 
   !> Text in single quotes, inner quotes doubled.
   function quoted(t) result(s)

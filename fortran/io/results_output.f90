@@ -5,14 +5,13 @@ module pymr_io_results_output
   use, intrinsic :: iso_fortran_env, only : int64
   use pymr_error, only : error_type, fatal_error, stat_solver
   use pymr_model_types, only : model_data, n_effects, effect_names
-  use pymr_model_effects, only : impose_prescribed_state
-  use pymr_model_kinematics, only : forward_kinematics, marker_motion
   use pymr_io_fast_format, only : put_real
   use pymr_io_text, only : itoa
   use pymr_io_text_file, only : write_text_file, sync_file, rename_file, file_size, check_size
   implicit none
   private
-  public :: csv_writer, json_path, write_json, run_stats, pymr_version
+  public :: csv_writer, json_path, write_json, run_stats, pymr_version, output_plan, output_plan_of
+  public :: energy_columns, n_energy, n_work
 
   character(len=*), parameter :: pymr_version = '0.1.0'
 
@@ -26,6 +25,20 @@ module pymr_io_results_output
     !> Multirate: the last step ratio H/h (1 single-rate).
     integer :: ratio_last = 1
   end type run_stats
+
+  !> The energy columns (energy.NAME): the four energies, their total, then the four works
+  !> integrated over the run (held in checkpoints).
+  integer, parameter :: n_energy = 9, n_work = 4
+  character(len=*), parameter :: energy_columns(n_energy) = [character(len=12) :: 'kinetic', 'gravity', 'strain', &
+    & 'springs', 'total', 'drive_work', 'load_work', 'motion_work', 'damping_loss']
+
+  !> The groups of columns a run writes (&output quantities) and the number of values per
+  !> row after t and the coordinates.
+  type :: output_plan
+    logical :: coordinates = .true., markers = .true., accelerations = .false., orientations = .false.
+    logical :: reactions = .false., energy = .false.
+    integer :: extra = 0
+  end type output_plan
 
   !> A CSV result file being written: rows stream to PATH.partial, which replaces PATH only
   !> when the run ends well (finish); a failed run leaves it as it is, a refused one removes
@@ -48,6 +61,8 @@ module pymr_io_results_output
     character(len=:), allocatable :: line
     !> Significant digits per value (&output precision).
     integer :: digits = 17
+    !> The groups of columns written.
+    type(output_plan) :: plan
   contains
     procedure :: open => csv_open
     procedure :: reopen => csv_reopen
@@ -76,7 +91,34 @@ contains
     end if
   end function json_path
 
-  !> Open the CSV file and write the comment lines and the header row.
+  !> The plan of &output quantities (blank-separated words) for model d.
+  function output_plan_of(words, d) result(plan)
+    character(len=*), intent(in) :: words
+    type(model_data), intent(in) :: d
+    type(output_plan) :: plan
+    plan%coordinates = has('coordinates')
+    plan%markers = has('markers')
+    plan%accelerations = has('marker_accelerations')
+    plan%orientations = has('marker_orientations')
+    plan%reactions = has('reactions')
+    plan%energy = has('energy')
+    plan%extra = d%n_markers*(merge(6, 0, plan%markers) + merge(3, 0, plan%accelerations) + &
+      & merge(4, 0, plan%orientations)) + merge(6*(d%nb - 1), 0, plan%reactions) + merge(n_energy, 0, plan%energy)
+  contains
+    logical function has(word)
+      character(len=*), intent(in) :: word
+      has = index(' ' // trim(words) // ' ', ' ' // word // ' ') > 0
+    end function has
+  end function output_plan_of
+
+  !> Values per row: t, the coordinates and rates when written, and the plan's others.
+  pure integer function row_width(plan, d)
+    type(output_plan), intent(in) :: plan
+    type(model_data), intent(in) :: d
+    row_width = 1 + merge(2*d%n, 0, plan%coordinates) + plan%extra
+  end function row_width
+
+  !> Open the CSV file and write the comment lines and the header row (self%plan's columns).
   subroutine csv_open(self, path, d, title, method, error)
     class(csv_writer), intent(inout) :: self
     character(len=*), intent(in) :: path, title, method
@@ -98,18 +140,30 @@ contains
     ! the header piece by piece (a scene may have 10^5 markers)
     call put('t', .false.)
     do i = 1, d%n
+      if (.not. self%plan%coordinates) exit
       call put(',' // trim(d%qname(i)), .false.)
       if (i == d%n .or. d%cgrp(min(i + 1, d%n)) /= d%cgrp(i)) call add_rates(i)
     end do
     do i = 1, d%n_markers
       m = trim(d%marker_name(i))
-      call put(',' // m // '.x,' // m // '.y,' // m // '.z,' // m // '.vx,' // m // '.vy,' // m // '.vz', .false.)
+      if (self%plan%markers) call put(',' // m // '.x,' // m // '.y,' // m // '.z,' // m // '.vx,' // m // '.vy,' // &
+        & m // '.vz', .false.)
+      if (self%plan%accelerations) call put(',' // m // '.ax,' // m // '.ay,' // m // '.az', .false.)
+      if (self%plan%orientations) call put(',' // m // '.qw,' // m // '.qx,' // m // '.qy,' // m // '.qz', .false.)
+    end do
+    do i = 2, d%nb
+      if (.not. self%plan%reactions) exit
+      m = trim(d%joint_name(i))
+      call put(',' // m // '.fx,' // m // '.fy,' // m // '.fz,' // m // '.mx,' // m // '.my,' // m // '.mz', .false.)
+    end do
+    do i = 1, n_energy
+      if (self%plan%energy) call put(',energy.' // trim(energy_columns(i)), .false.)
     end do
     call put('', .true.)
     if (self%ios /= 0) then
       call fatal_error(error, self%partial // ': cannot write the results: ' // trim(self%io_message)); return
     end if
-    allocate(self%row(1 + 2*d%n + 6*d%n_markers))
+    allocate(self%row(row_width(self%plan, d)))
     allocate(character(len=25*size(self%row)) :: self%line)
   contains
     subroutine add_rates(last)
@@ -165,7 +219,7 @@ contains
       call fatal_error(error, path // ': the results of the checkpointed run are missing (restart needs them)')
       return
     end if
-    allocate(character(len=25*(1 + 2*d%n + 6*d%n_markers) + 64*d%n + 1024) :: buf)
+    allocate(character(len=25*row_width(self%plan, d) + 64*(d%n + d%n_markers + d%nb) + 1024) :: buf)
     allocate(lines(keep))
     open(newunit=u, file=source, status='old', action='read', iostat=ios, iomsg=msg)
     if (ios /= 0) then
@@ -200,43 +254,27 @@ contains
     end if
     self%opened = .true.
     self%written = file_size(self%partial)
-    allocate(self%row(1 + 2*d%n + 6*d%n_markers))
+    allocate(self%row(row_width(self%plan, d)))
     allocate(character(len=25*size(self%row)) :: self%line)
   end subroutine csv_reopen
 
-  !> Write the row for time t and state (q, qd); runs kinematics for the markers.
-  subroutine csv_write_row(self, d, t, q, qd)
+  !> Write the row for time t: the coordinates q and rates qd (grouped by joint and body,
+  !> when the plan writes them), then the plan's other values `extra`.
+  subroutine csv_write_row(self, d, t, q, qd, extra)
     class(csv_writer), intent(inout) :: self
-    type(model_data), intent(inout) :: d
-    real(dp), intent(in) :: t, q(:), qd(:)
-    if (d%n_prescribed > 0) then
-      ! prescribed coordinates are written (and move the markers) exactly as their functions
-      call impose_prescribed_state(d, t, q, qd)
-      call write_values(self, d, t, d%qx, d%qdx)
-    else
-      call write_values(self, d, t, q, qd)
-    end if
-  end subroutine csv_write_row
-
-  subroutine write_values(self, d, t, q, qd)
-    class(csv_writer), intent(inout) :: self
-    type(model_data), intent(inout) :: d
-    real(dp), intent(in) :: t, q(:), qd(:)
+    type(model_data), intent(in) :: d
+    real(dp), intent(in) :: t, q(:), qd(:), extra(:)
     integer :: i, k, b0, pos
-    real(dp) :: r(3), v(3)
     self%row(1) = t
     k = 1; b0 = 1
     do i = 1, d%n
+      if (.not. self%plan%coordinates) exit
       k = k + 1; self%row(k) = q(i)
       if (i == d%n .or. d%cgrp(min(i + 1, d%n)) /= d%cgrp(i)) then
         self%row(k+1:k+i-b0+1) = qd(b0:i); k = k + i - b0 + 1; b0 = i + 1
       end if
     end do
-    if (d%n_markers > 0) call forward_kinematics(d, q, qd)
-    do i = 1, d%n_markers
-      call marker_motion(d, i, q, qd, r, v)
-      self%row(k+1:k+3) = r; self%row(k+4:k+6) = v; k = k + 6
-    end do
+    self%row(k+1:) = extra
     pos = 1
     do i = 1, size(self%row)
       if (i > 1) then
@@ -249,7 +287,7 @@ contains
     self%written = self%written + pos
     self%unchecked = self%unchecked + 1
     if (self%unchecked >= check_rows) call self%flush_rows()
-  end subroutine write_values
+  end subroutine csv_write_row
 
   !> Hand the rows written so far to the system and check that the file holds them all
   !> (a refused write sets ios and io_message, which the run reports with its time).

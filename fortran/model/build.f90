@@ -348,7 +348,6 @@ contains
     type(model_data), intent(inout) :: d
     type(error_type), allocatable, intent(out) :: error
     integer :: i, j, b
-    real(dp), allocatable :: phi(:, :)
     character(len=:), allocatable :: where_file
     d%effect_on(effect_gravity) = sc%effects%gravity
     d%effect_on(effect_joint_drives) = sc%effects%joint_drives .and. size(sc%drives) > 0
@@ -438,8 +437,8 @@ contains
     end do
     d%n_markers = size(sc%markers)
     allocate(d%marker_name(d%n_markers), d%marker_body(d%n_markers), d%marker_at(3, d%n_markers), &
-      & d%marker_psi(3, d%mmax, d%n_markers), phi(3, d%mmax))
-    d%marker_psi = 0.0_dp
+      & d%marker_psi(3, d%mmax, d%n_markers), d%marker_phi(3, d%mmax, d%n_markers))
+    d%marker_psi = 0.0_dp; d%marker_phi = 0.0_dp
     do i = 1, d%n_markers
       d%marker_name(i) = sc%markers(i)%name
       b = pos_in(body_index(sc, sc%markers(i)%body))
@@ -447,7 +446,7 @@ contains
       d%marker_at(:, i) = sc%markers(i)%at
       if (d%nm(b) > 0) then
         call flexible_point(sc, d, b, sc%markers(i)%at, "marker '" // trim(sc%markers(i)%name) // "'", &
-          & d%marker_psi(:, :, i), phi, error); if (allocated(error)) return
+          & d%marker_psi(:, :, i), d%marker_phi(:, :, i), error); if (allocated(error)) return
       end if
     end do
     d%n_loads = 0

@@ -11,7 +11,7 @@ module pymr_model_effects
   implicit none
   private
   public :: add_gravity, add_joint_drives, add_modal_damping, gravity_potential, elastic_potential
-  public :: add_joint_springs, spring_potential, add_geometric_stiffening, add_firing_load, load_force
+  public :: add_joint_springs, spring_potential, add_geometric_stiffening, add_firing_load, load_force, drive_force
   public :: add_carried_load_stiffening
   public :: prescribed_motion, impose_prescribed_state, prescribe_rows
 
@@ -52,25 +52,31 @@ contains
     d%effect_evals(effect_gravity) = d%effect_evals(effect_gravity) + 1
   end subroutine add_gravity
 
-  !> Add the drive loads to the generalised forces: offset + amplitude sin(2 pi f t + phase),
-  !> or offset + the drive's table interpolated linearly at t.
+  !> Add the drive loads to the generalised forces.
   pure subroutine add_joint_drives(d, t)
     type(model_data), intent(inout) :: d
     real(dp), intent(in) :: t
     integer :: i
-    real(dp) :: f
     do i = 1, d%n_drives
-      associate(p => d%drive_par(:, i))
-        if (d%drive_table(i) > 0) then
-          f = p(1) + table_linear(d%tables(d%drive_table(i)), t)
-        else
-          f = p(1) + p(2)*sin(2.0_dp*pi*p(3)*t + p(4))
-        end if
-        d%tau(d%drive_coord(i)) = d%tau(d%drive_coord(i)) + f
-      end associate
+      d%tau(d%drive_coord(i)) = d%tau(d%drive_coord(i)) + drive_force(d, i, t)
     end do
     d%effect_evals(effect_joint_drives) = d%effect_evals(effect_joint_drives) + 1
   end subroutine add_joint_drives
+
+  !> Generalised force of drive i at time t: offset + amplitude sin(2 pi f t + phase), or
+  !> offset + the drive's table interpolated linearly at t.
+  pure real(dp) function drive_force(d, i, t) result(f)
+    type(model_data), intent(in) :: d
+    integer, intent(in) :: i
+    real(dp), intent(in) :: t
+    associate(p => d%drive_par(:, i))
+      if (d%drive_table(i) > 0) then
+        f = p(1) + table_linear(d%tables(d%drive_table(i)), t)
+      else
+        f = p(1) + p(2)*sin(2.0_dp*pi*p(3)*t + p(4))
+      end if
+    end associate
+  end function drive_force
 
   !> Modal damping forces (2 zeta omega + alpha + beta omega^2) ad added to the modal bias
   !> of flexible bodies.

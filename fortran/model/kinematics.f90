@@ -12,7 +12,7 @@ module pymr_model_kinematics
   use pymr_model_flexbody, only : small_rotation
   implicit none
   private
-  public :: forward_kinematics, marker_motion
+  public :: forward_kinematics, marker_motion, marker_acceleration, marker_rotation
 
 contains
 
@@ -106,4 +106,42 @@ contains
     v = d%vel(1:3, b) + cross(d%vel(4:6, b), r)
     if (nm > 0) v = v + matmul(d%rot(:, :, b), matmul(d%marker_psi(:, 1:nm, m), qd(d%a0(b):d%a0(b) + nm - 1)))
   end subroutine marker_motion
+
+  !> Inertial acceleration of marker m from its body's spatial acceleration acc_b = [a_O; alpha]
+  !> (after forward_kinematics; r, v from marker_motion): a = a_O + alpha x r + w x v, and on
+  !> a flexible body + w x (R Psi ad) + R Psi add.
+  pure subroutine marker_acceleration(d, m, qd, qdd, acc_b, r, v, a)
+    type(model_data), intent(in) :: d
+    integer, intent(in) :: m
+    real(dp), intent(in) :: qd(:), qdd(:), acc_b(6), r(3), v(3)
+    real(dp), intent(out) :: a(3)
+    integer :: b, nm
+    real(dp) :: vd(3)
+    b = d%marker_body(m)
+    nm = d%nm(b)
+    a = acc_b(1:3) + cross(acc_b(4:6), r) + cross(d%vel(4:6, b), v)
+    if (nm == 0) return
+    associate(psi => d%marker_psi(:, 1:nm, m), rot => d%rot(:, :, b))
+      vd = matmul(rot, matmul(psi, qd(d%a0(b):d%a0(b) + nm - 1)))
+      a = a + cross(d%vel(4:6, b), vd) + matmul(rot, matmul(psi, qdd(d%a0(b):d%a0(b) + nm - 1)))
+    end associate
+  end subroutine marker_acceleration
+
+  !> Orientation of marker m's frame (inertial from marker axes; after forward_kinematics):
+  !> its body's, turned on a flexible body by the small rotation exp((Phi a)~) of the point.
+  pure subroutine marker_rotation(d, m, q, rm)
+    type(model_data), intent(in) :: d
+    integer, intent(in) :: m
+    real(dp), intent(in) :: q(:)
+    real(dp), intent(out) :: rm(3, 3)
+    integer :: b, nm
+    real(dp) :: th(3), rr(3, 3), jl(3, 3), jd(3)
+    b = d%marker_body(m)
+    nm = d%nm(b)
+    rm = d%rot(:, :, b)
+    if (nm == 0) return
+    th = matmul(d%marker_phi(:, 1:nm, m), q(d%a0(b):d%a0(b) + nm - 1))
+    call small_rotation(th, [0.0_dp, 0.0_dp, 0.0_dp], rr, jl, jd)
+    rm = matmul(rm, rr)
+  end subroutine marker_rotation
 end module pymr_model_kinematics

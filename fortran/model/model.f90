@@ -44,6 +44,7 @@ module pymr_model
     procedure :: terms => model_terms
     procedure :: accelerations => model_accelerations
     procedure :: energy => model_energy
+    procedure :: energy_parts => model_energy_parts
     procedure :: n_slow => model_n_slow
     procedure :: n_fast => model_n_fast
     procedure :: sync_rhs => model_sync_rhs
@@ -238,19 +239,32 @@ contains
     end if
   end function model_component_name
 
-  !> Kinetic and potential (elastic, and gravity when on) energy (J) at (q, qd).
+  !> Kinetic and potential (elastic, and gravity and springs when on) energy (J) at (q, qd).
   subroutine model_energy(self, q, qd, kinetic, potential)
     class(model_t), intent(inout) :: self
     real(dp), intent(in) :: q(:), qd(:)
     real(dp), intent(out) :: kinetic, potential
+    real(dp) :: e(4)
+    call self%energy_parts(q, qd, e)
+    kinetic = e(1)
+    potential = sum(e(2:4))
+  end subroutine model_energy
+
+  !> Energies (J) at (q, qd): kinetic, gravity (0 when off), strain of the flexible bodies
+  !> and the joint springs' (0 when off).
+  subroutine model_energy_parts(self, q, qd, e)
+    class(model_t), intent(inout) :: self
+    real(dp), intent(in) :: q(:), qd(:)
+    real(dp), intent(out) :: e(4)
     call forward_kinematics(self%d, q, qd)
     if (self%d%effect_on(effect_deformation_inertia)) call deform_moments(self%d, q, self%d%every)
     call body_terms(self%d, q, qd)
-    kinetic = kinetic_energy(self%d, qd)
-    potential = elastic_potential(self%d, q)
-    if (self%d%effect_on(effect_gravity)) potential = potential + gravity_potential(self%d)
-    if (self%d%effect_on(effect_joint_springs)) potential = potential + spring_potential(self%d, q)
-  end subroutine model_energy
+    e = 0.0_dp
+    e(1) = kinetic_energy(self%d, qd)
+    if (self%d%effect_on(effect_gravity)) e(2) = gravity_potential(self%d)
+    e(3) = elastic_potential(self%d, q)
+    if (self%d%effect_on(effect_joint_springs)) e(4) = spring_potential(self%d, q)
+  end subroutine model_energy_parts
 
   pure integer function model_n_slow(self)
     class(model_t), intent(in) :: self

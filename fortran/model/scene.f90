@@ -13,7 +13,7 @@ module pymr_model_scene
   public :: scene_t, body_spec, joint_spec, drive_spec, marker_spec, integrator_spec, effects_spec
   public :: spring_spec, motion_spec, load_spec, output_spec, scene_spec, max_modes_input
   public :: joint_ndof, unset, group_names, single_groups, repeated_groups, describe_group, group_origin, group_count
-  public :: naming_item, complete_scene, body_items, item_applies
+  public :: naming_item, complete_scene, body_items, item_applies, output_quantities
 
   !> The groups of a scene file, in the order the resolved scene is written.
   character(len=*), parameter :: group_names = &
@@ -21,6 +21,9 @@ module pymr_model_scene
   !> The groups that may appear at most once, and those that may repeat.
   character(len=*), parameter :: single_groups = 'scene integrator effects output'
   character(len=*), parameter :: repeated_groups = 'body joint drive spring motion load marker'
+  !> The groups of output columns (&output quantities).
+  character(len=*), parameter :: output_quantities = &
+    & 'coordinates markers marker_accelerations marker_orientations reactions energy'
 
   !> Bounds that keep every physical value far from overflow in the model's arithmetic.
   real(dp), parameter :: big_length = 1.0e6_dp, big_force = 1.0e12_dp, big_mass = 1.0e12_dp
@@ -84,6 +87,8 @@ module pymr_model_scene
     integer :: precision = 17
     !> Largest results file a run may write (bytes).
     real(dp) :: max_bytes = 1.0e10_dp
+    !> The groups of columns written (blank-separated words of output_quantities).
+    character(len=128) :: quantities = 'coordinates markers'
     type(origin_t) :: origin
   end type output_spec
 
@@ -290,6 +295,12 @@ contains
       & ge=6, le=17)
     call t%add('max_bytes', g%max_bytes, 'bytes', 'largest results file a run may write: a run whose output ' // &
       & 'would exceed it is refused', ge=1.0e3_dp, le=1.0e15_dp)
+    call t%add('quantities', g%quantities, "the groups of columns written: 'coordinates' (joint and modal " // &
+      & "coordinates and rates), 'markers' (position and velocity of each marker), 'marker_accelerations', " // &
+      & "'marker_orientations' (quaternion w, x, y, z of each marker's frame), 'reactions' (each joint's force " // &
+      & "and moment on its child, in the child's frame, about the joint point), 'energy' (kinetic, gravity, " // &
+      & "strain and spring energy, their total, and the work of drives, loads and prescribed motion and the " // &
+      & "energy lost in damping)", choices=output_quantities, most=6)
   end subroutine describe_output
 
   subroutine describe_body(g, t)

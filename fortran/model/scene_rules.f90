@@ -45,8 +45,21 @@ contains
     call check_bodies(sc, errs)
     call check_joints(sc, errs)
     call check_loads_markers(sc, errs)
+    call check_output(sc, errs)
     call errs%take(error)
   end subroutine check_scene
+
+  !> &output quantities must write something beside the time.
+  subroutine check_output(sc, errs)
+    type(scene_t), intent(in) :: sc
+    type(error_list), intent(inout) :: errs
+    character(len=:), allocatable :: q
+    q = ' ' // trim(sc%output%quantities) // ' '
+    if (size(sc%markers) > 0 .or. index(q, ' coordinates ') > 0 .or. index(q, ' reactions ') > 0 .or. &
+      & index(q, ' energy ') > 0) return
+    call errs%add(sc%output%origin%where('quantities') // ': the scene has no &marker, so ' // &
+      & 'these quantities write no column (add coordinates, reactions or energy)')
+  end subroutine check_output
 
   !> Bodies, joints and markers each have names of their own.
   subroutine check_unique_names(sc, errs)

@@ -8,7 +8,7 @@ module pymr_model_spatial
   use pymr_kinds, only : dp
   implicit none
   private
-  public :: cross, skew, rot_axis, motion_cross, force_cross, rigid_inertia, unit_axes
+  public :: cross, skew, rot_axis, motion_cross, force_cross, rigid_inertia, unit_axes, quaternion
 
   !> Unit vectors e_x, e_y, e_z as columns.
   real(dp), parameter :: unit_axes(3, 3) = reshape([1.0_dp, 0.0_dp, 0.0_dp, 0.0_dp, 1.0_dp, 0.0_dp, &
@@ -77,4 +77,27 @@ contains
     i6(4:6, 1:3) = m*cx
     i6(4:6, 4:6) = ic - m*matmul(cx, cx)
   end function rigid_inertia
+
+  !> Unit quaternion [w, x, y, z] (w >= 0) of rotation matrix r, from its largest
+  !> component (Shepperd), so that no square root of a small number is taken.
+  pure function quaternion(r) result(qt)
+    real(dp), intent(in) :: r(3, 3)
+    real(dp) :: qt(4), tr, s
+    tr = r(1, 1) + r(2, 2) + r(3, 3)
+    if (tr >= max(r(1, 1), r(2, 2), r(3, 3))) then
+      s = 2.0_dp*sqrt(1.0_dp + tr)
+      qt = [0.25_dp*s, (r(3, 2) - r(2, 3))/s, (r(1, 3) - r(3, 1))/s, (r(2, 1) - r(1, 2))/s]
+    else if (r(1, 1) >= r(2, 2) .and. r(1, 1) >= r(3, 3)) then
+      s = 2.0_dp*sqrt(1.0_dp + r(1, 1) - r(2, 2) - r(3, 3))
+      qt = [(r(3, 2) - r(2, 3))/s, 0.25_dp*s, (r(1, 2) + r(2, 1))/s, (r(1, 3) + r(3, 1))/s]
+    else if (r(2, 2) >= r(3, 3)) then
+      s = 2.0_dp*sqrt(1.0_dp + r(2, 2) - r(1, 1) - r(3, 3))
+      qt = [(r(1, 3) - r(3, 1))/s, (r(1, 2) + r(2, 1))/s, 0.25_dp*s, (r(2, 3) + r(3, 2))/s]
+    else
+      s = 2.0_dp*sqrt(1.0_dp + r(3, 3) - r(1, 1) - r(2, 2))
+      qt = [(r(2, 1) - r(1, 2))/s, (r(1, 3) + r(3, 1))/s, (r(2, 3) + r(3, 2))/s, 0.25_dp*s]
+    end if
+    qt = qt/norm2(qt)
+    if (qt(1) < 0.0_dp) qt = -qt
+  end function quaternion
 end module pymr_model_spatial

@@ -66,8 +66,8 @@ module pymr_model_types
     character(len=name_len), allocatable :: marker_name(:)
     integer, allocatable :: marker_body(:)
     real(dp), allocatable :: marker_at(:, :)
-    !> Mode shapes at markers on flexible bodies (3, mmax, n_markers).
-    real(dp), allocatable :: marker_psi(:, :, :)
+    !> Mode shapes at markers on flexible bodies: translation and small rotation (3, mmax, n_markers).
+    real(dp), allocatable :: marker_psi(:, :, :), marker_phi(:, :, :)
     !> Effect plan: which effects are on, the active ones in evaluation order, their
     !> evaluation counters, and their CPU time measured on every 32nd evaluation
     !> (effect_cpu over effect_timed evaluations).

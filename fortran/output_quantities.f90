@@ -1,0 +1,218 @@
+!> The values of a result row beyond the coordinates (&output quantities), and the works
+!> that the energy columns integrate over the run. Only the groups the plan asks for are
+!> computed. Evaluations made for the output are not counted as the integrator's.
+module pymr_output_quantities
+  use pymr_kinds, only : dp
+  use pymr_error, only : error_type
+  use pymr_model, only : model_t
+  use pymr_model_types, only : model_data, n_effects, effect_joint_drives, effect_firing_load, &
+    & effect_joint_springs, effect_modal_damping
+  use pymr_model_kinematics, only : forward_kinematics, marker_motion, marker_acceleration, marker_rotation
+  use pymr_model_reactions, only : body_accelerations, joint_wrenches, child_frame_wrench
+  use pymr_model_effects, only : impose_prescribed_state, drive_force, load_force
+  use pymr_model_spatial, only : quaternion
+  use pymr_integrator_stepper, only : stepper_t
+  use pymr_io_results_output, only : csv_writer, output_plan, n_energy, n_work
+  implicit none
+  private
+  public :: write_output_row, add_step_work
+
+  !> Gauss-Legendre nodes (on [-1, 1]) and weights of the work integrals over a step:
+  !> exact for polynomials of degree 5, beyond the dense output's order.
+  real(dp), parameter :: gauss_x(3) = [-0.7745966692414834_dp, 0.0_dp, 0.7745966692414834_dp]
+  real(dp), parameter :: gauss_w(3) = [5.0_dp/9.0_dp, 8.0_dp/9.0_dp, 5.0_dp/9.0_dp]
+
+  !> The evaluation counters of a model (restored after the output's evaluations).
+  type :: counters
+    integer :: evals = 0, evals_fast_rows = 0
+    integer :: effect_evals(n_effects) = 0, effect_timed(n_effects) = 0
+    real(dp) :: effect_cpu(n_effects) = 0.0_dp
+  end type counters
+
+contains
+
+  !> Write the row of time t and state (q, qd): prescribed coordinates are written (and
+  !> move the bodies) exactly as their functions; `work` holds the works of the energy columns.
+  subroutine write_output_row(csv, model, t, q, qd, work, error)
+    type(csv_writer), intent(inout) :: csv
+    type(model_t), intent(inout) :: model
+    real(dp), intent(in) :: t, q(:), qd(:), work(n_work)
+    type(error_type), allocatable, intent(out) :: error
+    real(dp) :: qe(size(q)), qde(size(qd)), extra(csv%plan%extra)
+    call imposed_state(model%d, t, q, qd, qe, qde)
+    call output_values(csv%plan, model, t, qe, qde, work, extra, error)
+    if (allocated(error)) return
+    call csv%write_row(model%d, t, qe, qde, extra)
+  end subroutine write_output_row
+
+  !> The state with the prescribed coordinates on their functions.
+  subroutine imposed_state(d, t, q, qd, qe, qde)
+    type(model_data), intent(inout) :: d
+    real(dp), intent(in) :: t, q(:), qd(:)
+    real(dp), intent(out) :: qe(:), qde(:)
+    if (d%n_prescribed > 0) then
+      call impose_prescribed_state(d, t, q, qd)
+      qe = d%qx; qde = d%qdx
+    else
+      qe = q; qde = qd
+    end if
+  end subroutine imposed_state
+
+  !> The plan's values after the coordinates: per marker its position and velocity,
+  !> acceleration and orientation; per joint its reaction; the energies and works.
+  subroutine output_values(plan, model, t, q, qd, work, v, error)
+    type(output_plan), intent(in) :: plan
+    type(model_t), intent(inout) :: model
+    real(dp), intent(in) :: t, q(:), qd(:), work(n_work)
+    real(dp), intent(out) :: v(:)
+    type(error_type), allocatable, intent(out) :: error
+    real(dp) :: qdd(size(q)), lin(6, model%d%nb), jw(6, model%d%nb), e(4), r(3), vel(3), a(3), rm(3, 3)
+    integer :: k, i, b
+    if (plan%accelerations .or. plan%reactions) then
+      call output_accelerations(model, t, q, qd, qdd, error); if (allocated(error)) return
+      call body_accelerations(model%d, qdd, lin)
+      if (plan%reactions) call joint_wrenches(model%d, qdd, lin, jw)
+    else if (plan%markers .or. plan%orientations) then
+      call forward_kinematics(model%d, q, qd)
+    end if
+    k = 0
+    associate(d => model%d)
+      do i = 1, d%n_markers
+        if (.not. (plan%markers .or. plan%accelerations .or. plan%orientations)) exit
+        call marker_motion(d, i, q, qd, r, vel)
+        if (plan%markers) call put([r, vel])
+        if (plan%accelerations) then
+          b = d%marker_body(i)
+          call marker_acceleration(d, i, qd, qdd, d%acc(:, b) + lin(:, b), r, vel, a)
+          call put(a)
+        end if
+        if (plan%orientations) then
+          call marker_rotation(d, i, q, rm)
+          call put(quaternion(rm))
+        end if
+      end do
+      do b = 2, d%nb
+        if (plan%reactions) call put(child_frame_wrench(d, b, jw(:, b)))
+      end do
+    end associate
+    if (plan%energy) then
+      call model%energy_parts(q, qd, e)
+      call put([e, sum(e), work])
+    end if
+  contains
+    subroutine put(x)
+      real(dp), intent(in) :: x(:)
+      v(k+1:k+size(x)) = x
+      k = k + size(x)
+    end subroutine put
+  end subroutine output_values
+
+  !> Accelerations at (t, q, qd) for the output, leaving the model's counters as they were.
+  subroutine output_accelerations(model, t, q, qd, qdd, error)
+    type(model_t), intent(inout) :: model
+    real(dp), intent(in) :: t, q(:), qd(:)
+    real(dp), intent(out) :: qdd(:)
+    type(error_type), allocatable, intent(out) :: error
+    type(counters) :: c
+    associate(d => model%d)
+      c = counters(d%evals, d%evals_fast_rows, d%effect_evals, d%effect_timed, d%effect_cpu)
+      call model%accelerations(t, q, qd, qdd, error)
+      d%evals = c%evals; d%evals_fast_rows = c%evals_fast_rows
+      d%effect_evals = c%effect_evals; d%effect_timed = c%effect_timed; d%effect_cpu = c%effect_cpu
+    end associate
+  end subroutine output_accelerations
+
+  !> Add to `work` the integrals over the step from t0 to t1 (the stepper's last) of the
+  !> powers of the drives, the loads and the prescribed motions and of the damping's loss,
+  !> by 3-point Gauss quadrature of the stepper's dense output. Nothing without energy output.
+  subroutine add_step_work(plan, st, model, t0, t1, work, error)
+    type(output_plan), intent(in) :: plan
+    class(stepper_t), intent(in) :: st
+    type(model_t), intent(inout) :: model
+    real(dp), intent(in) :: t0, t1
+    real(dp), intent(inout) :: work(n_work)
+    type(error_type), allocatable, intent(out) :: error
+    real(dp) :: x(2*model%d%n), tn, p(n_work)
+    integer :: i, n
+    if (.not. plan%energy .or. t1 <= t0) return
+    n = model%d%n
+    do i = 1, 3
+      tn = 0.5_dp*(t0 + t1) + 0.5_dp*(t1 - t0)*gauss_x(i)
+      call st%value_at(tn, x)
+      call powers(model, tn, x(1:n), x(n+1:), p, error); if (allocated(error)) return
+      work = work + 0.5_dp*(t1 - t0)*gauss_w(i)*p
+    end do
+  end subroutine add_step_work
+
+  !> Powers at (t, q, qd) (W): of the drives, of the loads, of the prescribed motions, and
+  !> the damping's loss (joint dampers and modal damping).
+  subroutine powers(model, t, q, qd, p, error)
+    type(model_t), intent(inout) :: model
+    real(dp), intent(in) :: t, q(:), qd(:)
+    real(dp), intent(out) :: p(n_work)
+    type(error_type), allocatable, intent(out) :: error
+    real(dp) :: qe(size(q)), qde(size(qd))
+    integer :: i, b, m
+    call imposed_state(model%d, t, q, qd, qe, qde)
+    p = 0.0_dp
+    associate(d => model%d)
+      if (d%effect_on(effect_joint_drives)) then
+        do i = 1, d%n_drives
+          p(1) = p(1) + drive_force(d, i, t)*qde(d%drive_coord(i))
+        end do
+      end if
+      if (d%effect_on(effect_firing_load) .and. d%n_loads > 0) p(2) = load_power(d, t, qe, qde)
+      if (d%n_prescribed > 0) then
+        p(3) = motion_power(model, t, qe, qde, error); if (allocated(error)) return
+      end if
+      if (d%effect_on(effect_joint_springs)) then
+        do i = 1, d%n_springs
+          p(4) = p(4) + d%spring_par(2, i)*qde(d%spring_coord(i))**2
+        end do
+      end if
+      if (d%effect_on(effect_modal_damping)) then
+        do b = 2, d%nb
+          m = d%nm(b)
+          if (m > 0) p(4) = p(4) + sum(d%flex(b)%damp*qde(d%a0(b):d%a0(b) + m - 1)**2)
+        end do
+      end if
+    end associate
+  end subroutine powers
+
+  !> Power of the point loads: the force at each loaded marker times its velocity.
+  real(dp) function load_power(d, t, q, qd) result(p)
+    type(model_data), intent(inout) :: d
+    real(dp), intent(in) :: t, q(:), qd(:)
+    integer :: i, mk
+    real(dp) :: r(3), v(3), f
+    p = 0.0_dp
+    call forward_kinematics(d, q, qd)
+    do i = 1, d%n_loads
+      f = load_force(d, i, t)
+      if (f == 0.0_dp) cycle
+      mk = d%load_marker(i)
+      call marker_motion(d, mk, q, qd, r, v)
+      p = p + f*dot_product(matmul(d%rot(:, :, d%marker_body(mk)), d%load_dir(:, i)), v)
+    end do
+  end function load_power
+
+  !> Power of the prescribed motions: each prescribed coordinate's generalised force beyond
+  !> the drive and spring on it (s_k . J_b - tau_k) times its rate.
+  real(dp) function motion_power(model, t, q, qd, error) result(p)
+    type(model_t), intent(inout) :: model
+    real(dp), intent(in) :: t, q(:), qd(:)
+    type(error_type), allocatable, intent(out) :: error
+    real(dp) :: qdd(size(q)), lin(6, model%d%nb), jw(6, model%d%nb)
+    integer :: i, k
+    p = 0.0_dp
+    call output_accelerations(model, t, q, qd, qdd, error); if (allocated(error)) return
+    call body_accelerations(model%d, qdd, lin)
+    call joint_wrenches(model%d, qdd, lin, jw)
+    associate(d => model%d)
+      do i = 1, d%n_prescribed
+        k = d%pres_coord(i)
+        p = p + (dot_product(d%s(:, k), jw(:, d%cbody(k))) - d%tau(k))*qd(k)
+      end do
+    end associate
+  end function motion_power
+end module pymr_output_quantities
