@@ -15,7 +15,7 @@ module pymr_output_quantities
   use pymr_io_results_output, only : csv_writer, output_plan, n_energy, n_work
   implicit none
   private
-  public :: write_output_row, add_step_work
+  public :: write_output_row, work_at
 
   !> Gauss-Legendre nodes (on [-1, 1]) and weights of the work integrals over a step:
   !> exact for polynomials of degree 5, beyond the dense output's order.
@@ -122,27 +122,29 @@ contains
     end associate
   end subroutine output_accelerations
 
-  !> Add to `work` the integrals over the step from t0 to t1 (the stepper's last) of the
-  !> powers of the drives, the loads and the prescribed motions and of the damping's loss,
-  !> by 3-point Gauss quadrature of the stepper's dense output. Nothing without energy output.
-  subroutine add_step_work(plan, st, model, t0, t1, work, error)
+  !> The works at time t (in the stepper's last step, which t0 is in too) from those at t0:
+  !> work = work0 plus the integrals from t0 to t of the powers of the drives, the loads and
+  !> the prescribed motions and of the damping's loss, by 3-point Gauss quadrature of the
+  !> stepper's dense output. Nothing without energy output.
+  subroutine work_at(plan, st, model, t0, work0, t, work, error)
     type(output_plan), intent(in) :: plan
     class(stepper_t), intent(in) :: st
     type(model_t), intent(inout) :: model
-    real(dp), intent(in) :: t0, t1
-    real(dp), intent(inout) :: work(n_work)
+    real(dp), intent(in) :: t0, work0(n_work), t
+    real(dp), intent(out) :: work(n_work)
     type(error_type), allocatable, intent(out) :: error
     real(dp) :: x(2*model%d%n), tn, p(n_work)
     integer :: i, n
-    if (.not. plan%energy .or. t1 <= t0) return
+    work = work0
+    if (.not. plan%energy .or. t == t0) return
     n = model%d%n
     do i = 1, 3
-      tn = 0.5_dp*(t0 + t1) + 0.5_dp*(t1 - t0)*gauss_x(i)
+      tn = 0.5_dp*(t0 + t) + 0.5_dp*(t - t0)*gauss_x(i)
       call st%value_at(tn, x)
       call powers(model, tn, x(1:n), x(n+1:), p, error); if (allocated(error)) return
-      work = work + 0.5_dp*(t1 - t0)*gauss_w(i)*p
+      work = work + 0.5_dp*(t - t0)*gauss_w(i)*p
     end do
-  end subroutine add_step_work
+  end subroutine work_at
 
   !> Powers at (t, q, qd) (W): of the drives, of the loads, of the prescribed motions, and
   !> the damping's loss (joint dampers and modal damping).

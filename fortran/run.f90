@@ -11,7 +11,7 @@ module pymr_run
   use pymr_integrator_stepper, only : stepper_t, step_counts
   use pymr_stepper_setup, only : make_stepper, stepper_label, method_label
   use pymr_io_results_output, only : csv_writer, json_path, write_json, run_stats, output_plan_of, n_work
-  use pymr_output_quantities, only : write_output_row, add_step_work
+  use pymr_output_quantities, only : write_output_row, work_at
   use pymr_model_kinematics, only : forward_kinematics, marker_motion
   use pymr_clock, only : thread_cpu_time
   use pymr_model_effects, only : prescribed_motion
@@ -155,7 +155,7 @@ contains
     type(run_stats) :: stats
     type(run_progress) :: prog
     real(dp), allocatable :: x(:)
-    real(dp) :: h, h0, dt_out, t_next, eps, cpu0, cpu1, t_ckpt, t_step, work(n_work)
+    real(dp) :: h, h0, dt_out, t_next, eps, cpu0, cpu1, t_ckpt, t_step, work(n_work), work_step(n_work)
     integer :: n, k_out
     integer(8) :: c0, c1, rate, c_line
     logical :: restarting, lines
@@ -192,7 +192,8 @@ contains
     t_next = dt_out
     csv%digits = sc%output%precision
     csv%plan = output_plan_of(sc%output%quantities, model%d)
-    work = 0.0_dp
+    ! the works of the energy columns at t_step, the start of the stepper's last step
+    work_step = 0.0_dp; t_step = 0.0_dp
     call make_stepper(sc, model, x, st, h0, error)
     if (allocated(error)) then
       if (index(error%message, file) /= 1) error%message = file // ': ' // error%message
@@ -207,13 +208,13 @@ contains
         if (index(error%message, file) /= 1) error%message = file // ': ' // error%message
         return
       end if
-      stats%rows = prog%rows; k_out = prog%k_out; t_next = prog%t_next; work = prog%work
+      stats%rows = prog%rows; k_out = prog%k_out; t_next = prog%t_next; work_step = prog%work; t_step = st%time()
       cpu0 = cpu0 - prog%cpu_s
     else
       call check_output_size(sc, model, csv, dt_out, error); if (allocated(error)) return
       call csv%open(path, model%d, sc%scene%title, method_label(sc), error); if (allocated(error)) return
       call check_mass_matrix(model, x, file // ': ', error)
-      if (.not. allocated(error)) call write_output_row(csv, model, 0.0_dp, x(1:n), x(n+1:), work, error)
+      if (.not. allocated(error)) call write_output_row(csv, model, 0.0_dp, x(1:n), x(n+1:), work_step, error)
       stats%rows = 1
       if (allocated(error)) then
         call csv%discard(); return
@@ -228,8 +229,6 @@ contains
         cpu0 = cpu0 + stats%preflight_cpu_s
       end if
       call st%start(model, 0.0_dp, x, h0, error)
-      ! the start-up steps' work, from the dense output of the last
-      if (.not. allocated(error)) call add_step_work(csv%plan, st, model, 0.0_dp, st%time(), work, error)
       if (allocated(error)) then
         call csv%discard()
         if (index(error%message, file) /= 1) error%message = file // ': ' // error%message
@@ -245,23 +244,28 @@ contains
       if (dt_out > 0.0_dp) then
         do while (t_next <= min(st%time(), sc%scene%t_end) + eps)
           call st%value_at(t_next, x)
+          call work_at(csv%plan, st, model, t_step, work_step, t_next, work, error); if (allocated(error)) exit
           call write_output_row(csv, model, t_next, x(1:n), x(n+1:), work, error); if (allocated(error)) exit
           stats%rows = stats%rows + 1
           k_out = k_out + 1; t_next = k_out*dt_out
         end do
       else if (st%time() < sc%scene%t_end - eps) then
         call st%value_at(st%time(), x)
-        call write_output_row(csv, model, st%time(), x(1:n), x(n+1:), work, error)
+        call work_at(csv%plan, st, model, t_step, work_step, st%time(), work, error)
+        if (.not. allocated(error)) call write_output_row(csv, model, st%time(), x(1:n), x(n+1:), work, error)
         stats%rows = stats%rows + 1
       end if
       if (allocated(error)) exit
+      ! the works at the time reached (for the checkpoint, and the start of the next step)
+      call work_at(csv%plan, st, model, t_step, work_step, st%time(), work, error); if (allocated(error)) exit
+      work_step = work; t_step = st%time()
       if (st%time() >= sc%scene%t_end - eps) exit
       if (st%time() >= t_ckpt - eps) then
         ! the rows up to now are on disk (checked) before the checkpoint that counts them
         call csv%flush_rows()
         if (csv%ios == 0) then
           prog = run_progress(rows=stats%rows, k_out=k_out, t_next=t_next, cpu_s=thread_cpu_time() - cpu0, &
-            & t_checkpoint=st%time(), work=work)
+            & t_checkpoint=st%time(), work=work_step)
           call write_checkpoint(ckpt_path, st, model, prog, settings, fingerprint, error); if (allocated(error)) exit
           t_ckpt = (floor(st%time()/sc%output%checkpoint_dt + 1.0e-9_dp) + 1)*sc%output%checkpoint_dt
         end if
@@ -270,9 +274,7 @@ contains
         call fatal_error(error, 'at t = ' // fmt(st%time()) // ' s: ' // csv%partial // ': cannot write the ' // &
           & 'results: ' // trim(csv%io_message), stat_solver); exit
       end if
-      t_step = st%time()
       call st%advance(model, error); if (allocated(error)) exit
-      call add_step_work(csv%plan, st, model, t_step, st%time(), work, error); if (allocated(error)) exit
       done = st%counts()
       if (done%steps_fast > sc%integrator%max_steps) then
         call fatal_error(error, 'at t = ' // fmt(st%time()) // ' s: the run took more than max_steps = ' // &
@@ -291,7 +293,8 @@ contains
     if (.not. allocated(error)) then
       call st%value_at(sc%scene%t_end, x)
       if (dt_out <= 0.0_dp .or. abs(t_next - dt_out - sc%scene%t_end) > eps) then
-        call write_output_row(csv, model, sc%scene%t_end, x(1:n), x(n+1:), work, error)
+        call work_at(csv%plan, st, model, t_step, work_step, sc%scene%t_end, work, error)
+        if (.not. allocated(error)) call write_output_row(csv, model, sc%scene%t_end, x(1:n), x(n+1:), work, error)
         stats%rows = stats%rows + 1
       end if
     end if
