@@ -103,6 +103,15 @@ class Results:
         vel = np.column_stack([self[f"{name}.{c}"] for c in ("vx", "vy", "vz")])
         return pos, vel
 
+    def reaction(self, joint: str) -> tuple[np.ndarray, np.ndarray]:
+        """Force (rows, 3; N) and moment (rows, 3; N m) that ``joint`` passes to its child, in
+        the child's axes, the moment about the joint point (``&output quantities 'reactions'``)."""
+        cols = [f"{joint}.{c}" for c in ("fx", "fy", "fz", "mx", "my", "mz")]
+        if not all(c in self.columns for c in cols):
+            raise KeyError(f"no reactions of joint {joint!r} (&output quantities 'reactions')")
+        data = np.column_stack([self[c] for c in cols])
+        return data[:, :3], data[:, 3:]
+
     def joint(self, name: str) -> tuple[np.ndarray, np.ndarray]:
         """Coordinates (rows, n) and rates (rows, n) of joint ``name`` (n = 1 for a revolute)."""
         qcols = self.joint_columns(name)
