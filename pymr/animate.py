@@ -65,6 +65,9 @@ def motion(res: Results, scene: str | os.PathLike | None = None, exaggerate: flo
     q = q.copy()
     q[:, n_joint:] *= exaggerate
     n, nb, _ = model_size(path)
+    if q.shape[1] != n:
+        raise AnimateError(f"{res.path}: the results hold {q.shape[1]} of the scene's {n} coordinates: animating "
+                           "needs them all (run with &output quantities 'coordinates')")
     with Model(path) as model:
         check_geometry(res, model, path, q_all, qd_all)
         frames, parent = model.frames(t, q, qd, nb)

@@ -67,3 +67,13 @@ def test_results_of_another_scene_are_refused(tmp_path):
     (tmp_path / "o.json").unlink()
     with pytest.raises(AnimateError, match="the results name no scene"):
         animate(out, tmp_path / "x.gif")
+
+
+def test_results_without_coordinates_are_refused(tmp_path):
+    """A run that wrote markers and reactions but no coordinates cannot be drawn: one line,
+    exit 1, naming the quantity to ask for."""
+    out = tmp_path / "m.csv"
+    pymr.run(TANK, out, overrides={"scene.t_end": 0.05, "output.quantities": ["markers", "reactions"]})
+    r = subprocess.run(["pymr", "animate", str(out)], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 1 and r.stderr.count("\n") == 1
+    assert "hold 0 of the scene's 6 coordinates" in r.stderr and "'coordinates'" in r.stderr
