@@ -4,8 +4,8 @@
 module pymr_output_quantities
   use pymr_kinds, only : dp
   use pymr_error, only : error_type
-  use pymr_model, only : model_t
-  use pymr_model_types, only : model_data, n_effects, effect_joint_drives, effect_firing_load, &
+  use pymr_model, only : model_t, model_counters
+  use pymr_model_types, only : model_data, effect_joint_drives, effect_firing_load, &
     & effect_joint_springs, effect_modal_damping
   use pymr_model_kinematics, only : forward_kinematics, marker_motion, marker_acceleration, marker_rotation
   use pymr_model_reactions, only : body_accelerations, joint_wrenches, child_frame_wrench
@@ -21,13 +21,6 @@ module pymr_output_quantities
   !> exact for polynomials of degree 5, beyond the dense output's order.
   real(dp), parameter :: gauss_x(3) = [-0.7745966692414834_dp, 0.0_dp, 0.7745966692414834_dp]
   real(dp), parameter :: gauss_w(3) = [5.0_dp/9.0_dp, 8.0_dp/9.0_dp, 5.0_dp/9.0_dp]
-
-  !> The evaluation counters of a model (restored after the output's evaluations).
-  type :: counters
-    integer :: evals = 0, evals_fast_rows = 0
-    integer :: effect_evals(n_effects) = 0, effect_timed(n_effects) = 0
-    real(dp) :: effect_cpu(n_effects) = 0.0_dp
-  end type counters
 
 contains
 
@@ -113,13 +106,10 @@ contains
     real(dp), intent(in) :: t, q(:), qd(:)
     real(dp), intent(out) :: qdd(:)
     type(error_type), allocatable, intent(out) :: error
-    type(counters) :: c
-    associate(d => model%d)
-      c = counters(d%evals, d%evals_fast_rows, d%effect_evals, d%effect_timed, d%effect_cpu)
-      call model%accelerations(t, q, qd, qdd, error)
-      d%evals = c%evals; d%evals_fast_rows = c%evals_fast_rows
-      d%effect_evals = c%effect_evals; d%effect_timed = c%effect_timed; d%effect_cpu = c%effect_cpu
-    end associate
+    type(model_counters) :: c
+    c = model%counters()
+    call model%accelerations(t, q, qd, qdd, error)
+    call model%set_counters(c)
   end subroutine output_accelerations
 
   !> The works at time t (in the stepper's last step, which t0 is in too) from those at t0:

@@ -12,8 +12,7 @@ module pymr_preflight
   use pymr_kinds, only : dp, pi
   use pymr_error, only : error_type, fatal_error, stat_input
   use pymr_lapack, only : potrf, potrs, geev_real, factor_inverse, general_solve
-  use pymr_model, only : model_t, modal_stiffness_damping
-  use pymr_model_types, only : model_data
+  use pymr_model, only : model_t, modal_stiffness_damping, model_counters
   use pymr_integrator_stability, only : pece_growth, pece_limit
   use pymr_integrator_ode, only : partitioned_system
   use pymr_integrator_stepper, only : stepper_t, pece_steps, step_counts
@@ -135,12 +134,12 @@ contains
     type(model_t), intent(inout) :: model
     real(dp), intent(in) :: t, x(:)
     real(dp), allocatable, intent(out) :: m(:, :), k(:, :), c(:, :)
-    type(model_data) :: counters
+    type(model_counters) :: counters
     real(dp), allocatable :: q(:), qd(:), pp(:), pm(:)
     real(dp) :: del
     integer :: n, j
     n = model%d%n
-    call save_counters(model, counters)
+    counters = model%counters()
     q = x(1:n); qd = x(n+1:2*n)
     allocate(k(n, n), c(n, n))
     call model%terms(t, q, qd)
@@ -157,7 +156,7 @@ contains
       qd(j) = x(n + j)
       c(:, j) = -(pp - pm)/(2.0_dp*del)
     end do
-    call restore_counters(model, counters)
+    call model%set_counters(counters)
   end subroutine linearise
 
   !> Static equilibrium at t = 0 of the coordinates u (the others held as given): the
@@ -170,13 +169,13 @@ contains
     character(len=*), intent(in) :: names(:)
     real(dp), intent(inout) :: x(:)
     type(error_type), allocatable, intent(out) :: error
-    type(model_data) :: counters
+    type(model_counters) :: counters
     real(dp), allocatable :: m(:, :), k(:, :), c(:, :), ku(:, :), du(:)
     character(len=:), allocatable :: why
     integer :: it, n, worst
     if (size(u) == 0) return
     n = model%d%n
-    call save_counters(model, counters)
+    counters = model%counters()
     do it = 1, newton_max
       call model%terms(0.0_dp, x(1:n), x(n+1:))
       du = model%d%p(u)
@@ -184,17 +183,17 @@ contains
       ku = k(u, u)
       call general_solve(ku, du, 'the stiffness of the coordinates to settle', error)
       if (allocated(error)) then
-        call restore_counters(model, counters)
+        call model%set_counters(counters)
         why = error%message
         call fatal_error(error, '&scene: start: no static equilibrium at t = 0: ' // why // &
           & ' (a joint marked settle that no spring or stiffness holds has none)', stat_input); return
       end if
       x(u) = x(u) + du
       if (all(abs(du) <= newton_tol*max(1.0_dp, abs(x(u))))) then
-        call restore_counters(model, counters); return
+        call model%set_counters(counters); return
       end if
     end do
-    call restore_counters(model, counters)
+    call model%set_counters(counters)
     worst = maxloc(abs(du)/max(1.0_dp, abs(x(u))), 1)
     call fatal_error(error, "&scene: start: no static equilibrium found in " // itoa(newton_max) // &
       & ' Newton iterations (the last change of ' // trim(names(u(worst))) // ' was ' // fmt_es(du(worst)) // &
@@ -294,12 +293,12 @@ contains
     type(error_type), allocatable, intent(out) :: error
     integer :: n, minor
     real(dp), allocatable :: l(:, :)
-    type(model_data) :: counters
+    type(model_counters) :: counters
     n = model%d%n
     if (n == 0) return
-    call save_counters(model, counters)
+    counters = model%counters()
     call model%terms(0.0_dp, x(1:n), x(n+1:2*n))
-    call restore_counters(model, counters)
+    call model%set_counters(counters)
     l = model%d%mm
     call potrf(l, 'the mass matrix', error, minor)
     if (.not. allocated(error)) then
@@ -320,24 +319,6 @@ contains
       error%message = where // error%message
     end if
   end subroutine check_mass_matrix
-
-  !> The evaluation counters of the model (kept in a model_data's counter fields), so that
-  !> pre-flight evaluations do not count as the run's.
-  subroutine save_counters(model, c)
-    type(model_t), intent(in) :: model
-    type(model_data), intent(out) :: c
-    c%evals = model%d%evals; c%evals_fast_rows = model%d%evals_fast_rows
-    c%effect_evals = model%d%effect_evals; c%effect_timed = model%d%effect_timed
-    c%effect_cpu = model%d%effect_cpu
-  end subroutine save_counters
-
-  subroutine restore_counters(model, c)
-    type(model_t), intent(inout) :: model
-    type(model_data), intent(in) :: c
-    model%d%evals = c%evals; model%d%evals_fast_rows = c%evals_fast_rows
-    model%d%effect_evals = c%effect_evals; model%d%effect_timed = c%effect_timed
-    model%d%effect_cpu = c%effect_cpu
-  end subroutine restore_counters
 
   !> Multirate runs: the growth per macro step of the stepper itself applied to the model
   !> linearised at the initial state (power iteration on its whole state). When the growth

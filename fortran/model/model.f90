@@ -7,7 +7,7 @@ module pymr_model
   use pymr_clock, only : thread_cpu_time
   use pymr_model_types, only : model_data, effect_gravity, effect_joint_drives, effect_modal_damping, &
     & effect_joint_springs, effect_geometric_stiffening, effect_base_motion, effect_firing_load, &
-    & effect_deformation_inertia
+    & effect_deformation_inertia, n_effects
   use pymr_model_kinematics, only : forward_kinematics
   use pymr_model_flexbody, only : deformed_modal_moments
   use pymr_model_assembly, only : body_terms, composite_terms, assemble_mass, assemble_rhs, kinetic_energy
@@ -16,10 +16,18 @@ module pymr_model
     & prescribe_rows, add_firing_load, add_carried_load_stiffening
   implicit none
   private
-  public :: model_t, modal_stiffness_damping
+  public :: model_t, modal_stiffness_damping, model_counters
 
   !> One evaluation in this many times its effects.
   integer, parameter :: timing_interval = 32
+
+  !> A model's evaluation counters (saved and restored around evaluations that are not the
+  !> run's: the pre-flight check's, the output's).
+  type :: model_counters
+    integer :: evals = 0, evals_fast_rows = 0
+    integer :: effect_evals(n_effects) = 0, effect_timed(n_effects) = 0
+    real(dp) :: effect_cpu(n_effects) = 0.0_dp
+  end type model_counters
 
   !> A built model: data and work arrays, and the ODE interface the integrators use.
   !> Slow coordinates are the joint coordinates (1..nj), fast ones the modal coordinates.
@@ -53,6 +61,8 @@ module pymr_model
     procedure :: init_partition => model_init_partition
     procedure :: save_run => model_save_run
     procedure :: load_run => model_load_run
+    procedure :: counters => model_get_counters
+    procedure :: set_counters => model_set_counters
   end type model_t
 
 contains
@@ -439,6 +449,22 @@ contains
     write(buf, '(es12.5)') t
     s = trim(adjustl(buf)) // ' s'
   end function time_text
+  !> The evaluation counters.
+  pure function model_get_counters(self) result(c)
+    class(model_t), intent(in) :: self
+    type(model_counters) :: c
+    c = model_counters(self%d%evals, self%d%evals_fast_rows, self%d%effect_evals, self%d%effect_timed, &
+      & self%d%effect_cpu)
+  end function model_get_counters
+
+  !> Put back counters saved by `counters`.
+  pure subroutine model_set_counters(self, c)
+    class(model_t), intent(inout) :: self
+    type(model_counters), intent(in) :: c
+    self%d%evals = c%evals; self%d%evals_fast_rows = c%evals_fast_rows
+    self%d%effect_evals = c%effect_evals; self%d%effect_timed = c%effect_timed; self%d%effect_cpu = c%effect_cpu
+  end subroutine model_set_counters
+
   !> Write the model's per-run state to an open unformatted stream unit: its evaluation
   !> counters and effect timings, and the held multirate terms when the run partitioned it.
   subroutine model_save_run(self, unit, ios)
