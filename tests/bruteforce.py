@@ -24,16 +24,23 @@ in tree order, each joint's coordinates in the order above.
 
 Flexible bodies (kind='beam'): an Euler-Bernoulli beam along the body x axis, clamped at the
 body origin, cubic Hermite elements, bending in x-y (v along y, stiffness E Iz) and x-z
-(w along z, stiffness E Iy), line mass rho A only. Its modes (generalised symmetric
-eigenproblem per plane, mass-normalised, tip displacement positive) give the deformed axis
-r(x) = p + R (x e_x + [0, v(x), w(x)]); the beam's kinetic energy is represented exactly by
-point masses rho A le w_g at the 4 Gauss-Legendre points of every element (|r_dot|^2 is a
-polynomial of degree 6 in x on an element). Elastic forces -omega_k^2 a_k, modal damping
--2 zeta omega_k a_k' when &effects modal_damping is on. A joint on a beam parent sits on the
-deformed axis at ``at`` and turns with the section: joint frame origin p + R (at + Psi a),
-orientation R expm([Phi a]x) (small rotation theta_z = v', theta_y = -w'), evaluated in
-the jets by power series (analytic, so complex steps stay exact). Modal coordinates follow
-all joint coordinates, flexible bodies in tree order, x-y modes before x-z modes.
+(w along z, stiffness E Iy), axial displacement u (stiffness E A, u(0) = 0) and torsion
+theta (stiffness G J, theta(0) = 0) on the same elements (nodal values and slopes), line
+mass rho A. Its modes (generalised symmetric eigenproblem per family, mass-normalised, tip
+value positive) give the deformed section at x: centre x e_x + [u, v, w], small rotation
+[theta, -w', v']. Without torsional modes the beam's kinetic energy is represented exactly
+by point masses rho A le w_g on the axis at the 4 Gauss-Legendre points of every element
+(|r_dot|^2 is a polynomial of degree 6 in x on an element). With torsional modes each of
+them is split into four quarter masses at y = +-sqrt(2 Iz/A) and z = +-sqrt(2 Iy/A) of the
+section, displaced by the section's rotation (Psi + Phi x r): they carry the section's
+rotary inertia rho Iz, rho Iy, rho (Iy + Iz) per length, which the bending eigenproblems
+then include (mass rho I int N'N'^T) and torsion's takes (inertia rho (Iy + Iz)).
+Elastic forces -omega_k^2 a_k, modal damping -2 zeta omega_k a_k' when &effects
+modal_damping is on. A joint on a beam parent sits on the deformed section at ``at`` and
+turns with it: joint frame origin p + R (at + (Psi + Phi x r) a) (r the offset of ``at``
+from the axis), orientation R expm([Phi a]x), evaluated in the jets by power series
+(analytic, so complex steps stay exact). Modal coordinates follow all joint coordinates,
+flexible bodies in tree order: x-y modes, x-z modes, axial modes, torsional modes.
 """
 from __future__ import annotations
 
@@ -165,13 +172,17 @@ class Body:
     n_elements: int = 20
     modes_y: int = 0
     modes_z: int = 0
+    modes_x: int = 0
+    modes_t: int = 0
+    shear_modulus: float = 0.0
+    torsion_constant: float = 0.0
     modal_damping: float = 0.0
     first_mode: int = 0  # index of the body's first modal coordinate
     _modes: "BeamModes | None" = None
 
     @property
     def n_modes(self) -> int:
-        return self.modes_y + self.modes_z if self.kind == "beam" else 0
+        return self.modes_y + self.modes_z + self.modes_x + self.modes_t if self.kind == "beam" else 0
 
     @property
     def modes(self) -> "BeamModes":
@@ -257,11 +268,16 @@ class Scene:
                         ro, ri = float(it["r_outer"]), float(it.get("r_inner", 0.0))
                         b.area = math.pi * (ro ** 2 - ri ** 2)
                         b.iy = b.iz = math.pi / 4.0 * (ro ** 4 - ri ** 4)
+                        b.torsion_constant = math.pi / 2.0 * (ro ** 4 - ri ** 4)
                     else:
                         b.area, b.iy, b.iz = float(it["area"]), float(it["iy"]), float(it["iz"])
+                        b.torsion_constant = float(it.get("torsion_constant", 0.0))
                     b.n_elements = int(it.get("n_elements", 20))
                     b.modes_y = int(it.get("modes_y", 0))
                     b.modes_z = int(it.get("modes_z", 0))
+                    b.modes_x = int(it.get("modes_x", 0))
+                    b.modes_t = int(it.get("modes_t", 0))
+                    b.shear_modulus = float(it.get("shear_modulus", 0.0))
                     b.modal_damping = float(it.get("modal_damping", 0.0))
                 elif kind != "ground":
                     raise ValueError(f"body kind {kind!r} not supported by the reference")
@@ -357,7 +373,8 @@ def point_masses(mass: float, com: np.ndarray, inertia: np.ndarray) -> tuple[np.
 
 
 # ----------------------------------------------------------------------------------------
-# beams: cubic Hermite elements, clamped at x = 0, modes per bending plane
+# beams: cubic Hermite elements, clamped at x = 0, modes per family (bending planes, axial,
+# torsion)
 # ----------------------------------------------------------------------------------------
 
 # Quadrature of the beams' mass points and element mass matrices: None = exact 4-point
@@ -383,9 +400,10 @@ def _hermite(xi: float, le: float):
     return n, dn
 
 
-def hermite_row(x: float, length: float, n_el: int):
-    """Rows (2 n_el,) that map the free nodal DOFs (v1, v1', ..., v_n, v_n') of a clamped
-    beam to v(x) and dv/dx(x)."""
+def hermite_row(x: float, length: float, n_el: int, clamped: int = 2):
+    """Rows that map the free nodal DOFs of a field clamped at x = 0 to v(x) and dv/dx(x):
+    (v1, v1', ..., v_n, v_n') (2 n_el,) when value and slope are clamped (bending), with v0'
+    in front (2 n_el + 1,) when only the value is (clamped = 1: axial, torsion)."""
     le = length / n_el
     e = min(int(math.floor(x / le)), n_el - 1)
     e = max(e, 0)
@@ -395,12 +413,24 @@ def hermite_row(x: float, length: float, n_el: int):
     full_d = np.zeros(2 * (n_el + 1))
     full_n[2 * e:2 * e + 4] = n
     full_d[2 * e:2 * e + 4] = dn
-    return full_n[2:], full_d[2:]
+    return full_n[clamped:], full_d[clamped:]
 
 
-def _beam_matrices(length: float, n_el: int, ei: float, rho_a: float):
+def _assemble(n_el: int, ke, me, clamped: int):
+    """Global K and M of n_el equal elements, the first `clamped` nodal DOFs removed."""
+    nd = 2 * (n_el + 1)
+    K, M = np.zeros((nd, nd)), np.zeros((nd, nd))
+    for e in range(n_el):
+        s = slice(2 * e, 2 * e + 4)
+        K[s, s] += ke
+        M[s, s] += me
+    return K[clamped:, clamped:], M[clamped:, clamped:]
+
+
+def _beam_matrices(length: float, n_el: int, ei: float, rho_a: float, rho_i: float = 0.0):
     """Stiffness and consistent mass of the clamped beam (2 n_el, 2 n_el); the element mass
-    by Gauss quadrature of rho A N^T N (exact: degree 6)."""
+    by Gauss quadrature of rho A N^T N (exact: degree 6), plus the section's rotary inertia
+    rho I N'^T N' when rho_i is given."""
     le = length / n_el
     ke = ei / le ** 3 * np.array([[12, 6 * le, -12, 6 * le],
                                   [6 * le, 4 * le ** 2, -6 * le, 2 * le ** 2],
@@ -409,22 +439,30 @@ def _beam_matrices(length: float, n_el: int, ei: float, rho_a: float):
     xg, wg = gauss_points(4)
     me = np.zeros((4, 4))
     for x, w in zip(xg, wg):
-        n, _ = _hermite(x, le)
-        me += rho_a * le * w * np.outer(n, n)
-    nd = 2 * (n_el + 1)
-    K, M = np.zeros((nd, nd)), np.zeros((nd, nd))
-    for e in range(n_el):
-        s = slice(2 * e, 2 * e + 4)
-        K[s, s] += ke
-        M[s, s] += me
-    return K[2:, 2:], M[2:, 2:], ke, me
+        n, dn = _hermite(x, le)
+        me += rho_a * le * w * np.outer(n, n) + rho_i * le * w * np.outer(dn, dn)
+    return (*_assemble(n_el, ke, me, 2), ke, me)
+
+
+def _bar_matrices(length: float, n_el: int, stiffness: float, inertia: float):
+    """Stiffness int stiffness N'^T N' and mass int inertia N^T N of a bar (axial: E A, rho A)
+    or shaft (torsion: G J, rho Ip) on the Hermite elements, only the value clamped at x = 0
+    ((2 n_el + 1) square; Gauss, exact for both)."""
+    le = length / n_el
+    xg, wg = gauss_points(4)
+    ke, me = np.zeros((4, 4)), np.zeros((4, 4))
+    for x, w in zip(xg, wg):
+        n, dn = _hermite(x, le)
+        ke += stiffness * le * w * np.outer(dn, dn)
+        me += inertia * le * w * np.outer(n, n)
+    return (*_assemble(n_el, ke, me, 1), ke, me)
 
 
 @dataclass
 class BeamModes:
     length: float
     n_el: int
-    omega2: np.ndarray       # (nm,) eigenvalues, x-y modes then x-z modes
+    omega2: np.ndarray       # (nm,) eigenvalues: x-y modes, x-z modes, axial, torsional
     vectors_y: np.ndarray    # (2 n_el, my) mass-normalised nodal mode vectors
     vectors_z: np.ndarray    # (2 n_el, mz)
     omega2_y_all: np.ndarray  # every eigenvalue of each plane
@@ -432,19 +470,31 @@ class BeamModes:
     x_points: np.ndarray     # (NP,) Gauss points along the beam
     m_points: np.ndarray     # (NP,) their masses
     psi_points: np.ndarray   # (NP, 3, nm) displacement per unit modal coordinate
+    vectors_x: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))  # (2 n_el + 1, mx)
+    vectors_t: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))  # (2 n_el + 1, mt)
+    s_points: np.ndarray | None = None  # (NP, 3) body-frame positions of the mass points
 
-    def shapes(self, x: float) -> tuple[np.ndarray, np.ndarray]:
-        """Psi (3, nm): displacement of the axis point x per unit modal coordinate; Phi (3, nm):
-        small rotation of its section (x-y mode: about z by v'; x-z mode: about y by -w')."""
+    def shapes(self, x: float, offset=(0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
+        """Psi (3, nm): displacement of the point (x, offset) of the section at x per unit
+        modal coordinate; Phi (3, nm): small rotation of the section (x-y mode: about z by v';
+        x-z mode: about y by -w'; torsional mode: about x by theta)."""
         hn, hd = hermite_row(x, self.length, self.n_el)
+        bn, _ = hermite_row(x, self.length, self.n_el, clamped=1)
         my, mz = self.vectors_y.shape[1], self.vectors_z.shape[1]
-        psi = np.zeros((3, my + mz))
-        phi = np.zeros((3, my + mz))
+        mx, mt = self.vectors_x.shape[1], self.vectors_t.shape[1]
+        z, t = my + mz, my + mz + mx
+        psi = np.zeros((3, t + mt))
+        phi = np.zeros((3, t + mt))
         psi[1, :my] = hn @ self.vectors_y
         phi[2, :my] = hd @ self.vectors_y
-        psi[2, my:] = hn @ self.vectors_z
-        phi[1, my:] = -(hd @ self.vectors_z)
-        return psi, phi
+        psi[2, my:z] = hn @ self.vectors_z
+        phi[1, my:z] = -(hd @ self.vectors_z)
+        if mx:
+            psi[0, z:t] = bn @ self.vectors_x
+        if mt:
+            phi[0, t:] = bn @ self.vectors_t
+        r = np.array([0.0, *offset])
+        return psi + np.cross(phi, r, axis=0), phi
 
 
 def _plane_modes(K, M, count):
@@ -462,18 +512,38 @@ def _plane_modes(K, M, count):
 
 def beam_modes(b: Body) -> BeamModes:
     rho_a = b.density * b.area
-    ky, mmy, _, _ = _beam_matrices(b.length, b.n_elements, b.youngs_modulus * b.iz, rho_a)
-    kz, mmz, _, _ = _beam_matrices(b.length, b.n_elements, b.youngs_modulus * b.iy, rho_a)
+    ring = b.modes_t > 0   # the section's rotary inertia, by four points around each Gauss point
+    ky, mmy, _, _ = _beam_matrices(b.length, b.n_elements, b.youngs_modulus * b.iz, rho_a,
+                                   b.density * b.iz if ring else 0.0)
+    kz, mmz, _, _ = _beam_matrices(b.length, b.n_elements, b.youngs_modulus * b.iy, rho_a,
+                                   b.density * b.iy if ring else 0.0)
     lam_y, vy = _plane_modes(ky, mmy, b.modes_y)
     lam_z, vz = _plane_modes(kz, mmz, b.modes_z)
+    lam_x, vx = np.zeros(0), np.zeros((2 * b.n_elements + 1, 0))
+    lam_t, vt = np.zeros(0), np.zeros((2 * b.n_elements + 1, 0))
+    if b.modes_x:
+        lam_x, vx = _plane_modes(*_bar_matrices(b.length, b.n_elements, b.youngs_modulus * b.area, rho_a)[:2],
+                                 b.modes_x)
+    if ring:
+        lam_t, vt = _plane_modes(*_bar_matrices(b.length, b.n_elements, b.shear_modulus * b.torsion_constant,
+                                                b.density * (b.iy + b.iz))[:2], b.modes_t)
     le = b.length / b.n_elements
     xg, wg = gauss_points(4)
     xs = np.concatenate([(e + xg) * le for e in range(b.n_elements)])
     ms = np.tile(rho_a * le * wg, b.n_elements)
-    bm = BeamModes(b.length, b.n_elements, np.concatenate([lam_y[:b.modes_y], lam_z[:b.modes_z]]),
-                   vy, vz, lam_y, lam_z, xs, ms, np.zeros((xs.size, 3, b.modes_y + b.modes_z)))
-    for i, x in enumerate(xs):
-        bm.psi_points[i] = bm.shapes(x)[0]
+    offsets = np.zeros((1, 2))
+    if ring:
+        ry, rz = math.sqrt(2 * b.iz / b.area), math.sqrt(2 * b.iy / b.area)
+        offsets = np.array([[ry, 0.0], [-ry, 0.0], [0.0, rz], [0.0, -rz]])
+        xs, ms = np.repeat(xs, 4), np.repeat(ms / 4, 4)
+    sp = np.zeros((xs.size, 3))
+    sp[:, 0] = xs
+    sp[:, 1:] = np.tile(offsets, (xs.size // len(offsets), 1))
+    omega2 = np.concatenate([lam_y[:b.modes_y], lam_z[:b.modes_z], lam_x[:b.modes_x], lam_t[:b.modes_t]])
+    bm = BeamModes(b.length, b.n_elements, omega2, vy, vz, lam_y, lam_z, xs, ms,
+                   np.zeros((xs.size, 3, b.n_modes)), vx, vt, sp)
+    for i in range(xs.size):
+        bm.psi_points[i] = bm.shapes(sp[i, 0], sp[i, 1:])[0]
     return bm
 
 
@@ -578,7 +648,7 @@ def point_kinematics(scene: Scene, q: np.ndarray, qd: np.ndarray):
         k = j.first
         # joint frame (before the joint's own motion): origin o, orientation Rj
         if par.kind == "beam" and par.n_modes:
-            psi, phi = par.modes.shapes(j.at[0])
+            psi, phi = par.modes.shapes(j.at[0], j.at[1:])
             a = modal(par)
             o = pp + _jmul(Rp, const_vec(j.at) + np.einsum("in,kbn->kbi", psi, a), _mv)
             Rj = _jmul(Rp, _jexp_skew(np.einsum("in,kbn->kbi", phi, a)), _mm)
@@ -612,7 +682,7 @@ def point_kinematics(scene: Scene, q: np.ndarray, qd: np.ndarray):
             bm = b.modes
             # body-frame positions of the Gauss points on the deformed axis: (3, B, NP, 3)
             x = np.zeros((3, B, bm.x_points.size, 3), dtype=dtype)
-            x[0, :, :, 0] = bm.x_points
+            x[0] = bm.s_points
             if b.n_modes:
                 x = x + np.einsum("pin,kbn->kbpi", bm.psi_points, modal(b))
             masses.append(bm.m_points)

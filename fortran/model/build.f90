@@ -3,7 +3,7 @@
 module pymr_model_build
   use pymr_kinds, only : dp, name_len, pi
   use pymr_error, only : error_type, fatal_error
-  use pymr_model_scene, only : scene_t, body_spec, joint_spec, joint_ndof, unset
+  use pymr_model_scene, only : scene_t, body_spec, joint_spec, joint_ndof, unset, beam_mode_count
   use pymr_model_scene_rules, only : check_scene, body_index, inertia_matrix
   use pymr_model_types, only : model_data, prim_revolute, prim_prismatic, effect_gravity, effect_joint_drives, &
     & effect_modal_damping, effect_joint_springs, effect_geometric_stiffening, effect_base_motion, n_effects, &
@@ -11,7 +11,7 @@ module pymr_model_build
     & motion_sine, motion_spinup, motion_table
   use pymr_model_time_table, only : spline_setup
   use pymr_io_table_file, only : read_time_table
-  use pymr_model_beam_modes, only : build_beam, beam_point_shapes, beam_point_load_stiffness
+  use pymr_model_beam_modes, only : build_beam, beam_section, beam_point_shapes, beam_point_load_stiffness
   use pymr_io_modal_file, only : read_modal_file
   use pymr_model_flexbody, only : flex_data, modal_nodes, undeformed_modal_moments
   use pymr_model_spatial, only : unit_axes
@@ -36,7 +36,6 @@ contains
   end subroutine build_model
 
 
-  !> Modal damping forces per unit modal rate of flexible body i: 2 zeta_k omega_k +
   !> The initial modal state of body i, when given, holds one value per mode (m of them: a
   !> modal file's count is known only now).
   subroutine check_modal_state(sc, i, m, error)
@@ -55,6 +54,7 @@ contains
     end associate
   end subroutine check_modal_state
 
+  !> Modal damping forces per unit modal rate of flexible body i: 2 zeta_k omega_k +
   !> alpha + beta omega_k^2.
   subroutine set_damping(sc, i, fd, error)
     type(scene_t), intent(in) :: sc
@@ -147,7 +147,7 @@ contains
       d%nj = d%nj + joint_ndof(sc%joints(inboard(order(b)))%kind)
       associate(bs => sc%bodies(order(b)))
         nmb = 0
-        if (bs%kind == 'beam') nmb = bs%modes_y + bs%modes_z
+        if (bs%kind == 'beam') nmb = beam_mode_count(bs)
         if (bs%kind == 'modal') then
           call read_modal_file(scene_relative(sc%file, trim(bs%modal_file)), mfd(b), mnd(b), error)
           if (allocated(error)) then
@@ -254,16 +254,20 @@ contains
     integer, intent(inout) :: m
     type(model_data), intent(inout) :: d
     type(error_type), allocatable, intent(out) :: error
-    real(dp) :: area, iy, iz
+    type(beam_section) :: sec
     associate(bs => sc%bodies(i))
+      sec%e = bs%youngs_modulus; sec%rho = bs%density
+      if (bs%shear_modulus /= unset) sec%g = bs%shear_modulus
       if (bs%r_outer /= unset) then
-        area = pi*(bs%r_outer**2 - bs%r_inner**2)
-        iy = pi/4.0_dp*(bs%r_outer**4 - bs%r_inner**4); iz = iy
+        sec%area = pi*(bs%r_outer**2 - bs%r_inner**2)
+        sec%iy = pi/4.0_dp*(bs%r_outer**4 - bs%r_inner**4); sec%iz = sec%iy
+        sec%j = pi/2.0_dp*(bs%r_outer**4 - bs%r_inner**4)
       else
-        area = bs%area; iy = bs%iy; iz = bs%iz
+        sec%area = bs%area; sec%iy = bs%iy; sec%iz = bs%iz
+        if (bs%torsion_constant /= unset) sec%j = bs%torsion_constant
       end if
-      call build_beam(bs%length, bs%youngs_modulus, bs%density, area, iy, iz, bs%n_elements, bs%modes_y, &
-        & bs%modes_z, "beam '" // trim(bs%name) // "'", d%flex(b), d%bshape(b), error)
+      call build_beam(bs%length, sec, bs%n_elements, bs%modes_y, bs%modes_z, bs%modes_x, bs%modes_t, &
+        & "beam '" // trim(bs%name) // "'", d%flex(b), d%bshape(b), error)
       if (allocated(error)) then
         error%message = sc%bodies(i)%origin%where() // ': ' // error%message; return
       end if

@@ -2,8 +2,9 @@
 !>
 !> A flexible body is described by mass points: position s_p (body frame), mass m_p and
 !> translational mode shapes Psi_p (3 x m). For a built-in beam the points are the Gauss
-!> points of its Hermite elements, so sums over them reproduce the consistent
-!> finite-element mass matrix exactly. With Z_p = [s_p, Psi_p] (3 x (1+m)) all inertia
+!> points of its Hermite elements (with torsional modes, rings of four points around them:
+!> model/beam_modes.f90), so sums over them reproduce the consistent finite-element mass
+!> matrix exactly. With Z_p = [s_p, Psi_p] (3 x (1+m)) all inertia
 !> invariants follow from the first moment F = sum m_p Z_p and the second-moment tensor
 !> W(i,j,alpha,beta) = sum m_p Z_p(i,alpha) Z_p(j,beta), computed once. The deformed
 !> point is c_p = Z_p [1; a].

@@ -13,7 +13,7 @@ module pymr_model_scene
   public :: scene_t, body_spec, joint_spec, drive_spec, marker_spec, integrator_spec, effects_spec
   public :: spring_spec, motion_spec, load_spec, output_spec, scene_spec, max_modes_input
   public :: joint_ndof, unset, group_names, single_groups, repeated_groups, describe_group, group_origin, group_count
-  public :: naming_item, complete_scene, body_items, item_applies, output_quantities
+  public :: naming_item, complete_scene, body_items, item_applies, output_quantities, beam_mode_count
 
   !> The groups of a scene file, in the order the resolved scene is written.
   character(len=*), parameter :: group_names = &
@@ -117,10 +117,13 @@ module pymr_model_scene
     !> mass in body axes: Ixx Iyy Izz Ixy Ixz Iyz (kg m^2).
     real(dp) :: mass = unset, com(3) = 0.0_dp, inertia(6) = unset
     !> Beam: length (m), Young's modulus (Pa), density (kg/m^3), tube radii (m) or section
-    !> area (m^2) and second moments iy, iz (m^4), elements, modes per plane.
+    !> area (m^2) and second moments iy, iz (m^4), elements, bending modes per plane, axial
+    !> and torsional modes; shear modulus (Pa) and (without tube radii) torsion constant
+    !> (m^4) for the torsional ones.
     real(dp) :: length = unset, youngs_modulus = unset, density = unset
     real(dp) :: r_outer = unset, r_inner = 0.0_dp, area = unset, iy = unset, iz = unset
-    integer :: n_elements = 20, modes_y = 0, modes_z = 0
+    real(dp) :: shear_modulus = unset, torsion_constant = unset
+    integer :: n_elements = 20, modes_y = 0, modes_z = 0, modes_x = 0, modes_t = 0
     !> Modal damping (used when &effects modal_damping is on): fraction of critical, one
     !> value for every mode or one per mode; or Rayleigh damping alpha + beta omega^2 (1/s).
     real(dp) :: modal_damping(max_modes_input) = unset
@@ -326,6 +329,15 @@ contains
     call t%add('n_elements', g%n_elements, '-', 'finite elements of a beam', ge=1, le=5000)
     call t%add('modes_y', g%modes_y, '-', 'bending modes kept in the x-y plane (deflection along y)', ge=0, le=10000)
     call t%add('modes_z', g%modes_z, '-', 'bending modes kept in the x-z plane (deflection along z)', ge=0, le=10000)
+    call t%add('modes_x', g%modes_x, '-', 'axial (bar) modes kept (displacement along x), after the bending modes', &
+      & ge=0, le=10000)
+    call t%add('modes_t', g%modes_t, '-', 'torsional (shaft) modes kept (rotation about x), after the axial ' // &
+      & 'modes; with them the mass points carry the rotary inertia of the section', ge=0, le=10000)
+    call t%add('shear_modulus', g%shear_modulus, 'Pa', 'shear modulus G for torsion (required when modes_t > 0)', &
+      & ge=1.0e-3_dp, le=1.0e13_dp)
+    call t%add('torsion_constant', g%torsion_constant, 'm^4', 'torsion constant J of a section given by area, ' // &
+      & 'iy and iz (required when modes_t > 0; a tube has pi/2 (r_outer^4 - r_inner^4))', &
+      & ge=1.0e-36_dp, le=1.0e12_dp)
     call t%add('modal_damping', g%modal_damping, '-', 'damping as a fraction of critical: one value for ' // &
       & 'every mode, or one per mode', ge=0.0_dp, lt=1.0_dp, variable=.true.)
     call t%add('rayleigh_alpha', g%rayleigh_alpha, '1/s', 'Rayleigh damping: alpha + beta omega^2', &
@@ -454,11 +466,17 @@ contains
     case ('rigid'); s = 'name kind mass com inertia'
     case ('beam')
       s = 'name kind length youngs_modulus density r_outer r_inner area iy iz n_elements modes_y modes_z ' // &
-        & 'modal_damping rayleigh_alpha rayleigh_beta a0 ad0'
+        & 'modes_x modes_t shear_modulus torsion_constant modal_damping rayleigh_alpha rayleigh_beta a0 ad0'
     case ('modal'); s = 'name kind modal_file modal_damping rayleigh_alpha rayleigh_beta a0 ad0'
     case default; s = ''
     end select
   end function body_items
+
+  !> Modal coordinates of a beam: its bending, axial and torsional modes.
+  pure integer function beam_mode_count(b) result(m)
+    type(body_spec), intent(in) :: b
+    m = b%modes_y + b%modes_z + b%modes_x + b%modes_t
+  end function beam_mode_count
 
   !> Does `item` apply to occurrence k of group `name`? (A body takes its kind's items.)
   logical function item_applies(sc, name, k, item)

@@ -6,7 +6,7 @@
 module pymr_model_scene_rules
   use pymr_kinds, only : dp, name_len
   use pymr_error, only : error_type, fatal_error, error_list
-  use pymr_model_scene, only : scene_t, body_spec, joint_spec, joint_ndof, unset, body_items
+  use pymr_model_scene, only : scene_t, body_spec, joint_spec, joint_ndof, unset, body_items, beam_mode_count
   use pymr_io_item_table, only : origin_t
   use pymr_model_names, only : name_index
   use pymr_io_text, only : itoa, fmt
@@ -241,13 +241,25 @@ contains
         call positive(b%iy, 'iy', '(m^4)'); if (allocated(error)) return
         call positive(b%iz, 'iz', '(m^4)'); if (allocated(error)) return
       end if
-      if (b%modes_y > 2*b%n_elements) then
-        call fatal_error(error, b%origin%where('modes_y') // ': must be 0 to 2*n_elements = ' // itoa(2*b%n_elements) // &
-          & ', got ' // itoa(b%modes_y)); return
+      ! the free nodal values of each field: bending 2 per element (value and slope clamped at
+      ! the root), axial and torsion one more (only the value clamped)
+      call within('modes_y', b%modes_y, 2*b%n_elements, '2*n_elements'); if (allocated(error)) return
+      call within('modes_z', b%modes_z, 2*b%n_elements, '2*n_elements'); if (allocated(error)) return
+      call within('modes_x', b%modes_x, 2*b%n_elements + 1, '2*n_elements + 1'); if (allocated(error)) return
+      call within('modes_t', b%modes_t, 2*b%n_elements + 1, '2*n_elements + 1'); if (allocated(error)) return
+      if (b%r_outer /= unset .and. b%torsion_constant /= unset) then
+        call fatal_error(error, b%origin%where('torsion_constant') // ': a tube has pi/2 (r_outer^4 - r_inner^4); ' // &
+          & 'give torsion_constant only with area, iy and iz'); return
       end if
-      if (b%modes_z > 2*b%n_elements) then
-        call fatal_error(error, b%origin%where('modes_z') // ': must be 0 to 2*n_elements = ' // itoa(2*b%n_elements) // &
-          & ', got ' // itoa(b%modes_z)); return
+      if (b%modes_t > 0) then
+        if (b%shear_modulus == unset) then
+          call fatal_error(error, b%origin%where('shear_modulus') // ': missing (Pa): torsional modes (modes_t = ' // &
+            & itoa(b%modes_t) // ') need the shear modulus'); return
+        end if
+        if (b%r_outer == unset .and. b%torsion_constant == unset) then
+          call fatal_error(error, b%origin%where('torsion_constant') // ': missing (m^4): torsional modes (modes_t = ' // &
+            & itoa(b%modes_t) // ') of a section given by area, iy and iz need its torsion constant'); return
+        end if
       end if
       call check_damping(sc, i, error); if (allocated(error)) return
     end associate
@@ -257,6 +269,13 @@ contains
       character(len=*), intent(in) :: item, unit
       if (x == unset) call fatal_error(error, sc%bodies(i)%origin%where(item) // ': missing ' // unit)
     end subroutine positive
+    !> A count of modes of at most `most` (`says` how the bound is formed).
+    subroutine within(item, count, most, says)
+      character(len=*), intent(in) :: item, says
+      integer, intent(in) :: count, most
+      if (count > most) call fatal_error(error, sc%bodies(i)%origin%where(item) // ': must be 0 to ' // says // &
+        & ' = ' // itoa(most) // ', got ' // itoa(count))
+    end subroutine within
   end subroutine check_beam
 
   subroutine check_joints(sc, errs)
@@ -532,28 +551,29 @@ contains
     end if
   end subroutine check_table_form
 
-  !> Modal damping of body i: fractions in [0, 1) given contiguously from the first mode; its
-  !> initial modal state: one value per mode;
-  !> Rayleigh coefficients >= 0.
+  !> Modal damping of beam i: one value or one per mode; its initial modal state: one value
+  !> per mode (every mode counted: bending, axial, torsional). A modal file's mode count is
+  !> known only when the model reads it (model/build.f90 checks those bodies).
   subroutine check_damping(sc, i, error)
     type(scene_t), intent(in) :: sc
     integer, intent(in) :: i
     type(error_type), allocatable, intent(out) :: error
-    integer :: ng
+    integer :: ng, m
     associate(b => sc%bodies(i))
+      if (b%kind /= 'beam') return
+      m = beam_mode_count(b)
       ng = count(b%modal_damping /= unset)
-      if (b%kind == 'beam' .and. ng > 1 .and. ng /= b%modes_y + b%modes_z) then
+      if (ng > 1 .and. ng /= m) then
         call fatal_error(error, b%origin%where('modal_damping') // ': give one value or one per mode (' // &
-          & itoa(b%modes_y + b%modes_z) // ' modes), got ' // itoa(ng)); return
+          & itoa(m) // ' modes), got ' // itoa(ng)); return
       end if
-      if (b%kind == 'beam' .and. count(b%a0 /= unset) > 0 .and. count(b%a0 /= unset) /= b%modes_y + b%modes_z) then
+      if (count(b%a0 /= unset) > 0 .and. count(b%a0 /= unset) /= m) then
         call fatal_error(error, b%origin%where('a0') // ': give one value per mode (' // &
-          & itoa(b%modes_y + b%modes_z) // ' modes), got ' // itoa(count(b%a0 /= unset))); return
+          & itoa(m) // ' modes), got ' // itoa(count(b%a0 /= unset))); return
       end if
-      if (b%kind == 'beam' .and. count(b%ad0 /= unset) > 0 .and. count(b%ad0 /= unset) /= b%modes_y + b%modes_z) &
-        & then
+      if (count(b%ad0 /= unset) > 0 .and. count(b%ad0 /= unset) /= m) then
         call fatal_error(error, b%origin%where('ad0') // ': give one value per mode (' // &
-          & itoa(b%modes_y + b%modes_z) // ' modes), got ' // itoa(count(b%ad0 /= unset))); return
+          & itoa(m) // ' modes), got ' // itoa(count(b%ad0 /= unset))); return
       end if
     end associate
   end subroutine check_damping
