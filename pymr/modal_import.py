@@ -304,31 +304,102 @@ def direction_groups(m: np.ndarray, dof: np.ndarray, ids: list, path: Path) -> n
     return group
 
 
-def transport(m: np.ndarray, dof: np.ndarray, group: np.ndarray, i: int, j: int) -> np.ndarray | None:
-    """Signed map (ndof, ndof) from the DOFs of direction i to those of direction j, node by
-    node, with S M_ii S^T = M_jj: the two directions' fields are interpolated alike and the
-    cross integrals int rho f_i g_j follow from M. None when there is no such map (other
-    DOFs, or other mass blocks: a beam's axial and bending directions)."""
-    ndof = m.shape[0]
-    s = np.zeros((ndof, ndof))
+def transport(m: np.ndarray, dof: np.ndarray, group: np.ndarray, i: int, j: int):
+    """Signed node-by-node map from the DOFs of direction i to those of direction j, with
+    S M_ii S^T = M_jj: the two directions' fields are interpolated alike and the cross
+    integrals int rho f_i g_j follow from M. As (source rows, target rows, signs), or None
+    when there is no such map (other DOFs, or other mass blocks: a beam's axial and bending
+    directions)."""
+    src, dst, sign = list(dof[:, i]), list(dof[:, j]), [1.0] * dof.shape[0]
     for n in range(dof.shape[0]):
-        s[dof[n, j], dof[n, i]] = 1.0
         ri = [d for d in dof[n, 3:] if d >= 0 and group[d] == i]
         rj = [d for d in dof[n, 3:] if d >= 0 and group[d] == j]
         if len(ri) != len(rj) or len(ri) > 1:
             return None
         if ri:
             # the sign that carries the rotation's coupling with its direction's translations
-            col_i = m[dof[:, i], ri[0]]
-            col_j = m[dof[:, j], rj[0]]
+            col_i, col_j = m[dof[:, i], ri[0]], m[dof[:, j], rj[0]]
             p = int(np.argmax(np.abs(col_i)))
-            s[rj[0], ri[0]] = -1.0 if col_i[p] * col_j[p] < 0 else 1.0
-    mi = np.where(group == i)[0]
-    mj = np.where(group == j)[0]
-    a = (s @ m @ s.T)[np.ix_(mj, mj)]
-    if np.abs(a - m[np.ix_(mj, mj)]).max() > 1e-10 * np.abs(m).max() or len(mi) != len(mj):
+            src.append(ri[0])
+            dst.append(rj[0])
+            sign.append(-1.0 if col_i[p] * col_j[p] < 0 else 1.0)
+    src, dst, sign = np.array(src), np.array(dst), np.array(sign)
+    if len(src) != np.count_nonzero(group == i) or len(dst) != np.count_nonzero(group == j):
         return None
-    return s
+    if np.abs(m[np.ix_(src, src)] * np.outer(sign, sign) - m[np.ix_(dst, dst)]).max() > 1e-10 * np.abs(m).max():
+        return None
+    return src, dst, sign
+
+
+def carried(z: np.ndarray, move) -> np.ndarray:
+    """Fields z (ndof, ...) of one direction moved onto another's DOFs by a transport map."""
+    src, dst, sign = move
+    out = np.zeros_like(z)
+    out[dst] = sign.reshape((-1,) + (1,) * (z.ndim - 1)) * z[src]
+    return out
+
+
+def rigid_moments(m: np.ndarray, r: np.ndarray, u: np.ndarray, path: Path):
+    """What the rigid motions r give exactly: the mass, the first moments F(3, 0:nm), W(0,0)
+    = tr(J0)/2 I - J0 from the inertia tensor J0 about the origin, and the angular couplings
+    int rho s x psi_k (3, nm)."""
+    mr = r.T @ m
+    tt = mr[:3] @ r[:, :3]
+    mass = np.trace(tt) / 3.0
+    if not mass > 0 or np.abs(tt - mass * np.eye(3)).max() > 1e-8 * mass:
+        raise ImportInputError(f"{path}: a rigid translation of the mesh has the masses "
+                               f"{np.diag(tt).round(12).tolist()} along x, y, z (off-diagonal "
+                               f"{np.abs(tt - np.diag(np.diag(tt))).max():.3g}): not this mesh's mass matrix, or "
+                               "another DOF layout")
+    a = mr[:3] @ r[:, 3:]                      # a_ij = int rho e_i . (e_j x s) = eps_ijk S_k
+    first = np.zeros((3, u.shape[1] + 1))
+    first[:, 0] = 0.5 * np.array([a[1, 2] - a[2, 1], a[2, 0] - a[0, 2], a[0, 1] - a[1, 0]])
+    first[:, 1:] = mr[:3] @ u
+    j0 = mr[3:] @ r[:, 3:]
+    j0 = 0.5 * (j0 + j0.T)
+    return mass, first, 0.5 * np.trace(j0) * np.eye(3) - j0, mr[3:] @ u
+
+
+def position_mode_moments(m, dof, s, r, part, u, cr) -> np.ndarray:
+    """W(i, j, 0, k) = int rho s_i psi_k,j (3, 3, nm): s_i carried by direction j's DOFs
+    (along i itself its nodal values with rotations 0; along j != i the j-part of the rigid
+    rotation about the third axis) against M psi_k, with the antisymmetric part set to the
+    exact angular couplings cr."""
+    mu = m @ u
+    w = np.zeros((3, 3, u.shape[1]))
+    for i in range(3):
+        for j in range(3):
+            zij = np.zeros(m.shape[0])
+            if i == j:
+                zij[dof[:, i]] = s[:, i]
+            else:
+                c = 3 - i - j
+                zij = np.cross(np.eye(3)[c], np.eye(3)[i])[j] * r[:, 3 + c] * part[j]
+            w[i, j] = zij @ (part[j][:, None] * mu)
+    half = 0.5 * cr
+    skew = np.array([[np.zeros_like(half[0]), half[2], -half[1]], [-half[2], np.zeros_like(half[0]), half[0]],
+                     [half[1], -half[0], np.zeros_like(half[0])]])
+    return 0.5 * (w + w.transpose(1, 0, 2)) + skew
+
+
+def mode_moments(m, group, part, maps, u) -> np.ndarray:
+    """W(i, j, k, l) = int rho psi_k,i psi_l,j (3, 3, nm, nm): each direction's block, the
+    transported pairs, and the rotary inertia of rotations coupled with no translation."""
+    nm = u.shape[1]
+    w = np.zeros((3, 3, nm, nm))
+    for i in range(3):
+        zi = part[i][:, None] * u
+        for j in range(3):
+            if i == j:
+                w[i, i] = zi.T @ m @ zi
+            elif maps[(i, j)] is not None:
+                w[i, j] = carried(zi, maps[(i, j)]).T @ m @ (part[j][:, None] * u)
+    for c in range(3):
+        rot = np.where(group == 3 + c, 1.0, 0.0)[:, None] * u
+        if rot.any():
+            e = np.eye(3)[c]
+            w += 0.5 * (np.eye(3) - np.outer(e, e))[:, :, None, None] * (rot.T @ m @ rot)[None, None]
+    return w
 
 
 def inertia_invariants(m: np.ndarray, dof: np.ndarray, s: np.ndarray, u: np.ndarray, ids: list, path: Path):
@@ -356,62 +427,19 @@ def inertia_invariants(m: np.ndarray, dof: np.ndarray, s: np.ndarray, u: np.ndar
     ndof, nm = u.shape
     group = direction_groups(m, dof, ids, path)
     r = rigid_modes(dof, s, ndof)
-    mr = r.T @ m
-    tt = mr[:3] @ r[:, :3]
-    mass = np.trace(tt) / 3.0
-    if not mass > 0 or np.abs(tt - mass * np.eye(3)).max() > 1e-8 * mass:
-        raise ImportInputError(f"{path}: a rigid translation of the mesh has the masses "
-                               f"{np.diag(tt).round(12).tolist()} along x, y, z (off-diagonal "
-                               f"{np.abs(tt - np.diag(np.diag(tt))).max():.3g}): not this mesh's mass matrix, or "
-                               "another DOF layout")
-    a = mr[:3] @ r[:, 3:]                      # a_ij = int rho e_i . (e_j x s) = eps_ijk S_k
-    first = np.zeros((3, nm + 1))
-    first[:, 0] = 0.5 * np.array([a[1, 2] - a[2, 1], a[2, 0] - a[0, 2], a[0, 1] - a[1, 0]])
-    first[:, 1:] = mr[:3] @ u
-    j0 = mr[3:] @ r[:, 3:]
-    j0 = 0.5 * (j0 + j0.T)
-    w = np.zeros((3, 3, nm + 1, nm + 1))
-    w[:, :, 0, 0] = 0.5 * np.trace(j0) * np.eye(3) - j0
+    mass, first, w00, cr = rigid_moments(m, r, u, path)
     part = [np.where(group == i, 1.0, 0.0) for i in range(3)]
     maps = {(i, j): transport(m, dof, group, i, j) for i in range(3) for j in range(3) if i != j}
-    # the position's components as fields of each direction: s_i along i itself (its
-    # rotations 0), and along j != i the j-part of the rigid rotation about the third axis
-    z0 = np.zeros((3, 3, ndof))                # z0[i, j] = s_i carried by direction j's DOFs
-    for i in range(3):
-        z0[i, i, dof[:, i]] = s[:, i]
-        for j in range(3):
-            if j != i:
-                c = 3 - i - j
-                sign = np.cross(np.eye(3)[c], np.eye(3)[i])[j]
-                z0[i, j] = sign * r[:, 3 + c] * part[j]
-    mu = m @ u
-    for i in range(3):
-        for j in range(3):
-            w[i, j, 0, 1:] = z0[i, j] @ (part[j][:, None] * mu)
-    cr = mr[3:] @ u                            # int rho s x psi_k, exact
-    for k in range(nm):
-        b = w[:, :, 0, 1 + k]
-        sym = 0.5 * (b + b.T)
-        x, y, z = 0.5 * cr[:, k]
-        b[:, :] = sym + np.array([[0, z, -y], [-z, 0, x], [y, -x, 0]])
-    # modal pairs
-    for i in range(3):
-        zi = part[i][:, None] * u
-        for j in range(3):
-            zj = part[j][:, None] * u
-            if i == j:
-                w[i, i, 1:, 1:] = zi.T @ m @ zi
-            elif maps[(i, j)] is not None:
-                w[i, j, 1:, 1:] = (maps[(i, j)] @ zi).T @ m @ zj
-    for c in range(3):
-        rot = np.where(group == 3 + c, 1.0, 0.0)[:, None] * u
-        if rot.any():
-            w[:, :, 1:, 1:] += 0.5 * (np.eye(3) - np.outer(np.eye(3)[c], np.eye(3)[c]))[:, :, None, None] \
-                * (rot.T @ m @ rot)[None, None]
-    for k in range(nm + 1):
-        w[:, :, k, 0] = w[:, :, 0, k].T
-    missing = [f"{'xyz'[i]}{'xyz'[j]}" for (i, j), sm in maps.items() if sm is None and i < j]
-    exact = "exact" if not missing else f"exact but int rho psi_i psi_j of the pairs {', '.join(missing)} (set 0)"
+    w = np.zeros((3, 3, nm + 1, nm + 1))
+    w[:, :, 0, 0] = w00
+    w[:, :, 0, 1:] = position_mode_moments(m, dof, s, r, part, u, cr)
+    w[:, :, 1:, 0] = w[:, :, 0, 1:].transpose(1, 0, 2)
+    w[:, :, 1:, 1:] = mode_moments(m, group, part, maps, u)
+    # pairs of directions without a transport that the modes both move in
+    moves = [np.abs(part[i][:, None] * u).max() > 1e-9 * np.abs(u).max() for i in range(3)]
+    missing = [f"{'xyz'[i]}-{'xyz'[j]}" for (i, j), sm in maps.items() if sm is None and i < j and moves[i] and moves[j]]
+    exact = "exact" if not missing else \
+        f"exact except int rho psi_i psi_j across {', '.join(missing)} (not in the mass matrix: set 0)"
     return mass, first, w, exact
 
 
