@@ -11,6 +11,7 @@ from .api import (PymrError, SceneError, SolverError, run, model_terms, model_ac
                   force_response, modes)
 
 from .scene import Scene, schema
+from .modal_import import modal_import, ModalBody
 from .plot import PlotError
 from .sweep import SweepError
 
@@ -18,5 +19,6 @@ __version__ = "0.1.0"
 
 __all__ = ["PymrError", "SceneError", "SolverError", "Results", "load_results", "run",
            "model_terms", "model_accelerations", "step_history", "marker_shapes", "model_energy", "model_size", "write_modal_file",
+           "modal_import", "ModalBody",
            "Model", "force_response", "modes", "PlotError", "SweepError", "Scene", "schema",
            "__version__"]

@@ -1,5 +1,5 @@
 """The ``pymr`` command line: ``pymr run``, ``pymr scene``, ``pymr bench``, ``pymr study``,
-``pymr modal-file``, ``pymr plot``, ``pymr sweep``."""
+``pymr modal-file``, ``pymr modal-import``, ``pymr plot``, ``pymr sweep``."""
 from __future__ import annotations
 
 import argparse
@@ -41,6 +41,28 @@ def _cmd_modal_file(args: argparse.Namespace) -> int:
     if not args.quiet:
         print(f"wrote the modes of beam {args.body!r} to {args.output}")
     return 0
+
+
+def _cmd_modal_import(args: argparse.Namespace) -> int:
+    from .modal_import import modal_import
+    modes = None if args.modes == "all" else _count("--modes", args.modes)
+    body = modal_import(args.mass, args.stiffness, args.nodes, args.interface, args.output,
+                        dofs_per_node=None if args.dof_map else args.dofs_per_node, dof_map=args.dof_map,
+                        modes=modes, keep=args.keep, clamp=args.clamp or ())
+    if not args.quiet:
+        k = body.kept
+        print(f"wrote {args.output}: {k['modes_written']} modes of the Craig-Bampton body ({k['fixed_interface_modes']} "
+              f"fixed-interface + {k['constraint_modes']} constraint modes), mass {body.mass:.6g} kg")
+        print("frequencies (Hz): " + " ".join(f"{f:.6g}" for f in body.frequencies_hz))
+        print(f"points (node ids): {' '.join(str(n) for n in body.point_ids)}; inertia invariants {body.exact}")
+    return 0
+
+
+def _count(name: str, text: str) -> int:
+    try:
+        return int(text)
+    except ValueError:
+        raise SceneError(f"{name} {text}: a count of modes, or 'all'") from None
 
 
 def _cmd_modes(args: argparse.Namespace) -> int:
@@ -139,6 +161,26 @@ def build_parser() -> argparse.ArgumentParser:
     m.add_argument("--set", action="append", metavar="GROUP.KEY=VALUE", help="namelist override (repeatable)")
     m.add_argument("-q", "--quiet", action="store_true")
     m.set_defaults(func=_cmd_modal_file)
+    mi = sub.add_parser("modal-import", help="a kind='modal' body from finite-element mass and stiffness matrices "
+                        "(Craig-Bampton reduction)")
+    mi.add_argument("--mass", required=True, help="mass matrix (Matrix Market)")
+    mi.add_argument("--stiffness", required=True, help="stiffness matrix (Matrix Market)")
+    mi.add_argument("--nodes", required=True, help="node coordinates: lines 'id, x, y, z'")
+    lay = mi.add_mutually_exclusive_group()
+    lay.add_argument("--dofs-per-node", type=int, choices=[3, 6], default=6,
+                     help="rows node by node in the nodes file's order: 3 (u_x u_y u_z) or 6 (and theta_x theta_y "
+                          "theta_z) (default 6)")
+    lay.add_argument("--dof-map", help="file of lines 'row node dof' (dof 1-6: u_x u_y u_z theta_x theta_y theta_z)")
+    mi.add_argument("--interface", required=True, nargs="+", type=int, metavar="NODE",
+                    help="interface node ids (joints, markers, loads); the first is the body frame's origin, where "
+                         "the body is clamped to its joint")
+    mi.add_argument("--clamp", nargs="+", type=int, metavar="NODE",
+                    help="more nodes clamped with the origin (a mesh whose nodes carry no rotations needs them)")
+    mi.add_argument("--modes", default="10", help="fixed-interface modes in the reduction, or 'all' (default 10)")
+    mi.add_argument("--keep", type=int, help="write only the lowest KEEP modes of the reduced body (default: all)")
+    mi.add_argument("-o", "--output", required=True, help="modal data file to write (format 2)")
+    mi.add_argument("-q", "--quiet", action="store_true")
+    mi.set_defaults(func=_cmd_modal_import)
     b = sub.add_parser("bench", help="benchmarks that print figures")
     b.add_argument("what", choices=["rhs", "table1", "effects", "spacecraft"],
                    help="rhs: cost of one model evaluation vs chain length; table1: the paper's Table 1 "

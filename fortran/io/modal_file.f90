@@ -1,19 +1,29 @@
 !> Modal data files for `kind='modal'` bodies (format in README.md, "Modal data files").
 !>
 !>   # comment lines start with '#'
-!>   pymr-modal 1
+!>   pymr-modal V                    (V = 1 or 2)
 !>   modes M
 !>   frequencies_hz f_1 ... f_M
+!>   invariants                      (optional, version 2)
+!>   mass m
+!>   first_moments
+!>   alpha F(1:3, alpha)                                  (alpha = 0..M: M+1 lines)
+!>   second_moments
+!>   alpha beta W(1, 1:3) W(2, 1:3) W(3, 1:3)             (alpha = 0..M, beta = alpha..M)
 !>   points P
 !>   x y z mass  psi(1:3, 1) ... psi(1:3, M)  phi(1:3, 1) ... phi(1:3, M)     (P lines)
 !>
 !> Points are in the body frame (m); mass in kg (0 for a point that only carries a
 !> joint or a marker); psi and phi are the mass-normalised translational and rotational
-!> mode shapes at the point. The body's inertia is the sum over the point masses.
+!> mode shapes at the point. Without an invariants block the body's inertia is the sum
+!> over the point masses; with one (written by `pymr modal-import` from finite-element
+!> matrices) the body's mass, first moments F = int rho Z and second moments
+!> W(i,j,alpha,beta) = int rho Z(i,alpha) Z(j,beta), Z = [s, Psi], are given and the points
+!> carry no mass. W(:,:,beta,alpha) = W(:,:,alpha,beta)^T gives the lower triangle.
 module pymr_io_modal_file
   use pymr_kinds, only : dp, pi
   use pymr_error, only : error_type, fatal_error
-  use pymr_model_flexbody, only : flex_data, flex_invariants, modal_nodes
+  use pymr_model_flexbody, only : flex_data, flex_invariants, flex_from_moments, modal_nodes
   use pymr_model_beam_modes, only : beam_shape, beam_point_shapes
   use pymr_io_text, only : itoa
   implicit none
@@ -28,11 +38,12 @@ contains
     type(flex_data), intent(out) :: fd
     type(modal_nodes), intent(out) :: nodes
     type(error_type), allocatable, intent(out) :: error
-    integer :: u, ios, m, np, p, line
+    integer :: u, ios, m, np, p, line, version
     character(len=256) :: msg
     character(len=64) :: key
-    real(dp), allocatable :: f(:), row(:), mp(:)
-    logical :: exists
+    real(dp), allocatable :: f(:), row(:), mp(:), first(:, :), w(:, :, :, :)
+    real(dp) :: mass
+    logical :: exists, given
     inquire(file=path, exist=exists)
     if (.not. exists) then
       call fatal_error(error, path // ': modal file not found'); return
@@ -43,6 +54,11 @@ contains
     end if
     line = 0
     call next_key('pymr-modal'); if (allocated(error)) goto 90
+    backspace(u); read(u, *, iostat=ios) key, version
+    if (ios /= 0 .or. version < 1 .or. version > 2) then
+      call fatal_error(error, path // ': line ' // itoa(line) // ': pymr-modal: expected the format version 1 or 2')
+      goto 90
+    end if
     call next_key('modes'); if (allocated(error)) goto 90
     backspace(u); read(u, *, iostat=ios, iomsg=msg) key, m
     if (ios /= 0 .or. m < 0) then
@@ -54,6 +70,16 @@ contains
     if (ios /= 0 .or. any(f <= 0.0_dp)) then
       call fatal_error(error, path // ': line ' // itoa(line) // ': frequencies_hz: expected ' // itoa(m) // &
         & ' positive frequencies'); goto 90
+    end if
+    call skip_comments(); if (allocated(error)) goto 90
+    read(u, *, iostat=ios) key
+    backspace(u); line = line - 1
+    given = ios == 0 .and. key == 'invariants'
+    if (given) then
+      if (version < 2) then
+        call fatal_error(error, path // ': line ' // itoa(line + 1) // ': invariants: needs pymr-modal 2'); goto 90
+      end if
+      call read_invariants(); if (allocated(error)) goto 90
     end if
     call next_key('points'); if (allocated(error)) goto 90
     backspace(u); read(u, *, iostat=ios, iomsg=msg) key, np
@@ -73,17 +99,62 @@ contains
         call fatal_error(error, path // ': line ' // itoa(line) // ': point ' // itoa(p) // ': negative mass')
         goto 90
       end if
+      if (given .and. row(4) /= 0.0_dp) then
+        call fatal_error(error, path // ': line ' // itoa(line) // ': point ' // itoa(p) // &
+          & ': mass must be 0 (the invariants block gives the body''s inertia)'); goto 90
+      end if
       nodes%x(:, p) = row(1:3); mp(p) = row(4)
       nodes%psi(:, :, p) = reshape(row(5:4 + 3*m), [3, m])
       nodes%phi(:, :, p) = reshape(row(5 + 3*m:4 + 6*m), [3, m])
     end do
-    if (.not. (sum(mp) > 0.0_dp)) then
-      call fatal_error(error, path // ': the points carry no mass'); goto 90
+    if (given) then
+      call flex_from_moments(mass, first, w, fd)
+    else
+      if (.not. (sum(mp) > 0.0_dp)) then
+        call fatal_error(error, path // ': the points carry no mass'); goto 90
+      end if
+      call flex_invariants(nodes%x, mp, nodes%psi, fd)
     end if
-    call flex_invariants(nodes%x, mp, nodes%psi, fd)
     fd%omega2 = (2.0_dp*pi*f)**2
 90  close(u)
   contains
+    !> The invariants block: mass, first moments F(3, 0:m), second moments W (upper triangle
+    !> of the pairs, the lower one by W(:,:,beta,alpha) = W(:,:,alpha,beta)^T).
+    subroutine read_invariants()
+      integer :: al, be, idx(2)
+      real(dp) :: v3(3), v9(9)
+      call next_key('invariants'); if (allocated(error)) return
+      call next_key('mass'); if (allocated(error)) return
+      backspace(u); read(u, *, iostat=ios) key, mass
+      if (ios /= 0 .or. .not. (mass > 0.0_dp)) then
+        call fatal_error(error, path // ': line ' // itoa(line) // ': mass: expected a positive mass'); return
+      end if
+      allocate(first(3, 0:m), w(3, 3, 0:m, 0:m))
+      call next_key('first_moments'); if (allocated(error)) return
+      do al = 0, m
+        call skip_comments(); if (allocated(error)) return
+        read(u, *, iostat=ios) idx(1), v3
+        if (ios /= 0 .or. idx(1) /= al) then
+          call fatal_error(error, path // ': line ' // itoa(line) // ': first_moments: expected ' // itoa(al) // &
+            & ' and F(1:3, ' // itoa(al) // ')'); return
+        end if
+        first(:, al) = v3
+      end do
+      call next_key('second_moments'); if (allocated(error)) return
+      do al = 0, m
+        do be = al, m
+          call skip_comments(); if (allocated(error)) return
+          read(u, *, iostat=ios) idx, v9
+          if (ios /= 0 .or. idx(1) /= al .or. idx(2) /= be) then
+            call fatal_error(error, path // ': line ' // itoa(line) // ': second_moments: expected ' // itoa(al) // &
+              & ' ' // itoa(be) // ' and the 9 numbers of W(1:3, 1:3, ' // itoa(al) // ', ' // itoa(be) // &
+              & ') row by row'); return
+          end if
+          w(:, :, al, be) = transpose(reshape(v9, [3, 3]))
+          w(:, :, be, al) = reshape(v9, [3, 3])
+        end do
+      end do
+    end subroutine read_invariants
     subroutine skip_comments()
       character(len=1024) :: buf
       do

@@ -13,7 +13,7 @@ module pymr_model_flexbody
   use pymr_model_spatial, only : cross, skew, rigid_inertia
   implicit none
   private
-  public :: flex_data, flex_invariants, flex_body_terms, flex_work, small_rotation, point_shapes, modal_nodes
+  public :: flex_data, flex_invariants, flex_from_moments, flex_body_terms, flex_work, small_rotation, point_shapes, modal_nodes
   public :: deformed_modal_moments, undeformed_modal_moments
 
   !> Invariants and modal properties of one flexible body.
@@ -63,34 +63,50 @@ contains
     type(flex_data), intent(inout) :: fd
     integer :: p, m, i, j, al, be
     real(dp) :: z(3, 0:size(psi, 2))
+    real(dp), allocatable :: first(:, :), w(:, :, :, :)
     m = size(psi, 2)
-    fd%m = m
-    allocate(fd%first(3, 0:m), fd%w(3, 3, 0:m, 0:m), fd%mmm(m, m), fd%gyro(3, m, m))
-    fd%first = 0.0_dp; fd%w = 0.0_dp
-    fd%mass = sum(mp)
+    allocate(first(3, 0:m), w(3, 3, 0:m, 0:m))
+    first = 0.0_dp; w = 0.0_dp
     do p = 1, size(mp)
       z(:, 0) = s(:, p)
       z(:, 1:m) = psi(:, :, p)
-      fd%first = fd%first + mp(p)*z
+      first = first + mp(p)*z
       do be = 0, m
         do al = 0, m
           do j = 1, 3
             do i = 1, 3
-              fd%w(i, j, al, be) = fd%w(i, j, al, be) + mp(p)*z(i, al)*z(j, be)
+              w(i, j, al, be) = w(i, j, al, be) + mp(p)*z(i, al)*z(j, be)
             end do
           end do
         end do
       end do
     end do
-    do al = 1, m
-      do be = 1, m
-        fd%mmm(al, be) = fd%w(1, 1, al, be) + fd%w(2, 2, al, be) + fd%w(3, 3, al, be)
-        fd%gyro(:, al, be) = [fd%w(2, 3, al, be) - fd%w(3, 2, al, be), fd%w(3, 1, al, be) - fd%w(1, 3, al, be), &
-          & fd%w(1, 2, al, be) - fd%w(2, 1, al, be)]
-      end do
-    end do
+    call flex_from_moments(sum(mp), first, w, fd)
     fd%ps = s; fd%pm = mp; fd%ppsi = psi
   end subroutine flex_invariants
+
+  !> Invariants from the body's moments: mass, first moments F(3, 0:m) and second moments
+  !> W(3, 3, 0:m, 0:m) (from mass points, or given by a modal file's invariants block); the
+  !> modal mass matrix is the trace of W's modal blocks, the gyroscopic vectors their axial
+  !> vectors.
+  subroutine flex_from_moments(mass, first, w, fd)
+    real(dp), intent(in) :: mass, first(:, 0:), w(:, :, 0:, 0:)
+    type(flex_data), intent(inout) :: fd
+    integer :: m, al, be
+    m = ubound(first, 2)
+    fd%m = m
+    fd%mass = mass
+    allocate(fd%first(3, 0:m), fd%w(3, 3, 0:m, 0:m))
+    fd%first = first; fd%w = w
+    allocate(fd%mmm(m, m), fd%gyro(3, m, m))
+    do al = 1, m
+      do be = 1, m
+        fd%mmm(al, be) = w(1, 1, al, be) + w(2, 2, al, be) + w(3, 3, al, be)
+        fd%gyro(:, al, be) = [w(2, 3, al, be) - w(3, 2, al, be), w(3, 1, al, be) - w(1, 3, al, be), &
+          & w(1, 2, al, be) - w(2, 1, al, be)]
+      end do
+    end do
+  end subroutine flex_from_moments
 
   !> Mode shapes of a point at `x` of the body frame: translation psi = psi0 + phi0 x r
   !> for a point offset r from a node with shapes psi0, phi0 (small rotation of the section).
