@@ -530,16 +530,27 @@ contains
     integer :: i, j
     s = ''
     i = 1
-    do while (i <= len(words))
-      if (words(i:i) == ' ') then
-        i = i + 1; cycle
-      end if
-      j = index(words(i:) // ' ', ' ') + i - 2
+    do
+      call next_word(words, i, j); if (i > len(words)) exit
       s = s // merge(', ', '  ', len(s) > 0) // '''' // words(i:j) // ''''
       i = j + 1
     end do
     if (len(s) > 0) s = s(3:)
   end function quoted_words
+
+  !> The next blank-separated word of `text` from position i on: text(i:j); i > len(text)
+  !> when there is none.
+  pure subroutine next_word(text, i, j)
+    character(len=*), intent(in) :: text
+    integer, intent(inout) :: i
+    integer, intent(out) :: j
+    do while (i <= len(text))
+      if (text(i:i) /= ' ') exit
+      i = i + 1
+    end do
+    j = i - 1
+    if (i <= len(text)) j = index(text(i:) // ' ', ' ') + i - 2
+  end subroutine next_word
 
   !> Text in single quotes, inner quotes doubled.
   function quoted(t) result(s)
@@ -697,11 +708,8 @@ contains
     integer :: i, j, d, dbest
     best = ''; dbest = huge(1)
     i = 1
-    do while (i <= len(names))
-      if (names(i:i) == ' ') then
-        i = i + 1; cycle
-      end if
-      j = index(names(i:) // ' ', ' ') + i - 2
+    do
+      call next_word(names, i, j); if (i > len(names)) exit
       d = edit_distance(lower(word), names(i:j))
       if (d < dbest) then
         dbest = d; best = names(i:j)
