@@ -23,6 +23,9 @@ module pymr_run
   private
   public :: run_scene, load_model, starting_state, default_output, progress_t, progress_t_end, progress_running
 
+  !> 'auto' dynamics: the articulated-body algorithm from this many joint coordinates on.
+  integer, parameter :: articulated_from = 12
+
   !> Markers whose final motion the summary prints (the results hold them all).
   integer, parameter :: max_summary_markers = 10
 
@@ -44,10 +47,24 @@ contains
     integer, intent(in), optional :: n
     call read_scene(file, overrides, sc, error); if (allocated(error)) return
     call build_model(sc, model, error); if (allocated(error)) return
+    call model%use_articulated(articulated_dynamics(sc, model))
     if (present(n)) then
       if (model%d%n /= n) call fatal_error(error, 'q has the wrong length')
     end if
   end subroutine load_model
+
+  !> Whether single-rate evaluations take the articulated-body algorithm: as the scene says,
+  !> or ('auto') from articulated_from joint coordinates on, where it is the faster
+  !> (`pymr bench chain`).
+  logical function articulated_dynamics(sc, model)
+    type(scene_t), intent(in) :: sc
+    type(model_t), intent(in) :: model
+    select case (trim(sc%integrator%dynamics))
+    case ('articulated'); articulated_dynamics = .true.
+    case ('mass_matrix'); articulated_dynamics = .false.
+    case default; articulated_dynamics = model%d%nj >= articulated_from
+    end select
+  end function articulated_dynamics
 
   !> The output must not overwrite what the run reads (the scene, its modal and table files)
   !> nor collide with its own statistics file.
@@ -433,7 +450,7 @@ contains
         & ', "h_min": ', g%h_min, ', "h_max": ', g%h_max, ', "n_corrector": ', g%n_corrector, ', "t_end": ', sc%scene%t_end
       s = '"method": "' // trim(g%method) // trim(buf) // ', "adaptive": ' // trim(merge('true ', 'false', g%adaptive)) &
         & // ', "coupling": "' // trim(g%coupling) // '", "formula": "' // trim(g%formula) // '", "order": ' // &
-        & itoa(g%order) // ', "corrector": "' // trim(g%corrector) // '"'
+        & itoa(g%order) // ', "corrector": "' // trim(g%corrector) // '", "dynamics": "' // trim(g%dynamics) // '"'
     end associate
   end function settings_json
 

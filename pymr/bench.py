@@ -6,28 +6,30 @@ import json
 import re
 import statistics
 import tempfile
+import time
 from pathlib import Path
 
 import numpy as np
 
 from . import _core
 from .api import _raise, model_size
-from .scenes import spatial_chain
+from .scenes import ROD_LENGTH, ROD_MASS, ROD_RADIUS, serial_chain, spatial_chain
 
 
 def time_evaluation(scene: str, q: np.ndarray, qd: np.ndarray, repeats: int = 7,
-                    min_time: float = 0.05) -> float:
-    """Median CPU seconds of one model evaluation (kinematics, assembly, Cholesky solve)."""
+                    min_time: float = 0.05, overrides: str = "") -> float:
+    """Median CPU seconds of one model evaluation (kinematics, body terms, loads, and the
+    solve of M qdd = P by the scene's forward-dynamics path)."""
     reps = 1
     while True:
-        sec, stat, msg = _core.pymr_time_evaluation(scene, "", q, qd, reps)
+        sec, stat, msg = _core.pymr_time_evaluation(scene, overrides, q, qd, reps)
         _raise(stat, msg)
         if sec * reps >= min_time or reps >= 1 << 20:
             break
         reps *= 4
     samples = []
     for _ in range(repeats):
-        sec, stat, msg = _core.pymr_time_evaluation(scene, "", q, qd, reps)
+        sec, stat, msg = _core.pymr_time_evaluation(scene, overrides, q, qd, reps)
         _raise(stat, msg)
         samples.append(sec)
     return statistics.median(samples)
@@ -85,7 +87,137 @@ def bench_tank_run(repeats: int = 3) -> dict:
             "rhs_full": res.stats["rhs_full"]}
 
 
-def main(what: str, repeats: int | None = None, json_path: str | None = None) -> int:
+CHAIN_LINKS = (5, 10, 20, 30, 50, 100, 200)
+
+
+def pinocchio_chain(links: int):
+    """Pinocchio's model of ``scenes.serial_chain(links)`` (needs the optional package ``pin``)."""
+    import pinocchio as pin
+    model = pin.Model()
+    parent = 0
+    i_axial, i_cross = 0.5 * ROD_MASS * ROD_RADIUS ** 2, ROD_MASS * ROD_LENGTH ** 2 / 12.0
+    for i in range(links):
+        placement = pin.SE3(np.eye(3), np.array([0.0 if i == 0 else ROD_LENGTH, 0.0, 0.0]))
+        joint = pin.JointModelRZ() if i % 2 == 0 else pin.JointModelRX()
+        jid = model.addJoint(parent, joint, placement, "j%d" % (i + 1))
+        model.appendBodyToJoint(jid, pin.Inertia(ROD_MASS, np.array([ROD_LENGTH / 2, 0.0, 0.0]),
+                                                 np.diag([i_axial, i_cross, i_cross])), pin.SE3.Identity())
+        parent = jid
+    model.gravity = pin.Motion(np.array([0.0, -9.81, 0.0]), np.zeros(3))
+    return model
+
+
+def _median_cpu(f, repeats: int, min_time: float = 0.05) -> float:
+    reps = 1
+    while True:
+        c0 = time.process_time()
+        for _ in range(reps):
+            f()
+        if time.process_time() - c0 >= min_time or reps >= 1 << 20:
+            break
+        reps *= 4
+    samples = []
+    for _ in range(repeats):
+        c0 = time.process_time()
+        for _ in range(reps):
+            f()
+        samples.append((time.process_time() - c0) / reps)
+    return statistics.median(samples)
+
+
+def _pinocchio_python(links: int, q: np.ndarray, qd: np.ndarray, repeats: int) -> tuple[float, float, np.ndarray]:
+    """Pinocchio through its Python binding: ABA and CRBA + Cholesky (us per call, a Python
+    call's overhead included), and ABA's accelerations."""
+    import pinocchio as pin
+    model = pinocchio_chain(links)
+    data = model.createData()
+    tau = np.zeros(links)
+
+    def crba_cholesky():
+        pin.crba(model, data, q)
+        pin.nonLinearEffects(model, data, q, qd)
+        pin.cholesky.decompose(model, data)
+        pin.cholesky.solve(model, data, -data.nle)
+    aba = _median_cpu(lambda: pin.aba(model, data, q, qd, tau), repeats) * 1e6
+    crba = _median_cpu(crba_cholesky, repeats) * 1e6
+    return aba, crba, pin.aba(model, data, q, qd, tau).copy()
+
+
+def _pinocchio_compiled(exe: str, q: np.ndarray, qd: np.ndarray) -> tuple[float, float]:
+    """Pinocchio compiled (docs/pinocchio_chain.cpp): ABA and CRBA + Cholesky, us."""
+    import subprocess
+    text = "%d\n%s\n%s\n" % (len(q), " ".join("%.17g" % x for x in q), " ".join("%.17g" % x for x in qd))
+    out = subprocess.run([exe], input=text, capture_output=True, text=True, check=True).stdout.split("\n")
+    aba, crba = (float(x) for x in out[1].split())
+    return aba, crba
+
+
+def bench_chain(links=CHAIN_LINKS, repeats: int = 7, pinocchio_cpp: str | None = None) -> list[dict]:
+    """One evaluation of the serial chain per length: pymr by each forward-dynamics path,
+    Pinocchio (Python binding, and compiled when given) at the same random state."""
+    try:
+        import pinocchio  # noqa: F401
+        have_pin = True
+    except ImportError:
+        have_pin = False
+    rows = []
+    rng = np.random.default_rng(0)
+    with tempfile.TemporaryDirectory(prefix="pymr-bench-") as tmp:
+        for n in links:
+            path = Path(tmp) / f"chain{n}.nml"
+            path.write_text(serial_chain(n))
+            q, qd = 0.3 * rng.standard_normal(n), 0.3 * rng.standard_normal(n)
+            row = {"links": n}
+            for dyn in ("articulated", "mass_matrix"):
+                row[dyn] = time_evaluation(str(path), q, qd, repeats, overrides=f"integrator.dynamics='{dyn}'") * 1e6
+            if have_pin:
+                from .api import Model
+                row["pin_aba_py"], row["pin_crba_py"], ref = _pinocchio_python(n, q, qd, repeats)
+                with Model(path, {"integrator.dynamics": "articulated"}) as model:
+                    ours = model.rhs(0.0, np.concatenate([q, qd]))[n:]
+                row["pin_difference"] = float(np.abs(ours - ref).max() / np.abs(ref).max())
+            if pinocchio_cpp:
+                row["pin_aba"], row["pin_crba"] = _pinocchio_compiled(pinocchio_cpp, q, qd)
+            rows.append(row)
+    return rows
+
+
+def print_chain(rows: list[dict]) -> None:
+    print("pymr bench chain: one evaluation of a serial chain of N rods (revolute axes alternating z and x, "
+          "hanging), median us of CPU")
+    head = f"{'N':>5} {'articulated':>12} {'growth':>7} {'mass_matrix':>12}"
+    pin_py = "pin_aba_py" in rows[0]
+    pin_c = "pin_aba" in rows[0]
+    if pin_c:
+        head += f" {'pin ABA':>8} {'pin CRBA+chol':>13} {'art/ABA':>8} {'art/CRBA':>9}"
+    if pin_py:
+        head += f" {'pin ABA (py)':>12} {'CRBA+chol (py)':>14} {'|dqdd|/|qdd|':>12}"
+    print(head)
+    prev = None
+    for r in rows:
+        growth = ""
+        if prev is not None:
+            growth = "N^%.2f" % (np.log(r["articulated"] / prev["articulated"]) / np.log(r["links"] / prev["links"]))
+        line = f"{r['links']:>5} {r['articulated']:>12.2f} {growth:>7} {r['mass_matrix']:>12.2f}"
+        if pin_c:
+            line += (f" {r['pin_aba']:>8.2f} {r['pin_crba']:>13.2f} {r['articulated'] / r['pin_aba']:>8.2f} "
+                     f"{r['articulated'] / r['pin_crba']:>9.2f}")
+        if pin_py:
+            line += f" {r['pin_aba_py']:>12.2f} {r['pin_crba_py']:>14.2f} {r['pin_difference']:>12.1e}"
+        print(line)
+        prev = r
+    if not pin_py:
+        print("(Pinocchio columns need the optional package pin: pip install pin)")
+
+
+def main(what: str, repeats: int | None = None, json_path: str | None = None,
+         pinocchio_cpp: str | None = None) -> int:
+    if what == "chain":
+        rows = bench_chain(repeats=repeats or 7, pinocchio_cpp=pinocchio_cpp)
+        print_chain(rows)
+        if json_path:
+            Path(json_path).write_text(json.dumps(rows, indent=2))
+        return 0
     if what == "rhs":
         repeats = repeats or 7
         rows = bench_rhs(repeats=repeats) + bench_scenes(repeats=repeats)

@@ -32,7 +32,7 @@ def _cmd_scene(args: argparse.Namespace) -> int:
 
 def _cmd_bench(args: argparse.Namespace) -> int:
     from . import bench
-    return bench.main(args.what, repeats=args.repeats, json_path=args.json)
+    return bench.main(args.what, repeats=args.repeats, json_path=args.json, pinocchio_cpp=args.pinocchio_cpp)
 
 
 def _cmd_modal_file(args: argparse.Namespace) -> int:
@@ -182,10 +182,13 @@ def build_parser() -> argparse.ArgumentParser:
     mi.add_argument("-q", "--quiet", action="store_true")
     mi.set_defaults(func=_cmd_modal_import)
     b = sub.add_parser("bench", help="benchmarks that print figures")
-    b.add_argument("what", choices=["rhs", "table1", "effects", "spacecraft"],
-                   help="rhs: cost of one model evaluation vs chain length; table1: the paper's Table 1 "
-                        "(tank, step ratios 1-50, both couplings); effects: cost of one tank evaluation "
-                        "with each effect on and off")
+    b.add_argument("what", choices=["rhs", "chain", "table1", "effects", "spacecraft"],
+                   help="rhs: cost of one model evaluation vs chain length; chain: the serial chain of N "
+                        "rods, N = 5 to 200, by both forward-dynamics paths and (when installed) Pinocchio; "
+                        "table1: the paper's Table 1 (tank, step ratios 1-50, both couplings); effects: cost "
+                        "of one tank evaluation with each effect on and off")
+    b.add_argument("--pinocchio-cpp", metavar="EXE",
+                   help="chain: also time Pinocchio compiled, by this build of docs/pinocchio_chain.cpp")
     b.add_argument("--repeats", type=int, default=None,
                    help="timing repeats, median reported (default 7 for rhs and effects, 21 for table1)")
     b.add_argument("--json", help="also write the figures to this JSON file")

@@ -38,3 +38,29 @@ def spatial_chain(n_bodies: int, *, free_base: bool = True, gravity: bool = True
         lines.append("&joint name='j%d', kind='revolute', parent='%s', child='b%d', at=%s, axis=%s, q0=%s, "
                      "qd0=%s /" % (i + 1, parent, i + 1, f(*at), f(*ax), f(q0), f(qd0)))
     return "\n".join(lines) + "\n"
+
+
+#: The serial chain of ``pymr bench chain``: uniform rods of this length (m), mass (kg) and
+#: radius (m), the rods' inertias those of a slender cylinder.
+ROD_LENGTH, ROD_MASS, ROD_RADIUS = 0.5, 1.0, 0.02
+
+
+def serial_chain(links: int, *, t_end: float = 1.0, h: float = 1e-4) -> str:
+    """A serial chain of ``links`` uniform rods along their x axes, hanging under gravity
+    (-y) from revolute joints whose axes alternate z and x, each at the end of the rod before
+    (the benchmark chain of issue 18, and Pinocchio's twin in ``pymr.bench``)."""
+    m, length, r = ROD_MASS, ROD_LENGTH, ROD_RADIUS
+    i_axial, i_cross = 0.5 * m * r * r, m * length * length / 12.0
+    lines = ["&scene title='serial chain of %d rods', t_end=%r, gravity=0.0, -9.81, 0.0 /" % (links, t_end),
+             "&integrator method='single', h_slow=%r /" % h,
+             "&effects gravity=.true. /",
+             "&body name='ground', kind='ground' /"]
+    for i in range(links):
+        lines.append("&body name='rod%d', kind='rigid', mass=%r, com=%r, 0.0, 0.0, inertia=%r, %r, %r, 0.0, 0.0, "
+                     "0.0 /" % (i + 1, m, length / 2, i_axial, i_cross, i_cross))
+    for i in range(links):
+        parent = "ground" if i == 0 else "rod%d" % i
+        axis = "0.0, 0.0, 1.0" if i % 2 == 0 else "1.0, 0.0, 0.0"
+        lines.append("&joint name='j%d', kind='revolute', parent='%s', child='rod%d', at=%r, 0.0, 0.0, axis=%s /"
+                     % (i + 1, parent, i + 1, 0.0 if i == 0 else length, axis))
+    return "\n".join(lines) + "\n"

@@ -5,6 +5,7 @@ is not UTF-8 is refused at read, and an output path that would overwrite what th
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 from pathlib import Path
 
@@ -87,7 +88,10 @@ def test_refused_and_failed_runs_leave_the_earlier_complete_result(tmp_path, mrs
     assert (tmp_path / "out.csv").read_bytes() == csv_before
     assert (tmp_path / "out.json").read_bytes() == json_before
     partial = json.loads((tmp_path / "out.json.partial").read_text())
-    assert partial["status"] == "failed" and "effective mass matrix M_e" in partial["error"]
+    # the diverging run fails where its values first leave LAPACK's range (which matrix that
+    # is depends on roundoff); the partial JSON carries that error and the time reached
+    assert partial["status"] == "failed" and partial["error"] == failed.stderr.strip().removeprefix("mrsim: error: ")
+    assert re.search(r"at t = .* s: .*(M_e|M_ff|mass matrix)", partial["error"])
     rows = [ln for ln in (tmp_path / "out.csv.partial").read_text().splitlines() if not ln.startswith("#")][1:]
     assert len(rows) >= 2 and float(rows[-1].split(",")[0]) <= partial["t_reached"] + 1e-12
 

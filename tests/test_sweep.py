@@ -4,6 +4,7 @@ SLURM emission writes case namelists (the kernel's resolved scenes) whose mrsim 
 from __future__ import annotations
 
 import csv
+import re
 import subprocess
 from pathlib import Path
 
@@ -80,7 +81,9 @@ def test_a_failing_case_is_recorded_and_the_others_run(tmp_path):
     toml = tmp_path / "bad.toml"
     toml.write_text(FAILING_CASE.format(scene=TANK, top="", extra=""))
     rows = run_sweep(load_sweep(toml), workers=2)
-    assert rows[0]["status"].startswith("error: ") and "effective mass matrix M_e" in rows[0]["status"]
+    # the run breaks down where its values first leave LAPACK's range (which matrix: roundoff)
+    assert rows[0]["status"].startswith("error: ") and re.search(r"at t = .* s: .*(M_e|M_ff|mass matrix)",
+                                                                  rows[0]["status"])
     assert np.isnan(rows[0]["metric"])
     assert rows[1]["status"] == "ok"
     alone = pymr.run(TANK, overrides={"integrator.method": "multirate", "integrator.coupling": "full",

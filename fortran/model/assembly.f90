@@ -8,7 +8,6 @@
 module pymr_model_assembly
   use pymr_kinds, only : dp
   use pymr_model_types, only : model_data, effect_deformation_inertia
-  use pymr_model_spatial, only : force_cross, rigid_inertia
   use pymr_model_flexbody, only : flex_body_terms
   implicit none
   private
@@ -24,8 +23,8 @@ contains
     !> Restrict to these bodies (the fast rows).
     logical, intent(in), optional :: only(:)
     integer :: b, m
-    real(dp) :: c(3), icw(3, 3)
     logical :: modal_only
+    real(dp) :: r(3, 3), ib(3, 3), c(3)
     do b = 2, d%nb
       modal_only = .false.
       if (present(only)) then
@@ -40,13 +39,45 @@ contains
           & d%w(:, b), d%wam(1:m, b), modal_only, d%effect_on(effect_deformation_inertia))
         cycle
       end if
-      c = d%pos(:, b) + matmul(d%rot(:, :, b), d%com(:, b))
-      icw = matmul(d%rot(:, :, b), matmul(d%inertia(:, :, b), transpose(d%rot(:, :, b))))
-      d%i6(:, :, b) = rigid_inertia(d%mass(b), c, icw)
-      d%w(:, b) = matmul(d%i6(:, :, b), d%acc(:, b)) + &
-        & force_cross(d%vel(:, b), matmul(d%i6(:, :, b), d%vel(:, b)))
+      r = d%rot(:, :, b); ib = d%inertia(:, :, b); c = d%com(:, b)
+      call rigid_body_terms(d%mass(b), d%pos(:, b) + matmul(r, c), matmul(r, matmul(ib, transpose(r))), &
+        & d%vel(:, b), d%acc(:, b), d%i6(:, :, b), d%w(:, b))
     end do
   end subroutine body_terms
+
+  !> Spatial inertia i6 about the inertial origin of a rigid body (mass m, centre c, inertia
+  !> ic about c, inertial axes) and its bias wrench w = i6 a + v x* (i6 v) at velocity
+  !> v = [v_O; omega] and bias acceleration a, written out: with J = ic + m (|c|^2 - c c^T),
+  !> i6 x = [m (x_O + x_w x c); m c x x_O + J x_w].
+  pure subroutine rigid_body_terms(m, c, ic, v, a, i6, w)
+    real(dp), intent(in) :: m, c(3), ic(3, 3), v(6), a(6)
+    real(dp), intent(out) :: i6(6, 6), w(6)
+    real(dp) :: j(3, 3), hl(3), ha(3), fl(3), fa(3), cc
+    integer :: k
+    cc = c(1)**2 + c(2)**2 + c(3)**2
+    do k = 1, 3
+      j(:, k) = ic(:, k) - m*c*c(k)
+      j(k, k) = j(k, k) + m*cc
+    end do
+    i6(1:3, 1:3) = 0.0_dp
+    i6(1, 1) = m; i6(2, 2) = m; i6(3, 3) = m
+    ! the blocks m c~^T and m c~
+    i6(1:3, 4) = [0.0_dp, -m*c(3), m*c(2)]
+    i6(1:3, 5) = [m*c(3), 0.0_dp, -m*c(1)]
+    i6(1:3, 6) = [-m*c(2), m*c(1), 0.0_dp]
+    i6(4:6, 1:3) = transpose(i6(1:3, 4:6))
+    i6(4:6, 4:6) = j
+    hl = m*(v(1:3) + x3(v(4:6), c)); ha = m*x3(c, v(1:3)) + matmul(j, v(4:6))
+    fl = m*(a(1:3) + x3(a(4:6), c)); fa = m*x3(c, a(1:3)) + matmul(j, a(4:6))
+    w(1:3) = fl + x3(v(4:6), hl)
+    w(4:6) = fa + x3(v(1:3), hl) + x3(v(4:6), ha)
+  contains
+    pure function x3(p, q) result(r)
+      real(dp), intent(in) :: p(3), q(3)
+      real(dp) :: r(3)
+      r = [p(2)*q(3) - p(3)*q(2), p(3)*q(1) - p(1)*q(3), p(1)*q(2) - p(2)*q(1)]
+    end function x3
+  end subroutine rigid_body_terms
 
   !> Composite inertia and wrench of each subtree, from the leaves to the base.
   pure subroutine composite_terms(d, only)

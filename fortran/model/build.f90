@@ -410,9 +410,12 @@ contains
       if (allocated(error)) return
       call spline_setup(d%tables(j), where_file, error); if (allocated(error)) return
     end do
+    allocate(d%prescribed(d%n))
+    d%prescribed = .false.
     do i = 1, d%n_prescribed
       associate(mo => sc%motions(i))
         d%pres_coord(i) = coordinate_index(mo%joint, mo%coordinate)
+        d%prescribed(d%pres_coord(i)) = .true.
         d%pres_form(i) = motion_sine
         if (mo%form == 'spinup') d%pres_form(i) = motion_spinup
         if (mo%form == 'table') d%pres_form(i) = motion_table

@@ -8,7 +8,7 @@
 module pymr_model_kinematics
   use pymr_kinds, only : dp
   use pymr_model_types, only : model_data, prim_revolute
-  use pymr_model_spatial, only : cross, rot_axis, motion_cross
+  use pymr_model_spatial, only : cross, motion_cross
   use pymr_model_flexbody, only : small_rotation
   implicit none
   private
@@ -42,7 +42,7 @@ contains
         u = matmul(rf, d%axis(:, k))
         if (d%prim(k) == prim_revolute) then
           sk(1:3) = cross(pf, u); sk(4:6) = u
-          rf = matmul(rf, rot_axis(d%axis(:, k), q(k)))
+          call turn_frame(rf, u, q(k))
         else
           sk(1:3) = u; sk(4:6) = 0.0_dp
           pf = pf + u*q(k)
@@ -54,6 +54,23 @@ contains
       d%rot(:, :, b) = rf; d%pos(:, b) = pf; d%vel(:, b) = vf; d%acc(:, b) = af
     end do
   end subroutine forward_kinematics
+
+  !> Turn the frame rf (its columns, inertial) by angle about the inertial unit axis u
+  !> (Rodrigues: c cos + (u x c) sin + u (u . c)(1 - cos) for each column c).
+  pure subroutine turn_frame(rf, u, angle)
+    real(dp), intent(inout) :: rf(3, 3)
+    real(dp), intent(in) :: u(3), angle
+    real(dp) :: c, s, uc, col(3)
+    integer :: j
+    c = cos(angle); s = sin(angle)
+    do j = 1, 3
+      col = rf(:, j)
+      uc = (u(1)*col(1) + u(2)*col(2) + u(3)*col(3))*(1.0_dp - c)
+      rf(1, j) = col(1)*c + (u(2)*col(3) - u(3)*col(2))*s + u(1)*uc
+      rf(2, j) = col(2)*c + (u(3)*col(1) - u(1)*col(3))*s + u(2)*uc
+      rf(3, j) = col(3)*c + (u(1)*col(2) - u(2)*col(1))*s + u(3)*uc
+    end do
+  end subroutine turn_frame
 
   !> Joint frame of body b on flexible parent a with modal coordinates aa and rates ad:
   !> pose (rf, pf), and the modal contributions to velocity vf and bias acceleration af.

@@ -1,7 +1,8 @@
 !> The multibody model as an ODE system: state x = [q; qd], f = [qd; qdd] with M qdd = P.
 module pymr_model
   use pymr_kinds, only : dp
-  use pymr_error, only : error_type, prefix_error
+  use, intrinsic :: ieee_arithmetic, only : ieee_is_finite
+  use pymr_error, only : error_type, prefix_error, fatal_error, stat_solver
   use pymr_lapack, only : potrf, potrs, factor_inverse
   use pymr_integrator_ode, only : partitioned_system
   use pymr_clock, only : thread_cpu_time
@@ -11,6 +12,7 @@ module pymr_model
   use pymr_model_kinematics, only : forward_kinematics
   use pymr_model_flexbody, only : deformed_modal_moments
   use pymr_model_assembly, only : body_terms, composite_terms, assemble_mass, assemble_rhs, kinetic_energy
+  use pymr_model_articulated, only : articulated_accelerations
   use pymr_model_effects, only : add_gravity, add_joint_drives, add_modal_damping, gravity_potential, &
     & elastic_potential, add_joint_springs, spring_potential, add_geometric_stiffening, impose_prescribed_state, &
     & prescribe_rows, add_firing_load, add_carried_load_stiffening
@@ -61,6 +63,7 @@ module pymr_model
     procedure :: init_partition => model_init_partition
     procedure :: save_run => model_save_run
     procedure :: load_run => model_load_run
+    procedure :: use_articulated => model_use_articulated
     procedure :: counters => model_get_counters
     procedure :: set_counters => model_set_counters
   end type model_t
@@ -91,8 +94,8 @@ contains
     type(model_data), intent(inout) :: d
     real(dp), intent(in) :: t, q(:), qd(:)
     logical, intent(in) :: fo
-    call forward_kinematics(d, q, qd)
     if (fo) then
+      call forward_kinematics(d, q, qd)
       if (d%effect_on(effect_deformation_inertia)) call timed_deformation(d, q, d%in_fast)
       call body_terms(d, q, qd, d%in_fast)
       call apply_effects(d, t, q, qd, d%in_fast, .true.)
@@ -102,10 +105,7 @@ contains
       call assemble_rhs(d, d%in_fast)
       d%evals_fast_rows = d%evals_fast_rows + 1
     else
-      if (d%effect_on(effect_deformation_inertia)) call timed_deformation(d, q, d%every)
-      call body_terms(d, q, qd)
-      d%tau = 0.0_dp
-      call apply_effects(d, t, q, qd, d%every, .false.)
+      call body_loads(d, t, q, qd)
       call composite_terms(d)
       if (d%effect_on(effect_geometric_stiffening)) call add_carried_load_stiffening(d, q, d%every)
       call assemble_mass(d)
@@ -114,6 +114,56 @@ contains
     end if
     if (d%n_prescribed > 0) call timed_prescribe_rows(d, t)
   end subroutine terms_at
+
+  !> A full evaluation's kinematics, body terms and applied loads (the bias wrenches and
+  !> modal forces with the effects, and the joint loads tau).
+  subroutine body_loads(d, t, q, qd)
+    type(model_data), intent(inout) :: d
+    real(dp), intent(in) :: t, q(:), qd(:)
+    call forward_kinematics(d, q, qd)
+    if (d%effect_on(effect_deformation_inertia)) call timed_deformation(d, q, d%every)
+    call body_terms(d, q, qd)
+    d%tau = 0.0_dp
+    call apply_effects(d, t, q, qd, d%every, .false.)
+  end subroutine body_loads
+
+  !> Accelerations by the articulated-body algorithm at a state with the prescribed
+  !> coordinates imposed (geometric stiffness from carried loads needs the composite wrenches).
+  subroutine articulated_at(d, t, q, qd, qdd, error)
+    type(model_data), intent(inout) :: d
+    real(dp), intent(in) :: t, q(:), qd(:)
+    real(dp), intent(out) :: qdd(:)
+    type(error_type), allocatable, intent(out) :: error
+    integer :: k
+    call body_loads(d, t, q, qd)
+    if (d%effect_on(effect_geometric_stiffening)) then
+      call composite_terms(d)
+      call add_carried_load_stiffening(d, q, d%every)
+    end if
+    call articulated_accelerations(d, t, qdd, error)
+    d%evals = d%evals + 1
+    if (allocated(error)) return
+    do k = 1, d%n
+      if (.not. ieee_is_finite(qdd(k))) then
+        call fatal_error(error, 'non-finite acceleration of coordinate ' // trim(d%qname(k)) // &
+          & ' (the state or a load is out of range)', stat_solver); return
+      end if
+    end do
+  end subroutine articulated_at
+
+  !> Solve single-rate evaluations by the articulated-body algorithm (on) or through M (off).
+  subroutine model_use_articulated(self, on)
+    class(model_t), intent(inout) :: self
+    logical, intent(in) :: on
+    integer :: nb, mx
+    self%d%articulated = on
+    if (.not. on .or. allocated(self%d%ab_ia)) return
+    nb = self%d%nb; mx = max(self%d%mmax, 1)
+    allocate(self%d%ab_nf(nb), self%d%ab_col(6, nb), self%d%ab_ia(6, 6, nb), self%d%ab_pa(6, nb), &
+      & self%d%ab_u(6, 6, nb), self%d%ab_d(6, 6, nb), self%d%ab_r(6, nb), self%d%ab_lin(6, nb), &
+      & self%d%ab_kaa(mx, mx, nb), self%d%ab_kam(6, mx, nb), self%d%ab_ba(mx, nb))
+    self%d%ab_nf = 0
+  end subroutine model_use_articulated
 
   !> The effect plan: each active effect's routine, in plan order, on the bodies in
   !> `mask`; joint loads only in full evaluations. Every 32nd evaluation times each effect
@@ -200,6 +250,16 @@ contains
     real(dp), intent(out), contiguous :: qdd(:)
     type(error_type), allocatable, intent(out) :: error
     integer :: minor
+    if (self%d%articulated) then
+      if (self%d%n_prescribed > 0) then
+        call impose_prescribed_state(self%d, t, q, qd)
+        call articulated_at(self%d, t, self%d%qx, self%d%qdx, qdd, error)
+      else
+        call articulated_at(self%d, t, q, qd, qdd, error)
+      end if
+      call add_time(error, t)
+      return
+    end if
     call self%terms(t, q, qd)
     associate(d => self%d)
       d%lf = d%mm

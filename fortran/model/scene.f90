@@ -60,6 +60,9 @@ module pymr_model_scene
     integer :: order = 0
     !> Iteration of the 'adams' corrector: 'newton' or 'fixed-point'.
     character(len=12) :: corrector = 'newton'
+    !> Forward dynamics of single-rate evaluations: 'auto', 'articulated' (O(n)) or
+    !> 'mass_matrix' (assemble and factor M).
+    character(len=12) :: dynamics = 'auto'
     type(origin_t) :: origin
   end type integrator_spec
 
@@ -265,6 +268,10 @@ contains
     call t%add('corrector', g%corrector, "iteration of the 'adams' corrector to convergence: 'newton' (chord " // &
       & "iteration with a difference Jacobian, refreshed every 20 steps) or 'fixed-point' (no Jacobian)", &
       & choices='newton fixed-point')
+    call t%add('dynamics', g%dynamics, "how single-rate evaluations solve M qdd = P: 'articulated' (the " // &
+      & "articulated-body algorithm, O(n), flexible bodies included), 'mass_matrix' (assemble M and P and " // &
+      & "factor M, O(n^3)) or 'auto' (articulated from 12 joint coordinates on, where it is the faster; " // &
+      & "multirate and the pre-flight check always use M)", choices='auto articulated mass_matrix')
     call t%add('k_max', g%k_max, '-', 'largest step ratio H/h of adaptive multirate', ge=1, le=100000)
     call t%add('stability_check', g%stability_check, 'refuse fixed steps that the pre-flight check finds unstable')
     call t%add('max_steps', g%max_steps, '-', 'most (fast) steps a run may take: a fixed-step run needing more is ' // &

@@ -8,7 +8,7 @@ module pymr_model_spatial
   use pymr_kinds, only : dp
   implicit none
   private
-  public :: cross, skew, rot_axis, motion_cross, force_cross, rigid_inertia, unit_axes, quaternion
+  public :: cross, skew, motion_cross, rigid_inertia, unit_axes, quaternion
 
   !> Unit vectors e_x, e_y, e_z as columns.
   real(dp), parameter :: unit_axes(3, 3) = reshape([1.0_dp, 0.0_dp, 0.0_dp, 0.0_dp, 1.0_dp, 0.0_dp, &
@@ -32,18 +32,6 @@ contains
     s(1, 3) = a(2); s(2, 3) = -a(1); s(3, 3) = 0.0_dp
   end function skew
 
-  !> Rotation matrix by `angle` (rad) about the unit vector `u` (Rodrigues).
-  pure function rot_axis(u, angle) result(r)
-    real(dp), intent(in) :: u(3), angle
-    real(dp) :: r(3, 3), s(3, 3)
-    integer :: i
-    s = skew(u)
-    r = sin(angle)*s + (1.0_dp - cos(angle))*matmul(s, s)
-    do i = 1, 3
-      r(i, i) = r(i, i) + 1.0_dp
-    end do
-  end function rot_axis
-
   !> Spatial motion cross product v x s for v = [v_O; w], s = [s_v; s_w]:
   !> [w x s_v + v_O x s_w; w x s_w] (rate of a motion vector fixed in a frame moving with v).
   pure function motion_cross(v, s) result(r)
@@ -52,15 +40,6 @@ contains
     r(1:3) = cross(v(4:6), s(1:3)) + cross(v(1:3), s(4:6))
     r(4:6) = cross(v(4:6), s(4:6))
   end function motion_cross
-
-  !> Spatial force cross product v x* f for v = [v_O; w], f = [f; n]:
-  !> [w x f; v_O x f + w x n].
-  pure function force_cross(v, f) result(r)
-    real(dp), intent(in) :: v(6), f(6)
-    real(dp) :: r(6)
-    r(1:3) = cross(v(4:6), f(1:3))
-    r(4:6) = cross(v(1:3), f(1:3)) + cross(v(4:6), f(4:6))
-  end function force_cross
 
   !> Spatial inertia (6x6) about the inertial origin of a rigid body of mass m with
   !> centre of mass c (inertial) and inertia ic (3x3 about the centre of mass, inertial axes).

@@ -109,6 +109,17 @@ module pymr_model_types
     real(dp), allocatable :: i6(:, :, :), w(:, :), ic(:, :, :), wc(:, :)
     !> Mass matrix, its Cholesky factor, right-hand side, generalised applied forces.
     real(dp), allocatable :: mm(:, :), lf(:, :), p(:), tau(:)
+    !> Per coordinate: prescribed by a &motion (base_motion on).
+    logical, allocatable :: prescribed(:)
+    !> Forward dynamics by the articulated-body algorithm (model/articulated.f90) instead of
+    !> assembling and factoring M, and its work: per body the articulated inertia and bias
+    !> after its joint, the joint's free columns, U = IA S, the factor of D = S^T U and
+    !> u = tau - S^T pA, the part of the acceleration linear in qdd, and a flexible body's
+    !> factored K_aa, K_Aa and b_a.
+    logical :: articulated = .false.
+    integer, allocatable :: ab_nf(:), ab_col(:, :)
+    real(dp), allocatable :: ab_ia(:, :, :), ab_pa(:, :), ab_u(:, :, :), ab_d(:, :, :), ab_r(:, :), ab_lin(:, :)
+    real(dp), allocatable :: ab_kaa(:, :, :), ab_kam(:, :, :), ab_ba(:, :)
     !> Bodies on or below a flexible body (whose terms the fast rows need).
     logical, allocatable :: in_fast(:)
     !> Evaluation counters: full assemblies, fast-row assemblies.

@@ -1,0 +1,300 @@
+!> Forward dynamics in O(n): the articulated-body algorithm (Featherstone) in inertial
+!> Pluecker coordinates, extended to flexible bodies, as an alternative to assembling M and
+!> P and factoring M (model/assembly.f90). It solves the same equations, M qdd = P, after
+!> the same body terms.
+!>
+!> Every spatial quantity is inertial, as in the assembly, so no transform is needed between
+!> bodies. With lin_b the part of body b's spatial acceleration linear in qdd (its bias part
+!> is inside the bias wrench w_b), the wrench that b's joint passes to b's subtree is
+!> J_b = IA_b lin_b + pA_b, with the articulated inertia IA_b and bias pA_b of the subtree:
+!>
+!> - Backward (leaves to base): a rigid body starts from its i6 and w and adds, for every
+!>   child c, the child's articulated terms after c's joint, ia_c and pa_c. A flexible body
+!>   with modal accelerations add and modal columns Cm_c at its children's joint points has
+!>     [K_AA K_Aa; K_Aa^T K_aa] [lin; add] + [b_A; b_a] = [J_b; 0],
+!>   K_AA = i6 + sum ia_c, K_Aa = mva + sum ia_c Cm_c, K_aa = mmm + sum Cm_c^T ia_c Cm_c,
+!>   b_A = w + sum pa_c, b_a = wam - tau_modal + sum Cm_c^T pa_c;
+!>   its modal accelerations are condensed out: IA = K_AA - K_Aa K_aa^-1 K_Aa^T,
+!>   pA = b_A - K_Aa K_aa^-1 b_a. Then b's joint, of columns S = [S_P S_F] (prescribed,
+!>   free): pA' = pA + IA S_P qdd_P, U = IA S_F, D = S_F^T U, u = tau_F - S_F^T pA', and
+!>   ia_b = IA - U D^-1 U^T, pa_b = pA' + U D^-1 u.
+!> - Forward (base to leaves): lin at b's joint point = lin of the parent (plus its modal
+!>   columns times its modal accelerations), qdd_F = D^-1 (u - U^T lin), lin_b = lin + S
+!>   qdd, and a flexible body's add = -K_aa^-1 (K_Aa^T lin_b + b_a).
+!>
+!> The joints' D (at most 6 x 6) are factored here (Cholesky); the flexible bodies' K_aa by
+!> LAPACK.
+module pymr_model_articulated
+  use pymr_kinds, only : dp
+  use pymr_error, only : error_type, fatal_error, stat_solver
+  use pymr_lapack, only : potrf, potrs
+  use pymr_model_types, only : model_data, effect_base_motion
+  use pymr_model_effects, only : prescribed_motion
+  implicit none
+  private
+  public :: articulated_accelerations
+
+contains
+
+  !> qdd of the state whose body terms, applied loads (w, wam, tau) and kinematics d holds.
+  subroutine articulated_accelerations(d, t, qdd, error)
+    type(model_data), intent(inout) :: d
+    real(dp), intent(in) :: t
+    real(dp), intent(out) :: qdd(:)
+    type(error_type), allocatable, intent(out) :: error
+    integer :: b
+    call prescribed_accelerations(d, t, qdd)
+    do b = d%nb, 2, -1
+      call subtree_terms(d, b, error); if (allocated(error)) return
+      call through_joint(d, b, qdd, error); if (allocated(error)) return
+    end do
+    d%ab_lin(:, 1) = 0.0_dp
+    do b = 2, d%nb
+      call body_acceleration(d, b, qdd)
+    end do
+  end subroutine articulated_accelerations
+
+  !> The prescribed coordinates' accelerations (their functions' second derivatives); the
+  !> others are marked free.
+  subroutine prescribed_accelerations(d, t, qdd)
+    type(model_data), intent(inout) :: d
+    real(dp), intent(in) :: t
+    real(dp), intent(inout) :: qdd(:)
+    integer :: i
+    real(dp) :: f, fd
+    if (d%n_prescribed == 0) return
+    do i = 1, d%n_prescribed
+      call prescribed_motion(d, i, t, f, fd, qdd(d%pres_coord(i)))
+    end do
+    d%effect_evals(effect_base_motion) = d%effect_evals(effect_base_motion) + 1
+  end subroutine prescribed_accelerations
+
+  !> Articulated inertia and bias of body b's subtree at b's frame (before b's joint), in
+  !> d%ab_ia(:, :, b), d%ab_pa(:, b); a flexible body's modal accelerations condensed out.
+  subroutine subtree_terms(d, b, error)
+    type(model_data), intent(inout) :: d
+    integer, intent(in) :: b
+    type(error_type), allocatable, intent(out) :: error
+    integer :: i, c, m
+    associate(ia => d%ab_ia(:, :, b), pa => d%ab_pa(:, b))
+      ia = d%i6(:, :, b); pa = d%w(:, b)
+      m = d%nm(b)
+      do i = d%child_ptr(b), d%child_ptr(b + 1) - 1
+        c = d%child_idx(i)
+        ia = ia + d%ab_ia(:, :, c); pa = pa + d%ab_pa(:, c)
+      end do
+      if (m == 0) return
+      call condense_modes(d, b, m, ia, pa, error)
+    end associate
+  end subroutine subtree_terms
+
+  !> A flexible body's modal accelerations condensed out of its subtree's terms (ia, pa on
+  !> entry: K_AA and b_A), keeping the factored K_aa, K_Aa and b_a for the forward pass.
+  subroutine condense_modes(d, b, m, ia, pa, error)
+    type(model_data), intent(inout) :: d
+    integer, intent(in) :: b, m
+    real(dp), intent(inout) :: ia(6, 6), pa(6)
+    type(error_type), allocatable, intent(out) :: error
+    integer :: i, c, l
+    real(dp) :: x(m, 6), y(m), g(6)
+      associate(kaa => d%ab_kaa(1:m, 1:m, b), kam => d%ab_kam(:, 1:m, b), ba => d%ab_ba(1:m, b))
+        kam = d%mva(:, 1:m, b)
+        kaa = d%flex(b)%mmm
+        ba = d%wam(1:m, b) - d%tau(d%a0(b):d%a0(b) + m - 1)
+        do i = d%child_ptr(b), d%child_ptr(b + 1) - 1
+          c = d%child_idx(i)
+          do l = 1, m
+            g = matmul(d%ab_ia(:, :, c), d%cm(:, l, c))
+            kam(:, l) = kam(:, l) + g
+            kaa(:, l) = kaa(:, l) + matmul(transpose(d%cm(:, 1:m, c)), g)
+            ba(l) = ba(l) + dot_product(d%cm(:, l, c), d%ab_pa(:, c))
+          end do
+        end do
+        call potrf(kaa, "the modal mass of body '" // trim(d%body_name(b)) // "' with what it carries", error)
+        if (allocated(error)) return
+        ! IA = K_AA - K_Aa K_aa^-1 K_Aa^T, pA = b_A - K_Aa K_aa^-1 b_a
+        x(1:m, :) = transpose(kam)
+        call potrs(kaa, x(1:m, :), 'K_aa', error); if (allocated(error)) return
+        ia = ia - matmul(kam, x(1:m, :))
+        y(1:m) = ba
+        call potrs(kaa, y(1:m), 'K_aa', error); if (allocated(error)) return
+        pa = pa - matmul(kam, y(1:m))
+      end associate
+  end subroutine condense_modes
+
+  !> Body b's joint: its free columns condensed out of the subtree's terms, leaving the
+  !> articulated terms the parent sees in d%ab_ia(:, :, b), d%ab_pa(:, b).
+  subroutine through_joint(d, b, qdd, error)
+    type(model_data), intent(inout) :: d
+    integer, intent(in) :: b
+    real(dp), intent(in) :: qdd(:)
+    type(error_type), allocatable, intent(out) :: error
+    integer :: k, j, nf
+    associate(ia => d%ab_ia(:, :, b), pa => d%ab_pa(:, b), u => d%ab_u(:, :, b), dd => d%ab_d(:, :, b), &
+      & r => d%ab_r(:, b))
+      nf = 0
+      do k = d%c0(b), d%c0(b) + d%nc(b) - 1
+        if (d%prescribed(k)) then
+          pa = pa + matmul(ia, d%s(:, k))*qdd(k)
+        else
+          nf = nf + 1
+          d%ab_col(nf, b) = k
+        end if
+      end do
+      d%ab_nf(b) = nf
+      if (nf == 0) return
+      if (nf == 1) then
+        call one_column(d, b, ia, pa, error); return
+      end if
+      do j = 1, nf
+        k = d%ab_col(j, b)
+        u(:, j) = matmul(ia, d%s(:, k))
+        r(j) = d%tau(k) - dot_product(d%s(:, k), pa)
+      end do
+      do j = 1, nf
+        dd(1:nf, j) = matmul(transpose(u(:, 1:nf)), d%s(:, d%ab_col(j, b)))
+      end do
+      call small_cholesky(dd(1:nf, 1:nf), k)
+      if (k > 0) then
+        call fatal_error(error, 'leading minor ' // trim(int_text(k)) // ' of the mass matrix is not positive ' // &
+          & 'definite (articulated inertia of coordinate ' // trim(d%qname(d%ab_col(k, b))) // ')', stat_solver)
+        return
+      end if
+      ! ia <- ia - U D^-1 U^T, pa <- pa + U D^-1 r
+      block
+        real(dp) :: x(6, 6), y(6)
+        x(1:nf, :) = transpose(u(:, 1:nf))
+        call small_solve(dd(1:nf, 1:nf), x(1:nf, :))
+        ia = ia - matmul(u(:, 1:nf), x(1:nf, :))
+        y(1:nf) = r(1:nf)
+        call small_solve(dd(1:nf, 1:nf), y(1:nf))
+        pa = pa + matmul(u(:, 1:nf), y(1:nf))
+      end block
+    end associate
+  end subroutine through_joint
+
+  !> through_joint for one free column s: U = IA s, D = s . U, ia -= U U^T / D,
+  !> pa += U r / D.
+  subroutine one_column(d, b, ia, pa, error)
+    type(model_data), intent(inout) :: d
+    integer, intent(in) :: b
+    real(dp), intent(inout) :: ia(6, 6), pa(6)
+    type(error_type), allocatable, intent(out) :: error
+    integer :: k, i, j
+    real(dp) :: u(6), dd, r
+    k = d%ab_col(1, b)
+    do i = 1, 6
+      u(i) = ia(i, 1)*d%s(1, k) + ia(i, 2)*d%s(2, k) + ia(i, 3)*d%s(3, k) + ia(i, 4)*d%s(4, k) + &
+        & ia(i, 5)*d%s(5, k) + ia(i, 6)*d%s(6, k)
+    end do
+    dd = dot_product(u, d%s(:, k))
+    if (.not. dd > 0.0_dp) then
+      call fatal_error(error, 'leading minor 1 of the mass matrix is not positive definite (articulated ' // &
+        & 'inertia of coordinate ' // trim(d%qname(k)) // ')', stat_solver); return
+    end if
+    r = d%tau(k) - dot_product(d%s(:, k), pa)
+    d%ab_u(:, 1, b) = u; d%ab_d(1, 1, b) = sqrt(dd); d%ab_r(1, b) = r
+    do j = 1, 6
+      do i = 1, 6
+        ia(i, j) = ia(i, j) - u(i)*u(j)/dd
+      end do
+    end do
+    pa = pa + u*(r/dd)
+  end subroutine one_column
+
+  !> Forward pass at body b: its free coordinates' accelerations, the part of its spatial
+  !> acceleration linear in qdd, and (flexible) its modal accelerations.
+  subroutine body_acceleration(d, b, qdd)
+    type(model_data), intent(inout) :: d
+    integer, intent(in) :: b
+    real(dp), intent(inout) :: qdd(:)
+    integer :: a, l, k, j, nf, m
+    real(dp) :: lin(6), y(6)
+    type(error_type), allocatable :: e
+    y = 0.0_dp
+    a = d%parent(b)
+    lin = d%ab_lin(:, a)
+    do l = 1, d%nm(a)
+      lin = lin + d%cm(:, l, b)*qdd(d%a0(a) + l - 1)
+    end do
+    nf = d%ab_nf(b)
+    if (nf > 0) y(1:nf) = d%ab_r(1:nf, b) - matmul(transpose(d%ab_u(:, 1:nf, b)), lin)
+    do k = d%c0(b), d%c0(b) + d%nc(b) - 1
+      if (d%prescribed(k)) lin = lin + d%s(:, k)*qdd(k)
+    end do
+    if (nf > 0) then
+      if (nf == 1) then
+        y(1) = y(1)/d%ab_d(1, 1, b)**2
+      else
+        call small_solve(d%ab_d(1:nf, 1:nf, b), y(1:nf))
+      end if
+      do j = 1, nf
+        k = d%ab_col(j, b)
+        qdd(k) = y(j)
+        lin = lin + d%s(:, k)*y(j)
+      end do
+    end if
+    d%ab_lin(:, b) = lin
+    m = d%nm(b)
+    if (m == 0) return
+    associate(add => qdd(d%a0(b):d%a0(b) + m - 1))
+      add = -(matmul(transpose(d%ab_kam(:, 1:m, b)), lin) + d%ab_ba(1:m, b))
+      call potrs(d%ab_kaa(1:m, 1:m, b), add, 'K_aa', e)
+    end associate
+  end subroutine body_acceleration
+
+  !> Cholesky factor (lower) of a small symmetric matrix in place; bad = 0, or the first
+  !> leading minor that is not positive definite.
+  pure subroutine small_cholesky(a, bad)
+    real(dp), intent(inout) :: a(:, :)
+    integer, intent(out) :: bad
+    integer :: i, j, n
+    n = size(a, 1)
+    bad = 0
+    do j = 1, n
+      a(j, j) = a(j, j) - dot_product(a(j, 1:j-1), a(j, 1:j-1))
+      if (.not. a(j, j) > 0.0_dp) then
+        bad = j; return
+      end if
+      a(j, j) = sqrt(a(j, j))
+      do i = j + 1, n
+        a(i, j) = (a(i, j) - dot_product(a(i, 1:j-1), a(j, 1:j-1)))/a(j, j)
+      end do
+    end do
+  end subroutine small_cholesky
+
+  !> Solve L L^T x = b in place for the columns of b (the factor of small_cholesky).
+  pure subroutine small_solve(l, b)
+    real(dp), intent(in) :: l(:, :)
+    real(dp), intent(inout) :: b(..)
+    select rank (b)
+    rank (1)
+      call solve_one(b)
+    rank (2)
+      block
+        integer :: k
+        do k = 1, size(b, 2)
+          call solve_one(b(:, k))
+        end do
+      end block
+    end select
+  contains
+    pure subroutine solve_one(x)
+      real(dp), intent(inout) :: x(:)
+      integer :: i, n
+      n = size(x)
+      do i = 1, n
+        x(i) = (x(i) - dot_product(l(i, 1:i-1), x(1:i-1)))/l(i, i)
+      end do
+      do i = n, 1, -1
+        x(i) = (x(i) - dot_product(l(i+1:n, i), x(i+1:n)))/l(i, i)
+      end do
+    end subroutine solve_one
+  end subroutine small_solve
+
+  pure function int_text(i) result(s)
+    integer, intent(in) :: i
+    character(len=12) :: s
+    write(s, '(i0)') i
+  end function int_text
+end module pymr_model_articulated
