@@ -23,7 +23,8 @@ module pymr_run
   private
   public :: run_scene, load_model, starting_state, default_output, progress_t, progress_t_end, progress_running
 
-  !> 'auto' dynamics: the articulated-body algorithm from this many joint coordinates on.
+  !> 'auto' dynamics with flexible bodies: the articulated-body algorithm from this many joint
+  !> coordinates on.
   integer, parameter :: articulated_from = 12
 
   !> Markers whose final motion the summary prints (the results hold them all).
@@ -54,15 +55,16 @@ contains
   end subroutine load_model
 
   !> Whether single-rate evaluations take the articulated-body algorithm: as the scene says,
-  !> or ('auto') from articulated_from joint coordinates on, where it is the faster
-  !> (`pymr bench chain`).
+  !> or ('auto') where it is the faster (`pymr bench chain`, `pymr bench rhs`): always
+  !> without flexible bodies, and with them from articulated_from joint coordinates on
+  !> (below, condensing the modes costs more than assembling and factoring a small M).
   logical function articulated_dynamics(sc, model)
     type(scene_t), intent(in) :: sc
     type(model_t), intent(in) :: model
     select case (trim(sc%integrator%dynamics))
     case ('articulated'); articulated_dynamics = .true.
     case ('mass_matrix'); articulated_dynamics = .false.
-    case default; articulated_dynamics = model%d%nj >= articulated_from
+    case default; articulated_dynamics = model%d%nj >= articulated_from .or. .not. any(model%d%flexible)
     end select
   end function articulated_dynamics
 

@@ -56,18 +56,27 @@ def test_runs_by_either_path_agree(tmp_path, scene, over):
     assert (np.abs(a.data - b.data) / scale).max() < 1e-9
 
 
-def test_auto_takes_the_articulated_path_on_long_chains(tmp_path):
-    """'auto' chooses the articulated-body algorithm from 12 joint coordinates on: the
-    accelerations of a 12-link chain by 'auto' are bit for bit those of 'articulated', an
-    11-link chain's those of 'mass_matrix' (and the two differ in their last bits)."""
+def test_auto_takes_the_faster_path(tmp_path):
+    """'auto' takes the articulated-body algorithm without flexible bodies (a 3-link chain),
+    and with them from 12 joint coordinates on (the tank with ten more links hung from its
+    turret), else M (the tank): the accelerations by 'auto' are bit for bit those of the
+    path chosen, and differ in their last bits from the other's."""
+    tank = (ROOT / "input" / "tank_gun_turret.nml").read_text()
+    links = "".join(f"&body name='l{i}', kind='rigid', mass=1.0, com=0.2, 0.0, 0.0, inertia=0.01, 0.02, 0.02, 0.0, "
+                    f"0.0, 0.0 /\n&joint name='p{i}', kind='revolute', parent='{'turret' if i == 1 else f'l{i - 1}'}', "
+                    f"child='l{i}', at=0.4, 0.0, 0.0, axis=0.0, 0.0, 1.0 /\n" for i in range(1, 11))
+    cases = [("chain.nml", serial_chain(3), "articulated", "mass_matrix"),
+             ("tank.nml", tank, "mass_matrix", "articulated"),
+             ("tank_links.nml", tank + links, "articulated", "mass_matrix")]
     rng = np.random.default_rng(1)
-    for links, path, other in ((12, "articulated", "mass_matrix"), (11, "mass_matrix", "articulated")):
-        scene = tmp_path / f"chain{links}.nml"
-        scene.write_text(serial_chain(links))
-        x = 0.3 * rng.standard_normal(2 * links)
+    for name, text, chosen, other in cases:
+        scene = tmp_path / name
+        scene.write_text(text)
+        n, _, _ = model_size(scene)
+        x = 0.3 * rng.standard_normal(2 * n)
         auto = accelerations(scene, x, "auto")
-        assert np.array_equal(auto, accelerations(scene, x, path))
-        assert not np.array_equal(auto, accelerations(scene, x, other))
+        assert np.array_equal(auto, accelerations(scene, x, chosen)), name
+        assert not np.array_equal(auto, accelerations(scene, x, other)), name
 
 
 @pytest.mark.parametrize("links", [5, 30, 100])

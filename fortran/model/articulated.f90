@@ -22,12 +22,12 @@
 !>   columns times its modal accelerations), qdd_F = D^-1 (u - U^T lin), lin_b = lin + S
 !>   qdd, and a flexible body's add = -K_aa^-1 (K_Aa^T lin_b + b_a).
 !>
-!> The joints' D (at most 6 x 6) are factored here (Cholesky); the flexible bodies' K_aa by
-!> LAPACK.
+!> The joints' D (at most 6 x 6) are factored by pymr_lapack's small Cholesky, without the
+!> checks of a LAPACK call; the flexible bodies' K_aa through potrf.
 module pymr_model_articulated
   use pymr_kinds, only : dp
   use pymr_error, only : error_type, fatal_error, stat_solver
-  use pymr_lapack, only : potrf, potrs
+  use pymr_lapack, only : potrf, potrs, small_cholesky, small_solve
   use pymr_model_types, only : model_data, effect_base_motion
   use pymr_model_effects, only : prescribed_motion
   implicit none
@@ -242,55 +242,6 @@ contains
       call potrs(d%ab_kaa(1:m, 1:m, b), add, 'K_aa', e)
     end associate
   end subroutine body_acceleration
-
-  !> Cholesky factor (lower) of a small symmetric matrix in place; bad = 0, or the first
-  !> leading minor that is not positive definite.
-  pure subroutine small_cholesky(a, bad)
-    real(dp), intent(inout) :: a(:, :)
-    integer, intent(out) :: bad
-    integer :: i, j, n
-    n = size(a, 1)
-    bad = 0
-    do j = 1, n
-      a(j, j) = a(j, j) - dot_product(a(j, 1:j-1), a(j, 1:j-1))
-      if (.not. a(j, j) > 0.0_dp) then
-        bad = j; return
-      end if
-      a(j, j) = sqrt(a(j, j))
-      do i = j + 1, n
-        a(i, j) = (a(i, j) - dot_product(a(i, 1:j-1), a(j, 1:j-1)))/a(j, j)
-      end do
-    end do
-  end subroutine small_cholesky
-
-  !> Solve L L^T x = b in place for the columns of b (the factor of small_cholesky).
-  pure subroutine small_solve(l, b)
-    real(dp), intent(in) :: l(:, :)
-    real(dp), intent(inout) :: b(..)
-    select rank (b)
-    rank (1)
-      call solve_one(b)
-    rank (2)
-      block
-        integer :: k
-        do k = 1, size(b, 2)
-          call solve_one(b(:, k))
-        end do
-      end block
-    end select
-  contains
-    pure subroutine solve_one(x)
-      real(dp), intent(inout) :: x(:)
-      integer :: i, n
-      n = size(x)
-      do i = 1, n
-        x(i) = (x(i) - dot_product(l(i, 1:i-1), x(1:i-1)))/l(i, i)
-      end do
-      do i = n, 1, -1
-        x(i) = (x(i) - dot_product(l(i+1:n, i), x(i+1:n)))/l(i, i)
-      end do
-    end subroutine solve_one
-  end subroutine small_solve
 
   pure function int_text(i) result(s)
     integer, intent(in) :: i

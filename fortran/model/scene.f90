@@ -270,7 +270,8 @@ contains
       & choices='newton fixed-point')
     call t%add('dynamics', g%dynamics, "how single-rate evaluations solve M qdd = P: 'articulated' (the " // &
       & "articulated-body algorithm, O(n), flexible bodies included), 'mass_matrix' (assemble M and P and " // &
-      & "factor M, O(n^3)) or 'auto' (articulated from 12 joint coordinates on, where it is the faster; " // &
+      & "factor M, O(n^3)) or 'auto' (articulated without flexible bodies, and with them from 12 " // &
+      & "joint coordinates on: where it is the faster; " // &
       & "multirate and the pre-flight check always use M)", choices='auto articulated mass_matrix')
     call t%add('k_max', g%k_max, '-', 'largest step ratio H/h of adaptive multirate', ge=1, le=100000)
     call t%add('stability_check', g%stability_check, 'refuse fixed steps that the pre-flight check finds unstable')
