@@ -12,7 +12,7 @@ module pymr_lapack
   implicit none
   private
   public :: potrf, potrs, sygvd, ptsv, geev_complex, geev_real, factor_inverse, band_solve
-  public :: lu_factor, lu_solve, general_solve, small_cholesky, small_solve
+  public :: lu_factor, lu_solve, general_solve
   public :: illegal_argument_probe
 
   !> The last fault LAPACK reported to XERBLA: routine and argument number.

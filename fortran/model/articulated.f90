@@ -22,12 +22,12 @@
 !>   columns times its modal accelerations), qdd_F = D^-1 (u - U^T lin), lin_b = lin + S
 !>   qdd, and a flexible body's add = -K_aa^-1 (K_Aa^T lin_b + b_a).
 !>
-!> The joints' D (at most 6 x 6) are factored by pymr_lapack's small Cholesky, without the
-!> checks of a LAPACK call; the flexible bodies' K_aa through potrf.
+!> A joint of several coordinates is condensed one column at a time (its primitives are
+!> joined by massless frames); the flexible bodies' K_aa are factored by potrf.
 module pymr_model_articulated
   use pymr_kinds, only : dp
   use pymr_error, only : error_type, fatal_error, stat_solver
-  use pymr_lapack, only : potrf, potrs, small_cholesky, small_solve
+  use pymr_lapack, only : potrf, potrs
   use pymr_model_types, only : model_data, effect_base_motion
   use pymr_model_effects, only : prescribed_motion
   implicit none
@@ -122,118 +122,68 @@ contains
       end associate
   end subroutine condense_modes
 
-  !> Body b's joint: its free columns condensed out of the subtree's terms, leaving the
-  !> articulated terms the parent sees in d%ab_ia(:, :, b), d%ab_pa(:, b).
+  !> Body b's joint: its columns, from the child's side to the parent's, condensed out of
+  !> the subtree's terms one at a time (the joint is a chain of one-coordinate primitives
+  !> with massless frames between them), leaving the articulated terms the parent sees in
+  !> d%ab_ia(:, :, b), d%ab_pa(:, b). A prescribed column's known acceleration moves into
+  !> the bias; a free column k keeps u_k = IA s_k, D_k = s_k . u_k and r_k = tau_k - s_k . pA
+  !> for the forward pass.
   subroutine through_joint(d, b, qdd, error)
     type(model_data), intent(inout) :: d
     integer, intent(in) :: b
     real(dp), intent(in) :: qdd(:)
     type(error_type), allocatable, intent(out) :: error
-    integer :: k, j, nf
-    associate(ia => d%ab_ia(:, :, b), pa => d%ab_pa(:, b), u => d%ab_u(:, :, b), dd => d%ab_d(:, :, b), &
-      & r => d%ab_r(:, b))
-      nf = 0
-      do k = d%c0(b), d%c0(b) + d%nc(b) - 1
+    integer :: k, i, j
+    real(dp) :: u(6), dd, r
+    associate(ia => d%ab_ia(:, :, b), pa => d%ab_pa(:, b))
+      do k = d%c0(b) + d%nc(b) - 1, d%c0(b), -1
+        do i = 1, 6
+          u(i) = ia(i, 1)*d%s(1, k) + ia(i, 2)*d%s(2, k) + ia(i, 3)*d%s(3, k) + ia(i, 4)*d%s(4, k) + &
+            & ia(i, 5)*d%s(5, k) + ia(i, 6)*d%s(6, k)
+        end do
         if (d%prescribed(k)) then
-          pa = pa + matmul(ia, d%s(:, k))*qdd(k)
-        else
-          nf = nf + 1
-          d%ab_col(nf, b) = k
+          pa = pa + u*qdd(k)
+          cycle
         end if
+        dd = dot_product(u, d%s(:, k))
+        if (.not. dd > 0.0_dp) then
+          call fatal_error(error, 'the mass matrix is not positive definite: the articulated inertia of ' // &
+            & 'coordinate ' // trim(d%qname(k)) // ' is ' // trim(real_text(dd)), stat_solver); return
+        end if
+        r = d%tau(k) - dot_product(d%s(:, k), pa)
+        j = k - d%c0(b) + 1
+        d%ab_u(:, j, b) = u; d%ab_d(j, b) = dd; d%ab_r(j, b) = r
+        do j = 1, 6
+          do i = 1, 6
+            ia(i, j) = ia(i, j) - u(i)*u(j)/dd
+          end do
+        end do
+        pa = pa + u*(r/dd)
       end do
-      d%ab_nf(b) = nf
-      if (nf == 0) return
-      if (nf == 1) then
-        call one_column(d, b, ia, pa, error); return
-      end if
-      do j = 1, nf
-        k = d%ab_col(j, b)
-        u(:, j) = matmul(ia, d%s(:, k))
-        r(j) = d%tau(k) - dot_product(d%s(:, k), pa)
-      end do
-      do j = 1, nf
-        dd(1:nf, j) = matmul(transpose(u(:, 1:nf)), d%s(:, d%ab_col(j, b)))
-      end do
-      call small_cholesky(dd(1:nf, 1:nf), k)
-      if (k > 0) then
-        call fatal_error(error, 'leading minor ' // trim(int_text(k)) // ' of the mass matrix is not positive ' // &
-          & 'definite (articulated inertia of coordinate ' // trim(d%qname(d%ab_col(k, b))) // ')', stat_solver)
-        return
-      end if
-      ! ia <- ia - U D^-1 U^T, pa <- pa + U D^-1 r
-      block
-        real(dp) :: x(6, 6), y(6)
-        x(1:nf, :) = transpose(u(:, 1:nf))
-        call small_solve(dd(1:nf, 1:nf), x(1:nf, :))
-        ia = ia - matmul(u(:, 1:nf), x(1:nf, :))
-        y(1:nf) = r(1:nf)
-        call small_solve(dd(1:nf, 1:nf), y(1:nf))
-        pa = pa + matmul(u(:, 1:nf), y(1:nf))
-      end block
     end associate
   end subroutine through_joint
 
-  !> through_joint for one free column s: U = IA s, D = s . U, ia -= U U^T / D,
-  !> pa += U r / D.
-  subroutine one_column(d, b, ia, pa, error)
-    type(model_data), intent(inout) :: d
-    integer, intent(in) :: b
-    real(dp), intent(inout) :: ia(6, 6), pa(6)
-    type(error_type), allocatable, intent(out) :: error
-    integer :: k, i, j
-    real(dp) :: u(6), dd, r
-    k = d%ab_col(1, b)
-    do i = 1, 6
-      u(i) = ia(i, 1)*d%s(1, k) + ia(i, 2)*d%s(2, k) + ia(i, 3)*d%s(3, k) + ia(i, 4)*d%s(4, k) + &
-        & ia(i, 5)*d%s(5, k) + ia(i, 6)*d%s(6, k)
-    end do
-    dd = dot_product(u, d%s(:, k))
-    if (.not. dd > 0.0_dp) then
-      call fatal_error(error, 'leading minor 1 of the mass matrix is not positive definite (articulated ' // &
-        & 'inertia of coordinate ' // trim(d%qname(k)) // ')', stat_solver); return
-    end if
-    r = d%tau(k) - dot_product(d%s(:, k), pa)
-    d%ab_u(:, 1, b) = u; d%ab_d(1, 1, b) = sqrt(dd); d%ab_r(1, b) = r
-    do j = 1, 6
-      do i = 1, 6
-        ia(i, j) = ia(i, j) - u(i)*u(j)/dd
-      end do
-    end do
-    pa = pa + u*(r/dd)
-  end subroutine one_column
-
-  !> Forward pass at body b: its free coordinates' accelerations, the part of its spatial
-  !> acceleration linear in qdd, and (flexible) its modal accelerations.
+  !> Forward pass at body b: its coordinates' accelerations, from the parent's side, the
+  !> part of its spatial acceleration linear in qdd, and (flexible) its modal accelerations.
   subroutine body_acceleration(d, b, qdd)
     type(model_data), intent(inout) :: d
     integer, intent(in) :: b
     real(dp), intent(inout) :: qdd(:)
-    integer :: a, l, k, j, nf, m
-    real(dp) :: lin(6), y(6)
+    integer :: a, l, k, j, m
+    real(dp) :: lin(6)
     type(error_type), allocatable :: e
-    y = 0.0_dp
     a = d%parent(b)
     lin = d%ab_lin(:, a)
     do l = 1, d%nm(a)
       lin = lin + d%cm(:, l, b)*qdd(d%a0(a) + l - 1)
     end do
-    nf = d%ab_nf(b)
-    if (nf > 0) y(1:nf) = d%ab_r(1:nf, b) - matmul(transpose(d%ab_u(:, 1:nf, b)), lin)
     do k = d%c0(b), d%c0(b) + d%nc(b) - 1
-      if (d%prescribed(k)) lin = lin + d%s(:, k)*qdd(k)
-    end do
-    if (nf > 0) then
-      if (nf == 1) then
-        y(1) = y(1)/d%ab_d(1, 1, b)**2
-      else
-        call small_solve(d%ab_d(1:nf, 1:nf, b), y(1:nf))
+      if (.not. d%prescribed(k)) then
+        j = k - d%c0(b) + 1
+        qdd(k) = (d%ab_r(j, b) - dot_product(d%ab_u(:, j, b), lin))/d%ab_d(j, b)
       end if
-      do j = 1, nf
-        k = d%ab_col(j, b)
-        qdd(k) = y(j)
-        lin = lin + d%s(:, k)*y(j)
-      end do
-    end if
+      lin = lin + d%s(:, k)*qdd(k)
+    end do
     d%ab_lin(:, b) = lin
     m = d%nm(b)
     if (m == 0) return
@@ -243,9 +193,10 @@ contains
     end associate
   end subroutine body_acceleration
 
-  pure function int_text(i) result(s)
-    integer, intent(in) :: i
-    character(len=12) :: s
-    write(s, '(i0)') i
-  end function int_text
+  pure function real_text(x) result(s)
+    real(dp), intent(in) :: x
+    character(len=24) :: s
+    write(s, '(es12.5)') x
+  end function real_text
+
 end module pymr_model_articulated

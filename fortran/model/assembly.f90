@@ -15,6 +15,8 @@ module pymr_model_assembly
 
 contains
 
+  include 'vector_products.inc'
+
   !> Spatial inertia and bias wrench I a_bias + v x* I v of every body (no applied
   !> loads); flexible bodies add their modal coupling, modal bias and elastic forces.
   pure subroutine body_terms(d, q, qd, only)
@@ -67,16 +69,10 @@ contains
     i6(1:3, 6) = [-m*c(2), m*c(1), 0.0_dp]
     i6(4:6, 1:3) = transpose(i6(1:3, 4:6))
     i6(4:6, 4:6) = j
-    hl = m*(v(1:3) + x3(v(4:6), c)); ha = m*x3(c, v(1:3)) + matmul(j, v(4:6))
-    fl = m*(a(1:3) + x3(a(4:6), c)); fa = m*x3(c, a(1:3)) + matmul(j, a(4:6))
-    w(1:3) = fl + x3(v(4:6), hl)
-    w(4:6) = fa + x3(v(1:3), hl) + x3(v(4:6), ha)
-  contains
-    pure function x3(p, q) result(r)
-      real(dp), intent(in) :: p(3), q(3)
-      real(dp) :: r(3)
-      r = [p(2)*q(3) - p(3)*q(2), p(3)*q(1) - p(1)*q(3), p(1)*q(2) - p(2)*q(1)]
-    end function x3
+    hl = m*(v(1:3) + cross(v(4:6), c)); ha = m*cross(c, v(1:3)) + matmul(j, v(4:6))
+    fl = m*(a(1:3) + cross(a(4:6), c)); fa = m*cross(c, a(1:3)) + matmul(j, a(4:6))
+    w(1:3) = fl + cross(v(4:6), hl)
+    w(4:6) = fa + cross(v(1:3), hl) + cross(v(4:6), ha)
   end subroutine rigid_body_terms
 
   !> Composite inertia and wrench of each subtree, from the leaves to the base.

@@ -6,7 +6,6 @@ module pymr_model_effects
     & effect_joint_springs, effect_geometric_stiffening, effect_base_motion, effect_firing_load, motion_spinup, &
     & motion_table
   use pymr_model_time_table, only : table_linear, table_spline
-  use pymr_model_spatial, only : cross
   use pymr_model_kinematics, only : marker_motion
   implicit none
   private
@@ -16,6 +15,8 @@ module pymr_model_effects
   public :: prescribed_motion, impose_prescribed_state, prescribe_rows
 
 contains
+
+  include 'vector_products.inc'
 
   !> Centre of mass of body b (inertial; deformed for flexible bodies, after body_terms).
   pure function body_com(d, b) result(c)

@@ -10,7 +10,7 @@
 !> point is c_p = Z_p [1; a].
 module pymr_model_flexbody
   use pymr_kinds, only : dp
-  use pymr_model_spatial, only : cross, skew, rigid_inertia
+  use pymr_model_spatial, only : skew, rigid_inertia
   implicit none
   private
   public :: flex_data, flex_invariants, flex_from_moments, flex_body_terms, flex_work, small_rotation, point_shapes, modal_nodes
@@ -56,6 +56,8 @@ module pymr_model_flexbody
   end type flex_work
 
 contains
+
+  include 'vector_products.inc'
 
   !> Invariants from mass points: s(3,np) positions, mp(np) masses, psi(3,m,np) mode shapes.
   subroutine flex_invariants(s, mp, psi, fd)

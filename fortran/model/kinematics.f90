@@ -8,13 +8,14 @@
 module pymr_model_kinematics
   use pymr_kinds, only : dp
   use pymr_model_types, only : model_data, prim_revolute
-  use pymr_model_spatial, only : cross, motion_cross
   use pymr_model_flexbody, only : small_rotation
   implicit none
   private
   public :: forward_kinematics, marker_motion, marker_acceleration, marker_rotation
 
 contains
+
+  include 'vector_products.inc'
 
   !> Positions, velocities, bias accelerations and coordinate columns for state (q, qd).
   pure subroutine forward_kinematics(d, q, qd)

@@ -16,12 +16,7 @@ module pymr_model_spatial
 
 contains
 
-  !> Cross product a x b.
-  pure function cross(a, b) result(c)
-    real(dp), intent(in) :: a(3), b(3)
-    real(dp) :: c(3)
-    c = [a(2)*b(3) - a(3)*b(2), a(3)*b(1) - a(1)*b(3), a(1)*b(2) - a(2)*b(1)]
-  end function cross
+  include 'vector_products.inc'
 
   !> Skew matrix a~ with a~ b = a x b.
   pure function skew(a) result(s)
@@ -31,15 +26,6 @@ contains
     s(1, 2) = -a(3); s(2, 2) = 0.0_dp; s(3, 2) = a(1)
     s(1, 3) = a(2); s(2, 3) = -a(1); s(3, 3) = 0.0_dp
   end function skew
-
-  !> Spatial motion cross product v x s for v = [v_O; w], s = [s_v; s_w]:
-  !> [w x s_v + v_O x s_w; w x s_w] (rate of a motion vector fixed in a frame moving with v).
-  pure function motion_cross(v, s) result(r)
-    real(dp), intent(in) :: v(6), s(6)
-    real(dp) :: r(6)
-    r(1:3) = cross(v(4:6), s(1:3)) + cross(v(1:3), s(4:6))
-    r(4:6) = cross(v(4:6), s(4:6))
-  end function motion_cross
 
   !> Spatial inertia (6x6) about the inertial origin of a rigid body of mass m with
   !> centre of mass c (inertial) and inertia ic (3x3 about the centre of mass, inertial axes).
