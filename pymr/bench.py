@@ -16,38 +16,45 @@ from .api import _raise, model_size
 from .scenes import ROD_LENGTH, ROD_MASS, ROD_RADIUS, serial_chain, spatial_chain
 
 
+def _median_seconds(per_call, repeats: int, min_time: float = 0.05) -> float:
+    """Median over `repeats` of per_call(reps), the seconds of one call timed over reps calls,
+    reps grown until a timing lasts min_time."""
+    reps = 1
+    while per_call(reps) * reps < min_time and reps < 1 << 20:
+        reps *= 4
+    return statistics.median(per_call(reps) for _ in range(repeats))
+
+
 def time_evaluation(scene: str, q: np.ndarray, qd: np.ndarray, repeats: int = 7,
                     min_time: float = 0.05, overrides: str = "") -> float:
     """Median CPU seconds of one model evaluation (kinematics, body terms, loads, and the
     solve of M qdd = P by the scene's forward-dynamics path)."""
-    reps = 1
-    while True:
+    def per_call(reps: int) -> float:
         sec, stat, msg = _core.pymr_time_evaluation(scene, overrides, q, qd, reps)
         _raise(stat, msg)
-        if sec * reps >= min_time or reps >= 1 << 20:
-            break
-        reps *= 4
-    samples = []
-    for _ in range(repeats):
-        sec, stat, msg = _core.pymr_time_evaluation(scene, overrides, q, qd, reps)
-        _raise(stat, msg)
-        samples.append(sec)
-    return statistics.median(samples)
+        return sec
+    return _median_seconds(per_call, repeats, min_time)
+
+
+def _chains(scene_text, sizes):
+    """(size, scene path, q, qd) per size: the scene scene_text(size) in a temporary folder
+    and a random state (0.3 rad or m, 0.3 per s; the same sequence in every run)."""
+    rng = np.random.default_rng(0)
+    with tempfile.TemporaryDirectory(prefix="pymr-bench-") as tmp:
+        for size in sizes:
+            path = Path(tmp) / f"chain{size}.nml"
+            path.write_text(scene_text(size))
+            n, _, _ = model_size(path)
+            yield size, path, 0.3 * rng.standard_normal(n), 0.3 * rng.standard_normal(n)
 
 
 def bench_rhs(sizes=(5, 20, 100), repeats: int = 7) -> list[dict]:
     """Cost of one evaluation of the spatial chain (free base) for several lengths."""
     rows = []
-    rng = np.random.default_rng(0)
-    with tempfile.TemporaryDirectory(prefix="pymr-bench-") as tmp:
-        for nb in sizes:
-            path = Path(tmp) / f"chain{nb}.nml"
-            path.write_text(spatial_chain(nb))
-            n, _, _ = model_size(path)
-            q = 0.3 * rng.standard_normal(n)
-            qd = 0.3 * rng.standard_normal(n)
-            sec = time_evaluation(str(path), q, qd, repeats=repeats)
-            rows.append({"scene": f"chain-{nb}", "bodies": nb, "coordinates": n, "median_us": sec * 1e6})
+    for nb, path, q, qd in _chains(spatial_chain, sizes):
+        n = len(q)
+        sec = time_evaluation(str(path), q, qd, repeats=repeats)
+        rows.append({"scene": f"chain-{nb}", "bodies": nb, "coordinates": n, "median_us": sec * 1e6})
     return rows
 
 
@@ -108,21 +115,13 @@ def pinocchio_chain(links: int):
 
 
 def _median_cpu(f, repeats: int, min_time: float = 0.05) -> float:
-    reps = 1
-    while True:
+    """Median CPU seconds of one call of f()."""
+    def per_call(reps: int) -> float:
         c0 = time.process_time()
         for _ in range(reps):
             f()
-        if time.process_time() - c0 >= min_time or reps >= 1 << 20:
-            break
-        reps *= 4
-    samples = []
-    for _ in range(repeats):
-        c0 = time.process_time()
-        for _ in range(reps):
-            f()
-        samples.append((time.process_time() - c0) / reps)
-    return statistics.median(samples)
+        return (time.process_time() - c0) / reps
+    return _median_seconds(per_call, repeats, min_time)
 
 
 def _pinocchio_python(links: int, q: np.ndarray, qd: np.ndarray, repeats: int) -> tuple[float, float, np.ndarray]:
@@ -161,24 +160,19 @@ def bench_chain(links=CHAIN_LINKS, repeats: int = 7, pinocchio_cpp: str | None =
     except ImportError:
         have_pin = False
     rows = []
-    rng = np.random.default_rng(0)
-    with tempfile.TemporaryDirectory(prefix="pymr-bench-") as tmp:
-        for n in links:
-            path = Path(tmp) / f"chain{n}.nml"
-            path.write_text(serial_chain(n))
-            q, qd = 0.3 * rng.standard_normal(n), 0.3 * rng.standard_normal(n)
-            row = {"links": n}
-            for dyn in ("articulated", "mass_matrix"):
-                row[dyn] = time_evaluation(str(path), q, qd, repeats, overrides=f"integrator.dynamics='{dyn}'") * 1e6
-            if have_pin:
-                from .api import Model
-                row["pin_aba_py"], row["pin_crba_py"], ref = _pinocchio_python(n, q, qd, repeats)
-                with Model(path, {"integrator.dynamics": "articulated"}) as model:
-                    ours = model.rhs(0.0, np.concatenate([q, qd]))[n:]
-                row["pin_difference"] = float(np.abs(ours - ref).max() / np.abs(ref).max())
-            if pinocchio_cpp:
-                row["pin_aba"], row["pin_crba"] = _pinocchio_compiled(pinocchio_cpp, q, qd)
-            rows.append(row)
+    for n, path, q, qd in _chains(serial_chain, links):
+        row = {"links": n}
+        for dyn in ("articulated", "mass_matrix"):
+            row[dyn] = time_evaluation(str(path), q, qd, repeats, overrides=f"integrator.dynamics='{dyn}'") * 1e6
+        if have_pin:
+            from .api import Model
+            row["pin_aba_py"], row["pin_crba_py"], ref = _pinocchio_python(n, q, qd, repeats)
+            with Model(path, {"integrator.dynamics": "articulated"}) as model:
+                ours = model.rhs(0.0, np.concatenate([q, qd]))[n:]
+            row["pin_difference"] = float(np.abs(ours - ref).max() / np.abs(ref).max())
+        if pinocchio_cpp:
+            row["pin_aba"], row["pin_crba"] = _pinocchio_compiled(pinocchio_cpp, q, qd)
+        rows.append(row)
     return rows
 
 
