@@ -58,16 +58,17 @@ def bench_rhs(sizes=(5, 20, 100), repeats: int = 7) -> list[dict]:
     return rows
 
 
-INPUT = Path(__file__).resolve().parent.parent / "input"
+#: The shipped scenes: installed with the package (pymr/input), or the checkout's input/.
+INPUT_FOLDERS = (Path(__file__).resolve().parent / "input", Path(__file__).resolve().parent.parent / "input")
 
 
 def _scene_path(name: str) -> Path:
-    """A scene shipped in input/ (source checkout) or beside the installed package."""
-    for base in (INPUT, Path.cwd() / "input"):
+    """A scene shipped with pymr (installed beside the package, or in the checkout)."""
+    for base in INPUT_FOLDERS:
         if (base / name).exists():
             return base / name
     from .api import SceneError
-    raise SceneError(f"input/{name} not found: pymr bench runs the scenes of the pymr checkout (run it from there)")
+    raise SceneError(f"input/{name} not found: this installation of pymr has no shipped scenes (reinstall it)")
 
 
 def bench_scenes(repeats: int = 7) -> list[dict]:
