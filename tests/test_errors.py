@@ -481,4 +481,4 @@ def test_version_and_bench_outside_the_checkout(tmp_path, mrsim):
     r = subprocess.run(["pymr", "bench", "rhs", "--repeats", "1"], cwd=tmp_path, capture_output=True, text=True,
                        timeout=120, env={**os.environ, "PYTHONPATH": ""})
     assert r.returncode == 0 and r.stderr == "", r.stderr
-    assert re.search(r"tank_gun_turret\s+2\s+6\s+\d", r.stdout), r.stdout
+    assert re.search(r"tank_gun_turret\s+3\s+6\s+\d", r.stdout), r.stdout
