@@ -69,7 +69,7 @@ contains
     character(len=*), intent(in) :: where
     type(error_type), allocatable, intent(out) :: error
     integer :: n, i, j, dom, worst
-    real(dp), allocatable :: m(:, :), k(:, :), c(:, :), a(:, :), wr(:), wi(:), vr(:, :), wgt(:)
+    real(dp), allocatable :: m(:, :), k(:, :), c(:, :), a(:, :), ev(:, :), wr(:), wi(:), vr(:, :), wgt(:)
     real(dp) :: h, ratio, worst_ratio
     complex(dp) :: lam, worst_lam
     character(len=32) :: b1, b2, b3, b4
@@ -82,7 +82,14 @@ contains
     call linearise(model, 0.0_dp, x, m, k, c)
     call state_matrix(m, k, c, a, error); if (allocated(error)) return
     allocate(wr(2*n), wi(2*n), vr(2*n, 2*n))
-    call geev_real(a, wr, wi, vr, 'the linearised model', error); if (allocated(error)) return
+    if (steps%h_modal == steps%h_joint .and. counts%ratio == 1) then
+      ! one step for every coordinate: the eigenvalues alone decide; the vectors are needed
+      ! only to name the coordinate of a mode that fails
+      ev = a
+      call geev_real(ev, wr, wi, 'the linearised model', error); if (allocated(error)) return
+      if (all_stable(wr, wi, steps%h_joint, t_end)) return
+    end if
+    call geev_real(a, wr, wi, 'the linearised model', error, vr); if (allocated(error)) return
     worst = 0; worst_ratio = 1.0_dp; worst_lam = (0.0_dp, 0.0_dp)
     i = 1
     do while (i <= 2*n)
@@ -97,15 +104,11 @@ contains
         wgt(j) = wgt(j)*m(j, j)
       end do
       dom = maxloc(wgt, 1)
-      ! only vibrations and decays: growing modes are physical, not numerical
-      if (abs(lam) > 0.0_dp .and. wr(i) <= 1.0e-9_dp*abs(lam)) then
-        ! a step of 0: modes of that kind are judged by the macro-step map below
-        h = merge(steps%h_modal, steps%h_joint, dom > model%d%nj)
-        if (h > 0.0_dp .and. log(pece_growth(lam*h))*t_end/h > log(run_growth)) then
-          ratio = h/pece_limit(lam)
-          if (ratio > worst_ratio) then
-            worst_ratio = ratio; worst = dom; worst_lam = lam
-          end if
+      h = merge(steps%h_modal, steps%h_joint, dom > model%d%nj)
+      if (grows(lam, h, t_end)) then
+        ratio = h/pece_limit(lam)
+        if (ratio > worst_ratio) then
+          worst_ratio = ratio; worst = dom; worst_lam = lam
         end if
       end if
       if (wi(i) /= 0.0_dp) i = i + 1
@@ -127,6 +130,29 @@ contains
       & 'or adaptive = .true.')
   end subroutine check_step_stability
 
+  !> Does the eigenvalue lam (a vibration or decay: growing modes are physical, not
+  !> numerical) grow by more than run_growth over a run to t_end in fixed steps h? A step of 0
+  !> leaves it to the macro-step map of multirate runs.
+  logical function grows(lam, h, t_end)
+    complex(dp), intent(in) :: lam
+    real(dp), intent(in) :: h, t_end
+    grows = .false.
+    if (abs(lam) == 0.0_dp .or. real(lam) > 1.0e-9_dp*abs(lam) .or. h <= 0.0_dp) return
+    grows = log(pece_growth(lam*h))*t_end/h > log(run_growth)
+  end function grows
+
+  !> No eigenvalue wr + i wi grows in fixed steps h over the run.
+  logical function all_stable(wr, wi, h, t_end)
+    real(dp), intent(in) :: wr(:), wi(:), h, t_end
+    integer :: i
+    all_stable = .true.
+    do i = 1, size(wr)
+      if (grows(cmplx(wr(i), wi(i), dp), h, t_end)) then
+        all_stable = .false.; return
+      end if
+    end do
+  end function all_stable
+
   !> The model linearised at (t, x = [q; qd]): M (symmetrised), K = -dP/dq and C = -dP/dqd
   !> by central differences with increments 1e-6 max(1, |x_j|). Its evaluations do not count
   !> as the run's.
@@ -141,18 +167,18 @@ contains
     n = model%d%n
     counters = model%counters()
     q = x(1:n); qd = x(n+1:2*n)
-    allocate(k(n, n), c(n, n))
+    allocate(k(n, n), c(n, n), pp(n), pm(n))
     call model%terms(t, q, qd)
     m = 0.5_dp*(model%d%mm + transpose(model%d%mm))
     do j = 1, n
       del = 1.0e-6_dp*max(1.0_dp, abs(q(j)))
-      q(j) = x(j) + del; call model%terms(t, q, qd); pp = model%d%p
-      q(j) = x(j) - del; call model%terms(t, q, qd); pm = model%d%p
+      q(j) = x(j) + del; call model%forces(t, q, qd, pp)
+      q(j) = x(j) - del; call model%forces(t, q, qd, pm)
       q(j) = x(j)
       k(:, j) = -(pp - pm)/(2.0_dp*del)
       del = 1.0e-6_dp*max(1.0_dp, abs(qd(j)))
-      qd(j) = x(n + j) + del; call model%terms(t, q, qd); pp = model%d%p
-      qd(j) = x(n + j) - del; call model%terms(t, q, qd); pm = model%d%p
+      qd(j) = x(n + j) + del; call model%forces(t, q, qd, pp)
+      qd(j) = x(n + j) - del; call model%forces(t, q, qd, pm)
       qd(j) = x(n + j)
       c(:, j) = -(pp - pm)/(2.0_dp*del)
     end do
@@ -249,7 +275,7 @@ contains
     call linearise(model, t, x, m, k, c)
     call state_matrix(m, k, c, a, error); if (allocated(error)) return
     allocate(wr(2*n), wi(2*n), vr(2*n, 2*n), f(n), z(n), s(n, n), v(n))
-    call geev_real(a, wr, wi, vr, 'the linearised model', error); if (allocated(error)) return
+    call geev_real(a, wr, wi, 'the linearised model', error, vr); if (allocated(error)) return
     do i = 1, 2*n - 1
       ! one of each complex pair (wi > 0); eigenvalues at roundoff size are drift, not vibration
       if (wi(i) <= 0.0_dp .or. nm == n) cycle
@@ -433,7 +459,7 @@ contains
       call st%advance(sys, error); if (allocated(error)) return
       call st%get_state(g(:, j))
     end do
-    call geev_real(g, wr, wi, vr, 'the linearised macro step', error); if (allocated(error)) return
+    call geev_real(g, wr, wi, 'the linearised macro step', error, vr); if (allocated(error)) return
     top = maxloc(hypot(wr, wi), 1)
     rho = hypot(wr(top), wi(top))
     if (wi(top) < 0.0_dp .and. top > 1) top = top - 1

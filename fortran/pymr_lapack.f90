@@ -313,20 +313,30 @@ contains
 
   !> Eigenvalues wr + i wi and right eigenvectors vr (dgeev's packed real form) of the
   !> real square matrix a (overwritten), LAPACK dgeev.
-  subroutine geev_real(a, wr, wi, vr, what, error)
+  subroutine geev_real(a, wr, wi, what, error, vr)
     real(dp), intent(inout) :: a(:, :)
-    real(dp), intent(out) :: wr(:), wi(:), vr(:, :)
+    real(dp), intent(out) :: wr(:), wi(:)
     character(len=*), intent(in) :: what
     type(error_type), allocatable, intent(out) :: error
-    integer :: n, info
-    real(dp) :: dum(1, 1), wq(1)
+    !> The right eigenvectors (packed as dgeev packs them); without it, the eigenvalues only
+    !> (about a third of the work).
+    real(dp), intent(out), optional, target :: vr(:, :)
+    integer :: n, info, ldv
+    real(dp), target :: dum(1, 1)
+    real(dp) :: wq(1)
+    real(dp), pointer :: v(:, :)
+    character :: jobv
     real(dp), allocatable :: work(:)
     n = size(a, 1)
     if (n == 0) return
     call check_matrix(a, 'dgeev', what, error); if (allocated(error)) return
-    call dgeev('N', 'V', n, a, n, wr, wi, dum, 1, vr, n, wq, -1, info)
+    jobv = 'N'; v => dum; ldv = 1
+    if (present(vr)) then
+      jobv = 'V'; v => vr; ldv = n
+    end if
+    call dgeev('N', jobv, n, a, n, wr, wi, dum, 1, v, ldv, wq, -1, info)
     allocate(work(max(1, int(wq(1)))))
-    call dgeev('N', 'V', n, a, n, wr, wi, dum, 1, vr, n, work, size(work), info)
+    call dgeev('N', jobv, n, a, n, wr, wi, dum, 1, v, ldv, work, size(work), info)
     if (info /= 0) call fatal_error(error, 'eigenvalue solver dgeev failed for ' // what, stat_solver)
   end subroutine geev_real
 

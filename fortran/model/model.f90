@@ -53,6 +53,7 @@ module pymr_model
     procedure :: component_name => model_component_name
     procedure :: terms => model_terms
     procedure :: accelerations => model_accelerations
+    procedure :: forces => model_forces
     procedure :: energy => model_energy
     procedure :: energy_parts => model_energy_parts
     procedure :: n_slow => model_n_slow
@@ -150,6 +151,25 @@ contains
       end if
     end do
   end subroutine articulated_at
+
+  !> The generalised forces P at (t, q, qd) without assembling M (O(n); the pre-flight
+  !> linearisation's differences), the same P as terms gives; through terms when coordinates
+  !> are prescribed (their effect on P needs M).
+  subroutine model_forces(self, t, q, qd, p)
+    class(model_t), intent(inout) :: self
+    real(dp), intent(in) :: t, q(:), qd(:)
+    real(dp), intent(out) :: p(:)
+    if (self%d%n_prescribed > 0) then
+      call self%terms(t, q, qd)
+    else
+      call body_loads(self%d, t, q, qd)
+      call composite_terms(self%d)
+      if (self%d%effect_on(effect_geometric_stiffening)) call add_carried_load_stiffening(self%d, q, self%d%every)
+      call assemble_rhs(self%d)
+      self%d%evals = self%d%evals + 1
+    end if
+    p = self%d%p
+  end subroutine model_forces
 
   !> Solve single-rate evaluations by the articulated-body algorithm (on) or through M (off).
   subroutine model_use_articulated(self, on)
