@@ -182,9 +182,10 @@ def build_parser() -> argparse.ArgumentParser:
     mi.add_argument("-q", "--quiet", action="store_true")
     mi.set_defaults(func=_cmd_modal_import)
     b = sub.add_parser("bench", help="benchmarks that print figures")
-    b.add_argument("what", choices=["rhs", "chain", "table1", "effects", "spacecraft"],
+    b.add_argument("what", choices=["rhs", "chain", "lapack", "table1", "effects", "spacecraft"],
                    help="rhs: cost of one model evaluation vs chain length; chain: the serial chain of N "
-                        "rods, N = 5 to 200, by both forward-dynamics paths and (when installed) Pinocchio; "
+                        "rods, N = 5 to 200, by both forward-dynamics paths and (when installed) Pinocchio; lapack: the "
+                        "work pymr hands LAPACK, timed with the LAPACK loaded; "
                         "table1: the paper's Table 1 (tank, step ratios 1-50, both couplings); effects: cost "
                         "of one tank evaluation with each effect on and off")
     b.add_argument("--pinocchio-cpp", metavar="EXE",

@@ -177,6 +177,12 @@ def collect(sw: Sweep, folder: str | os.PathLike) -> list[dict]:
     return rows
 
 
+#: Thread counts of the BLAS libraries a LAPACK may use (OpenBLAS, OpenMP, MKL): a sweep's
+#: cases run one per core, so each case's BLAS takes one thread (pymr bench lapack measured
+#: threaded OpenBLAS slower on pymr's matrix sizes anyway).
+BLAS_THREADS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+
+
 def run_sweep(sw: Sweep, scheduler: str | None = None, workers: int = 2) -> list[dict]:
     """Run every case on Dask (a LocalCluster of `workers` processes, or the scheduler at
     `scheduler`) and write the summary CSV; returns its rows."""
@@ -192,6 +198,9 @@ def run_sweep(sw: Sweep, scheduler: str | None = None, workers: int = 2) -> list
     if scheduler:
         client = Client(scheduler)
     else:
+        # one thread per worker process, BLAS included: the workers inherit these
+        for name in BLAS_THREADS:
+            os.environ.setdefault(name, "1")
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None)
         client = Client(cluster)
     try:
@@ -263,6 +272,8 @@ def emit_slurm(sw: Sweep, folder: str | os.PathLike, time_limit: str = "01:00:00
 #SBATCH --output=slurm-%A_%a.out
 # Then collect the summary: pymr sweep {sw.path} --collect {folder}
 set -euo pipefail
+# one CPU per task: no BLAS threads beside it
+export {' '.join(f'{name}=1' for name in BLAS_THREADS)}
 cd "${{SLURM_SUBMIT_DIR:-$(dirname "$0")}}"
 case=$(printf 'case%04d' "${{SLURM_ARRAY_TASK_ID}}")
 MRSIM="${{PYMR_MRSIM:-{exe}}}"

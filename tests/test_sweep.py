@@ -120,6 +120,9 @@ def test_emitted_slurm_cases_run_by_mrsim_equal_the_override_runs(tmp_path, mrsi
     script = emit_slurm(sw, tmp_path / "slurm")
     text = script.read_text()
     assert "#SBATCH --array=0-7" in text and '"$MRSIM" "$case.nml" -o "$case.csv"' in text
+    # one CPU per task, and one BLAS thread in it
+    assert "#SBATCH --cpus-per-task=1" in text
+    assert "export OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 MKL_NUM_THREADS=1" in text
     assert sorted(p.name for p in (tmp_path / "slurm").glob("case*.nml")) == [f"case{i:04d}.nml" for i in range(8)]
     for i in (0, 5):
         r = subprocess.run([mrsim, f"case{i:04d}.nml", "-o", f"case{i:04d}.csv", "--quiet"],
