@@ -126,15 +126,15 @@ contains
   !> the subtree's terms one at a time (the joint is a chain of one-coordinate primitives
   !> with massless frames between them), leaving the articulated terms the parent sees in
   !> d%ab_ia(:, :, b), d%ab_pa(:, b). A prescribed column's known acceleration moves into
-  !> the bias; a free column k keeps u_k = IA s_k, D_k = s_k . u_k and r_k = tau_k - s_k . pA
-  !> for the forward pass.
+  !> the bias; a free column k keeps u_k / D_k and r_k / D_k (u_k = IA s_k, D_k = s_k . u_k,
+  !> r_k = tau_k - s_k . pA) for the forward pass: qdd_k = (r_k - u_k . lin) / D_k.
   subroutine through_joint(d, b, qdd, error)
     type(model_data), intent(inout) :: d
     integer, intent(in) :: b
     real(dp), intent(in) :: qdd(:)
     type(error_type), allocatable, intent(out) :: error
     integer :: k, i, j
-    real(dp) :: u(6), dd, r
+    real(dp) :: u(6), v(6), dd, r
     associate(ia => d%ab_ia(:, :, b), pa => d%ab_pa(:, b))
       do k = d%c0(b) + d%nc(b) - 1, d%c0(b), -1
         do i = 1, 6
@@ -151,11 +151,12 @@ contains
             & 'coordinate ' // trim(d%qname(k)) // ' is ' // trim(real_text(dd)), stat_solver); return
         end if
         r = d%tau(k) - dot_product(d%s(:, k), pa)
+        v = u/dd
         j = k - d%c0(b) + 1
-        d%ab_u(:, j, b) = u; d%ab_d(j, b) = dd; d%ab_r(j, b) = r
+        d%ab_u(:, j, b) = v; d%ab_r(j, b) = r/dd
         do j = 1, 6
           do i = 1, 6
-            ia(i, j) = ia(i, j) - u(i)*u(j)/dd
+            ia(i, j) = ia(i, j) - u(i)*v(j)
           end do
         end do
         pa = pa + u*(r/dd)
@@ -180,7 +181,7 @@ contains
     do k = d%c0(b), d%c0(b) + d%nc(b) - 1
       if (.not. d%prescribed(k)) then
         j = k - d%c0(b) + 1
-        qdd(k) = (d%ab_r(j, b) - dot_product(d%ab_u(:, j, b), lin))/d%ab_d(j, b)
+        qdd(k) = d%ab_r(j, b) - dot_product(d%ab_u(:, j, b), lin)
       end if
       lin = lin + d%s(:, k)*qdd(k)
     end do

@@ -179,8 +179,7 @@ contains
     self%d%articulated = on
     if (.not. on .or. allocated(self%d%ab_ia)) return
     nb = self%d%nb; mx = max(self%d%mmax, 1)
-    allocate(self%d%ab_ia(6, 6, nb), self%d%ab_pa(6, nb), self%d%ab_u(6, 6, nb), self%d%ab_d(6, nb), &
-      & self%d%ab_r(6, nb), self%d%ab_lin(6, nb), self%d%ab_kaa(mx, mx, nb), self%d%ab_kam(6, mx, nb), &
+    allocate(self%d%ab_ia(6, 6, nb), self%d%ab_pa(6, nb), self%d%ab_u(6, 6, nb), self%d%ab_r(6, nb), self%d%ab_lin(6, nb), self%d%ab_kaa(mx, mx, nb), self%d%ab_kam(6, mx, nb), &
       & self%d%ab_ba(mx, nb))
   end subroutine model_use_articulated
 

@@ -113,10 +113,11 @@ module pymr_model_types
     logical, allocatable :: prescribed(:)
     !> Forward dynamics by the articulated-body algorithm (model/articulated.f90) instead of
     !> assembling and factoring M, and its work: per body the articulated inertia and bias
-    !> after its joint, per joint column u = IA s, D = s . u and r = tau - s . pA, the part
-    !> of the acceleration linear in qdd, and a flexible body's factored K_aa, K_Aa and b_a.
+    !> after its joint, per joint column u/D and r/D (u = IA s, D = s . u, r = tau - s . pA),
+    !> the part of the acceleration linear in qdd, and a flexible body's factored K_aa, K_Aa
+    !> and b_a.
     logical :: articulated = .false.
-    real(dp), allocatable :: ab_ia(:, :, :), ab_pa(:, :), ab_u(:, :, :), ab_d(:, :), ab_r(:, :), ab_lin(:, :)
+    real(dp), allocatable :: ab_ia(:, :, :), ab_pa(:, :), ab_u(:, :, :), ab_r(:, :), ab_lin(:, :)
     real(dp), allocatable :: ab_kaa(:, :, :), ab_kam(:, :, :), ab_ba(:, :)
     !> Bodies on or below a flexible body (whose terms the fast rows need).
     logical, allocatable :: in_fast(:)
