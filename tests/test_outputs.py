@@ -258,3 +258,18 @@ def test_rows_at_any_time_are_as_accurate_as_the_steps(tmp_path, over, dt):
     err_rows = np.abs(rows.marker("muzzle")[0] - ref.marker("muzzle")[0]).max()
     err_steps = np.abs(steps.marker("muzzle")[0] - fine.marker("muzzle")[0]).max()
     assert err_rows <= 2.0 * err_steps
+
+
+def test_a_restart_with_other_columns_is_refused(tmp_path):
+    """A restart must write the columns of the checkpointed run: asked for other quantities
+    it is refused in one line before anything is written, and the earlier rows stay."""
+    out = tmp_path / "job.csv"
+    over = {"output.checkpoint_dt": 0.2, "output.quantities": ["coordinates", "energy"]}
+    pymr.run(TANK, out, overrides={**over, "scene.t_end": 0.55})
+    before = (tmp_path / "job.csv").read_bytes()
+    with pytest.raises(pymr.SceneError, match=r"its columns are not the ones this run writes \(&output quantities"):
+        pymr.run(TANK, out, overrides={**over, "output.quantities": ["coordinates", "reactions"]},
+                 restart=tmp_path / "job.ckpt")
+    assert (tmp_path / "job.csv").read_bytes() == before
+    res = pymr.run(TANK, out, overrides=over, restart=tmp_path / "job.ckpt")
+    assert res.t[-1] == 1.0 and "energy.total" in res.columns

@@ -118,15 +118,57 @@ contains
     row_width = 1 + merge(2*d%n, 0, plan%coordinates) + plan%extra
   end function row_width
 
+  !> The header row of the plan's columns (built in one buffer: a scene may have 10^5 markers).
+  function header_line(plan, d) result(line)
+    type(output_plan), intent(in) :: plan
+    type(model_data), intent(in) :: d
+    character(len=:), allocatable :: line
+    character(len=:), allocatable :: buf, m
+    integer :: pos, i, j
+    allocate(character(len=(len(d%qname) + 8)*(2*d%n + 13*d%n_markers + 6*d%nb) + 16*n_energy + 8) :: buf)
+    pos = 0
+    call add('t')
+    do i = 1, d%n
+      if (.not. plan%coordinates) exit
+      call add(',' // trim(d%qname(i)))
+      if (i == d%n .or. d%cgrp(min(i + 1, d%n)) /= d%cgrp(i)) then
+        ! the rates of the joint's (or body's) coordinates after them
+        do j = 1, i
+          if (d%cgrp(j) == d%cgrp(i)) call add(',' // trim(d%qdname(j)))
+        end do
+      end if
+    end do
+    do i = 1, d%n_markers
+      m = trim(d%marker_name(i))
+      if (plan%markers) call add(',' // m // '.x,' // m // '.y,' // m // '.z,' // m // '.vx,' // m // '.vy,' // m // '.vz')
+      if (plan%accelerations) call add(',' // m // '.ax,' // m // '.ay,' // m // '.az')
+      if (plan%orientations) call add(',' // m // '.qw,' // m // '.qx,' // m // '.qy,' // m // '.qz')
+    end do
+    do i = 2, d%nb
+      if (.not. plan%reactions) exit
+      m = trim(d%joint_name(i))
+      call add(',' // m // '.fx,' // m // '.fy,' // m // '.fz,' // m // '.mx,' // m // '.my,' // m // '.mz')
+    end do
+    do i = 1, n_energy
+      if (plan%energy) call add(',energy.' // trim(energy_columns(i)))
+    end do
+    line = buf(1:pos)
+  contains
+    subroutine add(text)
+      character(len=*), intent(in) :: text
+      buf(pos+1:pos+len(text)) = text
+      pos = pos + len(text)
+    end subroutine add
+  end function header_line
+
   !> Open the CSV file and write the comment lines and the header row (self%plan's columns).
   subroutine csv_open(self, path, d, title, method, error)
     class(csv_writer), intent(inout) :: self
     character(len=*), intent(in) :: path, title, method
     type(model_data), intent(in) :: d
     type(error_type), allocatable, intent(out) :: error
-    integer :: ios, i
+    integer :: ios
     character(len=256) :: msg
-    character(len=:), allocatable :: m
     self%path = path
     self%partial = path // '.partial'
     open(newunit=self%unit, file=self%partial, status='replace', action='write', iostat=ios, iomsg=msg)
@@ -134,57 +176,22 @@ contains
       call fatal_error(error, self%partial // ': cannot write the results: ' // trim(msg)); return
     end if
     self%opened = .true.
-    call put('# pymr ' // pymr_version // ' results', .true.)
-    call put('# title: ' // trim(title), .true.)
-    call put('# method: ' // trim(method), .true.)
-    ! the header piece by piece (a scene may have 10^5 markers)
-    call put('t', .false.)
-    do i = 1, d%n
-      if (.not. self%plan%coordinates) exit
-      call put(',' // trim(d%qname(i)), .false.)
-      if (i == d%n .or. d%cgrp(min(i + 1, d%n)) /= d%cgrp(i)) call add_rates(i)
-    end do
-    do i = 1, d%n_markers
-      m = trim(d%marker_name(i))
-      if (self%plan%markers) call put(',' // m // '.x,' // m // '.y,' // m // '.z,' // m // '.vx,' // m // '.vy,' // &
-        & m // '.vz', .false.)
-      if (self%plan%accelerations) call put(',' // m // '.ax,' // m // '.ay,' // m // '.az', .false.)
-      if (self%plan%orientations) call put(',' // m // '.qw,' // m // '.qx,' // m // '.qy,' // m // '.qz', .false.)
-    end do
-    do i = 2, d%nb
-      if (.not. self%plan%reactions) exit
-      m = trim(d%joint_name(i))
-      call put(',' // m // '.fx,' // m // '.fy,' // m // '.fz,' // m // '.mx,' // m // '.my,' // m // '.mz', .false.)
-    end do
-    do i = 1, n_energy
-      if (self%plan%energy) call put(',energy.' // trim(energy_columns(i)), .false.)
-    end do
-    call put('', .true.)
+    call put('# pymr ' // pymr_version // ' results')
+    call put('# title: ' // trim(title))
+    call put('# method: ' // trim(method))
+    call put(header_line(self%plan, d))
     if (self%ios /= 0) then
       call fatal_error(error, self%partial // ': cannot write the results: ' // trim(self%io_message)); return
     end if
     allocate(self%row(row_width(self%plan, d)))
     allocate(character(len=25*size(self%row)) :: self%line)
   contains
-    subroutine add_rates(last)
-      integer, intent(in) :: last
-      integer :: j
-      do j = 1, last
-        if (d%cgrp(j) == d%cgrp(last)) call put(',' // trim(d%qdname(j)), .false.)
-      end do
-    end subroutine add_rates
-
-    subroutine put(text, line_end)
+    !> One line, its bytes counted.
+    subroutine put(text)
       character(len=*), intent(in) :: text
-      logical, intent(in) :: line_end
       if (self%ios /= 0) return
-      if (line_end) then
-        write(self%unit, '(a)', iostat=self%ios, iomsg=self%io_message) text
-        self%written = self%written + len(text) + 1
-      else
-        write(self%unit, '(a)', advance='no', iostat=self%ios, iomsg=self%io_message) text
-        self%written = self%written + len(text)
-      end if
+      write(self%unit, '(a)', iostat=self%ios, iomsg=self%io_message) text
+      self%written = self%written + len(text) + 1
     end subroutine put
   end subroutine csv_open
 
@@ -219,7 +226,7 @@ contains
       call fatal_error(error, path // ': the results of the checkpointed run are missing (restart needs them)')
       return
     end if
-    allocate(character(len=25*row_width(self%plan, d) + 64*(d%n + d%n_markers + d%nb) + 1024) :: buf)
+    allocate(character(len=max(25*row_width(self%plan, d), len(header_line(self%plan, d))) + 1024) :: buf)
     allocate(lines(keep))
     open(newunit=u, file=source, status='old', action='read', iostat=ios, iomsg=msg)
     if (ios /= 0) then
@@ -234,6 +241,10 @@ contains
     if (k <= keep) then
       call fatal_error(error, source // ': has ' // itoa(max(k - 5, 0)) // ' result rows, the checkpoint expects ' // &
         & itoa(rows) // ': the file belongs to another run'); return
+    end if
+    if (lines(4)%s /= header_line(self%plan, d)) then
+      call fatal_error(error, source // ': its columns are not the ones this run writes (&output quantities, or ' // &
+        & 'the markers, differ from the checkpointed run''s): restart with the same ones'); return
     end if
     open(newunit=u, file=self%partial // '.tmp', status='replace', action='write', iostat=ios, iomsg=msg)
     do k = 1, keep
