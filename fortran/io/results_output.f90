@@ -103,7 +103,7 @@ contains
     plan%reactions = has('reactions')
     plan%energy = has('energy')
     plan%extra = d%n_markers*(merge(6, 0, plan%markers) + merge(3, 0, plan%accelerations) + &
-      & merge(4, 0, plan%orientations)) + merge(6*(d%nb - 1), 0, plan%reactions) + merge(n_energy, 0, plan%energy)
+      & merge(4, 0, plan%orientations)) + merge(6*(d%nb - 1 + d%n_cut), 0, plan%reactions) + merge(n_energy, 0, plan%energy)
   contains
     logical function has(word)
       character(len=*), intent(in) :: word
@@ -147,6 +147,11 @@ contains
     do i = 2, d%nb
       if (.not. plan%reactions) exit
       m = trim(d%joint_name(i))
+      call add(',' // m // '.fx,' // m // '.fy,' // m // '.fz,' // m // '.mx,' // m // '.my,' // m // '.mz')
+    end do
+    do i = 1, d%n_cut
+      if (.not. plan%reactions) exit
+      m = trim(d%cut_name(i))
       call add(',' // m // '.fx,' // m // '.fy,' // m // '.fz,' // m // '.mx,' // m // '.my,' // m // '.mz')
     end do
     do i = 1, n_energy
