@@ -144,14 +144,14 @@ contains
       if (plan%accelerations) call add(',' // m // '.ax,' // m // '.ay,' // m // '.az')
       if (plan%orientations) call add(',' // m // '.qw,' // m // '.qx,' // m // '.qy,' // m // '.qz')
     end do
-    do i = 2, d%nb
+    ! the tree joints', then the loop-closing joints' reactions
+    do i = 2, d%nb + d%n_cut
       if (.not. plan%reactions) exit
-      m = trim(d%joint_name(i))
-      call add(',' // m // '.fx,' // m // '.fy,' // m // '.fz,' // m // '.mx,' // m // '.my,' // m // '.mz')
-    end do
-    do i = 1, d%n_cut
-      if (.not. plan%reactions) exit
-      m = trim(d%cut_name(i))
+      if (i <= d%nb) then
+        m = trim(d%joint_name(i))
+      else
+        m = trim(d%cut_name(i - d%nb))
+      end if
       call add(',' // m // '.fx,' // m // '.fy,' // m // '.fz,' // m // '.mx,' // m // '.my,' // m // '.mz')
     end do
     do i = 1, n_energy

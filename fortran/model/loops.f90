@@ -15,7 +15,7 @@
 !> (rank-revealing) Gram-Schmidt factorisation of G^T and dropped.
 module pymr_model_loops
   use pymr_kinds, only : dp
-  use pymr_error, only : error_type, fatal_error, stat_solver
+  use pymr_error, only : error_type, fatal_error, stat_solver, stat_input
   use pymr_lapack, only : potrf, potrs
   use pymr_model_types, only : model_data, cut_fixed, cut_revolute
   use pymr_model_kinematics, only : forward_kinematics
@@ -54,8 +54,12 @@ contains
       return
     end if
     q0 = q; qd0 = qd
-    call project_positions(d, q, d%loop_size, error); if (allocated(error)) return
-    call project_velocities(d, q, qd, error); if (allocated(error)) return
+    call project_positions(d, q, d%loop_size, error)
+    if (.not. allocated(error)) call project_velocities(d, q, qd, error)
+    if (allocated(error)) then
+      ! a state that cannot be assembled is the scene's fault, not the run's
+      error%stat = stat_input; error%message = 'cannot assemble the initial state: ' // error%message; return
+    end if
     d%assembly_dq = maxval(abs(q - q0)); d%assembly_dqd = maxval(abs(qd - qd0))
   end subroutine assemble_loops
 
