@@ -45,7 +45,9 @@ contains
     type(error_type), allocatable, intent(out) :: error
     real(dp) :: q0(size(q)), qd0(size(qd))
     if (d%n_cut == 0) return
-    call choose_rows(d, q, error); if (allocated(error)) return
+    call forward_kinematics(d, q, 0.0_dp*q)
+    call loop_rows(d)
+    call choose_rows(d, error); if (allocated(error)) return
     d%loop_size = max(maxval(norm2(d%pos, dim=1)), maxval(norm2(d%cut_at, dim=1)), &
       & maxval(norm2(d%cut_child_at, dim=1)), tiny(1.0_dp))
     if (maxval(abs(d%phi)) > assembly_tol*d%loop_size) then
@@ -141,18 +143,15 @@ contains
     end do
   end subroutine add_turn_columns
 
-  !> The independent rows of G at (q, qd = 0): pivoted Gram-Schmidt on the rows (the
-  !> column-pivoted QR of G^T); the others are redundant. A loop that leaves no motion is
-  !> an error.
-  subroutine choose_rows(d, q, error)
+  !> The independent rows of G (d%gj, after loop_rows): pivoted Gram-Schmidt on the rows
+  !> (the column-pivoted QR of G^T); the others are redundant. Chosen once, at the first
+  !> evaluation or at assembly. A loop that leaves no motion is an error.
+  subroutine choose_rows(d, error)
     type(model_data), intent(inout) :: d
-    real(dp), intent(in) :: q(:)
     type(error_type), allocatable, intent(out) :: error
     real(dp) :: rows(d%n_rows, d%n), norms(d%n_rows), scale
     logical :: free(d%n_rows)
     integer :: k, i, j
-    call forward_kinematics(d, q, 0.0_dp*q)
-    call loop_rows(d)
     rows = d%gj
     free = .true.
     d%n_used = 0
@@ -169,19 +168,31 @@ contains
       end do
     end do
     d%n_redundant = d%n_rows - d%n_used
+    d%rows_chosen = .true.
     if (d%n_used >= d%n) call fatal_error(error, 'the loops lock the mechanism: ' // itoa(d%n_used) // &
       & ' independent constraints on ' // itoa(d%n) // ' coordinates leave no motion')
   end subroutine choose_rows
 
   !> Add the constraint forces to qdd = M^-1 P (M's Cholesky factor in d%lf), after an
-  !> evaluation's kinematics: lambda from (G M^-1 G^T) lambda = gamma - G qdd, then
-  !> qdd += M^-1 G^T lambda; d%lambda keeps them (0 on redundant rows).
+  !> evaluation's kinematics (the rows chosen at the first).
   subroutine constrained_accelerations(d, qdd, error)
     type(model_data), intent(inout) :: d
     real(dp), intent(inout) :: qdd(:)
     type(error_type), allocatable, intent(out) :: error
-    real(dp) :: a(d%n_used, d%n_used), lam(d%n_used), gu(d%n_used, d%n)
     call loop_rows(d)
+    if (.not. d%rows_chosen) then
+      call choose_rows(d, error); if (allocated(error)) return
+    end if
+    call add_multipliers(d, qdd, error)
+  end subroutine constrained_accelerations
+
+  !> lambda from (G M^-1 G^T) lambda = gamma - G qdd on the used rows, then
+  !> qdd += M^-1 G^T lambda; d%lambda keeps them (0 on redundant rows).
+  subroutine add_multipliers(d, qdd, error)
+    type(model_data), intent(inout) :: d
+    real(dp), intent(inout) :: qdd(:)
+    type(error_type), allocatable, intent(out) :: error
+    real(dp) :: a(d%n_used, d%n_used), lam(d%n_used), gu(d%n_used, d%n)
     gu = d%gj(d%row_used(1:d%n_used), :)
     d%ymg(:, 1:d%n_used) = transpose(gu)
     call potrs(d%lf, d%ymg(:, 1:d%n_used), 'the mass matrix', error); if (allocated(error)) return
@@ -191,7 +202,7 @@ contains
     qdd = qdd + matmul(d%ymg(:, 1:d%n_used), lam)
     d%lambda = 0.0_dp
     d%lambda(d%row_used(1:d%n_used)) = lam
-  end subroutine constrained_accelerations
+  end subroutine add_multipliers
 
   !> Solve the (symmetric positive definite) system of the used rows in place.
   subroutine solve_rows(a, x, error)

@@ -302,7 +302,7 @@ contains
     real(dp), intent(inout) :: x(:)
     type(error_type), allocatable, intent(out) :: error
     integer :: n
-    if (self%d%n_cut == 0) return
+    if (self%d%n_cut == 0 .or. .not. self%d%rows_chosen) return
     n = self%d%n
     call project_positions(self%d, x(1:n), self%d%loop_size, error); if (allocated(error)) return
     call project_velocities(self%d, x(1:n), x(n+1:), error)

@@ -135,6 +135,7 @@ module pymr_model_types
     real(dp), allocatable :: cut_at(:, :), cut_child_at(:, :), cut_axis(:, :), cut_normal(:, :, :)
     !> The independent rows (chosen once, at assembly) and how many were redundant.
     integer :: n_used = 0, n_redundant = 0
+    logical :: rows_chosen = .false.
     integer, allocatable :: row_used(:)
     !> Constraint residual Phi, Jacobian G (n_rows, n), gamma = -Gdot qd, the multipliers
     !> of the last evaluation (0 on redundant rows), and M^-1 G^T of the used rows.
