@@ -153,6 +153,9 @@ def test_the_summary_reports_redundant_rows_and_assembly(tmp_path, mrsim):
     r = subprocess.run([mrsim, "f.nml", "-o", "f.csv"], cwd=tmp_path, capture_output=True, text=True, timeout=60)
     assert r.returncode == 0, r.stderr
     assert "loops: 1 closing joints, 5 constraint rows, 3 redundant (dropped)" in r.stdout
+    loops = json.loads((tmp_path / "f.json").read_text())["loops"]
+    assert (loops["closing_joints"], loops["constraint_rows"], loops["redundant_rows"]) == (1, 5, 3)
+    assert loops["assembly_change_q"] < 1e-12       # the given state was closed to rounding
     (tmp_path / "s.nml").write_text(fourbar_scene(1.0, 2.0, t_end=0.1, cut="spherical"))
     r = subprocess.run([mrsim, "s.nml", "-o", "s.csv"], cwd=tmp_path, capture_output=True, text=True, timeout=60)
     assert "loops: 1 closing joints, 3 constraint rows, 1 redundant (dropped)" in r.stdout

@@ -393,6 +393,14 @@ contains
     write(buf, '(a,i0,a)') '  "step_ratio_last": ', st%ratio_last, ','; call put(trim(buf))
     write(buf, '(a,i0,a)') '  "rows": ', st%rows, ','; call put(trim(buf))
     write(buf, '(a,i0,a)') '  "n_coordinates": ', d%n, ','; call put(trim(buf))
+    if (d%n_cut > 0) then
+      write(buf, '(a,i0,a,i0,a,i0,a)') '  "loops": {"closing_joints": ', d%n_cut, ', "constraint_rows": ', &
+        & d%n_rows, ', "redundant_rows": ', d%n_redundant, ','
+      call put(trim(buf))
+      write(buf, '(a,es12.5,a,es12.5,a)') '    "assembly_change_q": ', d%assembly_dq, ', "assembly_change_qd": ', &
+        & d%assembly_dqd, '},'
+      call put(trim(buf))
+    end if
     text = text // '  "effects": {'
     do i = 1, n_effects
       if (.not. d%effect_on(i)) cycle
