@@ -12,7 +12,9 @@
 !> rotation rows), and gamma = -Gdot qd follows from the bias accelerations d%acc. The
 !> accelerations solve M qdd = P + G^T lambda, G qdd = gamma through M's Cholesky factor.
 !> Dependent rows (a planar loop of 3-D joints) are found once, at assembly, by a pivoted
-!> (rank-revealing) Gram-Schmidt factorisation of G^T and dropped.
+!> (rank-revealing) Gram-Schmidt factorisation of G^T and dropped. A loop may pass through
+!> flexible bodies (their modal columns at each child's joint enter G); the cut joint's own
+!> two bodies are rigid.
 module pymr_model_loops
   use pymr_kinds, only : dp
   use pymr_error, only : error_type, fatal_error, stat_solver, stat_input
@@ -113,19 +115,13 @@ contains
   end subroutine loop_rows
 
   !> Row `row` of G += sgn * (direction e . velocity of the inertial point p of body b) per
-  !> unit rate of each coordinate on b's path to the ground.
+  !> unit rate of each coordinate on b's path to the ground: e . (s_v + s_w x p) =
+  !> e . s_v + (p x e) . s_w.
   pure subroutine add_point_columns(d, b, p, e, sgn, row)
     type(model_data), intent(inout) :: d
     integer, intent(in) :: b, row
     real(dp), intent(in) :: p(3), e(3), sgn
-    integer :: a, k
-    a = b
-    do while (a > 1)
-      do k = d%c0(a), d%c0(a) + d%nc(a) - 1
-        d%gj(row, k) = d%gj(row, k) + sgn*dot_product(e, d%s(1:3, k) + cross(d%s(4:6, k), p))
-      end do
-      a = d%parent(a)
-    end do
+    call add_path_columns(d, b, sgn*e, sgn*cross(p, e), row)
   end subroutine add_point_columns
 
   !> Row `row` of G += sgn * (direction e . angular velocity of body b) per unit rate.
@@ -133,15 +129,29 @@ contains
     type(model_data), intent(inout) :: d
     integer, intent(in) :: b, row
     real(dp), intent(in) :: e(3), sgn
-    integer :: a, k
+    call add_path_columns(d, b, [0.0_dp, 0.0_dp, 0.0_dp], sgn*e, row)
+  end subroutine add_turn_columns
+
+  !> Row `row` of G += ev . s_v + ew . s_w for every spatial column s on body b's path: the
+  !> joint columns, and the modal columns (d%cm) of each flexible body the path crosses.
+  pure subroutine add_path_columns(d, b, ev, ew, row)
+    type(model_data), intent(inout) :: d
+    integer, intent(in) :: b, row
+    real(dp), intent(in) :: ev(3), ew(3)
+    integer :: a, k, l, pa
     a = b
     do while (a > 1)
       do k = d%c0(a), d%c0(a) + d%nc(a) - 1
-        d%gj(row, k) = d%gj(row, k) + sgn*dot_product(e, d%s(4:6, k))
+        d%gj(row, k) = d%gj(row, k) + dot_product(ev, d%s(1:3, k)) + dot_product(ew, d%s(4:6, k))
       end do
-      a = d%parent(a)
+      pa = d%parent(a)
+      do l = 1, d%nm(pa)
+        k = d%a0(pa) + l - 1
+        d%gj(row, k) = d%gj(row, k) + dot_product(ev, d%cm(1:3, l, a)) + dot_product(ew, d%cm(4:6, l, a))
+      end do
+      a = pa
     end do
-  end subroutine add_turn_columns
+  end subroutine add_path_columns
 
   !> The independent rows of G (d%gj, after loop_rows): pivoted Gram-Schmidt on the rows
   !> (the column-pivoted QR of G^T); the others are redundant. Chosen once, at the first

@@ -343,9 +343,9 @@ contains
     call check_loops(sc, errs)
   end subroutine check_joints
 
-  !> Loop-closing joints (closes_loop): 'revolute', 'spherical' or 'fixed', no coordinates of
-  !> their own (no q0, qd0, settle, drive, spring or motion), only in rigid single-rate runs
-  !> through the mass matrix from a given start; child_at only on them.
+  !> Loop-closing joints (closes_loop): 'revolute', 'spherical' or 'fixed' between rigid
+  !> bodies, no coordinates of their own (no q0, qd0, settle, drive, spring or motion), only
+  !> in single-rate runs through the mass matrix from a given start; child_at only on them.
   subroutine check_loops(sc, errs)
     type(scene_t), intent(in) :: sc
     type(error_list), intent(inout) :: errs
@@ -373,11 +373,20 @@ contains
           call errs%add(o%where('name') // ': a joint that closes a loop has no coordinates to drive, spring ' // &
             & 'or prescribe'); cycle
         end if
+        if (flexible(jt%parent) .or. flexible(jt%child)) then
+          call errs%add(o%where(trim(merge('parent', 'child ', flexible(jt%parent)))) // ': a joint that closes ' // &
+            & 'a loop joins rigid bodies (a flexible body may lie inside the loop; cut the loop at a rigid one)')
+          cycle
+        end if
         refused = loop_refusal(sc)
         if (len(refused) > 0) call errs%add(o%where('child') // ': closes a loop, and loops are not ' // refused)
       end associate
     end do
   contains
+    logical function flexible(name)
+      character(len=*), intent(in) :: name
+      flexible = sc%bodies(body_index(sc, name))%kind == 'beam' .or. sc%bodies(body_index(sc, name))%kind == 'modal'
+    end function flexible
     pure logical function nonzero(x)
       real(dp), intent(in) :: x(:)
       nonzero = any(x /= 0.0_dp .and. x /= unset)
@@ -389,7 +398,6 @@ contains
     type(scene_t), intent(in) :: sc
     character(len=:), allocatable :: s
     s = ''
-    if (any(sc%bodies%kind == 'beam' .or. sc%bodies%kind == 'modal')) s = 'supported with flexible bodies'
     if (trim(sc%integrator%method) == 'multirate') s = "supported by method = 'multirate' (use 'single')"
     if (trim(sc%integrator%dynamics) == 'articulated') s = "supported by dynamics = 'articulated' (use 'mass_matrix')"
     if (sc%scene%start == 'static') s = "supported with start = 'static'"
