@@ -223,18 +223,18 @@ contains
   end subroutine solve_rows
 
   !> Close the loops from q by the least change: q <- q - G^T (G G^T)^-1 Phi, iterated until
-  !> |Phi| <= closure_tol * size (m; rad for rotation rows); an error if that fails.
-  subroutine project_positions(d, q, size, error)
+  !> |Phi| <= closure_tol * max(scale, 1 m) (m; rad for rotation rows); an error if that fails.
+  subroutine project_positions(d, q, scale, error)
     type(model_data), intent(inout) :: d
     real(dp), intent(inout) :: q(:)
-    real(dp), intent(in) :: size
+    real(dp), intent(in) :: scale
     type(error_type), allocatable, intent(out) :: error
     real(dp) :: gu(d%n_used, d%n), y(d%n_used), a(d%n_used, d%n_used)
     integer :: it
     do it = 1, max_iterations
       call forward_kinematics(d, q, 0.0_dp*q)
       call loop_rows(d)
-      if (maxval(abs(d%phi)) <= closure_tol*max(size, 1.0_dp)) return
+      if (maxval(abs(d%phi)) <= closure_tol*max(scale, 1.0_dp)) return
       gu = d%gj(d%row_used(1:d%n_used), :)
       a = matmul(gu, transpose(gu))
       y = d%phi(d%row_used(1:d%n_used))
