@@ -9,6 +9,7 @@ module pymr_output_quantities
     & effect_joint_springs, effect_modal_damping
   use pymr_model_kinematics, only : forward_kinematics, marker_motion, marker_acceleration, marker_rotation
   use pymr_model_reactions, only : body_accelerations, joint_wrenches, child_frame_wrench
+  use pymr_model_loops, only : cut_wrench, cut_body_wrenches
   use pymr_model_effects, only : impose_prescribed_state, drive_force, load_force
   use pymr_model_spatial, only : quaternion
   use pymr_integrator_stepper, only : stepper_t
@@ -59,12 +60,15 @@ contains
     real(dp), intent(in) :: t, q(:), qd(:), work(n_work)
     real(dp), intent(out) :: v(:)
     type(error_type), allocatable, intent(out) :: error
-    real(dp) :: qdd(size(q)), lin(6, model%d%nb), jw(6, model%d%nb), e(4), r(3), vel(3), a(3), rm(3, 3)
+    real(dp) :: qdd(size(q)), lin(6, model%d%nb), jw(6, model%d%nb), ext(6, model%d%nb), e(4), r(3), vel(3), a(3), rm(3, 3)
     integer :: k, i, b
     if (plan%accelerations .or. plan%reactions) then
       call output_accelerations(model, t, q, qd, qdd, error); if (allocated(error)) return
       call body_accelerations(model%d, qdd, lin)
-      if (plan%reactions) call joint_wrenches(model%d, qdd, lin, jw)
+      if (plan%reactions) then
+        call cut_body_wrenches(model%d, ext)
+        call joint_wrenches(model%d, qdd, lin, jw, ext)
+      end if
     else if (plan%markers .or. plan%orientations) then
       call forward_kinematics(model%d, q, qd)
     end if
@@ -86,6 +90,9 @@ contains
       end do
       do b = 2, d%nb
         if (plan%reactions) call put(child_frame_wrench(d, b, jw(:, b)))
+      end do
+      do i = 1, d%n_cut
+        if (plan%reactions) call put(cut_wrench(d, i))
       end do
     end associate
     if (plan%energy) then

@@ -3,7 +3,7 @@
 module pymr_run
   use, intrinsic :: iso_fortran_env, only : error_unit
   use pymr_kinds, only : dp
-  use pymr_error, only : error_type, fatal_error, stat_solver
+  use pymr_error, only : error_type, fatal_error, stat_solver, prefix_error
   use pymr_model_scene, only : scene_t, unset
   use pymr_io_namelist_input, only : read_scene, scene_fingerprint, checkpoint_identity
   use pymr_model_build, only : build_model
@@ -13,6 +13,8 @@ module pymr_run
   use pymr_io_results_output, only : csv_writer, json_path, write_json, run_stats, output_plan_of, n_work
   use pymr_output_quantities, only : write_output_row, work_at
   use pymr_model_kinematics, only : forward_kinematics, marker_motion
+  use pymr_model_loops, only : assemble_loops
+  use pymr_model_scene_rules, only : closes_loop
   use pymr_clock, only : thread_cpu_time
   use pymr_model_effects, only : prescribed_motion
   use pymr_io_text, only : itoa, fmt
@@ -64,7 +66,8 @@ contains
     select case (trim(sc%integrator%dynamics))
     case ('articulated'); articulated_dynamics = .true.
     case ('mass_matrix'); articulated_dynamics = .false.
-    case default; articulated_dynamics = model%d%nj >= articulated_from .or. .not. any(model%d%flexible)
+    case default; articulated_dynamics = (model%d%nj >= articulated_from .or. .not. any(model%d%flexible)) &
+      & .and. model%d%n_cut == 0
     end select
   end function articulated_dynamics
 
@@ -294,6 +297,10 @@ contains
           & 'results: ' // trim(csv%io_message), stat_solver); exit
       end if
       call st%advance(model, error); if (allocated(error)) exit
+      call st%project(model, error)
+      if (allocated(error)) then
+        call prefix_error(error, 'at t = ' // fmt(st%time()) // ' s'); exit
+      end if
       done = st%counts()
       if (done%steps_fast > sc%integrator%max_steps) then
         call fatal_error(error, 'at t = ' // fmt(st%time()) // ' s: the run took more than max_steps = ' // &
@@ -424,6 +431,15 @@ contains
     character(len=64), allocatable :: names(:)
     integer :: b, j, i, n
     call initial_state(sc, model, x)
+    n = model%d%n
+    call assemble_loops(model%d, x(1:n), x(n+1:), error)
+    if (allocated(error)) then
+      ! the loops' fault is no single line's: it names the first loop-closing joint
+      do j = 1, size(sc%joints)
+        if (closes_loop(sc, j)) exit
+      end do
+      error%message = sc%joints(j)%origin%where() // ': ' // error%message; return
+    end if
     if (sc%scene%start /= 'static') return
     n = model%d%n
     allocate(u(0))
@@ -479,6 +495,12 @@ contains
     s = s // trim(buf) // new_line('a')
     write(buf, '(a,f10.4,a,f10.4,a)') 'cpu time ', st%cpu_time_s, ' s, wall time ', st%wall_time_s, ' s'
     s = s // trim(buf)
+    if (model%d%n_cut > 0) then
+      write(buf, '(a,i0,a,i0,a,i0,a,es9.2,a,es9.2,a)') 'loops: ', model%d%n_cut, ' closing joints, ', &
+        & model%d%n_rows, ' constraint rows, ', model%d%n_redundant, ' redundant (dropped); the initial ' // &
+        & 'state assembled with largest changes ', model%d%assembly_dq, ' (q), ', model%d%assembly_dqd, ' (qd)'
+      s = s // new_line('a') // trim(buf)
+    end if
     if (st%preflight_cpu_s > 0.0_dp) s = s // ' (pre-flight stability check: ' // fmt(st%preflight_cpu_s) // ' s CPU)'
     s = s // new_line('a')
     call forward_kinematics(model%d, x(1:n), x(n+1:))

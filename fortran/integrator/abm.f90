@@ -37,6 +37,7 @@ module pymr_integrator_abm
     procedure :: init => abm_init
     procedure :: start => abm_start
     procedure :: advance => abm_step
+    procedure :: project => abm_project
     procedure :: time => abm_time
     procedure :: value_at => abm_value_at
     procedure :: save => abm_save
@@ -292,4 +293,13 @@ contains
       end if
     end do
   end subroutine check_finite
+
+  !> Project the value column of the Nordsieck array onto the system's constraints.
+  subroutine abm_project(self, sys, error)
+    class(abm_integrator), intent(inout) :: self
+    class(ode_system), intent(inout) :: sys
+    type(error_type), allocatable, intent(out) :: error
+    call sys%project(self%z(:, 0), error)
+  end subroutine abm_project
+
 end module pymr_integrator_abm

@@ -99,6 +99,7 @@ module pymr_integrator_adams
     procedure :: init => adams_init
     procedure :: start => adams_start
     procedure :: advance => adams_advance
+    procedure :: project => adams_project
     procedure :: time => adams_time
     procedure :: value_at => adams_value_at
     procedure :: save => adams_save
@@ -615,4 +616,13 @@ contains
     real(dp), intent(in) :: v(:)
     self%z = reshape(v, shape(self%z))
   end subroutine adams_set_state
+
+  !> Project the value column of the Nordsieck array onto the system's constraints.
+  subroutine adams_project(self, sys, error)
+    class(adams_integrator), intent(inout) :: self
+    class(ode_system), intent(inout) :: sys
+    type(error_type), allocatable, intent(out) :: error
+    call sys%project(self%z(:, 0), error)
+  end subroutine adams_project
+
 end module pymr_integrator_adams

@@ -48,6 +48,7 @@ module pymr_integrator_multirate
     procedure :: init => mr_init
     procedure :: start => mr_start
     procedure :: advance => mr_advance
+    procedure :: project => mr_project
     procedure :: time => mr_time
     procedure :: value_at => mr_value_at
     procedure :: save => mr_save
@@ -411,4 +412,20 @@ contains
     x(1:ns) = xs(1:ns); x(n+1:n+ns) = xs(ns+1:)
     x(ns+1:n) = xf(1:nf); x(n+ns+1:) = xf(nf+1:)
   end subroutine mr_value_at
+
+  !> Project the value columns of the slow and fast Nordsieck arrays, joined into the full
+  !> state [q_s; q_f; qd_s; qd_f], onto the system's constraints.
+  subroutine mr_project(self, sys, error)
+    class(multirate_integrator), intent(inout) :: self
+    class(ode_system), intent(inout) :: sys
+    type(error_type), allocatable, intent(out) :: error
+    real(dp) :: x(2*(self%ns + self%nf))
+    integer :: ns, nf
+    ns = self%ns; nf = self%nf
+    x = [self%zs(1:ns, 0), self%zf(1:nf, 0), self%zs(ns+1:, 0), self%zf(nf+1:, 0)]
+    call sys%project(x, error); if (allocated(error)) return
+    self%zs(:, 0) = [x(1:ns), x(ns+nf+1:2*ns+nf)]
+    self%zf(:, 0) = [x(ns+1:ns+nf), x(2*ns+nf+1:)]
+  end subroutine mr_project
+
 end module pymr_integrator_multirate

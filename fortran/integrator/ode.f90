@@ -14,6 +14,9 @@ module pymr_integrator_ode
     procedure(eval_iface), deferred :: eval
     !> Name of state component i for messages ("elevation.qd").
     procedure(name_iface), deferred :: component_name
+    !> Bring a state back onto the system's invariant manifold after an accepted step
+    !> (a model with closed loops: its constraints); nothing for most systems.
+    procedure :: project => no_projection
   end type ode_system
 
   !> A second-order system split into slow and fast coordinates for multirate
@@ -78,4 +81,12 @@ module pymr_integrator_ode
       character(len=:), allocatable :: name
     end function name_iface
   end interface
+
+contains
+
+  subroutine no_projection(self, x, error)
+    class(ode_system), intent(inout) :: self
+    real(dp), intent(inout) :: x(:)
+    type(error_type), allocatable, intent(out) :: error
+  end subroutine no_projection
 end module pymr_integrator_ode

@@ -75,6 +75,7 @@ module pymr_integrator_response
     procedure :: init => rs_init
     procedure :: start => rs_start
     procedure :: advance => rs_advance
+    procedure :: project => rs_project
     procedure :: time => rs_time
     procedure :: value_at => rs_value_at
     procedure :: save => rs_save
@@ -427,4 +428,13 @@ contains
     character(len=:), allocatable :: s
     s = 'multirate'
   end function rs_name
+
+  !> Project the value column of the Nordsieck array onto the system's constraints.
+  subroutine rs_project(self, sys, error)
+    class(response_integrator), intent(inout) :: self
+    class(ode_system), intent(inout) :: sys
+    type(error_type), allocatable, intent(out) :: error
+    call sys%project(self%z(:, 0), error)
+  end subroutine rs_project
+
 end module pymr_integrator_response

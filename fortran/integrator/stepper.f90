@@ -53,6 +53,9 @@ module pymr_integrator_stepper
     procedure :: set_ratio => no_ratio
     !> Order of the method in the last step (4 for the paper's ABM4).
     procedure :: order => order_four
+    !> Project the state reached (the Nordsieck array's value column) onto the system's
+    !> constraints after an accepted step (sys%project).
+    procedure(project_iface), deferred :: project
   end type stepper_t
 
   abstract interface
@@ -112,6 +115,12 @@ module pymr_integrator_stepper
       class(stepper_t), intent(in) :: self
       type(pece_steps) :: s
     end function steps_iface
+    subroutine project_iface(self, sys, error)
+      import :: stepper_t, ode_system, error_type
+      class(stepper_t), intent(inout) :: self
+      class(ode_system), intent(inout) :: sys
+      type(error_type), allocatable, intent(out) :: error
+    end subroutine project_iface
     !> Length of its whole state as a vector.
     pure integer function state_size_iface(self)
       import :: stepper_t

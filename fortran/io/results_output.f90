@@ -103,7 +103,7 @@ contains
     plan%reactions = has('reactions')
     plan%energy = has('energy')
     plan%extra = d%n_markers*(merge(6, 0, plan%markers) + merge(3, 0, plan%accelerations) + &
-      & merge(4, 0, plan%orientations)) + merge(6*(d%nb - 1), 0, plan%reactions) + merge(n_energy, 0, plan%energy)
+      & merge(4, 0, plan%orientations)) + merge(6*(d%nb - 1 + d%n_cut), 0, plan%reactions) + merge(n_energy, 0, plan%energy)
   contains
     logical function has(word)
       character(len=*), intent(in) :: word
@@ -144,9 +144,14 @@ contains
       if (plan%accelerations) call add(',' // m // '.ax,' // m // '.ay,' // m // '.az')
       if (plan%orientations) call add(',' // m // '.qw,' // m // '.qx,' // m // '.qy,' // m // '.qz')
     end do
-    do i = 2, d%nb
+    ! the tree joints', then the loop-closing joints' reactions
+    do i = 2, d%nb + d%n_cut
       if (.not. plan%reactions) exit
-      m = trim(d%joint_name(i))
+      if (i <= d%nb) then
+        m = trim(d%joint_name(i))
+      else
+        m = trim(d%cut_name(i - d%nb))
+      end if
       call add(',' // m // '.fx,' // m // '.fy,' // m // '.fz,' // m // '.mx,' // m // '.my,' // m // '.mz')
     end do
     do i = 1, n_energy
@@ -388,6 +393,14 @@ contains
     write(buf, '(a,i0,a)') '  "step_ratio_last": ', st%ratio_last, ','; call put(trim(buf))
     write(buf, '(a,i0,a)') '  "rows": ', st%rows, ','; call put(trim(buf))
     write(buf, '(a,i0,a)') '  "n_coordinates": ', d%n, ','; call put(trim(buf))
+    if (d%n_cut > 0) then
+      write(buf, '(a,i0,a,i0,a,i0,a)') '  "loops": {"closing_joints": ', d%n_cut, ', "constraint_rows": ', &
+        & d%n_rows, ', "redundant_rows": ', d%n_redundant, ','
+      call put(trim(buf))
+      write(buf, '(a,es12.5,a,es12.5,a)') '    "assembly_change_q": ', d%assembly_dq, ', "assembly_change_qd": ', &
+        & d%assembly_dqd, '},'
+      call put(trim(buf))
+    end if
     text = text // '  "effects": {'
     do i = 1, n_effects
       if (.not. d%effect_on(i)) cycle

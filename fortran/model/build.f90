@@ -4,11 +4,11 @@ module pymr_model_build
   use pymr_kinds, only : dp, name_len, pi
   use pymr_error, only : error_type, fatal_error
   use pymr_model_scene, only : scene_t, body_spec, joint_spec, joint_ndof, unset, beam_mode_count
-  use pymr_model_scene_rules, only : check_scene, body_index, inertia_matrix
+  use pymr_model_scene_rules, only : check_scene, body_index, inertia_matrix, closes_loop
   use pymr_model_types, only : model_data, prim_revolute, prim_prismatic, effect_gravity, effect_joint_drives, &
     & effect_modal_damping, effect_joint_springs, effect_geometric_stiffening, effect_base_motion, n_effects, &
     & effect_firing_load, effect_deformation_inertia, &
-    & motion_sine, motion_spinup, motion_table
+    & motion_sine, motion_spinup, motion_table, cut_fixed, cut_revolute, cut_spherical
   use pymr_model_time_table, only : spline_setup
   use pymr_io_table_file, only : read_time_table
   use pymr_model_beam_modes, only : build_beam, beam_section, beam_point_shapes, beam_point_load_stiffness
@@ -92,6 +92,7 @@ contains
     allocate(parent(nb), inboard(nb), placed(nb), order(0))
     parent = 0; inboard = 0
     do j = 1, size(sc%joints)
+      if (closes_loop(sc, j)) cycle
       i = body_index(sc, sc%joints(j)%child)
       parent(i) = body_index(sc, sc%joints(j)%parent); inboard(i) = j
     end do
@@ -206,10 +207,49 @@ contains
       end if
     end do
     call fill_loads_markers(sc, pos_in, d, error); if (allocated(error)) return
+    call fill_cuts(sc, pos_in, d)
     allocate(d%rot(3, 3, nb), d%pos(3, nb), d%vel(6, nb), d%acc(6, nb), d%s(6, d%n), d%i6(6, 6, nb), &
       & d%w(6, nb), d%ic(6, 6, nb), d%wc(6, nb), d%mm(d%n, d%n), d%lf(d%n, d%n), d%p(d%n), d%tau(d%n))
     d%i6 = 0.0_dp; d%w = 0.0_dp; d%ic = 0.0_dp; d%wc = 0.0_dp; d%mm = 0.0_dp; d%tau = 0.0_dp; d%s = 0.0_dp
   end subroutine fill_model
+
+  !> The loop-closing joints (closes_loop) and their constraint rows (model/loops.f90).
+  subroutine fill_cuts(sc, pos_in, d)
+    type(scene_t), intent(in) :: sc
+    integer, intent(in) :: pos_in(:)
+    type(model_data), intent(inout) :: d
+    integer :: j, c
+    real(dp) :: u(3), e(3)
+    d%n_cut = count([(closes_loop(sc, j), j = 1, size(sc%joints))])
+    allocate(d%cut_name(d%n_cut), d%cut_parent(d%n_cut), d%cut_child(d%n_cut), d%cut_kind(d%n_cut), &
+      & d%cut_row0(d%n_cut), d%cut_nrow(d%n_cut), d%cut_at(3, d%n_cut), d%cut_child_at(3, d%n_cut), &
+      & d%cut_axis(3, d%n_cut), d%cut_normal(3, 2, d%n_cut))
+    c = 0; d%n_rows = 0
+    do j = 1, size(sc%joints)
+      if (.not. closes_loop(sc, j)) cycle
+      c = c + 1
+      associate(jt => sc%joints(j))
+        d%cut_name(c) = jt%name
+        d%cut_parent(c) = pos_in(body_index(sc, jt%parent)); d%cut_child(c) = pos_in(body_index(sc, jt%child))
+        d%cut_at(:, c) = jt%at; d%cut_child_at(:, c) = jt%child_at
+        u = jt%axis/norm2(jt%axis)
+        ! two unit normals of the axis: the unit axis least aligned with it, made normal
+        e = unit_axes(:, minloc(abs(u), dim=1))
+        e = e - dot_product(e, u)*u; e = e/norm2(e)
+        d%cut_axis(:, c) = u; d%cut_normal(:, 1, c) = e
+        d%cut_normal(:, 2, c) = [u(2)*e(3) - u(3)*e(2), u(3)*e(1) - u(1)*e(3), u(1)*e(2) - u(2)*e(1)]
+        select case (trim(jt%kind))
+        case ('fixed'); d%cut_kind(c) = cut_fixed; d%cut_nrow(c) = 6
+        case ('revolute'); d%cut_kind(c) = cut_revolute; d%cut_nrow(c) = 5
+        case default; d%cut_kind(c) = cut_spherical; d%cut_nrow(c) = 3
+        end select
+      end associate
+      d%cut_row0(c) = d%n_rows + 1; d%n_rows = d%n_rows + d%cut_nrow(c)
+    end do
+    allocate(d%row_used(d%n_rows), d%phi(d%n_rows), d%gj(d%n_rows, d%n), d%gam(d%n_rows), d%lambda(d%n_rows), &
+      & d%ymg(d%n, d%n_rows))
+    d%lambda = 0.0_dp
+  end subroutine fill_cuts
 
   !> Expand joint jt of body b into primitives, coordinates k+1 ... (k is advanced).
   subroutine add_joint(jt, b, k, d)

@@ -13,6 +13,7 @@ module pymr_model
   use pymr_model_flexbody, only : deformed_modal_moments
   use pymr_model_assembly, only : body_terms, composite_terms, assemble_mass, assemble_rhs, kinetic_energy
   use pymr_model_articulated, only : articulated_accelerations
+  use pymr_model_loops, only : constrained_accelerations, project_positions, project_velocities
   use pymr_model_effects, only : add_gravity, add_joint_drives, add_modal_damping, gravity_potential, &
     & elastic_potential, add_joint_springs, spring_potential, add_geometric_stiffening, impose_prescribed_state, &
     & prescribe_rows, add_firing_load, add_carried_load_stiffening
@@ -55,6 +56,7 @@ module pymr_model
     procedure :: accelerations => model_accelerations
     procedure :: forces => model_forces
     procedure :: energy => model_energy
+    procedure :: project => model_project
     procedure :: energy_parts => model_energy_parts
     procedure :: n_slow => model_n_slow
     procedure :: n_fast => model_n_fast
@@ -289,9 +291,22 @@ contains
       end if
       qdd = d%p
       call potrs(d%lf, qdd, 'the mass matrix', error)
+      if (d%n_cut > 0 .and. .not. allocated(error)) call constrained_accelerations(d, qdd, error)
       call add_time(error, t)
     end associate
   end subroutine model_accelerations
+
+  !> Close the loops of state x = [q; qd] (model/loops.f90): positions, then rates.
+  subroutine model_project(self, x, error)
+    class(model_t), intent(inout) :: self
+    real(dp), intent(inout) :: x(:)
+    type(error_type), allocatable, intent(out) :: error
+    integer :: n
+    if (self%d%n_cut == 0 .or. .not. self%d%rows_chosen) return
+    n = self%d%n
+    call project_positions(self%d, x(1:n), self%d%loop_size, error); if (allocated(error)) return
+    call project_velocities(self%d, x(1:n), x(n+1:), error)
+  end subroutine model_project
 
   !> f(t, x) for x = [q; qd].
   subroutine model_eval(self, t, x, f, error)

@@ -43,17 +43,20 @@ contains
 
   !> Wrench jw(:, b) = [f; n_O] that body b's joint passes from the parent to b's subtree
   !> (inertial; moment about the inertial origin), after a full evaluation's body terms.
-  !> lin: body_accelerations of qdd.
-  pure subroutine joint_wrenches(d, qdd, lin, jw)
+  !> lin: body_accelerations of qdd; ext: further loads on each body (the loop-closing
+  !> joints' wrenches, 6 x nb), when there are such.
+  pure subroutine joint_wrenches(d, qdd, lin, jw, ext)
     type(model_data), intent(in) :: d
     real(dp), intent(in) :: qdd(:), lin(:, :)
     real(dp), intent(out) :: jw(:, :)
+    real(dp), intent(in), optional :: ext(:, :)
     integer :: b, m
     jw(:, 1) = 0.0_dp
     do b = 2, d%nb
       jw(:, b) = matmul(d%i6(:, :, b), lin(:, b)) + d%w(:, b)
       m = d%nm(b)
       if (m > 0) jw(:, b) = jw(:, b) + matmul(d%mva(:, 1:m, b), qdd(d%a0(b):d%a0(b) + m - 1))
+      if (present(ext)) jw(:, b) = jw(:, b) - ext(:, b)
     end do
     do b = d%nb, 2, -1
       if (d%parent(b) > 1) jw(:, d%parent(b)) = jw(:, d%parent(b)) + jw(:, b)

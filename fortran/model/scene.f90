@@ -145,6 +145,8 @@ module pymr_model_scene
     character(len=16) :: kind = ''
     !> Joint point in the parent frame (m) and axis in the parent frame.
     real(dp) :: at(3) = 0.0_dp, axis(3) = [0.0_dp, 0.0_dp, 1.0_dp]
+    !> A loop-closing joint's point in the child's frame (m).
+    real(dp) :: child_at(3) = 0.0_dp
     !> Initial coordinates and rates, one per coordinate of the joint (0 when not given:
     !> see complete_joint); the rest stay unset.
     real(dp) :: q0(6) = unset, qd0(6) = unset
@@ -370,6 +372,8 @@ contains
     call t%add('parent', g%parent, 'the body the joint hangs from (required)')
     call t%add('child', g%child, 'the body the joint moves (required)')
     call t%add('at', g%at, 'm', "joint point in the parent's frame", ge=-big_length, le=big_length)
+    call t%add('child_at', g%child_at, 'm', "joint point in the child's frame, for a joint that closes a loop " // &
+      & "(its child already has a parent joint)", ge=-big_length, le=big_length)
     call t%add('axis', g%axis, '-', "axis of a revolute or prismatic joint in the parent's frame", &
       & ge=-big_length, le=big_length)
     call t%add('q0', g%q0, 'rad or m', 'initial coordinates, one per coordinate of the joint', &

@@ -12,7 +12,7 @@ module pymr_model_scene_rules
   use pymr_io_text, only : itoa, fmt
   implicit none
   private
-  public :: check_scene, body_index, inertia_matrix
+  public :: check_scene, body_index, inertia_matrix, closes_loop
 
 contains
 
@@ -28,6 +28,14 @@ contains
       end if
     end do
   end function body_index
+
+  !> Joint j closes a loop: an earlier joint already gives its child a parent (the first
+  !> joint naming a body as child is its tree joint; the later ones are cut joints).
+  pure logical function closes_loop(sc, j)
+    type(scene_t), intent(in) :: sc
+    integer, intent(in) :: j
+    closes_loop = any(sc%joints(1:j - 1)%child == sc%joints(j)%child) .and. sc%joints(j)%child /= sc%joints(j)%parent
+  end function closes_loop
 
   !> Every check that needs no tree: values, names, kinds, integrator and output settings.
   subroutine check_scene(sc, error)
@@ -282,8 +290,7 @@ contains
     type(scene_t), intent(in) :: sc
     type(error_list), intent(inout) :: errs
     type(error_type), allocatable :: error
-    integer :: i, j, ip, ic
-    character(len=name_len) :: children(size(sc%joints))
+    integer :: i, ip, ic
     each_joints: do i = 1, size(sc%joints)
       associate(jt => sc%joints(i))
         if (len_trim(jt%name) == 0) then
@@ -333,15 +340,69 @@ contains
         end if
       end associate
     end do each_joints
-    ! a joint from a body to itself is reported above, not again as a second parent
-    children = sc%joints%child
-    where (sc%joints%parent == sc%joints%child) children = ''
-    call first_repeat(children, i, j)
-    if (j > 0) then
-      call errs%add(sc%joints(j)%origin%where('child') // ": body '" // trim(sc%joints(j)%child) // &
-        & "' has two parents (also joint '" // trim(sc%joints(i)%name) // "'); a tree allows one"); return
-    end if
+    call check_loops(sc, errs)
   end subroutine check_joints
+
+  !> Loop-closing joints (closes_loop): 'revolute', 'spherical' or 'fixed' between rigid
+  !> bodies, no coordinates of their own (no q0, qd0, settle, drive, spring or motion), only
+  !> in single-rate runs through the mass matrix from a given start; child_at only on them.
+  subroutine check_loops(sc, errs)
+    type(scene_t), intent(in) :: sc
+    type(error_list), intent(inout) :: errs
+    integer :: j
+    character(len=:), allocatable :: refused
+    do j = 1, size(sc%joints)
+      associate(jt => sc%joints(j), o => sc%joints(j)%origin)
+        ! a joint to a missing body is reported once, by check_joints
+        if (body_index(sc, jt%parent) == 0 .or. body_index(sc, jt%child) == 0) cycle
+        if (.not. closes_loop(sc, j)) then
+          if (any(jt%child_at /= 0.0_dp)) call errs%add(o%where('child_at') // ": only a joint that closes a loop (its " // &
+            & "child already has a parent joint) takes child_at; this joint's point is the child's origin")
+          cycle
+        end if
+        if (jt%kind /= 'revolute' .and. jt%kind /= 'spherical' .and. jt%kind /= 'fixed') then
+          call errs%add(o%where('kind') // ": a joint that closes a loop (body '" // trim(jt%child) // &
+            & "' has a parent joint already) must be 'revolute', 'spherical' or 'fixed'"); cycle
+        end if
+        if (nonzero(jt%q0) .or. nonzero(jt%qd0) .or. jt%settle) then
+          call errs%add(o%where(trim(merge('q0    ', merge('qd0   ', 'settle', nonzero(jt%qd0)), nonzero(jt%q0)))) // &
+            & ': a joint that closes a loop has no coordinates of its own (its state follows from the tree)'); cycle
+        end if
+        if (any(sc%drives%joint == jt%name) .or. any(sc%springs%joint == jt%name) .or. &
+          & any(sc%motions%joint == jt%name)) then
+          call errs%add(o%where('name') // ': a joint that closes a loop has no coordinates to drive, spring ' // &
+            & 'or prescribe'); cycle
+        end if
+        if (flexible(jt%parent) .or. flexible(jt%child)) then
+          call errs%add(o%where(trim(merge('parent', 'child ', flexible(jt%parent)))) // ': a joint that closes ' // &
+            & 'a loop joins rigid bodies (a flexible body may lie inside the loop; cut the loop at a rigid one)')
+          cycle
+        end if
+        refused = loop_refusal(sc)
+        if (len(refused) > 0) call errs%add(o%where('child') // ': closes a loop, and loops are not ' // refused)
+      end associate
+    end do
+  contains
+    logical function flexible(name)
+      character(len=*), intent(in) :: name
+      flexible = sc%bodies(body_index(sc, name))%kind == 'beam' .or. sc%bodies(body_index(sc, name))%kind == 'modal'
+    end function flexible
+    pure logical function nonzero(x)
+      real(dp), intent(in) :: x(:)
+      nonzero = any(x /= 0.0_dp .and. x /= unset)
+    end function nonzero
+  end subroutine check_loops
+
+  !> Why a scene's run cannot take loops ('' if it can).
+  function loop_refusal(sc) result(s)
+    type(scene_t), intent(in) :: sc
+    character(len=:), allocatable :: s
+    s = ''
+    if (trim(sc%integrator%method) == 'multirate') s = "supported by method = 'multirate' (use 'single')"
+    if (trim(sc%integrator%dynamics) == 'articulated') s = "supported by dynamics = 'articulated' (use 'mass_matrix')"
+    if (sc%scene%start == 'static') s = "supported with start = 'static'"
+    if (size(sc%motions) > 0) s = 'supported with &motion prescribed coordinates'
+  end function loop_refusal
 
   !> The first repeated non-blank name: i < j, names(i) == names(j), j the smallest such
   !> (sorted once, so O(n log n)); j = 0 if every name is distinct.

@@ -12,6 +12,7 @@ module pymr_model_types
   public :: effect_geometric_stiffening, effect_base_motion, effect_firing_load, effect_deformation_inertia
   public :: n_effects, effect_names
   public :: motion_sine, motion_spinup, motion_table
+  public :: cut_fixed, cut_revolute, cut_spherical
 
   !> Kinds of one-coordinate joint primitives: every joint is a chain of them.
   integer, parameter :: prim_revolute = 1, prim_prismatic = 2
@@ -22,6 +23,9 @@ module pymr_model_types
     & effect_deformation_inertia = 8, n_effects = 8
   character(len=*), parameter :: effect_names(n_effects) = [character(len=20) :: 'gravity', 'joint_drives', &
     & 'modal_damping', 'joint_springs', 'geometric_stiffening', 'firing_load', 'base_motion', 'deformation_inertia']
+
+  !> Kinds of loop-closing joints.
+  integer, parameter :: cut_fixed = 1, cut_revolute = 2, cut_spherical = 3
 
   !> Forms of a prescribed coordinate's time function.
   integer, parameter :: motion_sine = 1, motion_spinup = 2, motion_table = 3
@@ -121,6 +125,25 @@ module pymr_model_types
     real(dp), allocatable :: ab_kaa(:, :, :), ab_kam(:, :, :), ab_ba(:, :)
     !> Bodies on or below a flexible body (whose terms the fast rows need).
     logical, allocatable :: in_fast(:)
+    !> Loop-closing (cut) joints (model/loops.f90): name, parent and child body, kind
+    !> (cut_fixed, cut_revolute, cut_spherical), joint point in the parent's and in the child's
+    !> frame, and a revolute joint's axis and two unit normals of it (parent frame); their
+    !> first constraint row and number of rows (3 for the point, + 3 fixed, + 2 revolute).
+    integer :: n_cut = 0, n_rows = 0
+    character(len=name_len), allocatable :: cut_name(:)
+    integer, allocatable :: cut_parent(:), cut_child(:), cut_kind(:), cut_row0(:), cut_nrow(:)
+    real(dp), allocatable :: cut_at(:, :), cut_child_at(:, :), cut_axis(:, :), cut_normal(:, :, :)
+    !> The independent rows (chosen once, at assembly) and how many were redundant.
+    integer :: n_used = 0, n_redundant = 0
+    logical :: rows_chosen = .false.
+    integer, allocatable :: row_used(:)
+    !> Constraint residual Phi, Jacobian G (n_rows, n), gamma = -Gdot qd, the multipliers
+    !> of the last evaluation (0 on redundant rows), and M^-1 G^T of the used rows.
+    real(dp), allocatable :: phi(:), gj(:, :), gam(:), lambda(:), ymg(:, :)
+    !> Assembly of the initial state: the largest change of a coordinate and of a rate.
+    real(dp) :: assembly_dq = 0.0_dp, assembly_dqd = 0.0_dp
+    !> The loops' size (m): the farthest body origin or cut joint point from the origin.
+    real(dp) :: loop_size = 1.0_dp
     !> Evaluation counters: full assemblies, fast-row assemblies.
     integer :: evals = 0, evals_fast_rows = 0
   end type model_data

@@ -1,0 +1,314 @@
+!> Closed loops. The tree stays the backbone; each loop-closing (cut) joint adds constraint
+!> rows Phi(q) = 0 between a point of its parent (at, parent frame) and a point of its child
+!> (child_at, child frame):
+!>
+!>   point     p_c - p_p = 0                              (3 rows, every kind)
+!>   fixed     1/2 sum_j (R_p e_j) x (R_c e_j) = 0        (3 rows: the frames agree)
+!>   revolute  (R_p n_i) . (R_c u) = 0, i = 1, 2          (2 rows: the axis u agrees)
+!>
+!> Their Jacobian G comes from the recursive kinematics: the columns s_k on the path of a
+!> body give its point velocity v_O + w x p and its angular velocity w, so G qd is the
+!> relative velocity of the two points (and the relative angular velocity across the
+!> rotation rows), and gamma = -Gdot qd follows from the bias accelerations d%acc. The
+!> accelerations solve M qdd = P + G^T lambda, G qdd = gamma through M's Cholesky factor.
+!> Dependent rows (a planar loop of 3-D joints) are found once, at assembly, by a pivoted
+!> (rank-revealing) Gram-Schmidt factorisation of G^T and dropped. A loop may pass through
+!> flexible bodies (their modal columns at each child's joint enter G); the cut joint's own
+!> two bodies are rigid.
+module pymr_model_loops
+  use pymr_kinds, only : dp
+  use pymr_error, only : error_type, fatal_error, stat_solver, stat_input
+  use pymr_lapack, only : potrf, potrs
+  use pymr_model_types, only : model_data, cut_fixed, cut_revolute
+  use pymr_model_kinematics, only : forward_kinematics
+  use pymr_model_spatial, only : cross, unit_axes
+  use pymr_io_text, only : itoa, fmt
+  implicit none
+  private
+  public :: assemble_loops, loop_rows, choose_rows, constrained_accelerations, project_positions, project_velocities, cut_wrench, cut_body_wrenches
+
+  !> A row is dependent when its part independent of the rows chosen before is below this
+  !> fraction of the largest row.
+  real(dp), parameter :: rank_tol = 1.0e-8_dp
+  !> Position projection: closure tolerance per metre of loop size, and most iterations.
+  real(dp), parameter :: closure_tol = 1.0e-13_dp
+  integer, parameter :: max_iterations = 30
+  !> Assembly: the given state may miss closure by this fraction of the loops' size.
+  real(dp), parameter :: assembly_tol = 1.0e-3_dp
+
+contains
+
+  !> Assemble the initial state: choose the independent rows, then project the given q and
+  !> qd onto the constraints (least change, recorded in d%assembly_dq, d%assembly_dqd). A
+  !> state further than assembly_tol of the loops' size (m; rad) from closure is an error.
+  subroutine assemble_loops(d, q, qd, error)
+    type(model_data), intent(inout) :: d
+    real(dp), intent(inout) :: q(:), qd(:)
+    type(error_type), allocatable, intent(out) :: error
+    real(dp) :: q0(size(q)), qd0(size(qd))
+    if (d%n_cut == 0) return
+    call forward_kinematics(d, q, 0.0_dp*q)
+    call loop_rows(d)
+    call choose_rows(d, error); if (allocated(error)) return
+    d%loop_size = max(maxval(norm2(d%pos, dim=1)), maxval(norm2(d%cut_at, dim=1)), &
+      & maxval(norm2(d%cut_child_at, dim=1)), tiny(1.0_dp))
+    if (maxval(abs(d%phi)) > assembly_tol*d%loop_size) then
+      call fatal_error(error, 'the initial state does not close the loops: residual ' // fmt(maxval(abs(d%phi))) // &
+        & ' exceeds ' // fmt(assembly_tol) // ' of the loops'' size ' // fmt(d%loop_size) // ' m (give consistent q0)')
+      return
+    end if
+    q0 = q; qd0 = qd
+    call project_positions(d, q, d%loop_size, error)
+    if (.not. allocated(error)) call project_velocities(d, q, qd, error)
+    if (allocated(error)) then
+      ! a state that cannot be assembled is the scene's fault, not the run's
+      error%stat = stat_input; error%message = 'cannot assemble the initial state: ' // error%message; return
+    end if
+    d%assembly_dq = maxval(abs(q - q0)); d%assembly_dqd = maxval(abs(qd - qd0))
+  end subroutine assemble_loops
+
+  !> Residual d%phi, Jacobian d%gj and d%gam = -Gdot qd of every cut joint, after
+  !> forward_kinematics at (q, qd).
+  pure subroutine loop_rows(d)
+    type(model_data), intent(inout) :: d
+    integer :: c, r, bp, bc, i, j
+    real(dp) :: pp(3), pc(3), vp(3), vc(3), ap(3), ac(3), wp(3), wc(3), uc(3), ci(3), ni(3), nd(3)
+    d%gj = 0.0_dp
+    do c = 1, d%n_cut
+      bp = d%cut_parent(c); bc = d%cut_child(c); r = d%cut_row0(c)
+      pp = d%pos(:, bp) + matmul(d%rot(:, :, bp), d%cut_at(:, c))
+      pc = d%pos(:, bc) + matmul(d%rot(:, :, bc), d%cut_child_at(:, c))
+      wp = d%vel(4:6, bp); wc = d%vel(4:6, bc)
+      vp = d%vel(1:3, bp) + cross(wp, pp); vc = d%vel(1:3, bc) + cross(wc, pc)
+      ap = d%acc(1:3, bp) + cross(d%acc(4:6, bp), pp) + cross(wp, vp)
+      ac = d%acc(1:3, bc) + cross(d%acc(4:6, bc), pc) + cross(wc, vc)
+      d%phi(r:r + 2) = pc - pp
+      d%gam(r:r + 2) = ap - ac
+      do i = 1, 3
+        call add_point_columns(d, bc, pc, unit_axes(:, i), 1.0_dp, r + i - 1)
+        call add_point_columns(d, bp, pp, unit_axes(:, i), -1.0_dp, r + i - 1)
+      end do
+      select case (d%cut_kind(c))
+      case (cut_fixed)
+        d%phi(r + 3:r + 5) = 0.0_dp
+        do j = 1, 3
+          d%phi(r + 3:r + 5) = d%phi(r + 3:r + 5) + 0.5_dp*cross(d%rot(:, j, bp), d%rot(:, j, bc))
+        end do
+        d%gam(r + 3:r + 5) = d%acc(4:6, bp) - d%acc(4:6, bc)
+        do i = 1, 3
+          call add_turn_columns(d, bc, unit_axes(:, i), 1.0_dp, r + 2 + i)
+          call add_turn_columns(d, bp, unit_axes(:, i), -1.0_dp, r + 2 + i)
+        end do
+      case (cut_revolute)
+        uc = matmul(d%rot(:, :, bc), d%cut_axis(:, c))
+        do i = 1, 2
+          ci = matmul(d%rot(:, :, bp), d%cut_normal(:, i, c))
+          ni = cross(uc, ci)
+          nd = cross(cross(wc, uc), ci) + cross(uc, cross(wp, ci))
+          d%phi(r + 2 + i) = dot_product(ci, uc)
+          d%gam(r + 2 + i) = -dot_product(d%acc(4:6, bc) - d%acc(4:6, bp), ni) - dot_product(wc - wp, nd)
+          call add_turn_columns(d, bc, ni, 1.0_dp, r + 2 + i)
+          call add_turn_columns(d, bp, ni, -1.0_dp, r + 2 + i)
+        end do
+      end select
+    end do
+  end subroutine loop_rows
+
+  !> Row `row` of G += sgn * (direction e . velocity of the inertial point p of body b) per
+  !> unit rate of each coordinate on b's path to the ground: e . (s_v + s_w x p) =
+  !> e . s_v + (p x e) . s_w.
+  pure subroutine add_point_columns(d, b, p, e, sgn, row)
+    type(model_data), intent(inout) :: d
+    integer, intent(in) :: b, row
+    real(dp), intent(in) :: p(3), e(3), sgn
+    call add_path_columns(d, b, sgn*e, sgn*cross(p, e), row)
+  end subroutine add_point_columns
+
+  !> Row `row` of G += sgn * (direction e . angular velocity of body b) per unit rate.
+  pure subroutine add_turn_columns(d, b, e, sgn, row)
+    type(model_data), intent(inout) :: d
+    integer, intent(in) :: b, row
+    real(dp), intent(in) :: e(3), sgn
+    call add_path_columns(d, b, [0.0_dp, 0.0_dp, 0.0_dp], sgn*e, row)
+  end subroutine add_turn_columns
+
+  !> Row `row` of G += ev . s_v + ew . s_w for every spatial column s on body b's path: the
+  !> joint columns, and the modal columns (d%cm) of each flexible body the path crosses.
+  pure subroutine add_path_columns(d, b, ev, ew, row)
+    type(model_data), intent(inout) :: d
+    integer, intent(in) :: b, row
+    real(dp), intent(in) :: ev(3), ew(3)
+    integer :: a, k, l, pa
+    a = b
+    do while (a > 1)
+      do k = d%c0(a), d%c0(a) + d%nc(a) - 1
+        d%gj(row, k) = d%gj(row, k) + dot_product(ev, d%s(1:3, k)) + dot_product(ew, d%s(4:6, k))
+      end do
+      pa = d%parent(a)
+      do l = 1, d%nm(pa)
+        k = d%a0(pa) + l - 1
+        d%gj(row, k) = d%gj(row, k) + dot_product(ev, d%cm(1:3, l, a)) + dot_product(ew, d%cm(4:6, l, a))
+      end do
+      a = pa
+    end do
+  end subroutine add_path_columns
+
+  !> The independent rows of G (d%gj, after loop_rows): pivoted Gram-Schmidt on the rows
+  !> (the column-pivoted QR of G^T); the others are redundant. Chosen once, at the first
+  !> evaluation or at assembly. A loop that leaves no motion is an error.
+  subroutine choose_rows(d, error)
+    type(model_data), intent(inout) :: d
+    type(error_type), allocatable, intent(out) :: error
+    real(dp) :: rows(d%n_rows, d%n), norms(d%n_rows), scale
+    logical :: free(d%n_rows)
+    integer :: k, i, j
+    rows = d%gj
+    free = .true.
+    d%n_used = 0
+    scale = maxval(norm2(rows, dim=2))
+    do k = 1, d%n_rows
+      norms = norm2(rows, dim=2)
+      i = maxloc(norms, dim=1, mask=free)
+      if (norms(i) <= rank_tol*scale) exit
+      free(i) = .false.
+      d%n_used = d%n_used + 1; d%row_used(d%n_used) = i
+      rows(i, :) = rows(i, :)/norms(i)
+      do j = 1, d%n_rows
+        if (free(j)) rows(j, :) = rows(j, :) - dot_product(rows(j, :), rows(i, :))*rows(i, :)
+      end do
+    end do
+    d%n_redundant = d%n_rows - d%n_used
+    d%rows_chosen = .true.
+    if (d%n_used >= d%n) call fatal_error(error, 'the loops lock the mechanism: ' // itoa(d%n_used) // &
+      & ' independent constraints on ' // itoa(d%n) // ' coordinates leave no motion')
+  end subroutine choose_rows
+
+  !> Add the constraint forces to qdd = M^-1 P (M's Cholesky factor in d%lf), after an
+  !> evaluation's kinematics (the rows chosen at the first).
+  subroutine constrained_accelerations(d, qdd, error)
+    type(model_data), intent(inout) :: d
+    real(dp), intent(inout) :: qdd(:)
+    type(error_type), allocatable, intent(out) :: error
+    call loop_rows(d)
+    if (.not. d%rows_chosen) then
+      call choose_rows(d, error); if (allocated(error)) return
+    end if
+    call add_multipliers(d, qdd, error)
+  end subroutine constrained_accelerations
+
+  !> lambda from (G M^-1 G^T) lambda = gamma - G qdd on the used rows, then
+  !> qdd += M^-1 G^T lambda; d%lambda keeps them (0 on redundant rows).
+  subroutine add_multipliers(d, qdd, error)
+    type(model_data), intent(inout) :: d
+    real(dp), intent(inout) :: qdd(:)
+    type(error_type), allocatable, intent(out) :: error
+    real(dp) :: a(d%n_used, d%n_used), lam(d%n_used), gu(d%n_used, d%n)
+    gu = d%gj(d%row_used(1:d%n_used), :)
+    d%ymg(:, 1:d%n_used) = transpose(gu)
+    call potrs(d%lf, d%ymg(:, 1:d%n_used), 'the mass matrix', error); if (allocated(error)) return
+    a = matmul(gu, d%ymg(:, 1:d%n_used))
+    lam = d%gam(d%row_used(1:d%n_used)) - matmul(gu, qdd)
+    call solve_rows(a, lam, error); if (allocated(error)) return
+    qdd = qdd + matmul(d%ymg(:, 1:d%n_used), lam)
+    d%lambda = 0.0_dp
+    d%lambda(d%row_used(1:d%n_used)) = lam
+  end subroutine add_multipliers
+
+  !> Solve the (symmetric positive definite) system of the used rows in place.
+  subroutine solve_rows(a, x, error)
+    real(dp), intent(inout) :: a(:, :), x(:)
+    type(error_type), allocatable, intent(out) :: error
+    call potrf(a, 'the loop constraints (a singular position of a loop)', error); if (allocated(error)) return
+    call potrs(a, x, 'the loop constraints', error)
+  end subroutine solve_rows
+
+  !> Close the loops from q by the least change: q <- q - G^T (G G^T)^-1 Phi, iterated until
+  !> |Phi| <= closure_tol * max(scale, 1 m) (m; rad for rotation rows); an error if that fails.
+  subroutine project_positions(d, q, scale, error)
+    type(model_data), intent(inout) :: d
+    real(dp), intent(inout) :: q(:)
+    real(dp), intent(in) :: scale
+    type(error_type), allocatable, intent(out) :: error
+    real(dp) :: gu(d%n_used, d%n), y(d%n_used), a(d%n_used, d%n_used)
+    integer :: it
+    do it = 1, max_iterations
+      call forward_kinematics(d, q, 0.0_dp*q)
+      call loop_rows(d)
+      if (maxval(abs(d%phi)) <= closure_tol*max(scale, 1.0_dp)) return
+      gu = d%gj(d%row_used(1:d%n_used), :)
+      a = matmul(gu, transpose(gu))
+      y = d%phi(d%row_used(1:d%n_used))
+      call solve_rows(a, y, error); if (allocated(error)) return
+      q = q - matmul(y, gu)
+    end do
+    call fatal_error(error, 'the loops cannot be closed (constraint residual ' // fmt(maxval(abs(d%phi))) // &
+      & ' after ' // itoa(max_iterations) // ' projections)', stat_solver)
+  end subroutine project_positions
+
+  !> Remove the rates' motion across the loops: qd <- qd - G^T (G G^T)^-1 G qd (G at q).
+  subroutine project_velocities(d, q, qd, error)
+    type(model_data), intent(inout) :: d
+    real(dp), intent(in) :: q(:)
+    real(dp), intent(inout) :: qd(:)
+    type(error_type), allocatable, intent(out) :: error
+    real(dp) :: gu(d%n_used, d%n), y(d%n_used), a(d%n_used, d%n_used)
+    call forward_kinematics(d, q, qd)
+    call loop_rows(d)
+    gu = d%gj(d%row_used(1:d%n_used), :)
+    a = matmul(gu, transpose(gu))
+    y = matmul(gu, qd)
+    call solve_rows(a, y, error); if (allocated(error)) return
+    qd = qd - matmul(y, gu)
+  end subroutine project_velocities
+
+  !> The force f and torque cut joint c puts on its child at its child point pc (inertial;
+  !> from d%lambda, after forward_kinematics).
+  pure subroutine cut_force(d, c, f, torque, pc)
+    type(model_data), intent(in) :: d
+    integer, intent(in) :: c
+    real(dp), intent(out) :: f(3), torque(3), pc(3)
+    real(dp) :: uc(3), ci(3)
+    integer :: r, bp, bc, i
+    r = d%cut_row0(c); bp = d%cut_parent(c); bc = d%cut_child(c)
+    f = d%lambda(r:r + 2)
+    pc = d%pos(:, bc) + matmul(d%rot(:, :, bc), d%cut_child_at(:, c))
+    torque = 0.0_dp
+    select case (d%cut_kind(c))
+    case (cut_fixed)
+      torque = d%lambda(r + 3:r + 5)
+    case (cut_revolute)
+      uc = matmul(d%rot(:, :, bc), d%cut_axis(:, c))
+      do i = 1, 2
+        ci = matmul(d%rot(:, :, bp), d%cut_normal(:, i, c))
+        torque = torque + d%lambda(r + 2 + i)*cross(uc, ci)
+      end do
+    end select
+  end subroutine cut_force
+
+  !> Cut joint c's force and moment on its child in the child's frame, the moment about
+  !> the child point (a &output 'reactions' column group).
+  pure function cut_wrench(d, c) result(w)
+    type(model_data), intent(in) :: d
+    integer, intent(in) :: c
+    real(dp) :: w(6), f(3), torque(3), pc(3)
+    call cut_force(d, c, f, torque, pc)
+    w(1:3) = matmul(f, d%rot(:, :, d%cut_child(c)))
+    w(4:6) = matmul(torque, d%rot(:, :, d%cut_child(c)))
+  end function cut_wrench
+
+  !> The cut joints' wrenches [f; n_O] (inertial, moment about the origin) on each body
+  !> (6, nb): + on the child, - on the parent.
+  pure subroutine cut_body_wrenches(d, ext)
+    type(model_data), intent(in) :: d
+    real(dp), intent(out) :: ext(:, :)
+    real(dp) :: f(3), torque(3), pc(3), w(6)
+    integer :: c
+    ext = 0.0_dp
+    do c = 1, d%n_cut
+      call cut_force(d, c, f, torque, pc)
+      w(1:3) = f; w(4:6) = cross(pc, f) + torque
+      ext(:, d%cut_child(c)) = ext(:, d%cut_child(c)) + w
+      ext(:, d%cut_parent(c)) = ext(:, d%cut_parent(c)) - w
+    end do
+  end subroutine cut_body_wrenches
+end module pymr_model_loops
