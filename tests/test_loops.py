@@ -57,14 +57,20 @@ def _d(f, x, h=1e-4):
     return (f(x - 2 * h) - 8 * f(x - h) + 8 * f(x + h) - f(x + 2 * h)) / (12 * h)
 
 
-def fourbar_reference(p0, w0, t_end):
+def lagrange_reference(mass_potential, p0, w0, t_end):
+    """Lagrange's equation in one coordinate p with generalised mass m(p) and potential V(p),
+    m p'' + m'(p) p'^2 / 2 + V'(p) = 0, integrated by DOP853 at 1e-12."""
     def rhs(t, y):
         p, w = y
-        m, _ = fourbar_mass_potential(p)
-        dm = _d(lambda x: fourbar_mass_potential(x)[0], p)
-        dv = _d(lambda x: fourbar_mass_potential(x)[1], p)
+        m, _ = mass_potential(p)
+        dm = _d(lambda x: mass_potential(x)[0], p)
+        dv = _d(lambda x: mass_potential(x)[1], p)
         return [w, -(0.5 * dm * w**2 + dv) / m]
     return solve_ivp(rhs, (0, t_end), [p0, w0], rtol=1e-12, atol=1e-12, method="DOP853", dense_output=True)
+
+
+def fourbar_reference(p0, w0, t_end):
+    return lagrange_reference(fourbar_mass_potential, p0, w0, t_end)
 
 
 def rod(name, length, mass):
@@ -334,13 +340,7 @@ def test_the_crank_slider_follows_the_minimal_coordinate_solution(tmp_path):
     (tmp_path / "cs.nml").write_text(text)
     res = pymr.run(tmp_path / "cs.nml", tmp_path / "cs.csv")
 
-    def rhs(t, y):
-        p, w = y
-        m, _ = crank_slider_mass_potential(p)
-        dm = _d(lambda s: crank_slider_mass_potential(s)[0], p)
-        dv = _d(lambda s: crank_slider_mass_potential(s)[1], p)
-        return [w, -(0.5 * dm * w**2 + dv) / m]
-    ref = solve_ivp(rhs, (0, 2.0), [th0, w0], rtol=1e-12, atol=1e-12, method="DOP853", dense_output=True)
+    ref = lagrange_reference(crank_slider_mass_potential, th0, w0, 2.0)
     th = ref.sol(res["t"])[0]
     assert np.ptp(res["crank.q"]) > 2 * np.pi                 # the crank turns over
     assert np.abs(res["crank.q"] - th).max() < 1e-6
