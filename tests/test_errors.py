@@ -137,7 +137,7 @@ CASES = [
          ("&joint", "'pivot'", "child", "'nobody'")),
     # 5. two parents for one body: the second joint closes a loop, which a prismatic joint cannot
     Case("two_parents", BASE + rigid("other") + revolute("j_other", "ground", "other")
-         + revolute("second", "other", "bob").replace("'revolute'", "'prismatic'"),
+         + revolute("second", "other", "bob").replace("'revolute'", "'free'"),
          ("&joint", "'second'", "kind", "closes a loop", "'bob'")),
     # 6. a cycle a -> b -> a (the ground reaches 'bob' only), and a body joined to itself
     Case("cycle", BASE + rigid("a") + rigid("b") + revolute("ab", "a", "b") + revolute("ba", "b", "a"),

@@ -489,3 +489,45 @@ def test_a_loop_is_not_cut_at_a_flexible_body(tmp_path):
     scene.write_text(text)
     with pytest.raises(pymr.SceneError, match=r"&joint 'E': parent: a joint that closes a loop joins rigid bodies"):
         pymr.run(scene, tmp_path / "x.csv")
+
+
+def test_a_prismatic_cut_closes_the_crank_slider(tmp_path):
+    """The crank-slider with its slide as the loop-closing joint (a prismatic cut: two sliding
+    rows and three frame rows) and the slider hung from the rod's end by a revolute tree
+    joint: the crank angle against the one-coordinate Lagrange solution over 2 s (1e-6 rad),
+    the slider on its line and level to 1e-8 (m, rad), energy constant, and the cut's force
+    across the slide against the tree formulation's prismatic reaction (1e-5 of the peak)."""
+    th0, w0 = 0.5, 6.0
+    phi, x, dphi, dx = crank_slider_geometry(th0)
+    head = ("&scene title = 'crank-slider, prismatic cut', t_end = 2.0, gravity = 0.0, -9.81, 0.0 /\n"
+            "&integrator method = 'single', h_slow = 1.0e-3, adaptive = .true., rtol = 1.0e-10, atol = 1.0e-12 /\n"
+            "&effects gravity = .true. /\n&body name = 'ground', kind = 'ground' /\n"
+            + rod("crank", R_CRANK, M_CRANK) + rod("rod", L_ROD, M_ROD)
+            + f"&body name = 'slider', kind = 'rigid', mass = {M_SLIDER!r}, inertia = 1.0e-3, 1.0e-3, 1.0e-3, 0.0, 0.0, 0.0 /\n"
+            f"&joint name = 'crank', kind = 'revolute', parent = 'ground', child = 'crank', q0 = {th0!r}, qd0 = {w0!r} /\n"
+            f"&joint name = 'elbow', kind = 'revolute', parent = 'crank', child = 'rod', at = {R_CRANK!r}, 0.0, 0.0, "
+            f"q0 = {float(phi - th0)!r}, qd0 = {float((dphi - 1) * w0)!r} /\n")
+    tail = ("&marker name = 'block', body = 'slider', at = 0.0, 0.0, 0.0 /\n"
+            "&output dt = 0.01, quantities = 'coordinates', 'markers', 'marker_orientations', 'reactions', 'energy' /\n")
+    cut = (f"&joint name = 'wrist', kind = 'revolute', parent = 'rod', child = 'slider', at = {L_ROD!r}, 0.0, 0.0, "
+           f"q0 = {float(-phi)!r}, qd0 = {float(-dphi * w0)!r} /\n"
+           "&joint name = 'slide', kind = 'prismatic', parent = 'ground', child = 'slider', axis = 1.0, 0.0, 0.0 /\n")
+    tree = (f"&joint name = 'slide', kind = 'prismatic', parent = 'ground', child = 'slider', axis = 1.0, 0.0, 0.0, "
+            f"q0 = {float(x)!r}, qd0 = {float(dx * w0)!r} /\n"
+            f"&joint name = 'wrist', kind = 'revolute', parent = 'rod', child = 'slider', at = {L_ROD!r}, 0.0, 0.0 /\n")
+    (tmp_path / "cut.nml").write_text(head + cut + tail)
+    (tmp_path / "tree.nml").write_text(head + tree + tail)
+    res = pymr.run(tmp_path / "cut.nml", tmp_path / "cut.csv")
+    other = pymr.run(tmp_path / "tree.nml", tmp_path / "tree.csv")
+    ref = lagrange_reference(crank_slider_mass_potential, th0, w0, 2.0)
+    th = ref.sol(res["t"])[0]
+    assert np.ptp(res["crank.q"]) > 2 * np.pi
+    assert np.abs(res["crank.q"] - th).max() < 1e-6
+    assert np.abs(res["block.x"] - np.array([crank_slider_geometry(p)[1] for p in th])).max() < 1e-6
+    assert np.abs(res["block.y"]).max() < 1e-8 and np.abs(res["block.z"]).max() < 1e-8
+    assert np.abs(res["block.qz"]).max() < 1e-8 and np.abs(res["block.qw"] - 1.0).max() < 1e-12
+    e = res["energy.total"]
+    assert np.abs(e - e[0]).max() < 1e-8 * res["energy.kinetic"].max()
+    # the ground's push on the slider across the slide: the same load either way
+    peak = np.abs(other["slide.fy"]).max()
+    assert peak > 1.0 and np.abs(res["slide.fy"] - other["slide.fy"]).max() < 1e-5 * peak

@@ -8,7 +8,7 @@ module pymr_model_build
   use pymr_model_types, only : model_data, prim_revolute, prim_prismatic, effect_gravity, effect_joint_drives, &
     & effect_modal_damping, effect_joint_springs, effect_geometric_stiffening, effect_base_motion, n_effects, &
     & effect_firing_load, effect_deformation_inertia, &
-    & motion_sine, motion_spinup, motion_table, cut_fixed, cut_revolute, cut_spherical
+    & motion_sine, motion_spinup, motion_table, cut_fixed, cut_revolute, cut_spherical, cut_prismatic
   use pymr_model_time_table, only : spline_setup
   use pymr_io_table_file, only : read_time_table
   use pymr_model_beam_modes, only : build_beam, beam_section, beam_point_shapes, beam_point_load_stiffness
@@ -241,6 +241,7 @@ contains
         select case (trim(jt%kind))
         case ('fixed'); d%cut_kind(c) = cut_fixed; d%cut_nrow(c) = 6
         case ('revolute'); d%cut_kind(c) = cut_revolute; d%cut_nrow(c) = 5
+        case ('prismatic'); d%cut_kind(c) = cut_prismatic; d%cut_nrow(c) = 5
         case default; d%cut_kind(c) = cut_spherical; d%cut_nrow(c) = 3
         end select
       end associate

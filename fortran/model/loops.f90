@@ -5,6 +5,8 @@
 !>   point     p_c - p_p = 0                              (3 rows, every kind)
 !>   fixed     1/2 sum_j (R_p e_j) x (R_c e_j) = 0        (3 rows: the frames agree)
 !>   revolute  (R_p n_i) . (R_c u) = 0, i = 1, 2          (2 rows: the axis u agrees)
+!>   prismatic (R_p n_i) . (p_c - p_p) = 0, i = 1, 2       (2 rows instead of the point's 3:
+!>             the child point slides along the axis), and the 3 rows of 'fixed'
 !>
 !> Their Jacobian G comes from the recursive kinematics: the columns s_k on the path of a
 !> body give its point velocity v_O + w x p and its angular velocity w, so G qd is the
@@ -19,7 +21,7 @@ module pymr_model_loops
   use pymr_kinds, only : dp
   use pymr_error, only : error_type, fatal_error, stat_solver, stat_input
   use pymr_lapack, only : potrf, potrs
-  use pymr_model_types, only : model_data, cut_fixed, cut_revolute
+  use pymr_model_types, only : model_data, cut_fixed, cut_revolute, cut_prismatic
   use pymr_model_kinematics, only : forward_kinematics
   use pymr_model_spatial, only : cross, unit_axes
   use pymr_io_text, only : itoa, fmt
@@ -71,7 +73,7 @@ contains
   !> forward_kinematics at (q, qd).
   pure subroutine loop_rows(d)
     type(model_data), intent(inout) :: d
-    integer :: c, r, bp, bc, i, j
+    integer :: c, r, rr, bp, bc, i, j
     real(dp) :: pp(3), pc(3), vp(3), vc(3), ap(3), ac(3), wp(3), wc(3), uc(3), ci(3), ni(3), nd(3)
     d%gj = 0.0_dp
     do c = 1, d%n_cut
@@ -82,22 +84,28 @@ contains
       vp = d%vel(1:3, bp) + cross(wp, pp); vc = d%vel(1:3, bc) + cross(wc, pc)
       ap = d%acc(1:3, bp) + cross(d%acc(4:6, bp), pp) + cross(wp, vp)
       ac = d%acc(1:3, bc) + cross(d%acc(4:6, bc), pc) + cross(wc, vc)
-      d%phi(r:r + 2) = pc - pp
-      d%gam(r:r + 2) = ap - ac
-      do i = 1, 3
-        call add_point_columns(d, bc, pc, unit_axes(:, i), 1.0_dp, r + i - 1)
-        call add_point_columns(d, bp, pp, unit_axes(:, i), -1.0_dp, r + i - 1)
-      end do
-      select case (d%cut_kind(c))
-      case (cut_fixed)
-        d%phi(r + 3:r + 5) = 0.0_dp
-        do j = 1, 3
-          d%phi(r + 3:r + 5) = d%phi(r + 3:r + 5) + 0.5_dp*cross(d%rot(:, j, bp), d%rot(:, j, bc))
-        end do
-        d%gam(r + 3:r + 5) = d%acc(4:6, bp) - d%acc(4:6, bc)
+      if (d%cut_kind(c) == cut_prismatic) then
+        call sliding_rows(d, c, r, bp, bc, pp, pc, vp, vc, ap, ac, wp)
+      else
+        d%phi(r:r + 2) = pc - pp
+        d%gam(r:r + 2) = ap - ac
         do i = 1, 3
-          call add_turn_columns(d, bc, unit_axes(:, i), 1.0_dp, r + 2 + i)
-          call add_turn_columns(d, bp, unit_axes(:, i), -1.0_dp, r + 2 + i)
+          call add_point_columns(d, bc, pc, unit_axes(:, i), 1.0_dp, r + i - 1)
+          call add_point_columns(d, bp, pp, unit_axes(:, i), -1.0_dp, r + i - 1)
+        end do
+      end if
+      select case (d%cut_kind(c))
+      case (cut_fixed, cut_prismatic)
+        ! the frames agree: rows rr .. rr + 2 after the 3 point rows (fixed) or the 2 sliding ones
+        rr = r + merge(2, 3, d%cut_kind(c) == cut_prismatic)
+        d%phi(rr:rr + 2) = 0.0_dp
+        do j = 1, 3
+          d%phi(rr:rr + 2) = d%phi(rr:rr + 2) + 0.5_dp*cross(d%rot(:, j, bp), d%rot(:, j, bc))
+        end do
+        d%gam(rr:rr + 2) = d%acc(4:6, bp) - d%acc(4:6, bc)
+        do i = 1, 3
+          call add_turn_columns(d, bc, unit_axes(:, i), 1.0_dp, rr + i - 1)
+          call add_turn_columns(d, bp, unit_axes(:, i), -1.0_dp, rr + i - 1)
         end do
       case (cut_revolute)
         uc = matmul(d%rot(:, :, bc), d%cut_axis(:, c))
@@ -113,6 +121,29 @@ contains
       end select
     end do
   end subroutine loop_rows
+
+  !> A prismatic cut's two sliding rows r, r + 1: the child point stays on the line through
+  !> the parent point along the axis, n_i . (pc - pp) = 0 for the axis' normals n_i, which
+  !> turn with the parent. Their rate is n_i . (vc - vp) + wp . (n_i x (pc - pp)), and
+  !> gamma = -[n_i . (ac - ap) + 2 (wp x n_i) . (vc - vp) + (alpha_p x n_i + wp x (wp x n_i)) . (pc - pp)]
+  !> with the bias (qdd = 0) point accelerations ap, ac and angular acceleration alpha_p.
+  pure subroutine sliding_rows(d, c, r, bp, bc, pp, pc, vp, vc, ap, ac, wp)
+    type(model_data), intent(inout) :: d
+    integer, intent(in) :: c, r, bp, bc
+    real(dp), intent(in) :: pp(3), pc(3), vp(3), vc(3), ap(3), ac(3), wp(3)
+    integer :: i
+    real(dp) :: n(3), dl(3)
+    dl = pc - pp
+    do i = 1, 2
+      n = matmul(d%rot(:, :, bp), d%cut_normal(:, i, c))
+      d%phi(r + i - 1) = dot_product(n, dl)
+      d%gam(r + i - 1) = -(dot_product(n, ac - ap) + 2.0_dp*dot_product(cross(wp, n), vc - vp) + &
+        & dot_product(cross(d%acc(4:6, bp), n) + cross(wp, cross(wp, n)), dl))
+      call add_point_columns(d, bc, pc, n, 1.0_dp, r + i - 1)
+      call add_point_columns(d, bp, pp, n, -1.0_dp, r + i - 1)
+      call add_turn_columns(d, bp, cross(n, dl), 1.0_dp, r + i - 1)
+    end do
+  end subroutine sliding_rows
 
   !> Row `row` of G += sgn * (direction e . velocity of the inertial point p of body b) per
   !> unit rate of each coordinate on b's path to the ground: e . (s_v + s_w x p) =
@@ -276,6 +307,13 @@ contains
     select case (d%cut_kind(c))
     case (cut_fixed)
       torque = d%lambda(r + 3:r + 5)
+    case (cut_prismatic)
+      ! the sliding rows push along the normals, the frame rows turn
+      f = 0.0_dp
+      do i = 1, 2
+        f = f + d%lambda(r + i - 1)*matmul(d%rot(:, :, bp), d%cut_normal(:, i, c))
+      end do
+      torque = d%lambda(r + 2:r + 4)
     case (cut_revolute)
       uc = matmul(d%rot(:, :, bc), d%cut_axis(:, c))
       do i = 1, 2

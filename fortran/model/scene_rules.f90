@@ -343,7 +343,7 @@ contains
     call check_loops(sc, errs)
   end subroutine check_joints
 
-  !> Loop-closing joints (closes_loop): 'revolute', 'spherical' or 'fixed' between rigid
+  !> Loop-closing joints (closes_loop): 'revolute', 'prismatic', 'spherical' or 'fixed' between rigid
   !> bodies, no coordinates of their own (no q0, qd0, settle, drive, spring or motion), only
   !> in single-rate runs through the mass matrix from a given start; child_at only on them.
   subroutine check_loops(sc, errs)
@@ -360,9 +360,9 @@ contains
             & "child already has a parent joint) takes child_at; this joint's point is the child's origin")
           cycle
         end if
-        if (jt%kind /= 'revolute' .and. jt%kind /= 'spherical' .and. jt%kind /= 'fixed') then
+        if (jt%kind == 'free') then
           call errs%add(o%where('kind') // ": a joint that closes a loop (body '" // trim(jt%child) // &
-            & "' has a parent joint already) must be 'revolute', 'spherical' or 'fixed'"); cycle
+            & "' has a parent joint already) must be 'revolute', 'prismatic', 'spherical' or 'fixed'"); cycle
         end if
         if (nonzero(jt%q0) .or. nonzero(jt%qd0) .or. jt%settle) then
           call errs%add(o%where(trim(merge('q0    ', merge('qd0   ', 'settle', nonzero(jt%qd0)), nonzero(jt%q0)))) // &

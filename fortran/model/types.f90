@@ -12,7 +12,7 @@ module pymr_model_types
   public :: effect_geometric_stiffening, effect_base_motion, effect_firing_load, effect_deformation_inertia
   public :: n_effects, effect_names
   public :: motion_sine, motion_spinup, motion_table
-  public :: cut_fixed, cut_revolute, cut_spherical
+  public :: cut_fixed, cut_revolute, cut_spherical, cut_prismatic
 
   !> Kinds of one-coordinate joint primitives: every joint is a chain of them.
   integer, parameter :: prim_revolute = 1, prim_prismatic = 2
@@ -25,7 +25,7 @@ module pymr_model_types
     & 'modal_damping', 'joint_springs', 'geometric_stiffening', 'firing_load', 'base_motion', 'deformation_inertia']
 
   !> Kinds of loop-closing joints.
-  integer, parameter :: cut_fixed = 1, cut_revolute = 2, cut_spherical = 3
+  integer, parameter :: cut_fixed = 1, cut_revolute = 2, cut_spherical = 3, cut_prismatic = 4
 
   !> Forms of a prescribed coordinate's time function.
   integer, parameter :: motion_sine = 1, motion_spinup = 2, motion_table = 3
