@@ -318,21 +318,28 @@ def crank_slider_mass_potential(th):
     return m, v
 
 
-def test_the_crank_slider_follows_the_minimal_coordinate_solution(tmp_path):
-    """A prismatic tree joint in the loop: crank angle and slider position against the
-    one-coordinate Lagrange solution over 2 s (1e-6 rad, 1e-6 m), the rod's end on the slider
-    to 1e-8 m, energy constant."""
-    th0, w0 = 0.5, 6.0
-    phi, x, dphi, dx = crank_slider_geometry(th0)
-    text = ("&scene title = 'crank-slider', t_end = 2.0, gravity = 0.0, -9.81, 0.0 /\n"
+def crank_slider_head(title: str, th0: float, w0: float) -> str:
+    """The crank-slider scene up to the slider's joints: crank at angle th0 turning at w0 and
+    the rod on the loop (adaptive Adams at rtol 1e-10, gravity)."""
+    phi, _, dphi, _ = crank_slider_geometry(th0)
+    return (f"&scene title = '{title}', t_end = 2.0, gravity = 0.0, -9.81, 0.0 /\n"
             "&integrator method = 'single', h_slow = 1.0e-3, adaptive = .true., rtol = 1.0e-10, atol = 1.0e-12 /\n"
             "&effects gravity = .true. /\n&body name = 'ground', kind = 'ground' /\n"
             + rod("crank", R_CRANK, M_CRANK) + rod("rod", L_ROD, M_ROD)
             + f"&body name = 'slider', kind = 'rigid', mass = {M_SLIDER!r}, inertia = 1.0e-3, 1.0e-3, 1.0e-3, 0.0, 0.0, 0.0 /\n"
             f"&joint name = 'crank', kind = 'revolute', parent = 'ground', child = 'crank', q0 = {th0!r}, qd0 = {w0!r} /\n"
             f"&joint name = 'elbow', kind = 'revolute', parent = 'crank', child = 'rod', at = {R_CRANK!r}, 0.0, 0.0, "
-            f"q0 = {float(phi - th0)!r}, qd0 = {float((dphi - 1) * w0)!r} /\n"
-            f"&joint name = 'slide', kind = 'prismatic', parent = 'ground', child = 'slider', axis = 1.0, 0.0, 0.0, "
+            f"q0 = {float(phi - th0)!r}, qd0 = {float((dphi - 1) * w0)!r} /\n")
+
+
+def test_the_crank_slider_follows_the_minimal_coordinate_solution(tmp_path):
+    """A prismatic tree joint in the loop: crank angle and slider position against the
+    one-coordinate Lagrange solution over 2 s (1e-6 rad, 1e-6 m), the rod's end on the slider
+    to 1e-8 m, energy constant."""
+    th0, w0 = 0.5, 6.0
+    phi, x, dphi, dx = crank_slider_geometry(th0)
+    text = (crank_slider_head("crank-slider", th0, w0)
+            + f"&joint name = 'slide', kind = 'prismatic', parent = 'ground', child = 'slider', axis = 1.0, 0.0, 0.0, "
             f"q0 = {float(x)!r}, qd0 = {float(dx * w0)!r} /\n"
             f"&joint name = 'wrist', kind = 'revolute', parent = 'rod', child = 'slider', at = {L_ROD!r}, 0.0, 0.0 /\n"
             f"&marker name = 'end', body = 'rod', at = {L_ROD!r}, 0.0, 0.0 /\n"
@@ -499,14 +506,7 @@ def test_a_prismatic_cut_closes_the_crank_slider(tmp_path):
     across the slide against the tree formulation's prismatic reaction (1e-5 of the peak)."""
     th0, w0 = 0.5, 6.0
     phi, x, dphi, dx = crank_slider_geometry(th0)
-    head = ("&scene title = 'crank-slider, prismatic cut', t_end = 2.0, gravity = 0.0, -9.81, 0.0 /\n"
-            "&integrator method = 'single', h_slow = 1.0e-3, adaptive = .true., rtol = 1.0e-10, atol = 1.0e-12 /\n"
-            "&effects gravity = .true. /\n&body name = 'ground', kind = 'ground' /\n"
-            + rod("crank", R_CRANK, M_CRANK) + rod("rod", L_ROD, M_ROD)
-            + f"&body name = 'slider', kind = 'rigid', mass = {M_SLIDER!r}, inertia = 1.0e-3, 1.0e-3, 1.0e-3, 0.0, 0.0, 0.0 /\n"
-            f"&joint name = 'crank', kind = 'revolute', parent = 'ground', child = 'crank', q0 = {th0!r}, qd0 = {w0!r} /\n"
-            f"&joint name = 'elbow', kind = 'revolute', parent = 'crank', child = 'rod', at = {R_CRANK!r}, 0.0, 0.0, "
-            f"q0 = {float(phi - th0)!r}, qd0 = {float((dphi - 1) * w0)!r} /\n")
+    head = crank_slider_head("crank-slider, prismatic cut", th0, w0)
     tail = ("&marker name = 'block', body = 'slider', at = 0.0, 0.0, 0.0 /\n"
             "&output dt = 0.01, quantities = 'coordinates', 'markers', 'marker_orientations', 'reactions', 'energy' /\n")
     cut = (f"&joint name = 'wrist', kind = 'revolute', parent = 'rod', child = 'slider', at = {L_ROD!r}, 0.0, 0.0, "
