@@ -60,15 +60,12 @@ contains
     real(dp), intent(in) :: t, q(:), qd(:), work(n_work)
     real(dp), intent(out) :: v(:)
     type(error_type), allocatable, intent(out) :: error
-    real(dp) :: qdd(size(q)), lin(6, model%d%nb), jw(6, model%d%nb), ext(6, model%d%nb), e(4), r(3), vel(3), a(3), rm(3, 3)
+    real(dp) :: qdd(size(q)), lin(6, model%d%nb), jw(6, model%d%nb), e(4), r(3), vel(3), a(3), rm(3, 3)
     integer :: k, i, b
     if (plan%accelerations .or. plan%reactions) then
       call output_accelerations(model, t, q, qd, qdd, error); if (allocated(error)) return
       call body_accelerations(model%d, qdd, lin)
-      if (plan%reactions) then
-        call cut_body_wrenches(model%d, ext)
-        call joint_wrenches(model%d, qdd, lin, jw, ext)
-      end if
+      if (plan%reactions) call tree_joint_wrenches(model%d, qdd, lin, jw)
     else if (plan%markers .or. plan%orientations) then
       call forward_kinematics(model%d, q, qd)
     end if
@@ -106,6 +103,20 @@ contains
       k = k + size(x)
     end subroutine put
   end subroutine output_values
+
+  !> The tree joints' wrenches (reactions.f90) after an evaluation at accelerations qdd, the
+  !> loop-closing joints' forces counted as loads on their bodies.
+  subroutine tree_joint_wrenches(d, qdd, lin, jw)
+    type(model_data), intent(in) :: d
+    real(dp), intent(in) :: qdd(:), lin(:, :)
+    real(dp), intent(out) :: jw(:, :)
+    real(dp) :: ext(6, d%nb)
+    if (d%n_cut == 0) then
+      call joint_wrenches(d, qdd, lin, jw); return
+    end if
+    call cut_body_wrenches(d, ext)
+    call joint_wrenches(d, qdd, lin, jw, ext)
+  end subroutine tree_joint_wrenches
 
   !> Accelerations at (t, q, qd) for the output, leaving the model's counters as they were.
   subroutine output_accelerations(model, t, q, qd, qdd, error)
@@ -206,7 +217,7 @@ contains
     p = 0.0_dp
     call output_accelerations(model, t, q, qd, qdd, error); if (allocated(error)) return
     call body_accelerations(model%d, qdd, lin)
-    call joint_wrenches(model%d, qdd, lin, jw)
+    call tree_joint_wrenches(model%d, qdd, lin, jw)
     associate(d => model%d)
       do i = 1, d%n_prescribed
         k = d%pres_coord(i)

@@ -299,7 +299,7 @@ contains
     class(abm_integrator), intent(inout) :: self
     class(ode_system), intent(inout) :: sys
     type(error_type), allocatable, intent(out) :: error
-    call sys%project(self%z(:, 0), error)
+    call sys%project(self%time(), self%z(:, 0), error)
   end subroutine abm_project
 
 end module pymr_integrator_abm

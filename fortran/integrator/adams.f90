@@ -622,7 +622,7 @@ contains
     class(adams_integrator), intent(inout) :: self
     class(ode_system), intent(inout) :: sys
     type(error_type), allocatable, intent(out) :: error
-    call sys%project(self%z(:, 0), error)
+    call sys%project(self%time(), self%z(:, 0), error)
   end subroutine adams_project
 
 end module pymr_integrator_adams

@@ -423,7 +423,7 @@ contains
     integer :: ns, nf
     ns = self%ns; nf = self%nf
     x = [self%zs(1:ns, 0), self%zf(1:nf, 0), self%zs(ns+1:, 0), self%zf(nf+1:, 0)]
-    call sys%project(x, error); if (allocated(error)) return
+    call sys%project(self%time(), x, error); if (allocated(error)) return
     self%zs(:, 0) = [x(1:ns), x(ns+nf+1:2*ns+nf)]
     self%zf(:, 0) = [x(ns+1:ns+nf), x(2*ns+nf+1:)]
   end subroutine mr_project

@@ -84,8 +84,9 @@ module pymr_integrator_ode
 
 contains
 
-  subroutine no_projection(self, x, error)
+  subroutine no_projection(self, t, x, error)
     class(ode_system), intent(inout) :: self
+    real(dp), intent(in) :: t
     real(dp), intent(inout) :: x(:)
     type(error_type), allocatable, intent(out) :: error
   end subroutine no_projection

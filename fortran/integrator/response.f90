@@ -434,7 +434,7 @@ contains
     class(response_integrator), intent(inout) :: self
     class(ode_system), intent(inout) :: sys
     type(error_type), allocatable, intent(out) :: error
-    call sys%project(self%z(:, 0), error)
+    call sys%project(self%time(), self%z(:, 0), error)
   end subroutine rs_project
 
 end module pymr_integrator_response

@@ -193,7 +193,7 @@ contains
     real(dp) :: rows(d%n_rows, d%n), norms(d%n_rows), scale
     logical :: free(d%n_rows)
     integer :: k, i, j
-    rows = d%gj
+    rows = free_columns(d, d%gj)
     free = .true.
     d%n_used = 0
     scale = maxval(norm2(rows, dim=2))
@@ -210,8 +210,10 @@ contains
     end do
     d%n_redundant = d%n_rows - d%n_used
     d%rows_chosen = .true.
-    if (d%n_used >= d%n) call fatal_error(error, 'the loops lock the mechanism: ' // itoa(d%n_used) // &
-      & ' independent constraints on ' // itoa(d%n) // ' coordinates leave no motion')
+    ! with prescribed coordinates the loops may take every other coordinate (a driven mechanism)
+    if (d%n_prescribed == 0 .and. d%n_used >= d%n) call fatal_error(error, &
+      & 'the loops lock the mechanism: ' // itoa(d%n_used) // ' independent constraints on ' // itoa(d%n) // &
+      & ' coordinates leave no motion')
   end subroutine choose_rows
 
   !> Add the constraint forces to qdd = M^-1 P (M's Cholesky factor in d%lf), after an
@@ -233,17 +235,32 @@ contains
     type(model_data), intent(inout) :: d
     real(dp), intent(inout) :: qdd(:)
     type(error_type), allocatable, intent(out) :: error
-    real(dp) :: a(d%n_used, d%n_used), lam(d%n_used), gu(d%n_used, d%n)
+    real(dp) :: a(d%n_used, d%n_used), lam(d%n_used), gu(d%n_used, d%n), gf(d%n_used, d%n)
     gu = d%gj(d%row_used(1:d%n_used), :)
-    d%ymg(:, 1:d%n_used) = transpose(gu)
+    gf = free_columns(d, gu)
+    d%ymg(:, 1:d%n_used) = transpose(gf)
     call potrs(d%lf, d%ymg(:, 1:d%n_used), 'the mass matrix', error); if (allocated(error)) return
-    a = matmul(gu, d%ymg(:, 1:d%n_used))
+    a = matmul(gf, d%ymg(:, 1:d%n_used))
     lam = d%gam(d%row_used(1:d%n_used)) - matmul(gu, qdd)
     call solve_rows(a, lam, error); if (allocated(error)) return
     qdd = qdd + matmul(d%ymg(:, 1:d%n_used), lam)
     d%lambda = 0.0_dp
     d%lambda(d%row_used(1:d%n_used)) = lam
   end subroutine add_multipliers
+
+  !> Rows of G without the prescribed coordinates' columns: the loops' forces and
+  !> projections move only the free coordinates (a prescribed one follows its function, and
+  !> its known motion stays in the right-hand sides).
+  pure function free_columns(d, g) result(gf)
+    type(model_data), intent(in) :: d
+    real(dp), intent(in) :: g(:, :)
+    real(dp) :: gf(size(g, 1), size(g, 2))
+    integer :: i
+    gf = g
+    do i = 1, d%n_prescribed
+      gf(:, d%pres_coord(i)) = 0.0_dp
+    end do
+  end function free_columns
 
   !> Solve the (symmetric positive definite) system of the used rows in place.
   subroutine solve_rows(a, x, error)
@@ -266,7 +283,7 @@ contains
       call forward_kinematics(d, q, 0.0_dp*q)
       call loop_rows(d)
       if (maxval(abs(d%phi)) <= closure_tol*max(scale, 1.0_dp)) return
-      gu = d%gj(d%row_used(1:d%n_used), :)
+      gu = free_columns(d, d%gj(d%row_used(1:d%n_used), :))
       a = matmul(gu, transpose(gu))
       y = d%phi(d%row_used(1:d%n_used))
       call solve_rows(a, y, error); if (allocated(error)) return
@@ -286,8 +303,9 @@ contains
     call forward_kinematics(d, q, qd)
     call loop_rows(d)
     gu = d%gj(d%row_used(1:d%n_used), :)
-    a = matmul(gu, transpose(gu))
     y = matmul(gu, qd)
+    gu = free_columns(d, gu)
+    a = matmul(gu, transpose(gu))
     call solve_rows(a, y, error); if (allocated(error)) return
     qd = qd - matmul(y, gu)
   end subroutine project_velocities

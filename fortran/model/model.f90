@@ -296,14 +296,20 @@ contains
     end associate
   end subroutine model_accelerations
 
-  !> Close the loops of state x = [q; qd] (model/loops.f90): positions, then rates.
-  subroutine model_project(self, x, error)
+  !> Close the loops of state x = [q; qd] at time t (model/loops.f90): the prescribed
+  !> coordinates put on their functions, then positions and rates projected.
+  subroutine model_project(self, t, x, error)
     class(model_t), intent(inout) :: self
+    real(dp), intent(in) :: t
     real(dp), intent(inout) :: x(:)
     type(error_type), allocatable, intent(out) :: error
     integer :: n
     if (self%d%n_cut == 0 .or. .not. self%d%rows_chosen) return
     n = self%d%n
+    if (self%d%n_prescribed > 0) then
+      call impose_prescribed_state(self%d, t, x(1:n), x(n+1:))
+      x(1:n) = self%d%qx; x(n+1:) = self%d%qdx
+    end if
     call project_positions(self%d, x(1:n), self%d%loop_size, error); if (allocated(error)) return
     call project_velocities(self%d, x(1:n), x(n+1:), error)
   end subroutine model_project

@@ -401,7 +401,6 @@ contains
     if (trim(sc%integrator%method) == 'multirate') s = "supported by method = 'multirate' (use 'single')"
     if (trim(sc%integrator%dynamics) == 'articulated') s = "supported by dynamics = 'articulated' (use 'mass_matrix')"
     if (sc%scene%start == 'static') s = "supported with start = 'static'"
-    if (size(sc%motions) > 0) s = 'supported with &motion prescribed coordinates'
   end function loop_refusal
 
   !> The first repeated non-blank name: i < j, names(i) == names(j), j the smallest such
