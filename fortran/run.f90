@@ -271,16 +271,17 @@ contains
           stats%rows = stats%rows + 1
           k_out = k_out + 1; t_next = k_out*dt_out
         end do
-      else if (st%time() < sc%scene%t_end - eps) then
-        call st%value_at(st%time(), x)
-        call work_at(csv%plan, st, model, t_step, work_step, st%time(), work, error)
-        if (.not. allocated(error)) call write_output_row(csv, model, st%time(), x(1:n), x(n+1:), work, error)
-        stats%rows = stats%rows + 1
       end if
       if (allocated(error)) exit
-      ! the works at the time reached (for the checkpoint, and the start of the next step)
+      ! the works at the time reached (for its row, the checkpoint, and the start of the next step)
       call work_at(csv%plan, st, model, t_step, work_step, st%time(), work, error); if (allocated(error)) exit
       work_step = work; t_step = st%time()
+      if (dt_out <= 0.0_dp .and. st%time() < sc%scene%t_end - eps) then
+        call st%value_at(st%time(), x)
+        call write_output_row(csv, model, st%time(), x(1:n), x(n+1:), work_step, error)
+        stats%rows = stats%rows + 1
+        if (allocated(error)) exit
+      end if
       if (st%time() >= sc%scene%t_end - eps) exit
       if (st%time() >= t_ckpt - eps) then
         ! the rows up to now are on disk (checked) before the checkpoint that counts them
@@ -441,7 +442,6 @@ contains
       error%message = sc%joints(j)%origin%where() // ': ' // error%message; return
     end if
     if (sc%scene%start /= 'static') return
-    n = model%d%n
     allocate(u(0))
     do b = 2, model%d%nb
       u = [u, (model%d%a0(b) + i, i = 0, model%d%nm(b) - 1)]
@@ -495,13 +495,13 @@ contains
     s = s // trim(buf) // new_line('a')
     write(buf, '(a,f10.4,a,f10.4,a)') 'cpu time ', st%cpu_time_s, ' s, wall time ', st%wall_time_s, ' s'
     s = s // trim(buf)
+    if (st%preflight_cpu_s > 0.0_dp) s = s // ' (pre-flight stability check: ' // fmt(st%preflight_cpu_s) // ' s CPU)'
     if (model%d%n_cut > 0) then
       write(buf, '(a,i0,a,i0,a,i0,a,es9.2,a,es9.2,a)') 'loops: ', model%d%n_cut, ' closing joints, ', &
         & model%d%n_rows, ' constraint rows, ', model%d%n_redundant, ' redundant (dropped); the initial ' // &
         & 'state assembled with largest changes ', model%d%assembly_dq, ' (q), ', model%d%assembly_dqd, ' (qd)'
       s = s // new_line('a') // trim(buf)
     end if
-    if (st%preflight_cpu_s > 0.0_dp) s = s // ' (pre-flight stability check: ' // fmt(st%preflight_cpu_s) // ' s CPU)'
     s = s // new_line('a')
     call forward_kinematics(model%d, x(1:n), x(n+1:))
     do i = 1, min(model%d%n_markers, max_summary_markers)

@@ -54,8 +54,7 @@ contains
     end do
   end subroutine articulated_accelerations
 
-  !> The prescribed coordinates' accelerations (their functions' second derivatives); the
-  !> others are marked free.
+  !> The prescribed coordinates' accelerations (their functions' second derivatives).
   subroutine prescribed_accelerations(d, t, qdd)
     type(model_data), intent(inout) :: d
     real(dp), intent(in) :: t
@@ -97,29 +96,29 @@ contains
     type(error_type), allocatable, intent(out) :: error
     integer :: i, c, l
     real(dp) :: x(m, 6), y(m), g(6)
-      associate(kaa => d%ab_kaa(1:m, 1:m, b), kam => d%ab_kam(:, 1:m, b), ba => d%ab_ba(1:m, b))
-        kam = d%mva(:, 1:m, b)
-        kaa = d%flex(b)%mmm
-        ba = d%wam(1:m, b) - d%tau(d%a0(b):d%a0(b) + m - 1)
-        do i = d%child_ptr(b), d%child_ptr(b + 1) - 1
-          c = d%child_idx(i)
-          do l = 1, m
-            g = matmul(d%ab_ia(:, :, c), d%cm(:, l, c))
-            kam(:, l) = kam(:, l) + g
-            kaa(:, l) = kaa(:, l) + matmul(transpose(d%cm(:, 1:m, c)), g)
-            ba(l) = ba(l) + dot_product(d%cm(:, l, c), d%ab_pa(:, c))
-          end do
+    associate(kaa => d%ab_kaa(1:m, 1:m, b), kam => d%ab_kam(:, 1:m, b), ba => d%ab_ba(1:m, b))
+      kam = d%mva(:, 1:m, b)
+      kaa = d%flex(b)%mmm
+      ba = d%wam(1:m, b) - d%tau(d%a0(b):d%a0(b) + m - 1)
+      do i = d%child_ptr(b), d%child_ptr(b + 1) - 1
+        c = d%child_idx(i)
+        do l = 1, m
+          g = matmul(d%ab_ia(:, :, c), d%cm(:, l, c))
+          kam(:, l) = kam(:, l) + g
+          kaa(:, l) = kaa(:, l) + matmul(transpose(d%cm(:, 1:m, c)), g)
+          ba(l) = ba(l) + dot_product(d%cm(:, l, c), d%ab_pa(:, c))
         end do
-        call potrf(kaa, "the modal mass of body '" // trim(d%body_name(b)) // "' with what it carries", error)
-        if (allocated(error)) return
-        ! IA = K_AA - K_Aa K_aa^-1 K_Aa^T, pA = b_A - K_Aa K_aa^-1 b_a
-        x(1:m, :) = transpose(kam)
-        call potrs(kaa, x(1:m, :), 'K_aa', error); if (allocated(error)) return
-        ia = ia - matmul(kam, x(1:m, :))
-        y(1:m) = ba
-        call potrs(kaa, y(1:m), 'K_aa', error); if (allocated(error)) return
-        pa = pa - matmul(kam, y(1:m))
-      end associate
+      end do
+      call potrf(kaa, "the modal mass of body '" // trim(d%body_name(b)) // "' with what it carries", error)
+      if (allocated(error)) return
+      ! IA = K_AA - K_Aa K_aa^-1 K_Aa^T, pA = b_A - K_Aa K_aa^-1 b_a
+      x(1:m, :) = transpose(kam)
+      call potrs(kaa, x(1:m, :), 'K_aa', error); if (allocated(error)) return
+      ia = ia - matmul(kam, x(1:m, :))
+      y(1:m) = ba
+      call potrs(kaa, y(1:m), 'K_aa', error); if (allocated(error)) return
+      pa = pa - matmul(kam, y(1:m))
+    end associate
   end subroutine condense_modes
 
   !> Body b's joint: its columns, from the child's side to the parent's, condensed out of

@@ -108,9 +108,7 @@ contains
       call assemble_rhs(d, d%in_fast)
       d%evals_fast_rows = d%evals_fast_rows + 1
     else
-      call body_loads(d, t, q, qd)
-      call composite_terms(d)
-      if (d%effect_on(effect_geometric_stiffening)) call add_carried_load_stiffening(d, q, d%every)
+      call composite_loads(d, t, q, qd)
       call assemble_mass(d)
       call assemble_rhs(d)
       d%evals = d%evals + 1
@@ -129,6 +127,16 @@ contains
     d%tau = 0.0_dp
     call apply_effects(d, t, q, qd, d%every, .false.)
   end subroutine body_loads
+
+  !> body_loads and the subtrees' composite terms (with the geometric stiffness of the loads
+  !> beams carry), all that P needs before its assembly.
+  subroutine composite_loads(d, t, q, qd)
+    type(model_data), intent(inout) :: d
+    real(dp), intent(in) :: t, q(:), qd(:)
+    call body_loads(d, t, q, qd)
+    call composite_terms(d)
+    if (d%effect_on(effect_geometric_stiffening)) call add_carried_load_stiffening(d, q, d%every)
+  end subroutine composite_loads
 
   !> Accelerations by the articulated-body algorithm at a state with the prescribed
   !> coordinates imposed (geometric stiffness from carried loads needs the composite wrenches).
@@ -164,9 +172,7 @@ contains
     if (self%d%n_prescribed > 0) then
       call self%terms(t, q, qd)
     else
-      call body_loads(self%d, t, q, qd)
-      call composite_terms(self%d)
-      if (self%d%effect_on(effect_geometric_stiffening)) call add_carried_load_stiffening(self%d, q, self%d%every)
+      call composite_loads(self%d, t, q, qd)
       call assemble_rhs(self%d)
       self%d%evals = self%d%evals + 1
     end if
@@ -181,8 +187,8 @@ contains
     self%d%articulated = on
     if (.not. on .or. allocated(self%d%ab_ia)) return
     nb = self%d%nb; mx = max(self%d%mmax, 1)
-    allocate(self%d%ab_ia(6, 6, nb), self%d%ab_pa(6, nb), self%d%ab_u(6, 6, nb), self%d%ab_r(6, nb), self%d%ab_lin(6, nb), self%d%ab_kaa(mx, mx, nb), self%d%ab_kam(6, mx, nb), &
-      & self%d%ab_ba(mx, nb))
+    allocate(self%d%ab_ia(6, 6, nb), self%d%ab_pa(6, nb), self%d%ab_u(6, 6, nb), self%d%ab_r(6, nb), &
+      & self%d%ab_lin(6, nb), self%d%ab_kaa(mx, mx, nb), self%d%ab_kam(6, mx, nb), self%d%ab_ba(mx, nb))
   end subroutine model_use_articulated
 
   !> The effect plan: each active effect's routine, in plan order, on the bodies in
