@@ -13,6 +13,7 @@ module pymr_preflight
   use pymr_error, only : error_type, fatal_error, stat_input
   use pymr_lapack, only : potrf, potrs, geev_real, factor_inverse, general_solve
   use pymr_model, only : model_t, modal_stiffness_damping, model_counters
+  use pymr_model_loops, only : loop_jacobian, constrain_inverse, independent_rows
   use pymr_integrator_stability, only : pece_growth, pece_limit
   use pymr_integrator_ode, only : partitioned_system
   use pymr_integrator_stepper, only : stepper_t, pece_steps, step_counts
@@ -41,7 +42,7 @@ module pymr_preflight
   !> stepper applied to it gives its linearised step map.
   type, extends(partitioned_system) :: linear_system
     integer :: ns = 0, nf = 0
-    real(dp), allocatable :: minv(:, :), k(:, :), c(:, :), mffinv(:, :), mfs(:, :), kf(:), df(:)
+    real(dp), allocatable :: minv(:, :), k(:, :), c(:, :), mffinv(:, :), mfs(:, :), kf(:), df(:), tfs(:, :)
   contains
     procedure :: eval => lin_eval
     procedure :: component_name => lin_name
@@ -69,7 +70,7 @@ contains
     character(len=*), intent(in) :: where
     type(error_type), allocatable, intent(out) :: error
     integer :: n, i, j, dom, worst
-    real(dp), allocatable :: m(:, :), k(:, :), c(:, :), a(:, :), ev(:, :), wr(:), wi(:), vr(:, :), wgt(:)
+    real(dp), allocatable :: m(:, :), minv(:, :), k(:, :), c(:, :), a(:, :), ev(:, :), wr(:), wi(:), vr(:, :), wgt(:)
     real(dp) :: h, ratio, worst_ratio
     complex(dp) :: lam, worst_lam
     character(len=32) :: b1, b2, b3, b4
@@ -80,7 +81,8 @@ contains
     steps = st%pece(); counts = st%counts()
     allocate(wgt(n))
     call linearise(model, 0.0_dp, x, m, k, c)
-    call state_matrix(m, k, c, a, error); if (allocated(error)) return
+    call mass_inverse(model, x, m, minv, error); if (allocated(error)) return
+    call state_matrix(minv, k, c, a)
     allocate(wr(2*n), wi(2*n), vr(2*n, 2*n))
     if (steps%h_modal == steps%h_joint .and. counts%ratio == 1) then
       ! one step for every coordinate: the eigenvalues alone decide; the vectors are needed
@@ -115,7 +117,7 @@ contains
       i = i + 1
     end do
     if (worst == 0) then
-      if (counts%ratio > 1) call check_macro_step(model, m, k, c, st, label, t_end, where, error)
+      if (counts%ratio > 1) call check_macro_step(model, x, m, minv, k, c, max(maxval(wr), 0.0_dp), st, label, t_end, where, error)
       return
     end if
     h = merge(steps%h_modal, steps%h_joint, worst > model%d%nj)
@@ -234,25 +236,39 @@ contains
     end function fmt_es
   end subroutine static_start
 
-  !> The first-order state matrix [0 I; -M^-1 K  -M^-1 C] of the linearised model.
-  subroutine state_matrix(m, k, c, a, error)
-    real(dp), intent(in) :: m(:, :), k(:, :), c(:, :)
+  !> The first-order state matrix [0 I; -M^-1 K  -M^-1 C] of the linearised model, from
+  !> its (constrained) inverse mass matrix minv.
+  pure subroutine state_matrix(minv, k, c, a)
+    real(dp), intent(in) :: minv(:, :), k(:, :), c(:, :)
     real(dp), allocatable, intent(out) :: a(:, :)
-    type(error_type), allocatable, intent(out) :: error
-    real(dp), allocatable :: lm(:, :)
     integer :: n, i
-    n = size(m, 1)
+    n = size(minv, 1)
     allocate(a(2*n, 2*n))
-    lm = m
-    call potrf(lm, 'the mass matrix at the linearisation state', error); if (allocated(error)) return
     a = 0.0_dp
     do i = 1, n
       a(i, n + i) = 1.0_dp
     end do
-    a(n+1:, 1:n) = -k
-    a(n+1:, n+1:) = -c
-    call potrs(lm, a(n+1:, :), 'the mass matrix', error)
+    a(n+1:, 1:n) = -matmul(minv, k)
+    a(n+1:, n+1:) = -matmul(minv, c)
   end subroutine state_matrix
+
+  !> M^-1 of the linearisation at x (m from linearise); with closed loops the constrained
+  !> inverse, whose accelerations keep the loops closed (to first order: the constraint
+  !> rows at x, without their curvature).
+  subroutine mass_inverse(model, x, m, minv, error)
+    type(model_t), intent(inout) :: model
+    real(dp), intent(in) :: x(:), m(:, :)
+    real(dp), allocatable, intent(out) :: minv(:, :)
+    type(error_type), allocatable, intent(out) :: error
+    real(dp), allocatable :: l(:, :), g(:, :)
+    l = m
+    allocate(minv(size(m, 1), size(m, 1)))
+    call potrf(l, 'the mass matrix at the linearisation state', error); if (allocated(error)) return
+    call factor_inverse(l, minv, 'the mass matrix', error); if (allocated(error)) return
+    if (model%d%n_cut == 0) return
+    call loop_jacobian(model%d, x(1:model%d%n), g, error); if (allocated(error)) return
+    call constrain_inverse(minv, g, error)
+  end subroutine mass_inverse
 
   !> Natural modes of the model linearised at (t, x): for each vibration (complex pair of
   !> eigenvalues lambda of the state matrix, one taken), the undamped natural frequency
@@ -265,7 +281,7 @@ contains
     real(dp), intent(out) :: freq(:), zeta(:), shapes(:, :)
     integer, intent(out) :: nm
     type(error_type), allocatable, intent(out) :: error
-    real(dp), allocatable :: m(:, :), k(:, :), c(:, :), a(:, :), wr(:), wi(:), vr(:, :)
+    real(dp), allocatable :: m(:, :), minv(:, :), k(:, :), c(:, :), a(:, :), wr(:), wi(:), vr(:, :)
     complex(dp), allocatable :: v(:)
     integer :: n, i, j, top
     integer, allocatable :: order(:)
@@ -273,7 +289,8 @@ contains
     n = model%d%n
     nm = 0
     call linearise(model, t, x, m, k, c)
-    call state_matrix(m, k, c, a, error); if (allocated(error)) return
+    call mass_inverse(model, x, m, minv, error); if (allocated(error)) return
+    call state_matrix(minv, k, c, a)
     allocate(wr(2*n), wi(2*n), vr(2*n, 2*n), f(n), z(n), s(n, n), v(n))
     call geev_real(a, wr, wi, 'the linearised model', error, vr); if (allocated(error)) return
     do i = 1, 2*n - 1
@@ -347,12 +364,17 @@ contains
   end subroutine check_mass_matrix
 
   !> Multirate runs: the growth per macro step of the stepper itself applied to the model
-  !> linearised at the initial state (power iteration on its whole state). When the growth
-  !> over the run would exceed run_growth the run is refused, naming the coordinate that
+  !> linearised at the initial state (power iteration on its whole state). When its growth
+  !> beyond the linearised model's own (a motion that grows physically, or the drift of a
+  !> closed loop's coordinates that the projection removes) would exceed run_growth over the
+  !> run, the run is refused, naming the coordinate that
   !> carries the growing motion and the largest stable step ratio at this fast step.
-  subroutine check_macro_step(model, m, k, c, st, label, t_end, where, error)
-    type(model_t), intent(in) :: model
-    real(dp), intent(in) :: m(:, :), k(:, :), c(:, :), t_end
+  subroutine check_macro_step(model, x, m, minv, k, c, sigma, st, label, t_end, where, error)
+    type(model_t), intent(inout) :: model
+    real(dp), intent(in) :: x(:), m(:, :), minv(:, :), k(:, :), c(:, :), t_end
+    !> The linearised model's own growth rate (1/s; its largest real eigenvalue part, or 0):
+    !> only the growth beyond it is the stepper's.
+    real(dp), intent(in) :: sigma
     class(stepper_t), intent(in) :: st
     character(len=*), intent(in) :: label, where
     type(error_type), allocatable, intent(out) :: error
@@ -362,17 +384,17 @@ contains
     character(len=32) :: b1, b2, b3
     type(step_counts) :: counts
     type(pece_steps) :: steps
-    call linear_model(model, m, k, c, sys, error); if (allocated(error)) return
+    call linear_model(model, x, m, minv, k, c, sys, error); if (allocated(error)) return
     counts = st%counts(); steps = st%pece()
     k_run = counts%ratio; kr = k_run
     hf = steps%h_modal
     call macro_growth(sys, m, st, kr, hf, t_end, rho, dom, error); if (allocated(error)) return
-    if (log(rho)*t_end/(kr*hf) <= log(run_growth)) return
+    if ((log(rho) - sigma*kr*hf)*t_end/(kr*hf) <= log(run_growth)) return
     ! the largest stable ratio below kr (stability need not be monotone in k: scan all)
     ks = 0
     do kr = 1, k_run - 1
       call macro_growth(sys, m, st, kr, hf, t_end, r2, d2, error); if (allocated(error)) return
-      if (log(r2)*t_end/(kr*hf) <= log(run_growth)) ks = kr
+      if ((log(r2) - sigma*kr*hf)*t_end/(kr*hf) <= log(run_growth)) ks = kr
     end do
     kr = k_run
     write(b1, '(es9.2)') kr*hf
@@ -385,26 +407,37 @@ contains
       & 'run; or use adaptive = .true.)')
   end subroutine check_macro_step
 
-  !> The linearised model as a partitioned system (slow = joint coordinates).
-  subroutine linear_model(model, m, k, c, sys, error)
-    type(model_t), intent(in) :: model
-    real(dp), intent(in) :: m(:, :), k(:, :), c(:, :)
+  !> The linearised model as a partitioned system (slow = joint coordinates), with its
+  !> (constrained) inverse mass matrix minv. With closed loops its fast steps keep the loops
+  !> closed as the model's do (constrain_fast_accelerations): the constrained inverse of
+  !> M_ff on the rows independent in G_f, and the fast accelerations tfs acc_s that the
+  !> slow accelerations impose through them.
+  subroutine linear_model(model, x, m, minv, k, c, sys, error)
+    type(model_t), intent(inout) :: model
+    real(dp), intent(in) :: x(:), m(:, :), minv(:, :), k(:, :), c(:, :)
     type(linear_system), intent(out) :: sys
     type(error_type), allocatable, intent(out) :: error
     integer :: n, ns, nf
-    real(dp), allocatable :: l(:, :)
+    integer, allocatable :: r(:)
+    real(dp), allocatable :: l(:, :), g(:, :), kg(:, :)
     n = size(m, 1); ns = model%d%nj; nf = n - ns
     sys%ns = ns; sys%nf = nf
     sys%k = k; sys%c = c
-    l = m
-    call potrf(l, 'the mass matrix at the initial state', error); if (allocated(error)) return
-    allocate(sys%minv(n, n), sys%mffinv(nf, nf), sys%kf(nf), sys%df(nf))
-    call factor_inverse(l, sys%minv, 'the mass matrix', error); if (allocated(error)) return
+    sys%minv = minv
+    allocate(sys%mffinv(nf, nf), sys%kf(nf), sys%df(nf))
     l = m(ns+1:, ns+1:)
     call potrf(l, 'M_ff at the initial state', error); if (allocated(error)) return
     call factor_inverse(l, sys%mffinv, 'M_ff', error); if (allocated(error)) return
     sys%mfs = m(ns+1:, 1:ns)
     call modal_stiffness_damping(model%d, sys%kf, sys%df)
+    if (model%d%n_cut == 0) return
+    call loop_jacobian(model%d, x(1:n), g, error); if (allocated(error)) return
+    r = independent_rows(g(:, ns+1:))
+    allocate(sys%tfs(nf, ns), kg(nf, size(r)))
+    sys%tfs = 0.0_dp
+    if (size(r) == 0) return
+    call constrain_inverse(sys%mffinv, g(r, ns+1:), error, kg); if (allocated(error)) return
+    sys%tfs = matmul(kg, g(r, 1:ns))
   end subroutine linear_model
 
   !> Growth rho per macro step (ratio kr, fast step hf) of the stepper `proto` applied to
@@ -579,6 +612,7 @@ contains
     ns = self%ns; nf = self%nf
     p = forces(self, xs, xf)
     ff(nf+1:) = matmul(self%mffinv, p(ns+1:) - matmul(self%mfs, acc_s))
+    if (allocated(self%tfs)) ff(nf+1:) = ff(nf+1:) - matmul(self%tfs, acc_s)
     ff(1:nf) = xf(nf+1:)
   end subroutine lin_fast
 end module pymr_preflight

@@ -117,6 +117,7 @@ contains
     type(response_integrator), allocatable :: rs
     type(abm_integrator) :: probe
     real(dp), allocatable :: f0(:)
+    type(step_control) :: stable
     integer :: k
     if (model%n_fast() == 0 .or. model%n_slow() == 0) then
       call fatal_error(error, sc%file // ": &integrator: method: 'multirate' needs slow (joint) and fast " // &
@@ -126,26 +127,27 @@ contains
     k = nint(sc%integrator%h_slow/sc%integrator%h_fast)
     h0 = sc%integrator%h_fast
     call model%init_partition()
+    stable = stable_control(ctl, model)
     if (sc%integrator%coupling == 'response') then
       allocate(rs)
-      call rs%init(model%n_slow(), model%n_fast(), k, sc%integrator%adaptive, stable_control(ctl, model), &
+      call rs%init(model%n_slow(), model%n_fast(), k, sc%integrator%adaptive, stable, &
         & sc%integrator%k_max)
       rs%h = h0
       call move_alloc(rs, st)
       return
     end if
     if (sc%integrator%adaptive) then
-      ! start single-rate (k = 1) at h_fast, or less if the tolerances ask for it; the
-      ! controller then chooses k
+      ! start single-rate (k = 1) at h_fast, or less if the tolerances or the fast modes'
+      ! stability ask for it; the controller then chooses k, the fast step within stability
       call probe%init(size(x), .true., ctl, 1)
       allocate(f0(size(x)))
       call model%eval(0.0_dp, x, f0, error); if (allocated(error)) return
       call hinit(probe, model, 0.0_dp, x, f0, h0, error); if (allocated(error)) return
       k = 1
-      h0 = min(sc%integrator%h_fast, h0)
+      h0 = min(sc%integrator%h_fast, h0, stable%h_max)
     end if
     allocate(mr)
-    call mr%init(model%n_slow(), model%n_fast(), k, sc%integrator%adaptive, ctl, sc%integrator%k_max)
+    call mr%init(model%n_slow(), model%n_fast(), k, sc%integrator%adaptive, ctl, sc%integrator%k_max, stable%h_max)
     mr%hf = h0; mr%hs = k*h0
     call move_alloc(mr, st)
   end subroutine make_multirate

@@ -189,8 +189,8 @@ def modes(scene: str | os.PathLike, q, qd, t: float = 0.0, overrides=None):
     """Natural modes of the model linearised at (t, q, qd), by the pre-flight check's
     linearisation (central differences of P, LAPACK dgeev of the state matrix): frequencies
     (Hz, ascending), damping ratios, and shapes (shape (n, number of modes): each column the
-    coordinates' motion, its largest component 1). Drifting motions (a free joint) are not
-    modes and are left out."""
+    coordinates' motion, its largest component 1); with closed loops, the constrained ones.
+    Drifting motions (a free joint) are not modes and are left out."""
     nm, freq, zeta, shapes, stat, msg = _core.pymr_modes(*_scene_and_overrides(scene, overrides), t,
                                                           *_one_state(q, qd))
     _raise(stat, msg)

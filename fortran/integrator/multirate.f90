@@ -38,6 +38,9 @@ module pymr_integrator_multirate
     logical :: adaptive = .false.
     type(step_control) :: ctl
     integer :: k_max = 1
+    !> Adaptive: the largest fast step (s), within the PECE stability limit of the fastest
+    !> mode (an error estimate sees an instability only once it has grown).
+    real(dp) :: hf_max = huge(1.0_dp)
     !> Adaptive work: the arrays at the start of the macro step, the error weights.
     real(dp), allocatable :: zs0(:, :), zf0(:, :), ws(:), wf(:), fx(:)
     !> Work arrays.
@@ -65,14 +68,16 @@ module pymr_integrator_multirate
 contains
 
   !> Allocate for ns slow and nf fast coordinates, step ratio k; adaptive runs control
-  !> both steps with `ctl` and keep the ratio within [1, k_max].
-  subroutine mr_init(self, ns, nf, k, adaptive, ctl, k_max)
+  !> both steps with `ctl`, the fast one at most hf_max, and keep the ratio within [1, k_max].
+  subroutine mr_init(self, ns, nf, k, adaptive, ctl, k_max, hf_max)
     class(multirate_integrator), intent(inout) :: self
     integer, intent(in) :: ns, nf, k
     logical, intent(in), optional :: adaptive
     type(step_control), intent(in), optional :: ctl
     integer, intent(in), optional :: k_max
+    real(dp), intent(in), optional :: hf_max
     self%ns = ns; self%nf = nf; self%k = k
+    if (present(hf_max)) self%hf_max = hf_max
     if (present(adaptive)) self%adaptive = adaptive
     if (present(ctl)) self%ctl = ctl
     self%k_max = max(k, 1)
@@ -272,7 +277,7 @@ contains
     end do
     call finish_macro_step(self, sys, error); if (allocated(error)) return
     hs_new = min(self%hs*self%ctl%ratio(err_s, .true.), self%ctl%h_max)
-    hf_new = self%hf*self%ctl%ratio(err_f, .true.)
+    hf_new = min(self%hf*self%ctl%ratio(err_f, .true.), self%hf_max)
     call choose_ratio(self, hs_new, hf_new, k_new)
     if (hs_new /= self%hs .or. k_new /= self%k) call rescale_steps(self, hs_new, hf_new, k_new)
   end subroutine mr_step

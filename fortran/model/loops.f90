@@ -27,7 +27,8 @@ module pymr_model_loops
   use pymr_io_text, only : itoa, fmt
   implicit none
   private
-  public :: assemble_loops, loop_rows, choose_rows, constrained_accelerations, project_positions, project_velocities, cut_wrench, cut_body_wrenches
+  public :: assemble_loops, loop_rows, choose_rows, constrained_accelerations, constrain_fast_accelerations, &
+    & constrain_response, constrain_inverse, loop_jacobian, independent_rows, project_positions, project_velocities, cut_wrench, cut_body_wrenches
 
   !> A row is dependent when its part independent of the rows chosen before is below this
   !> fraction of the largest row.
@@ -184,30 +185,15 @@ contains
     end do
   end subroutine add_path_columns
 
-  !> The independent rows of G (d%gj, after loop_rows): pivoted Gram-Schmidt on the rows
-  !> (the column-pivoted QR of G^T); the others are redundant. Chosen once, at the first
-  !> evaluation or at assembly. A loop that leaves no motion is an error.
+  !> The independent rows of G (d%gj, after loop_rows, without the prescribed columns);
+  !> the others are redundant. Chosen once, at the first evaluation or at assembly. A loop
+  !> that leaves no motion is an error.
   subroutine choose_rows(d, error)
     type(model_data), intent(inout) :: d
     type(error_type), allocatable, intent(out) :: error
-    real(dp) :: rows(d%n_rows, d%n), norms(d%n_rows), scale
-    logical :: free(d%n_rows)
-    integer :: k, i, j
-    rows = free_columns(d, d%gj)
-    free = .true.
-    d%n_used = 0
-    scale = maxval(norm2(rows, dim=2))
-    do k = 1, d%n_rows
-      norms = norm2(rows, dim=2)
-      i = maxloc(norms, dim=1, mask=free)
-      if (norms(i) <= rank_tol*scale) exit
-      free(i) = .false.
-      d%n_used = d%n_used + 1; d%row_used(d%n_used) = i
-      rows(i, :) = rows(i, :)/norms(i)
-      do j = 1, d%n_rows
-        if (free(j)) rows(j, :) = rows(j, :) - dot_product(rows(j, :), rows(i, :))*rows(i, :)
-      end do
-    end do
+    integer, allocatable :: used(:)
+    used = independent_rows(free_columns(d, d%gj))
+    d%n_used = size(used); d%row_used(1:d%n_used) = used
     d%n_redundant = d%n_rows - d%n_used
     d%rows_chosen = .true.
     ! with prescribed coordinates the loops may take every other coordinate (a driven mechanism)
@@ -215,6 +201,33 @@ contains
       & 'the loops lock the mechanism: ' // itoa(d%n_used) // ' independent constraints on ' // itoa(d%n) // &
       & ' coordinates leave no motion')
   end subroutine choose_rows
+
+  !> Indices of a set of independent rows of a, by pivoted Gram-Schmidt on the rows (the
+  !> column-pivoted QR of a^T): the row with the largest part independent of those chosen
+  !> comes next, until that part is below rank_tol of the largest row.
+  pure function independent_rows(a) result(used)
+    real(dp), intent(in) :: a(:, :)
+    integer, allocatable :: used(:)
+    real(dp) :: rows(size(a, 1), size(a, 2)), norms(size(a, 1)), scale
+    logical :: free(size(a, 1))
+    integer :: k, i, j
+    rows = a
+    free = .true.
+    allocate(used(0))
+    if (size(a, 1) == 0) return
+    scale = maxval(norm2(rows, dim=2))
+    do k = 1, size(a, 1)
+      norms = norm2(rows, dim=2)
+      i = maxloc(norms, dim=1, mask=free)
+      if (norms(i) <= rank_tol*scale) exit
+      free(i) = .false.
+      used = [used, i]
+      rows(i, :) = rows(i, :)/norms(i)
+      do j = 1, size(a, 1)
+        if (free(j)) rows(j, :) = rows(j, :) - dot_product(rows(j, :), rows(i, :))*rows(i, :)
+      end do
+    end do
+  end function independent_rows
 
   !> Add the constraint forces to qdd = M^-1 P (M's Cholesky factor in d%lf), after an
   !> evaluation's kinematics (the rows chosen at the first).
@@ -367,4 +380,87 @@ contains
       ext(:, d%cut_parent(c)) = ext(:, d%cut_parent(c)) - w
     end do
   end subroutine cut_body_wrenches
+
+  !> A multirate fast step's modal accelerations with the loops. Given the slow
+  !> accelerations acc_s, qdd_f = M_ff^-1 (Q_f - M_fs acc_s) (on entry) takes the constraint
+  !> forces G_f^T mu that make G_f qdd_f = gamma - G_s acc_s hold on the rows independent in
+  !> G_f (the others constrain only the slow motion, given here). With exact acc_s this is
+  !> the fast part of the constrained accelerations. lff: M_ff's Cholesky factor; after
+  !> forward_kinematics at the step's state.
+  subroutine constrain_fast_accelerations(d, lff, acc_s, qdd_f, error)
+    type(model_data), intent(inout) :: d
+    real(dp), intent(in) :: lff(:, :), acc_s(:)
+    real(dp), intent(inout) :: qdd_f(:)
+    type(error_type), allocatable, intent(out) :: error
+    integer, allocatable :: r(:)
+    real(dp), allocatable :: gf(:, :), y(:, :), a(:, :), mu(:)
+    integer :: ns
+    ns = d%nj
+    call loop_rows(d)
+    if (.not. d%rows_chosen) then
+      call choose_rows(d, error); if (allocated(error)) return
+    end if
+    r = d%row_used(1:d%n_used)
+    r = r(independent_rows(d%gj(r, ns+1:)))
+    if (size(r) == 0) return
+    gf = d%gj(r, ns+1:)
+    mu = d%gam(r) - matmul(d%gj(r, 1:ns), acc_s) - matmul(gf, qdd_f)
+    y = transpose(gf)
+    call potrs(lff, y, 'M_ff', error); if (allocated(error)) return
+    a = matmul(gf, y)
+    call solve_rows(a, mu, error); if (allocated(error)) return
+    qdd_f = qdd_f + matmul(y, mu)
+  end subroutine constrain_fast_accelerations
+
+  !> The response g = M^-1 E of the last constrained evaluation (add_multipliers: its rows
+  !> G and Y = M^-1 G^T) made the loops' response: a force f moves the accelerations by
+  !> M^-1 f + Y lambda with (G Y) lambda = -G M^-1 f, so g <- g - Y (G Y)^-1 G g.
+  subroutine constrain_response(d, g, error)
+    type(model_data), intent(inout) :: d
+    real(dp), intent(inout) :: g(:, :)
+    type(error_type), allocatable, intent(out) :: error
+    real(dp) :: a(d%n_used, d%n_used), b(d%n_used, size(g, 2))
+    associate(y => d%ymg(:, 1:d%n_used), gu => d%gj(d%row_used(1:d%n_used), :))
+      a = matmul(free_columns(d, gu), y)
+      b = matmul(gu, g)
+      call potrf(a, 'the loop constraints (a singular position of a loop)', error); if (allocated(error)) return
+      call potrs(a, b, 'the loop constraints', error); if (allocated(error)) return
+      g = g - matmul(y, b)
+    end associate
+  end subroutine constrain_response
+
+  !> The loops' used rows of G at positions q (the kinematics at rest), without the
+  !> prescribed coordinates' columns (the pre-flight linearisation's constraints); the rows
+  !> are chosen here if no evaluation has yet.
+  subroutine loop_jacobian(d, q, g, error)
+    type(model_data), intent(inout) :: d
+    real(dp), intent(in) :: q(:)
+    real(dp), allocatable, intent(out) :: g(:, :)
+    type(error_type), allocatable, intent(out) :: error
+    call forward_kinematics(d, q, 0.0_dp*q)
+    call loop_rows(d)
+    if (.not. d%rows_chosen) then
+      call choose_rows(d, error); if (allocated(error)) return
+    end if
+    g = free_columns(d, d%gj(d%row_used(1:d%n_used), :))
+  end subroutine loop_jacobian
+
+  !> For independent rows g of constraints on coordinates whose inverse mass matrix is
+  !> minv: minv becomes the constrained inverse minv - Y (g Y)^-1 Y^T, Y = minv g^T (qdd =
+  !> minv f are then the accelerations the constraints allow under forces f), and kg =
+  !> Y (g Y)^-1, the accelerations that meet a constraint acceleration of one, if asked.
+  subroutine constrain_inverse(minv, g, error, kg)
+    real(dp), intent(inout) :: minv(:, :)
+    real(dp), intent(in) :: g(:, :)
+    type(error_type), allocatable, intent(out) :: error
+    real(dp), intent(out), optional :: kg(:, :)
+    real(dp) :: y(size(minv, 1), size(g, 1)), a(size(g, 1), size(g, 1)), yt(size(g, 1), size(minv, 1))
+    y = matmul(minv, transpose(g))
+    a = matmul(g, y)
+    yt = transpose(y)
+    call potrf(a, 'the loop constraints (a singular position of a loop)', error); if (allocated(error)) return
+    call potrs(a, yt, 'the loop constraints', error); if (allocated(error)) return
+    minv = minv - matmul(y, yt)
+    if (present(kg)) kg = transpose(yt)
+  end subroutine constrain_inverse
 end module pymr_model_loops

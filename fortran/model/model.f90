@@ -13,7 +13,8 @@ module pymr_model
   use pymr_model_flexbody, only : deformed_modal_moments
   use pymr_model_assembly, only : body_terms, composite_terms, assemble_mass, assemble_rhs, kinetic_energy
   use pymr_model_articulated, only : articulated_accelerations
-  use pymr_model_loops, only : constrained_accelerations, project_positions, project_velocities
+  use pymr_model_loops, only : constrained_accelerations, project_positions, project_velocities, &
+    & constrain_fast_accelerations, constrain_response
   use pymr_model_effects, only : add_gravity, add_joint_drives, add_modal_damping, gravity_potential, &
     & elastic_potential, add_joint_springs, spring_potential, add_geometric_stiffening, impose_prescribed_state, &
     & prescribe_rows, add_firing_load, add_carried_load_stiffening
@@ -481,12 +482,34 @@ contains
       call potrs(self%le, fs(ns+1:), 'M_e', error); call add_time(error, t); if (allocated(error)) return
       ff(nf+1:) = self%yf - matmul(self%xfs, fs(ns+1:))
     end associate
+    if (self%d%n_cut > 0) then
+      call constrain_sync(self, t, fs(ns+1:), ff(nf+1:), error); if (allocated(error)) return
+    end if
     fs(1:ns) = xs(ns+1:)
     ff(1:nf) = xf(nf+1:)
   end subroutine model_sync_rhs
 
+  !> A synchronised evaluation with closed loops: the tree's accelerations (slow acc_s, fast
+  !> acc_f) get the constraint forces, through the Cholesky factor of the whole M (one per
+  !> macro step; the Schur factors stay the tree's, for the fast steps and the response).
+  subroutine constrain_sync(self, t, acc_s, acc_f, error)
+    class(model_t), intent(inout) :: self
+    real(dp), intent(in) :: t
+    real(dp), intent(inout) :: acc_s(:), acc_f(:)
+    type(error_type), allocatable, intent(out) :: error
+    real(dp) :: qdd(self%d%n)
+    integer :: ns
+    ns = self%d%nj
+    self%d%lf = self%d%mm
+    call potrf(self%d%lf, 'the mass matrix', error); call add_time(error, t); if (allocated(error)) return
+    qdd(1:ns) = acc_s; qdd(ns+1:) = acc_f
+    call constrained_accelerations(self%d, qdd, error); call add_time(error, t); if (allocated(error)) return
+    acc_s = qdd(1:ns); acc_f = qdd(ns+1:)
+  end subroutine constrain_sync
+
   !> Fast derivative ff = [qd_f; qdd_f] with M_ff qdd_f = Q_f - M_fs acc_s: the modal
-  !> rows assembled at (t, xs, xf) (the 'full' coupling's fast steps).
+  !> rows assembled at (t, xs, xf) (the 'full' coupling's fast steps); with closed loops,
+  !> plus the constraint forces on the modal coordinates (constrain_fast_accelerations).
   subroutine model_fast_rhs(self, t, xs, xf, acc_s, ff, error)
     class(model_t), intent(inout) :: self
     real(dp), intent(in) :: t, xs(:), xf(:), acc_s(:)
@@ -499,6 +522,8 @@ contains
     call factor_ff(self, t, error); if (allocated(error)) return
     ff(nf+1:) = self%d%p(ns+1:) - matmul(self%d%mm(ns+1:, 1:ns), acc_s)
     call potrs(self%lff, ff(nf+1:), 'M_ff', error)
+    if (self%d%n_cut > 0 .and. .not. allocated(error)) &
+      & call constrain_fast_accelerations(self%d, self%lff, acc_s, ff(nf+1:), error)
     call add_time(error, t)
     ff(1:nf) = xf(nf+1:)
   end subroutine model_fast_rhs
@@ -518,6 +543,9 @@ contains
     call potrs(self%le, gs, 'M_e', error); if (allocated(error)) return
     g(1:ns, :) = -gs
     g(ns+1:, :) = self%mffinv + matmul(self%xfs, gs)
+    if (self%d%n_cut > 0) then
+      call constrain_response(self%d, g, error); if (allocated(error)) return
+    end if
     kf = self%kf; df = self%df
   end subroutine model_force_response
 

@@ -398,7 +398,6 @@ contains
     type(scene_t), intent(in) :: sc
     character(len=:), allocatable :: s
     s = ''
-    if (trim(sc%integrator%method) == 'multirate') s = "supported by method = 'multirate' (use 'single')"
     if (trim(sc%integrator%dynamics) == 'articulated') s = "supported by dynamics = 'articulated' (use 'mass_matrix')"
     if (sc%scene%start == 'static') s = "supported with start = 'static'"
   end function loop_refusal
