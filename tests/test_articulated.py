@@ -17,6 +17,7 @@ from pymr.scenes import serial_chain
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENES = sorted(ROOT.glob("input/*.nml")) + sorted(ROOT.glob("input/hard/*.nml"))
+LOOP_SCENES = {"tank_elevation_cylinder.nml"}
 
 
 def accelerations(scene, x, dynamics, t=0.0, over=None):
@@ -31,6 +32,11 @@ def test_the_articulated_body_algorithm_solves_m_qdd_p(scene):
     (measured: 1e-13 to 1e-14; the flexible chain's modal accelerations of 1e7 differ by
     5e-8, 6e-15 relative)."""
     n, _, _ = model_size(scene)
+    if scene.name in LOOP_SCENES:
+        # a closed loop takes the mass-matrix path only (the constrained solve needs M's factor)
+        with pytest.raises(pymr.SceneError, match="loops are not supported by dynamics = 'articulated'"):
+            accelerations(scene, np.zeros(2 * n), "articulated")
+        return
     rng = np.random.default_rng(7)
     for trial in range(3):
         x = 0.3 * rng.standard_normal(2 * n)

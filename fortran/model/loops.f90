@@ -8,6 +8,12 @@
 !>   prismatic (R_p n_i) . (p_c - p_p) = 0, i = 1, 2       (2 rows instead of the point's 3:
 !>             the child point slides along the axis), and the 3 rows of 'fixed'
 !>
+!> The point and frame rows are taken along the parent's axes (the three rows turned by
+!> R_p^T), as the axis and sliding rows already are: the rows chosen once stay independent
+!> when the whole loop turns (a planar loop on a traversing turret keeps its plane's rows),
+!> and their multipliers are the cut's force and moment in the parent's axes. With every
+!> row used this is the same constraint (rows turned by an orthogonal matrix).
+!>
 !> Their Jacobian G comes from the recursive kinematics: the columns s_k on the path of a
 !> body give its point velocity v_O + w x p and its angular velocity w, so G qd is the
 !> relative velocity of the two points (and the relative angular velocity across the
@@ -94,6 +100,7 @@ contains
           call add_point_columns(d, bc, pc, unit_axes(:, i), 1.0_dp, r + i - 1)
           call add_point_columns(d, bp, pp, unit_axes(:, i), -1.0_dp, r + i - 1)
         end do
+        call to_parent_axes(d, r, bp)
       end if
       select case (d%cut_kind(c))
       case (cut_fixed, cut_prismatic)
@@ -108,6 +115,7 @@ contains
           call add_turn_columns(d, bc, unit_axes(:, i), 1.0_dp, rr + i - 1)
           call add_turn_columns(d, bp, unit_axes(:, i), -1.0_dp, rr + i - 1)
         end do
+        call to_parent_axes(d, rr, bp)
       case (cut_revolute)
         uc = matmul(d%rot(:, :, bc), d%cut_axis(:, c))
         do i = 1, 2
@@ -122,6 +130,20 @@ contains
       end select
     end do
   end subroutine loop_rows
+
+  !> Turn rows r .. r + 2 (inertial components of a vector constraint: residual, Jacobian,
+  !> gamma) into the components along the axes of the parent body bp. The Jacobian is that of
+  !> the turned residual at closure (the parent's turning times the residual is dropped, as
+  !> for the frame rows' own Jacobian), so every loop's motion is unchanged.
+  pure subroutine to_parent_axes(d, r, bp)
+    type(model_data), intent(inout) :: d
+    integer, intent(in) :: r, bp
+    real(dp) :: rt(3, 3)
+    rt = transpose(d%rot(:, :, bp))
+    d%phi(r:r + 2) = matmul(rt, d%phi(r:r + 2))
+    d%gam(r:r + 2) = matmul(rt, d%gam(r:r + 2))
+    d%gj(r:r + 2, :) = matmul(rt, d%gj(r:r + 2, :))
+  end subroutine to_parent_axes
 
   !> A prismatic cut's two sliding rows r, r + 1: the child point stays on the line through
   !> the parent point along the axis, n_i . (pc - pp) = 0 for the axis' normals n_i, which
@@ -332,19 +354,20 @@ contains
     real(dp) :: uc(3), ci(3)
     integer :: r, bp, bc, i
     r = d%cut_row0(c); bp = d%cut_parent(c); bc = d%cut_child(c)
-    f = d%lambda(r:r + 2)
+    ! the point and frame rows are along the parent's axes
+    f = matmul(d%rot(:, :, bp), d%lambda(r:r + 2))
     pc = d%pos(:, bc) + matmul(d%rot(:, :, bc), d%cut_child_at(:, c))
     torque = 0.0_dp
     select case (d%cut_kind(c))
     case (cut_fixed)
-      torque = d%lambda(r + 3:r + 5)
+      torque = matmul(d%rot(:, :, bp), d%lambda(r + 3:r + 5))
     case (cut_prismatic)
       ! the sliding rows push along the normals, the frame rows turn
       f = 0.0_dp
       do i = 1, 2
         f = f + d%lambda(r + i - 1)*matmul(d%rot(:, :, bp), d%cut_normal(:, i, c))
       end do
-      torque = d%lambda(r + 2:r + 4)
+      torque = matmul(d%rot(:, :, bp), d%lambda(r + 2:r + 4))
     case (cut_revolute)
       uc = matmul(d%rot(:, :, bc), d%cut_axis(:, c))
       do i = 1, 2
