@@ -695,6 +695,33 @@ def test_a_damped_propped_cantilever_comes_to_the_same_rest(tmp_path):
     assert np.abs(fall + res["energy.damping_loss"]).max() < 1e-8 * np.abs(fall).max()
 
 
+@pytest.mark.parametrize("base", ["fourbar", "tree"])
+def test_a_free_cut_changes_nothing(tmp_path, mrsim, base):
+    """A 'free' joint that closes a loop (between the crank and the rocker of the four-bar,
+    or between the arm and the ground of the welded pendulum, a tree) imposes no
+    constraint: every result equals the same scene's without it to 1e-12 (measured 0), its
+    reaction columns are 0, and the summary and statistics say it closes no constraint."""
+    import subprocess
+    text = fourbar_scene(1.0, 2.0, t_end=0.5) if base == "fourbar" else weld_scene(False, t_end=0.5)
+    free = ("&joint name = 'E', kind = 'free', parent = 'crank', child = 'rocker', at = 0.4, 0.0, 0.0 /\n"
+            if base == "fourbar" else "&joint name = 'E', kind = 'free', parent = 'ground', child = 'arm' /\n")
+    (tmp_path / "plain.nml").write_text(text)
+    (tmp_path / "free.nml").write_text(text + free)
+    plain = pymr.run(tmp_path / "plain.nml", tmp_path / "plain.csv")
+    r = subprocess.run([mrsim, "free.nml", "-o", "free.csv"], cwd=tmp_path, capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0, r.stderr
+    res = pymr.load_results(tmp_path / "free.csv")
+    assert np.array_equal(res["t"], plain["t"])
+    for c in plain.columns:
+        assert np.abs(res[c] - plain[c]).max() <= 1e-12 * max(1.0, np.abs(plain[c]).max()), c
+    for c in ("fx", "fy", "fz", "mx", "my", "mz"):
+        assert np.abs(res[f"E.{c}"]).max() == 0.0, c
+    rows = 5 if base == "fourbar" else 0
+    assert f"loops: {1 + (base == 'fourbar')} closing joints (1 'free': no constraint), {rows} constraint rows" in r.stdout
+    loops = json.loads((tmp_path / "free.json").read_text())["loops"]
+    assert loops["free_closing_joints"] == 1 and loops["constraint_rows"] == rows
+
+
 def test_a_prismatic_cut_closes_the_crank_slider(tmp_path):
     """The crank-slider with its slide as the loop-closing joint (a prismatic cut: two sliding
     rows and three frame rows) and the slider hung from the rod's end by a revolute tree

@@ -297,7 +297,7 @@ contains
       end if
       qdd = d%p
       call potrs(d%lf, qdd, 'the mass matrix', error)
-      if (d%n_cut > 0 .and. .not. allocated(error)) call constrained_accelerations(d, qdd, error)
+      if (d%n_rows > 0 .and. .not. allocated(error)) call constrained_accelerations(d, qdd, error)
       call add_time(error, t)
     end associate
   end subroutine model_accelerations
@@ -310,7 +310,7 @@ contains
     real(dp), intent(inout) :: x(:)
     type(error_type), allocatable, intent(out) :: error
     integer :: n
-    if (self%d%n_cut == 0 .or. .not. self%d%rows_chosen) return
+    if (self%d%n_rows == 0 .or. .not. self%d%rows_chosen) return
     n = self%d%n
     if (self%d%n_prescribed > 0) then
       call impose_prescribed_state(self%d, t, x(1:n), x(n+1:))
