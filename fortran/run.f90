@@ -422,8 +422,9 @@ contains
     end do
   end subroutine initial_state
 
-  !> The state a run starts from: as the scene gives it, then, for &scene start = 'static',
-  !> with the modal coordinates and those of the joints marked settle in static equilibrium.
+  !> The state a run starts from: as the scene gives it (its loops assembled), then, for
+  !> &scene start = 'static', with the modal coordinates and those of the joints marked
+  !> settle in static equilibrium (on the loops' constraints).
   subroutine starting_state(sc, model, x, error)
     type(scene_t), intent(in) :: sc
     type(model_t), intent(inout) :: model
@@ -455,7 +456,10 @@ contains
     do i = 1, n
       names(i) = model%component_name(i)
     end do
-    call static_start(model, u, names, x, error)
+    call static_start(model, u, names, x, error); if (allocated(error)) return
+    ! the equilibrium closes the loops to Newton's tolerance; the projection closes them to
+    ! the run's and takes the rates' motion across them away at the settled positions
+    call model%project(0.0_dp, x, error)
   end subroutine starting_state
 
   !> Integrator settings as JSON members.

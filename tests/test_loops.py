@@ -722,6 +722,48 @@ def test_a_free_cut_changes_nothing(tmp_path, mrsim, base):
     assert loops["free_closing_joints"] == 1 and loops["constraint_rows"] == rows
 
 
+def sprung_fourbar_scene(settle=("A", "B", "C")) -> str:
+    """The four-bar at rest at crank angle 1, a torsion spring (10 N m/rad, free at 1 rad)
+    on the crank, started static with the joints `settle` marked settle."""
+    text = fourbar_scene(1.0, 0.0, t_end=1.0).replace("&scene title = 'four-bar',",
+                                                       "&scene title = 'four-bar', start = 'static',")
+    text = text.replace("&effects gravity = .true. /", "&effects gravity = .true., joint_springs = .true. /")
+    for j in settle:
+        text = text.replace(f"&joint name = '{j}', kind = 'revolute',", f"&joint name = '{j}', kind = 'revolute', settle = .true.,")
+    return text + "&spring joint = 'A', stiffness = 10.0, free_position = 1.0 /\n"
+
+
+def test_a_static_start_settles_the_fourbar_at_its_potential_minimum(tmp_path):
+    """The sprung four-bar started static with its joints marked settle: the crank angle is
+    where the minimal-coordinate potential V(p) + k (p - 1)^2 / 2 is stationary (V the
+    closed-form loop's gravity potential; the root of its derivative by scipy brentq,
+    0.4824 rad) to 1e-10 rad (measured 3e-13), the other joints on the closed-form loop, the
+    loop closed, the accelerations at t = 0 zero (1e-10) and the crank still over 1 s."""
+    from scipy.optimize import brentq
+    (tmp_path / "s.nml").write_text(sprung_fourbar_scene())
+    res = pymr.run(tmp_path / "s.nml", tmp_path / "s.csv")
+    dv = lambda p: _d(lambda x: fourbar_mass_potential(x)[1], p) + 10.0 * (p - 1.0)
+    p_eq = brentq(dv, 0.3, 0.7, xtol=1e-15)
+    assert abs(p_eq - 0.4824) < 1e-4                        # far from the start at 1 rad
+    assert abs(res["A.q"][0] - p_eq) < 1e-10
+    p2, p3, _, _ = fourbar_angles(res["A.q"][0])
+    assert abs(res["B.q"][0] - (p2 - p_eq)) < 1e-10 and abs(res["C.q"][0] - (p3 - p2)) < 1e-10
+    assert abs(res["tip.x"][0] - L0) < 1e-12 and abs(res["tip.y"][0]) < 1e-12
+    q, qd = res.coordinates()
+    assert np.abs(pymr.model_accelerations(tmp_path / "s.nml", 0.0, q[0], qd[0])).max() < 1e-10
+    assert np.ptp(res["A.q"]) < 1e-9
+
+
+def test_a_static_start_needs_the_loops_joints_to_settle(tmp_path):
+    """Only the crank marked settle: the held coupler and rocker joints hold the loop, which
+    is refused in one line naming what to do."""
+    (tmp_path / "s.nml").write_text(sprung_fourbar_scene(settle=("A",)))
+    with pytest.raises(pymr.SceneError, match=r"s\.nml: &scene: start: the coordinates to settle \(the modal ones and "
+                       r"those of the joints marked settle\) move only 1 of the loops' 2 independent constraints: the "
+                       r"joints held fast hold the loops \(mark settle every joint of a loop that should settle\)$"):
+        pymr.run(tmp_path / "s.nml", tmp_path / "s.csv")
+
+
 def test_a_prismatic_cut_closes_the_crank_slider(tmp_path):
     """The crank-slider with its slide as the loop-closing joint (a prismatic cut: two sliding
     rows and three frame rows) and the slider hung from the rod's end by a revolute tree
