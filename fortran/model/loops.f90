@@ -1,22 +1,28 @@
 !> Closed loops. The tree stays the backbone; each loop-closing (cut) joint adds constraint
 !> rows Phi(q) = 0 between a point of its parent (at, parent frame) and a point of its child
-!> (child_at, child frame):
+!> (child_at, child frame), written with the frames at the two points (p_p, R_p and p_c,
+!> R_c): a rigid body's frame moved to its point, or on a flexible body the frame at the
+!> deformed point (moved by Psi a, turned by exp((Phi a)~): kinematics.f90 flexible_frame,
+!> the rule a child's tree joint follows too):
 !>
-!>   point     p_c - p_p = 0                              (3 rows, every kind)
+!>   point     p_c - p_p = 0                              (3 rows, every kind but free)
 !>   fixed     1/2 sum_j (R_p e_j) x (R_c e_j) = 0        (3 rows: the frames agree)
 !>   revolute  (R_p n_i) . (R_c u) = 0, i = 1, 2          (2 rows: the axis u agrees)
 !>   prismatic (R_p n_i) . (p_c - p_p) = 0, i = 1, 2       (2 rows instead of the point's 3:
 !>             the child point slides along the axis), and the 3 rows of 'fixed'
+!>   free      no rows (it closes no constraint and carries no force)
 !>
 !> Their Jacobian G comes from the recursive kinematics: the columns s_k on the path of a
-!> body give its point velocity v_O + w x p and its angular velocity w, so G qd is the
-!> relative velocity of the two points (and the relative angular velocity across the
-!> rotation rows), and gamma = -Gdot qd follows from the bias accelerations d%acc. The
-!> accelerations solve M qdd = P + G^T lambda, G qdd = gamma through M's Cholesky factor.
-!> Dependent rows (a planar loop of 3-D joints) are found once, at assembly, by a pivoted
-!> (rank-revealing) Gram-Schmidt factorisation of G^T and dropped. A loop may pass through
-!> flexible bodies (their modal columns at each child's joint enter G); the cut joint's own
-!> two bodies are rigid.
+!> body, and on a flexible body its own modal columns at the point (d%cut_cm), give the
+!> point frame's velocity v_O + w x p and angular velocity w, so G qd is the relative
+!> velocity of the two points (and the relative angular velocity across the rotation rows),
+!> and gamma = -Gdot qd follows from the frames' bias accelerations (d%cut_acc, with the
+!> modal velocity-product terms of a flexible point). The accelerations solve
+!> M qdd = P + G^T lambda, G qdd = gamma through M's Cholesky factor. Dependent rows (a
+!> planar loop of 3-D joints) are found once, at assembly, by a pivoted (rank-revealing)
+!> Gram-Schmidt factorisation of G^T and dropped. A loop may pass through flexible bodies
+!> (their modal columns at each child's joint enter G) and be cut at a point of one. The
+!> cut's force acts at the deformed point; its modal share is G^T lambda in the modal rows.
 module pymr_model_loops
   use pymr_kinds, only : dp
   use pymr_error, only : error_type, fatal_error, stat_solver, stat_input
