@@ -13,7 +13,7 @@ module pymr_preflight
   use pymr_error, only : error_type, fatal_error, stat_input
   use pymr_lapack, only : potrf, potrs, geev_real, factor_inverse, general_solve
   use pymr_model, only : model_t, modal_stiffness_damping, model_counters
-  use pymr_model_loops, only : loop_jacobian, constrain_inverse, independent_rows
+  use pymr_model_loops, only : loop_rows, independent_rows, loop_jacobian, constrain_inverse
   use pymr_integrator_stability, only : pece_growth, pece_limit
   use pymr_integrator_ode, only : partitioned_system
   use pymr_integrator_stepper, only : stepper_t, pece_steps, step_counts
@@ -189,8 +189,9 @@ contains
 
   !> Static equilibrium at t = 0 of the coordinates u (the others held as given): the
   !> generalised forces P_u(q, qd) vanish. Newton: q_u <- q_u + K_uu^-1 P_u with K = -dP/dq
-  !> of the pre-flight linearisation. `names(i)` names coordinate i for messages. Its
-  !> evaluations do not count as the run's.
+  !> of the pre-flight linearisation. With loops, the equilibrium on their constraints
+  !> (loop_newton_step). `names(i)` names coordinate i for messages. Its evaluations do not
+  !> count as the run's.
   subroutine static_start(model, u, names, x, error)
     type(model_t), intent(inout) :: model
     integer, intent(in) :: u(:)
@@ -198,18 +199,24 @@ contains
     real(dp), intent(inout) :: x(:)
     type(error_type), allocatable, intent(out) :: error
     type(model_counters) :: counters
-    real(dp), allocatable :: m(:, :), k(:, :), c(:, :), ku(:, :), du(:)
+    real(dp), allocatable :: du(:), lam(:)
     character(len=:), allocatable :: why
-    integer :: it, n, worst
+    integer :: it, worst
+    logical :: loops
     if (size(u) == 0) return
-    n = model%d%n
     counters = model%counters()
+    loops = model%d%n_used > 0
+    if (loops) then
+      call check_settle_loops(model, u, x, error); if (allocated(error)) return
+      allocate(lam(model%d%n_used))
+      lam = 0.0_dp
+    end if
     do it = 1, newton_max
-      call model%terms(0.0_dp, x(1:n), x(n+1:))
-      du = model%d%p(u)
-      call linearise(model, 0.0_dp, x, m, k, c)
-      ku = k(u, u)
-      call general_solve(ku, du, 'the stiffness of the coordinates to settle', error)
+      if (loops) then
+        call loop_newton_step(model, u, x, lam, du, error)
+      else
+        call newton_step(model, u, x, du, error)
+      end if
       if (allocated(error)) then
         call model%set_counters(counters)
         why = error%message
@@ -235,6 +242,97 @@ contains
       s = trim(adjustl(buf))
     end function fmt_es
   end subroutine static_start
+
+  !> One Newton step du = K_uu^-1 P_u of the static start without loops.
+  subroutine newton_step(model, u, x, du, error)
+    type(model_t), intent(inout) :: model
+    integer, intent(in) :: u(:)
+    real(dp), intent(in) :: x(:)
+    real(dp), allocatable, intent(out) :: du(:)
+    type(error_type), allocatable, intent(out) :: error
+    real(dp), allocatable :: m(:, :), k(:, :), c(:, :), ku(:, :)
+    integer :: n
+    n = model%d%n
+    call model%terms(0.0_dp, x(1:n), x(n+1:))
+    du = model%d%p(u)
+    call linearise(model, 0.0_dp, x, m, k, c)
+    ku = k(u, u)
+    call general_solve(ku, du, 'the stiffness of the coordinates to settle', error)
+  end subroutine newton_step
+
+  !> With loops the coordinates u settle on their constraints: the equilibrium of
+  !> M qdd = P + G^T lambda at rest, r = P_u(q) + G_u^T lambda = 0 with Phi(q) = 0 on the
+  !> loops' used rows, for q_u and lambda (the other coordinates held). One Newton step on
+  !> [dr/dq_u  G_u^T; G_u  0] [du; dlambda] = -[r; Phi], dr/dq_u by central differences
+  !> (increments 1e-6 max(1, |q_j|)) at the given lambda, which is updated.
+  subroutine loop_newton_step(model, u, x, lam, du, error)
+    type(model_t), intent(inout) :: model
+    integer, intent(in) :: u(:)
+    real(dp), intent(in) :: x(:)
+    real(dp), intent(inout) :: lam(:)
+    real(dp), allocatable, intent(out) :: du(:)
+    type(error_type), allocatable, intent(out) :: error
+    real(dp), allocatable :: q(:), a(:, :), b(:), rp(:), rm(:), gu(:, :), phi(:)
+    real(dp) :: del
+    integer :: n, nu, nr, j
+    n = model%d%n; nu = size(u); nr = size(lam)
+    q = x(1:n)
+    allocate(a(nu + nr, nu + nr), b(nu + nr), rp(nu), rm(nu))
+    call settle_residual(model, q, x(n+1:), u, lam, b(1:nu), gu, phi)
+    b(nu+1:) = phi
+    a = 0.0_dp
+    a(1:nu, nu+1:) = transpose(gu)
+    a(nu+1:, 1:nu) = gu
+    do j = 1, nu
+      del = 1.0e-6_dp*max(1.0_dp, abs(x(u(j))))
+      q(u(j)) = x(u(j)) + del; call settle_residual(model, q, x(n+1:), u, lam, rp)
+      q(u(j)) = x(u(j)) - del; call settle_residual(model, q, x(n+1:), u, lam, rm)
+      q(u(j)) = x(u(j))
+      a(1:nu, j) = (rp - rm)/(2.0_dp*del)
+    end do
+    b = -b
+    call general_solve(a, b, 'the stiffness of the coordinates to settle on the loops', error)
+    if (allocated(error)) return
+    du = b(1:nu)
+    lam = lam + b(nu+1:)
+  end subroutine loop_newton_step
+
+  !> r = P_u(q) + G_u^T lambda at (q, qd) and t = 0 (the loops' used rows); optionally G_u
+  !> and Phi of those rows.
+  subroutine settle_residual(model, q, qd, u, lam, r, gu, phi)
+    type(model_t), intent(inout) :: model
+    real(dp), intent(in) :: q(:), qd(:), lam(:)
+    integer, intent(in) :: u(:)
+    real(dp), intent(out) :: r(:)
+    real(dp), allocatable, intent(out), optional :: gu(:, :), phi(:)
+    real(dp) :: p(size(q))
+    associate(d => model%d)
+      call model%forces(0.0_dp, q, qd, p)
+      call loop_rows(d)
+      r = p(u) + matmul(lam, d%gj(d%row_used(1:d%n_used), u))
+      if (present(gu)) gu = d%gj(d%row_used(1:d%n_used), u)
+      if (present(phi)) phi = d%phi(d%row_used(1:d%n_used))
+    end associate
+  end subroutine settle_residual
+
+  !> The coordinates to settle must be able to move the loops' independent rows: else the
+  !> loops hold them (a loop through joints that are held, not marked settle).
+  subroutine check_settle_loops(model, u, x, error)
+    type(model_t), intent(inout) :: model
+    integer, intent(in) :: u(:)
+    real(dp), intent(in) :: x(:)
+    type(error_type), allocatable, intent(out) :: error
+    real(dp) :: r(size(u))
+    real(dp), allocatable :: gu(:, :), phi(:)
+    integer :: used(model%d%n_used), n_ind
+    call settle_residual(model, x(1:model%d%n), x(model%d%n+1:), u, [(0.0_dp, n_ind = 1, model%d%n_used)], &
+      & r, gu, phi)
+    call independent_rows(gu, used, n_ind)
+    if (n_ind < model%d%n_used) call fatal_error(error, '&scene: start: the coordinates to settle (the modal ' // &
+      & 'ones and those of the joints marked settle) move only ' // itoa(n_ind) // ' of the loops'' ' // &
+      & itoa(model%d%n_used) // ' independent constraints: the joints held fast hold the loops (mark settle ' // &
+      & 'every joint of a loop that should settle)', stat_input)
+  end subroutine check_settle_loops
 
   !> The first-order state matrix [0 I; -M^-1 K  -M^-1 C] of the linearised model, from
   !> its (constrained) inverse mass matrix minv.
@@ -265,7 +363,7 @@ contains
     allocate(minv(size(m, 1), size(m, 1)))
     call potrf(l, 'the mass matrix at the linearisation state', error); if (allocated(error)) return
     call factor_inverse(l, minv, 'the mass matrix', error); if (allocated(error)) return
-    if (model%d%n_cut == 0) return
+    if (model%d%n_rows == 0) return
     call loop_jacobian(model%d, x(1:model%d%n), g, error); if (allocated(error)) return
     call constrain_inverse(minv, g, error)
   end subroutine mass_inverse
@@ -418,7 +516,8 @@ contains
     type(linear_system), intent(out) :: sys
     type(error_type), allocatable, intent(out) :: error
     integer :: n, ns, nf
-    integer, allocatable :: r(:)
+    integer, allocatable :: used(:)
+    integer :: n_fast
     real(dp), allocatable :: l(:, :), g(:, :), kg(:, :)
     n = size(m, 1); ns = model%d%nj; nf = n - ns
     sys%ns = ns; sys%nf = nf
@@ -430,14 +529,15 @@ contains
     call factor_inverse(l, sys%mffinv, 'M_ff', error); if (allocated(error)) return
     sys%mfs = m(ns+1:, 1:ns)
     call modal_stiffness_damping(model%d, sys%kf, sys%df)
-    if (model%d%n_cut == 0) return
+    if (model%d%n_rows == 0) return
     call loop_jacobian(model%d, x(1:n), g, error); if (allocated(error)) return
-    r = independent_rows(g(:, ns+1:))
-    allocate(sys%tfs(nf, ns), kg(nf, size(r)))
+    allocate(used(size(g, 1)), sys%tfs(nf, ns))
+    call independent_rows(g(:, ns+1:), used, n_fast)
     sys%tfs = 0.0_dp
-    if (size(r) == 0) return
-    call constrain_inverse(sys%mffinv, g(r, ns+1:), error, kg); if (allocated(error)) return
-    sys%tfs = matmul(kg, g(r, 1:ns))
+    if (n_fast == 0) return
+    allocate(kg(nf, n_fast))
+    call constrain_inverse(sys%mffinv, g(used(1:n_fast), ns+1:), error, kg); if (allocated(error)) return
+    sys%tfs = matmul(kg, g(used(1:n_fast), 1:ns))
   end subroutine linear_model
 
   !> Growth rho per macro step (ratio kr, fast step hf) of the stepper `proto` applied to

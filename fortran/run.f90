@@ -15,6 +15,7 @@ module pymr_run
   use pymr_model_kinematics, only : forward_kinematics, marker_motion
   use pymr_model_loops, only : assemble_loops
   use pymr_model_scene_rules, only : closes_loop
+  use pymr_model_types, only : cut_free
   use pymr_clock, only : thread_cpu_time
   use pymr_model_effects, only : prescribed_motion
   use pymr_io_text, only : itoa, fmt
@@ -67,7 +68,7 @@ contains
     case ('articulated'); articulated_dynamics = .true.
     case ('mass_matrix'); articulated_dynamics = .false.
     case default; articulated_dynamics = (model%d%nj >= articulated_from .or. .not. any(model%d%flexible)) &
-      & .and. model%d%n_cut == 0
+      & .and. model%d%n_rows == 0
     end select
   end function articulated_dynamics
 
@@ -421,8 +422,9 @@ contains
     end do
   end subroutine initial_state
 
-  !> The state a run starts from: as the scene gives it, then, for &scene start = 'static',
-  !> with the modal coordinates and those of the joints marked settle in static equilibrium.
+  !> The state a run starts from: as the scene gives it (its loops assembled), then, for
+  !> &scene start = 'static', with the modal coordinates and those of the joints marked
+  !> settle in static equilibrium (on the loops' constraints).
   subroutine starting_state(sc, model, x, error)
     type(scene_t), intent(in) :: sc
     type(model_t), intent(inout) :: model
@@ -454,7 +456,10 @@ contains
     do i = 1, n
       names(i) = model%component_name(i)
     end do
-    call static_start(model, u, names, x, error)
+    call static_start(model, u, names, x, error); if (allocated(error)) return
+    ! the equilibrium closes the loops to Newton's tolerance; the projection closes them to
+    ! the run's and takes the rates' motion across them away at the settled positions
+    call model%project(0.0_dp, x, error)
   end subroutine starting_state
 
   !> Integrator settings as JSON members.
@@ -497,7 +502,10 @@ contains
     s = s // trim(buf)
     if (st%preflight_cpu_s > 0.0_dp) s = s // ' (pre-flight stability check: ' // fmt(st%preflight_cpu_s) // ' s CPU)'
     if (model%d%n_cut > 0) then
-      write(buf, '(a,i0,a,i0,a,i0,a,es9.2,a,es9.2,a)') 'loops: ', model%d%n_cut, ' closing joints, ', &
+      write(buf, '(a,i0,a)') 'loops: ', model%d%n_cut, ' closing joints'
+      if (any(model%d%cut_kind == cut_free)) write(buf, '(a,i0,a)') trim(buf) // ' (', &
+        & count(model%d%cut_kind == cut_free), " 'free': no constraint)"
+      write(buf, '(a,i0,a,i0,a,es9.2,a,es9.2,a)') trim(buf) // ', ', &
         & model%d%n_rows, ' constraint rows, ', model%d%n_redundant, ' redundant (dropped); the initial ' // &
         & 'state assembled with largest changes ', model%d%assembly_dq, ' (q), ', model%d%assembly_dqd, ' (qd)'
       s = s // new_line('a') // trim(buf)

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from .results import Results, load_results
 from .api import (PymrError, SceneError, SolverError, run, model_terms, model_accelerations, step_history, marker_shapes,
-                  model_energy, model_size, write_modal_file, Model,
+                  model_energy, model_size, write_modal_file, loop_rows, Model,
                   force_response, modes)
 
 from .scene import Scene, schema
@@ -18,7 +18,7 @@ from .sweep import SweepError
 __version__ = "0.1.0"
 
 __all__ = ["PymrError", "SceneError", "SolverError", "Results", "load_results", "run",
-           "model_terms", "model_accelerations", "step_history", "marker_shapes", "model_energy", "model_size", "write_modal_file",
+           "model_terms", "model_accelerations", "step_history", "marker_shapes", "model_energy", "model_size", "write_modal_file", "loop_rows",
            "modal_import", "ModalBody",
            "Model", "force_response", "modes", "PlotError", "SweepError", "Scene", "schema",
            "__version__"]

@@ -240,6 +240,20 @@ def model_accelerations(scene: str | os.PathLike, t, q, qd, overrides=None) -> n
     return qdd[:, 0].copy() if single else qdd.T.copy()
 
 
+def loop_rows(scene: str | os.PathLike, q, qd, overrides=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The loops' constraint rows at one state (method.md section 2.5): the residual
+    ``phi`` (shape (r,)), the Jacobian ``G`` (shape (r, n)) and ``gamma = -Gdot qd``
+    (shape (r,)) of every loop-closing joint, redundant rows included."""
+    q, qd = _one_state(q, qd)
+    where = _scene_and_overrides(scene, overrides)
+    nr, *_, stat, msg = _core.pymr_loop_rows(*where, 0, q, qd)
+    _raise(stat, msg)
+    nr = int(nr)
+    _, phi, g, gam, stat, msg = _core.pymr_loop_rows(*where, max(nr, 1), q, qd)
+    _raise(stat, msg)
+    return phi[:nr].copy(), g[:nr].copy(), gam[:nr].copy()
+
+
 def model_energy(scene: str | os.PathLike, q, qd, overrides=None) -> tuple[np.ndarray, np.ndarray]:
     """Kinetic and potential (gravity, when on) energy for states q, qd of shape (m, n)."""
     q, qd = _states(q, qd)

@@ -135,10 +135,10 @@ CASES = [
          ("&joint", "'pivot'", "parent", "'nobody'")),
     Case("unknown_child", replaced("child = 'bob'", "child = 'nobody'"),
          ("&joint", "'pivot'", "child", "'nobody'")),
-    # 5. two parents for one body: the second joint closes a loop, which a prismatic joint cannot
+    # 5. two parents for one body: the second joint closes a loop, and has no coordinates to start
     Case("two_parents", BASE + rigid("other") + revolute("j_other", "ground", "other")
-         + revolute("second", "other", "bob").replace("'revolute'", "'free'"),
-         ("&joint", "'second'", "kind", "closes a loop", "'bob'")),
+         + revolute("second", "other", "bob").replace("'revolute'", "'free'").replace(" /\n", ", qd0 = 0.0, 0.0, 0.0, 0.0, 0.0, 1.0 /\n"),
+         ("&joint", "'second'", "qd0", "closes a loop", "no coordinates of its own")),
     # 6. a cycle a -> b -> a (the ground reaches 'bob' only), and a body joined to itself
     Case("cycle", BASE + rigid("a") + rigid("b") + revolute("ab", "a", "b") + revolute("ba", "b", "a"),
          ("cycle",), pattern=r"&(body|joint) '(a|b|ab|ba)'"),

@@ -185,6 +185,40 @@ subroutine pymr_model_accelerations(scene, overrides, n, m, t, q, qd, qdd, stat,
   call report(error, stat, message)
 end subroutine pymr_model_accelerations
 
+!> The loops' constraint rows at one state (t = 0; model/loops.f90 loop_rows): residual
+!> phi(nr), Jacobian g(nr, n) and gam(nr) = -Gdot qd of every cut joint, nr of them (the
+!> arrays are nrmax long; call with nrmax = 0 to learn nr).
+subroutine pymr_loop_rows(scene, overrides, n, nrmax, q, qd, nr, phi, g, gam, stat, message)
+  use pymr_error, only : error_type, fatal_error
+  use pymr_bind_support, only : report
+  use pymr_model_scene, only : scene_t
+  use pymr_model, only : model_t
+  use pymr_model_kinematics, only : forward_kinematics
+  use pymr_model_loops, only : loop_rows
+  use pymr_run, only : load_model
+  implicit none
+  character(len=*), intent(in) :: scene, overrides
+  integer, intent(in) :: n, nrmax
+  double precision, intent(in) :: q(n), qd(n)
+  integer, intent(out) :: nr
+  double precision, intent(out) :: phi(nrmax), g(nrmax, n), gam(nrmax)
+  integer, intent(out) :: stat
+  character(len=8192), intent(out) :: message
+  !f2py integer intent(hide), depend(q) :: n = len(q)
+  type(error_type), allocatable :: error
+  type(scene_t) :: sc
+  type(model_t) :: model
+  phi = 0.0d0; g = 0.0d0; gam = 0.0d0; nr = 0
+  call load_model(scene, overrides, sc, model, error, n)
+  call report(error, stat, message)
+  if (stat /= 0) return
+  nr = model%d%n_rows
+  if (nrmax < nr) return
+  call forward_kinematics(model%d, q, qd)
+  call loop_rows(model%d)
+  phi(1:nr) = model%d%phi; g(1:nr, :) = model%d%gj; gam(1:nr) = model%d%gam
+end subroutine pymr_loop_rows
+
 !> Kinetic and potential energy (J) for m states q(n,m), qd(n,m) of one model.
 subroutine pymr_model_energy(scene, overrides, n, m, q, qd, kinetic, potential, stat, message)
   use pymr_error, only : error_type, fatal_error

@@ -4,7 +4,7 @@ module pymr_io_results_output
   use pymr_kinds, only : dp
   use, intrinsic :: iso_fortran_env, only : int64
   use pymr_error, only : error_type, fatal_error, stat_solver
-  use pymr_model_types, only : model_data, n_effects, effect_names
+  use pymr_model_types, only : model_data, n_effects, effect_names, cut_free
   use pymr_io_fast_format, only : put_real
   use pymr_io_text, only : itoa
   use pymr_io_text_file, only : write_text_file, sync_file, rename_file, file_size, check_size
@@ -394,8 +394,8 @@ contains
     write(buf, '(a,i0,a)') '  "rows": ', st%rows, ','; call put(trim(buf))
     write(buf, '(a,i0,a)') '  "n_coordinates": ', d%n, ','; call put(trim(buf))
     if (d%n_cut > 0) then
-      write(buf, '(a,i0,a,i0,a,i0,a)') '  "loops": {"closing_joints": ', d%n_cut, ', "constraint_rows": ', &
-        & d%n_rows, ', "redundant_rows": ', d%n_redundant, ','
+      write(buf, '(a,i0,a,i0,a,i0,a,i0,a)') '  "loops": {"closing_joints": ', d%n_cut, ', "free_closing_joints": ', &
+        & count(d%cut_kind == cut_free), ', "constraint_rows": ', d%n_rows, ', "redundant_rows": ', d%n_redundant, ','
       call put(trim(buf))
       write(buf, '(a,es12.5,a,es12.5,a)') '    "assembly_change_q": ', d%assembly_dq, ', "assembly_change_qd": ', &
         & d%assembly_dqd, '},'

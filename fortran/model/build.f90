@@ -8,7 +8,7 @@ module pymr_model_build
   use pymr_model_types, only : model_data, prim_revolute, prim_prismatic, effect_gravity, effect_joint_drives, &
     & effect_modal_damping, effect_joint_springs, effect_geometric_stiffening, effect_base_motion, n_effects, &
     & effect_firing_load, effect_deformation_inertia, &
-    & motion_sine, motion_spinup, motion_table, cut_fixed, cut_revolute, cut_spherical, cut_prismatic
+    & motion_sine, motion_spinup, motion_table, cut_fixed, cut_revolute, cut_spherical, cut_prismatic, cut_free
   use pymr_model_time_table, only : spline_setup
   use pymr_io_table_file, only : read_time_table
   use pymr_model_beam_modes, only : build_beam, beam_section, beam_point_shapes, beam_point_load_stiffness
@@ -202,28 +202,34 @@ contains
     end do
     do b = 2, nb
       if (d%nm(d%parent(b)) > 0) then
-        call flexible_point(sc, d, d%parent(b), d%at(:, b), "joint '" // trim(d%joint_name(b)) // "'", &
+        call flexible_point(d, d%parent(b), d%at(:, b), sc%joints(inboard(order(b)))%origin%where('at'), &
           & d%att_psi(:, :, b), d%att_phi(:, :, b), error); if (allocated(error)) return
       end if
     end do
     call fill_loads_markers(sc, pos_in, d, error); if (allocated(error)) return
-    call fill_cuts(sc, pos_in, d)
+    call fill_cuts(sc, pos_in, d, error); if (allocated(error)) return
     allocate(d%rot(3, 3, nb), d%pos(3, nb), d%vel(6, nb), d%acc(6, nb), d%s(6, d%n), d%i6(6, 6, nb), &
       & d%w(6, nb), d%ic(6, 6, nb), d%wc(6, nb), d%mm(d%n, d%n), d%lf(d%n, d%n), d%p(d%n), d%tau(d%n))
     d%i6 = 0.0_dp; d%w = 0.0_dp; d%ic = 0.0_dp; d%wc = 0.0_dp; d%mm = 0.0_dp; d%tau = 0.0_dp; d%s = 0.0_dp
   end subroutine fill_model
 
-  !> The loop-closing joints (closes_loop) and their constraint rows (model/loops.f90).
-  subroutine fill_cuts(sc, pos_in, d)
+  !> The loop-closing joints (closes_loop) and their constraint rows (model/loops.f90); a
+  !> cut joint's point on a flexible body takes the body's mode shapes there (flexible_point).
+  subroutine fill_cuts(sc, pos_in, d, error)
     type(scene_t), intent(in) :: sc
     integer, intent(in) :: pos_in(:)
     type(model_data), intent(inout) :: d
-    integer :: j, c
+    type(error_type), allocatable, intent(out) :: error
+    integer :: j, c, mx
     real(dp) :: u(3), e(3)
     d%n_cut = count([(closes_loop(sc, j), j = 1, size(sc%joints))])
+    mx = d%mmax
     allocate(d%cut_name(d%n_cut), d%cut_parent(d%n_cut), d%cut_child(d%n_cut), d%cut_kind(d%n_cut), &
       & d%cut_row0(d%n_cut), d%cut_nrow(d%n_cut), d%cut_at(3, d%n_cut), d%cut_child_at(3, d%n_cut), &
-      & d%cut_axis(3, d%n_cut), d%cut_normal(3, 2, d%n_cut))
+      & d%cut_axis(3, d%n_cut), d%cut_normal(3, 2, d%n_cut), d%cut_psi(3, mx, 2, d%n_cut), &
+      & d%cut_phi(3, mx, 2, d%n_cut), d%cut_rot(3, 3, 2, d%n_cut), d%cut_pos(3, 2, d%n_cut), &
+      & d%cut_vel(6, 2, d%n_cut), d%cut_acc(6, 2, d%n_cut), d%cut_cm(6, mx, 2, d%n_cut))
+    d%cut_psi = 0.0_dp; d%cut_phi = 0.0_dp; d%cut_cm = 0.0_dp
     c = 0; d%n_rows = 0
     do j = 1, size(sc%joints)
       if (.not. closes_loop(sc, j)) cycle
@@ -242,8 +248,17 @@ contains
         case ('fixed'); d%cut_kind(c) = cut_fixed; d%cut_nrow(c) = 6
         case ('revolute'); d%cut_kind(c) = cut_revolute; d%cut_nrow(c) = 5
         case ('prismatic'); d%cut_kind(c) = cut_prismatic; d%cut_nrow(c) = 5
+        case ('free'); d%cut_kind(c) = cut_free; d%cut_nrow(c) = 0
         case default; d%cut_kind(c) = cut_spherical; d%cut_nrow(c) = 3
         end select
+        if (d%cut_kind(c) /= cut_free .and. d%nm(d%cut_parent(c)) > 0) then
+          call flexible_point(d, d%cut_parent(c), jt%at, jt%origin%where('at'), d%cut_psi(:, :, 1, c), &
+            & d%cut_phi(:, :, 1, c), error); if (allocated(error)) return
+        end if
+        if (d%cut_kind(c) /= cut_free .and. d%nm(d%cut_child(c)) > 0) then
+          call flexible_point(d, d%cut_child(c), jt%child_at, jt%origin%where('child_at'), &
+            & d%cut_psi(:, :, 2, c), d%cut_phi(:, :, 2, c), error); if (allocated(error)) return
+        end if
       end associate
       d%cut_row0(c) = d%n_rows + 1; d%n_rows = d%n_rows + d%cut_nrow(c)
     end do
@@ -355,13 +370,15 @@ contains
     d%child_ptr(d%nb + 1) = k + 1
   end subroutine fill_children
 
-  !> Mode shapes at point r (body frame) of flexible body b; the point must lie on the beam.
-  subroutine flexible_point(sc, d, b, r, what, psi, phi, error)
-    type(scene_t), intent(in) :: sc
+  !> Mode shapes at point r (body frame) of flexible body b, where a joint, a marker or a
+  !> loop-closing joint's point sits: the one rule for points of flexible bodies. On a beam
+  !> the point lies within its length (0 to L along x); on a modal body it is one of the
+  !> file's points. `where` names file, line, group and item for the message.
+  subroutine flexible_point(d, b, r, where, psi, phi, error)
     type(model_data), intent(in) :: d
     integer, intent(in) :: b
     real(dp), intent(in) :: r(3)
-    character(len=*), intent(in) :: what
+    character(len=*), intent(in) :: where
     real(dp), intent(out) :: psi(:, :), phi(:, :)
     type(error_type), allocatable, intent(out) :: error
     real(dp) :: len_b
@@ -374,13 +391,13 @@ contains
           return
         end if
       end do
-      call fatal_error(error, sc%file // ': ' // what // ': at: (' // fmt(r(1)) // ', ' // fmt(r(2)) // ', ' // &
+      call fatal_error(error, where // ': (' // fmt(r(1)) // ', ' // fmt(r(2)) // ', ' // &
         & fmt(r(3)) // ") is not a point of modal body '" // trim(d%body_name(b)) // "' (joints and markers " // &
         & 'on a modal body must sit on one of its file''s points)'); return
     end if
     len_b = d%bshape(b)%length
     if (r(1) < -1.0e-9_dp*len_b .or. r(1) > len_b*(1.0_dp + 1.0e-9_dp)) then
-      call fatal_error(error, sc%file // ': ' // what // ': at: x = ' // fmt(r(1)) // " lies outside beam '" // &
+      call fatal_error(error, where // ': x = ' // fmt(r(1)) // " lies outside beam '" // &
         & trim(d%body_name(b)) // "' (0 to " // fmt(len_b) // ' m along its x axis)'); return
     end if
     psi = 0.0_dp; phi = 0.0_dp
@@ -493,7 +510,7 @@ contains
       d%marker_body(i) = b
       d%marker_at(:, i) = sc%markers(i)%at
       if (d%nm(b) > 0) then
-        call flexible_point(sc, d, b, sc%markers(i)%at, "marker '" // trim(sc%markers(i)%name) // "'", &
+        call flexible_point(d, b, sc%markers(i)%at, sc%markers(i)%origin%where('at'), &
           & d%marker_psi(:, :, i), d%marker_phi(:, :, i), error); if (allocated(error)) return
       end if
     end do

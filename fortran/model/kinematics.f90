@@ -5,9 +5,11 @@
 !> A child of a flexible body is attached to a point of it: the joint frame moves with
 !> the point's deflection Psi a and turns with its small rotation exp((Phi a)~) (paper
 !> eqs. 8-9); the parent's modal rates enter the child's velocity through the columns cm.
+!> The points of the loop-closing joints (model/loops.f90) get their frames by the same
+!> rule (flexible_frame), after the tree.
 module pymr_model_kinematics
   use pymr_kinds, only : dp
-  use pymr_model_types, only : model_data, prim_revolute
+  use pymr_model_types, only : model_data, prim_revolute, cut_free
   use pymr_model_flexbody, only : small_rotation
   implicit none
   private
@@ -22,7 +24,7 @@ contains
     type(model_data), intent(inout) :: d
     !> Coordinates and rates (joint coordinates, then modal coordinates).
     real(dp), intent(in) :: q(:), qd(:)
-    integer :: b, a, k
+    integer :: b, a, k, m, c
     real(dp) :: rf(3, 3), pf(3), vf(6), af(6), u(3), sk(6)
     d%rot(:, :, 1) = 0.0_dp
     do k = 1, 3
@@ -33,8 +35,10 @@ contains
       a = d%parent(b)
       vf = d%vel(:, a); af = d%acc(:, a)
       if (d%nm(a) > 0) then
-        call attach_flexible(d, b, a, q(d%a0(a):d%a0(a) + d%nm(a) - 1), qd(d%a0(a):d%a0(a) + d%nm(a) - 1), &
-          & rf, pf, vf, af)
+        m = d%nm(a)
+        call flexible_frame(d%rot(:, :, a), d%pos(:, a), d%vel(:, a), d%at(:, b), d%att_psi(:, 1:m, b), &
+          & d%att_phi(:, 1:m, b), q(d%a0(a):d%a0(a) + m - 1), qd(d%a0(a):d%a0(a) + m - 1), rf, pf, &
+          & d%cm(:, 1:m, b), vf, af)
       else
         rf = d%rot(:, :, a)
         pf = d%pos(:, a) + matmul(rf, d%at(:, b))
@@ -54,7 +58,35 @@ contains
       end do
       d%rot(:, :, b) = rf; d%pos(:, b) = pf; d%vel(:, b) = vf; d%acc(:, b) = af
     end do
+    do c = 1, d%n_cut
+      if (d%cut_kind(c) == cut_free) cycle
+      call cut_frame(d, c, 1, d%cut_parent(c), d%cut_at(:, c), q, qd)
+      call cut_frame(d, c, 2, d%cut_child(c), d%cut_child_at(:, c), q, qd)
+    end do
   end subroutine forward_kinematics
+
+  !> The frame at point r (body frame) of body b, side s of cut joint c (1 its parent's,
+  !> 2 its child's), after the tree's kinematics: on a rigid body b's frame moved to the
+  !> point; on a flexible one the deformed frame there (flexible_frame, with the shapes
+  !> d%cut_psi, d%cut_phi) and the columns of b's modal rates at it.
+  pure subroutine cut_frame(d, c, s, b, r, q, qd)
+    type(model_data), intent(inout) :: d
+    integer, intent(in) :: c, s, b
+    real(dp), intent(in) :: r(3), q(:), qd(:)
+    integer :: m
+    real(dp) :: rf(3, 3), pf(3), vf(6), af(6)
+    m = d%nm(b)
+    vf = d%vel(:, b); af = d%acc(:, b)
+    if (m == 0) then
+      rf = d%rot(:, :, b)
+      pf = d%pos(:, b) + matmul(rf, r)
+    else
+      call flexible_frame(d%rot(:, :, b), d%pos(:, b), d%vel(:, b), r, d%cut_psi(:, 1:m, s, c), &
+        & d%cut_phi(:, 1:m, s, c), q(d%a0(b):d%a0(b) + m - 1), qd(d%a0(b):d%a0(b) + m - 1), rf, pf, &
+        & d%cut_cm(:, 1:m, s, c), vf, af)
+    end if
+    d%cut_rot(:, :, s, c) = rf; d%cut_pos(:, s, c) = pf; d%cut_vel(:, s, c) = vf; d%cut_acc(:, s, c) = af
+  end subroutine cut_frame
 
   !> Turn the frame rf (its columns, inertial) by angle about the inertial unit axis u
   !> (Rodrigues: c cos + (u x c) sin + u (u . c)(1 - cos) for each column c).
@@ -73,39 +105,39 @@ contains
     end do
   end subroutine turn_frame
 
-  !> Joint frame of body b on flexible parent a with modal coordinates aa and rates ad:
-  !> pose (rf, pf), and the modal contributions to velocity vf and bias acceleration af.
-  pure subroutine attach_flexible(d, b, a, aa, ad, rf, pf, vf, af)
-    type(model_data), intent(inout) :: d
-    integer, intent(in) :: b, a
-    real(dp), intent(in) :: aa(:), ad(:)
-    real(dp), intent(out) :: rf(3, 3), pf(3)
+  !> The frame at a point of flexible body a (pose ra, pa, spatial velocity va) whose
+  !> undeformed place is r (body frame) and whose translational and rotational mode shapes
+  !> are psi, phi (3 x m), at modal coordinates aa and rates ad: it moves with the deflection
+  !> psi aa and turns with the small rotation exp((phi aa)~). Gives its pose (rf, pf), the
+  !> spatial columns cm (6 x m) of the modal rates there, and adds their parts to the spatial
+  !> velocity vf and bias acceleration af (which hold the body's on entry).
+  pure subroutine flexible_frame(ra, pa, va, r, psi, phi, aa, ad, rf, pf, cm, vf, af)
+    real(dp), intent(in) :: ra(3, 3), pa(3), va(6), r(3), psi(:, :), phi(:, :), aa(:), ad(:)
+    real(dp), intent(out) :: rf(3, 3), pf(3), cm(:, :)
     real(dp), intent(inout) :: vf(6), af(6)
     integer :: k, m
     real(dp) :: th(3), thd(3), rr(3, 3), jl(3, 3), jd(3), ob(3), obd(3), wk(3), cad(6), lv(3), lw(3)
-    m = d%nm(a)
-    th = matmul(d%att_phi(:, 1:m, b), aa); thd = matmul(d%att_phi(:, 1:m, b), ad)
+    m = size(aa)
+    th = matmul(phi, aa); thd = matmul(phi, ad)
     call small_rotation(th, thd, rr, jl, jd)
-    ob = d%at(:, b) + matmul(d%att_psi(:, 1:m, b), aa)
-    obd = matmul(d%att_psi(:, 1:m, b), ad)
-    associate(ra => d%rot(:, :, a), pa => d%pos(:, a))
-      pf = pa + matmul(ra, ob)
-      rf = matmul(ra, rr)
-      do k = 1, m
-        wk = matmul(ra, matmul(jl, d%att_phi(:, k, b)))
-        d%cm(1:3, k, b) = matmul(ra, d%att_psi(:, k, b)) + cross(pf, wk)
-        d%cm(4:6, k, b) = wk
-      end do
-      cad = matmul(d%cm(:, 1:m, b), ad)
-      ! rate of the columns: frame rotation (V_a x) plus their change with the deflection
-      lw = jd
-      lv = cross(obd, matmul(jl, thd)) + cross(ob, jd)
-      af = af + motion_cross(d%vel(:, a), cad)
-      af(1:3) = af(1:3) + matmul(ra, lv) + cross(pa, matmul(ra, lw))
-      af(4:6) = af(4:6) + matmul(ra, lw)
-    end associate
+    ob = r + matmul(psi, aa)
+    obd = matmul(psi, ad)
+    pf = pa + matmul(ra, ob)
+    rf = matmul(ra, rr)
+    do k = 1, m
+      wk = matmul(ra, matmul(jl, phi(:, k)))
+      cm(1:3, k) = matmul(ra, psi(:, k)) + cross(pf, wk)
+      cm(4:6, k) = wk
+    end do
+    cad = matmul(cm, ad)
+    ! rate of the columns: frame rotation (V_a x) plus their change with the deflection
+    lw = jd
+    lv = cross(obd, matmul(jl, thd)) + cross(ob, jd)
+    af = af + motion_cross(va, cad)
+    af(1:3) = af(1:3) + matmul(ra, lv) + cross(pa, matmul(ra, lw))
+    af(4:6) = af(4:6) + matmul(ra, lw)
     vf = vf + cad
-  end subroutine attach_flexible
+  end subroutine flexible_frame
 
   !> Inertial position and velocity of marker m (after forward_kinematics); q, qd give the
   !> deflection of a marker on a flexible body.

@@ -1,12 +1,16 @@
 !> Closed loops. The tree stays the backbone; each loop-closing (cut) joint adds constraint
 !> rows Phi(q) = 0 between a point of its parent (at, parent frame) and a point of its child
-!> (child_at, child frame):
+!> (child_at, child frame), written with the frames at the two points (p_p, R_p and p_c,
+!> R_c): a rigid body's frame moved to its point, or on a flexible body the frame at the
+!> deformed point (moved by Psi a, turned by exp((Phi a)~): kinematics.f90 flexible_frame,
+!> the rule a child's tree joint follows too):
 !>
-!>   point     p_c - p_p = 0                              (3 rows, every kind)
+!>   point     p_c - p_p = 0                              (3 rows, every kind but free)
 !>   fixed     1/2 sum_j (R_p e_j) x (R_c e_j) = 0        (3 rows: the frames agree)
 !>   revolute  (R_p n_i) . (R_c u) = 0, i = 1, 2          (2 rows: the axis u agrees)
 !>   prismatic (R_p n_i) . (p_c - p_p) = 0, i = 1, 2       (2 rows instead of the point's 3:
 !>             the child point slides along the axis), and the 3 rows of 'fixed'
+!>   free      no rows (it closes no constraint and carries no force)
 !>
 !> The point and frame rows are taken along the parent's axes (the three rows turned by
 !> R_p^T), as the axis and sliding rows already are: the rows chosen once stay independent
@@ -15,26 +19,29 @@
 !> row used this is the same constraint (rows turned by an orthogonal matrix).
 !>
 !> Their Jacobian G comes from the recursive kinematics: the columns s_k on the path of a
-!> body give its point velocity v_O + w x p and its angular velocity w, so G qd is the
-!> relative velocity of the two points (and the relative angular velocity across the
-!> rotation rows), and gamma = -Gdot qd follows from the bias accelerations d%acc. The
-!> accelerations solve M qdd = P + G^T lambda, G qdd = gamma through M's Cholesky factor.
-!> Dependent rows (a planar loop of 3-D joints) are found once, at assembly, by a pivoted
-!> (rank-revealing) Gram-Schmidt factorisation of G^T and dropped. A loop may pass through
-!> flexible bodies (their modal columns at each child's joint enter G); the cut joint's own
-!> two bodies are rigid.
+!> body, and on a flexible body its own modal columns at the point (d%cut_cm), give the
+!> point frame's velocity v_O + w x p and angular velocity w, so G qd is the relative
+!> velocity of the two points (and the relative angular velocity across the rotation rows),
+!> and gamma = -Gdot qd follows from the frames' bias accelerations (d%cut_acc, with the
+!> modal velocity-product terms of a flexible point). The accelerations solve
+!> M qdd = P + G^T lambda, G qdd = gamma through M's Cholesky factor. Dependent rows (a
+!> planar loop of 3-D joints) are found once, at assembly, by a pivoted (rank-revealing)
+!> Gram-Schmidt factorisation of G^T and dropped. A loop may pass through flexible bodies
+!> (their modal columns at each child's joint enter G) and be cut at a point of one. The
+!> cut's force acts at the deformed point; its modal share is G^T lambda in the modal rows.
 module pymr_model_loops
   use pymr_kinds, only : dp
   use pymr_error, only : error_type, fatal_error, stat_solver, stat_input
   use pymr_lapack, only : potrf, potrs
-  use pymr_model_types, only : model_data, cut_fixed, cut_revolute, cut_prismatic
+  use pymr_model_types, only : model_data, cut_fixed, cut_revolute, cut_prismatic, cut_spherical, cut_free
   use pymr_model_kinematics, only : forward_kinematics
   use pymr_model_spatial, only : cross, unit_axes
   use pymr_io_text, only : itoa, fmt
   implicit none
   private
-  public :: assemble_loops, loop_rows, choose_rows, constrained_accelerations, constrain_fast_accelerations, &
-    & constrain_response, constrain_inverse, loop_jacobian, independent_rows, project_positions, project_velocities, cut_wrench, cut_body_wrenches
+  public :: assemble_loops, loop_rows, choose_rows, independent_rows, constrained_accelerations, project_positions
+  public :: project_velocities, cut_wrench, cut_body_wrenches, constrain_fast_accelerations, constrain_response
+  public :: constrain_inverse, loop_jacobian
 
   !> A row is dependent when its part independent of the rows chosen before is below this
   !> fraction of the largest row.
@@ -44,6 +51,8 @@ module pymr_model_loops
   integer, parameter :: max_iterations = 30
   !> Assembly: the given state may miss closure by this fraction of the loops' size.
   real(dp), parameter :: assembly_tol = 1.0e-3_dp
+  !> The sides of a cut joint (d%cut_rot(:, :, side, c) and the like).
+  integer, parameter :: parent = 1, child = 2
 
 contains
 
@@ -55,7 +64,7 @@ contains
     real(dp), intent(inout) :: q(:), qd(:)
     type(error_type), allocatable, intent(out) :: error
     real(dp) :: q0(size(q)), qd0(size(qd))
-    if (d%n_cut == 0) return
+    if (d%n_rows == 0) return
     call forward_kinematics(d, q, 0.0_dp*q)
     call loop_rows(d)
     call choose_rows(d, error); if (allocated(error)) return
@@ -77,30 +86,33 @@ contains
   end subroutine assemble_loops
 
   !> Residual d%phi, Jacobian d%gj and d%gam = -Gdot qd of every cut joint, after
-  !> forward_kinematics at (q, qd).
+  !> forward_kinematics at (q, qd), from the frames at the cut's two points (d%cut_rot,
+  !> d%cut_pos, d%cut_vel, d%cut_acc: a rigid body's frame, or the deformed frame at a point
+  !> of a flexible body).
   pure subroutine loop_rows(d)
     type(model_data), intent(inout) :: d
-    integer :: c, r, rr, bp, bc, i, j
-    real(dp) :: pp(3), pc(3), vp(3), vc(3), ap(3), ac(3), wp(3), wc(3), uc(3), ci(3), ni(3), nd(3)
+    integer :: c, r, rr, i, j
+    real(dp) :: pp(3), pc(3), vp(3), vc(3), ap(3), ac(3), wp(3), wc(3), alp(3), alc(3), uc(3), ci(3), ni(3), nd(3)
     d%gj = 0.0_dp
     do c = 1, d%n_cut
-      bp = d%cut_parent(c); bc = d%cut_child(c); r = d%cut_row0(c)
-      pp = d%pos(:, bp) + matmul(d%rot(:, :, bp), d%cut_at(:, c))
-      pc = d%pos(:, bc) + matmul(d%rot(:, :, bc), d%cut_child_at(:, c))
-      wp = d%vel(4:6, bp); wc = d%vel(4:6, bc)
-      vp = d%vel(1:3, bp) + cross(wp, pp); vc = d%vel(1:3, bc) + cross(wc, pc)
-      ap = d%acc(1:3, bp) + cross(d%acc(4:6, bp), pp) + cross(wp, vp)
-      ac = d%acc(1:3, bc) + cross(d%acc(4:6, bc), pc) + cross(wc, vc)
+      if (d%cut_kind(c) == cut_free) cycle
+      r = d%cut_row0(c)
+      pp = d%cut_pos(:, 1, c); pc = d%cut_pos(:, 2, c)
+      wp = d%cut_vel(4:6, 1, c); wc = d%cut_vel(4:6, 2, c)
+      alp = d%cut_acc(4:6, 1, c); alc = d%cut_acc(4:6, 2, c)
+      vp = d%cut_vel(1:3, 1, c) + cross(wp, pp); vc = d%cut_vel(1:3, 2, c) + cross(wc, pc)
+      ap = d%cut_acc(1:3, 1, c) + cross(alp, pp) + cross(wp, vp)
+      ac = d%cut_acc(1:3, 2, c) + cross(alc, pc) + cross(wc, vc)
       if (d%cut_kind(c) == cut_prismatic) then
-        call sliding_rows(d, c, r, bp, bc, pp, pc, vp, vc, ap, ac, wp)
+        call sliding_rows(d, c, r, pp, pc, vp, vc, ap, ac, wp, alp)
       else
         d%phi(r:r + 2) = pc - pp
         d%gam(r:r + 2) = ap - ac
         do i = 1, 3
-          call add_point_columns(d, bc, pc, unit_axes(:, i), 1.0_dp, r + i - 1)
-          call add_point_columns(d, bp, pp, unit_axes(:, i), -1.0_dp, r + i - 1)
+          call add_point_columns(d, c, child, pc, unit_axes(:, i), 1.0_dp, r + i - 1)
+          call add_point_columns(d, c, parent, pp, unit_axes(:, i), -1.0_dp, r + i - 1)
         end do
-        call to_parent_axes(d, r, bp)
+        call to_parent_axes(d, r, d%cut_rot(:, :, parent, c))
       end if
       select case (d%cut_kind(c))
       case (cut_fixed, cut_prismatic)
@@ -108,38 +120,40 @@ contains
         rr = r + merge(2, 3, d%cut_kind(c) == cut_prismatic)
         d%phi(rr:rr + 2) = 0.0_dp
         do j = 1, 3
-          d%phi(rr:rr + 2) = d%phi(rr:rr + 2) + 0.5_dp*cross(d%rot(:, j, bp), d%rot(:, j, bc))
+          d%phi(rr:rr + 2) = d%phi(rr:rr + 2) + 0.5_dp*cross(d%cut_rot(:, j, parent, c), d%cut_rot(:, j, child, c))
         end do
-        d%gam(rr:rr + 2) = d%acc(4:6, bp) - d%acc(4:6, bc)
+        d%gam(rr:rr + 2) = alp - alc
         do i = 1, 3
-          call add_turn_columns(d, bc, unit_axes(:, i), 1.0_dp, rr + i - 1)
-          call add_turn_columns(d, bp, unit_axes(:, i), -1.0_dp, rr + i - 1)
+          call add_turn_columns(d, c, child, unit_axes(:, i), 1.0_dp, rr + i - 1)
+          call add_turn_columns(d, c, parent, unit_axes(:, i), -1.0_dp, rr + i - 1)
         end do
-        call to_parent_axes(d, rr, bp)
+        call to_parent_axes(d, rr, d%cut_rot(:, :, parent, c))
       case (cut_revolute)
-        uc = matmul(d%rot(:, :, bc), d%cut_axis(:, c))
+        uc = matmul(d%cut_rot(:, :, child, c), d%cut_axis(:, c))
         do i = 1, 2
-          ci = matmul(d%rot(:, :, bp), d%cut_normal(:, i, c))
+          ci = matmul(d%cut_rot(:, :, parent, c), d%cut_normal(:, i, c))
           ni = cross(uc, ci)
           nd = cross(cross(wc, uc), ci) + cross(uc, cross(wp, ci))
           d%phi(r + 2 + i) = dot_product(ci, uc)
-          d%gam(r + 2 + i) = -dot_product(d%acc(4:6, bc) - d%acc(4:6, bp), ni) - dot_product(wc - wp, nd)
-          call add_turn_columns(d, bc, ni, 1.0_dp, r + 2 + i)
-          call add_turn_columns(d, bp, ni, -1.0_dp, r + 2 + i)
+          d%gam(r + 2 + i) = -dot_product(alc - alp, ni) - dot_product(wc - wp, nd)
+          call add_turn_columns(d, c, child, ni, 1.0_dp, r + 2 + i)
+          call add_turn_columns(d, c, parent, ni, -1.0_dp, r + 2 + i)
         end do
       end select
     end do
   end subroutine loop_rows
 
   !> Turn rows r .. r + 2 (inertial components of a vector constraint: residual, Jacobian,
-  !> gamma) into the components along the axes of the parent body bp. The Jacobian is that of
-  !> the turned residual at closure (the parent's turning times the residual is dropped, as
-  !> for the frame rows' own Jacobian), so every loop's motion is unchanged.
-  pure subroutine to_parent_axes(d, r, bp)
+  !> gamma) into the components along the axes rp of the parent's frame at the cut point. The
+  !> Jacobian is that of the turned residual at closure (the parent's turning times the
+  !> residual is dropped, as for the frame rows' own Jacobian), so every loop's motion is
+  !> unchanged.
+  pure subroutine to_parent_axes(d, r, rp)
     type(model_data), intent(inout) :: d
-    integer, intent(in) :: r, bp
+    integer, intent(in) :: r
+    real(dp), intent(in) :: rp(3, 3)
     real(dp) :: rt(3, 3)
-    rt = transpose(d%rot(:, :, bp))
+    rt = transpose(rp)
     d%phi(r:r + 2) = matmul(rt, d%phi(r:r + 2))
     d%gam(r:r + 2) = matmul(rt, d%gam(r:r + 2))
     d%gj(r:r + 2, :) = matmul(rt, d%gj(r:r + 2, :))
@@ -147,44 +161,61 @@ contains
 
   !> A prismatic cut's two sliding rows r, r + 1: the child point stays on the line through
   !> the parent point along the axis, n_i . (pc - pp) = 0 for the axis' normals n_i, which
-  !> turn with the parent. Their rate is n_i . (vc - vp) + wp . (n_i x (pc - pp)), and
+  !> turn with the parent's frame at its point. Their rate is n_i . (vc - vp) + wp . (n_i x (pc - pp)), and
   !> gamma = -[n_i . (ac - ap) + 2 (wp x n_i) . (vc - vp) + (alpha_p x n_i + wp x (wp x n_i)) . (pc - pp)]
   !> with the bias (qdd = 0) point accelerations ap, ac and angular acceleration alpha_p.
-  pure subroutine sliding_rows(d, c, r, bp, bc, pp, pc, vp, vc, ap, ac, wp)
+  pure subroutine sliding_rows(d, c, r, pp, pc, vp, vc, ap, ac, wp, alp)
     type(model_data), intent(inout) :: d
-    integer, intent(in) :: c, r, bp, bc
-    real(dp), intent(in) :: pp(3), pc(3), vp(3), vc(3), ap(3), ac(3), wp(3)
+    integer, intent(in) :: c, r
+    real(dp), intent(in) :: pp(3), pc(3), vp(3), vc(3), ap(3), ac(3), wp(3), alp(3)
     integer :: i
     real(dp) :: n(3), dl(3)
     dl = pc - pp
     do i = 1, 2
-      n = matmul(d%rot(:, :, bp), d%cut_normal(:, i, c))
+      n = matmul(d%cut_rot(:, :, parent, c), d%cut_normal(:, i, c))
       d%phi(r + i - 1) = dot_product(n, dl)
       d%gam(r + i - 1) = -(dot_product(n, ac - ap) + 2.0_dp*dot_product(cross(wp, n), vc - vp) + &
-        & dot_product(cross(d%acc(4:6, bp), n) + cross(wp, cross(wp, n)), dl))
-      call add_point_columns(d, bc, pc, n, 1.0_dp, r + i - 1)
-      call add_point_columns(d, bp, pp, n, -1.0_dp, r + i - 1)
-      call add_turn_columns(d, bp, cross(n, dl), 1.0_dp, r + i - 1)
+        & dot_product(cross(alp, n) + cross(wp, cross(wp, n)), dl))
+      call add_point_columns(d, c, child, pc, n, 1.0_dp, r + i - 1)
+      call add_point_columns(d, c, parent, pp, n, -1.0_dp, r + i - 1)
+      call add_turn_columns(d, c, parent, cross(n, dl), 1.0_dp, r + i - 1)
     end do
   end subroutine sliding_rows
 
-  !> Row `row` of G += sgn * (direction e . velocity of the inertial point p of body b) per
-  !> unit rate of each coordinate on b's path to the ground: e . (s_v + s_w x p) =
+  !> Row `row` of G += sgn * (direction e . velocity of the inertial point p of side s of cut
+  !> c) per unit rate of each coordinate that moves it: e . (s_v + s_w x p) =
   !> e . s_v + (p x e) . s_w.
-  pure subroutine add_point_columns(d, b, p, e, sgn, row)
+  pure subroutine add_point_columns(d, c, s, p, e, sgn, row)
     type(model_data), intent(inout) :: d
-    integer, intent(in) :: b, row
+    integer, intent(in) :: c, s, row
     real(dp), intent(in) :: p(3), e(3), sgn
-    call add_path_columns(d, b, sgn*e, sgn*cross(p, e), row)
+    call add_frame_columns(d, c, s, sgn*e, sgn*cross(p, e), row)
   end subroutine add_point_columns
 
-  !> Row `row` of G += sgn * (direction e . angular velocity of body b) per unit rate.
-  pure subroutine add_turn_columns(d, b, e, sgn, row)
+  !> Row `row` of G += sgn * (direction e . angular velocity of side s's frame of cut c) per
+  !> unit rate.
+  pure subroutine add_turn_columns(d, c, s, e, sgn, row)
     type(model_data), intent(inout) :: d
-    integer, intent(in) :: b, row
+    integer, intent(in) :: c, s, row
     real(dp), intent(in) :: e(3), sgn
-    call add_path_columns(d, b, [0.0_dp, 0.0_dp, 0.0_dp], sgn*e, row)
+    call add_frame_columns(d, c, s, [0.0_dp, 0.0_dp, 0.0_dp], sgn*e, row)
   end subroutine add_turn_columns
+
+  !> Row `row` of G += ev . s_v + ew . s_w for every spatial column s that moves the frame
+  !> at side s of cut c: the columns on its body's path (add_path_columns) and, on a
+  !> flexible body, the body's own modal columns at the point (d%cut_cm).
+  pure subroutine add_frame_columns(d, c, s, ev, ew, row)
+    type(model_data), intent(inout) :: d
+    integer, intent(in) :: c, s, row
+    real(dp), intent(in) :: ev(3), ew(3)
+    integer :: b, l, k
+    b = merge(d%cut_parent(c), d%cut_child(c), s == parent)
+    call add_path_columns(d, b, ev, ew, row)
+    do l = 1, d%nm(b)
+      k = d%a0(b) + l - 1
+      d%gj(row, k) = d%gj(row, k) + dot_product(ev, d%cut_cm(1:3, l, s, c)) + dot_product(ew, d%cut_cm(4:6, l, s, c))
+    end do
+  end subroutine add_frame_columns
 
   !> Row `row` of G += ev . s_v + ew . s_w for every spatial column s on body b's path: the
   !> joint columns, and the modal columns (d%cm) of each flexible body the path crosses.
@@ -207,15 +238,13 @@ contains
     end do
   end subroutine add_path_columns
 
-  !> The independent rows of G (d%gj, after loop_rows, without the prescribed columns);
-  !> the others are redundant. Chosen once, at the first evaluation or at assembly. A loop
-  !> that leaves no motion is an error.
+  !> The independent rows of G (d%gj, after loop_rows): independent_rows of its free
+  !> columns; the others are redundant. Chosen once, at the first evaluation or at assembly.
+  !> A loop that leaves no motion is an error.
   subroutine choose_rows(d, error)
     type(model_data), intent(inout) :: d
     type(error_type), allocatable, intent(out) :: error
-    integer, allocatable :: used(:)
-    used = independent_rows(free_columns(d, d%gj))
-    d%n_used = size(used); d%row_used(1:d%n_used) = used
+    call independent_rows(free_columns(d, d%gj), d%row_used, d%n_used)
     d%n_redundant = d%n_rows - d%n_used
     d%rows_chosen = .true.
     ! with prescribed coordinates the loops may take every other coordinate (a driven mechanism)
@@ -224,32 +253,31 @@ contains
       & ' coordinates leave no motion')
   end subroutine choose_rows
 
-  !> Indices of a set of independent rows of a, by pivoted Gram-Schmidt on the rows (the
-  !> column-pivoted QR of a^T): the row with the largest part independent of those chosen
-  !> comes next, until that part is below rank_tol of the largest row.
-  pure function independent_rows(a) result(used)
+  !> The independent rows of a: pivoted Gram-Schmidt on the rows (the column-pivoted QR of
+  !> a^T); a row is dependent when its part independent of the rows chosen before is below
+  !> rank_tol of the largest row. used(1:n_used) are their indices, in the order chosen.
+  pure subroutine independent_rows(a, used, n_used)
     real(dp), intent(in) :: a(:, :)
-    integer, allocatable :: used(:)
+    integer, intent(out) :: used(:), n_used
     real(dp) :: rows(size(a, 1), size(a, 2)), norms(size(a, 1)), scale
     logical :: free(size(a, 1))
     integer :: k, i, j
     rows = a
     free = .true.
-    allocate(used(0))
-    if (size(a, 1) == 0) return
+    n_used = 0
     scale = maxval(norm2(rows, dim=2))
     do k = 1, size(a, 1)
       norms = norm2(rows, dim=2)
       i = maxloc(norms, dim=1, mask=free)
       if (norms(i) <= rank_tol*scale) exit
       free(i) = .false.
-      used = [used, i]
+      n_used = n_used + 1; used(n_used) = i
       rows(i, :) = rows(i, :)/norms(i)
       do j = 1, size(a, 1)
         if (free(j)) rows(j, :) = rows(j, :) - dot_product(rows(j, :), rows(i, :))*rows(i, :)
       end do
     end do
-  end function independent_rows
+  end subroutine independent_rows
 
   !> Add the constraint forces to qdd = M^-1 P (M's Cholesky factor in d%lf), after an
   !> evaluation's kinematics (the rows chosen at the first).
@@ -346,35 +374,41 @@ contains
   end subroutine project_velocities
 
   !> The force f and torque cut joint c puts on its child at its child point pc (inertial;
-  !> from d%lambda, after forward_kinematics).
+  !> from d%lambda, after forward_kinematics). A 'free' cut puts none.
   pure subroutine cut_force(d, c, f, torque, pc)
     type(model_data), intent(in) :: d
     integer, intent(in) :: c
     real(dp), intent(out) :: f(3), torque(3), pc(3)
     real(dp) :: uc(3), ci(3)
-    integer :: r, bp, bc, i
-    r = d%cut_row0(c); bp = d%cut_parent(c); bc = d%cut_child(c)
-    ! the point and frame rows are along the parent's axes
-    f = matmul(d%rot(:, :, bp), d%lambda(r:r + 2))
-    pc = d%pos(:, bc) + matmul(d%rot(:, :, bc), d%cut_child_at(:, c))
-    torque = 0.0_dp
-    select case (d%cut_kind(c))
-    case (cut_fixed)
-      torque = matmul(d%rot(:, :, bp), d%lambda(r + 3:r + 5))
-    case (cut_prismatic)
-      ! the sliding rows push along the normals, the frame rows turn
-      f = 0.0_dp
+    integer :: r, i
+    r = d%cut_row0(c)
+    pc = d%cut_pos(:, child, c)
+    f = 0.0_dp; torque = 0.0_dp
+    ! the point and frame rows are along the axes of the parent's frame at its point
+    associate(rp => d%cut_rot(:, :, parent, c))
+      select case (d%cut_kind(c))
+      case (cut_free)
+        pc = d%pos(:, d%cut_child(c)) + matmul(d%rot(:, :, d%cut_child(c)), d%cut_child_at(:, c))
+      case (cut_spherical)
+        f = matmul(rp, d%lambda(r:r + 2))
+      case (cut_fixed)
+        f = matmul(rp, d%lambda(r:r + 2))
+        torque = matmul(rp, d%lambda(r + 3:r + 5))
+      case (cut_prismatic)
+        ! the sliding rows push along the normals, the frame rows turn
+        do i = 1, 2
+          f = f + d%lambda(r + i - 1)*matmul(rp, d%cut_normal(:, i, c))
+        end do
+        torque = matmul(rp, d%lambda(r + 2:r + 4))
+      case (cut_revolute)
+        f = matmul(rp, d%lambda(r:r + 2))
+      uc = matmul(d%cut_rot(:, :, child, c), d%cut_axis(:, c))
       do i = 1, 2
-        f = f + d%lambda(r + i - 1)*matmul(d%rot(:, :, bp), d%cut_normal(:, i, c))
-      end do
-      torque = matmul(d%rot(:, :, bp), d%lambda(r + 2:r + 4))
-    case (cut_revolute)
-      uc = matmul(d%rot(:, :, bc), d%cut_axis(:, c))
-      do i = 1, 2
-        ci = matmul(d%rot(:, :, bp), d%cut_normal(:, i, c))
+        ci = matmul(d%cut_rot(:, :, parent, c), d%cut_normal(:, i, c))
         torque = torque + d%lambda(r + 2 + i)*cross(uc, ci)
       end do
-    end select
+      end select
+    end associate
   end subroutine cut_force
 
   !> Cut joint c's force and moment on its child in the child's frame, the moment about
@@ -415,17 +449,19 @@ contains
     real(dp), intent(in) :: lff(:, :), acc_s(:)
     real(dp), intent(inout) :: qdd_f(:)
     type(error_type), allocatable, intent(out) :: error
-    integer, allocatable :: r(:)
+    integer, allocatable :: r(:), fast_used(:)
     real(dp), allocatable :: gf(:, :), y(:, :), a(:, :), mu(:)
-    integer :: ns
+    integer :: ns, n_fast
     ns = d%nj
     call loop_rows(d)
     if (.not. d%rows_chosen) then
       call choose_rows(d, error); if (allocated(error)) return
     end if
     r = d%row_used(1:d%n_used)
-    r = r(independent_rows(d%gj(r, ns+1:)))
-    if (size(r) == 0) return
+    allocate(fast_used(d%n_used))
+    call independent_rows(d%gj(r, ns+1:), fast_used, n_fast)
+    if (n_fast == 0) return
+    r = r(fast_used(1:n_fast))
     gf = d%gj(r, ns+1:)
     mu = d%gam(r) - matmul(d%gj(r, 1:ns), acc_s) - matmul(gf, qdd_f)
     y = transpose(gf)

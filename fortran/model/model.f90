@@ -298,7 +298,7 @@ contains
       end if
       qdd = d%p
       call potrs(d%lf, qdd, 'the mass matrix', error)
-      if (d%n_cut > 0 .and. .not. allocated(error)) call constrained_accelerations(d, qdd, error)
+      if (d%n_rows > 0 .and. .not. allocated(error)) call constrained_accelerations(d, qdd, error)
       call add_time(error, t)
     end associate
   end subroutine model_accelerations
@@ -311,7 +311,7 @@ contains
     real(dp), intent(inout) :: x(:)
     type(error_type), allocatable, intent(out) :: error
     integer :: n
-    if (self%d%n_cut == 0 .or. .not. self%d%rows_chosen) return
+    if (self%d%n_rows == 0 .or. .not. self%d%rows_chosen) return
     n = self%d%n
     if (self%d%n_prescribed > 0) then
       call impose_prescribed_state(self%d, t, x(1:n), x(n+1:))
@@ -482,7 +482,7 @@ contains
       call potrs(self%le, fs(ns+1:), 'M_e', error); call add_time(error, t); if (allocated(error)) return
       ff(nf+1:) = self%yf - matmul(self%xfs, fs(ns+1:))
     end associate
-    if (self%d%n_cut > 0) then
+    if (self%d%n_rows > 0) then
       call constrain_sync(self, t, fs(ns+1:), ff(nf+1:), error); if (allocated(error)) return
     end if
     fs(1:ns) = xs(ns+1:)
@@ -522,7 +522,7 @@ contains
     call factor_ff(self, t, error); if (allocated(error)) return
     ff(nf+1:) = self%d%p(ns+1:) - matmul(self%d%mm(ns+1:, 1:ns), acc_s)
     call potrs(self%lff, ff(nf+1:), 'M_ff', error)
-    if (self%d%n_cut > 0 .and. .not. allocated(error)) &
+    if (self%d%n_rows > 0 .and. .not. allocated(error)) &
       & call constrain_fast_accelerations(self%d, self%lff, acc_s, ff(nf+1:), error)
     call add_time(error, t)
     ff(1:nf) = xf(nf+1:)
@@ -543,7 +543,7 @@ contains
     call potrs(self%le, gs, 'M_e', error); if (allocated(error)) return
     g(1:ns, :) = -gs
     g(ns+1:, :) = self%mffinv + matmul(self%xfs, gs)
-    if (self%d%n_cut > 0) then
+    if (self%d%n_rows > 0) then
       call constrain_response(self%d, g, error); if (allocated(error)) return
     end if
     kf = self%kf; df = self%df

@@ -343,9 +343,12 @@ contains
     call check_loops(sc, errs)
   end subroutine check_joints
 
-  !> Loop-closing joints (closes_loop): 'revolute', 'prismatic', 'spherical' or 'fixed' between rigid
-  !> bodies, no coordinates of their own (no q0, qd0, settle, drive, spring or motion), only
-  !> in single-rate runs through the mass matrix from a given start; child_at only on them.
+  !> Loop-closing joints (closes_loop): any kind ('free' closes no constraint), at rigid
+  !> bodies or at points of flexible ones (the points a flexible body allows are checked,
+  !> with its modes, where the model is built: build.f90 flexible_point), no coordinates of
+  !> their own (no q0, qd0, settle, drive, spring or motion), not at a beam whose geometric
+  !> stiffness is on (the cut's load would not stiffen it), only through the mass matrix
+  !> (loop_refusal); child_at only on them.
   subroutine check_loops(sc, errs)
     type(scene_t), intent(in) :: sc
     type(error_list), intent(inout) :: errs
@@ -360,10 +363,6 @@ contains
             & "child already has a parent joint) takes child_at; this joint's point is the child's origin")
           cycle
         end if
-        if (jt%kind == 'free') then
-          call errs%add(o%where('kind') // ": a joint that closes a loop (body '" // trim(jt%child) // &
-            & "' has a parent joint already) must be 'revolute', 'prismatic', 'spherical' or 'fixed'"); cycle
-        end if
         if (nonzero(jt%q0) .or. nonzero(jt%qd0) .or. jt%settle) then
           call errs%add(o%where(trim(merge('q0    ', merge('qd0   ', 'settle', nonzero(jt%qd0)), nonzero(jt%q0)))) // &
             & ': a joint that closes a loop has no coordinates of its own (its state follows from the tree)'); cycle
@@ -373,20 +372,23 @@ contains
           call errs%add(o%where('name') // ': a joint that closes a loop has no coordinates to drive, spring ' // &
             & 'or prescribe'); cycle
         end if
-        if (flexible(jt%parent) .or. flexible(jt%child)) then
-          call errs%add(o%where(trim(merge('parent', 'child ', flexible(jt%parent)))) // ': a joint that closes ' // &
-            & 'a loop joins rigid bodies (a flexible body may lie inside the loop; cut the loop at a rigid one)')
-          cycle
+        ! a 'free' cut constrains nothing: nothing more to refuse
+        if (jt%kind == 'free') cycle
+        if (sc%effects%geometric_stiffening .and. (kind_of(jt%parent) == 'beam' .or. kind_of(jt%child) == 'beam')) then
+          call errs%add(o%where(trim(merge('parent', 'child ', kind_of(jt%parent) == 'beam'))) // ': a joint ' // &
+            & "that closes a loop at a beam does not stiffen it (geometric_stiffening counts the loads of tree " // &
+            & "joints only): turn geometric_stiffening off in &effects"); cycle
         end if
         refused = loop_refusal(sc)
         if (len(refused) > 0) call errs%add(o%where('child') // ': closes a loop, and loops are not ' // refused)
       end associate
     end do
   contains
-    logical function flexible(name)
+    function kind_of(name) result(k)
       character(len=*), intent(in) :: name
-      flexible = sc%bodies(body_index(sc, name))%kind == 'beam' .or. sc%bodies(body_index(sc, name))%kind == 'modal'
-    end function flexible
+      character(len=:), allocatable :: k
+      k = trim(sc%bodies(body_index(sc, name))%kind)
+    end function kind_of
     pure logical function nonzero(x)
       real(dp), intent(in) :: x(:)
       nonzero = any(x /= 0.0_dp .and. x /= unset)
@@ -399,7 +401,6 @@ contains
     character(len=:), allocatable :: s
     s = ''
     if (trim(sc%integrator%dynamics) == 'articulated') s = "supported by dynamics = 'articulated' (use 'mass_matrix')"
-    if (sc%scene%start == 'static') s = "supported with start = 'static'"
   end function loop_refusal
 
   !> The first repeated non-blank name: i < j, names(i) == names(j), j the smallest such

@@ -12,7 +12,7 @@ module pymr_model_types
   public :: effect_geometric_stiffening, effect_base_motion, effect_firing_load, effect_deformation_inertia
   public :: n_effects, effect_names
   public :: motion_sine, motion_spinup, motion_table
-  public :: cut_fixed, cut_revolute, cut_spherical, cut_prismatic
+  public :: cut_fixed, cut_revolute, cut_spherical, cut_prismatic, cut_free
 
   !> Kinds of one-coordinate joint primitives: every joint is a chain of them.
   integer, parameter :: prim_revolute = 1, prim_prismatic = 2
@@ -24,8 +24,8 @@ module pymr_model_types
   character(len=*), parameter :: effect_names(n_effects) = [character(len=20) :: 'gravity', 'joint_drives', &
     & 'modal_damping', 'joint_springs', 'geometric_stiffening', 'firing_load', 'base_motion', 'deformation_inertia']
 
-  !> Kinds of loop-closing joints.
-  integer, parameter :: cut_fixed = 1, cut_revolute = 2, cut_spherical = 3, cut_prismatic = 4
+  !> Kinds of loop-closing joints ('free' closes no constraint: no rows).
+  integer, parameter :: cut_fixed = 1, cut_revolute = 2, cut_spherical = 3, cut_prismatic = 4, cut_free = 5
 
   !> Forms of a prescribed coordinate's time function.
   integer, parameter :: motion_sine = 1, motion_spinup = 2, motion_table = 3
@@ -126,13 +126,24 @@ module pymr_model_types
     !> Bodies on or below a flexible body (whose terms the fast rows need).
     logical, allocatable :: in_fast(:)
     !> Loop-closing (cut) joints (model/loops.f90): name, parent and child body, kind
-    !> (cut_fixed, cut_revolute, cut_spherical), joint point in the parent's and in the child's
-    !> frame, and a revolute joint's axis and two unit normals of it (parent frame); their
-    !> first constraint row and number of rows (3 for the point, + 3 fixed, + 2 revolute).
+    !> (cut_fixed, cut_revolute, cut_spherical, cut_prismatic, cut_free), joint point in the
+    !> parent's and in the child's frame, and a revolute joint's axis and two unit normals of
+    !> it (parent frame); their first constraint row and number of rows (3 for the point, + 3
+    !> fixed, + 2 revolute; prismatic 2 + 3; free none).
     integer :: n_cut = 0, n_rows = 0
     character(len=name_len), allocatable :: cut_name(:)
     integer, allocatable :: cut_parent(:), cut_child(:), cut_kind(:), cut_row0(:), cut_nrow(:)
     real(dp), allocatable :: cut_at(:, :), cut_child_at(:, :), cut_axis(:, :), cut_normal(:, :, :)
+    !> Mode shapes at a cut joint's points on flexible bodies (side 1 the parent's point, 2 the
+    !> child's): translation and small rotation (3, mmax, 2, n_cut).
+    real(dp), allocatable :: cut_psi(:, :, :, :), cut_phi(:, :, :, :)
+    !> The frames at the cut joints' points (after forward_kinematics; side 1 the parent's, 2
+    !> the child's): orientation, origin, spatial velocity and bias acceleration (inertial
+    !> Pluecker), and the spatial columns of a flexible body's own modal rates there (6, mmax,
+    !> 2, n_cut). On a rigid body the frame is the body's, moved to the point; on a flexible
+    !> one it moves and turns with the deflection there, as a child's joint frame does.
+    real(dp), allocatable :: cut_rot(:, :, :, :), cut_pos(:, :, :), cut_vel(:, :, :), cut_acc(:, :, :)
+    real(dp), allocatable :: cut_cm(:, :, :, :)
     !> The independent rows (chosen once, at assembly) and how many were redundant.
     integer :: n_used = 0, n_redundant = 0
     logical :: rows_chosen = .false.
