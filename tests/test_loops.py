@@ -332,6 +332,20 @@ def crank_slider_head(title: str, th0: float, w0: float) -> str:
             f"q0 = {float(phi - th0)!r}, qd0 = {float((dphi - 1) * w0)!r} /\n")
 
 
+def slider_joints(th0: float, w0: float) -> tuple[str, str]:
+    """The slider's two joints, wrist (rod to slider) and slide (ground to slider), in the two
+    formulations: the loop cut at the slide (a prismatic cut), or the slide a tree joint and
+    the loop cut at the wrist."""
+    phi, x, dphi, dx = crank_slider_geometry(th0)
+    cut = (f"&joint name = 'wrist', kind = 'revolute', parent = 'rod', child = 'slider', at = {L_ROD!r}, 0.0, 0.0, "
+           f"q0 = {float(-phi)!r}, qd0 = {float(-dphi * w0)!r} /\n"
+           "&joint name = 'slide', kind = 'prismatic', parent = 'ground', child = 'slider', axis = 1.0, 0.0, 0.0 /\n")
+    tree = (f"&joint name = 'slide', kind = 'prismatic', parent = 'ground', child = 'slider', axis = 1.0, 0.0, 0.0, "
+            f"q0 = {float(x)!r}, qd0 = {float(dx * w0)!r} /\n"
+            f"&joint name = 'wrist', kind = 'revolute', parent = 'rod', child = 'slider', at = {L_ROD!r}, 0.0, 0.0 /\n")
+    return cut, tree
+
+
 def test_the_crank_slider_follows_the_minimal_coordinate_solution(tmp_path):
     """A prismatic tree joint in the loop: crank angle and slider position against the
     one-coordinate Lagrange solution over 2 s (1e-6 rad, 1e-6 m), the rod's end on the slider
@@ -771,16 +785,10 @@ def test_a_prismatic_cut_closes_the_crank_slider(tmp_path):
     the slider on its line and level to 1e-8 (m, rad), energy constant, and the cut's force
     across the slide against the tree formulation's prismatic reaction (1e-5 of the peak)."""
     th0, w0 = 0.5, 6.0
-    phi, x, dphi, dx = crank_slider_geometry(th0)
     head = crank_slider_head("crank-slider, prismatic cut", th0, w0)
     tail = ("&marker name = 'block', body = 'slider', at = 0.0, 0.0, 0.0 /\n"
             "&output dt = 0.01, quantities = 'coordinates', 'markers', 'marker_orientations', 'reactions', 'energy' /\n")
-    cut = (f"&joint name = 'wrist', kind = 'revolute', parent = 'rod', child = 'slider', at = {L_ROD!r}, 0.0, 0.0, "
-           f"q0 = {float(-phi)!r}, qd0 = {float(-dphi * w0)!r} /\n"
-           "&joint name = 'slide', kind = 'prismatic', parent = 'ground', child = 'slider', axis = 1.0, 0.0, 0.0 /\n")
-    tree = (f"&joint name = 'slide', kind = 'prismatic', parent = 'ground', child = 'slider', axis = 1.0, 0.0, 0.0, "
-            f"q0 = {float(x)!r}, qd0 = {float(dx * w0)!r} /\n"
-            f"&joint name = 'wrist', kind = 'revolute', parent = 'rod', child = 'slider', at = {L_ROD!r}, 0.0, 0.0 /\n")
+    cut, tree = slider_joints(th0, w0)
     (tmp_path / "cut.nml").write_text(head + cut + tail)
     (tmp_path / "tree.nml").write_text(head + tree + tail)
     res = pymr.run(tmp_path / "cut.nml", tmp_path / "cut.csv")
@@ -857,15 +865,9 @@ def test_a_planar_loop_on_a_turning_table_keeps_its_rows(tmp_path):
     assert max(np.abs(four[f"tip.{x}"] - four[f"pivot.{x}"]).max() for x in "xyz") < 1e-8
 
     th0, w0 = 0.5, 6.0
-    phi, x, dphi, dx = crank_slider_geometry(th0)
     head = crank_slider_head("crank-slider on a table", th0, w0)
     tail = "&output dt = 0.01, quantities = 'coordinates', 'reactions', 'energy' /\n"
-    cut = (f"&joint name = 'wrist', kind = 'revolute', parent = 'rod', child = 'slider', at = {L_ROD!r}, 0.0, 0.0, "
-           f"q0 = {float(-phi)!r}, qd0 = {float(-dphi * w0)!r} /\n"
-           "&joint name = 'slide', kind = 'prismatic', parent = 'ground', child = 'slider', axis = 1.0, 0.0, 0.0 /\n")
-    tree = (f"&joint name = 'slide', kind = 'prismatic', parent = 'ground', child = 'slider', axis = 1.0, 0.0, 0.0, "
-            f"q0 = {float(x)!r}, qd0 = {float(dx * w0)!r} /\n"
-            f"&joint name = 'wrist', kind = 'revolute', parent = 'rod', child = 'slider', at = {L_ROD!r}, 0.0, 0.0 /\n")
+    cut, tree = slider_joints(th0, w0)
     (tmp_path / "cut.nml").write_text(on_turntable(head + cut + tail))
     (tmp_path / "tree.nml").write_text(on_turntable(head + tree + tail))
     res = pymr.run(tmp_path / "cut.nml", tmp_path / "cut.csv")
