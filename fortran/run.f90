@@ -509,6 +509,11 @@ contains
         & model%d%n_rows, ' constraint rows, ', model%d%n_redundant, ' redundant (dropped); the initial ' // &
         & 'state assembled with largest changes ', model%d%assembly_dq, ' (q), ', model%d%assembly_dqd, ' (qd)'
       s = s // new_line('a') // trim(buf)
+      if (model%d%n_rows > 0) then
+        write(buf, '(a,es9.2,a)') 'loops: the largest closure error a step left (removed by projection): ', &
+          & model%d%closure_drift, ' (m; rad for rotation rows)'
+        s = s // new_line('a') // trim(buf)
+      end if
     end if
     s = s // new_line('a')
     call forward_kinematics(model%d, x(1:n), x(n+1:))

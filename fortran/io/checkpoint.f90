@@ -22,7 +22,7 @@ module pymr_io_checkpoint
   public :: run_progress, write_checkpoint, read_checkpoint
 
   character(len=8), parameter :: tag = 'PYMRCKPT'
-  integer, parameter :: version = 4
+  integer, parameter :: version = 5
 
   !> Output bookkeeping of a run at a checkpoint.
   type :: run_progress

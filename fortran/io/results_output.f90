@@ -397,8 +397,8 @@ contains
       write(buf, '(a,i0,a,i0,a,i0,a,i0,a)') '  "loops": {"closing_joints": ', d%n_cut, ', "free_closing_joints": ', &
         & count(d%cut_kind == cut_free), ', "constraint_rows": ', d%n_rows, ', "redundant_rows": ', d%n_redundant, ','
       call put(trim(buf))
-      write(buf, '(a,es12.5,a,es12.5,a)') '    "assembly_change_q": ', d%assembly_dq, ', "assembly_change_qd": ', &
-        & d%assembly_dqd, '},'
+      write(buf, '(a,es12.5,a,es12.5,a,es12.5,a)') '    "assembly_change_q": ', d%assembly_dq, &
+        & ', "assembly_change_qd": ', d%assembly_dqd, ', "closure_drift": ', d%closure_drift, '},'
       call put(trim(buf))
     end if
     text = text // '  "effects": {'

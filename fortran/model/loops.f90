@@ -335,16 +335,19 @@ contains
 
   !> Close the loops from q by the least change: q <- q - G^T (G G^T)^-1 Phi, iterated until
   !> |Phi| <= closure_tol * max(scale, 1 m) (m; rad for rotation rows); an error if that fails.
-  subroutine project_positions(d, q, scale, error)
+  subroutine project_positions(d, q, scale, error, residual)
     type(model_data), intent(inout) :: d
     real(dp), intent(inout) :: q(:)
     real(dp), intent(in) :: scale
     type(error_type), allocatable, intent(out) :: error
+    !> The largest residual |Phi| of the given q.
+    real(dp), intent(out), optional :: residual
     real(dp) :: gu(d%n_used, d%n), y(d%n_used), a(d%n_used, d%n_used)
     integer :: it
     do it = 1, max_iterations
       call forward_kinematics(d, q, 0.0_dp*q)
       call loop_rows(d)
+      if (it == 1 .and. present(residual)) residual = maxval(abs(d%phi))
       if (maxval(abs(d%phi)) <= closure_tol*max(scale, 1.0_dp)) return
       gu = free_columns(d, d%gj(d%row_used(1:d%n_used), :))
       a = matmul(gu, transpose(gu))

@@ -311,13 +311,15 @@ contains
     real(dp), intent(inout) :: x(:)
     type(error_type), allocatable, intent(out) :: error
     integer :: n
+    real(dp) :: residual
     if (self%d%n_rows == 0 .or. .not. self%d%rows_chosen) return
     n = self%d%n
     if (self%d%n_prescribed > 0) then
       call impose_prescribed_state(self%d, t, x(1:n), x(n+1:))
       x(1:n) = self%d%qx; x(n+1:) = self%d%qdx
     end if
-    call project_positions(self%d, x(1:n), self%d%loop_size, error); if (allocated(error)) return
+    call project_positions(self%d, x(1:n), self%d%loop_size, error, residual); if (allocated(error)) return
+    self%d%closure_drift = max(self%d%closure_drift, residual)
     call project_velocities(self%d, x(1:n), x(n+1:), error)
   end subroutine model_project
 
@@ -608,7 +610,7 @@ contains
     if (ios == 0 .and. allocated(self%lff)) write(unit, iostat=ios) self%lff, self%le, self%mfs, self%xfs, &
       & self%yf, self%mffinv, self%mff_factored
     if (ios == 0) write(unit, iostat=ios) self%d%evals, self%d%evals_fast_rows, self%d%effect_evals, &
-      & self%d%effect_timed, self%d%effect_cpu
+      & self%d%effect_timed, self%d%effect_cpu, self%d%closure_drift
   end subroutine model_save_run
 
   !> Read what model_save_run wrote into a model built from the same scene (partitioned
@@ -626,6 +628,6 @@ contains
     if (partitioned) read(unit, iostat=ios) self%lff, self%le, self%mfs, self%xfs, self%yf, &
       & self%mffinv, self%mff_factored
     if (ios == 0) read(unit, iostat=ios) self%d%evals, self%d%evals_fast_rows, self%d%effect_evals, &
-      & self%d%effect_timed, self%d%effect_cpu
+      & self%d%effect_timed, self%d%effect_cpu, self%d%closure_drift
   end subroutine model_load_run
 end module pymr_model

@@ -153,6 +153,8 @@ module pymr_model_types
     real(dp), allocatable :: phi(:), gj(:, :), gam(:), lambda(:), ymg(:, :)
     !> Assembly of the initial state: the largest change of a coordinate and of a rate.
     real(dp) :: assembly_dq = 0.0_dp, assembly_dqd = 0.0_dp
+    !> The largest constraint residual a projection after a step removed (m; rad for rotation rows).
+    real(dp) :: closure_drift = 0.0_dp
     !> The loops' size (m): the farthest body origin or cut joint point from the origin.
     real(dp) :: loop_size = 1.0_dp
     !> Evaluation counters: full assemblies, fast-row assemblies.
