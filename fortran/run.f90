@@ -435,7 +435,7 @@ contains
     integer :: b, j, i, n
     call initial_state(sc, model, x)
     n = model%d%n
-    call assemble_loops(model%d, x(1:n), x(n+1:), error)
+    call assemble_loops(model%d, x(1:n), x(n+1:), held_coordinates(sc, model), error)
     if (allocated(error)) then
       ! the loops' fault is no single line's: it names the first loop-closing joint
       do j = 1, size(sc%joints)
@@ -460,7 +460,23 @@ contains
     ! the equilibrium closes the loops to Newton's tolerance; the projection closes them to
     ! the run's and takes the rates' motion across them away at the settled positions
     call model%project(0.0_dp, x, error)
+    model%d%closure_drift = 0.0_dp     ! the statistic is of the run's steps
   end subroutine starting_state
+
+  !> The coordinates of the joints marked hold (kept by the loops' assembly).
+  function held_coordinates(sc, model) result(held)
+    type(scene_t), intent(in) :: sc
+    type(model_t), intent(in) :: model
+    logical :: held(model%d%n)
+    integer :: b, j
+    held = .false.
+    do b = 2, model%d%nb
+      do j = 1, size(sc%joints)
+        if (sc%joints(j)%name == model%d%joint_name(b) .and. sc%joints(j)%hold) &
+          & held(model%d%c0(b):model%d%c0(b) + model%d%nc(b) - 1) = .true.
+      end do
+    end do
+  end function held_coordinates
 
   !> Integrator settings as JSON members.
   function settings_json(sc) result(s)

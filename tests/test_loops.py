@@ -184,6 +184,25 @@ def test_the_closure_error_a_step_leaves_is_reported_and_falls_as_the_local_erro
         json.loads((tmp_path / "g.json").read_text())["loops"]["closure_drift"], rel=1e-2)
 
 
+def test_a_held_joint_keeps_its_given_state_and_the_others_close_the_loop(tmp_path):
+    """The crank marked hold keeps q0 = 1 and qd0 = 2 exactly; the coupler and rocker angles,
+    given 3e-4 and 2e-4 rad off, are moved onto the closed-form loop (to 1e-12 rad) and their
+    rates onto its rates per unit crank rate (1e-12 rad/s). Without hold the least change
+    moves the crank as well."""
+    p2, p3, r2, r3 = fourbar_angles(1.0)
+    qb, qc = float(p2 - 1.0), float(p3 - p2)
+    text = fourbar_scene(1.0, 2.0, t_end=0.01)
+    text = text.replace(f"q0 = {qb!r}", f"q0 = {qb + 3e-4!r}").replace(f"q0 = {qc!r}", f"q0 = {qc - 2e-4!r}")
+    (tmp_path / "free.nml").write_text(text)
+    (tmp_path / "held.nml").write_text(text.replace("child = 'crank', q0", "child = 'crank', hold = .true., q0"))
+    res = pymr.run(tmp_path / "held.nml", tmp_path / "held.csv")
+    assert res["A.q"][0] == 1.0 and res["A.qd"][0] == 2.0
+    assert abs(res["B.q"][0] - qb) < 1e-12 and abs(res["C.q"][0] - qc) < 1e-12
+    assert abs(res["B.qd"][0] - (r2 - 1) * 2.0) < 1e-12 and abs(res["C.qd"][0] - (r3 - r2) * 2.0) < 1e-12
+    free = pymr.run(tmp_path / "free.nml", tmp_path / "free.csv")
+    assert abs(free["A.q"][0] - 1.0) > 1e-5
+
+
 def test_given_initial_state_is_assembled_by_least_change(tmp_path):
     """q0 off the loop by 1e-4 rad (within the tolerance of 1e-3 of the loop's size) and a
     crank rate only: the run starts on the loop (closed to 1e-8 m) with the rates of the

@@ -57,17 +57,26 @@ module pymr_model_loops
 contains
 
   !> Assemble the initial state: choose the independent rows, then project the given q and
-  !> qd onto the constraints (least change, recorded in d%assembly_dq, d%assembly_dqd). A
-  !> state further than assembly_tol of the loops' size (m; rad) from closure is an error.
-  subroutine assemble_loops(d, q, qd, error)
+  !> qd onto the constraints (least change, recorded in d%assembly_dq, d%assembly_dqd),
+  !> keeping the coordinates marked held. A state further than assembly_tol of the loops'
+  !> size (m; rad) from closure is an error, and so are held coordinates that leave the
+  !> loops too few others to close them.
+  subroutine assemble_loops(d, q, qd, held, error)
     type(model_data), intent(inout) :: d
     real(dp), intent(inout) :: q(:), qd(:)
+    logical, intent(in) :: held(:)
     type(error_type), allocatable, intent(out) :: error
     real(dp) :: q0(size(q)), qd0(size(qd))
+    integer :: used(d%n_rows), n_free
     if (d%n_rows == 0) return
     call forward_kinematics(d, q, 0.0_dp*q)
     call loop_rows(d)
     call choose_rows(d, error); if (allocated(error)) return
+    call independent_rows(held_columns(free_columns(d, d%gj(d%row_used(1:d%n_used), :)), held), used, n_free)
+    if (n_free < d%n_used) then
+      call fatal_error(error, 'the joints held (hold = .true.) leave the loops ' // itoa(n_free) // ' of the ' // &
+        & itoa(d%n_used) // ' independent constraints to close by the other coordinates', stat_input); return
+    end if
     d%loop_size = max(maxval(norm2(d%pos, dim=1)), maxval(norm2(d%cut_at, dim=1)), &
       & maxval(norm2(d%cut_child_at, dim=1)), tiny(1.0_dp))
     if (maxval(abs(d%phi)) > assembly_tol*d%loop_size) then
@@ -76,8 +85,8 @@ contains
       return
     end if
     q0 = q; qd0 = qd
-    call project_positions(d, q, d%loop_size, error)
-    if (.not. allocated(error)) call project_velocities(d, q, qd, error)
+    call project_positions(d, q, d%loop_size, error, held=held)
+    if (.not. allocated(error)) call project_velocities(d, q, qd, error, held)
     if (allocated(error)) then
       ! a state that cannot be assembled is the scene's fault, not the run's
       error%stat = stat_input; error%message = 'cannot assemble the initial state: ' // error%message; return
@@ -325,6 +334,15 @@ contains
     end do
   end function free_columns
 
+  !> Rows g without the columns of the coordinates marked held.
+  pure function held_columns(g, held) result(gh)
+    real(dp), intent(in) :: g(:, :)
+    logical, intent(in) :: held(:)
+    real(dp) :: gh(size(g, 1), size(g, 2))
+    gh = g
+    where (spread(held, 1, size(g, 1))) gh = 0.0_dp
+  end function held_columns
+
   !> Solve the (symmetric positive definite) system of the used rows in place.
   subroutine solve_rows(a, x, error)
     real(dp), intent(inout) :: a(:, :), x(:)
@@ -335,13 +353,15 @@ contains
 
   !> Close the loops from q by the least change: q <- q - G^T (G G^T)^-1 Phi, iterated until
   !> |Phi| <= closure_tol * max(scale, 1 m) (m; rad for rotation rows); an error if that fails.
-  subroutine project_positions(d, q, scale, error, residual)
+  subroutine project_positions(d, q, scale, error, residual, held)
     type(model_data), intent(inout) :: d
     real(dp), intent(inout) :: q(:)
     real(dp), intent(in) :: scale
     type(error_type), allocatable, intent(out) :: error
     !> The largest residual |Phi| of the given q.
     real(dp), intent(out), optional :: residual
+    !> Coordinates the projection keeps (the assembly's held ones).
+    logical, intent(in), optional :: held(:)
     real(dp) :: gu(d%n_used, d%n), y(d%n_used), a(d%n_used, d%n_used)
     integer :: it
     do it = 1, max_iterations
@@ -350,6 +370,7 @@ contains
       if (it == 1 .and. present(residual)) residual = maxval(abs(d%phi))
       if (maxval(abs(d%phi)) <= closure_tol*max(scale, 1.0_dp)) return
       gu = free_columns(d, d%gj(d%row_used(1:d%n_used), :))
+      if (present(held)) gu = held_columns(gu, held)
       a = matmul(gu, transpose(gu))
       y = d%phi(d%row_used(1:d%n_used))
       call solve_rows(a, y, error); if (allocated(error)) return
@@ -360,17 +381,20 @@ contains
   end subroutine project_positions
 
   !> Remove the rates' motion across the loops: qd <- qd - G^T (G G^T)^-1 G qd (G at q).
-  subroutine project_velocities(d, q, qd, error)
+  subroutine project_velocities(d, q, qd, error, held)
     type(model_data), intent(inout) :: d
     real(dp), intent(in) :: q(:)
     real(dp), intent(inout) :: qd(:)
     type(error_type), allocatable, intent(out) :: error
+    !> Coordinates whose rates the projection keeps (the assembly's held ones).
+    logical, intent(in), optional :: held(:)
     real(dp) :: gu(d%n_used, d%n), y(d%n_used), a(d%n_used, d%n_used)
     call forward_kinematics(d, q, qd)
     call loop_rows(d)
     gu = d%gj(d%row_used(1:d%n_used), :)
     y = matmul(gu, qd)
     gu = free_columns(d, gu)
+    if (present(held)) gu = held_columns(gu, held)
     a = matmul(gu, transpose(gu))
     call solve_rows(a, y, error); if (allocated(error)) return
     qd = qd - matmul(y, gu)

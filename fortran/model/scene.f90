@@ -152,6 +152,8 @@ module pymr_model_scene
     real(dp) :: q0(6) = unset, qd0(6) = unset
     !> Free to settle in a static start (its coordinates solved with the modal ones).
     logical :: settle = .false.
+    !> Held by the assembly of closed loops (its q0 and qd0 kept, the others closing the loops).
+    logical :: hold = .false.
     type(origin_t) :: origin
   end type joint_spec
 
@@ -382,6 +384,8 @@ contains
       & ge=-big_length, le=big_length, variable=.true.)
     call t%add('settle', g%settle, "free to settle in a static start (&scene start = 'static'): its coordinates " // &
       & 'are solved for equilibrium with the modal coordinates, q0 is the first guess')
+    call t%add('hold', g%hold, 'kept by the assembly of closed loops: its q0 and qd0 stay as given and the ' // &
+      & 'other coordinates take the least change that closes the loops')
   end subroutine describe_joint
 
   subroutine describe_drive(g, t)

@@ -290,7 +290,7 @@ contains
     type(scene_t), intent(in) :: sc
     type(error_list), intent(inout) :: errs
     type(error_type), allocatable :: error
-    integer :: i, ip, ic
+    integer :: i, ip, ic, k
     each_joints: do i = 1, size(sc%joints)
       associate(jt => sc%joints(i))
         if (len_trim(jt%name) == 0) then
@@ -310,6 +310,13 @@ contains
         end if
         if (jt%settle .and. joint_ndof(jt%kind) == 0) then
           call errs%add(jt%origin%where('settle') // ": a 'fixed' joint has no coordinates to settle"); cycle each_joints
+        end if
+        if (jt%hold .and. joint_ndof(jt%kind) == 0) then
+          call errs%add(jt%origin%where('hold') // ": a 'fixed' joint has no coordinates to hold"); cycle each_joints
+        end if
+        if (jt%hold .and. .not. any([(closes_loop(sc, k), k = 1, size(sc%joints))])) then
+          call errs%add(jt%origin%where('hold') // ': only the assembly of closed loops holds coordinates, and ' // &
+            & 'this scene has no joint that closes a loop'); cycle each_joints
         end if
         if (jt%settle .and. sc%scene%start /= 'static') then
           call errs%add(jt%origin%where('settle') // ": joints settle only in a static start (&scene start = " // &
