@@ -353,7 +353,7 @@ contains
   !> Loop-closing joints (closes_loop): any kind ('free' closes no constraint), at rigid
   !> bodies or at points of flexible ones (the points a flexible body allows are checked,
   !> with its modes, where the model is built: build.f90 flexible_point), no coordinates of
-  !> their own (no q0, qd0, settle, drive, spring or motion), not at a beam whose geometric
+  !> their own (no q0, qd0, settle, hold, drive, spring or motion), not at a beam whose geometric
   !> stiffness is on (the cut's load would not stiffen it), only through the mass matrix
   !> (loop_refusal); child_at only on them.
   subroutine check_loops(sc, errs)
@@ -370,8 +370,9 @@ contains
             & "child already has a parent joint) takes child_at; this joint's point is the child's origin")
           cycle
         end if
-        if (nonzero(jt%q0) .or. nonzero(jt%qd0) .or. jt%settle) then
-          call errs%add(o%where(trim(merge('q0    ', merge('qd0   ', 'settle', nonzero(jt%qd0)), nonzero(jt%q0)))) // &
+        if (nonzero(jt%q0) .or. nonzero(jt%qd0) .or. jt%settle .or. jt%hold) then
+          call errs%add(o%where(trim(first_given([character(len=6) :: 'q0', 'qd0', 'settle', 'hold'], &
+            & [nonzero(jt%q0), nonzero(jt%qd0), jt%settle, jt%hold]))) // &
             & ': a joint that closes a loop has no coordinates of its own (its state follows from the tree)'); cycle
         end if
         if (any(sc%drives%joint == jt%name) .or. any(sc%springs%joint == jt%name) .or. &
@@ -396,6 +397,12 @@ contains
       character(len=:), allocatable :: k
       k = trim(sc%bodies(body_index(sc, name))%kind)
     end function kind_of
+    pure function first_given(items, given) result(item)
+      character(len=*), intent(in) :: items(:)
+      logical, intent(in) :: given(:)
+      character(len=len(items)) :: item
+      item = items(findloc(given, .true., dim=1))
+    end function first_given
     pure logical function nonzero(x)
       real(dp), intent(in) :: x(:)
       nonzero = any(x /= 0.0_dp .and. x /= unset)
