@@ -311,6 +311,10 @@ contains
         if (jt%settle .and. joint_ndof(jt%kind) == 0) then
           call errs%add(jt%origin%where('settle') // ": a 'fixed' joint has no coordinates to settle"); cycle each_joints
         end if
+        if (jt%hold .and. jt%settle) then
+          call errs%add(jt%origin%where('hold') // ': a joint either holds its q0 (hold) or finds its ' // &
+            & 'equilibrium in a static start (settle), not both'); cycle each_joints
+        end if
         if (jt%hold .and. joint_ndof(jt%kind) == 0) then
           call errs%add(jt%origin%where('hold') // ": a 'fixed' joint has no coordinates to hold"); cycle each_joints
         end if
