@@ -316,7 +316,8 @@ contains
   end subroutine settle_residual
 
   !> The coordinates to settle must be able to move the loops' independent rows: else the
-  !> loops hold them (a loop through joints that are held, not marked settle).
+  !> loops hold them (a loop through joints that are held, not marked settle); and they must
+  !> keep some freedom on them, else the start has nothing to settle.
   subroutine check_settle_loops(model, u, x, error)
     type(model_t), intent(inout) :: model
     integer, intent(in) :: u(:)
@@ -332,6 +333,10 @@ contains
       & 'ones and those of the joints marked settle) move only ' // itoa(n_ind) // ' of the loops'' ' // &
       & itoa(model%d%n_used) // ' independent constraints: the joints held fast hold the loops (mark settle ' // &
       & 'every joint of a loop that should settle)', stat_input)
+    if (.not. allocated(error) .and. size(u) <= n_ind) call fatal_error(error, '&scene: start: the loops leave ' // &
+      & 'the coordinates to settle no freedom (' // itoa(size(u)) // ' coordinates, ' // itoa(n_ind) // &
+      & ' independent constraints on them): with the joints held they can only stay as given (mark settle ' // &
+      & 'the joints of the loop, or start from the given state)', stat_input)
   end subroutine check_settle_loops
 
   !> The first-order state matrix [0 I; -M^-1 K  -M^-1 C] of the linearised model, from
