@@ -20,7 +20,7 @@ module pymr_preflight
   use pymr_io_text, only : itoa
   implicit none
   private
-  public :: check_step_stability, check_mass_matrix, normal_modes, static_start
+  public :: check_step_stability, check_mass_matrix, normal_modes, static_start, top_frequency
 
   !> Static start: most Newton iterations, and the change (relative to max(1, |q|)) below
   !> which it has converged.
@@ -413,6 +413,23 @@ contains
       freq(j) = f(order(j)); zeta(j) = z(order(j)); shapes(:, j) = s(:, order(j))
     end do
   end subroutine normal_modes
+
+  !> The highest natural frequency (rad/s: the largest |lambda| of the state matrix) of the
+  !> model linearised at x, its loops closed (the constrained inverse mass matrix).
+  function top_frequency(model, x, error) result(omega)
+    type(model_t), intent(inout) :: model
+    real(dp), intent(in) :: x(:)
+    type(error_type), allocatable, intent(out) :: error
+    real(dp) :: omega
+    real(dp), allocatable :: m(:, :), minv(:, :), k(:, :), c(:, :), a(:, :), wr(:), wi(:)
+    omega = 0.0_dp
+    call linearise(model, 0.0_dp, x, m, k, c)
+    call mass_inverse(model, x, m, minv, error); if (allocated(error)) return
+    call state_matrix(minv, k, c, a)
+    allocate(wr(size(a, 1)), wi(size(a, 1)))
+    call geev_real(a, wr, wi, 'the linearised model', error); if (allocated(error)) return
+    omega = maxval(hypot(wr, wi))
+  end function top_frequency
 
   !> Indices that sort v ascending (insertion sort: a model has few modes).
   pure function sort_index(v) result(idx)
