@@ -80,9 +80,7 @@ contains
     if (n == 0) return
     steps = st%pece(); counts = st%counts()
     allocate(wgt(n))
-    call linearise(model, 0.0_dp, x, m, k, c)
-    call mass_inverse(model, x, m, minv, error); if (allocated(error)) return
-    call state_matrix(minv, k, c, a)
+    call linear_state(model, 0.0_dp, x, m, minv, k, c, a, error); if (allocated(error)) return
     allocate(wr(2*n), wi(2*n), vr(2*n, 2*n))
     if (steps%h_modal == steps%h_joint .and. counts%ratio == 1) then
       ! one step for every coordinate: the eigenvalues alone decide; the vectors are needed
@@ -339,6 +337,18 @@ contains
       & 'the joints of the loop, or start from the given state)', stat_input)
   end subroutine check_settle_loops
 
+  !> The model linearised at (t, x): M, its (with loops, constrained) inverse, K, C, and the
+  !> state matrix a built from them.
+  subroutine linear_state(model, t, x, m, minv, k, c, a, error)
+    type(model_t), intent(inout) :: model
+    real(dp), intent(in) :: t, x(:)
+    real(dp), allocatable, intent(out) :: m(:, :), minv(:, :), k(:, :), c(:, :), a(:, :)
+    type(error_type), allocatable, intent(out) :: error
+    call linearise(model, t, x, m, k, c)
+    call mass_inverse(model, x, m, minv, error); if (allocated(error)) return
+    call state_matrix(minv, k, c, a)
+  end subroutine linear_state
+
   !> The first-order state matrix [0 I; -M^-1 K  -M^-1 C] of the linearised model, from
   !> its (constrained) inverse mass matrix minv.
   pure subroutine state_matrix(minv, k, c, a)
@@ -391,9 +401,7 @@ contains
     real(dp), allocatable :: f(:), z(:), s(:, :)
     n = model%d%n
     nm = 0
-    call linearise(model, t, x, m, k, c)
-    call mass_inverse(model, x, m, minv, error); if (allocated(error)) return
-    call state_matrix(minv, k, c, a)
+    call linear_state(model, t, x, m, minv, k, c, a, error); if (allocated(error)) return
     allocate(wr(2*n), wi(2*n), vr(2*n, 2*n), f(n), z(n), s(n, n), v(n))
     call geev_real(a, wr, wi, 'the linearised model', error, vr); if (allocated(error)) return
     do i = 1, 2*n - 1
@@ -423,9 +431,7 @@ contains
     real(dp) :: omega
     real(dp), allocatable :: m(:, :), minv(:, :), k(:, :), c(:, :), a(:, :), wr(:), wi(:)
     omega = 0.0_dp
-    call linearise(model, 0.0_dp, x, m, k, c)
-    call mass_inverse(model, x, m, minv, error); if (allocated(error)) return
-    call state_matrix(minv, k, c, a)
+    call linear_state(model, 0.0_dp, x, m, minv, k, c, a, error); if (allocated(error)) return
     allocate(wr(size(a, 1)), wi(size(a, 1)))
     call geev_real(a, wr, wi, 'the linearised model', error); if (allocated(error)) return
     omega = maxval(hypot(wr, wi))

@@ -431,11 +431,12 @@ contains
     real(dp), intent(out) :: x(:)
     type(error_type), allocatable, intent(out) :: error
     integer, allocatable :: u(:)
+    logical, allocatable :: settles(:)
     character(len=64), allocatable :: names(:)
     integer :: b, j, i, n
     call initial_state(sc, model, x)
     n = model%d%n
-    call assemble_loops(model%d, x(1:n), x(n+1:), held_coordinates(sc, model), error)
+    call assemble_loops(model%d, x(1:n), x(n+1:), marked_coordinates(sc, model, sc%joints%hold), error)
     if (allocated(error)) then
       ! the loops' fault is no single line's: it names the first loop-closing joint
       do j = 1, size(sc%joints)
@@ -444,13 +445,13 @@ contains
       error%message = sc%joints(j)%origin%where() // ': ' // error%message; return
     end if
     if (sc%scene%start /= 'static') return
+    settles = marked_coordinates(sc, model, sc%joints%settle)
     allocate(u(0))
     do b = 2, model%d%nb
       u = [u, (model%d%a0(b) + i, i = 0, model%d%nm(b) - 1)]
-      do j = 1, size(sc%joints)
-        if (sc%joints(j)%name /= model%d%joint_name(b) .or. .not. sc%joints(j)%settle) cycle
-        u = [u, (model%d%c0(b) + i, i = 0, model%d%nc(b) - 1)]
-      end do
+      associate(c0 => model%d%c0(b), nc => model%d%nc(b))
+        u = [u, pack([(c0 + i, i = 0, nc - 1)], settles(c0:c0 + nc - 1))]
+      end associate
     end do
     allocate(names(n))
     do i = 1, n
@@ -463,20 +464,22 @@ contains
     model%d%closure_drift = 0.0_dp     ! the statistic is of the run's steps
   end subroutine starting_state
 
-  !> The coordinates of the joints marked hold (kept by the loops' assembly).
-  function held_coordinates(sc, model) result(held)
+  !> The coordinates of the tree joints marked in `marked` (one flag per &joint: settle,
+  !> hold).
+  function marked_coordinates(sc, model, marked) result(mask)
     type(scene_t), intent(in) :: sc
     type(model_t), intent(in) :: model
-    logical :: held(model%d%n)
+    logical, intent(in) :: marked(:)
+    logical :: mask(model%d%n)
     integer :: b, j
-    held = .false.
+    mask = .false.
     do b = 2, model%d%nb
       do j = 1, size(sc%joints)
-        if (sc%joints(j)%name == model%d%joint_name(b) .and. sc%joints(j)%hold) &
-          & held(model%d%c0(b):model%d%c0(b) + model%d%nc(b) - 1) = .true.
+        if (sc%joints(j)%name == model%d%joint_name(b) .and. marked(j)) &
+          & mask(model%d%c0(b):model%d%c0(b) + model%d%nc(b) - 1) = .true.
       end do
     end do
-  end function held_coordinates
+  end function marked_coordinates
 
   !> Integrator settings as JSON members.
   function settings_json(sc) result(s)

@@ -48,7 +48,7 @@ contains
       call move_alloc(adams, st)
     else
       allocate(abm)
-      call stable_control(ctl, model, x, stable, error); if (allocated(error)) return
+      call stable_control(sc, ctl, model, x, stable, error); if (allocated(error)) return
       call abm%init(size(x), sc%integrator%adaptive, stable, sc%integrator%n_corrector)
       h0 = sc%integrator%h_slow
       abm%h = h0
@@ -64,8 +64,10 @@ contains
   !> stiff modes that no later step removes (stiff barrel: the error floored at 5e-10 m for
   !> every rtol below 1e-8). Closed loops stiffen the flexible bodies they pass through: with
   !> them the highest frequency is the constrained model's at the initial state x (the
-  !> flexible four-bar's 669 Hz against its coupler's own 223 Hz).
-  subroutine stable_control(ctl, model, x, c, error)
+  !> flexible four-bar's 669 Hz against its coupler's own 223 Hz). Fixed steps take ctl as
+  !> it is (the pre-flight check judges their stability).
+  subroutine stable_control(sc, ctl, model, x, c, error)
+    type(scene_t), intent(in) :: sc
     type(step_control), intent(in) :: ctl
     type(model_t), intent(inout) :: model
     real(dp), intent(in) :: x(:)
@@ -74,7 +76,7 @@ contains
     real(dp), parameter :: margin = 0.9_dp
     real(dp) :: kf(model%d%n - model%d%nj), df(model%d%n - model%d%nj), omega
     c = ctl
-    if (size(kf) == 0) return
+    if (size(kf) == 0 .or. .not. sc%integrator%adaptive) return
     call modal_stiffness_damping(model%d, kf, df)
     omega = sqrt(maxval(kf))
     if (model%d%n_rows > 0) then
@@ -139,7 +141,7 @@ contains
     k = nint(sc%integrator%h_slow/sc%integrator%h_fast)
     h0 = sc%integrator%h_fast
     call model%init_partition()
-    call stable_control(ctl, model, x, stable, error); if (allocated(error)) return
+    call stable_control(sc, ctl, model, x, stable, error); if (allocated(error)) return
     if (sc%integrator%coupling == 'response') then
       allocate(rs)
       call rs%init(model%n_slow(), model%n_fast(), k, sc%integrator%adaptive, stable, &

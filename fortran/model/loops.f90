@@ -307,18 +307,33 @@ contains
     type(model_data), intent(inout) :: d
     real(dp), intent(inout) :: qdd(:)
     type(error_type), allocatable, intent(out) :: error
-    real(dp) :: a(d%n_used, d%n_used), lam(d%n_used), gu(d%n_used, d%n), gf(d%n_used, d%n)
+    real(dp) :: lam(d%n_used), gu(d%n_used, d%n), gf(d%n_used, d%n)
     gu = d%gj(d%row_used(1:d%n_used), :)
     gf = free_columns(d, gu)
-    d%ymg(:, 1:d%n_used) = transpose(gf)
-    call potrs(d%lf, d%ymg(:, 1:d%n_used), 'the mass matrix', error); if (allocated(error)) return
-    a = matmul(gf, d%ymg(:, 1:d%n_used))
     lam = d%gam(d%row_used(1:d%n_used)) - matmul(gu, qdd)
-    call solve_rows(a, lam, error); if (allocated(error)) return
-    qdd = qdd + matmul(d%ymg(:, 1:d%n_used), lam)
+    call add_row_forces(d%lf, 'the mass matrix', gf, d%ymg(:, 1:d%n_used), lam, qdd, error)
+    if (allocated(error)) return
     d%lambda = 0.0_dp
     d%lambda(d%row_used(1:d%n_used)) = lam
   end subroutine add_multipliers
+
+  !> The forces g^T lambda along independent rows g that bring the accelerations qdd = M^-1 P
+  !> onto the rows: with M's Cholesky factor l (named `mass` in messages), y = M^-1 g^T,
+  !> (g y) lambda = r (r: the rows' acceleration residual on entry, lambda on return) and
+  !> qdd += y lambda.
+  subroutine add_row_forces(l, mass, g, y, r, qdd, error)
+    real(dp), intent(in) :: l(:, :), g(:, :)
+    character(len=*), intent(in) :: mass
+    real(dp), intent(out) :: y(:, :)
+    real(dp), intent(inout) :: r(:), qdd(:)
+    type(error_type), allocatable, intent(out) :: error
+    real(dp) :: a(size(g, 1), size(g, 1))
+    y = transpose(g)
+    call potrs(l, y, mass, error); if (allocated(error)) return
+    a = matmul(g, y)
+    call solve_rows(a, r, error); if (allocated(error)) return
+    qdd = qdd + matmul(y, r)
+  end subroutine add_row_forces
 
   !> Rows of G without the prescribed coordinates' columns: the loops' forces and
   !> projections move only the free coordinates (a prescribed one follows its function, and
@@ -477,7 +492,7 @@ contains
     real(dp), intent(inout) :: qdd_f(:)
     type(error_type), allocatable, intent(out) :: error
     integer, allocatable :: r(:), fast_used(:)
-    real(dp), allocatable :: gf(:, :), y(:, :), a(:, :), mu(:)
+    real(dp), allocatable :: gf(:, :), y(:, :), mu(:)
     integer :: ns, n_fast
     ns = d%nj
     call loop_rows(d)
@@ -491,11 +506,8 @@ contains
     r = r(fast_used(1:n_fast))
     gf = d%gj(r, ns+1:)
     mu = d%gam(r) - matmul(d%gj(r, 1:ns), acc_s) - matmul(gf, qdd_f)
-    y = transpose(gf)
-    call potrs(lff, y, 'M_ff', error); if (allocated(error)) return
-    a = matmul(gf, y)
-    call solve_rows(a, mu, error); if (allocated(error)) return
-    qdd_f = qdd_f + matmul(y, mu)
+    allocate(y(size(qdd_f), n_fast))
+    call add_row_forces(lff, 'M_ff', gf, y, mu, qdd_f, error)
   end subroutine constrain_fast_accelerations
 
   !> The response g = M^-1 E of the last constrained evaluation (add_multipliers: its rows
