@@ -163,6 +163,12 @@ CASES = [
     Case("missing_file", None, ("not found",)),
     Case("directory", DIRECTORY, ("cannot read",)),
     Case("garbage", GARBAGE, (":1: ", "text outside a group", "'??????????'")),
+    # bytes that are not UTF-8 are quoted as '?' (a message is text, one line, for mrsim and Python);
+    # UTF-8 that Python would not decode (an overlong form) is not text either
+    Case("value_not_utf8", replaced("mass = 1.0", "mass = 1.0\xff\xfe").encode("latin-1"),
+         ("&body", "'bob'", "mass: '1.0??' is not a number")),
+    Case("title_overlong_utf8", replaced("title = 'pendulum", "title = '\xe0\x80\x80").encode("latin-1"),
+         ("&scene", "title", "not UTF-8")),
     # 11. zero-length axis
     Case("zero_axis", replaced("axis = 0.0, 0.0, 1.0", "axis = 0.0, 0.0, 0.0"),
          ("&joint", "'pivot'", "axis", "zero length")),

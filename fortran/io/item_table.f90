@@ -10,7 +10,7 @@ module pymr_io_item_table
   use pymr_kinds, only : dp, name_len
   use pymr_error, only : error_type, fatal_error
   use pymr_io_namelist_parse, only : token_t
-  use pymr_io_text, only : itoa, lower, fmt, exact_text
+  use pymr_io_text, only : itoa, lower, fmt, exact_text, char_length
   use pymr_io_text_file, only : scene_relative, absolute_path
   implicit none
   private
@@ -365,29 +365,14 @@ contains
   !> Is t valid UTF-8 text without control characters (tab aside)?
   pure logical function clean_text(t)
     character(len=*), intent(in) :: t
-    integer :: i, c, n, k
+    integer :: i, n
     clean_text = .false.
     i = 1
     do while (i <= len(t))
-      c = iachar(t(i:i))
-      if (c < 32 .and. c /= 9 .or. c == 127) return
-      if (c < 128) then
-        n = 0
-      else if (c >= 194 .and. c <= 223) then
-        n = 1
-      else if (c >= 224 .and. c <= 239) then
-        n = 2
-      else if (c >= 240 .and. c <= 244) then
-        n = 3
-      else
-        return
-      end if
-      if (i + n > len(t)) return
-      do k = 1, n
-        c = iachar(t(i+k:i+k))
-        if (c < 128 .or. c > 191) return
-      end do
-      i = i + n + 1
+      n = char_length(t, i)
+      if (t(i:i) == achar(9)) n = 1
+      if (n == 0) return
+      i = i + n
     end do
     clean_text = .true.
   end function clean_text
