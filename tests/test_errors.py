@@ -348,6 +348,25 @@ def test_run_overrides_mapping_errors(tmp_path, monkeypatch):
         pymr.run("base.nml", output=tmp_path / "out.csv", overrides={"body.mass": 2.0})
 
 
+def test_text_beyond_ascii_reaches_the_kernel(tmp_path, monkeypatch):
+    """A scene path, an output path and override values with characters beyond ASCII pass
+    to the kernel as they are (f2py took only ASCII text, and pymr raised a TypeError with a
+    traceback), and a bad one is reported in the kernel's words."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "pendel_ü.nml").write_text(BASE)
+    res = pymr.run("pendel_ü.nml", output="ergebnis_ö.csv", overrides={"scene.title": "Zürich"})
+    assert res.stats["title"] == "Zürich" and (tmp_path / "ergebnis_ö.csv").exists()
+    scene = pymr.Scene("pendel_ü.nml")
+    scene["scene.title"] = "Genève"
+    assert scene["scene.title"] == "Genève"
+    with pytest.raises(pymr.SceneError, match=r"^pendel_ü\.nml: --set body\[bob\]\.mass=é: &body 'bob': "
+                                              r"mass: 'é' is not a number$"):
+        pymr.run("pendel_ü.nml", overrides=["body[bob].mass=é"])
+    r = run_cli([console_script()], ["run", "pendel_ü.nml", "-o", "ö.csv", "--set", "body[bob].mass=é"], tmp_path)
+    assert r.returncode == 1
+    check_single_line(r.stderr, "pymr: error: pendel_ü.nml: --set body[bob].mass=é: ")
+
+
 # ----------------------------------------------------------------------------- pymr CLI
 
 @pytest.mark.parametrize("case", CASE_PARAMS)
