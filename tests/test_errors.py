@@ -367,6 +367,14 @@ def test_text_beyond_ascii_reaches_the_kernel(tmp_path, monkeypatch):
     check_single_line(r.stderr, "pymr: error: pendel_ü.nml: --set body[bob].mass=é: ")
 
 
+def test_an_empty_scene_path_is_named_as_such(tmp_path, monkeypatch):
+    """An empty scene path (mrsim's command line refuses it before the kernel) gave
+    ': file not found', a message naming nothing."""
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(pymr.SceneError, match=r"^no scene file given \(its path is empty\)$"):
+        pymr.run("")
+
+
 # ----------------------------------------------------------------------------- pymr CLI
 
 @pytest.mark.parametrize("case", CASE_PARAMS)

@@ -73,6 +73,9 @@ contains
     integer :: u, ios, sz
     character(len=256) :: msg
     logical :: exists
+    if (len_trim(file) == 0) then
+      call fatal_error(error, 'no scene file given (its path is empty)'); return
+    end if
     inquire(file=file, exist=exists)
     if (.not. exists) then
       call fatal_error(error, file // ': file not found'); return
