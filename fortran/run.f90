@@ -19,7 +19,7 @@ module pymr_run
   use pymr_clock, only : thread_cpu_time
   use pymr_model_effects, only : prescribed_motion
   use pymr_io_text, only : itoa, fmt
-  use pymr_io_text_file, only : absolute_path, scene_relative, acquire_lock, release_lock
+  use pymr_io_text_file, only : absolute_path, scene_relative, acquire_lock, release_lock, not_regular
   use pymr_preflight, only : check_step_stability, check_mass_matrix, static_start
   use pymr_io_checkpoint, only : run_progress, write_checkpoint, read_checkpoint
   implicit none
@@ -85,6 +85,19 @@ contains
       call fatal_error(error, sc%file // ': output ' // path // ': the results and their statistics would both ' // &
         & 'be ' // json_path(path) // ' (give a .csv file)'); return
     end if
+    ! the run writes each file whole beside it and renames it over the old one
+    if (replaces(path, 'output ' // path, 'another results file')) return
+    if (replaces(json_path(path), 'output ' // path // ': its statistics ' // json_path(path), &
+      & 'another results file')) return
+    if (sc%output%checkpoint_dt > 0.0_dp) then
+      if (len_trim(sc%output%checkpoint_file) > 0) then
+        if (replaces(trim(sc%output%checkpoint_file), sc%output%origin%where('checkpoint_file'), &
+          & 'another checkpoint file')) return
+      else
+        if (replaces(checkpoint_default(path), 'output ' // path // ': its checkpoint ' // checkpoint_default(path), &
+          & 'another results file, or a checkpoint_file in &output')) return
+      end if
+    end if
     if (reads(sc%file, 'the scene')) return
     do i = 1, size(sc%bodies)
       if (len_trim(sc%bodies(i)%modal_file) == 0) cycle
@@ -99,6 +112,19 @@ contains
       if (reads(scene_relative(sc%file, trim(sc%motions(i)%file)), 'a table file of the scene')) return
     end do
   contains
+    !> Is `file` there and no regular file, that the run's file would replace? `label` names
+    !> it in the message (after the scene's name unless it is an item's place), `advice` what to choose.
+    logical function replaces(file, label, advice)
+      character(len=*), intent(in) :: file, label, advice
+      replaces = len(not_regular(file)) > 0
+      if (.not. replaces) return
+      if (index(label, sc%file) == 1) then
+        call fatal_error(error, label // ': ' // not_regular(file) // '; choose ' // advice)
+      else
+        call fatal_error(error, sc%file // ': ' // label // ': ' // not_regular(file) // '; choose ' // advice)
+      end if
+    end function replaces
+
     logical function reads(file, what)
       character(len=*), intent(in) :: file, what
       reads = absolute_path(file) == target .or. absolute_path(file) == absolute_path(json_path(path))

@@ -11,7 +11,7 @@ from typing import Iterable, Mapping
 import numpy as np
 
 try:
-    from . import _core
+    from . import _kernel as _core
 except ImportError:
     raise ImportError("pymr's compiled kernel (pymr._core) is not here: this is the source folder, not the "
                       "installed package. Build and install it with 'bash .ci/setup' (or 'pip install "
@@ -138,8 +138,9 @@ def _run_kernel(scene: str, text: str, out: str, ckpt: str, progress: bool | Non
 
 
 def _text(value: bytes | str) -> str:
-    """A fixed-length character result of the binding as a stripped str."""
-    return (value.decode() if isinstance(value, bytes) else str(value)).strip()
+    """A fixed-length character result of the binding as a stripped str (a path in it as
+    the file system names it: bytes that are not UTF-8 survive, as os.fsdecode keeps them)."""
+    return (os.fsdecode(value) if isinstance(value, bytes) else str(value)).strip()
 
 
 def model_size(scene: str | os.PathLike, overrides=None) -> tuple[int, int, int]:

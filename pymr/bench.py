@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import _core
+from . import _kernel as _core
 from .api import _raise, model_size
 from .scenes import ROD_LENGTH, ROD_MASS, ROD_RADIUS, serial_chain, spatial_chain
 

@@ -8,7 +8,7 @@ import tempfile
 from pathlib import Path
 from typing import Iterable, Mapping
 
-from . import _core
+from . import _kernel as _core
 from .api import SceneError, _raise, _text, format_overrides, nml_value
 
 

@@ -163,6 +163,12 @@ CASES = [
     Case("missing_file", None, ("not found",)),
     Case("directory", DIRECTORY, ("cannot read",)),
     Case("garbage", GARBAGE, (":1: ", "text outside a group", "'??????????'")),
+    # bytes that are not UTF-8 are quoted as '?' (a message is text, one line, for mrsim and Python);
+    # UTF-8 that Python would not decode (an overlong form) is not text either
+    Case("value_not_utf8", replaced("mass = 1.0", "mass = 1.0\xff\xfe").encode("latin-1"),
+         ("&body", "'bob'", "mass: '1.0??' is not a number")),
+    Case("title_overlong_utf8", replaced("title = 'pendulum", "title = '\xe0\x80\x80").encode("latin-1"),
+         ("&scene", "title", "not UTF-8")),
     # 11. zero-length axis
     Case("zero_axis", replaced("axis = 0.0, 0.0, 1.0", "axis = 0.0, 0.0, 0.0"),
          ("&joint", "'pivot'", "axis", "zero length")),
@@ -340,6 +346,33 @@ def test_run_overrides_mapping_errors(tmp_path, monkeypatch):
         pymr.run("base.nml", output=tmp_path / "out.csv", overrides={"body[nobody].mass": 2.0})
     with pytest.raises(pymr.SceneError, match=r"repeated group"):
         pymr.run("base.nml", output=tmp_path / "out.csv", overrides={"body.mass": 2.0})
+
+
+def test_text_beyond_ascii_reaches_the_kernel(tmp_path, monkeypatch):
+    """A scene path, an output path and override values with characters beyond ASCII pass
+    to the kernel as they are (f2py took only ASCII text, and pymr raised a TypeError with a
+    traceback), and a bad one is reported in the kernel's words."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "pendel_ü.nml").write_text(BASE)
+    res = pymr.run("pendel_ü.nml", output="ergebnis_ö.csv", overrides={"scene.title": "Zürich"})
+    assert res.stats["title"] == "Zürich" and (tmp_path / "ergebnis_ö.csv").exists()
+    scene = pymr.Scene("pendel_ü.nml")
+    scene["scene.title"] = "Genève"
+    assert scene["scene.title"] == "Genève"
+    with pytest.raises(pymr.SceneError, match=r"^pendel_ü\.nml: --set body\[bob\]\.mass=é: &body 'bob': "
+                                              r"mass: 'é' is not a number$"):
+        pymr.run("pendel_ü.nml", overrides=["body[bob].mass=é"])
+    r = run_cli([console_script()], ["run", "pendel_ü.nml", "-o", "ö.csv", "--set", "body[bob].mass=é"], tmp_path)
+    assert r.returncode == 1
+    check_single_line(r.stderr, "pymr: error: pendel_ü.nml: --set body[bob].mass=é: ")
+
+
+def test_an_empty_scene_path_is_named_as_such(tmp_path, monkeypatch):
+    """An empty scene path (mrsim's command line refuses it before the kernel) gave
+    ': file not found', a message naming nothing."""
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(pymr.SceneError, match=r"^no scene file given \(its path is empty\)$"):
+        pymr.run("")
 
 
 # ----------------------------------------------------------------------------- pymr CLI

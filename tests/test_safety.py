@@ -214,6 +214,60 @@ def test_an_output_folder_that_cannot_be_written_is_refused_before_the_run(tmp_p
     assert sorted(p.name for p in tmp_path.iterdir()) == ["p.nml", "plain"]
 
 
+def test_files_to_read_that_are_no_regular_files_are_refused_without_waiting(tmp_path, mrsim):
+    """A scene, a table file or a checkpoint that is a FIFO would hold the read until
+    something writes to it (mrsim hung); a directory cannot be read either. Exit 1 at once,
+    one line naming the file and what it is."""
+    import os
+    os.mkfifo(tmp_path / "fifo")
+    (tmp_path / "folder").mkdir()
+    scene = tmp_path / "p.nml"
+    scene.write_text(PENDULUM)
+    table = tmp_path / "t.nml"
+    table.write_text(PENDULUM.replace("gravity = .true.", "gravity = .true., joint_drives = .true.")
+                     + "&drive joint = 'pivot', form = 'table', file = 'fifo' /\n")
+    fifo = "it is not a regular file (a FIFO, a socket or a device)"
+    for args, message in ((["fifo"], "fifo: cannot read: " + fifo),
+                          (["folder"], "folder: cannot read: it is a directory"),
+                          (["t.nml"], "t.nml:28: &drive #1: file: 'fifo' cannot be read: " + fifo),
+                          (["p.nml", "--restart", "fifo"], "p.nml: fifo: cannot read the checkpoint: " + fifo)):
+        r = subprocess.run([mrsim, *args, "-o", "out.csv"], cwd=tmp_path, capture_output=True, text=True, timeout=20)
+        assert r.returncode == 1 and r.stderr.count("\n") == 1, r.stderr
+        assert r.stderr == "mrsim: error: " + message + "\n"
+    assert not (tmp_path / "out.csv").exists()
+
+
+def test_an_output_that_is_no_regular_file_is_refused_before_the_run(tmp_path, mrsim, monkeypatch):
+    """The results, their statistics and the checkpoints are written beside their place and
+    renamed over it: a directory there failed only after the run, leaving partial files, and
+    a device (as root, -o /dev/null) was replaced by a regular file. Exit 1 before anything
+    is written, one line."""
+    import os
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "p.nml").write_text(PENDULUM)
+    os.mkfifo(tmp_path / "fifo.csv")
+    for name in ("folder.csv", "stats.json", "run.ckpt", "ckpt"):
+        (tmp_path / name).mkdir()
+    before = sorted(p.name for p in tmp_path.iterdir())
+    for args, message in (
+            (["-o", "folder.csv"], "p.nml: output folder.csv: it is a directory; choose another results file"),
+            (["-o", "fifo.csv"], "p.nml: output fifo.csv: it is not a regular file (a FIFO, a socket or a device); "
+                                 "choose another results file"),
+            (["-o", "stats.csv"], "p.nml: output stats.csv: its statistics stats.json: it is a directory; "
+                                  "choose another results file"),
+            (["-o", "run.csv", "--set", "output.checkpoint_dt=0.01"],
+             "p.nml: output run.csv: its checkpoint run.ckpt: it is a directory; choose another results file, "
+             "or a checkpoint_file in &output"),
+            (["-o", "out.csv", "--set", "output.checkpoint_dt=0.01", "--set", "output.checkpoint_file=ckpt"],
+             "p.nml: --set output.checkpoint_file=ckpt: &output: checkpoint_file: it is a directory; "
+             "choose another checkpoint file")):
+        r = run_mrsim(mrsim, ["p.nml", *args], tmp_path)
+        assert r.returncode == 1 and r.stderr == "mrsim: error: " + message + "\n", r.stderr
+        with pytest.raises(pymr.SceneError, match="^" + re.escape(message) + "$"):
+            pymr.run("p.nml", args[1], overrides=args[3::2] or None)
+        assert sorted(p.name for p in tmp_path.iterdir()) == before
+
+
 def _file_size_limit(limit: int):
     """preexec_fn: files may not grow beyond `limit` bytes, and writing past it fails with
     EFBIG instead of killing the process (SIGXFSZ ignored): a full disk, as the run sees it."""

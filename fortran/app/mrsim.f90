@@ -8,6 +8,7 @@ program mrsim
   use, intrinsic :: iso_fortran_env, only : error_unit, output_unit
   use, intrinsic :: iso_c_binding, only : c_int, c_funptr, c_intptr_t
   use pymr_error, only : error_type
+  use pymr_io_text, only : printable
   use pymr_run, only : run_scene
   use pymr_io_results_output, only : pymr_version
   implicit none
@@ -67,7 +68,7 @@ program mrsim
 
   call run_scene(scene, overrides, out, summary, error, written, restart=restart, progress_lines=progress)
   if (allocated(error)) then
-    call print_error_lines(error%message)
+    call print_error_lines(printable(error%message))
     if (error%stat == 1) stop 1, quiet=.true.
     stop 2, quiet=.true.
   end if
@@ -100,7 +101,7 @@ contains
 
   subroutine usage_error(msg)
     character(len=*), intent(in) :: msg
-    write(error_unit, '(a)') 'mrsim: error: ' // msg
+    write(error_unit, '(a)') 'mrsim: error: ' // printable(msg)
     stop 1, quiet=.true.
   end subroutine usage_error
 end program mrsim

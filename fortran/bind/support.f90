@@ -1,6 +1,7 @@
 !> Helpers of the binding layer that f2py need not see.
 module pymr_bind_support
   use pymr_error, only : error_type
+  use pymr_io_text, only : printable
   implicit none
   private
   public :: report
@@ -12,7 +13,7 @@ contains
     character(len=*), intent(out) :: message
     stat = 0; message = ''
     if (allocated(error)) then
-      stat = error%stat; message = error%message
+      stat = error%stat; message = printable(error%message, len(message))
     end if
   end subroutine report
 end module pymr_bind_support

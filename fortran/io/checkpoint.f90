@@ -9,7 +9,7 @@
 !> checked, flushed and renamed, so a run killed while writing keeps the previous checkpoint.
 module pymr_io_checkpoint
   use, intrinsic :: iso_fortran_env, only : int64
-  use pymr_io_text_file, only : rename_file, sync_file, check_size
+  use pymr_io_text_file, only : rename_file, sync_file, check_size, not_regular
   use pymr_kinds, only : dp
   use pymr_error, only : error_type, fatal_error, stat_solver
   use pymr_integrator_stepper, only : stepper_t
@@ -110,6 +110,9 @@ contains
     inquire(file=path, exist=exists)
     if (.not. exists) then
       call fatal_error(error, path // ': checkpoint not found'); return
+    end if
+    if (len(not_regular(path)) > 0) then
+      call fatal_error(error, path // ': cannot read the checkpoint: ' // not_regular(path)); return
     end if
     call read_bytes(path, bytes, ios)
     if (ios /= 0) then

@@ -7,10 +7,11 @@
 !> prints them back; the schema prints the tables. The field's initial value is the default.
 module pymr_io_item_table
   use, intrinsic :: iso_c_binding, only : c_f_pointer, c_loc
+  use, intrinsic :: iso_fortran_env, only : int64
   use pymr_kinds, only : dp, name_len
   use pymr_error, only : error_type, fatal_error
   use pymr_io_namelist_parse, only : token_t
-  use pymr_io_text, only : itoa, lower, fmt, exact_text
+  use pymr_io_text, only : itoa, lower, fmt, exact_text, char_length
   use pymr_io_text_file, only : scene_relative, absolute_path
   implicit none
   private
@@ -217,10 +218,10 @@ contains
     type(token_t), intent(in) :: values(:)
     type(error_type), allocatable, intent(out) :: error
     type(token_t), allocatable :: flat(:)
-    integer :: k
-    call expand_repeats(values, flat, error); if (allocated(error)) return
-    call check_count(it, size(flat), error); if (allocated(error)) return
-    do k = 1, size(flat)
+    integer :: k, n
+    call expand_repeats(values, it%count, flat, n, error); if (allocated(error)) return
+    call check_count(it, n, error); if (allocated(error)) return
+    do k = 1, n
       select case (it%type)
       case (t_real); call set_real(it, k, flat(k), error)
       case (t_integer); call set_integer(it, flat(k), error)
@@ -231,29 +232,49 @@ contains
     end do
   end subroutine set_item
 
-  !> Repeat counts: `3*0.0` stands for three values 0.0.
-  subroutine expand_repeats(values, flat, error)
+  !> Repeat counts: `3*0.0` stands for three values 0.0. `n` is the number of values; `flat`
+  !> holds them when they are at most `most` (what an item takes at most; beyond, `n` alone
+  !> makes the message), built once: a repeat of up to 100000 values costs that much, not
+  !> its square.
+  subroutine expand_repeats(values, most, flat, n, error)
     type(token_t), intent(in) :: values(:)
+    integer, intent(in) :: most
     type(token_t), allocatable, intent(out) :: flat(:)
+    integer, intent(out) :: n
     type(error_type), allocatable, intent(out) :: error
-    integer :: k, star, n, ios, j
+    integer :: k, star, ios, j, m
+    integer :: reps(size(values))
+    integer(int64) :: total
+    n = size(values)
     if (all(values%quoted .or. [(index(values(k)%text, '*') == 0, k = 1, size(values))])) then
-      flat = values; return
+      if (n <= most) flat = values
+      return
     end if
-    allocate(flat(0))
+    total = 0
     do k = 1, size(values)
+      reps(k) = 0                     ! 0: the token itself
       star = 0
       if (.not. values(k)%quoted) star = index(values(k)%text, '*')
-      if (star <= 1) then
-        flat = [flat, values(k)]; cycle
+      if (star > 1) then
+        read(values(k)%text(1:star-1), '(i20)', iostat=ios) reps(k)
+        if (ios /= 0 .or. reps(k) < 1 .or. reps(k) > 100000 .or. verify(values(k)%text(1:star-1), '0123456789') /= 0 &
+          & .or. star == len(values(k)%text)) then
+          call fatal_error(error, 'cannot read ''' // values(k)%text // ''' (a repeat is N*VALUE)'); return
+        end if
       end if
-      read(values(k)%text(1:star-1), '(i20)', iostat=ios) n
-      if (ios /= 0 .or. n < 1 .or. n > 100000 .or. verify(values(k)%text(1:star-1), '0123456789') /= 0 &
-        & .or. star == len(values(k)%text)) then
-        call fatal_error(error, 'cannot read ''' // values(k)%text // ''' (a repeat is N*VALUE)'); return
+      total = total + max(reps(k), 1)
+    end do
+    n = int(min(total, int(huge(n), int64)))
+    if (n > most) return
+    allocate(flat(n))
+    j = 0
+    do k = 1, size(values)
+      if (reps(k) == 0) then
+        j = j + 1; flat(j) = values(k); cycle
       end if
-      do j = 1, n
-        flat = [flat, token_t(values(k)%text(star+1:), .false.)]
+      star = index(values(k)%text, '*')
+      do m = 1, reps(k)
+        j = j + 1; flat(j) = token_t(values(k)%text(star+1:), .false., values(k)%line)
       end do
     end do
   end subroutine expand_repeats
@@ -365,29 +386,14 @@ contains
   !> Is t valid UTF-8 text without control characters (tab aside)?
   pure logical function clean_text(t)
     character(len=*), intent(in) :: t
-    integer :: i, c, n, k
+    integer :: i, n
     clean_text = .false.
     i = 1
     do while (i <= len(t))
-      c = iachar(t(i:i))
-      if (c < 32 .and. c /= 9 .or. c == 127) return
-      if (c < 128) then
-        n = 0
-      else if (c >= 194 .and. c <= 223) then
-        n = 1
-      else if (c >= 224 .and. c <= 239) then
-        n = 2
-      else if (c >= 240 .and. c <= 244) then
-        n = 3
-      else
-        return
-      end if
-      if (i + n > len(t)) return
-      do k = 1, n
-        c = iachar(t(i+k:i+k))
-        if (c < 128 .or. c > 191) return
-      end do
-      i = i + n + 1
+      n = char_length(t, i)
+      if (t(i:i) == achar(9)) n = 1
+      if (n == 0) return
+      i = i + n
     end do
     clean_text = .true.
   end function clean_text

@@ -26,6 +26,7 @@ module pymr_io_modal_file
   use pymr_model_flexbody, only : flex_data, flex_invariants, flex_from_moments, modal_nodes
   use pymr_model_beam_modes, only : beam_shape, beam_point_shapes
   use pymr_io_text, only : itoa
+  use pymr_io_text_file, only : not_regular
   implicit none
   private
   public :: read_modal_file, write_modal_file
@@ -47,6 +48,9 @@ contains
     inquire(file=path, exist=exists)
     if (.not. exists) then
       call fatal_error(error, path // ': modal file not found'); return
+    end if
+    if (len(not_regular(path)) > 0) then
+      call fatal_error(error, path // ': cannot open: ' // not_regular(path)); return
     end if
     open(newunit=u, file=path, status='old', action='read', iostat=ios, iomsg=msg)
     if (ios /= 0) then

@@ -12,6 +12,7 @@ module pymr_io_namelist_input
   use pymr_io_namelist_parse, only : group_text, item_text, token_t, parse_namelist, parse_values, group_label
   use pymr_io_text, only : itoa, lower
   use pymr_io_sha256, only : sha256_hex
+  use pymr_io_text_file, only : not_regular
   implicit none
   private
   public :: read_scene, read_scene_text, resolved_text, schema_text, scene_fingerprint, item_value
@@ -72,9 +73,15 @@ contains
     integer :: u, ios, sz
     character(len=256) :: msg
     logical :: exists
+    if (len_trim(file) == 0) then
+      call fatal_error(error, 'no scene file given (its path is empty)'); return
+    end if
     inquire(file=file, exist=exists)
     if (.not. exists) then
       call fatal_error(error, file // ': file not found'); return
+    end if
+    if (len(not_regular(file)) > 0) then
+      call fatal_error(error, file // ': cannot read: ' // not_regular(file)); return
     end if
     open(newunit=u, file=file, access='stream', form='unformatted', status='old', action='read', &
       & iostat=ios, iomsg=msg)

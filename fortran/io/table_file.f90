@@ -5,6 +5,7 @@ module pymr_io_table_file
   use pymr_kinds, only : dp
   use pymr_error, only : error_type, fatal_error
   use pymr_io_text, only : itoa, fmt
+  use pymr_io_text_file, only : not_regular
   implicit none
   private
   public :: read_time_table
@@ -26,6 +27,9 @@ contains
     inquire(file=path, exist=exists)
     if (.not. exists) then
       call fatal_error(error, what // ": '" // path // "' not found"); return
+    end if
+    if (len(not_regular(path)) > 0) then
+      call fatal_error(error, what // ": '" // path // "' cannot be read: " // not_regular(path)); return
     end if
     open(newunit=u, file=path, status='old', action='read', iostat=ios, iomsg=msg)
     if (ios /= 0) then

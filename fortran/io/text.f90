@@ -4,7 +4,7 @@ module pymr_io_text
   use pymr_kinds, only : dp
   implicit none
   private
-  public :: itoa, lower, fmt, decimal_text, exact_text
+  public :: itoa, lower, fmt, decimal_text, exact_text, char_length, printable
 
   !> Integer (default or 64-bit) to text without blanks.
   interface itoa
@@ -118,4 +118,77 @@ contains
     if (s(n:n) == '.') n = n - 1
     s = s(:n)
   end function strip_zeros
+
+  !> Bytes of the character of text that starts at s(i:): 1 to 4 for a character of valid
+  !> UTF-8 (as Python decodes it: no overlong forms, surrogates or code points past
+  !> U+10FFFF) that prints on its line; 0 for anything else: a control character (tab and
+  !> newline too), DEL, a C1 control, the line and paragraph separators U+2028 and U+2029,
+  !> a byte that does not start a character, a character cut short.
+  pure integer function char_length(s, i) result(n)
+    character(len=*), intent(in) :: s
+    integer, intent(in) :: i
+    integer :: c, c2, j, k, lo, hi
+    c = iachar(s(i:i))
+    n = 0
+    if (c < 32 .or. c == 127) return
+    if (c < 128) then
+      n = 1; return
+    end if
+    lo = 128; hi = 191
+    select case (c)
+    case (194:223)
+      k = 1
+    case (224:239)
+      k = 2
+      if (c == 224) lo = 160          ! overlong
+      if (c == 237) hi = 159          ! surrogates
+    case (240:244)
+      k = 3
+      if (c == 240) lo = 144          ! overlong
+      if (c == 244) hi = 143          ! past U+10FFFF
+    case default
+      return
+    end select
+    if (i + k > len(s)) return
+    c2 = iachar(s(i+1:i+1))
+    if (c2 < lo .or. c2 > hi) return
+    do j = 2, k
+      c2 = iachar(s(i+j:i+j))
+      if (c2 < 128 .or. c2 > 191) return
+    end do
+    if (c == 194 .and. iachar(s(i+1:i+1)) <= 159) return                  ! U+0080-009F
+    if (s(i:i+1) == achar(226) // achar(128) .and. (iachar(s(i+2:i+2)) == 168 .or. &
+      & iachar(s(i+2:i+2)) == 169)) return                                 ! U+2028, U+2029
+    n = k + 1
+  end function char_length
+
+  !> A message as it may leave the kernel (on stderr, or to Python). Messages quote the
+  !> text of a scene or a command line as written, so every byte of it that would not
+  !> print as text on its line becomes '?' (see char_length); the newlines that separate
+  !> the lines of a message stay. With `max_len`, cut to at most that many bytes, never
+  !> inside a character.
+  pure function printable(message, max_len) result(s)
+    character(len=*), intent(in) :: message
+    integer, intent(in), optional :: max_len
+    character(len=:), allocatable :: s
+    integer :: i, n, m
+    allocate(character(len=len(message)) :: s)
+    i = 1; m = 0
+    do while (i <= len(message))
+      n = char_length(message, i)
+      if (message(i:i) == achar(10)) n = 1
+      if (present(max_len)) then
+        if (m + max(n, 1) > max_len) exit
+      end if
+      if (n > 0) then
+        s(m+1:m+n) = message(i:i+n-1)
+      else
+        n = 1
+        s(m+1:m+1) = '?'
+      end if
+      m = m + n
+      i = i + n
+    end do
+    s = s(1:m)
+  end function printable
 end module pymr_io_text

@@ -9,7 +9,7 @@ module pymr_io_text_file
   implicit none
   private
   public :: write_text_file, rename_file, sync_file, check_size, file_size, scene_relative, absolute_path, acquire_lock, &
-    & release_lock
+    & release_lock, not_regular
 
   interface
     function c_rename(old, new) bind(c, name='rename') result(r)
@@ -48,6 +48,11 @@ module pymr_io_text_file
       integer(c_int), value :: pid, sig
       integer(c_int) :: r
     end function c_kill
+    function c_file_kind(path) bind(c, name='pymr_file_kind') result(kind)
+      import :: c_char, c_int
+      character(kind=c_char), intent(in) :: path(*)
+      integer(c_int) :: kind
+    end function c_file_kind
     function c_getcwd(buf, size) bind(c, name='getcwd') result(p)
       import :: c_char, c_size_t, c_ptr
       character(kind=c_char), intent(out) :: buf(*)
@@ -113,6 +118,23 @@ contains
     call fatal_error(error, path // ': cannot write: the disk took ' // itoa(got) // ' of ' // itoa(expected) // &
       & ' bytes (the file system is full, or a file-size limit is reached)', stat_solver)
   end subroutine check_size
+
+  !> Why `path` is no file to read or to replace, for messages: 'it is a directory', 'it is
+  !> not a regular file (...)'; '' for a regular file, or for no file at all (the caller
+  !> tells a missing file in its own words). A FIFO would hold a read until something
+  !> writes to it, and a renamed results file would replace a device.
+  function not_regular(path) result(why)
+    character(len=*), intent(in) :: path
+    character(len=:), allocatable :: why
+    select case (c_file_kind(path // c_null_char))
+    case (2)
+      why = 'it is a directory'
+    case (3)
+      why = 'it is not a regular file (a FIFO, a socket or a device)'
+    case default
+      why = ''
+    end select
+  end function not_regular
 
   !> Make the kernel write a closed file's data to the disk (fsync).
   subroutine sync_file(path, error)
