@@ -122,6 +122,19 @@ def test_scene_items_are_the_kernel_s_and_a_refused_set_changes_nothing(tmp_path
     assert np.array_equal(a.data, b.data)
 
 
+def test_a_selector_may_quote_the_group_s_name_as_the_scene_does(tmp_path):
+    """body['gun'] and body["gun"] name the same group as body[gun]: the same run, and not
+    the unchanged scene's (the gun's 20 elements against 10)."""
+    tank = ROOT / "input" / "tank_gun_turret.nml"
+    runs = [pymr.run(tank, tmp_path / f"{i}.csv", overrides={"scene.t_end": 0.01, address: 10})
+            for i, address in enumerate(("body[gun].n_elements", "body['gun'].n_elements",
+                                         'body["gun"].n_elements'))]
+    plain = pymr.run(tank, tmp_path / "plain.csv", overrides={"scene.t_end": 0.01})
+    assert np.array_equal(runs[0].data, runs[1].data) and np.array_equal(runs[0].data, runs[2].data)
+    assert np.abs(runs[0]["muzzle.y"] - plain["muzzle.y"]).max() > 1e-9
+    assert pymr.Scene(tank, {"body['gun'].n_elements": 10})["body[gun].n_elements"] == 10
+
+
 def test_result_json_carries_the_fingerprint_of_the_resolved_scene(tmp_path):
     tank = ROOT / "input" / "tank_gun_turret.nml"
     over = {"scene.t_end": 0.01, "body[gun].n_elements": 10}

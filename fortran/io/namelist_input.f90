@@ -324,7 +324,7 @@ contains
       call fatal_error(error, ov%source // ': expected GROUP.ITEM=VALUE or GROUP[NAME].ITEM=VALUE'); return
     end if
     if (lb > 0 .and. rb > lb) then
-      ov%group = lower(trim(adjustl(address(1:lb-1)))); ov%sel = address(lb+1:rb-1)
+      ov%group = lower(trim(adjustl(address(1:lb-1)))); ov%sel = unquoted(trim(adjustl(address(lb+1:rb-1))))
     else
       ov%group = lower(trim(adjustl(address(1:dot-1))))
     end if
@@ -343,6 +343,18 @@ contains
         & trim(ov%group) // '[NAME].' // trim(ov%item)); return
     end if
   end subroutine parse_address
+
+  !> A group's name as written in a selector: body[gun], or quoted as in the scene,
+  !> body['gun'] or body["gun"].
+  pure function unquoted(name) result(s)
+    character(len=*), intent(in) :: name
+    character(len=:), allocatable :: s
+    integer :: n
+    n = len(name)
+    s = name
+    if (n < 2) return
+    if ((name(1:1) == '''' .or. name(1:1) == '"') .and. name(n:n) == name(1:1)) s = name(2:n-1)
+  end function unquoted
 
   !> "&body 'gun'" or "&integrator" for the group an address names.
   function address_label(ov) result(s)
