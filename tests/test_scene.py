@@ -135,6 +135,23 @@ def test_a_selector_may_quote_the_group_s_name_as_the_scene_does(tmp_path):
     assert pymr.Scene(tank, {"body['gun'].n_elements": 10})["body[gun].n_elements"] == 10
 
 
+def test_a_byte_order_mark_at_the_start_of_a_scene_is_read_as_blanks(tmp_path):
+    """A scene saved with a UTF-8 byte-order mark (some editors write one) gives the same
+    rows as without it, and its faults keep their lines."""
+    pendulum = ROOT / "input" / "pendulum.nml"
+    bom = tmp_path / "bom.nml"
+    bom.write_bytes(b"\xef\xbb\xbf" + pendulum.read_bytes())
+    a = pymr.run(bom, tmp_path / "a.csv")
+    b = pymr.run(pendulum, tmp_path / "b.csv")
+    assert np.array_equal(a.data, b.data)
+    bad = tmp_path / "bad.nml"
+    bad.write_bytes(b"\xef\xbb\xbf" + pendulum.read_bytes().replace(b"mass = 1.0", b"mass = -1.0", 1))
+    with pytest.raises(pymr.SceneError, match=r"bad\.nml:(\d+): &body 'bob': mass") as e:
+        pymr.run(bad, tmp_path / "c.csv")
+    line = int(re.search(r"bad\.nml:(\d+):", str(e.value)).group(1))
+    assert b"mass = -1.0" in bad.read_bytes().splitlines()[line - 1]
+
+
 def test_result_json_carries_the_fingerprint_of_the_resolved_scene(tmp_path):
     tank = ROOT / "input" / "tank_gun_turret.nml"
     over = {"scene.t_end": 0.01, "body[gun].n_elements": 10}

@@ -65,7 +65,8 @@ contains
     call complete_scene(sc)
   end subroutine read_scene_text
 
-  !> The whole file as text.
+  !> The whole file as text; a UTF-8 byte-order mark, which some editors write at the start,
+  !> reads as blanks (lines and columns stay those of the file).
   subroutine read_text_file(file, text, error)
     character(len=*), intent(in) :: file
     character(len=:), allocatable, intent(out) :: text
@@ -96,7 +97,12 @@ contains
     allocate(character(len=sz) :: text)
     if (sz > 0) read(u, iostat=ios, iomsg=msg) text
     close(u)
-    if (ios /= 0) call fatal_error(error, file // ': cannot read: ' // trim(msg))
+    if (ios /= 0) then
+      call fatal_error(error, file // ': cannot read: ' // trim(msg)); return
+    end if
+    if (sz >= 3) then
+      if (text(1:3) == achar(239) // achar(187) // achar(191)) text(1:3) = ' '
+    end if
   end subroutine read_text_file
 
   !> Unknown groups (with the nearest known name), single groups given twice, required
