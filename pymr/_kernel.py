@@ -15,12 +15,14 @@ def _bytes(value):
 
 
 def __getattr__(name: str):
-    function = getattr(_core, name)
-    if not callable(function):
-        return function
-
-    def call(*args, **kwargs):
-        return function(*map(_bytes, args), **{k: _bytes(v) for k, v in kwargs.items()})
-    call.__name__ = name
-    call.__doc__ = function.__doc__
-    return call
+    """The binding's function, wrapped only when it takes text (f2py documents such a
+    parameter as ``input string``): those that take numbers alone, Model.rhs's evaluation
+    among them, are called directly. Resolved once per name."""
+    function = resolved = getattr(_core, name)
+    if callable(function) and "input string" in (function.__doc__ or ""):
+        def resolved(*args, **kwargs):
+            return function(*map(_bytes, args), **{k: _bytes(v) for k, v in kwargs.items()})
+        resolved.__name__ = name
+        resolved.__doc__ = function.__doc__
+    globals()[name] = resolved
+    return resolved
