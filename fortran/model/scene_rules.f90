@@ -471,137 +471,194 @@ contains
     end if
   end subroutine check_coordinate_count
 
+  !> The groups that act on joints, bodies and markers: drives, springs, prescribed motion,
+  !> damping, loads and markers, each referring to what exists, with its effect turned on.
   subroutine check_loads_markers(sc, errs)
     type(scene_t), intent(in) :: sc
     type(error_list), intent(inout) :: errs
-    integer :: i, j, k
-    each_drives: do i = 1, size(sc%drives)
+    call check_drives(sc, errs)
+    call check_springs(sc, errs)
+    call check_motions(sc, errs)
+    call check_damping_effect(sc, errs)
+    call check_loads(sc, errs)
+    call check_stiffening(sc, errs)
+    call check_markers(sc, errs)
+  end subroutine check_loads_markers
+
+  !> &drive: a joint coordinate, its form, and &effects joint_drives on.
+  subroutine check_drives(sc, errs)
+    type(scene_t), intent(in) :: sc
+    type(error_list), intent(inout) :: errs
+    integer :: i
+    do i = 1, size(sc%drives)
       associate(dr => sc%drives(i))
-        if (.not. joint_coordinate(dr%origin, dr%joint, dr%coordinate)) cycle each_drives
-        if (.not. table_form(dr%origin, dr%form, dr%file, [dr%amplitude, dr%frequency, dr%phase])) cycle each_drives
-        if (forgotten(sc%effects%joint_drives, 'joint_drives')) &
+        if (.not. joint_coordinate(sc, errs, dr%origin, dr%joint, dr%coordinate)) cycle
+        if (.not. table_form(errs, dr%origin, dr%form, dr%file, [dr%amplitude, dr%frequency, dr%phase])) cycle
+        if (forgotten(sc, sc%effects%joint_drives, 'joint_drives')) &
           & call errs%add(dr%origin%where() // effect_not_on('the scene gives drives', 'joint_drives'))
       end associate
-    end do each_drives
-    each_springs: do i = 1, size(sc%springs)
+    end do
+  end subroutine check_drives
+
+  !> &spring: a joint coordinate and &effects joint_springs on.
+  subroutine check_springs(sc, errs)
+    type(scene_t), intent(in) :: sc
+    type(error_list), intent(inout) :: errs
+    integer :: i
+    do i = 1, size(sc%springs)
       associate(sp => sc%springs(i))
-        if (.not. joint_coordinate(sp%origin, sp%joint, sp%coordinate)) cycle each_springs
-        if (forgotten(sc%effects%joint_springs, 'joint_springs')) &
+        if (.not. joint_coordinate(sc, errs, sp%origin, sp%joint, sp%coordinate)) cycle
+        if (forgotten(sc, sc%effects%joint_springs, 'joint_springs')) &
           & call errs%add(sp%origin%where() // effect_not_on('the scene gives springs', 'joint_springs'))
       end associate
-    end do each_springs
+    end do
+  end subroutine check_springs
+
+  !> &motion: a joint coordinate prescribed once, its form (a spin-up needs its ramp time),
+  !> and &effects base_motion on.
+  subroutine check_motions(sc, errs)
+    type(scene_t), intent(in) :: sc
+    type(error_list), intent(inout) :: errs
+    integer :: i, j
     each_motions: do i = 1, size(sc%motions)
       associate(mo => sc%motions(i))
-        if (.not. joint_coordinate(mo%origin, mo%joint, mo%coordinate)) cycle each_motions
+        if (.not. joint_coordinate(sc, errs, mo%origin, mo%joint, mo%coordinate)) cycle each_motions
         do j = 1, i - 1
           if (sc%motions(j)%joint == mo%joint .and. sc%motions(j)%coordinate == mo%coordinate) then
             call errs%add(mo%origin%where('coordinate') // ': ' // itoa(mo%coordinate) // " of joint '" // &
               & trim(mo%joint) // "' is already prescribed by &motion #" // itoa(j)); cycle each_motions
           end if
         end do
-        if (.not. table_form(mo%origin, mo%form, mo%file, [mo%amplitude, mo%frequency, mo%phase])) cycle each_motions
+        if (.not. table_form(errs, mo%origin, mo%form, mo%file, [mo%amplitude, mo%frequency, mo%phase])) &
+          & cycle each_motions
+        if (mo%form == 'spinup' .and. mo%ramp_time == unset) then
+          call errs%add(mo%origin%where('ramp_time') // ": missing (form 'spinup' needs the ramp time, s)")
+          cycle each_motions
+        end if
+        if (forgotten(sc, sc%effects%base_motion, 'base_motion')) &
+          & call errs%add(mo%origin%where() // effect_not_on('the scene prescribes motion', 'base_motion'))
       end associate
-      if (sc%motions(i)%form == 'spinup' .and. sc%motions(i)%ramp_time == unset) then
-        call errs%add(sc%motions(i)%origin%where('ramp_time') // ": missing (form 'spinup' needs the ramp time, s)"); cycle each_motions
-      end if
-      if (forgotten(sc%effects%base_motion, 'base_motion')) &
-        & call errs%add(sc%motions(i)%origin%where() // effect_not_on('the scene prescribes motion', 'base_motion'))
     end do each_motions
-    each_bodies: do i = 1, size(sc%bodies)
+  end subroutine check_motions
+
+  !> A flexible body that gives modal damping needs &effects modal_damping on.
+  subroutine check_damping_effect(sc, errs)
+    type(scene_t), intent(in) :: sc
+    type(error_list), intent(inout) :: errs
+    integer :: i
+    do i = 1, size(sc%bodies)
       associate(b => sc%bodies(i))
         if (b%kind /= 'beam' .and. b%kind /= 'modal') cycle
         if (any(b%modal_damping /= unset .and. b%modal_damping /= 0.0_dp) .or. b%rayleigh_alpha /= 0.0_dp .or. &
           & b%rayleigh_beta /= 0.0_dp) then
-          if (forgotten(sc%effects%modal_damping, 'modal_damping')) &
+          if (forgotten(sc, sc%effects%modal_damping, 'modal_damping')) &
             & call errs%add(b%origin%where(damping_item(b)) // effect_not_on('the body gives modal damping', &
             & 'modal_damping'))
         end if
       end associate
-    end do each_bodies
-    each_loads: do i = 1, size(sc%loads)
+    end do
+  end subroutine check_damping_effect
+
+  !> &load: an existing marker, a direction, a duration, and &effects firing_load on.
+  subroutine check_loads(sc, errs)
+    type(scene_t), intent(in) :: sc
+    type(error_list), intent(inout) :: errs
+    integer :: i
+    do i = 1, size(sc%loads)
       associate(ld => sc%loads(i))
-        k = 0
-        do j = 1, size(sc%markers)
-          if (sc%markers(j)%name == ld%marker) k = j
-        end do
-        if (k == 0) then
-          call errs%add(ld%origin%where('marker') // ": no &marker named '" // trim(ld%marker) // "'"); cycle each_loads
+        if (.not. any(sc%markers%name == ld%marker)) then
+          call errs%add(ld%origin%where('marker') // ": no &marker named '" // trim(ld%marker) // "'"); cycle
         end if
         if (norm2(ld%direction) < 1.0e-12_dp) then
           call errs%add(ld%origin%where('direction') // ': missing or zero (a direction in the body frame of the ' // &
-            & "marker's body)"); cycle each_loads
+            & "marker's body)"); cycle
         end if
         if (ld%duration == unset) then
-          call errs%add(ld%origin%where('duration') // ': missing (the pulse length, s)'); cycle each_loads
+          call errs%add(ld%origin%where('duration') // ': missing (the pulse length, s)'); cycle
         end if
-        if (forgotten(sc%effects%firing_load, 'firing_load')) &
+        if (forgotten(sc, sc%effects%firing_load, 'firing_load')) &
           & call errs%add(ld%origin%where() // effect_not_on('the scene gives loads', 'firing_load'))
       end associate
-    end do each_loads
-    if (sc%effects%geometric_stiffening .and. .not. any(sc%bodies%kind == 'beam')) then
-      call errs%add(sc%effects%origin%where('geometric_stiffening') // ': the scene has no beam (only built-in ' // &
-        & "beams, kind = 'beam', carry a geometric stiffness)"); return
-    end if
-    each_markers: do i = 1, size(sc%markers)
+    end do
+  end subroutine check_loads
+
+  !> &effects geometric_stiffening needs a built-in beam to act on.
+  subroutine check_stiffening(sc, errs)
+    type(scene_t), intent(in) :: sc
+    type(error_list), intent(inout) :: errs
+    if (sc%effects%geometric_stiffening .and. .not. any(sc%bodies%kind == 'beam')) &
+      & call errs%add(sc%effects%origin%where('geometric_stiffening') // ': the scene has no beam (only built-in ' // &
+      & "beams, kind = 'beam', carry a geometric stiffness)")
+  end subroutine check_stiffening
+
+  !> &marker: a name and an existing body.
+  subroutine check_markers(sc, errs)
+    type(scene_t), intent(in) :: sc
+    type(error_list), intent(inout) :: errs
+    integer :: i
+    do i = 1, size(sc%markers)
       if (len_trim(sc%markers(i)%name) == 0) then
-        call errs%add(sc%markers(i)%origin%where('name') // ': missing'); cycle each_markers
+        call errs%add(sc%markers(i)%origin%where('name') // ': missing'); cycle
       end if
-      if (body_index(sc, sc%markers(i)%body) == 0) then
-        call errs%add(sc%markers(i)%origin%where('body') // ": no &body named '" // trim(sc%markers(i)%body) // "'"); cycle each_markers
-      end if
-    end do each_markers
-  contains
-    !> An effect whose data the scene gives is off without being turned off on purpose.
-    logical function forgotten(on, effect)
-      logical, intent(in) :: on
-      character(len=*), intent(in) :: effect
-      forgotten = .not. on .and. .not. sc%effects%origin%given(effect)
-    end function forgotten
+      if (body_index(sc, sc%markers(i)%body) == 0) &
+        & call errs%add(sc%markers(i)%origin%where('body') // ": no &body named '" // trim(sc%markers(i)%body) // "'")
+    end do
+  end subroutine check_markers
 
-    !> ": the scene gives X but &effects E is not on: ..." for a forgotten effect.
-    function effect_not_on(what, effect) result(s)
-      character(len=*), intent(in) :: what, effect
-      character(len=:), allocatable :: s
-      s = ': ' // what // ' but &effects ' // effect // ' is not on: set ' // effect // ' = .true. in &effects ' // &
-        & '(or .false. to leave it out on purpose)'
-    end function effect_not_on
+  !> An effect whose data the scene gives is off without being turned off on purpose.
+  logical function forgotten(sc, on, effect)
+    type(scene_t), intent(in) :: sc
+    logical, intent(in) :: on
+    character(len=*), intent(in) :: effect
+    forgotten = .not. on .and. .not. sc%effects%origin%given(effect)
+  end function forgotten
 
-    !> The named joint exists and has the coordinate (else the error is added).
-    logical function joint_coordinate(o, joint, coordinate) result(ok)
-      type(origin_t), intent(in) :: o
-      character(len=*), intent(in) :: joint
-      integer, intent(in) :: coordinate
-      integer :: jj, kk, ndof
-      ok = .false.
-      if (len_trim(joint) == 0) then
-        call errs%add(o%where('joint') // ': missing (the joint it acts on)'); return
-      end if
-      kk = 0
-      do jj = 1, size(sc%joints)
-        if (sc%joints(jj)%name == joint) kk = jj
-      end do
-      if (kk == 0) then
-        call errs%add(o%where('joint') // ": no &joint named '" // trim(joint) // "'"); return
-      end if
-      ndof = joint_ndof(sc%joints(kk)%kind)
-      if (coordinate < 1 .or. coordinate > ndof) then
-        call errs%add(o%where('coordinate') // ': joint ''' // trim(joint) // ''' has ' // itoa(ndof) // &
-          & trim(merge(' coordinate ', ' coordinates', ndof == 1)) // ', got ' // itoa(coordinate)); return
-      end if
-      ok = .true.
-    end function joint_coordinate
+  !> ": the scene gives X but &effects E is not on: ..." for a forgotten effect.
+  function effect_not_on(what, effect) result(s)
+    character(len=*), intent(in) :: what, effect
+    character(len=:), allocatable :: s
+    s = ': ' // what // ' but &effects ' // effect // ' is not on: set ' // effect // ' = .true. in &effects ' // &
+      & '(or .false. to leave it out on purpose)'
+  end function effect_not_on
 
-    !> A group's form and file agree (else the error is added).
-    logical function table_form(o, form, file, sine_items) result(ok)
-      type(origin_t), intent(in) :: o
-      character(len=*), intent(in) :: form, file
-      real(dp), intent(in) :: sine_items(3)
-      type(error_type), allocatable :: error
-      call check_table_form(o, form, file, sine_items, error)
-      ok = .not. allocated(error)
-      if (.not. ok) call errs%add(error%message)
-    end function table_form
-  end subroutine check_loads_markers
+  !> The named joint exists and has the coordinate (else the error is added).
+  logical function joint_coordinate(sc, errs, o, joint, coordinate) result(ok)
+    type(scene_t), intent(in) :: sc
+    type(error_list), intent(inout) :: errs
+    type(origin_t), intent(in) :: o
+    character(len=*), intent(in) :: joint
+    integer, intent(in) :: coordinate
+    integer :: j, k, ndof
+    ok = .false.
+    if (len_trim(joint) == 0) then
+      call errs%add(o%where('joint') // ': missing (the joint it acts on)'); return
+    end if
+    k = 0
+    do j = 1, size(sc%joints)
+      if (sc%joints(j)%name == joint) k = j
+    end do
+    if (k == 0) then
+      call errs%add(o%where('joint') // ": no &joint named '" // trim(joint) // "'"); return
+    end if
+    ndof = joint_ndof(sc%joints(k)%kind)
+    if (coordinate < 1 .or. coordinate > ndof) then
+      call errs%add(o%where('coordinate') // ': joint ''' // trim(joint) // ''' has ' // itoa(ndof) // &
+        & trim(merge(' coordinate ', ' coordinates', ndof == 1)) // ', got ' // itoa(coordinate)); return
+    end if
+    ok = .true.
+  end function joint_coordinate
+
+  !> A group's form and file agree (else the error is added).
+  logical function table_form(errs, o, form, file, sine_items) result(ok)
+    type(error_list), intent(inout) :: errs
+    type(origin_t), intent(in) :: o
+    character(len=*), intent(in) :: form, file
+    real(dp), intent(in) :: sine_items(3)
+    type(error_type), allocatable :: error
+    call check_table_form(o, form, file, sine_items, error)
+    ok = .not. allocated(error)
+    if (.not. ok) call errs%add(error%message)
+  end function table_form
 
   !> A group's form 'table' needs a file and no sine items; other forms take no file.
   !> `o` is the group's origin; `sine_items` are its amplitude, frequency and phase.
