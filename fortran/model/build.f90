@@ -404,13 +404,29 @@ contains
     call beam_point_shapes(d%bshape(b), r, psi(:, 1:d%nm(b)), phi(:, 1:d%nm(b)))
   end subroutine flexible_point
 
+  !> What acts on the model, from the scene: effects, springs, drives, prescribed motion and
+  !> its tables, geometric stiffness, markers and loads.
   subroutine fill_loads_markers(sc, pos_in, d, error)
     type(scene_t), intent(in) :: sc
     integer, intent(in) :: pos_in(:)
     type(model_data), intent(inout) :: d
     type(error_type), allocatable, intent(out) :: error
-    integer :: i, j, b
-    character(len=:), allocatable :: where_file
+    call fill_effect_plan(sc, d)
+    call fill_springs(sc, pos_in, d)
+    call fill_drives(sc, pos_in, d)
+    call fill_motions(sc, pos_in, d)
+    call fill_tables(sc, d, error); if (allocated(error)) return
+    call fill_stiffening(d)
+    call fill_markers(sc, pos_in, d, error); if (allocated(error)) return
+    call fill_loads(sc, d)
+  end subroutine fill_loads_markers
+
+  !> The effects on, and the plan: the active effects in evaluation order (loads first; base
+  !> motion last). Without the deformation inertia, the modal moments are the undeformed ones.
+  subroutine fill_effect_plan(sc, d)
+    type(scene_t), intent(in) :: sc
+    type(model_data), intent(inout) :: d
+    integer :: i, b
     d%effect_on(effect_gravity) = sc%effects%gravity
     d%effect_on(effect_joint_drives) = sc%effects%joint_drives .and. size(sc%drives) > 0
     d%effect_on(effect_modal_damping) = sc%effects%modal_damping .and. any(d%nm > 0)
@@ -424,7 +440,6 @@ contains
         if (d%nm(b) > 0) call undeformed_modal_moments(d%flex(b), d%fwork(b))
       end do
     end if
-    ! the plan: active effects in evaluation order (loads first; base motion last)
     d%n_plan = 0
     do i = 1, n_effects
       if (.not. d%effect_on(i)) cycle
@@ -434,18 +449,68 @@ contains
     allocate(d%every(d%nb))
     d%every = .true.
     d%gravity = sc%scene%gravity
+  end subroutine fill_effect_plan
+
+  !> The joint springs (none when the effect is off): coordinate, stiffness, damping, free position.
+  subroutine fill_springs(sc, pos_in, d)
+    type(scene_t), intent(in) :: sc
+    integer, intent(in) :: pos_in(:)
+    type(model_data), intent(inout) :: d
+    integer :: i
     d%n_springs = 0
     if (d%effect_on(effect_joint_springs)) d%n_springs = size(sc%springs)
     allocate(d%spring_coord(d%n_springs), d%spring_par(3, d%n_springs))
     do i = 1, d%n_springs
-      d%spring_coord(i) = coordinate_index(sc%springs(i)%joint, sc%springs(i)%coordinate)
+      d%spring_coord(i) = coordinate_index(sc, pos_in, d, sc%springs(i)%joint, sc%springs(i)%coordinate)
       d%spring_par(:, i) = [sc%springs(i)%stiffness, sc%springs(i)%damping, sc%springs(i)%free_position]
     end do
+  end subroutine fill_springs
+
+  !> The joint drives: coordinate, offset, amplitude, frequency, phase.
+  subroutine fill_drives(sc, pos_in, d)
+    type(scene_t), intent(in) :: sc
+    integer, intent(in) :: pos_in(:)
+    type(model_data), intent(inout) :: d
+    integer :: i
+    d%n_drives = size(sc%drives)
+    allocate(d%drive_coord(d%n_drives), d%drive_par(4, d%n_drives))
+    do i = 1, d%n_drives
+      d%drive_coord(i) = coordinate_index(sc, pos_in, d, sc%drives(i)%joint, sc%drives(i)%coordinate)
+      d%drive_par(:, i) = [sc%drives(i)%offset, sc%drives(i)%amplitude, sc%drives(i)%frequency, sc%drives(i)%phase]
+    end do
+  end subroutine fill_drives
+
+  !> The prescribed coordinates (none when base motion is off): coordinate, form, parameters.
+  subroutine fill_motions(sc, pos_in, d)
+    type(scene_t), intent(in) :: sc
+    integer, intent(in) :: pos_in(:)
+    type(model_data), intent(inout) :: d
+    integer :: i
     d%n_prescribed = 0
     if (d%effect_on(effect_base_motion)) d%n_prescribed = size(sc%motions)
     allocate(d%pres_coord(d%n_prescribed), d%pres_form(d%n_prescribed), d%pres_par(6, d%n_prescribed), &
-      & d%qx(d%n), d%qdx(d%n))
-    ! tables: one per tabulated drive or motion, read and (motions) splined once
+      & d%qx(d%n), d%qdx(d%n), d%prescribed(d%n))
+    d%prescribed = .false.
+    do i = 1, d%n_prescribed
+      associate(mo => sc%motions(i))
+        d%pres_coord(i) = coordinate_index(sc, pos_in, d, mo%joint, mo%coordinate)
+        d%prescribed(d%pres_coord(i)) = .true.
+        d%pres_form(i) = motion_sine
+        if (mo%form == 'spinup') d%pres_form(i) = motion_spinup
+        if (mo%form == 'table') d%pres_form(i) = motion_table
+        d%pres_par(:, i) = [mo%offset, mo%amplitude, mo%frequency, mo%phase, mo%rate, mo%ramp_time]
+      end associate
+    end do
+  end subroutine fill_motions
+
+  !> The time tables: one per tabulated drive (when drives are on) or prescribed motion,
+  !> read once; a motion's table is also splined once.
+  subroutine fill_tables(sc, d, error)
+    type(scene_t), intent(in) :: sc
+    type(model_data), intent(inout) :: d
+    type(error_type), allocatable, intent(out) :: error
+    integer :: i, j
+    character(len=:), allocatable :: where_file
     allocate(d%tables(count(sc%drives%form == 'table') + count(sc%motions%form == 'table')), &
       & d%drive_table(size(sc%drives)), d%pres_table(d%n_prescribed))
     d%drive_table = 0; d%pres_table = 0
@@ -468,24 +533,18 @@ contains
       if (allocated(error)) return
       call spline_setup(d%tables(j), where_file, error); if (allocated(error)) return
     end do
-    allocate(d%prescribed(d%n))
-    d%prescribed = .false.
-    do i = 1, d%n_prescribed
-      associate(mo => sc%motions(i))
-        d%pres_coord(i) = coordinate_index(mo%joint, mo%coordinate)
-        d%prescribed(d%pres_coord(i)) = .true.
-        d%pres_form(i) = motion_sine
-        if (mo%form == 'spinup') d%pres_form(i) = motion_spinup
-        if (mo%form == 'table') d%pres_form(i) = motion_table
-        d%pres_par(:, i) = [mo%offset, mo%amplitude, mo%frequency, mo%phase, mo%rate, mo%ramp_time]
-      end associate
-    end do
+  end subroutine fill_tables
+
+  !> Geometric stiffness: dropped when the effect is off; bodies whose joint sits on a
+  !> stiffened beam get the stiffness of their axial load carried to the beam's root.
+  subroutine fill_stiffening(d)
+    type(model_data), intent(inout) :: d
+    integer :: b
     if (.not. d%effect_on(effect_geometric_stiffening)) then
       do b = 2, d%nb
         if (allocated(d%flex(b)%kg1)) deallocate(d%flex(b)%kg1, d%flex(b)%kg2)
       end do
     end if
-    ! bodies whose joint sits on a stiffened beam: the beam carries their axial load to its root
     allocate(d%child_kg(d%nb), d%kgc(d%mmax, d%mmax, d%nb))
     d%child_kg = .false.
     do b = 2, d%nb
@@ -494,12 +553,15 @@ contains
       call beam_point_load_stiffness(d%bshape(d%parent(b)), d%at(1, b), &
         & d%kgc(1:d%nm(d%parent(b)), 1:d%nm(d%parent(b)), b))
     end do
-    d%n_drives = size(sc%drives)
-    allocate(d%drive_coord(d%n_drives), d%drive_par(4, d%n_drives))
-    do i = 1, d%n_drives
-      d%drive_coord(i) = coordinate_index(sc%drives(i)%joint, sc%drives(i)%coordinate)
-      d%drive_par(:, i) = [sc%drives(i)%offset, sc%drives(i)%amplitude, sc%drives(i)%frequency, sc%drives(i)%phase]
-    end do
+  end subroutine fill_stiffening
+
+  !> The markers: body, point, and on a flexible body the point's mode shapes.
+  subroutine fill_markers(sc, pos_in, d, error)
+    type(scene_t), intent(in) :: sc
+    integer, intent(in) :: pos_in(:)
+    type(model_data), intent(inout) :: d
+    type(error_type), allocatable, intent(out) :: error
+    integer :: i, b
     d%n_markers = size(sc%markers)
     allocate(d%marker_name(d%n_markers), d%marker_body(d%n_markers), d%marker_at(3, d%n_markers), &
       & d%marker_psi(3, d%mmax, d%n_markers), d%marker_phi(3, d%mmax, d%n_markers))
@@ -514,6 +576,13 @@ contains
           & d%marker_psi(:, :, i), d%marker_phi(:, :, i), error); if (allocated(error)) return
       end if
     end do
+  end subroutine fill_markers
+
+  !> The load pulses (none when the effect is off): marker, unit direction, peak, start, duration.
+  subroutine fill_loads(sc, d)
+    type(scene_t), intent(in) :: sc
+    type(model_data), intent(inout) :: d
+    integer :: i, j
     d%n_loads = 0
     if (d%effect_on(effect_firing_load)) d%n_loads = size(sc%loads)
     allocate(d%load_marker(d%n_loads), d%load_dir(3, d%n_loads), d%load_par(3, d%n_loads))
@@ -524,18 +593,21 @@ contains
       d%load_dir(:, i) = sc%loads(i)%direction/norm2(sc%loads(i)%direction)
       d%load_par(:, i) = [sc%loads(i)%peak, sc%loads(i)%start, sc%loads(i)%duration]
     end do
-  contains
-    !> Model coordinate of a joint's coordinate.
-    integer function coordinate_index(joint, coordinate)
-      character(len=*), intent(in) :: joint
-      integer, intent(in) :: coordinate
-      integer :: jj
-      coordinate_index = 0
-      do jj = 1, size(sc%joints)
-        if (sc%joints(jj)%name /= joint) cycle
-        coordinate_index = d%c0(pos_in(body_index(sc, sc%joints(jj)%child))) + coordinate - 1
-      end do
-    end function coordinate_index
-  end subroutine fill_loads_markers
+  end subroutine fill_loads
+
+  !> Model coordinate of a joint's coordinate.
+  integer function coordinate_index(sc, pos_in, d, joint, coordinate)
+    type(scene_t), intent(in) :: sc
+    integer, intent(in) :: pos_in(:)
+    type(model_data), intent(in) :: d
+    character(len=*), intent(in) :: joint
+    integer, intent(in) :: coordinate
+    integer :: j
+    coordinate_index = 0
+    do j = 1, size(sc%joints)
+      if (sc%joints(j)%name /= joint) cycle
+      coordinate_index = d%c0(pos_in(body_index(sc, sc%joints(j)%child))) + coordinate - 1
+    end do
+  end function coordinate_index
 
 end module pymr_model_build
