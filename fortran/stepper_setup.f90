@@ -43,6 +43,7 @@ contains
     else if (sc%integrator%formula == 'adams') then
       allocate(adams)
       call adams%init(size(x), sc%integrator%order, ctl, sc%integrator%corrector == 'newton')
+      call top_vibration(model, x, adams%omega_top, error); if (allocated(error)) return
       h0 = sc%integrator%h_slow
       adams%h = h0
       call move_alloc(adams, st)
@@ -74,16 +75,30 @@ contains
     type(step_control), intent(out) :: c
     type(error_type), allocatable, intent(out) :: error
     real(dp), parameter :: margin = 0.9_dp
-    real(dp) :: kf(model%d%n - model%d%nj), df(model%d%n - model%d%nj), omega
+    real(dp) :: omega
     c = ctl
-    if (size(kf) == 0 .or. .not. sc%integrator%adaptive) return
+    if (.not. sc%integrator%adaptive) return
+    call top_vibration(model, x, omega, error); if (allocated(error)) return
+    if (omega > 0.0_dp) c%h_max = min(c%h_max, margin*pece_limit(cmplx(0.0_dp, omega, dp)))
+  end subroutine stable_control
+
+  !> The highest undamped vibration frequency omega (rad/s) of the flexible bodies' modes,
+  !> stiffened by the closed loops they pass through (the constrained model's at x); 0
+  !> without modal coordinates.
+  subroutine top_vibration(model, x, omega, error)
+    type(model_t), intent(inout) :: model
+    real(dp), intent(in) :: x(:)
+    real(dp), intent(out) :: omega
+    type(error_type), allocatable, intent(out) :: error
+    real(dp) :: kf(model%d%n - model%d%nj), df(model%d%n - model%d%nj)
+    omega = 0.0_dp
+    if (size(kf) == 0) return
     call modal_stiffness_damping(model%d, kf, df)
     omega = sqrt(maxval(kf))
     if (model%d%n_rows > 0) then
       omega = max(omega, top_frequency(model, x, error)); if (allocated(error)) return
     end if
-    if (omega > 0.0_dp) c%h_max = min(c%h_max, margin*pece_limit(cmplx(0.0_dp, omega, dp)))
-  end subroutine stable_control
+  end subroutine top_vibration
 
   !> What the stepper is, for messages: "single-rate", "coupling 'response'".
   function stepper_label(sc) result(s)

@@ -79,6 +79,44 @@ def test_variable_step_corrector_keeps_the_interpolation_conditions(q):
         assert abs(d.deriv()(-x)) < 1e-13 * deriv_scale(l, x)
 
 
+def am_growth(q, y):
+    """Growth per step of an undamped vibration (x' = i omega x, omega h = y) under the
+    constant-step Adams-Moulton formula of order q: the largest root modulus of its
+    characteristic polynomial, its coefficients from integrating the Lagrange basis on the
+    points t_(n+1), ..., t_(n+2-q) over [t_n, t_(n+1)]."""
+    P = np.polynomial.polynomial
+    nodes = 1.0 - np.arange(q)
+    beta = []
+    for j in range(q):
+        c = np.array([1.0])
+        for o in np.delete(nodes, j):
+            c = P.polymul(c, [-o, 1.0]) / (nodes[j] - o)
+        ci = P.polyint(c)
+        beta.append(P.polyval(1.0, ci) - P.polyval(0.0, ci))
+    k = max(q - 1, 1)
+    coef = np.zeros(k + 1, complex)       # coef[m] multiplies zeta^m
+    coef[k] += 1.0
+    coef[k - 1] -= 1.0
+    for j, bj in enumerate(beta):
+        coef[k - j] -= 1j * y * bj
+    return np.abs(np.roots(coef[::-1])).max()
+
+
+@pytest.mark.parametrize("q", range(1, 13))
+def test_stability_bound_on_undamped_vibrations(q):
+    """The bound on omega*h that steps of order q keep at the system's highest frequency
+    (the kernel's table) is where the Adams-Moulton formula's growth per step of an
+    undamped vibration first exceeds 1 %; orders 1 and 2 (backward Euler, trapezoidal rule)
+    never grow, and have none."""
+    bound = kernel(3, q, np.ones(q + 1))[1][0]
+    if q <= 2:
+        assert bound > 1e300
+        assert max(am_growth(q, y) for y in np.geomspace(1e-3, 1e4, 300)) <= 1.0 + 1e-9
+        return
+    assert max(am_growth(q, y) for y in np.linspace(1e-3, bound, 500)) <= 1.01
+    assert am_growth(q, 1.002 * bound) > 1.01
+
+
 @pytest.mark.parametrize("q", range(2, 13))
 def test_lowering_the_order_keeps_value_and_derivatives(q):
     """The order-(q-1) array has the same value at t_n and the same derivative at t_n and
@@ -211,6 +249,25 @@ def test_tank_error_stays_below_the_tolerance(tmp_path):
     for rtol in (1e-3, 1e-6, 1e-9):
         err = np.linalg.norm(run(rtol).marker("muzzle")[0] - ref, axis=1).max()
         assert err < rtol
+
+
+def test_a_loose_tolerance_steps_over_the_modes_it_does_not_resolve(tmp_path):
+    """Spacecraft (the booms' undamped modes up to 2.2 kHz, hardly excited): at rtol 1e-3
+    formula 'adams' steps over them at orders 1-2, which are A-stable, and orders 3 and up
+    keep their steps within their stability bound. Before, it raised the order to 3 at
+    omega*h = 51: the modes grew until they held the step near 5e-5 s for the rest of the
+    run, 49,156 evaluations against 724 at rtol 1e-4. Now the work falls with the tolerance
+    (measured 287 evaluations at 1e-3) and the tips stay within rtol of a run at rtol 1e-10
+    (measured 0.054 rtol)."""
+    scene = ROOT / "input" / "spacecraft.nml"
+    def run(rtol):
+        return pymr.run(scene, tmp_path / f"{rtol}.csv", overrides={"integrator.rtol": rtol, "integrator.atol": rtol * 1e-2,
+                                                                   "output.dt": 0.01})
+    ref, loose, tight = run(1e-10), run(1e-3), run(1e-4)
+    assert loose.stats["integrator"]["formula"] == "adams"
+    assert loose.stats["rhs_full"] <= tight.stats["rhs_full"]
+    for m in ("tip_right", "tip_left"):
+        assert np.linalg.norm(loose.marker(m)[0] - ref.marker(m)[0], axis=1).max() < 1e-3
 
 
 @pytest.mark.parametrize("over, message", [

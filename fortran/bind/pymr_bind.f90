@@ -630,9 +630,10 @@ end subroutine pymr_step_history
 
 !> Formula 'adams' for tests: the corrector vector l(0:q) and error constants tq(1:5) of
 !> order q for the step s(1) after the steps s(2:) (op 1); or z(n, 0:q) lowered to order
-!> q-1 with the past steps s(1:) and the step h = s(1) it is scaled with (op 2, into zout).
+!> q-1 with the past steps s(1:) and the step h = s(1) it is scaled with (op 2, into zout);
+!> or order q's stability bound omega*h on undamped vibrations (op 3, into tq(1)).
 subroutine pymr_adams_kernel(op, q, m, s, n, z, l, tq, zout)
-  use pymr_integrator_adams, only : adams_coefficients, adams_lower_order
+  use pymr_integrator_adams, only : adams_coefficients, adams_lower_order, stable_omega_h
   implicit none
   integer, intent(in) :: op, q, m, n
   double precision, intent(in) :: s(m), z(n, 0:q)
@@ -640,6 +641,7 @@ subroutine pymr_adams_kernel(op, q, m, s, n, z, l, tq, zout)
   l = 0.0d0; tq = 0.0d0; zout = z
   if (op == 1) call adams_coefficients(q, s, l, tq)
   if (op == 2) call adams_lower_order(zout, q, s, s(1))
+  if (op == 3) tq(1) = stable_omega_h(q)
 end subroutine pymr_adams_kernel
 
 !> Every body's frame (inertial origin pos(3, b, k) and its parent's index parent(b), 0 for

@@ -22,7 +22,7 @@ module pymr_integrator_adams
   use pymr_integrator_nordsieck, only : nordsieck_predict_in_place, nordsieck_rescale, nordsieck_value
   implicit none
   private
-  public :: adams_integrator, adams_coefficients, adams_lower_order, max_order
+  public :: adams_integrator, adams_coefficients, adams_lower_order, max_order, stable_omega_h
 
   !> Highest order.
   integer, parameter :: max_order = 12
@@ -50,6 +50,17 @@ module pymr_integrator_adams
   integer, parameter :: jac_max_age = 400
   real(dp), parameter :: gamma_change = 0.3_dp
   real(dp), parameter :: corrector_share = 0.1_dp, rate_memory = 0.3_dp, diverge = 2.0_dp
+  !> Stability on undamped vibrations: the largest omega*h up to which order q multiplies
+  !> such a mode by at most 1 + 1 % a step (the spectral radius of its amplification at
+  !> z = i omega h, from z = 0 outward; tests/test_adams.py recomputes them from the
+  !> Adams-Moulton coefficients). Orders 1 and 2 (backward Euler, the trapezoidal rule, with
+  !> the corrector converged) are A-stable. Beyond the bound a mode the error test does not
+  !> see yet, one left at roundoff, grows within tens of steps until it fills the tolerance
+  !> and then holds the step for the rest of the run (docs/method.md section 3.3).
+  real(dp), parameter :: stable_omega_h(max_order) = [huge(1.0_dp), huge(1.0_dp), 0.7114_dp, 0.8893_dp, &
+    & 1.2607_dp, 1.3829_dp, 1.0775_dp, 0.7137_dp, 0.4393_dp, 0.2607_dp, 0.1515_dp, 0.0868_dp]
+  !> Steps at order 3 and up stay below this share of that bound at the highest frequency.
+  real(dp), parameter :: stable_margin = 0.9_dp
 
   !> The stepper's whole state.
   type, extends(stepper_t) :: adams_integrator
@@ -77,6 +88,9 @@ module pymr_integrator_adams
     !> Measured convergence rate of the fixed-point iteration, and the h/l_1 it was measured at.
     real(dp) :: rate = 1.0_dp, gamma_rate = 0.0_dp
     type(step_control) :: ctl
+    !> Highest undamped vibration frequency of the system (rad/s; 0: none known), which
+    !> bounds the steps of orders 3 and up (stable_omega_h).
+    real(dp) :: omega_top = 0.0_dp
     !> Newton (chord) iteration of the corrector instead of fixed-point: the Jacobian J by
     !> differences, the LU factors of I - gamma J, the gamma they hold, steps since J.
     logical :: newton = .false.
@@ -376,15 +390,17 @@ contains
       self%wait = max(self%wait, 2); self%eta_max = grow_max; return
     end if
     q_new = self%q
-    eta = ratio(bias_same*dsm, self%q + 1)
+    eta = min(ratio(bias_same*dsm, self%q + 1), stable_step(self, self%q)/self%h)
     if (self%wait == 0) then
       self%wait = 2
       eta_dn = 0.0_dp; eta_up = 0.0_dp
       if (self%q > 1 .and. .not. self%fixed) &
-        & eta_dn = ratio(bias_down*wrms_norm(self%z(:, self%q), self%w)*self%tq(1), self%q)
+        & eta_dn = min(ratio(bias_down*wrms_norm(self%z(:, self%q), self%w)*self%tq(1), self%q), &
+        & stable_step(self, self%q - 1)/self%h)
       if (self%q < self%q_top .and. self%have_saved) then
         cquot = self%tq(5)/self%tq5_saved*(self%h/self%tau(2))**(self%q + 1)
-        eta_up = ratio(bias_up*wrms_norm(self%e - cquot*self%e_saved, self%w)*self%tq(3), self%q + 2)
+        eta_up = min(ratio(bias_up*wrms_norm(self%e - cquot*self%e_saved, self%w)*self%tq(3), self%q + 2), &
+          & stable_step(self, self%q + 1)/self%h)
       end if
       if (self%fixed .and. self%q < self%q_top) then
         ! a fixed order is reached from order 1 as soon as the history allows
@@ -395,7 +411,7 @@ contains
       end if
     end if
     if (eta < gain_min) eta = 1.0_dp
-    eta = min(eta, self%eta_max, self%ctl%h_max/self%h)
+    eta = min(eta, self%eta_max, self%ctl%h_max/self%h, stable_step(self, q_new)/self%h)
     self%eta_max = grow_max
     if (q_new < self%q) then
       call adams_lower_order(self%z, self%q, self%tau, self%h)
@@ -445,6 +461,15 @@ contains
     call rescale(self, eta)
     self%eta_max = 1.0_dp
   end subroutine shrink
+
+  !> Largest step order k may take on the system's highest vibration: stable_margin of its
+  !> bound (none at orders 1 and 2, or without a known frequency).
+  pure real(dp) function stable_step(self, k)
+    class(adams_integrator), intent(in) :: self
+    integer, intent(in) :: k
+    stable_step = huge(1.0_dp)
+    if (self%omega_top > 0.0_dp .and. k >= 3) stable_step = stable_margin*stable_omega_h(k)/self%omega_top
+  end function stable_step
 
   !> Step h -> eta h: column j of z times eta^j.
   pure subroutine rescale(self, eta)
