@@ -8,6 +8,7 @@ from pathlib import Path
 
 import pytest
 
+import pymr
 from pymr.cli import build_parser
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -75,3 +76,10 @@ def test_every_bench_is_documented():
         assert f"pymr bench {choice}" in readme_usage_block()
         assert choice in entries(ARCHITECTURE, "bench")
         assert f"{choice}:" in what.help, f"pymr bench --help does not describe {choice}"
+
+
+def test_every_public_name_is_in_the_python_api_section():
+    """architecture.md's Python API names everything `import pymr` gives (pymr.__all__)."""
+    missing = [n for n in pymr.__all__ if n != "__version__"
+               and f"`pymr.{n}" not in ARCHITECTURE and f"`{n}`" not in ARCHITECTURE]
+    assert not missing, f"docs/architecture.md does not describe pymr.{', pymr.'.join(missing)}"
