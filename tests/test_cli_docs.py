@@ -83,3 +83,18 @@ def test_every_public_name_is_in_the_python_api_section():
     missing = [n for n in pymr.__all__ if n != "__version__"
                and f"`pymr.{n}" not in ARCHITECTURE and f"`{n}`" not in ARCHITECTURE]
     assert not missing, f"docs/architecture.md does not describe pymr.{', pymr.'.join(missing)}"
+
+
+def test_the_readme_tank_summary_is_what_pymr_run_prints(tmp_path):
+    """The README's '$ pymr run input/tank_gun_turret.nml' block, line by line, with the
+    timings of its cpu line masked."""
+    block = README.split("$ pymr run input/tank_gun_turret.nml\n", 1)[1].split("```", 1)[0]
+    r = subprocess.run(["pymr", "run", str(ROOT / "input" / "tank_gun_turret.nml")], capture_output=True,
+                       text=True, cwd=tmp_path, timeout=120)
+    assert r.returncode == 0, r.stderr
+
+    def masked(text):
+        return [re.sub(r"\d+\.\d+(e-?\d+)?", "T", ln) if ln.startswith("cpu time") else ln
+                for ln in text.strip("\n").splitlines()]
+
+    assert masked(r.stdout) == masked(block)
