@@ -39,7 +39,7 @@ def _raise(stat: int, message: bytes | str) -> None:
 
 def format_overrides(overrides: Mapping[str, object] | Iterable[str] | None) -> str:
     """Turn ``{"integrator.h_slow": 5e-4}`` or ``["integrator.h_slow=5e-4"]`` into the
-    kernel's override text (one ``GROUP.KEY=VALUE`` per line, values in namelist syntax)."""
+    kernel's override text (one ``GROUP.ITEM=VALUE`` per line, values in namelist syntax)."""
     if not overrides:
         return ""
     if isinstance(overrides, Mapping):
@@ -256,7 +256,9 @@ def loop_rows(scene: str | os.PathLike, q, qd, overrides=None) -> tuple[np.ndarr
 
 
 def model_energy(scene: str | os.PathLike, q, qd, overrides=None) -> tuple[np.ndarray, np.ndarray]:
-    """Kinetic and potential (gravity, when on) energy for states q, qd of shape (m, n)."""
+    """Kinetic and potential energy for states q, qd of shape (m, n) (or one state of shape
+    (n,)): arrays of shape (m,). The potential energy is the flexible bodies' strain energy,
+    plus gravity's and the joint springs' when those effects are on."""
     q, qd = _states(q, qd)
     q2 = np.asfortranarray(np.atleast_2d(np.asarray(q, dtype=float)).T)
     qd2 = np.asfortranarray(np.atleast_2d(np.asarray(qd, dtype=float)).T)

@@ -1,5 +1,6 @@
-"""The ``pymr`` command line: ``pymr run``, ``pymr scene``, ``pymr bench``, ``pymr study``,
-``pymr modal-file``, ``pymr modal-import``, ``pymr plot``, ``pymr sweep``."""
+"""The ``pymr`` command line: ``pymr run``, ``pymr scene``, ``pymr modal-file``,
+``pymr modal-import``, ``pymr bench``, ``pymr modes``, ``pymr animate``, ``pymr study``,
+``pymr sweep``, ``pymr plot``."""
 from __future__ import annotations
 
 import argparse
@@ -158,7 +159,7 @@ def build_parser() -> argparse.ArgumentParser:
     m.add_argument("scene", help="scene namelist file")
     m.add_argument("body", help="name of a kind='beam' body")
     m.add_argument("-o", "--output", required=True, help="modal data file to write")
-    m.add_argument("--set", action="append", metavar="GROUP.KEY=VALUE", help="namelist override (repeatable)")
+    m.add_argument("--set", action="append", metavar="GROUP.ITEM=VALUE", help="namelist override (repeatable)")
     m.add_argument("-q", "--quiet", action="store_true")
     m.set_defaults(func=_cmd_modal_file)
     mi = sub.add_parser("modal-import", help="a kind='modal' body from finite-element mass and stiffness matrices "
@@ -187,11 +188,13 @@ def build_parser() -> argparse.ArgumentParser:
                         "rods, N = 5 to 200, by both forward-dynamics paths and (when installed) Pinocchio; lapack: the "
                         "work pymr hands LAPACK, timed with the LAPACK loaded; "
                         "table1: the paper's Table 1 (tank, step ratios 1-50, both couplings); effects: cost "
-                        "of one tank evaluation with each effect on and off")
+                        "of one tank evaluation with each effect on and off; spacecraft: the flexible spacecraft, "
+                        "single-rate against multirate")
     b.add_argument("--pinocchio-cpp", metavar="EXE",
                    help="chain: also time Pinocchio compiled, by this build of docs/pinocchio_chain.cpp")
     b.add_argument("--repeats", type=int, default=None,
-                   help="timing repeats, median reported (default 7 for rhs and effects, 21 for table1)")
+                   help="timing repeats, median reported (default 7 for rhs, chain and effects, 5 for lapack "
+                        "and spacecraft, 21 for table1, which takes at least 5)")
     b.add_argument("--json", help="also write the figures to this JSON file")
     b.set_defaults(func=_cmd_bench)
     md = sub.add_parser("modes", help="natural frequencies, damping ratios and mode shapes of the model "
@@ -215,7 +218,8 @@ def build_parser() -> argparse.ArgumentParser:
                        "method (fixed, multirate, adaptive, scipy DOP853/LSODA, CVODE)")
     s.add_argument("scene", help="scene namelist file (with at least one &marker)")
     s.add_argument("--marker", help="marker whose position error is measured (default: the first by name)")
-    s.add_argument("-o", "--output", help="prefix of the CSV and PNG written (default: SCENE_study)")
+    s.add_argument("-o", "--output", help="prefix of the files written: PREFIX.csv, PREFIX.png, PREFIX_history.csv "
+                   "(default: SCENE_study)")
     s.add_argument("--quick", action="store_true", help="fewer steps and tolerances (a smoke run)")
     s.add_argument("--repeats", type=int, default=5, help="runs per case; the CPU time is their median (default 5)")
     s.set_defaults(func=_cmd_study)

@@ -145,8 +145,9 @@ def load_results(csv_path: str | os.PathLike) -> Results:
         for line in fh:
             skip += 1
             if line.startswith("#"):
-                key, _, value = line[1:].strip().partition(":")
-                meta[key.strip()] = value.strip()
+                key, colon, value = line[1:].strip().partition(":")
+                if colon:                    # '# key: value' (not the '# pymr 0.1.0 results' line)
+                    meta[key.strip()] = value.strip()
                 continue
             header = line.strip().split(",")
             break

@@ -5,7 +5,8 @@ namelists and a SLURM job-array script that runs ``mrsim`` per case.
 SWEEP.toml::
 
     scene = "input/tank_gun_turret.nml"     # relative to the TOML file
-    output = "sweep"                         # folder for the cases' results and the summary
+    output = "sweep"                         # folder for the cases' results and the summary,
+                                             # relative to the TOML file (default: its stem)
     metric = "deviation:muzzle"              # or "final:COLUMN", "max_abs:COLUMN"
 
     [grid]                                   # every combination of these values is a case

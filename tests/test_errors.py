@@ -2,7 +2,7 @@
 
 Contract (ARCHITECTURE.md, "Command line" and "Errors"):
 
-* ``mrsim SCENE.nml [-o OUT.csv] [--set GROUP.KEY=VALUE ...]`` on bad input exits with
+* ``mrsim SCENE.nml [-o OUT.csv] [--set GROUP.ITEM=VALUE ...]`` on bad input exits with
   status 1 and writes exactly one line on stderr,
   ``mrsim: error: SCENE.nml: <group or item>: <what is wrong>``; a failed run (solver
   error) exits with status 2, also with one line. Never a Fortran runtime traceback.
@@ -102,7 +102,7 @@ class Case:
     id: str
     scene: str | bytes | None      # text or bytes written to <id>.nml; None: no file
     expect: tuple[str, ...]        # parts the message must contain (besides the file name)
-    sets: tuple[str, ...] = ()     # --set GROUP.KEY=VALUE entries
+    sets: tuple[str, ...] = ()     # --set GROUP.ITEM=VALUE entries
     pattern: str | None = None     # a regular expression the message must match too
 
     @property

@@ -56,6 +56,7 @@ def test_results_names_meta_and_accessors(tmp_path):
     assert res.flexible_bodies == ["gun"]
     assert res.title == res.meta["title"] == "tank gun-turret (Kim and Kim 2000)"
     assert res.method == res.meta["method"] and res.method.startswith("single fixed")
+    assert list(res.meta) == ["title", "method"]  # the '# key: value' lines only, as documented
     assert res.scene is None                      # the CSV does not name its scene file
     assert res.stats["steps_slow"] == 100
     q, qd = res.joint("elevation")

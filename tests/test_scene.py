@@ -185,7 +185,8 @@ def test_pymr_scene_command_prints_the_resolved_scene_and_the_schema(tmp_path):
 def schema_markdown() -> str:
     """The README's scene reference as the schema gives it: one table per group."""
     out = []
-    for block in pymr.schema().split("&")[1:]:
+    # a group starts at a line '&name' (an item's meaning may hold '&' too: '&effects gravity')
+    for block in re.split(r"^&", pymr.schema(), flags=re.M)[1:]:
         name, *rows = block.rstrip("\n").split("\n")
         out += [f"**&{name}**", "", "| item | type | default | allowed | unit | meaning |", "|---|---|---|---|---|---|"]
         for row in rows:
@@ -200,7 +201,31 @@ def test_readme_scene_reference_is_the_schema():
     m = re.search(r"<!-- schema begin -->\n(.*?)<!-- schema end -->", readme, re.S)
     assert m, "the README has no generated scene reference"
     assert m.group(1) == schema_markdown(), "README scene reference differs from `pymr scene --schema`: " \
-        "regenerate it with python -c 'import tests.test_scene as t; print(t.schema_markdown())'"
+        "regenerate it as the README's Development section says"
+
+
+def test_readme_scene_reference_has_every_group_and_item_once():
+    """Read back apart from the generator: the README's tables name the kernel's groups, in
+    its order, each with its items and their type, default, range and unit."""
+    readme = (ROOT / "README.md").read_text()
+    ref = re.search(r"<!-- schema begin -->\n(.*?)<!-- schema end -->", readme, re.S).group(1)
+    groups = re.findall(r"^\*\*&(.*?)\*\*$", ref, re.M)
+    expect = {}
+    for line in pymr.schema().splitlines():
+        if line.startswith("&"):
+            group = line[1:]
+            expect[group] = []
+        else:
+            expect[group].append(line.split("\t"))
+    assert groups == list(expect) == ["scene", "integrator", "effects", "output", "body", "joint", "drive",
+                                      "spring", "motion", "load", "marker"]
+    got = {}
+    for group, table in zip(groups, re.split(r"^\*\*&\w+\*\*$", ref, flags=re.M)[1:]):
+        rows = [r for r in table.splitlines() if r.startswith("| `")]
+        got[group] = [[c.strip().replace("\\|", "|") for c in re.split(r" \| ", r[2:-2])] for r in rows]
+        for row in got[group]:
+            row[0] = row[0].strip("`")
+    assert got == expect
 
 
 def test_parse_value_reads_what_the_kernel_writes():
@@ -249,3 +274,13 @@ def test_import_from_the_source_tree_says_the_kernel_is_not_built():
     last = r.stderr.strip().splitlines()[-1]
     assert last.startswith("ImportError: pymr's compiled kernel (pymr._core) is not here")
     assert "bash .ci/setup" in last
+
+
+def test_the_corrector_item_states_the_jacobian_age_the_stepper_uses():
+    """&integrator corrector's meaning gives the age at which the 'newton' corrector renews its
+    Jacobian: the number the stepper uses (fortran/integrator/adams.f90, jac_max_age)."""
+    source = (ROOT / "fortran" / "integrator" / "adams.f90").read_text()
+    age = re.search(r"integer, parameter :: jac_max_age = (\d+)", source).group(1)
+    meaning = next(line.split("\t")[-1] for line in pymr.schema().split("&integrator\n")[1].splitlines()
+                   if line.startswith("corrector\t"))
+    assert f"renewed when it is {age} steps old" in meaning

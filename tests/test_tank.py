@@ -1,4 +1,4 @@
-"""The tank gun-turret scene (shared/design/tank_gun_turret.md) and its hold variant:
+"""The tank gun-turret scene (docs/tank_gun_turret.md) and its hold variant:
 energy balance against the drives' work, static sag under gravity, modal-file round
 trip, and the batch executable's output."""
 from __future__ import annotations

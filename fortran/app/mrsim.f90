@@ -1,6 +1,6 @@
 !> mrsim: run a pymr scene from a namelist file.
 !>
-!>   mrsim SCENE.nml [-o OUT.csv] [--set GROUP.KEY=VALUE ...] [--restart CKPT] [--progress] [--quiet]
+!>   mrsim SCENE.nml [-o OUT.csv] [--set GROUP.ITEM=VALUE ...] [--restart CKPT] [--progress] [--quiet]
 !>
 !> Exit status 0 on success; otherwise one line on stderr,
 !> "mrsim: error: <message>", and status 1 (bad input) or 2 (failed run).
@@ -41,14 +41,14 @@ program mrsim
       write(output_unit, '(a)') 'mrsim (pymr) ' // pymr_version
       stop
     case ('-h', '--help')
-      write(output_unit, '(a)') 'usage: mrsim SCENE.nml [-o OUT.csv] [--set GROUP.KEY=VALUE ...] [--restart CKPT] ' &
+      write(output_unit, '(a)') 'usage: mrsim SCENE.nml [-o OUT.csv] [--set GROUP.ITEM=VALUE ...] [--restart CKPT] ' &
         & // '[--progress] [--quiet] | --version'
       stop
     case ('-o', '--output')
       if (i == nargs) call usage_error(arg // ' needs a file name')
       i = i + 1; out = get_arg(i)
     case ('--set')
-      if (i == nargs) call usage_error('--set needs GROUP.KEY=VALUE')
+      if (i == nargs) call usage_error('--set needs GROUP.ITEM=VALUE')
       i = i + 1; overrides = overrides // get_arg(i) // achar(10)
     case ('--restart')
       if (i == nargs) call usage_error('--restart needs a checkpoint file')
@@ -64,7 +64,7 @@ program mrsim
     end select
     i = i + 1
   end do
-  if (len(scene) == 0) call usage_error('no scene file (usage: mrsim SCENE.nml [-o OUT.csv] [--set G.K=V ...])')
+  if (len(scene) == 0) call usage_error('no scene file (usage: mrsim SCENE.nml [-o OUT.csv] [--set G.I=V ...])')
 
   call run_scene(scene, overrides, out, summary, error, written, restart=restart, progress_lines=progress)
   if (allocated(error)) then

@@ -324,7 +324,7 @@ contains
   end subroutine set_coefficients
 
   !> Before a Newton iteration (f holds f(tn, y) at the prediction y): a new Jacobian by
-  !> forward differences when the last is 20 steps old or failed to converge, new LU factors
+  !> forward differences when the last is jac_max_age steps old or failed to converge, new LU factors
   !> of I - gamma J when J is new or gamma changed by more than 30 %.
   subroutine newton_setup(self, sys, tn, gamma, error)
     class(adams_integrator), intent(inout) :: self

@@ -270,7 +270,8 @@ contains
     call t%add('order', g%order, '-', "order of formula 'adams': 0 = variable (1 to 12, from the error " // &
       & "estimates), 1-12 = that order; formula 'abm4' is of order 4", ge=0, le=12)
     call t%add('corrector', g%corrector, "iteration of the 'adams' corrector to convergence: 'newton' (chord " // &
-      & "iteration with a difference Jacobian, refreshed every 20 steps) or 'fixed-point' (no Jacobian)", &
+      & "iteration with a difference Jacobian, renewed when it is 400 steps old or an iteration fails) or " // &
+      & "'fixed-point' (no Jacobian)", &
       & choices='newton fixed-point')
     call t%add('dynamics', g%dynamics, "how single-rate evaluations solve M qdd = P: 'articulated' (the " // &
       & "articulated-body algorithm, O(n), flexible bodies included), 'mass_matrix' (assemble M and P and " // &
