@@ -157,3 +157,21 @@ def test_adaptive_multirate_with_k_max_one_is_adaptive_pece(tmp_path, tank_refer
 def test_k_max_below_one_is_an_error(tmp_path):
     with pytest.raises(pymr.SceneError, match=r"&integrator: k_max: must be in \[1, 100000\], got 0"):
         pymr.run(TANK, tmp_path / "x.csv", overrides=adaptive("full", 1e-4, **{"integrator.k_max": 0}))
+
+
+@pytest.mark.parametrize("coupling", ["full", "response"])
+def test_rows_inside_macro_steps_are_as_accurate_as_at_their_ends(tmp_path, coupling):
+    """Output rows that fall inside a macro step (output.dt = 1 ms, H = 3 ms) interpolate the
+    fast steps taken there, so their muzzle velocity is as close to a fine single-rate run
+    (h = 2.5e-5 s) as the rows at the macro steps' ends. The 'full' coupling used to
+    evaluate its last fast step's polynomial back over the whole macro step: 13 m/s of
+    error inside against 0.30 m/s at the ends at k = 30 (now 0.31), and 320 m/s in the last
+    row of the k = 33 run, where single-rate gives 0.16 m/s."""
+    fine = {"integrator.h_slow": 2.5e-5, "integrator.h_fast": 2.5e-5}
+    def velocity_error(dt):
+        run = pymr.run(TANK, tmp_path / "m.csv", overrides=multirate(coupling, 30, **{"output.dt": dt}))
+        ref = pymr.run(TANK, tmp_path / "s.csv", overrides={**fine, "output.dt": dt})
+        assert np.allclose(run.t, ref.t, rtol=0, atol=1e-12)
+        return np.abs(run.marker("muzzle")[1][:-1] - ref.marker("muzzle")[1][:-1]).max()
+    inside, ends = velocity_error(1e-3), velocity_error(3e-3)
+    assert inside < 1.2 * ends

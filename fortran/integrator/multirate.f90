@@ -47,6 +47,13 @@ module pymr_integrator_multirate
     real(dp), allocatable :: zp(:, :), zn(:, :), wp(:, :), wn(:, :), fs(:), ff(:), gs(:), gf(:), xs(:), acc(:)
     !> Positions of the slow and fast states in the full state (for error messages).
     integer, allocatable :: slow_map(:), fast_map(:)
+    !> Dense output of the fast state inside the last macro step (or the start): its values
+    !> xb(:, 0:nb) and derivatives fb(:, 0:nb) at the fast steps from tb on, nb steps of hb.
+    !> The fast array's polynomial is its last step's: evaluated back over the macro step it
+    !> would grow like s^3 (at k = 30 it put 13 m/s of error into the tank's muzzle velocity).
+    real(dp), allocatable :: xb(:, :), fb(:, :)
+    real(dp) :: tb = 0.0_dp, hb = 0.0_dp
+    integer :: nb = 0
   contains
     procedure :: init => mr_init
     procedure :: start => mr_start
@@ -88,6 +95,7 @@ contains
       & self%xs(2*ns), self%acc(ns))
     self%slow_map = slow_index(ns, nf)
     self%fast_map = fast_index(ns, nf)
+    allocate(self%xb(2*nf, 0:2*k), self%fb(2*nf, 0:2*k))
   end subroutine mr_init
 
   !> Start at (t0, x0), x0 = [q_s; q_f; qd_s; qd_f]: classical RK4 steps of size h on the
@@ -218,6 +226,7 @@ contains
       call check_finite(sys, t, f, 'derivative', error); if (allocated(error)) return
       if (mod(i, self%k) == 0) fsl(:, i/self%k) = slow_part(f)
       ffa(:, i) = fast_part(f)
+      call keep_fast_point(self, i, fast_part(x), ffa(:, i))
       if (i == nsteps) exit
       call rk4_step(sys, t, self%hf, x, f, self%evals_start, error); if (allocated(error)) return
       t = t0 + (i + 1)*self%hf
@@ -227,6 +236,7 @@ contains
     self%t0 = t0
     self%t = t0 + 2*hs
     self%steps_slow = 2; self%steps_fast = nsteps
+    self%tb = t0; self%hb = self%hf; self%nb = nsteps
   contains
     pure function slow_part(v) result(r)
       real(dp), intent(in) :: v(:)
@@ -330,6 +340,7 @@ contains
     real(dp) :: s, ti
     ns = self%ns
     err_s = 0.0_dp; err_f = 0.0_dp
+    call keep_fast_point(self, 0, self%zf(:, 0), self%zf(:, 1)/self%hf)
     do i = 1, self%k - 1
       s = real(i, dp)/self%k
       ti = self%t + i*self%hf
@@ -341,6 +352,7 @@ contains
       self%ff = self%hf*self%ff
       call nordsieck_correct(self%wp, self%ff, self%wn, self%gf)
       if (self%adaptive) err_f = max(err_f, wrms_norm(corrector_l(0)*self%gf, self%wf))
+      call keep_fast_point(self, i, self%wn(:, 0), self%wn(:, 1)/self%hf)
       self%zf = self%wn
       self%steps_fast = self%steps_fast + 1
     end do
@@ -351,6 +363,8 @@ contains
     if (allocated(error)) return
     call nordsieck_correct(self%zp, self%hs*self%fs, self%zn, self%gs)
     call nordsieck_correct(self%wp, self%hf*self%ff, self%wn, self%gf)
+    call keep_fast_point(self, self%k, self%wn(:, 0), self%wn(:, 1)/self%hf)
+    self%tb = self%t; self%hb = self%hf; self%nb = self%k
     if (.not. self%adaptive) return
     err_s = wrms_norm(corrector_l(0)*self%gs, self%ws)
     err_f = max(err_f, wrms_norm(corrector_l(0)*self%gf, self%wf))
@@ -413,10 +427,43 @@ contains
     integer :: ns, nf, n
     ns = self%ns; nf = self%nf; n = ns + nf
     call nordsieck_value(self%zs, (t - self%t)/self%hs, xs)
-    call nordsieck_value(self%zf, (t - self%t)/self%hf, xf)
+    if (self%nb > 0) then
+      call fast_dense(self, t, xf)
+    else
+      call nordsieck_value(self%zf, (t - self%t)/self%hf, xf)
+    end if
     x(1:ns) = xs(1:ns); x(n+1:n+ns) = xs(ns+1:)
     x(ns+1:n) = xf(1:nf); x(n+ns+1:) = xf(nf+1:)
   end subroutine mr_value_at
+
+  !> The fast state x and its derivative f at fast step i of the dense output's steps.
+  subroutine keep_fast_point(self, i, x, f)
+    class(multirate_integrator), intent(inout) :: self
+    integer, intent(in) :: i
+    real(dp), intent(in) :: x(:), f(:)
+    real(dp), allocatable :: grown(:, :)
+    if (size(self%xb, 2) <= i) then
+      allocate(grown(size(x), 0:2*i + 1))
+      grown(:, 0:size(self%xb, 2) - 1) = self%xb; call move_alloc(grown, self%xb)
+      allocate(grown(size(x), 0:2*i + 1))
+      grown(:, 0:size(self%fb, 2) - 1) = self%fb; call move_alloc(grown, self%fb)
+    end if
+    self%xb(:, i) = x; self%fb(:, i) = f
+  end subroutine keep_fast_point
+
+  !> Fast state at t from the cubic Hermite interpolant of the kept fast steps (the order
+  !> of the steps themselves, O(h^4)); t is within them.
+  pure subroutine fast_dense(self, t, xf)
+    class(multirate_integrator), intent(in) :: self
+    real(dp), intent(in) :: t
+    real(dp), intent(out) :: xf(:)
+    real(dp) :: th
+    integer :: i
+    i = min(max(ceiling((t - self%tb)/self%hb - 1.0e-9_dp), 1), self%nb)
+    th = (t - (self%tb + (i - 1)*self%hb))/self%hb
+    xf = (2*th**3 - 3*th**2 + 1)*self%xb(:, i - 1) + (th**3 - 2*th**2 + th)*self%hb*self%fb(:, i - 1) + &
+      & (3*th**2 - 2*th**3)*self%xb(:, i) + (th**3 - th**2)*self%hb*self%fb(:, i)
+  end subroutine fast_dense
 
   !> Project the value columns of the slow and fast Nordsieck arrays, joined into the full
   !> state [q_s; q_f; qd_s; qd_f], onto the system's constraints.
@@ -431,6 +478,7 @@ contains
     call sys%project(self%time(), x, error); if (allocated(error)) return
     self%zs(:, 0) = [x(1:ns), x(ns+nf+1:2*ns+nf)]
     self%zf(:, 0) = [x(ns+1:ns+nf), x(2*ns+nf+1:)]
+    if (self%nb > 0) self%xb(:, self%nb) = self%zf(:, 0)
   end subroutine mr_project
 
 end module pymr_integrator_multirate
