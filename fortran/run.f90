@@ -518,7 +518,8 @@ contains
         & ', "h_min": ', g%h_min, ', "h_max": ', g%h_max, ', "n_corrector": ', g%n_corrector, ', "t_end": ', sc%scene%t_end
       s = '"method": "' // trim(g%method) // trim(buf) // ', "adaptive": ' // trim(merge('true ', 'false', g%adaptive)) &
         & // ', "coupling": "' // trim(g%coupling) // '", "formula": "' // trim(g%formula) // '", "order": ' // &
-        & itoa(g%order) // ', "corrector": "' // trim(g%corrector) // '", "dynamics": "' // trim(g%dynamics) // '"'
+        & itoa(g%order) // ', "corrector": "' // trim(g%corrector) // '", "dynamics": "' // trim(g%dynamics) // &
+        & '", "k_max": ' // itoa(g%k_max)
     end associate
   end function settings_json
 

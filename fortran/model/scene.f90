@@ -14,6 +14,15 @@ module pymr_model_scene
   public :: spring_spec, motion_spec, load_spec, output_spec, scene_spec, max_modes_input
   public :: joint_ndof, unset, group_names, single_groups, repeated_groups, describe_group, group_origin, group_count
   public :: naming_item, complete_scene, body_items, item_applies, output_quantities, beam_mode_count
+  public :: closes_loop, flexible_loop, k_max_flexible_loop
+
+  !> Default k_max of adaptive 'response' runs whose closed loops pass through a flexible
+  !> body. The loop's fast modes move its joints (the flexible four-bar's 115 and 677 Hz
+  !> modes have their largest motion in the coupler's and the rocker's angles), which the
+  !> surrogate follows only through the modal state. At k_max = 50 that four-bar ended 14-44
+  !> rtol away over rtol 1e-4 to 1e-8; at 8, 1.1-1.2 rtol, in 1.05-1.15x the CPU (README,
+  !> "Closed loops").
+  integer, parameter :: k_max_flexible_loop = 8
 
   !> The groups of a scene file, in the order the resolved scene is written.
   character(len=*), parameter :: group_names = &
@@ -43,7 +52,8 @@ module pymr_model_scene
     real(dp) :: h_min = 0.0_dp, h_max = 0.0_dp
     !> Corrector evaluations per step (1 = PECE).
     integer :: n_corrector = 1
-    !> Adaptive multirate: the largest step ratio H/h the controller may choose.
+    !> Adaptive multirate: the largest step ratio H/h the controller may choose (with the
+    !> 'response' coupling and a closed loop through a flexible body: k_max_flexible_loop).
     integer :: k_max = 50
     !> Refuse fixed steps that the pre-flight check finds unstable (.false.: run anyway).
     logical :: stability_check = .true.
@@ -278,7 +288,8 @@ contains
       & "factor M, O(n^3)) or 'auto' (articulated without flexible bodies, and with them from 12 " // &
       & "joint coordinates on: where it is the faster; " // &
       & "multirate and the pre-flight check always use M)", choices='auto articulated mass_matrix')
-    call t%add('k_max', g%k_max, '-', 'largest step ratio H/h of adaptive multirate', ge=1, le=100000)
+    call t%add('k_max', g%k_max, '-', "largest step ratio H/h of adaptive multirate (default 8 with the " // &
+      & "'response' coupling when a closed loop passes through a flexible body)", ge=1, le=100000)
     call t%add('stability_check', g%stability_check, 'refuse fixed steps that the pre-flight check finds unstable')
     call t%add('max_steps', g%max_steps, '-', 'most (fast) steps a run may take: a fixed-step run needing more is ' // &
       & 'refused, an adaptive one stops', ge=1, le=2000000000)
@@ -472,7 +483,64 @@ contains
     end if
     ! the paper's formula is of order 4 (a scene written back states it)
     if (sc%integrator%formula == 'abm4' .and. .not. sc%integrator%origin%given('order')) sc%integrator%order = 4
+    if (sc%integrator%coupling == 'response' .and. .not. sc%integrator%origin%given('k_max')) then
+      if (flexible_loop(sc)) sc%integrator%k_max = k_max_flexible_loop
+    end if
   end subroutine complete_scene
+
+  !> Joint j closes a loop: an earlier joint already gives its child a parent (the first
+  !> joint naming a body as child is its tree joint; the later ones are cut joints).
+  pure logical function closes_loop(sc, j)
+    type(scene_t), intent(in) :: sc
+    integer, intent(in) :: j
+    closes_loop = any(sc%joints(1:j - 1)%child == sc%joints(j)%child) .and. sc%joints(j)%child /= sc%joints(j)%parent
+  end function closes_loop
+
+  !> A closed loop passes through a flexible body: one of the bodies on the tree paths from
+  !> a cut joint's two bodies up to their common ancestor (that one included) is a beam or
+  !> a modal body. Paths stop at a body without a tree joint, or after as many steps as
+  !> there are bodies (the scene's rules judge a malformed tree).
+  pure logical function flexible_loop(sc)
+    type(scene_t), intent(in) :: sc
+    character(len=name_len) :: up_a(size(sc%bodies) + 1), up_b(size(sc%bodies) + 1)
+    integer :: j, na, nb, i
+    flexible_loop = .false.
+    do j = 1, size(sc%joints)
+      if (.not. closes_loop(sc, j)) cycle
+      call path_up(sc%joints(j)%parent, up_a, na)
+      call path_up(sc%joints(j)%child, up_b, nb)
+      do i = 1, na
+        if (flexible(up_a(i))) flexible_loop = .true.
+        if (any(up_b(1:nb) == up_a(i))) exit
+      end do
+      do i = 1, nb
+        if (any(up_a(1:na) == up_b(i))) exit
+        if (flexible(up_b(i))) flexible_loop = .true.
+      end do
+      if (flexible_loop) return
+    end do
+  contains
+    !> The body and its tree ancestors, nearest first.
+    pure subroutine path_up(body, up, n)
+      character(len=*), intent(in) :: body
+      character(len=name_len), intent(out) :: up(:)
+      integer, intent(out) :: n
+      integer :: k
+      n = 1; up(1) = body
+      do while (n < size(up))
+        k = findloc(sc%joints%child, up(n), dim=1)
+        if (k == 0) exit
+        n = n + 1; up(n) = sc%joints(k)%parent
+      end do
+    end subroutine path_up
+    pure logical function flexible(body)
+      character(len=*), intent(in) :: body
+      integer :: k
+      k = findloc(sc%bodies%name, body, dim=1)
+      flexible = .false.
+      if (k > 0) flexible = sc%bodies(k)%kind == 'beam' .or. sc%bodies(k)%kind == 'modal'
+    end function flexible
+  end function flexible_loop
 
   !> The items a body of each kind takes ('' for an unknown kind: no rule).
   pure function body_items(kind) result(s)

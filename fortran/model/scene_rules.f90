@@ -6,7 +6,8 @@
 module pymr_model_scene_rules
   use pymr_kinds, only : dp, name_len
   use pymr_error, only : error_type, fatal_error, error_list
-  use pymr_model_scene, only : scene_t, body_spec, joint_spec, joint_ndof, unset, body_items, beam_mode_count
+  use pymr_model_scene, only : scene_t, body_spec, joint_spec, joint_ndof, unset, body_items, beam_mode_count, &
+    & closes_loop
   use pymr_io_item_table, only : origin_t
   use pymr_model_names, only : name_index
   use pymr_io_text, only : itoa, fmt
@@ -28,14 +29,6 @@ contains
       end if
     end do
   end function body_index
-
-  !> Joint j closes a loop: an earlier joint already gives its child a parent (the first
-  !> joint naming a body as child is its tree joint; the later ones are cut joints).
-  pure logical function closes_loop(sc, j)
-    type(scene_t), intent(in) :: sc
-    integer, intent(in) :: j
-    closes_loop = any(sc%joints(1:j - 1)%child == sc%joints(j)%child) .and. sc%joints(j)%child /= sc%joints(j)%parent
-  end function closes_loop
 
   !> Every check that needs no tree: values, names, kinds, integrator and output settings.
   subroutine check_scene(sc, error)
