@@ -357,3 +357,28 @@ def test_non_finite_values_never_reach_lapack(q, qd, routine):
     tank = ROOT / "input" / "tank_gun_turret.nml"
     with pytest.raises(pymr.SolverError, match=rf"{routine} has a non-finite entry \(NaN\); not solved"):
         pymr.model_accelerations(tank, 0.0, np.full(6, q), np.full(6, qd))
+
+
+def test_a_modal_file_never_overwrites_the_scene_and_is_written_whole(tmp_path, monkeypatch):
+    """`pymr modal-file SCENE BODY -o SCENE` replaced the scene with the modal data (found by
+    fuzzing the command line); the kernel now refuses an output that is one of the scene's
+    inputs, as for results, and writes the file whole (a directory in its place is refused,
+    no temporary file is left)."""
+    scene = tmp_path / "chain.nml"
+    scene.write_bytes((ROOT / "input" / "flexible_chain.nml").read_bytes())
+    before = scene.read_bytes()
+    for out in ("chain.nml", "./chain.nml"):
+        r = subprocess.run(["pymr", "modal-file", "chain.nml", "link1", "-o", out], cwd=tmp_path, capture_output=True,
+                           text=True, timeout=60)
+        assert r.returncode == 1, r.stderr
+        assert r.stderr == (f"pymr: error: chain.nml: {out}: would overwrite the scene (chain.nml); "
+                            "choose another modal file\n")
+        assert scene.read_bytes() == before
+    (tmp_path / "folder").mkdir()
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(pymr.SceneError, match=r"^folder: cannot write: it is a directory$"):
+        pymr.write_modal_file(scene, "link1", "folder")
+    pymr.write_modal_file(scene, "link1", tmp_path / "link1.modal")
+    assert (tmp_path / "link1.modal").read_text().splitlines()[2] == "pymr-modal 1"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["chain.nml", "folder", "link1.modal"]
+

@@ -360,7 +360,7 @@ subroutine pymr_write_modal(scene, overrides, body, path, stat, message)
   use pymr_bind_support, only : report
   use pymr_model_scene, only : scene_t
   use pymr_model, only : model_t
-  use pymr_run, only : load_model
+  use pymr_run, only : load_model, scene_input
   use pymr_io_modal_file, only : write_modal_file
   implicit none
   character(len=*), intent(in) :: scene, overrides, body, path
@@ -380,6 +380,9 @@ subroutine pymr_write_modal(scene, overrides, body, path, stat, message)
       call fatal_error(error, scene // ": no body named '" // body // "'")
     else if (model%d%bshape(k)%ne == 0) then
       call fatal_error(error, scene // ": body '" // body // "' is not a beam (kind='beam')")
+    else if (len(scene_input(sc, path)) > 0) then
+      call fatal_error(error, scene // ': ' // path // ': would overwrite ' // scene_input(sc, path) // &
+        & '; choose another modal file')
     else
       call write_modal_file(path, 'modes of beam ' // body // ' from ' // scene, model%d%flex(k), &
         & model%d%bshape(k), error)
