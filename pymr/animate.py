@@ -39,6 +39,15 @@ def scene_of(res: Results, scene: str | os.PathLike | None = None) -> Path:
     return path
 
 
+def check_finite(res: Results) -> None:
+    """Every value of the results is a finite number (a run writes no other)."""
+    bad = ~np.isfinite(res.data)
+    if bad.any():
+        row, col = np.argwhere(bad)[0]
+        raise AnimateError(f"{res.path}: row {row + 1}, column {res.columns[col]}: {res.data[row, col]} is not a "
+                           "finite number (a run writes none: the file was changed)")
+
+
 def check_geometry(res: Results, model: Model, path: Path, q: np.ndarray, qd: np.ndarray) -> None:
     """The model's markers at (up to 20 of) the results' states equal the run's marker columns."""
     rows = np.unique(np.linspace(0, len(res.t) - 1, min(20, len(res.t))).round().astype(int))
@@ -57,6 +66,7 @@ def motion(res: Results, scene: str | os.PathLike | None = None, exaggerate: flo
     parent of each body (-1 for the ground), markers {name: (rows, 3)}, the body of each
     marker {name: index})."""
     path = scene_of(res, scene)
+    check_finite(res)
     q_all, qd_all = res.coordinates()
     q, qd, t = q_all, qd_all, res.t
     if rows is not None:
@@ -80,15 +90,18 @@ def animate(results: Results | str | os.PathLike, output: str | os.PathLike, sce
             exaggerate: float = 1.0, fps: int = 25, frames: int = 200) -> Path:
     """Write the animation (GIF, or any format matplotlib's writers know by the suffix:
     MP4 needs ffmpeg) of at most ``frames`` evenly spaced output rows; return its path."""
+    import logging
     import matplotlib
     matplotlib.use("Agg")
+    # a writer matplotlib lacks (ffmpeg) is logged, then the Pillow fallback's error is ours
+    logging.getLogger("matplotlib.animation").setLevel(logging.ERROR)
     import matplotlib.pyplot as plt
     from matplotlib.animation import FuncAnimation, PillowWriter
 
     res = results if isinstance(results, Results) else load_results(results)
     if view not in VIEWS:
         raise AnimateError(f"view {view!r}: one of {', '.join(VIEWS)}")
-    if frames < 2 or fps < 1 or not exaggerate > 0:
+    if frames < 2 or fps < 1 or not 0 < exaggerate < np.inf:
         raise AnimateError("frames (at least 2), fps (at least 1) and exaggerate (above 0) must be positive")
     rows = np.unique(np.linspace(0, len(res.t) - 1, min(frames, len(res.t))).round().astype(int))
     t, pos, parent, markers, on = motion(res, scene, exaggerate, rows)

@@ -16,19 +16,28 @@ except ImportError:
     raise ImportError("pymr's compiled kernel (pymr._core) is not here: this is the source folder, not the "
                       "installed package. Build and install it with 'bash .ci/setup' (or 'pip install "
                       "--no-build-isolation .') and import pymr from outside the checkout.") from None
+from .errors import OutputError, PymrError, ResultsError, SceneError, SolverError  # noqa: F401
 from .results import Results, load_results
 
 
-class PymrError(RuntimeError):
-    """Base class of pymr's errors."""
-
-
-class SceneError(PymrError, ValueError):
-    """Bad input: the scene file, a group or an item is wrong (mrsim exit status 1)."""
-
-
-class SolverError(PymrError):
-    """A run that failed: singular mass matrix, step size underflow, non-finite state."""
+def write_file(path: str | os.PathLike, data: str | bytes, what: str) -> Path:
+    """Write `data` to `path` whole or not at all: a temporary file beside it, flushed to
+    the disk (fsync), then renamed over it, so an earlier complete file survives a failed
+    write. A failure is an :class:`OutputError` naming the file and `what` it was to hold."""
+    path = Path(path)
+    tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
+    try:
+        if path.is_dir():
+            raise IsADirectoryError(21, "it is a directory")
+        with open(tmp, "wb") as fh:
+            fh.write(data.encode() if isinstance(data, str) else data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)
+        raise OutputError(f"{path}: cannot write the {what} ({exc.strerror or exc})") from None
+    return path
 
 
 def _raise(stat: int, message: bytes | str) -> None:
