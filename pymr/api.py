@@ -168,6 +168,43 @@ def _states(q, qd) -> tuple[np.ndarray, np.ndarray]:
     return q, qd
 
 
+def _finite(q: np.ndarray, qd: np.ndarray) -> None:
+    """States whose values the kernel returns as they come (terms, energies, positions) must
+    be finite: their results would be NaN with no word. (The accelerations' own checks name
+    the LAPACK routine a non-finite entry would reach.)"""
+    for name, v in (("q", q), ("qd", qd)):
+        if not np.isfinite(v).all():
+            raise SceneError(f"{name}: {v.flat[np.argmin(np.isfinite(v))]} is not a finite number")
+
+
+def _many_states(t, q, qd, finite: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Times (m,) and states q, qd (m, n) (one state (n,) is m = 1) for the kernel: t as
+    an array of m finite times, q and qd transposed to (n, m) in Fortran order (and finite
+    unless `finite` is False)."""
+    q, qd = _states(q, qd)
+    if finite:
+        _finite(q, qd)
+    q2 = np.asfortranarray(np.atleast_2d(q).T)
+    qd2 = np.asfortranarray(np.atleast_2d(qd).T)
+    t1 = np.atleast_1d(np.asarray(t, dtype=float))
+    if t1.shape != (q2.shape[1],):
+        raise ValueError(f"t: one time per state expected, shape ({q2.shape[1]},), got shape {t1.shape}")
+    if not np.isfinite(t1).all():
+        raise SceneError(f"t: {t1[np.argmin(np.isfinite(t1))]} is not a finite time")
+    return t1, q2, qd2
+
+
+def _time(t) -> float:
+    """One time (s) for the kernel: a finite number."""
+    try:
+        value = float(t)
+    except (TypeError, ValueError):
+        raise SceneError(f"t: a time in seconds, got {t!r}") from None
+    if not np.isfinite(value):
+        raise SceneError(f"t: {value} is not a finite time")
+    return value
+
+
 def _one_state(q, qd) -> tuple[np.ndarray, np.ndarray]:
     """q and qd of one state (shape (n,)), contiguous, for the kernel."""
     q, qd = _states(q, qd)
@@ -179,7 +216,8 @@ def _one_state(q, qd) -> tuple[np.ndarray, np.ndarray]:
 def model_terms(scene: str | os.PathLike, q, qd, t: float = 0.0, overrides=None):
     """Mass matrix M and right-hand side P of ``M qdd = P`` at (t, q, qd)."""
     q, qd = _one_state(q, qd)
-    mm, p, stat, msg = _core.pymr_model_terms(*_scene_and_overrides(scene, overrides), t, q, qd)
+    _finite(q, qd)
+    mm, p, stat, msg = _core.pymr_model_terms(*_scene_and_overrides(scene, overrides), _time(t), q, qd)
     _raise(stat, msg)
     return mm, p
 
@@ -188,7 +226,7 @@ def force_response(scene: str | os.PathLike, q, qd, t: float = 0.0, overrides=No
     """The 'response' coupling's terms at (t, q, qd): ``g = M^-1 E`` (shape (n, nf)), the
     response of every acceleration to a unit force on each modal coordinate, and the modal
     stiffness ``kf`` and damping ``df`` (shape (nf,)) of the fast forces ``kf a + df ad``."""
-    nf, g, kf, df, stat, msg = _core.pymr_force_response(*_scene_and_overrides(scene, overrides), t,
+    nf, g, kf, df, stat, msg = _core.pymr_force_response(*_scene_and_overrides(scene, overrides), _time(t),
                                                         *_one_state(q, qd))
     _raise(stat, msg)
     nf = int(nf)
@@ -201,7 +239,7 @@ def modes(scene: str | os.PathLike, q, qd, t: float = 0.0, overrides=None):
     (Hz, ascending), damping ratios, and shapes (shape (n, number of modes): each column the
     coordinates' motion, its largest component 1); with closed loops, the constrained ones.
     Drifting motions (a free joint) are not modes and are left out."""
-    nm, freq, zeta, shapes, stat, msg = _core.pymr_modes(*_scene_and_overrides(scene, overrides), t,
+    nm, freq, zeta, shapes, stat, msg = _core.pymr_modes(*_scene_and_overrides(scene, overrides), _time(t),
                                                           *_one_state(q, qd))
     _raise(stat, msg)
     nm = int(nm)
@@ -240,11 +278,8 @@ def step_history(scene: str | os.PathLike, overrides=None, max_steps: int = 200_
 
 def model_accelerations(scene: str | os.PathLike, t, q, qd, overrides=None) -> np.ndarray:
     """Accelerations for one state (q of shape (n,)) or many (shape (m, n), t of shape (m,))."""
-    q, qd = _states(q, qd)
-    single = q.ndim == 1
-    q2 = np.asfortranarray(np.atleast_2d(q).T)
-    qd2 = np.asfortranarray(np.atleast_2d(np.asarray(qd, dtype=float)).T)
-    t1 = np.atleast_1d(np.asarray(t, dtype=float))
+    single = np.ndim(q) == 1
+    t1, q2, qd2 = _many_states(t, q, qd, finite=False)
     qdd, stat, msg = _core.pymr_model_accelerations(*_scene_and_overrides(scene, overrides), t1, q2, qd2)
     _raise(stat, msg)
     return qdd[:, 0].copy() if single else qdd.T.copy()
@@ -266,9 +301,7 @@ def loop_rows(scene: str | os.PathLike, q, qd, overrides=None) -> tuple[np.ndarr
 
 def model_energy(scene: str | os.PathLike, q, qd, overrides=None) -> tuple[np.ndarray, np.ndarray]:
     """Kinetic and potential (gravity, when on) energy for states q, qd of shape (m, n)."""
-    q, qd = _states(q, qd)
-    q2 = np.asfortranarray(np.atleast_2d(np.asarray(q, dtype=float)).T)
-    qd2 = np.asfortranarray(np.atleast_2d(np.asarray(qd, dtype=float)).T)
+    _, q2, qd2 = _many_states(np.zeros(np.atleast_2d(q).shape[0]), q, qd)
     ke, pe, stat, msg = _core.pymr_model_energy(*_scene_and_overrides(scene, overrides), q2, qd2)
     _raise(stat, msg)
     return ke, pe
@@ -307,21 +340,25 @@ class Model:
         k = int(_core.pymr_model_marker_index(self.handle, name))
         if k == 0:
             raise SceneError(f"{self.scene}: no marker {name!r}")
-        q2 = np.asfortranarray(np.atleast_2d(np.asarray(q, dtype=float)).T)
-        qd2 = np.asfortranarray(np.atleast_2d(np.asarray(qd, dtype=float)).T)
-        pos, stat, msg = _core.pymr_model_marker(self.handle, k, np.atleast_1d(np.asarray(t, dtype=float)), q2, qd2)
+        t1, q2, qd2 = self._states(t, q, qd)
+        pos, stat, msg = _core.pymr_model_marker(self.handle, k, t1, q2, qd2)
         _raise(stat, msg)
         return pos.T.copy()
 
     def frames(self, t, q, qd, nb: int):
         """Every body's frame origin (inertial, m) at states of shape (m, n): an array
         (m, nb, 3), and each body's parent (1-based, 0 for the ground), for drawing."""
-        q2 = np.asfortranarray(np.atleast_2d(np.asarray(q, dtype=float)).T)
-        qd2 = np.asfortranarray(np.atleast_2d(np.asarray(qd, dtype=float)).T)
-        pos, parent, stat, msg = _core.pymr_model_frames(self.handle, int(nb), np.atleast_1d(np.asarray(t, dtype=float)),
-                                                         q2, qd2)
+        t1, q2, qd2 = self._states(t, q, qd)
+        pos, parent, stat, msg = _core.pymr_model_frames(self.handle, int(nb), t1, q2, qd2)
         _raise(stat, msg)
         return np.transpose(pos, (2, 1, 0)).copy(), np.asarray(parent, dtype=int)
+
+    def _states(self, t, q, qd):
+        """The kernel's (t, q, qd) of :func:`_many_states`, each state of this model's n coordinates."""
+        t1, q2, qd2 = _many_states(t, q, qd)
+        if q2.shape[0] != self.n:
+            raise ValueError(f"q: states of {self.n} coordinates expected, got {q2.shape[0]}")
+        return t1, q2, qd2
 
     def marker_body(self, name: str) -> int:
         """The index (0-based, as in :meth:`frames`) of the body marker `name` is on."""

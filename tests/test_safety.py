@@ -382,3 +382,23 @@ def test_a_modal_file_never_overwrites_the_scene_and_is_written_whole(tmp_path, 
     assert (tmp_path / "link1.modal").read_text().splitlines()[2] == "pymr-modal 1"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["chain.nml", "folder", "link1.modal"]
 
+
+def test_states_that_are_not_finite_are_refused_not_returned_as_nan():
+    """model_terms, model_energy and Model.marker returned NaN for a NaN or infinite state
+    with no word (found by fuzzing the API); they raise SceneError naming the argument, and
+    times that do not match the states are named too."""
+    scene = ROOT / "input" / "pendulum.nml"
+    with pytest.raises(pymr.SceneError, match=r"^q: nan is not a finite number$"):
+        pymr.model_terms(scene, [np.nan], [0.0])
+    with pytest.raises(pymr.SceneError, match=r"^qd: inf is not a finite number$"):
+        pymr.model_energy(scene, [[0.1]], [[np.inf]])
+    with pymr.Model(scene) as model:
+        with pytest.raises(pymr.SceneError, match=r"^q: nan is not a finite number$"):
+            model.marker("tip", 0.0, [np.nan], [0.0])
+        with pytest.raises(ValueError, match=r"^t: one time per state expected, shape \(2,\), got shape \(3,\)$"):
+            model.marker("tip", [0.0, 1.0, 2.0], [[0.1], [0.2]], [[0.0], [0.0]])
+        with pytest.raises(ValueError, match=r"^q: states of 1 coordinates expected, got 2$"):
+            model.frames(0.0, [0.1, 0.2], [0.0, 0.0], 2)
+        assert np.isfinite(model.marker("tip", [0.0, 1.0], [[0.1], [0.2]], [[0.0], [0.0]])).all()
+    with pytest.raises(pymr.SceneError, match=r"^t: a time in seconds, got \[\]$"):
+        pymr.modes(scene, [0.1], [0.0], t=[])
