@@ -73,8 +73,7 @@ def load_sweep(path: str | os.PathLike) -> Sweep:
         raise SweepError(f"{path}: not found") from None
     except (tomllib.TOMLDecodeError, UnicodeDecodeError, IsADirectoryError) as exc:
         raise SweepError(f"{path}: not a TOML sweep file ({exc})") from None
-    if not isinstance(spec.get("scene", ""), str):
-        raise SweepError(f"{path}: scene: must be a file name (a string)")
+    check_types(path, spec)
     for key in spec:
         if key not in ("scene", "output", "metric", "grid", "fixed", "reference"):
             raise SweepError(f"{path}: unknown key {key!r} (known: scene, output, metric, grid, fixed, reference)")
@@ -96,6 +95,20 @@ def load_sweep(path: str | os.PathLike) -> Sweep:
     sw = Sweep(path, scene, output, metric, grid, spec.get("fixed", {}), spec.get("reference", {}))
     check_cases(sw)
     return sw
+
+
+#: The sweep file's keys and the TOML type each must have.
+KEY_TYPES = {"scene": (str, "a file name (a string)"), "output": (str, "a folder name (a string)"),
+             "metric": (str, "a string such as 'final:COLUMN'"), "grid": (dict, "a table ([grid])"),
+             "fixed": (dict, "a table ([fixed])"), "reference": (dict, "a table ([reference])")}
+
+
+def check_types(path: Path, spec: dict) -> None:
+    """Each known key of the sweep file has its type (a number where a file name goes gave
+    a TypeError traceback)."""
+    for key, (kind, what) in KEY_TYPES.items():
+        if key in spec and not isinstance(spec[key], kind):
+            raise SweepError(f"{path}: {key}: must be {what}, got {spec[key]!r}")
 
 
 def check_cases(sw: Sweep) -> None:
