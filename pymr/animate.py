@@ -39,15 +39,6 @@ def scene_of(res: Results, scene: str | os.PathLike | None = None) -> Path:
     return path
 
 
-def check_finite(res: Results) -> None:
-    """Every value of the results is a finite number (a run writes no other)."""
-    bad = ~np.isfinite(res.data)
-    if bad.any():
-        row, col = np.argwhere(bad)[0]
-        raise AnimateError(f"{res.path}: row {row + 1}, column {res.columns[col]}: {res.data[row, col]} is not a "
-                           "finite number (a run writes none: the file was changed)")
-
-
 def check_geometry(res: Results, model: Model, path: Path, q: np.ndarray, qd: np.ndarray) -> None:
     """The model's markers at (up to 20 of) the results' states equal the run's marker columns."""
     rows = np.unique(np.linspace(0, len(res.t) - 1, min(20, len(res.t))).round().astype(int))
@@ -66,7 +57,6 @@ def motion(res: Results, scene: str | os.PathLike | None = None, exaggerate: flo
     parent of each body (-1 for the ground), markers {name: (rows, 3)}, the body of each
     marker {name: index})."""
     path = scene_of(res, scene)
-    check_finite(res)
     q_all, qd_all = res.coordinates()
     q, qd, t = q_all, qd_all, res.t
     if rows is not None:

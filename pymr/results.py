@@ -140,8 +140,8 @@ class Results:
 
 def load_results(csv_path: str | os.PathLike) -> Results:
     """Load OUT.csv and, when present, OUT.json beside it. A file that is missing, is no
-    pymr results file (header from the column 't', rows of numbers) or has no rows, and a
-    JSON beside it that is not JSON, raise :class:`ResultsError`."""
+    pymr results file (header from the column 't', rows of finite numbers) or has no rows,
+    and a JSON beside it that is not JSON, raise :class:`ResultsError`."""
     path = Path(csv_path)
     if not path.is_file():
         raise ResultsError(f"{path}: no such result file")
@@ -158,6 +158,10 @@ def load_results(csv_path: str | os.PathLike) -> Results:
         raise ResultsError(f"{path}: has no result rows")
     if data.shape[1] != len(header):
         raise ResultsError(f"{path}: not a pymr result file ({data.shape[1]} values a row, {len(header)} columns)")
+    if not np.isfinite(data).all():
+        row, col = np.argwhere(~np.isfinite(data))[0]
+        raise ResultsError(f"{path}: row {row + 1}, column {header[col]}: {data[row, col]} is not a finite number "
+                           "(a run writes none: the file was changed)")
     return Results(columns=header, data=data, stats=_read_stats(path.with_suffix(".json")), meta=meta, path=str(path))
 
 

@@ -585,7 +585,14 @@ def test_results_files_that_cannot_be_read_raise_results_error(tmp_path):
     for name, message in cases.items():
         with pytest.raises(pymr.ResultsError, match=message):
             pymr.load_results(tmp_path / name)
+    rows = (tmp_path / "out.csv").read_text().splitlines()
+    rows[-1] = rows[-1].rsplit(",", 1)[0] + ",inf"
+    (tmp_path / "inf.csv").write_text("\n".join(rows) + "\n")
+    with pytest.raises(pymr.ResultsError, match=rf"inf.csv: row {len(res.t)}, column {res.columns[-1]}: inf is not "
+                                                r"a finite number \(a run writes none: the file was changed\)$"):
+        pymr.load_results(tmp_path / "inf.csv")
     (tmp_path / "out.json").write_text("[1, 2]")
     with pytest.raises(pymr.ResultsError, match=r"out.json: not a pymr statistics file \(not a JSON object\)"):
         pymr.load_results(tmp_path / "out.csv")
     assert len(res.t) > 1
+
