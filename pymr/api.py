@@ -53,8 +53,14 @@ def format_overrides(overrides: Mapping[str, object] | Iterable[str] | None) -> 
         return ""
     if isinstance(overrides, Mapping):
         items = [f"{k}={nml_value(v)}" for k, v in overrides.items()]
+    elif isinstance(overrides, str):
+        items = [overrides]        # one override (iterating it gave one per character)
     else:
         items = [str(s) for s in overrides]
+    for item in items:
+        if "\n" in item or "\r" in item:
+            # the kernel reads one override a line: a line break would make two of one
+            raise SceneError(f"--set {item!r}: a line break in an override (one GROUP.ITEM=VALUE, on one line)")
     return "\n".join(items)   # the kernel checks each entry and names the scene file
 
 

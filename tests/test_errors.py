@@ -596,3 +596,22 @@ def test_results_files_that_cannot_be_read_raise_results_error(tmp_path):
         pymr.load_results(tmp_path / "out.csv")
     assert len(res.t) > 1
 
+
+def test_an_override_with_a_line_break_is_refused_not_split(tmp_path, mrsim, monkeypatch):
+    """The kernel reads one override a line, so a --set value holding a line break became two
+    overrides (the second applied silently; found by fuzzing --set), and a string given as
+    overrides was read one character at a time ('--set s: expected GROUP.ITEM=VALUE')."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "base.nml").write_text(BASE)
+    two = "scene.title=a\nscene.t_end=0.01"
+    r = run_mrsim(mrsim, ["base.nml", "-o", "out.csv", "--set", two], tmp_path)
+    assert r.returncode == 1 and not (tmp_path / "out.csv").exists(), r.stderr
+    check_single_line(r.stderr, "mrsim: error: --set scene.title=a")
+    assert r.stderr == ("mrsim: error: --set scene.title=a\\nscene.t_end=0.01: a line break in an override "
+                        "(one GROUP.KEY=VALUE, on one line)\n")
+    with pytest.raises(pymr.SceneError, match=r"^--set 'scene.title=a\\nscene.t_end=0.01': a line break in an "
+                                              r"override \(one GROUP.ITEM=VALUE, on one line\)$"):
+        pymr.run("base.nml", overrides=[two])
+    with pytest.raises(pymr.SceneError, match=r"a line break in an override"):
+        pymr.Scene("base.nml", {"scene.title": "a\nb"})
+    assert pymr.run("base.nml", overrides="scene.t_end=0.01").t[-1] == pytest.approx(0.01)
