@@ -200,6 +200,14 @@ def _many_states(t, q, qd, finite: bool = True) -> tuple[np.ndarray, np.ndarray,
     return t1, q2, qd2
 
 
+def _count(name: str, value) -> int:
+    """A whole number from 1 to the kernel's largest (a C int): f2py raised OverflowError
+    above it and a ValueError about 'intent(cache|hide)' arrays below 1."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not 1 <= value < 2**31 - 1:
+        raise SceneError(f"{name}: a whole number from 1 to {2**31 - 2}, got {value!r}")
+    return int(value)
+
+
 def _time(t) -> float:
     """One time (s) for the kernel: a finite number."""
     try:
@@ -276,7 +284,8 @@ def step_history(scene: str | os.PathLike, overrides=None, max_steps: int = 200_
     time reached, the step taken and the method's order at each accepted step (entry 0 is
     the start: its step 0, its order the starting one). More than ``max_steps`` steps is an
     error."""
-    t, h, q, nh, stat, msg = _core.pymr_step_history(*_scene_and_overrides(scene, overrides), int(max_steps) + 1)
+    t, h, q, nh, stat, msg = _core.pymr_step_history(*_scene_and_overrides(scene, overrides),
+                                                     _count("max_steps", max_steps) + 1)
     _raise(stat, msg)
     nh = int(nh)
     return t[:nh].copy(), h[:nh].copy(), q[:nh].copy()
@@ -355,7 +364,7 @@ class Model:
         """Every body's frame origin (inertial, m) at states of shape (m, n): an array
         (m, nb, 3), and each body's parent (1-based, 0 for the ground), for drawing."""
         t1, q2, qd2 = self._states(t, q, qd)
-        pos, parent, stat, msg = _core.pymr_model_frames(self.handle, int(nb), t1, q2, qd2)
+        pos, parent, stat, msg = _core.pymr_model_frames(self.handle, _count("nb", nb), t1, q2, qd2)
         _raise(stat, msg)
         return np.transpose(pos, (2, 1, 0)).copy(), np.asarray(parent, dtype=int)
 

@@ -402,3 +402,13 @@ def test_states_that_are_not_finite_are_refused_not_returned_as_nan():
         assert np.isfinite(model.marker("tip", [0.0, 1.0], [[0.1], [0.2]], [[0.0], [0.0]])).all()
     with pytest.raises(pymr.SceneError, match=r"^t: a time in seconds, got \[\]$"):
         pymr.modes(scene, [0.1], [0.0], t=[])
+
+
+@pytest.mark.parametrize("max_steps", [0, -5, 10**12, 2.5, True])
+def test_step_history_takes_a_whole_count_of_steps(max_steps):
+    """step_history(max_steps=10**12) raised f2py's OverflowError, -5 its ValueError about an
+    'intent(cache|hide)' array, 0 'the run takes more than 0 steps' (found by fuzzing the API)."""
+    with pytest.raises(pymr.SceneError, match=rf"^max_steps: a whole number from 1 to 2147483646, got "
+                                              rf"{re.escape(repr(max_steps))}$"):
+        pymr.step_history(ROOT / "input" / "pendulum.nml", max_steps=max_steps)
+
