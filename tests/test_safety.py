@@ -412,3 +412,14 @@ def test_step_history_takes_a_whole_count_of_steps(max_steps):
                                               rf"{re.escape(repr(max_steps))}$"):
         pymr.step_history(ROOT / "input" / "pendulum.nml", max_steps=max_steps)
 
+
+def test_model_terms_that_overflow_are_a_solver_error_not_nan():
+    """model_terms at velocities of 1e300 returned P = NaN with no word (found by fuzzing the
+    API; the accelerations refuse the same state): the kernel checks M and P and names the
+    coordinate."""
+    scene = ROOT / "input" / "pendulum.nml"
+    with pytest.raises(pymr.SolverError, match=r"^at t = 0.00000E\+00 s: non-finite mass matrix or force term of "
+                                               r"coordinate pivot.q \(the state or a load is out of range\)$"):
+        pymr.model_terms(scene, [1e300], [1e300])
+    mm, p = pymr.model_terms(scene, [0.1], [0.0])
+    assert np.isfinite(mm).all() and np.isfinite(p).all()

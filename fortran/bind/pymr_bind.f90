@@ -51,7 +51,7 @@ subroutine pymr_model_terms(scene, overrides, n, t, q, qd, mm, p, stat, message)
   use pymr_error, only : error_type, fatal_error
   use pymr_bind_support, only : report
   use pymr_model_scene, only : scene_t
-  use pymr_model, only : model_t
+  use pymr_model, only : model_t, check_terms_finite
   use pymr_run, only : load_model
   implicit none
   character(len=*), intent(in) :: scene, overrides
@@ -66,9 +66,12 @@ subroutine pymr_model_terms(scene, overrides, n, t, q, qd, mm, p, stat, message)
   type(model_t) :: model
   mm = 0.0d0; p = 0.0d0
   call load_model(scene, overrides, sc, model, error, n)
+  if (.not. allocated(error)) then
+    call model%terms(t, q, qd)
+    call check_terms_finite(model, t, error)
+  end if
   call report(error, stat, message)
   if (stat /= 0) return
-  call model%terms(t, q, qd)
   mm = model%d%mm; p = model%d%p
 end subroutine pymr_model_terms
 
