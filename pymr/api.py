@@ -265,8 +265,10 @@ def marker_shapes(scene, markers, q, qd, shapes, t: float = 0.0, overrides=None)
     the derivative of its inertial position along each shape (the columns of `shapes`, as
     :func:`modes` gives them) at (t, q, qd), by central differences of 1e-6 times the shape:
     metres per unit of the shape's coordinates."""
+    q, qd = _one_state(q, qd)
     shapes = np.asarray(shapes, dtype=float)
-    q, qd = np.asarray(q, dtype=float), np.asarray(qd, dtype=float)
+    if shapes.ndim != 2 or shapes.shape[0] != q.size:
+        raise ValueError(f"shapes: an array ({q.size}, modes) expected (modes() gives one), got shape {shapes.shape}")
     eps = 1e-6
     out = {}
     with Model(scene, overrides) as model:

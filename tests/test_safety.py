@@ -423,3 +423,15 @@ def test_model_terms_that_overflow_are_a_solver_error_not_nan():
         pymr.model_terms(scene, [1e300], [1e300])
     mm, p = pymr.model_terms(scene, [0.1], [0.0])
     assert np.isfinite(mm).all() and np.isfinite(p).all()
+
+
+def test_marker_shapes_names_shapes_of_the_wrong_shape():
+    """marker_shapes raised 'IndexError: tuple index out of range' for shapes that are not an
+    array (n, modes) (found by fuzzing the API)."""
+    scene = ROOT / "input" / "pendulum.nml"
+    for shapes, got in [(np.zeros(3), r"\(3,\)"), (None, r"\(\)"), (np.ones((2, 1)), r"\(2, 1\)")]:
+        with pytest.raises(ValueError, match=rf"^shapes: an array \(1, modes\) expected \(modes\(\) gives one\), "
+                                             rf"got shape {got}$"):
+            pymr.marker_shapes(scene, ["tip"], [0.1], [0.0], shapes)
+    moves = pymr.marker_shapes(scene, ["tip"], [0.1], [0.0], np.ones((1, 1)))
+    assert moves["tip"].shape == (3, 1) and np.isfinite(moves["tip"]).all()
