@@ -102,9 +102,12 @@ def run(scene, output: str | os.PathLike | None = None,
     Raises :class:`SceneError` for bad input and :class:`SolverError` for a failed run.
     """
     scene, text = _scene_and_overrides(scene, overrides)
-    ckpt = os.fspath(restart) if restart else ""
+    ckpt = "" if restart is None else os.fspath(restart)
+    if restart is not None and not ckpt:
+        # an empty name (an unset variable) would run from the start instead
+        raise SceneError("restart: an empty checkpoint path (None runs from the start)")
     if ckpt and output is None:
-        raise ValueError("a restart continues an existing results file: give output (or '' for the default)")
+        raise SceneError("a restart continues an existing results file: give output (or '' for the default)")
     if output == "":
         # let the kernel choose: &output file, else SCENE.csv in the working folder
         stat, msg, summary, written = _run_kernel(scene, text, "", ckpt, progress)

@@ -11,6 +11,8 @@ from .api import PymrError, SceneError, SolverError, run, write_file
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
+    if args.output == "":
+        raise SceneError("-o: an empty file name (leave -o out for the default)")
     res = run(args.scene, output=args.output or "", overrides=args.set or None, restart=args.restart,
               progress=None if args.progress is None else args.progress)
     if not args.quiet:
@@ -131,7 +133,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 
 class _Parser(argparse.ArgumentParser):
     """argparse with pymr's one-line errors: 'pymr: error: run: MESSAGE', exit status 1 (argparse
-    prints its usage block first, and exits 2, the status of a failed run)."""
+    prints its usage block first, several lines, and exits 2, the status of a failed run)."""
 
     def error(self, message: str):
         command = self.prog.removeprefix("pymr").strip()

@@ -47,6 +47,7 @@ program mrsim
     case ('-o', '--output')
       if (i == nargs) call usage_error(arg // ' needs a file name')
       i = i + 1; out = get_arg(i)
+      if (len(out) == 0) call usage_error(arg // ' needs a file name (got an empty one)')
     case ('--set')
       if (i == nargs) call usage_error('--set needs GROUP.KEY=VALUE')
       i = i + 1; arg = get_arg(i)
@@ -57,6 +58,8 @@ program mrsim
     case ('--restart')
       if (i == nargs) call usage_error('--restart needs a checkpoint file')
       i = i + 1; restart = get_arg(i)
+      ! an empty name (an unset shell variable) would run from the start instead
+      if (len(restart) == 0) call usage_error('--restart needs a checkpoint file (got an empty name)')
     case ('--progress')
       progress = .true.
     case ('-q', '--quiet')
