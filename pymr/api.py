@@ -40,6 +40,15 @@ def write_file(path: str | os.PathLike, data: str | bytes, what: str) -> Path:
     return path
 
 
+def check_not_input(scene, path: str | os.PathLike, what: str, overrides=None) -> None:
+    """`path`, an output, is none of the scene's inputs (the scene, its modal and table files:
+    the kernel's rule, which the results and modal files obey too); else a SceneError."""
+    found, stat, msg = _core.pymr_scene_input(*_scene_and_overrides(scene, overrides), os.fspath(path))
+    _raise(stat, msg)
+    if _text(found):
+        raise SceneError(f"{path}: would overwrite {_text(found)}; choose another {what}")
+
+
 def _raise(stat: int, message: bytes | str) -> None:
     if stat == 0:
         return

@@ -72,11 +72,13 @@ def _cmd_modes(args: argparse.Namespace) -> int:
     import io
     import math
     import re
-    from .api import modes, marker_shapes
+    from .api import check_not_input, modes, marker_shapes
     over = list(args.set or [])
     at = 0.0 if args.at is None else args.at
     if not (0.0 <= at < math.inf):
         raise SceneError(f"--at {at:g}: a time at or after the start of the run (s)")
+    if args.output:
+        check_not_input(args.scene, args.output, "modes file (-o)", over)
     res = run(args.scene, overrides=over + [f"scene.t_end={at if at > 0 else 1e-9}", "output.dt=0.0"])
     q, qd = res.coordinates()
     names = [c for c in res.columns if re.search(r"\.(q\d*|a\d+)$", c)]

@@ -39,7 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .api import Model, PymrError, SceneError, SolverError, run, write_file
+from .api import Model, PymrError, SceneError, SolverError, check_not_input, run, write_file
 from .scene import Scene
 
 
@@ -647,6 +647,8 @@ def main(scene: str, marker: str | None = None, output: str | None = None, quick
     if not prefix.parent.is_dir():
         raise SceneError(f"-o {prefix}: the folder {prefix.parent} is not there (the study writes its files "
                          "there at the end)")
+    for path in study_files(prefix):
+        check_not_input(scene, path, "output prefix (-o)")
     study = Study(scene, marker, quick=quick, repeats=5 if repeats is None else repeats)
     study.run_all()
     print()
@@ -660,9 +662,14 @@ def main(scene: str, marker: str | None = None, output: str | None = None, quick
     print(study.order_text())
     hist = study.histories()
     print(study.history_text(hist))
-    history = prefix.with_name(prefix.name + "_history.csv")
-    study.write_csv(prefix.with_suffix(".csv"))
+    table, figure, history = study_files(prefix)
+    study.write_csv(table)
     study.write_histories(hist, history)
-    study.plot(prefix.with_suffix(".png"))
-    print(f"written: {prefix.with_suffix('.csv')}, {prefix.with_suffix('.png')}, {history}")
+    study.plot(figure)
+    print(f"written: {table}, {figure}, {history}")
     return 0
+
+
+def study_files(prefix: Path) -> tuple[Path, Path, Path]:
+    """The files a study with output prefix `prefix` writes: its table, figure and step histories."""
+    return prefix.with_suffix(".csv"), prefix.with_suffix(".png"), prefix.with_name(prefix.name + "_history.csv")

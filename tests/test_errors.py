@@ -538,6 +538,8 @@ def test_version_and_bench_outside_the_checkout(tmp_path, mrsim):
                  id="sweep_workers"),
     pytest.param(["modes", "base.nml", "-o", "nowhere/modes.csv"], "nowhere/modes.csv: cannot write the modes "
                  "(No such file or directory)", id="modes_output_folder_missing"),
+    pytest.param(["modes", "base.nml", "-o", "base.nml"], "pymr: error: base.nml: would overwrite the scene "
+                 "(base.nml); choose another modes file (-o)", id="modes_output_is_the_scene"),
     pytest.param(["study", "base.nml", "-o", "nowhere/st"], "-o nowhere/st: the folder nowhere is not there",
                  id="study_output_folder_missing"),
     pytest.param(["study", "base.nml", "--marker", "nope"], "base.nml: no marker 'nope' (markers: tip)",
@@ -570,6 +572,7 @@ def test_command_options_fault_in_one_line_exit_1(tmp_path, args, expect):
     assert r.returncode == 1, f"exit status {r.returncode}, stderr:\n{r.stderr}"
     check_single_line(r.stderr, "pymr: error: ")
     assert expect in r.stderr, r.stderr
+    assert (tmp_path / "base.nml").read_text() == BASE
 
 
 def test_results_files_that_cannot_be_read_raise_results_error(tmp_path):

@@ -702,3 +702,24 @@ subroutine pymr_model_marker_body(handle, marker, body)
   if (marker < 1 .or. marker > open_models(handle)%d%n_markers) return
   body = open_models(handle)%d%marker_body(marker)
 end subroutine pymr_model_marker_body
+
+!> What of a scene's input `path` is ('the scene (FILE)', 'a modal file of the scene (FILE)',
+!> ...), or '' : the kernel's rule for outputs Python writes beside a scene's files.
+subroutine pymr_scene_input(scene, overrides, path, what, stat, message)
+  use pymr_error, only : error_type
+  use pymr_bind_support, only : report
+  use pymr_model_scene, only : scene_t
+  use pymr_io_namelist_input, only : read_scene
+  use pymr_run, only : scene_input
+  implicit none
+  character(len=*), intent(in) :: scene, overrides, path
+  character(len=4096), intent(out) :: what
+  integer, intent(out) :: stat
+  character(len=8192), intent(out) :: message
+  type(error_type), allocatable :: error
+  type(scene_t) :: sc
+  what = ''
+  call read_scene(scene, overrides, sc, error)
+  if (.not. allocated(error)) what = scene_input(sc, path)
+  call report(error, stat, message)
+end subroutine pymr_scene_input
