@@ -24,7 +24,7 @@ module pymr_run
   use pymr_io_checkpoint, only : run_progress, write_checkpoint, read_checkpoint
   implicit none
   private
-  public :: run_scene, load_model, starting_state, default_output, progress_t, progress_t_end, progress_running
+  public :: run_scene, load_model, scene_input, starting_state, default_output, progress_t, progress_t_end, progress_running
 
   !> 'auto' dynamics with flexible bodies: the articulated-body algorithm from this many joint
   !> coordinates on.
@@ -78,10 +78,8 @@ contains
     type(scene_t), intent(in) :: sc
     character(len=*), intent(in) :: path
     type(error_type), allocatable, intent(out) :: error
-    character(len=:), allocatable :: target
-    integer :: i
-    target = absolute_path(path)
-    if (absolute_path(json_path(path)) == target) then
+    character(len=:), allocatable :: what
+    if (absolute_path(json_path(path)) == absolute_path(path)) then
       call fatal_error(error, sc%file // ': output ' // path // ': the results and their statistics would both ' // &
         & 'be ' // json_path(path) // ' (give a .csv file)'); return
     end if
@@ -98,19 +96,13 @@ contains
           & 'another results file, or a checkpoint_file in &output')) return
       end if
     end if
-    if (reads(sc%file, 'the scene')) return
-    do i = 1, size(sc%bodies)
-      if (len_trim(sc%bodies(i)%modal_file) == 0) cycle
-      if (reads(scene_relative(sc%file, trim(sc%bodies(i)%modal_file)), 'a modal file of the scene')) return
-    end do
-    do i = 1, size(sc%drives)
-      if (len_trim(sc%drives(i)%file) == 0) cycle
-      if (reads(scene_relative(sc%file, trim(sc%drives(i)%file)), 'a table file of the scene')) return
-    end do
-    do i = 1, size(sc%motions)
-      if (len_trim(sc%motions(i)%file) == 0) cycle
-      if (reads(scene_relative(sc%file, trim(sc%motions(i)%file)), 'a table file of the scene')) return
-    end do
+    what = scene_input(sc, path)
+    if (len(what) > 0) call fatal_error(error, sc%file // ': output ' // path // ': would overwrite ' // what // &
+      & '; choose another results file')
+    if (len(what) > 0) return
+    what = scene_input(sc, json_path(path))
+    if (len(what) > 0) call fatal_error(error, sc%file // ': output ' // path // ': its statistics ' // &
+      & json_path(path) // ' would overwrite ' // what // '; choose another results file')
   contains
     !> Is `file` there and no regular file, that the run's file would replace? `label` names
     !> it in the message (after the scene's name unless it is an item's place), `advice` what to choose.
@@ -125,13 +117,37 @@ contains
       end if
     end function replaces
 
-    logical function reads(file, what)
-      character(len=*), intent(in) :: file, what
-      reads = absolute_path(file) == target .or. absolute_path(file) == absolute_path(json_path(path))
-      if (reads) call fatal_error(error, sc%file // ': output ' // path // ': would overwrite ' // what // &
-        & ' (' // file // '); choose another results file')
-    end function reads
   end subroutine check_output_path
+
+  !> What of the scene's input `path` is: 'the scene (FILE)', 'a modal file of the scene
+  !> (FILE)', 'a table file of the scene (FILE)', or '' when the run reads no such file. An
+  !> output written there would destroy the input of the next run.
+  function scene_input(sc, path) result(what)
+    type(scene_t), intent(in) :: sc
+    character(len=*), intent(in) :: path
+    character(len=:), allocatable :: what
+    integer :: i
+    what = ''
+    if (is(sc%file, 'the scene')) return
+    do i = 1, size(sc%bodies)
+      if (len_trim(sc%bodies(i)%modal_file) == 0) cycle
+      if (is(scene_relative(sc%file, trim(sc%bodies(i)%modal_file)), 'a modal file of the scene')) return
+    end do
+    do i = 1, size(sc%drives)
+      if (len_trim(sc%drives(i)%file) == 0) cycle
+      if (is(scene_relative(sc%file, trim(sc%drives(i)%file)), 'a table file of the scene')) return
+    end do
+    do i = 1, size(sc%motions)
+      if (len_trim(sc%motions(i)%file) == 0) cycle
+      if (is(scene_relative(sc%file, trim(sc%motions(i)%file)), 'a table file of the scene')) return
+    end do
+  contains
+    logical function is(file, label)
+      character(len=*), intent(in) :: file, label
+      is = absolute_path(file) == absolute_path(path)
+      if (is) what = label // ' (' // file // ')'
+    end function is
+  end function scene_input
 
   !> The results file the run would write, refused above &output max_bytes: rows from t_end
   !> and the output interval (every step of a fixed-step run when dt is 0), 25 bytes a value.

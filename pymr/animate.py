@@ -80,15 +80,18 @@ def animate(results: Results | str | os.PathLike, output: str | os.PathLike, sce
             exaggerate: float = 1.0, fps: int = 25, frames: int = 200) -> Path:
     """Write the animation (GIF, or any format matplotlib's writers know by the suffix:
     MP4 needs ffmpeg) of at most ``frames`` evenly spaced output rows; return its path."""
+    import logging
     import matplotlib
     matplotlib.use("Agg")
+    # a writer matplotlib lacks (ffmpeg) is logged, then the Pillow fallback's error is ours
+    logging.getLogger("matplotlib.animation").setLevel(logging.ERROR)
     import matplotlib.pyplot as plt
     from matplotlib.animation import FuncAnimation, PillowWriter
 
     res = results if isinstance(results, Results) else load_results(results)
     if view not in VIEWS:
         raise AnimateError(f"view {view!r}: one of {', '.join(VIEWS)}")
-    if frames < 2 or fps < 1 or not exaggerate > 0:
+    if frames < 2 or fps < 1 or not 0 < exaggerate < np.inf:
         raise AnimateError("frames (at least 2), fps (at least 1) and exaggerate (above 0) must be positive")
     rows = np.unique(np.linspace(0, len(res.t) - 1, min(frames, len(res.t))).round().astype(int))
     t, pos, parent, markers, on = motion(res, scene, exaggerate, rows)

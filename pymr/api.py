@@ -16,19 +16,37 @@ except ImportError:
     raise ImportError("pymr's compiled kernel (pymr._core) is not here: this is the source folder, not the "
                       "installed package. Build and install it with 'bash .ci/setup' (or 'pip install "
                       "--no-build-isolation .') and import pymr from outside the checkout.") from None
+from .errors import OutputError, PymrError, ResultsError, SceneError, SolverError  # noqa: F401
 from .results import Results, load_results
 
 
-class PymrError(RuntimeError):
-    """Base class of pymr's errors."""
+def write_file(path: str | os.PathLike, data: str | bytes, what: str) -> Path:
+    """Write `data` to `path` whole or not at all: a temporary file beside it, flushed to
+    the disk (fsync), then renamed over it, so an earlier complete file survives a failed
+    write. A failure is an :class:`OutputError` naming the file and `what` it was to hold."""
+    path = Path(path)
+    tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
+    try:
+        if path.is_dir():
+            raise IsADirectoryError(21, "it is a directory")
+        with open(tmp, "wb") as fh:
+            fh.write(data.encode() if isinstance(data, str) else data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)
+        raise OutputError(f"{path}: cannot write the {what} ({exc.strerror or exc})") from None
+    return path
 
 
-class SceneError(PymrError, ValueError):
-    """Bad input: the scene file, a group or an item is wrong (mrsim exit status 1)."""
-
-
-class SolverError(PymrError):
-    """A run that failed: singular mass matrix, step size underflow, non-finite state."""
+def check_not_input(scene, path: str | os.PathLike, what: str, overrides=None) -> None:
+    """`path`, an output, is none of the scene's inputs (the scene, its modal and table files:
+    the kernel's rule, which the results and modal files obey too); else a SceneError."""
+    found, stat, msg = _core.pymr_scene_input(*_scene_and_overrides(scene, overrides), os.fspath(path))
+    _raise(stat, msg)
+    if _text(found):
+        raise SceneError(f"{path}: would overwrite {_text(found)}; choose another {what}")
 
 
 def _raise(stat: int, message: bytes | str) -> None:
@@ -44,8 +62,14 @@ def format_overrides(overrides: Mapping[str, object] | Iterable[str] | None) -> 
         return ""
     if isinstance(overrides, Mapping):
         items = [f"{k}={nml_value(v)}" for k, v in overrides.items()]
+    elif isinstance(overrides, str):
+        items = [overrides]        # one override (iterating it gave one per character)
     else:
         items = [str(s) for s in overrides]
+    for item in items:
+        if "\n" in item or "\r" in item:
+            # the kernel reads one override a line: a line break would make two of one
+            raise SceneError(f"--set {item!r}: a line break in an override (one GROUP.ITEM=VALUE, on one line)")
     return "\n".join(items)   # the kernel checks each entry and names the scene file
 
 
@@ -87,9 +111,12 @@ def run(scene, output: str | os.PathLike | None = None,
     Raises :class:`SceneError` for bad input and :class:`SolverError` for a failed run.
     """
     scene, text = _scene_and_overrides(scene, overrides)
-    ckpt = os.fspath(restart) if restart else ""
+    ckpt = "" if restart is None else os.fspath(restart)
+    if restart is not None and not ckpt:
+        # an empty name (an unset variable) would run from the start instead
+        raise SceneError("restart: an empty checkpoint path (None runs from the start)")
     if ckpt and output is None:
-        raise ValueError("a restart continues an existing results file: give output (or '' for the default)")
+        raise SceneError("a restart continues an existing results file: give output (or '' for the default)")
     if output == "":
         # let the kernel choose: &output file, else SCENE.csv in the working folder
         stat, msg, summary, written = _run_kernel(scene, text, "", ckpt, progress)
@@ -159,6 +186,51 @@ def _states(q, qd) -> tuple[np.ndarray, np.ndarray]:
     return q, qd
 
 
+def _finite(q: np.ndarray, qd: np.ndarray) -> None:
+    """States whose values the kernel returns as they come (terms, energies, positions) must
+    be finite: their results would be NaN with no word. (The accelerations' own checks name
+    the LAPACK routine a non-finite entry would reach.)"""
+    for name, v in (("q", q), ("qd", qd)):
+        if not np.isfinite(v).all():
+            raise SceneError(f"{name}: {v.flat[np.argmin(np.isfinite(v))]} is not a finite number")
+
+
+def _many_states(t, q, qd, finite: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Times (m,) and states q, qd (m, n) (one state (n,) is m = 1) for the kernel: t as
+    an array of m finite times, q and qd transposed to (n, m) in Fortran order (and finite
+    unless `finite` is False)."""
+    q, qd = _states(q, qd)
+    if finite:
+        _finite(q, qd)
+    q2 = np.asfortranarray(np.atleast_2d(q).T)
+    qd2 = np.asfortranarray(np.atleast_2d(qd).T)
+    t1 = np.atleast_1d(np.asarray(t, dtype=float))
+    if t1.shape != (q2.shape[1],):
+        raise ValueError(f"t: one time per state expected, shape ({q2.shape[1]},), got shape {t1.shape}")
+    if not np.isfinite(t1).all():
+        raise SceneError(f"t: {t1[np.argmin(np.isfinite(t1))]} is not a finite time")
+    return t1, q2, qd2
+
+
+def _count(name: str, value) -> int:
+    """A whole number from 1 to the kernel's largest (a C int): f2py raised OverflowError
+    above it and a ValueError about 'intent(cache|hide)' arrays below 1."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not 1 <= value < 2**31 - 1:
+        raise SceneError(f"{name}: a whole number from 1 to {2**31 - 2}, got {value!r}")
+    return int(value)
+
+
+def _time(t) -> float:
+    """One time (s) for the kernel: a finite number."""
+    try:
+        value = float(t)
+    except (TypeError, ValueError):
+        raise SceneError(f"t: a time in seconds, got {t!r}") from None
+    if not np.isfinite(value):
+        raise SceneError(f"t: {value} is not a finite time")
+    return value
+
+
 def _one_state(q, qd) -> tuple[np.ndarray, np.ndarray]:
     """q and qd of one state (shape (n,)), contiguous, for the kernel."""
     q, qd = _states(q, qd)
@@ -170,7 +242,8 @@ def _one_state(q, qd) -> tuple[np.ndarray, np.ndarray]:
 def model_terms(scene: str | os.PathLike, q, qd, t: float = 0.0, overrides=None):
     """Mass matrix M and right-hand side P of ``M qdd = P`` at (t, q, qd)."""
     q, qd = _one_state(q, qd)
-    mm, p, stat, msg = _core.pymr_model_terms(*_scene_and_overrides(scene, overrides), t, q, qd)
+    _finite(q, qd)
+    mm, p, stat, msg = _core.pymr_model_terms(*_scene_and_overrides(scene, overrides), _time(t), q, qd)
     _raise(stat, msg)
     return mm, p
 
@@ -179,7 +252,7 @@ def force_response(scene: str | os.PathLike, q, qd, t: float = 0.0, overrides=No
     """The 'response' coupling's terms at (t, q, qd): ``g = M^-1 E`` (shape (n, nf)), the
     response of every acceleration to a unit force on each modal coordinate, and the modal
     stiffness ``kf`` and damping ``df`` (shape (nf,)) of the fast forces ``kf a + df ad``."""
-    nf, g, kf, df, stat, msg = _core.pymr_force_response(*_scene_and_overrides(scene, overrides), t,
+    nf, g, kf, df, stat, msg = _core.pymr_force_response(*_scene_and_overrides(scene, overrides), _time(t),
                                                         *_one_state(q, qd))
     _raise(stat, msg)
     nf = int(nf)
@@ -192,7 +265,7 @@ def modes(scene: str | os.PathLike, q, qd, t: float = 0.0, overrides=None):
     (Hz, ascending), damping ratios, and shapes (shape (n, number of modes): each column the
     coordinates' motion, its largest component 1); with closed loops, the constrained ones.
     Drifting motions (a free joint) are not modes and are left out."""
-    nm, freq, zeta, shapes, stat, msg = _core.pymr_modes(*_scene_and_overrides(scene, overrides), t,
+    nm, freq, zeta, shapes, stat, msg = _core.pymr_modes(*_scene_and_overrides(scene, overrides), _time(t),
                                                           *_one_state(q, qd))
     _raise(stat, msg)
     nm = int(nm)
@@ -204,8 +277,10 @@ def marker_shapes(scene, markers, q, qd, shapes, t: float = 0.0, overrides=None)
     the derivative of its inertial position along each shape (the columns of `shapes`, as
     :func:`modes` gives them) at (t, q, qd), by central differences of 1e-6 times the shape:
     metres per unit of the shape's coordinates."""
+    q, qd = _one_state(q, qd)
     shapes = np.asarray(shapes, dtype=float)
-    q, qd = np.asarray(q, dtype=float), np.asarray(qd, dtype=float)
+    if shapes.ndim != 2 or shapes.shape[0] != q.size:
+        raise ValueError(f"shapes: an array ({q.size}, modes) expected (modes() gives one), got shape {shapes.shape}")
     eps = 1e-6
     out = {}
     with Model(scene, overrides) as model:
@@ -223,7 +298,8 @@ def step_history(scene: str | os.PathLike, overrides=None, max_steps: int = 200_
     time reached, the step taken and the method's order at each accepted step (entry 0 is
     the start: its step 0, its order the starting one). More than ``max_steps`` steps is an
     error."""
-    t, h, q, nh, stat, msg = _core.pymr_step_history(*_scene_and_overrides(scene, overrides), int(max_steps) + 1)
+    t, h, q, nh, stat, msg = _core.pymr_step_history(*_scene_and_overrides(scene, overrides),
+                                                     _count("max_steps", max_steps) + 1)
     _raise(stat, msg)
     nh = int(nh)
     return t[:nh].copy(), h[:nh].copy(), q[:nh].copy()
@@ -231,11 +307,8 @@ def step_history(scene: str | os.PathLike, overrides=None, max_steps: int = 200_
 
 def model_accelerations(scene: str | os.PathLike, t, q, qd, overrides=None) -> np.ndarray:
     """Accelerations for one state (q of shape (n,)) or many (shape (m, n), t of shape (m,))."""
-    q, qd = _states(q, qd)
-    single = q.ndim == 1
-    q2 = np.asfortranarray(np.atleast_2d(q).T)
-    qd2 = np.asfortranarray(np.atleast_2d(np.asarray(qd, dtype=float)).T)
-    t1 = np.atleast_1d(np.asarray(t, dtype=float))
+    single = np.ndim(q) == 1
+    t1, q2, qd2 = _many_states(t, q, qd, finite=False)
     qdd, stat, msg = _core.pymr_model_accelerations(*_scene_and_overrides(scene, overrides), t1, q2, qd2)
     _raise(stat, msg)
     return qdd[:, 0].copy() if single else qdd.T.copy()
@@ -259,9 +332,7 @@ def model_energy(scene: str | os.PathLike, q, qd, overrides=None) -> tuple[np.nd
     """Kinetic and potential energy for states q, qd of shape (m, n) (or one state of shape
     (n,)): arrays of shape (m,). The potential energy is the flexible bodies' strain energy,
     plus gravity's and the joint springs' when those effects are on."""
-    q, qd = _states(q, qd)
-    q2 = np.asfortranarray(np.atleast_2d(np.asarray(q, dtype=float)).T)
-    qd2 = np.asfortranarray(np.atleast_2d(np.asarray(qd, dtype=float)).T)
+    _, q2, qd2 = _many_states(np.zeros(np.atleast_2d(q).shape[0]), q, qd)
     ke, pe, stat, msg = _core.pymr_model_energy(*_scene_and_overrides(scene, overrides), q2, qd2)
     _raise(stat, msg)
     return ke, pe
@@ -300,21 +371,25 @@ class Model:
         k = int(_core.pymr_model_marker_index(self.handle, name))
         if k == 0:
             raise SceneError(f"{self.scene}: no marker {name!r}")
-        q2 = np.asfortranarray(np.atleast_2d(np.asarray(q, dtype=float)).T)
-        qd2 = np.asfortranarray(np.atleast_2d(np.asarray(qd, dtype=float)).T)
-        pos, stat, msg = _core.pymr_model_marker(self.handle, k, np.atleast_1d(np.asarray(t, dtype=float)), q2, qd2)
+        t1, q2, qd2 = self._states(t, q, qd)
+        pos, stat, msg = _core.pymr_model_marker(self.handle, k, t1, q2, qd2)
         _raise(stat, msg)
         return pos.T.copy()
 
     def frames(self, t, q, qd, nb: int):
         """Every body's frame origin (inertial, m) at states of shape (m, n): an array
         (m, nb, 3), and each body's parent (1-based, 0 for the ground), for drawing."""
-        q2 = np.asfortranarray(np.atleast_2d(np.asarray(q, dtype=float)).T)
-        qd2 = np.asfortranarray(np.atleast_2d(np.asarray(qd, dtype=float)).T)
-        pos, parent, stat, msg = _core.pymr_model_frames(self.handle, int(nb), np.atleast_1d(np.asarray(t, dtype=float)),
-                                                         q2, qd2)
+        t1, q2, qd2 = self._states(t, q, qd)
+        pos, parent, stat, msg = _core.pymr_model_frames(self.handle, _count("nb", nb), t1, q2, qd2)
         _raise(stat, msg)
         return np.transpose(pos, (2, 1, 0)).copy(), np.asarray(parent, dtype=int)
+
+    def _states(self, t, q, qd):
+        """The kernel's (t, q, qd) of :func:`_many_states`, each state of this model's n coordinates."""
+        t1, q2, qd2 = _many_states(t, q, qd)
+        if q2.shape[0] != self.n:
+            raise ValueError(f"q: states of {self.n} coordinates expected, got {q2.shape[0]}")
+        return t1, q2, qd2
 
     def marker_body(self, name: str) -> int:
         """The index (0-based, as in :meth:`frames`) of the body marker `name` is on."""

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from . import _kernel as _core
-from .api import _raise, model_size
+from .api import SceneError, _raise, model_size, write_file
 from .scenes import ROD_LENGTH, ROD_MASS, ROD_RADIUS, serial_chain, spatial_chain
 
 
@@ -147,8 +147,14 @@ def _pinocchio_compiled(exe: str, q: np.ndarray, qd: np.ndarray) -> tuple[float,
     """Pinocchio compiled (docs/pinocchio_chain.cpp): ABA and CRBA + Cholesky, us."""
     import subprocess
     text = "%d\n%s\n%s\n" % (len(q), " ".join("%.17g" % x for x in q), " ".join("%.17g" % x for x in qd))
-    out = subprocess.run([exe], input=text, capture_output=True, text=True, check=True).stdout.split("\n")
-    aba, crba = (float(x) for x in out[1].split())
+    try:
+        out = subprocess.run([exe], input=text, capture_output=True, text=True, check=True).stdout.split("\n")
+        aba, crba = (float(x) for x in out[1].split())
+    except OSError as exc:
+        raise SceneError(f"--pinocchio-cpp {exe}: cannot run it ({exc.strerror or exc})") from None
+    except (subprocess.CalledProcessError, ValueError, IndexError):
+        raise SceneError(f"--pinocchio-cpp {exe}: it did not print the two timings of a build of "
+                         "docs/pinocchio_chain.cpp") from None
     return aba, crba
 
 
@@ -244,19 +250,21 @@ def bench_lapack(repeats: int = 5) -> list[dict]:
 
 def main(what: str, repeats: int | None = None, json_path: str | None = None,
          pinocchio_cpp: str | None = None) -> int:
+    if repeats is not None and (isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1):
+        raise SceneError(f"repeats: a whole number of timings, at least 1, got {repeats!r}")
     if what == "lapack":
         rows = bench_lapack(repeats=repeats or 5)
         print(f"pymr bench lapack: LAPACK work, median ms of CPU, with {loaded_lapack()}")
         for r in rows:
             print(f"{r['work']:>55} {r['ms']:10.4f}")
         if json_path:
-            Path(json_path).write_text(json.dumps({"lapack": loaded_lapack(), "rows": rows}, indent=2))
+            write_file(json_path, json.dumps({"lapack": loaded_lapack(), "rows": rows}, indent=2), "figures")
         return 0
     if what == "chain":
         rows = bench_chain(repeats=repeats or 7, pinocchio_cpp=pinocchio_cpp)
         print_chain(rows)
         if json_path:
-            Path(json_path).write_text(json.dumps(rows, indent=2))
+            write_file(json_path, json.dumps(rows, indent=2), "figures")
         return 0
     if what == "rhs":
         repeats = repeats or 7
@@ -276,7 +284,7 @@ def main(what: str, repeats: int | None = None, json_path: str | None = None,
         print(f"tank 1 s single-rate run (h = 1e-4 s, {tank['steps']} steps, {tank['rhs_full']} evaluations): "
               f"median CPU {tank['median_cpu_s']:.3f} s")
         if json_path:
-            Path(json_path).write_text(json.dumps({"evaluations": rows, "tank_run": tank}, indent=2))
+            write_file(json_path, json.dumps({"evaluations": rows, "tank_run": tank}, indent=2), "figures")
         return 0
     if what == "effects":
         rows = bench_effects(repeats=repeats or 7)
@@ -286,20 +294,20 @@ def main(what: str, repeats: int | None = None, json_path: str | None = None,
         for r in rows:
             print(f"{r['effect']:>22} {r['median_us']:>10.3f} {r['extra_us']:>+9.3f}")
         if json_path:
-            Path(json_path).write_text(json.dumps(rows, indent=2))
+            write_file(json_path, json.dumps(rows, indent=2), "figures")
         return 0
     if what == "spacecraft":
         rows = bench_spacecraft(repeats=repeats or 5)
         print_spacecraft(rows)
         if json_path:
-            Path(json_path).write_text(json.dumps(rows, indent=2))
+            write_file(json_path, json.dumps(rows, indent=2), "figures")
         return 0
     if what == "table1":
         # runs of 5-30 ms are noisy on a shared machine: 21 interleaved repeats by default
         rows = bench_table1(repeats=max(repeats or 21, 5))
         print_table1(rows)
         path = json_path or "table1.json"
-        Path(path).write_text(json.dumps({"paper": PAPER_TABLE1, "cases": rows}, indent=2))
+        write_file(path, json.dumps({"paper": PAPER_TABLE1, "cases": rows}, indent=2), "figures")
         print(f"written: {path}")
         return 0
     raise ValueError(what)

@@ -8,11 +8,12 @@ import sys
 
 import numpy as np
 
-from .api import PymrError, SceneError, run
-from .plot import PlotError
+from .api import PymrError, SceneError, SolverError, run, write_file
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
+    if args.output == "":
+        raise SceneError("-o: an empty file name (leave -o out for the default)")
     res = run(args.scene, output=args.output or "", overrides=args.set or None, restart=args.restart,
               progress=None if args.progress is None else args.progress)
     if not args.quiet:
@@ -69,12 +70,16 @@ def _count(name: str, text: str) -> int:
 def _cmd_modes(args: argparse.Namespace) -> int:
     """Natural modes at the initial state, or at time T of the run (--at T)."""
     import csv
+    import io
+    import math
     import re
-    from .api import modes, marker_shapes
+    from .api import check_not_input, modes, marker_shapes
     over = list(args.set or [])
-    at = 0.0 if args.at is None else float(args.at)
-    if at < 0.0:
-        raise SceneError(f"--at {args.at}: a time at or after the start of the run (s)")
+    at = 0.0 if args.at is None else args.at
+    if not (0.0 <= at < math.inf):
+        raise SceneError(f"--at {at:g}: a time at or after the start of the run (s)")
+    if args.output:
+        check_not_input(args.scene, args.output, "modes file (-o)", over)
     res = run(args.scene, overrides=over + [f"scene.t_end={at if at > 0 else 1e-9}", "output.dt=0.0"])
     q, qd = res.coordinates()
     names = [c for c in res.columns if re.search(r"\.(q\d*|a\d+)$", c)]
@@ -95,12 +100,13 @@ def _cmd_modes(args: argparse.Namespace) -> int:
         print(line)
     if args.output:
         mcols = [f"{m}.d{c}" for m in moves for c in "xyz"]
-        with open(args.output, "w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow(["mode", "frequency_hz", "damping_ratio", *names, *mcols])
-            for i in range(len(freq)):
-                w.writerow([i + 1, repr(float(freq[i])), repr(float(zeta[i])), *[repr(float(v)) for v in shapes[:, i]],
-                            *[repr(float(v)) for d in moves.values() for v in d[:, i]]])
+        fh = io.StringIO(newline="")
+        w = csv.writer(fh)
+        w.writerow(["mode", "frequency_hz", "damping_ratio", *names, *mcols])
+        for i in range(len(freq)):
+            w.writerow([i + 1, repr(float(freq[i])), repr(float(zeta[i])), *[repr(float(v)) for v in shapes[:, i]],
+                        *[repr(float(v)) for d in moves.values() for v in d[:, i]]])
+        write_file(args.output, fh.getvalue(), "modes")
         print(f"written: {args.output}")
     return 0
 
@@ -128,8 +134,40 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
                       collect_from=args.collect)
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with pymr's one-line errors: 'pymr: error: run: MESSAGE', exit status 1 (argparse
+    prints its usage block first, several lines, and exits 2, the status of a failed run)."""
+
+    def error(self, message: str):
+        command = self.prog.removeprefix("pymr").strip()
+        print(f"pymr: error: {command + ': ' if command else ''}{message} "
+              f"(pymr {command + ' ' if command else ''}--help)", file=sys.stderr)
+        raise SystemExit(1)
+
+
+def _count_of(what: str):
+    """An argparse type: a whole number, at least 1, of `what`."""
+    def convert(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            value = 0
+        if value < 1:
+            raise argparse.ArgumentTypeError(f"{text!r}: a whole number of {what}, at least 1")
+        return value
+    return convert
+
+
+def _seconds(text: str) -> float:
+    """An argparse type: a time (s), a number."""
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: a time in seconds") from None
+
+
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="pymr", description="Flexible multibody dynamics with multirate "
+    p = _Parser(prog="pymr", description="Flexible multibody dynamics with multirate "
                                 "Nordsieck Adams integration.")
     from . import __version__
     p.add_argument("--version", action="version", version=f"pymr {__version__}")
@@ -192,7 +230,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "single-rate against multirate")
     b.add_argument("--pinocchio-cpp", metavar="EXE",
                    help="chain: also time Pinocchio compiled, by this build of docs/pinocchio_chain.cpp")
-    b.add_argument("--repeats", type=int, default=None,
+    b.add_argument("--repeats", type=_count_of("repeats"), default=None,
                    help="timing repeats, median reported (default 7 for rhs, chain and effects, 5 for lapack "
                         "and spacecraft, 21 for table1, which takes at least 5)")
     b.add_argument("--json", help="also write the figures to this JSON file")
@@ -200,7 +238,7 @@ def build_parser() -> argparse.ArgumentParser:
     md = sub.add_parser("modes", help="natural frequencies, damping ratios and mode shapes of the model "
                         "linearised at the initial state (or at time T of the run)")
     md.add_argument("scene", help="scene namelist file")
-    md.add_argument("--at", metavar="T", help="linearise at time T of the run (s) instead of at the initial state")
+    md.add_argument("--at", metavar="T", type=_seconds, help="linearise at time T of the run (s) instead of at the initial state")
     md.add_argument("--set", action="append", metavar="GROUP.ITEM=VALUE", help="override (repeatable)")
     md.add_argument("-o", "--output", help="write the modes to this CSV file (mode, frequency, damping, shape)")
     md.set_defaults(func=_cmd_modes)
@@ -211,8 +249,8 @@ def build_parser() -> argparse.ArgumentParser:
                     "--set overrides (give the resolved scene)")
     an.add_argument("--view", default="xy", choices=["xy", "xz", "zy"], help="inertial axes across and up")
     an.add_argument("--exaggerate", type=float, default=1.0, help="scale of the modal coordinates (deflections)")
-    an.add_argument("--fps", type=int, default=25, help="frames per second")
-    an.add_argument("--frames", type=int, default=200, help="most frames (evenly spaced output rows)")
+    an.add_argument("--fps", type=_count_of("frames per second"), default=25, help="frames per second")
+    an.add_argument("--frames", type=_count_of("frames"), default=200, help="most frames (evenly spaced output rows)")
     an.set_defaults(func=_cmd_animate)
     s = sub.add_parser("study", help="work-precision study: error against CPU time and evaluations for every "
                        "method (fixed, multirate, adaptive, scipy DOP853/LSODA, CVODE)")
@@ -221,13 +259,13 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("-o", "--output", help="prefix of the files written: PREFIX.csv, PREFIX.png, PREFIX_history.csv "
                    "(default: SCENE_study)")
     s.add_argument("--quick", action="store_true", help="fewer steps and tolerances (a smoke run)")
-    s.add_argument("--repeats", type=int, default=5, help="runs per case; the CPU time is their median (default 5)")
+    s.add_argument("--repeats", type=_count_of("runs per case"), default=5, help="runs per case; the CPU time is their median (default 5)")
     s.set_defaults(func=_cmd_study)
     w = sub.add_parser("sweep", help="run a parameter sweep (SWEEP.toml) on Dask, or emit SLURM job-array files")
     w.add_argument("sweep", help="sweep file (TOML: scene, output, metric, [grid], [fixed], [reference])")
     w.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask scheduler (e.g. from dask-jobqueue on "
                    "SLURM or PBS); default: a LocalCluster on this machine")
-    w.add_argument("--workers", type=int, default=2, help="LocalCluster worker processes (default 2)")
+    w.add_argument("--workers", type=_count_of("workers"), default=2, help="LocalCluster worker processes (default 2)")
     w.add_argument("--emit-slurm", metavar="DIR", help="write the case namelists and a SLURM job-array script "
                    "running mrsim per case to DIR instead of running")
     w.add_argument("--collect", metavar="DIR", help="after the SLURM job array ran: the summary (DIR/summary.csv) "
@@ -260,9 +298,7 @@ def main(argv: list[str] | None = None) -> int:
     except PymrError as exc:
         for line in str(exc).splitlines() or [""]:
             print(f"pymr: error: {line}", file=sys.stderr)
-        from .sweep import SweepError
-        from .animate import AnimateError
-        return 1 if isinstance(exc, (SceneError, PlotError, SweepError, AnimateError)) else 2
+        return 2 if isinstance(exc, SolverError) else 1      # a failed run, else bad input
 
 
 if __name__ == "__main__":

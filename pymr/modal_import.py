@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .api import SceneError
+from .api import SceneError, write_file
 
 #: names of the six DOFs of a node, in the order of dofs_per_node 6 and DOF map numbers 1-6
 DOF_NAMES = ("u_x", "u_y", "u_z", "theta_x", "theta_y", "theta_z")
@@ -578,7 +578,4 @@ def write_modal_v2(path: str | os.PathLike, body: ModalBody, title: str) -> None
     out.append(f"points {len(body.point_ids)}")
     for p in range(len(body.point_ids)):
         out.append(f"{g(body.points[p])} 0 {g(body.psi[p].T)} {g(body.phi[p].T)}")
-    try:
-        Path(path).write_text("\n".join(out) + "\n")
-    except OSError as exc:
-        raise ImportInputError(f"{path}: cannot write: {exc.strerror or exc}") from None
+    write_file(path, "\n".join(out) + "\n", "modal data file")

@@ -18,12 +18,12 @@ from __future__ import annotations
 
 import os
 import re
-import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Sequence, Union
 
 from .api import PymrError
+from .errors import ResultsError
 from .results import Results, load_results
 
 RunLike = Union[Results, str, os.PathLike]
@@ -51,21 +51,10 @@ def load_runs(runs: Sequence[RunLike]) -> list[Results]:
         if isinstance(run, Results):
             out.append(run)
             continue
-        path = Path(run)
-        if not path.is_file():
-            raise PlotError(f"{path}: no such result file")
         try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")      # numpy's "input contained no data"
-                res = load_results(path)
-        except (OSError, ValueError) as exc:
-            msg = " ".join(str(exc).split())
-            raise PlotError(f"{path}: not a pymr result file ({msg})") from None
-        if not res.columns or res.columns[0] != "t":
-            raise PlotError(f"{path}: not a pymr result file (its header does not start with the column 't')")
-        if res.data.shape[0] == 0:
-            raise PlotError(f"{path}: has no result rows")
-        out.append(res)
+            out.append(load_results(run))
+        except ResultsError as exc:
+            raise PlotError(str(exc)) from None
     if not out:
         raise PlotError("no result files to plot")
     return out

@@ -4,10 +4,13 @@ from __future__ import annotations
 import json
 import os
 import re
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+
+from .errors import ResultsError
 
 _Q = re.compile(r"\.(q\d*|a\d+)$")
 _QD = re.compile(r"\.(qd\d*|ad\d+)$")
@@ -136,10 +139,35 @@ class Results:
 
 
 def load_results(csv_path: str | os.PathLike) -> Results:
-    """Load OUT.csv and, when present, OUT.json beside it."""
+    """Load OUT.csv and, when present, OUT.json beside it. A file that is missing, is no
+    pymr results file (header from the column 't', rows of finite numbers) or has no rows,
+    and a JSON beside it that is not JSON, raise :class:`ResultsError`."""
     path = Path(csv_path)
+    if not path.is_file():
+        raise ResultsError(f"{path}: no such result file")
+    try:
+        meta, header, skip = _read_head(path)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")      # numpy's "input contained no data"
+            data = np.loadtxt(path, delimiter=",", comments="#", skiprows=skip, ndmin=2)
+    except (OSError, ValueError) as exc:
+        raise ResultsError(f"{path}: not a pymr result file ({' '.join(str(exc).split())})") from None
+    if not header or header[0] != "t":
+        raise ResultsError(f"{path}: not a pymr result file (its header does not start with the column 't')")
+    if data.shape[0] == 0:
+        raise ResultsError(f"{path}: has no result rows")
+    if data.shape[1] != len(header):
+        raise ResultsError(f"{path}: not a pymr result file ({data.shape[1]} values a row, {len(header)} columns)")
+    if not np.isfinite(data).all():
+        row, col = np.argwhere(~np.isfinite(data))[0]
+        raise ResultsError(f"{path}: row {row + 1}, column {header[col]}: {data[row, col]} is not a finite number "
+                           "(a run writes none: the file was changed)")
+    return Results(columns=header, data=data, stats=_read_stats(path.with_suffix(".json")), meta=meta, path=str(path))
+
+
+def _read_head(path: Path) -> tuple[dict[str, str], list[str], int]:
+    """The comment lines as key: value, the header's columns and the lines up to it."""
     meta: dict[str, str] = {}
-    header: list[str] | None = None
     skip = 0
     with open(path) as fh:
         for line in fh:
@@ -149,13 +177,18 @@ def load_results(csv_path: str | os.PathLike) -> Results:
                 if colon:                    # '# key: value' (not the '# pymr 0.1.0 results' line)
                     meta[key.strip()] = value.strip()
                 continue
-            header = line.strip().split(",")
-            break
-    if header is None:
-        raise ValueError(f"{path}: no header row")
-    data = np.loadtxt(path, delimiter=",", comments="#", skiprows=skip, ndmin=2)
-    stats = {}
-    jpath = path.with_suffix(".json")
-    if jpath.exists():
+            return meta, line.strip().split(","), skip
+    return meta, [], skip
+
+
+def _read_stats(jpath: Path) -> dict:
+    """OUT.json's statistics ({} when there is none)."""
+    if not jpath.exists():
+        return {}
+    try:
         stats = json.loads(jpath.read_text())
-    return Results(columns=header, data=data, stats=stats, meta=meta, path=str(path))
+    except (OSError, ValueError) as exc:
+        raise ResultsError(f"{jpath}: not a pymr statistics file ({' '.join(str(exc).split())})") from None
+    if not isinstance(stats, dict):
+        raise ResultsError(f"{jpath}: not a pymr statistics file (not a JSON object)")
+    return stats

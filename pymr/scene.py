@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Iterable, Mapping
 
 from . import _kernel as _core
-from .api import SceneError, _raise, _text, format_overrides, nml_value
+from .api import SceneError, _raise, _text, format_overrides, nml_value, write_file
 
 
 class Scene:
@@ -73,15 +73,7 @@ class Scene:
 
     def write(self, path: str | os.PathLike, absolute_paths: bool = False) -> Path:
         """Write the resolved scene to `path` (a complete scene file)."""
-        path = Path(path)
-        text = self.resolved(absolute_paths)
-        tmp = path.with_name(path.name + ".tmp")
-        with open(tmp, "w") as fh:
-            fh.write(text)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-        return path
+        return write_file(path, self.resolved(absolute_paths), "resolved scene")
 
     def _check(self) -> None:
         self._resolved = None

@@ -26,6 +26,7 @@ scipy's DOP853 at rtol 1e-12 driving pymr's own right-hand side through the bind
 from __future__ import annotations
 
 import csv
+import io
 import math
 import os
 import re
@@ -38,7 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .api import Model, PymrError, run
+from .api import Model, PymrError, SceneError, SolverError, check_not_input, run, write_file
 from .scene import Scene
 
 
@@ -123,8 +124,8 @@ class Study:
         # a path or a pymr.Scene (its overrides apply to every run of the study)
         self.scene = scene if isinstance(scene, Scene) else Scene(scene)
         self.quick = quick
-        if int(repeats) < 1:
-            raise ValueError(f"repeats: at least 1 run per case, got {repeats}")
+        if isinstance(repeats, bool) or not isinstance(repeats, (int, np.integer)) or repeats < 1:
+            raise SceneError(f"repeats: a whole number of runs per case, at least 1, got {repeats!r}")
         self.repeats = int(repeats)
         self.say = progress or (lambda *a, **k: None)
         probe = run(self.scene, overrides={"output.dt": 0.0, "scene.t_end": 1e-6})
@@ -133,11 +134,11 @@ class Study:
         self.x0 = np.concatenate([q[0], qd[0]])      # the initial state [q; qd]
         markers = sorted({c.rsplit(".", 1)[0] for c in probe.columns if c.endswith(".x")})
         if not markers:
-            raise PymrError(f"{self.scene.path}: the scene has no &marker to measure the error at")
+            raise SceneError(f"{self.scene.path}: the scene has no &marker to measure the error at")
         if marker is None:
             marker = markers[0]
         if marker not in markers:
-            raise PymrError(f"{self.scene.path}: no marker {marker!r} (markers: {', '.join(markers)})")
+            raise SceneError(f"{self.scene.path}: no marker {marker!r} (markers: {', '.join(markers)})")
         self.marker = marker
         self.h0 = float(probe.stats["integrator"]["h_slow"])
         self.t_end = self._t_end()
@@ -170,7 +171,7 @@ class Study:
             sol = solve_ivp(model.rhs, (0.0, self.t_end), self.x0, method="DOP853", t_eval=self.grid, rtol=1e-12,
                             atol=1e-14)
             if not sol.success:
-                raise PymrError(f"reference DOP853 failed: {sol.message}")
+                raise SolverError(f"reference DOP853 failed: {sol.message}")
             n = self.n
             pos = model.marker(self.marker, sol.t, sol.y[:n].T, sol.y[n:].T)
         self.ref_check = float(np.linalg.norm(pos - self.ref, axis=1).max())
@@ -187,7 +188,7 @@ class Study:
         idx = np.searchsorted(self.grid, t - 1e-9)
         keep = (idx < len(self.grid)) & (np.abs(self.grid[np.minimum(idx, len(self.grid) - 1)] - t) < 1e-9)
         if keep.sum() != len(self.grid):
-            raise PymrError(f"the run wrote rows at {int(keep.sum())} of the study's {len(self.grid)} common "
+            raise SolverError(f"the run wrote rows at {int(keep.sum())} of the study's {len(self.grid)} common "
                             "output times")
         return float(np.linalg.norm(pos[keep] - self.ref[idx[keep]], axis=1).max())
 
@@ -429,11 +430,12 @@ class Study:
     # ---------------------------------------------------------------- reporting
 
     def write_csv(self, path: Path) -> None:
-        with open(path, "w", newline="") as fh:
-            w = csv.DictWriter(fh, fieldnames=list(asdict(self.cases[0])))
-            w.writeheader()
-            for c in self.cases:
-                w.writerow(asdict(c))
+        fh = io.StringIO(newline="")
+        w = csv.DictWriter(fh, fieldnames=list(asdict(self.cases[0])))
+        w.writeheader()
+        for c in self.cases:
+            w.writerow(asdict(c))
+        write_file(path, fh.getvalue(), "study's table")
 
     def best_at(self, error: float) -> dict[str, Case]:
         """Per method family (the method without its step ratio), the fastest case (by median
@@ -539,12 +541,13 @@ class Study:
 
     @staticmethod
     def write_histories(hist: dict, path: Path) -> None:
-        with open(path, "w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow(["rtol", "t", "h", "order"])
-            for rtol, (t, h, q) in hist.items():
-                for row in zip(t[1:], h[1:], q[1:]):
-                    w.writerow([f"{rtol:.1e}", f"{row[0]:.10e}", f"{row[1]:.6e}", int(row[2])])
+        fh = io.StringIO(newline="")
+        w = csv.writer(fh)
+        w.writerow(["rtol", "t", "h", "order"])
+        for rtol, (t, h, q) in hist.items():
+            for row in zip(t[1:], h[1:], q[1:]):
+                w.writerow([f"{rtol:.1e}", f"{row[0]:.10e}", f"{row[1]:.6e}", int(row[2])])
+        write_file(path, fh.getvalue(), "step histories")
 
     def refused(self) -> list[Case]:
         """The fixed-step multirate cases the pre-flight stability check refused."""
@@ -619,8 +622,10 @@ class Study:
         if note:
             fig.text(0.01, 0.01, wrapped, fontsize=7, va="bottom", ha="left", color="firebrick")
         fig.tight_layout(rect=(0, extra / (6.2 + extra) + (0.02 if note else 0.0), 1, 1))
-        fig.savefig(path, dpi=110)
+        image = io.BytesIO()
+        fig.savefig(image, dpi=110, format=Path(path).suffix.lstrip(".") or "png")
         plt.close(fig)
+        write_file(path, image.getvalue(), "study's figure")
         return note
 
     def table(self) -> str:
@@ -638,9 +643,14 @@ class Study:
 
 def main(scene: str, marker: str | None = None, output: str | None = None, quick: bool = False,
          repeats: int | None = 5) -> int:
+    prefix = Path(output) if output else Path(Path(scene).stem + "_study")
+    if not prefix.parent.is_dir():
+        raise SceneError(f"-o {prefix}: the folder {prefix.parent} is not there (the study writes its files "
+                         "there at the end)")
+    for path in study_files(prefix):
+        check_not_input(scene, path, "output prefix (-o)")
     study = Study(scene, marker, quick=quick, repeats=5 if repeats is None else repeats)
     study.run_all()
-    prefix = Path(output) if output else Path(Path(scene).stem + "_study")
     print()
     print(study.table())
     print()
@@ -652,9 +662,14 @@ def main(scene: str, marker: str | None = None, output: str | None = None, quick
     print(study.order_text())
     hist = study.histories()
     print(study.history_text(hist))
-    history = prefix.with_name(prefix.name + "_history.csv")
-    study.write_csv(prefix.with_suffix(".csv"))
+    table, figure, history = study_files(prefix)
+    study.write_csv(table)
     study.write_histories(hist, history)
-    study.plot(prefix.with_suffix(".png"))
-    print(f"written: {prefix.with_suffix('.csv')}, {prefix.with_suffix('.png')}, {history}")
+    study.plot(figure)
+    print(f"written: {table}, {figure}, {history}")
     return 0
+
+
+def study_files(prefix: Path) -> tuple[Path, Path, Path]:
+    """The files a study with output prefix `prefix` writes: its table, figure and step histories."""
+    return prefix.with_suffix(".csv"), prefix.with_suffix(".png"), prefix.with_name(prefix.name + "_history.csv")

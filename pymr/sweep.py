@@ -27,6 +27,7 @@ base scene with the [reference] overrides, at the same output times).
 from __future__ import annotations
 
 import csv
+import io
 import itertools
 import math
 import os
@@ -39,7 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .api import PymrError, SceneError, run
+from .api import PymrError, SceneError, run, write_file
 from .results import load_results
 from .scene import Scene
 
@@ -73,8 +74,7 @@ def load_sweep(path: str | os.PathLike) -> Sweep:
         raise SweepError(f"{path}: not found") from None
     except (tomllib.TOMLDecodeError, UnicodeDecodeError, IsADirectoryError) as exc:
         raise SweepError(f"{path}: not a TOML sweep file ({exc})") from None
-    if not isinstance(spec.get("scene", ""), str):
-        raise SweepError(f"{path}: scene: must be a file name (a string)")
+    check_types(path, spec)
     for key in spec:
         if key not in ("scene", "output", "metric", "grid", "fixed", "reference"):
             raise SweepError(f"{path}: unknown key {key!r} (known: scene, output, metric, grid, fixed, reference)")
@@ -96,6 +96,20 @@ def load_sweep(path: str | os.PathLike) -> Sweep:
     sw = Sweep(path, scene, output, metric, grid, spec.get("fixed", {}), spec.get("reference", {}))
     check_cases(sw)
     return sw
+
+
+#: The sweep file's keys and the TOML type each must have.
+KEY_TYPES = {"scene": (str, "a file name (a string)"), "output": (str, "a folder name (a string)"),
+             "metric": (str, "a string such as 'final:COLUMN'"), "grid": (dict, "a table ([grid])"),
+             "fixed": (dict, "a table ([fixed])"), "reference": (dict, "a table ([reference])")}
+
+
+def check_types(path: Path, spec: dict) -> None:
+    """Each known key of the sweep file has its type (a number where a file name goes gave
+    a TypeError traceback)."""
+    for key, (kind, what) in KEY_TYPES.items():
+        if key in spec and not isinstance(spec[key], kind):
+            raise SweepError(f"{path}: {key}: must be {what}, got {spec[key]!r}")
 
 
 def check_cases(sw: Sweep) -> None:
@@ -192,12 +206,17 @@ def run_sweep(sw: Sweep, scheduler: str | None = None, workers: int = 2) -> list
     except ImportError:
         raise SweepError("pymr sweep runs its cases on Dask, which is not installed: "
                          "pip install 'dask[distributed]' (or write SLURM files with --emit-slurm)") from None
-    sw.output.mkdir(parents=True, exist_ok=True)
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise SweepError(f"workers: a whole number of worker processes, at least 1, got {workers!r}")
+    make_folder(sw.output, "output")
     ref = reference_positions(sw)
     cases = sw.cases
     cluster = None
     if scheduler:
-        client = Client(scheduler)
+        try:
+            client = Client(scheduler)
+        except OSError as exc:
+            raise SweepError(f"--scheduler {scheduler}: cannot reach it ({' '.join(str(exc).split())})") from None
     else:
         # one thread per worker process, BLAS included: the workers inherit these
         for name in BLAS_THREADS:
@@ -223,15 +242,24 @@ def run_sweep(sw: Sweep, scheduler: str | None = None, workers: int = 2) -> list
     return rows
 
 
+def make_folder(folder: Path, what: str) -> None:
+    """`folder` made (with its parents) unless it is there; a file in its place, or a folder
+    that cannot be made, is a SweepError naming `what` it is for."""
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise SweepError(f"{folder}: cannot make the {what} folder ({exc.strerror or exc})") from None
+
+
 def write_summary(sw: Sweep, rows: list[dict], folder: Path | None = None) -> Path:
-    path = (folder or sw.output) / "summary.csv"
+    """folder/summary.csv, written whole (an earlier summary stays until the new one is complete)."""
     fields = ["case", *sw.grid, "metric", "cpu_time_s", "status"]
-    with open(path, "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=fields, extrasaction="ignore")
-        w.writeheader()
-        for r in rows:
-            w.writerow(r)
-    return path
+    fh = io.StringIO(newline="")
+    w = csv.DictWriter(fh, fieldnames=fields, extrasaction="ignore")
+    w.writeheader()
+    for r in rows:
+        w.writerow(r)
+    return write_file((folder or sw.output) / "summary.csv", fh.getvalue(), "sweep's summary")
 
 
 # ------------------------------------------------------------------------ SLURM
@@ -242,7 +270,7 @@ def case_namelist(base: Path, overrides: dict, dest: Path) -> None:
     gets -o)."""
     scene = Scene(base, {**overrides, "output.file": ""})
     text = scene.resolved(absolute_paths=True)
-    dest.write_text(f"! {dest.name}: {base.name} with {overrides}\n" + text)
+    write_file(dest, f"! {dest.name}: {base.name} with {overrides}\n" + text, "case namelist")
 
 
 def emit_slurm(sw: Sweep, folder: str | os.PathLike, time_limit: str = "01:00:00") -> Path:
@@ -252,17 +280,17 @@ def emit_slurm(sw: Sweep, folder: str | os.PathLike, time_limit: str = "01:00:00
     from ._locate import mrsim_path
     exe = mrsim_path() or "mrsim"
     folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
+    make_folder(folder, "--emit-slurm")
     cases = sw.cases
     for i, case in enumerate(cases):
         case_namelist(sw.scene, {**sw.fixed, **case}, folder / f"{case_name(i)}.nml")
-    with open(folder / "cases.csv", "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=["case", *sw.grid])
-        w.writeheader()
-        for i, case in enumerate(cases):
-            w.writerow({"case": case_name(i), **case})
-    script = folder / "sweep.slurm"
-    script.write_text(f"""#!/bin/bash
+    fh = io.StringIO(newline="")
+    w = csv.DictWriter(fh, fieldnames=["case", *sw.grid])
+    w.writeheader()
+    for i, case in enumerate(cases):
+        w.writerow({"case": case_name(i), **case})
+    write_file(folder / "cases.csv", fh.getvalue(), "list of cases")
+    script = write_file(folder / "sweep.slurm", f"""#!/bin/bash
 # SLURM job array for the sweep {sw.path.name}: one task per case namelist.
 # Submit from this folder: sbatch sweep.slurm   (results: caseNNNN.csv and .json here)
 #SBATCH --job-name=pymr-sweep
@@ -279,7 +307,7 @@ cd "${{SLURM_SUBMIT_DIR:-$(dirname "$0")}}"
 case=$(printf 'case%04d' "${{SLURM_ARRAY_TASK_ID}}")
 MRSIM="${{PYMR_MRSIM:-{exe}}}"
 "$MRSIM" "$case.nml" -o "$case.csv" --quiet
-""")
+""", "SLURM script")
     script.chmod(0o755)
     return script
 

@@ -515,3 +515,106 @@ def test_version_and_bench_outside_the_checkout(tmp_path, mrsim):
                        timeout=120, env={**os.environ, "PYTHONPATH": ""})
     assert r.returncode == 0 and r.stderr == "", r.stderr
     assert re.search(r"tank_gun_turret\s+3\s+6\s+\d", r.stdout), r.stdout
+
+
+# ------------------------------------------------- the other commands' options (fuzzed)
+
+@pytest.mark.parametrize("args, expect", [
+    pytest.param(["run"], "run: the following arguments are required: scene (pymr run --help)", id="run_no_scene"),
+    pytest.param(["run", "base.nml", "--bogus"], "unrecognized arguments: --bogus (pymr --help)", id="unknown_option"),
+    pytest.param(["run", "base.nml", "-o"], "run: argument -o/--output: expected one argument (pymr run --help)",
+                 id="output_without_name"),
+    pytest.param(["bench", "rhs", "--repeats", "0"], "bench: argument --repeats: '0': a whole number of repeats, "
+                 "at least 1 (pymr bench --help)", id="bench_repeats_0"),
+    pytest.param(["bench", "nope"], "bench: argument what: invalid choice: 'nope'", id="bench_unknown"),
+    pytest.param(["study", "base.nml", "--repeats", "abc"], "study: argument --repeats: 'abc': a whole number of "
+                 "runs per case, at least 1", id="study_repeats_abc"),
+    pytest.param(["modes", "base.nml", "--at", "abc"], "modes: argument --at: 'abc': a time in seconds", id="modes_at"),
+    pytest.param(["modes", "base.nml", "--at", "nan"], "--at nan: a time at or after the start of the run (s)",
+                 id="modes_at_nan"),
+    pytest.param(["animate", "out.csv", "--fps", "-1"], "animate: argument --fps: '-1': a whole number of frames "
+                 "per second, at least 1", id="animate_fps"),
+    pytest.param(["sweep", "s.toml", "--workers", "0"], "sweep: argument --workers: '0': a whole number of workers",
+                 id="sweep_workers"),
+    pytest.param(["modes", "base.nml", "-o", "nowhere/modes.csv"], "nowhere/modes.csv: cannot write the modes "
+                 "(No such file or directory)", id="modes_output_folder_missing"),
+    pytest.param(["modes", "base.nml", "-o", "base.nml"], "pymr: error: base.nml: would overwrite the scene "
+                 "(base.nml); choose another modes file (-o)", id="modes_output_is_the_scene"),
+    pytest.param(["study", "base.nml", "-o", "nowhere/st"], "-o nowhere/st: the folder nowhere is not there",
+                 id="study_output_folder_missing"),
+    pytest.param(["study", "base.nml", "--marker", "nope"], "base.nml: no marker 'nope' (markers: tip)",
+                 id="study_unknown_marker"),
+    pytest.param(["animate", "missing.csv"], "missing.csv: no such result file", id="animate_missing"),
+    pytest.param(["animate", "base.nml"], "base.nml: not a pymr result file (", id="animate_not_results"),
+    pytest.param(["animate", "broken.csv"], "broken.json: not a pymr statistics file (", id="animate_broken_json"),
+    pytest.param(["animate", "nan.csv", "--scene", "base.nml"], "nan.csv: row 2, column pivot.q: nan is not a "
+                 "finite number", id="animate_nan"),
+    pytest.param(["sweep", "s.toml", "--emit-slurm", "base.nml"], "base.nml: cannot make the --emit-slurm folder "
+                 "(File exists)", id="sweep_emit_onto_a_file"),
+    pytest.param(["bench", "chain", "--repeats", "1", "--pinocchio-cpp", "base.nml"], "--pinocchio-cpp base.nml: "
+                 "cannot run it (", id="bench_pinocchio_not_executable"),
+])
+def test_command_options_fault_in_one_line_exit_1(tmp_path, args, expect):
+    """Faults the command-line fuzzing found, each one line and status 1: argparse's usage
+    block (exit 2, the failed run's status), tracebacks for unwritable outputs, broken result
+    files, --at nan (accepted), --repeats 0 (the default), a study's unknown marker (exit 2)."""
+    (tmp_path / "base.nml").write_text(BASE)
+    r = run_cli([console_script()], ["run", "base.nml", "-o", "out.csv", "-q"], tmp_path)
+    assert r.returncode == 0, r.stderr
+    (tmp_path / "broken.csv").write_bytes((tmp_path / "out.csv").read_bytes())
+    (tmp_path / "broken.json").write_text("{broken")
+    rows = (tmp_path / "out.csv").read_text().splitlines()
+    first = next(i for i, line in enumerate(rows) if line[0].isdigit())
+    rows[first + 1] = ",".join(["1.0e-3", "nan"] + rows[first + 1].split(",")[2:])
+    (tmp_path / "nan.csv").write_text("\n".join(rows) + "\n")
+    (tmp_path / "s.toml").write_text('scene = "base.nml"\n[grid]\n"joint[pivot].q0" = [0.5]\n')
+    r = run_cli([console_script()], args, tmp_path)
+    assert r.returncode == 1, f"exit status {r.returncode}, stderr:\n{r.stderr}"
+    check_single_line(r.stderr, "pymr: error: ")
+    assert expect in r.stderr, r.stderr
+    assert (tmp_path / "base.nml").read_text() == BASE
+
+
+def test_results_files_that_cannot_be_read_raise_results_error(tmp_path):
+    """load_results raised FileNotFoundError, UnicodeDecodeError, numpy's and json's errors
+    (pymr animate printed them as tracebacks); each is a ResultsError naming the file."""
+    (tmp_path / "base.nml").write_text(BASE)
+    res = pymr.run(tmp_path / "base.nml", output=tmp_path / "out.csv")
+    (tmp_path / "bytes.csv").write_bytes(b"\xa6\xff\x00garbage")
+    (tmp_path / "header.csv").write_text("t,pivot.q\n")
+    cases = {"missing.csv": r"missing.csv: no such result file",
+             "bytes.csv": r"bytes.csv: not a pymr result file \(",
+             "header.csv": r"header.csv: has no result rows"}
+    for name, message in cases.items():
+        with pytest.raises(pymr.ResultsError, match=message):
+            pymr.load_results(tmp_path / name)
+    rows = (tmp_path / "out.csv").read_text().splitlines()
+    rows[-1] = rows[-1].rsplit(",", 1)[0] + ",inf"
+    (tmp_path / "inf.csv").write_text("\n".join(rows) + "\n")
+    with pytest.raises(pymr.ResultsError, match=rf"inf.csv: row {len(res.t)}, column {res.columns[-1]}: inf is not "
+                                                r"a finite number \(a run writes none: the file was changed\)$"):
+        pymr.load_results(tmp_path / "inf.csv")
+    (tmp_path / "out.json").write_text("[1, 2]")
+    with pytest.raises(pymr.ResultsError, match=r"out.json: not a pymr statistics file \(not a JSON object\)"):
+        pymr.load_results(tmp_path / "out.csv")
+    assert len(res.t) > 1
+
+
+def test_an_override_with_a_line_break_is_refused_not_split(tmp_path, mrsim, monkeypatch):
+    """The kernel reads one override a line, so a --set value holding a line break became two
+    overrides (the second applied silently; found by fuzzing --set), and a string given as
+    overrides was read one character at a time ('--set s: expected GROUP.ITEM=VALUE')."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "base.nml").write_text(BASE)
+    two = "scene.title=a\nscene.t_end=0.01"
+    r = run_mrsim(mrsim, ["base.nml", "-o", "out.csv", "--set", two], tmp_path)
+    assert r.returncode == 1 and not (tmp_path / "out.csv").exists(), r.stderr
+    check_single_line(r.stderr, "mrsim: error: --set scene.title=a")
+    assert r.stderr == ("mrsim: error: --set scene.title=a\\nscene.t_end=0.01: a line break in an override "
+                        "(one GROUP.ITEM=VALUE, on one line)\n")
+    with pytest.raises(pymr.SceneError, match=r"^--set 'scene.title=a\\nscene.t_end=0.01': a line break in an "
+                                              r"override \(one GROUP.ITEM=VALUE, on one line\)$"):
+        pymr.run("base.nml", overrides=[two])
+    with pytest.raises(pymr.SceneError, match=r"a line break in an override"):
+        pymr.Scene("base.nml", {"scene.title": "a\nb"})
+    assert pymr.run("base.nml", overrides="scene.t_end=0.01").t[-1] == pytest.approx(0.01)

@@ -126,3 +126,24 @@ def test_a_restart_refuses_a_checkpoint_that_does_not_belong_to_its_scene(tmp_pa
                  restart=ckpt)
     with pytest.raises(pymr.SceneError, match=r"other integrator settings: order = 0 then, order = 5 now"):
         pymr.run(TANK, out, overrides={**adams, "scene.t_end": 0.4, "integrator.order": 5}, restart=ckpt)
+
+
+def test_an_empty_checkpoint_or_output_name_is_refused_not_a_fresh_run(tmp_path, mrsim, monkeypatch):
+    """`--restart ""` (an unset shell variable) ran the scene from the start, replacing the
+    results a restart would have continued (found by fuzzing the command line); so did
+    pymr.run(restart=""). An empty -o is refused too (mrsim and pymr run took the default)."""
+    monkeypatch.chdir(tmp_path)
+    scene = ROOT / "input" / "pendulum.nml"
+    cases = [([mrsim], "mrsim: error: --restart needs a checkpoint file (got an empty name)\n",
+              "mrsim: error: -o needs a file name (got an empty one)\n"),
+             (["pymr", "run"], "pymr: error: restart: an empty checkpoint path (None runs from the start)\n",
+              "pymr: error: -o: an empty file name (leave -o out for the default)\n")]
+    for exe, no_checkpoint, no_output in cases:
+        r = subprocess.run([*exe, str(scene), "-o", "out.csv", "--restart", ""], capture_output=True, text=True,
+                           timeout=60)
+        assert (r.returncode, r.stderr) == (1, no_checkpoint)
+        r = subprocess.run([*exe, str(scene), "-o", ""], capture_output=True, text=True, timeout=60)
+        assert (r.returncode, r.stderr) == (1, no_output)
+        assert not (tmp_path / "out.csv").exists() and not (tmp_path / "pendulum.csv").exists()
+    with pytest.raises(pymr.SceneError, match=r"^restart: an empty checkpoint path \(None runs from the start\)$"):
+        pymr.run(scene, output="out.csv", restart="")

@@ -357,3 +357,81 @@ def test_non_finite_values_never_reach_lapack(q, qd, routine):
     tank = ROOT / "input" / "tank_gun_turret.nml"
     with pytest.raises(pymr.SolverError, match=rf"{routine} has a non-finite entry \(NaN\); not solved"):
         pymr.model_accelerations(tank, 0.0, np.full(6, q), np.full(6, qd))
+
+
+def test_a_modal_file_never_overwrites_the_scene_and_is_written_whole(tmp_path, monkeypatch):
+    """`pymr modal-file SCENE BODY -o SCENE` replaced the scene with the modal data (found by
+    fuzzing the command line); the kernel now refuses an output that is one of the scene's
+    inputs, as for results, and writes the file whole (a directory in its place is refused,
+    no temporary file is left)."""
+    scene = tmp_path / "chain.nml"
+    scene.write_bytes((ROOT / "input" / "flexible_chain.nml").read_bytes())
+    before = scene.read_bytes()
+    for out in ("chain.nml", "./chain.nml"):
+        r = subprocess.run(["pymr", "modal-file", "chain.nml", "link1", "-o", out], cwd=tmp_path, capture_output=True,
+                           text=True, timeout=60)
+        assert r.returncode == 1, r.stderr
+        assert r.stderr == (f"pymr: error: chain.nml: {out}: would overwrite the scene (chain.nml); "
+                            "choose another modal file\n")
+        assert scene.read_bytes() == before
+    (tmp_path / "folder").mkdir()
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(pymr.SceneError, match=r"^folder: cannot write: it is a directory$"):
+        pymr.write_modal_file(scene, "link1", "folder")
+    pymr.write_modal_file(scene, "link1", tmp_path / "link1.modal")
+    assert (tmp_path / "link1.modal").read_text().splitlines()[2] == "pymr-modal 1"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["chain.nml", "folder", "link1.modal"]
+
+
+def test_states_that_are_not_finite_are_refused_not_returned_as_nan():
+    """model_terms, model_energy and Model.marker returned NaN for a NaN or infinite state
+    with no word (found by fuzzing the API); they raise SceneError naming the argument, and
+    times that do not match the states are named too."""
+    scene = ROOT / "input" / "pendulum.nml"
+    with pytest.raises(pymr.SceneError, match=r"^q: nan is not a finite number$"):
+        pymr.model_terms(scene, [np.nan], [0.0])
+    with pytest.raises(pymr.SceneError, match=r"^qd: inf is not a finite number$"):
+        pymr.model_energy(scene, [[0.1]], [[np.inf]])
+    with pymr.Model(scene) as model:
+        with pytest.raises(pymr.SceneError, match=r"^q: nan is not a finite number$"):
+            model.marker("tip", 0.0, [np.nan], [0.0])
+        with pytest.raises(ValueError, match=r"^t: one time per state expected, shape \(2,\), got shape \(3,\)$"):
+            model.marker("tip", [0.0, 1.0, 2.0], [[0.1], [0.2]], [[0.0], [0.0]])
+        with pytest.raises(ValueError, match=r"^q: states of 1 coordinates expected, got 2$"):
+            model.frames(0.0, [0.1, 0.2], [0.0, 0.0], 2)
+        assert np.isfinite(model.marker("tip", [0.0, 1.0], [[0.1], [0.2]], [[0.0], [0.0]])).all()
+    with pytest.raises(pymr.SceneError, match=r"^t: a time in seconds, got \[\]$"):
+        pymr.modes(scene, [0.1], [0.0], t=[])
+
+
+@pytest.mark.parametrize("max_steps", [0, -5, 10**12, 2.5, True])
+def test_step_history_takes_a_whole_count_of_steps(max_steps):
+    """step_history(max_steps=10**12) raised f2py's OverflowError, -5 its ValueError about an
+    'intent(cache|hide)' array, 0 'the run takes more than 0 steps' (found by fuzzing the API)."""
+    with pytest.raises(pymr.SceneError, match=rf"^max_steps: a whole number from 1 to 2147483646, got "
+                                              rf"{re.escape(repr(max_steps))}$"):
+        pymr.step_history(ROOT / "input" / "pendulum.nml", max_steps=max_steps)
+
+
+def test_model_terms_that_overflow_are_a_solver_error_not_nan():
+    """model_terms at velocities of 1e300 returned P = NaN with no word (found by fuzzing the
+    API; the accelerations refuse the same state): the kernel checks M and P and names the
+    coordinate."""
+    scene = ROOT / "input" / "pendulum.nml"
+    with pytest.raises(pymr.SolverError, match=r"^at t = 0.00000E\+00 s: non-finite mass matrix or force term of "
+                                               r"coordinate pivot.q \(the state or a load is out of range\)$"):
+        pymr.model_terms(scene, [1e300], [1e300])
+    mm, p = pymr.model_terms(scene, [0.1], [0.0])
+    assert np.isfinite(mm).all() and np.isfinite(p).all()
+
+
+def test_marker_shapes_names_shapes_of_the_wrong_shape():
+    """marker_shapes raised 'IndexError: tuple index out of range' for shapes that are not an
+    array (n, modes) (found by fuzzing the API)."""
+    scene = ROOT / "input" / "pendulum.nml"
+    for shapes, got in [(np.zeros(3), r"\(3,\)"), (None, r"\(\)"), (np.ones((2, 1)), r"\(2, 1\)")]:
+        with pytest.raises(ValueError, match=rf"^shapes: an array \(1, modes\) expected \(modes\(\) gives one\), "
+                                             rf"got shape {got}$"):
+            pymr.marker_shapes(scene, ["tip"], [0.1], [0.0], shapes)
+    moves = pymr.marker_shapes(scene, ["tip"], [0.1], [0.0], np.ones((1, 1)))
+    assert moves["tip"].shape == (3, 1) and np.isfinite(moves["tip"]).all()

@@ -139,6 +139,12 @@ def test_emitted_slurm_cases_run_by_mrsim_equal_the_override_runs(tmp_path, mrsi
     ('scene = "{scene}"\n[grid]\n"integrator.h_slow" = 1e-4\n', r"\[grid\] integrator.h_slow: must be a non-empty list"),
     ('scene = "{scene}"\nmetric = "median:x"\n[grid]\n"integrator.h_slow" = [1e-4]\n', r"metric: 'median:x' is not"),
     ('scene = "{scene}"\nworkers = 3\n[grid]\n"integrator.h_slow" = [1e-4]\n', r"unknown key 'workers'"),
+    # a number where a string goes raised a TypeError traceback (found by fuzzing sweep files)
+    ('scene = "{scene}"\noutput = 3\n[grid]\n"integrator.h_slow" = [1e-4]\n',
+     r"output: must be a folder name \(a string\), got 3$"),
+    ('scene = "{scene}"\nmetric = 7\n[grid]\n"integrator.h_slow" = [1e-4]\n',
+     r"metric: must be a string such as 'final:COLUMN', got 7$"),
+    ('scene = "{scene}"\nfixed = 5\n[grid]\n"integrator.h_slow" = [1e-4]\n', r"fixed: must be a table \(\[fixed\]\), got 5$"),
 ])
 def test_bad_sweep_files_are_one_line_errors(tmp_path, text, message):
     toml = tmp_path / "s.toml"

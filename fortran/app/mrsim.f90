@@ -47,12 +47,19 @@ program mrsim
     case ('-o', '--output')
       if (i == nargs) call usage_error(arg // ' needs a file name')
       i = i + 1; out = get_arg(i)
+      if (len(out) == 0) call usage_error(arg // ' needs a file name (got an empty one)')
     case ('--set')
       if (i == nargs) call usage_error('--set needs GROUP.ITEM=VALUE')
-      i = i + 1; overrides = overrides // get_arg(i) // achar(10)
+      i = i + 1; arg = get_arg(i)
+      ! the kernel reads one override a line: a line break would make two of one
+      if (scan(arg, achar(10) // achar(13)) > 0) call usage_error('--set ' // escaped_breaks(arg) // &
+        & ': a line break in an override (one GROUP.ITEM=VALUE, on one line)')
+      overrides = overrides // arg // achar(10)
     case ('--restart')
       if (i == nargs) call usage_error('--restart needs a checkpoint file')
       i = i + 1; restart = get_arg(i)
+      ! an empty name (an unset shell variable) would run from the start instead
+      if (len(restart) == 0) call usage_error('--restart needs a checkpoint file (got an empty name)')
     case ('--progress')
       progress = .true.
     case ('-q', '--quiet')
@@ -98,6 +105,21 @@ contains
       i0 = i + 1
     end do
   end subroutine print_error_lines
+
+  !> `text` with its line breaks written as \n and \r, to show on one line.
+  function escaped_breaks(text) result(s)
+    character(len=*), intent(in) :: text
+    character(len=:), allocatable :: s
+    integer :: i
+    s = ''
+    do i = 1, len(text)
+      select case (iachar(text(i:i)))
+      case (10); s = s // '\n'
+      case (13); s = s // '\r'
+      case default; s = s // text(i:i)
+      end select
+    end do
+  end function escaped_breaks
 
   subroutine usage_error(msg)
     character(len=*), intent(in) :: msg

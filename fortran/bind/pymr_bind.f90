@@ -51,7 +51,7 @@ subroutine pymr_model_terms(scene, overrides, n, t, q, qd, mm, p, stat, message)
   use pymr_error, only : error_type, fatal_error
   use pymr_bind_support, only : report
   use pymr_model_scene, only : scene_t
-  use pymr_model, only : model_t
+  use pymr_model, only : model_t, check_terms_finite
   use pymr_run, only : load_model
   implicit none
   character(len=*), intent(in) :: scene, overrides
@@ -66,9 +66,12 @@ subroutine pymr_model_terms(scene, overrides, n, t, q, qd, mm, p, stat, message)
   type(model_t) :: model
   mm = 0.0d0; p = 0.0d0
   call load_model(scene, overrides, sc, model, error, n)
+  if (.not. allocated(error)) then
+    call model%terms(t, q, qd)
+    call check_terms_finite(model, t, error)
+  end if
   call report(error, stat, message)
   if (stat /= 0) return
-  call model%terms(t, q, qd)
   mm = model%d%mm; p = model%d%p
 end subroutine pymr_model_terms
 
@@ -360,7 +363,7 @@ subroutine pymr_write_modal(scene, overrides, body, path, stat, message)
   use pymr_bind_support, only : report
   use pymr_model_scene, only : scene_t
   use pymr_model, only : model_t
-  use pymr_run, only : load_model
+  use pymr_run, only : load_model, scene_input
   use pymr_io_modal_file, only : write_modal_file
   implicit none
   character(len=*), intent(in) :: scene, overrides, body, path
@@ -380,6 +383,9 @@ subroutine pymr_write_modal(scene, overrides, body, path, stat, message)
       call fatal_error(error, scene // ": no body named '" // body // "'")
     else if (model%d%bshape(k)%ne == 0) then
       call fatal_error(error, scene // ": body '" // body // "' is not a beam (kind='beam')")
+    else if (len(scene_input(sc, path)) > 0) then
+      call fatal_error(error, scene // ': ' // path // ': would overwrite ' // scene_input(sc, path) // &
+        & '; choose another modal file')
     else
       call write_modal_file(path, 'modes of beam ' // body // ' from ' // scene, model%d%flex(k), &
         & model%d%bshape(k), error)
@@ -698,3 +704,24 @@ subroutine pymr_model_marker_body(handle, marker, body)
   if (marker < 1 .or. marker > open_models(handle)%d%n_markers) return
   body = open_models(handle)%d%marker_body(marker)
 end subroutine pymr_model_marker_body
+
+!> What of a scene's input `path` is ('the scene (FILE)', 'a modal file of the scene (FILE)',
+!> ...), or '' : the kernel's rule for outputs Python writes beside a scene's files.
+subroutine pymr_scene_input(scene, overrides, path, what, stat, message)
+  use pymr_error, only : error_type
+  use pymr_bind_support, only : report
+  use pymr_model_scene, only : scene_t
+  use pymr_io_namelist_input, only : read_scene
+  use pymr_run, only : scene_input
+  implicit none
+  character(len=*), intent(in) :: scene, overrides, path
+  character(len=4096), intent(out) :: what
+  integer, intent(out) :: stat
+  character(len=8192), intent(out) :: message
+  type(error_type), allocatable :: error
+  type(scene_t) :: sc
+  what = ''
+  call read_scene(scene, overrides, sc, error)
+  if (.not. allocated(error)) what = scene_input(sc, path)
+  call report(error, stat, message)
+end subroutine pymr_scene_input

@@ -26,7 +26,7 @@ module pymr_io_modal_file
   use pymr_model_flexbody, only : flex_data, flex_invariants, flex_from_moments, modal_nodes
   use pymr_model_beam_modes, only : beam_shape, beam_point_shapes
   use pymr_io_text, only : itoa
-  use pymr_io_text_file, only : not_regular
+  use pymr_io_text_file, only : not_regular, write_text_file
   implicit none
   private
   public :: read_modal_file, write_modal_file
@@ -186,34 +186,41 @@ contains
   end subroutine read_modal_file
 
   !> Write a built-in beam as a modal file: its Gauss mass points and its nodes (mass 0).
+  !> The file is written whole or not at all (write_text_file), so an earlier one survives
+  !> a failed write.
   subroutine write_modal_file(path, title, fd, bs, error)
     character(len=*), intent(in) :: path, title
     type(flex_data), intent(in) :: fd
     type(beam_shape), intent(in) :: bs
     type(error_type), allocatable, intent(out) :: error
-    integer :: u, ios, p, m, i
-    character(len=256) :: msg
+    character(len=:), allocatable :: text
+    integer :: p, i
     real(dp) :: psi(3, fd%m), phi(3, fd%m), x(3)
-    m = fd%m
-    open(newunit=u, file=path, status='replace', action='write', iostat=ios, iomsg=msg)
-    if (ios /= 0) then
-      call fatal_error(error, path // ': cannot write: ' // trim(msg)); return
-    end if
-    write(u, '(a)') '# ' // trim(title)
-    write(u, '(a)') '# points: x y z mass, psi(1:3) of each mode, phi(1:3) of each mode (body frame, SI)'
-    write(u, '(a)') 'pymr-modal 1'
-    write(u, '(a,i0)') 'modes ', m
-    write(u, '(a,*(1x,es24.16e3))') 'frequencies_hz', sqrt(fd%omega2)/(2.0_dp*pi)
-    write(u, '(a,i0)') 'points ', size(fd%pm) + bs%ne + 1
+    text = '# ' // trim(title) // new_line('a') // &
+      & '# points: x y z mass, psi(1:3) of each mode, phi(1:3) of each mode (body frame, SI)' // new_line('a') // &
+      & 'pymr-modal 1' // new_line('a') // 'modes ' // itoa(fd%m) // new_line('a') // &
+      & 'frequencies_hz' // values_line(sqrt(fd%omega2)/(2.0_dp*pi), ' ') // &
+      & 'points ' // itoa(size(fd%pm) + bs%ne + 1) // new_line('a')
     do p = 1, size(fd%pm)
       call beam_point_shapes(bs, fd%ps(:, p), psi, phi)
-      write(u, '(*(es24.16e3,:,1x))') fd%ps(:, p), fd%pm(p), fd%ppsi(:, :, p), phi
+      text = text // values_line([fd%ps(:, p), fd%pm(p), reshape(fd%ppsi(:, :, p), [3*fd%m]), &
+        & reshape(phi, [3*fd%m])], '')
     end do
     do i = 0, bs%ne
       x = [bs%length*i/bs%ne, 0.0_dp, 0.0_dp]
       call beam_point_shapes(bs, x, psi, phi)
-      write(u, '(*(es24.16e3,:,1x))') x, 0.0_dp, psi, phi
+      text = text // values_line([x, 0.0_dp, reshape(psi, [3*fd%m]), reshape(phi, [3*fd%m])], '')
     end do
-    close(u)
+    call write_text_file(path, text, error)
   end subroutine write_modal_file
+
+  !> `v` as one line of numbers (es24.16e3, one blank between), after `lead`.
+  function values_line(v, lead) result(line)
+    real(dp), intent(in) :: v(:)
+    character(len=*), intent(in) :: lead
+    character(len=:), allocatable :: line
+    character(len=25*size(v) + 1) :: buf
+    write(buf, '(*(es24.16e3,:,1x))') v
+    line = lead // trim(buf) // new_line('a')
+  end function values_line
 end module pymr_io_modal_file

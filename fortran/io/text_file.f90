@@ -70,6 +70,9 @@ contains
     type(error_type), allocatable, intent(out) :: error
     integer :: u, ios
     character(len=256) :: msg
+    if (len(not_regular(path)) > 0) then
+      call fatal_error(error, path // ': cannot write: ' // not_regular(path)); return
+    end if
     open(newunit=u, file=path // '.tmp', access='stream', form='unformatted', status='replace', action='write', &
       & iostat=ios, iomsg=msg)
     if (ios == 0) then
@@ -85,9 +88,18 @@ contains
       call fatal_error(error, path // ': cannot write: ' // trim(msg)); return
     end if
     call check_size(path // '.tmp', int(len(text), int64), error); if (allocated(error)) return
-    call sync_file(path // '.tmp', error); if (allocated(error)) return
-    call rename_file(path // '.tmp', path, error)
+    call sync_file(path // '.tmp', error)
+    if (.not. allocated(error)) call rename_file(path // '.tmp', path, error)
+    if (allocated(error)) call remove_file(path // '.tmp')
   end subroutine write_text_file
+
+  !> Remove a file if it is there (a temporary one left by a failed write).
+  subroutine remove_file(path)
+    character(len=*), intent(in) :: path
+    integer :: u, ios
+    open(newunit=u, file=path, status='old', iostat=ios)
+    if (ios == 0) close(u, status='delete', iostat=ios)
+  end subroutine remove_file
 
   !> The size of a file on the disk, from the system (-1 when it cannot be opened): what the
   !> Fortran runtime reports for a file it has open is what it believes it wrote.

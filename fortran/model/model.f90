@@ -20,7 +20,7 @@ module pymr_model
     & prescribe_rows, add_firing_load, add_carried_load_stiffening
   implicit none
   private
-  public :: model_t, modal_stiffness_damping, model_counters
+  public :: model_t, modal_stiffness_damping, model_counters, check_terms_finite
 
   !> One evaluation in this many times its effects.
   integer, parameter :: timing_interval = 32
@@ -575,6 +575,20 @@ contains
     self%qw(1:ns) = xs(1:ns); self%qw(ns+1:) = xf(1:nf)
     self%qdw(1:ns) = xs(ns+1:); self%qdw(ns+1:) = xf(nf+1:)
   end subroutine gather
+
+  !> M and P as the last terms left them hold finite numbers only (a state out of range, such
+  !> as velocities of 1e300, overflows them); else a solver error naming the coordinate.
+  subroutine check_terms_finite(self, t, error)
+    class(model_t), intent(in) :: self
+    real(dp), intent(in) :: t
+    type(error_type), allocatable, intent(out) :: error
+    integer :: k
+    do k = 1, self%d%n
+      if (ieee_is_finite(self%d%p(k)) .and. all(ieee_is_finite(self%d%mm(:, k)))) cycle
+      call fatal_error(error, 'at t = ' // time_text(t) // ': non-finite mass matrix or force term of coordinate ' &
+        & // trim(self%d%qname(k)) // ' (the state or a load is out of range)', stat_solver); return
+    end do
+  end subroutine check_terms_finite
 
   !> Time as text for messages.
   function time_text(t) result(s)
