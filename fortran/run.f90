@@ -97,9 +97,10 @@ contains
       end if
     end if
     what = scene_input(sc, path)
-    if (len(what) > 0) call fatal_error(error, sc%file // ': output ' // path // ': would overwrite ' // what // &
-      & '; choose another results file')
-    if (len(what) > 0) return
+    if (len(what) > 0) then
+      call fatal_error(error, sc%file // ': output ' // path // ': would overwrite ' // what // &
+        & '; choose another results file'); return
+    end if
     what = scene_input(sc, json_path(path))
     if (len(what) > 0) call fatal_error(error, sc%file // ': output ' // path // ': its statistics ' // &
       & json_path(path) // ' would overwrite ' // what // '; choose another results file')

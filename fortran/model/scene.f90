@@ -14,7 +14,7 @@ module pymr_model_scene
   public :: spring_spec, motion_spec, load_spec, output_spec, scene_spec, max_modes_input
   public :: joint_ndof, unset, group_names, single_groups, repeated_groups, describe_group, group_origin, group_count
   public :: naming_item, complete_scene, body_items, item_applies, output_quantities, beam_mode_count
-  public :: closes_loop, flexible_loop, k_max_flexible_loop
+  public :: closes_loop, flexible_loop, k_max_flexible_loop, body_index
 
   !> Default k_max of adaptive 'response' runs whose closed loops pass through a flexible
   !> body. The loop's fast modes move its joints (the flexible four-bar's 115 and 677 Hz
@@ -488,6 +488,13 @@ contains
     end if
   end subroutine complete_scene
 
+  !> Index of the body called `name`, 0 if none.
+  pure integer function body_index(sc, name)
+    type(scene_t), intent(in) :: sc
+    character(len=*), intent(in) :: name
+    body_index = findloc(sc%bodies%name, name, dim=1)
+  end function body_index
+
   !> Joint j closes a loop: an earlier joint already gives its child a parent (the first
   !> joint naming a body as child is its tree joint; the later ones are cut joints).
   pure logical function closes_loop(sc, j)
@@ -536,7 +543,7 @@ contains
     pure logical function flexible(body)
       character(len=*), intent(in) :: body
       integer :: k
-      k = findloc(sc%bodies%name, body, dim=1)
+      k = body_index(sc, body)
       flexible = .false.
       if (k > 0) flexible = sc%bodies(k)%kind == 'beam' .or. sc%bodies(k)%kind == 'modal'
     end function flexible

@@ -7,7 +7,7 @@ module pymr_model_scene_rules
   use pymr_kinds, only : dp, name_len
   use pymr_error, only : error_type, fatal_error, error_list
   use pymr_model_scene, only : scene_t, body_spec, joint_spec, joint_ndof, unset, body_items, beam_mode_count, &
-    & closes_loop
+    & closes_loop, body_index
   use pymr_io_item_table, only : origin_t
   use pymr_model_names, only : name_index
   use pymr_io_text, only : itoa, fmt
@@ -16,19 +16,6 @@ module pymr_model_scene_rules
   public :: check_scene, body_index, inertia_matrix, closes_loop
 
 contains
-
-  !> Index of the body called `name`, 0 if none.
-  integer function body_index(sc, name)
-    type(scene_t), intent(in) :: sc
-    character(len=*), intent(in) :: name
-    integer :: i
-    body_index = 0
-    do i = 1, size(sc%bodies)
-      if (sc%bodies(i)%name == name) then
-        body_index = i; return
-      end if
-    end do
-  end function body_index
 
   !> Every check that needs no tree: values, names, kinds, integrator and output settings.
   subroutine check_scene(sc, error)
