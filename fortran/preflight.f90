@@ -94,15 +94,11 @@ contains
     i = 1
     do while (i <= 2*n)
       lam = cmplx(wr(i), wi(i), dp)
-      ! kinetic-energy weight of each coordinate in the eigenvector (complex pairs packed)
-      if (wi(i) /= 0.0_dp .and. i < 2*n) then
-        wgt = (vr(1:n, i)**2 + vr(1:n, i + 1)**2)
-      else
-        wgt = vr(1:n, i)**2
-      end if
-      do j = 1, n
-        wgt(j) = wgt(j)*m(j, j)
-      end do
+      ! each coordinate's share of the mode's kinetic energy, |v_j (M v)_j| (complex pairs
+      ! packed): with the coupling terms of M, a joint that a fast modal vibration barely
+      ! moves takes no share for its large inertia M_jj alone
+      wgt = abs(vr(1:n, i)*matmul(m, vr(1:n, i)))
+      if (wi(i) /= 0.0_dp .and. i < 2*n) wgt = wgt + abs(vr(1:n, i + 1)*matmul(m, vr(1:n, i + 1)))
       dom = maxloc(wgt, 1)
       h = merge(steps%h_modal, steps%h_joint, dom > model%d%nj)
       if (grows(lam, h, t_end)) then
@@ -121,11 +117,15 @@ contains
     h = merge(steps%h_modal, steps%h_joint, worst > model%d%nj)
     write(b1, '(es9.2)') h
     write(b2, '(f0.1)') abs(worst_lam)/(2.0_dp*pi)
-    write(b3, '(f5.3)') abs(worst_lam)*h
+    if (abs(worst_lam)*h < 10.0_dp) then
+      write(b3, '(f5.3)') abs(worst_lam)*h
+    else
+      write(b3, '(es9.2)') abs(worst_lam)*h
+    end if
     write(b4, '(es9.2)') pece_limit(worst_lam)
     call fatal_error(error, where // trim(merge(steps%item_modal, steps%item_joint, worst > model%d%nj)) // &
       & ': a fixed step of ' // trim(adjustl(b1)) // ' s is not stable for ' // coordinate_name(model, worst) // ' (' // &
-      & trim(b2) // ' Hz, omega*h = ' // trim(b3) // '); the largest stable step is ' // trim(adjustl(b4)) // &
+      & trim(b2) // ' Hz, omega*h = ' // trim(adjustl(b3)) // '); the largest stable step is ' // trim(adjustl(b4)) // &
       & ' s (the ABM PECE method is stable up to omega*h = 0.430 on an undamped mode): take a smaller step, ' // &
       & 'or adaptive = .true.')
   end subroutine check_step_stability
@@ -190,17 +190,21 @@ contains
   !> of the pre-flight linearisation. With loops, the equilibrium on their constraints
   !> (loop_newton_step). `names(i)` names coordinate i for messages. Its evaluations do not
   !> count as the run's.
-  subroutine static_start(model, u, names, x, error)
+  subroutine static_start(model, u, names, x, error, iterations, last_change)
     type(model_t), intent(inout) :: model
     integer, intent(in) :: u(:)
     character(len=*), intent(in) :: names(:)
     real(dp), intent(inout) :: x(:)
     type(error_type), allocatable, intent(out) :: error
+    !> Newton iterations taken, and the largest change of a coordinate in the last one.
+    integer, intent(out) :: iterations
+    real(dp), intent(out) :: last_change
     type(model_counters) :: counters
     real(dp), allocatable :: du(:), lam(:)
     character(len=:), allocatable :: why
     integer :: it, worst
     logical :: loops
+    iterations = 0; last_change = 0.0_dp
     if (size(u) == 0) return
     counters = model%counters()
     loops = model%d%n_used > 0
@@ -222,6 +226,7 @@ contains
           & ' (a joint marked settle that no spring or stiffness holds has none)', stat_input); return
       end if
       x(u) = x(u) + du
+      iterations = it; last_change = maxval(abs(du))
       if (all(abs(du) <= newton_tol*max(1.0_dp, abs(x(u))))) then
         call model%set_counters(counters); return
       end if

@@ -5,7 +5,7 @@ module pymr_run
   use pymr_kinds, only : dp
   use pymr_error, only : error_type, fatal_error, stat_solver, prefix_error
   use pymr_model_scene, only : scene_t, unset
-  use pymr_io_namelist_input, only : read_scene, scene_fingerprint, checkpoint_identity
+  use pymr_io_namelist_input, only : read_scene, scene_fingerprint, checkpoint_identity, resolved_text
   use pymr_model_build, only : build_model
   use pymr_model, only : model_t
   use pymr_integrator_stepper, only : stepper_t, step_counts
@@ -19,7 +19,9 @@ module pymr_run
   use pymr_clock, only : thread_cpu_time
   use pymr_model_effects, only : prescribed_motion
   use pymr_io_text, only : itoa, fmt
-  use pymr_io_text_file, only : absolute_path, scene_relative, acquire_lock, release_lock, not_regular
+  use pymr_model_flexbody, only : point_deflection
+  use pymr_io_text_file, only : absolute_path, scene_relative, acquire_lock, release_lock, not_regular, missing_folder, &
+    & commit_staged, remove_file
   use pymr_preflight, only : check_step_stability, check_mass_matrix, static_start
   use pymr_io_checkpoint, only : run_progress, write_checkpoint, read_checkpoint
   implicit none
@@ -91,6 +93,7 @@ contains
       if (len_trim(sc%output%checkpoint_file) > 0) then
         if (replaces(trim(sc%output%checkpoint_file), sc%output%origin%where('checkpoint_file'), &
           & 'another checkpoint file')) return
+        if (no_folder(trim(sc%output%checkpoint_file), sc%output%origin%where('checkpoint_file'))) return
       else
         if (replaces(checkpoint_default(path), 'output ' // path // ': its checkpoint ' // checkpoint_default(path), &
           & 'another results file, or a checkpoint_file in &output')) return
@@ -118,6 +121,13 @@ contains
       end if
     end function replaces
 
+    !> Is the folder that `file` would be written in missing? Found before the run starts.
+    logical function no_folder(file, label)
+      character(len=*), intent(in) :: file, label
+      no_folder = len(missing_folder(file)) > 0
+      if (no_folder) call fatal_error(error, label // ": the folder '" // missing_folder(file) // &
+        & "' does not exist (make it, or choose a checkpoint_file in a folder that does)")
+    end function no_folder
   end subroutine check_output_path
 
   !> What of the scene's input `path` is: 'the scene (FILE)', 'a modal file of the scene
@@ -221,11 +231,11 @@ contains
     type(run_stats) :: stats
     type(run_progress) :: prog
     real(dp), allocatable :: x(:)
-    real(dp) :: h, h0, dt_out, t_next, eps, cpu0, cpu1, t_ckpt, t_step, work(n_work), work_step(n_work)
+    real(dp) :: h, h0, dt_out, t_next, eps, cpu0, cpu1, t_ckpt, t_step, t_first_row, work(n_work), work_step(n_work)
     integer :: n, k_out
     integer(8) :: c0, c1, rate, c_line
     logical :: restarting, lines
-    character(len=:), allocatable :: path, ckpt_path, settings, fingerprint
+    character(len=:), allocatable :: path, ckpt_path, settings, fingerprint, scene_text
     type(error_type), allocatable :: json_error
     type(step_counts) :: done
 
@@ -246,7 +256,7 @@ contains
     cpu0 = thread_cpu_time(); call system_clock(c0, rate)
     h = sc%integrator%h_slow
     allocate(x(2*n))
-    call starting_state(sc, model, x, error)
+    call starting_state(sc, model, x, error, stats)
     if (allocated(error)) then
       if (index(error%message, file) /= 1) error%message = file // ': ' // error%message
       return
@@ -280,7 +290,7 @@ contains
       call check_output_size(sc, model, csv, dt_out, error); if (allocated(error)) return
       call csv%open(path, model%d, sc%scene%title, method_label(sc), error); if (allocated(error)) return
       call check_mass_matrix(model, x, file // ': ', error)
-      if (.not. allocated(error)) call write_output_row(csv, model, 0.0_dp, x(1:n), x(n+1:), work_step, error)
+      if (.not. allocated(error)) call put_row(0.0_dp, work_step)
       stats%rows = 1
       if (allocated(error)) then
         call csv%discard(); return
@@ -301,6 +311,7 @@ contains
         return
       end if
     end if
+    t_first_row = st%time()
     progress_t_end = sc%scene%t_end; progress_t = st%time(); progress_running = .true.
     c_line = c0
     if (lines) call progress_line(st%time(), sc%scene%t_end, c0, rate)
@@ -311,7 +322,7 @@ contains
         do while (t_next <= min(st%time(), sc%scene%t_end) + eps)
           call st%value_at(t_next, x)
           call work_at(csv%plan, st, model, t_step, work_step, t_next, work, error); if (allocated(error)) exit
-          call write_output_row(csv, model, t_next, x(1:n), x(n+1:), work, error); if (allocated(error)) exit
+          call put_row(t_next, work); if (allocated(error)) exit
           stats%rows = stats%rows + 1
           k_out = k_out + 1; t_next = k_out*dt_out
         end do
@@ -320,9 +331,11 @@ contains
       ! the works at the time reached (for its row, the checkpoint, and the start of the next step)
       call work_at(csv%plan, st, model, t_step, work_step, st%time(), work, error); if (allocated(error)) exit
       work_step = work; t_step = st%time()
-      if (dt_out <= 0.0_dp .and. st%time() < sc%scene%t_end - eps) then
+      ! every step's row, but not again the row of the state the loop starts from (t = 0, or
+      ! a checkpoint's time, whose row is written)
+      if (dt_out <= 0.0_dp .and. st%time() > t_first_row + eps .and. st%time() < sc%scene%t_end - eps) then
         call st%value_at(st%time(), x)
-        call write_output_row(csv, model, st%time(), x(1:n), x(n+1:), work_step, error)
+        call put_row(st%time(), work_step)
         stats%rows = stats%rows + 1
         if (allocated(error)) exit
       end if
@@ -365,28 +378,72 @@ contains
       call st%value_at(sc%scene%t_end, x)
       if (dt_out <= 0.0_dp .or. abs(t_next - dt_out - sc%scene%t_end) > eps) then
         call work_at(csv%plan, st, model, t_step, work_step, sc%scene%t_end, work, error)
-        if (.not. allocated(error)) call write_output_row(csv, model, sc%scene%t_end, x(1:n), x(n+1:), work, error)
+        if (.not. allocated(error)) call put_row(sc%scene%t_end, work)
         stats%rows = stats%rows + 1
       end if
     end if
-    if (.not. allocated(error)) call csv%finish(error)
     cpu1 = thread_cpu_time(); call system_clock(c1)
     stats%cpu_time_s = cpu1 - cpu0; stats%wall_time_s = real(c1 - c0, dp)/real(rate, dp)
     call fill_stats(st, model, stats)
+    scene_text = resolved_text(sc, absolute_paths=.true.)
+    ! the new results replace the earlier ones only once both files are complete: the
+    ! statistics wait in PATH.json.tmp while the rows are put in place
+    if (.not. allocated(error)) call write_json(json_path(path), file, sc%scene%title, scene_fingerprint(sc), &
+      & settings_json(sc), model%d, stats, 'complete', '', sc%scene%t_end, error, overrides, scene_text, staged=.true.)
+    if (.not. allocated(error)) then
+      call csv%finish(error)
+      if (allocated(error)) call remove_file(json_path(path) // '.tmp')
+    end if
     if (allocated(error)) then
       ! the rows written so far stay in PATH.partial, described by PATH.json.partial
       call csv%close()
       error%message = file // ': ' // error%message
       call write_json(json_path(path) // '.partial', file, sc%scene%title, scene_fingerprint(sc), &
-        & settings_json(sc), model%d, stats, 'failed', error%message, st%time(), json_error)
+        & settings_json(sc), model%d, stats, 'failed', error%message, st%time(), json_error, overrides, scene_text)
       return
     end if
-    call write_json(json_path(path), file, sc%scene%title, scene_fingerprint(sc), settings_json(sc), model%d, &
-      & stats, 'complete', '', sc%scene%t_end, error)
-    if (allocated(error)) return
+    call commit_staged(json_path(path), error)
+    if (allocated(error)) then
+      error%message = file // ': ' // error%message // ' (the statistics; ' // path // ' is the new results)'; return
+    end if
     summary = summary_text(sc, model, stats, path, x)
     written = path
+  contains
+    !> Write the row of state x at time t, and watch the flexible bodies' deflection there.
+    subroutine put_row(t, row_work)
+      real(dp), intent(in) :: t, row_work(:)
+      call write_output_row(csv, model, t, x(1:n), x(n+1:), row_work, error); if (allocated(error)) return
+      call watch_deflection(sc, model, t, x(1:n), stats, error)
+    end subroutine put_row
   end subroutine run_locked
+
+  !> A flexible body whose points deflect beyond &scene deflection_limit of its size at time
+  !> t: a warning (once a body) in the run's statistics, or with deflection_stop a failed run.
+  subroutine watch_deflection(sc, model, t, q, stats, error)
+    type(scene_t), intent(in) :: sc
+    type(model_t), intent(in) :: model
+    real(dp), intent(in) :: t, q(:)
+    type(run_stats), intent(inout) :: stats
+    type(error_type), allocatable, intent(out) :: error
+    real(dp) :: deflection, size_m
+    integer :: b
+    character(len=:), allocatable :: said
+    if (sc%scene%deflection_limit <= 0.0_dp) return
+    do b = 2, model%d%nb
+      if (model%d%nm(b) == 0) cycle
+      call point_deflection(model%d%flex(b), q(model%d%a0(b):model%d%a0(b) + model%d%nm(b) - 1), deflection, size_m)
+      if (deflection <= sc%scene%deflection_limit*size_m) cycle
+      said = "body '" // trim(model%d%body_name(b)) // "' deflects " // fmt(deflection) // ' m, ' // &
+        & fmt(deflection/size_m) // ' of its size ' // fmt(size_m) // ' m (&scene deflection_limit = ' // &
+        & fmt(sc%scene%deflection_limit) // '): linear modal theory holds for small deflections only'
+      if (sc%scene%deflection_stop) then
+        call fatal_error(error, 'at t = ' // fmt(t) // ' s: ' // said // ' (deflection_stop)', stat_solver); return
+      end if
+      if (.not. allocated(stats%warnings)) stats%warnings = ''
+      if (index(stats%warnings, "body '" // trim(model%d%body_name(b)) // "' deflects") > 0) cycle
+      stats%warnings = stats%warnings // 'at t = ' // fmt(t) // ' s: ' // said // new_line('a')
+    end do
+  end subroutine watch_deflection
 
   !> One progress line on stderr: simulated time, percent, wall time and its estimate to go.
   subroutine progress_line(t, t_end, c0, rate)
@@ -468,11 +525,15 @@ contains
   !> The state a run starts from: as the scene gives it (its loops assembled), then, for
   !> &scene start = 'static', with the modal coordinates and those of the joints marked
   !> settle in static equilibrium (on the loops' constraints).
-  subroutine starting_state(sc, model, x, error)
+  subroutine starting_state(sc, model, x, error, stats)
     type(scene_t), intent(in) :: sc
     type(model_t), intent(inout) :: model
     real(dp), intent(out) :: x(:)
     type(error_type), allocatable, intent(out) :: error
+    !> Receives what a static start did.
+    type(run_stats), intent(inout), optional :: stats
+    integer :: iterations
+    real(dp) :: change
     integer, allocatable :: u(:)
     logical, allocatable :: settles(:)
     character(len=64), allocatable :: names(:)
@@ -500,7 +561,10 @@ contains
     do i = 1, n
       names(i) = model%component_name(i)
     end do
-    call static_start(model, u, names, x, error); if (allocated(error)) return
+    call static_start(model, u, names, x, error, iterations, change); if (allocated(error)) return
+    if (present(stats)) then
+      stats%static_settled = size(u); stats%static_iterations = iterations; stats%static_change = change
+    end if
     ! the equilibrium closes the loops to Newton's tolerance; the projection closes them to
     ! the run's and takes the rates' motion across them away at the settled positions
     call model%project(0.0_dp, x, error)
@@ -549,7 +613,7 @@ contains
     character(len=:), allocatable :: s
     character(len=256) :: buf
     real(dp) :: r(3), v(3)
-    integer :: i, n
+    integer :: i, j, n
     n = model%d%n
     s = 'scene: ' // trim(sc%scene%title) // new_line('a') // 'method: ' // method_label(sc) // new_line('a')
     if (st%steps_fast /= st%steps_slow) then
@@ -577,6 +641,19 @@ contains
           & model%d%closure_drift, ' (m; rad for rotation rows)'
         s = s // new_line('a') // trim(buf)
       end if
+    end if
+    if (st%static_settled >= 0) then
+      write(buf, '(a,i0,a,i0,a,es9.2)') 'static start: ', st%static_settled, ' coordinates settled in ', &
+        & st%static_iterations, ' Newton iterations (last change ', st%static_change
+      s = s // new_line('a') // trim(buf) // ')'
+    end if
+    if (allocated(st%warnings)) then
+      i = 1
+      do while (i < len(st%warnings))
+        j = index(st%warnings(i:), new_line('a')) + i - 1
+        s = s // new_line('a') // 'warning: ' // st%warnings(i:j - 1)
+        i = j + 1
+      end do
     end if
     s = s // new_line('a')
     call forward_kinematics(model%d, x(1:n), x(n+1:))

@@ -177,7 +177,9 @@ def test_modal_file_shortened_on_disk_is_not_renamed_over_the_earlier_one(tmp_pa
 def test_statistics_shortened_on_disk_are_not_renamed_over_the_earlier_ones(tmp_path, shim, mrsim):
     """mrsim's statistics (OUT.json, written through write_text_file at the end of a run):
     an earlier complete run's, then a longer run with OUT.json.tmp kept at half its size:
-    the run fails (exit 2, one line naming out.json), the earlier statistics stay whole."""
+    the run fails (exit 2, one line naming out.json), the earlier statistics stay whole, and
+    so do the earlier results they describe (the rows are put in place only once the
+    statistics are complete; they stay in OUT.csv.partial)."""
     scene = (ROOT / "input" / "pendulum.nml").read_text().replace(
         "&output file = 'pendulum.csv', dt = 0.01 /", "&output dt = 0.01 /")
     (tmp_path / "p.nml").write_text(scene)
@@ -185,5 +187,8 @@ def test_statistics_shortened_on_disk_are_not_renamed_over_the_earlier_ones(tmp_
     first = subprocess.run(cmd + ["scene.t_end=0.05"], cwd=tmp_path, capture_output=True, text=True, timeout=120)
     assert first.returncode == 0, first.stderr
     before = (tmp_path / "out.json").read_bytes()
+    rows_before = (tmp_path / "out.csv").read_bytes()
     r, entries = short_writes(cmd + ["scene.t_end=0.1"], tmp_path, shim, "out.json.tmp")
     check_refused(r, entries, tmp_path, "out.json", before, "mrsim: error: ")
+    assert (tmp_path / "out.csv").read_bytes() == rows_before, "the earlier results were replaced by a failed run"
+    assert (tmp_path / "out.csv.partial").exists()

@@ -137,8 +137,14 @@ CASES = [
          ("&joint", "'pivot'", "child", "'nobody'")),
     # 5. two parents for one body: the second joint closes a loop, and has no coordinates to start
     Case("two_parents", BASE + rigid("other") + revolute("j_other", "ground", "other")
-         + revolute("second", "other", "bob").replace("'revolute'", "'free'").replace(" /\n", ", qd0 = 0.0, 0.0, 0.0, 0.0, 0.0, 1.0 /\n"),
+         + revolute("second", "other", "bob").replace("'revolute'", "'free'").replace(
+             " /\n", ", child_at = 0.0, 0.0, 0.0, qd0 = 0.0, 0.0, 0.0, 0.0, 0.0, 1.0 /\n"),
          ("&joint", "'second'", "qd0", "closes a loop", "no coordinates of its own")),
+    # 5b. a second joint to a body that does not say it closes a loop (no child_at): a
+    # repeated child written by mistake is refused, not run as a constraint
+    Case("repeated_child", BASE + rigid("other") + revolute("j_other", "ground", "other")
+         + revolute("second", "other", "bob"),
+         ("&joint", "'second'", "child", "'bob' already has a parent joint ('pivot')", "child_at")),
     # 6. a cycle a -> b -> a (the ground reaches 'bob' only), and a body joined to itself
     Case("cycle", BASE + rigid("a") + rigid("b") + revolute("ab", "a", "b") + revolute("ba", "b", "a"),
          ("cycle",), pattern=r"&(body|joint) '(a|b|ab|ba)'"),

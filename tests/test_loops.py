@@ -269,7 +269,8 @@ def weld_scene(loop: bool, t_end=2.0, th0=1.0, wd0=1.5):
         joints = (f"&joint name = 'float', kind = 'free', parent = 'ground', child = 'block', "
                   f"q0 = {float(c)!r}, {float(s)!r}, 0.0, 0.0, 0.0, {th0!r}, "
                   f"qd0 = {float(-s * wd0)!r}, {float(c * wd0)!r}, 0.0, 0.0, 0.0, {wd0!r} /\n"
-                  "&joint name = 'weld', kind = 'fixed', parent = 'arm', child = 'block', at = 1.0, 0.0, 0.0 /\n")
+                  "&joint name = 'weld', kind = 'fixed', parent = 'arm', child = 'block', at = 1.0, 0.0, 0.0, "
+                  "child_at = 0.0, 0.0, 0.0 /\n")
     else:
         joints = "&joint name = 'weld', kind = 'fixed', parent = 'arm', child = 'block', at = 1.0, 0.0, 0.0 /\n"
     return head + joints + "&output dt = 0.01, quantities = 'coordinates', 'reactions', 'energy' /\n"
@@ -375,10 +376,12 @@ def slider_joints(th0: float, w0: float) -> tuple[str, str]:
     phi, x, dphi, dx = crank_slider_geometry(th0)
     cut = (f"&joint name = 'wrist', kind = 'revolute', parent = 'rod', child = 'slider', at = {L_ROD!r}, 0.0, 0.0, "
            f"q0 = {float(-phi)!r}, qd0 = {float(-dphi * w0)!r} /\n"
-           "&joint name = 'slide', kind = 'prismatic', parent = 'ground', child = 'slider', axis = 1.0, 0.0, 0.0 /\n")
+           "&joint name = 'slide', kind = 'prismatic', parent = 'ground', child = 'slider', axis = 1.0, 0.0, 0.0, "
+           "child_at = 0.0, 0.0, 0.0 /\n")
     tree = (f"&joint name = 'slide', kind = 'prismatic', parent = 'ground', child = 'slider', axis = 1.0, 0.0, 0.0, "
             f"q0 = {float(x)!r}, qd0 = {float(dx * w0)!r} /\n"
-            f"&joint name = 'wrist', kind = 'revolute', parent = 'rod', child = 'slider', at = {L_ROD!r}, 0.0, 0.0 /\n")
+            f"&joint name = 'wrist', kind = 'revolute', parent = 'rod', child = 'slider', at = {L_ROD!r}, 0.0, 0.0, "
+            "child_at = 0.0, 0.0, 0.0 /\n")
     return cut, tree
 
 
@@ -391,7 +394,8 @@ def test_the_crank_slider_follows_the_minimal_coordinate_solution(tmp_path):
     text = (crank_slider_head("crank-slider", th0, w0)
             + f"&joint name = 'slide', kind = 'prismatic', parent = 'ground', child = 'slider', axis = 1.0, 0.0, 0.0, "
             f"q0 = {float(x)!r}, qd0 = {float(dx * w0)!r} /\n"
-            f"&joint name = 'wrist', kind = 'revolute', parent = 'rod', child = 'slider', at = {L_ROD!r}, 0.0, 0.0 /\n"
+            f"&joint name = 'wrist', kind = 'revolute', parent = 'rod', child = 'slider', at = {L_ROD!r}, 0.0, 0.0, "
+            "child_at = 0.0, 0.0, 0.0 /\n"
             f"&marker name = 'end', body = 'rod', at = {L_ROD!r}, 0.0, 0.0 /\n"
             "&output dt = 0.01, quantities = 'coordinates', 'markers', 'energy' /\n")
     (tmp_path / "cs.nml").write_text(text)
@@ -549,7 +553,7 @@ def flexible_cut_scene(kind: str, side: str, arm: str | None = None) -> str:
                   "shear_modulus = 2.6e9, r_outer = 0.02, r_inner = 0.015, n_elements = 6, modes_y = 2, modes_z = 2, "
                   "modes_x = 1, modes_t = 1 /\n")
     if side == "parent":
-        cut = "parent = 'arm', child = 'block', at = 1.0, 0.0, 0.0"
+        cut = "parent = 'arm', child = 'block', at = 1.0, 0.0, 0.0, child_at = 0.0, 0.0, 0.0"
     else:
         cut = "parent = 'block', child = 'arm', child_at = 1.0, 0.0, 0.0"
     return ("&scene title = 'cut at a flexible point', t_end = 0.02, gravity = 0.0, -9.81, 0.0 /\n"
@@ -611,7 +615,7 @@ def test_a_cut_at_a_modal_bodys_node(tmp_path):
     q, qd = res.coordinates()
     _, _, g_err, gam_err = check_rows_against_phi(scene, q[-1], qd[-1])
     assert g_err < 1e-7 and gam_err < 1e-8
-    scene.write_text(scene.read_text().replace("at = 1.0, 0.0, 0.0, axis", "at = 0.95, 0.0, 0.0, axis"))
+    scene.write_text(scene.read_text().replace("at = 1.0, 0.0, 0.0, child_at", "at = 0.95, 0.0, 0.0, child_at"))
     with pytest.raises(pymr.SceneError, match=r"modal\.nml:9: &joint 'weld': at: \(0\.95, 0, 0\) is not a point of "
                                               r"modal body 'arm'"):
         pymr.run(scene, tmp_path / "x.csv")
@@ -753,8 +757,9 @@ def test_a_free_cut_changes_nothing(tmp_path, mrsim, base):
     reaction columns are 0, and the summary and statistics say it closes no constraint."""
     import subprocess
     text = fourbar_scene(1.0, 2.0, t_end=0.5) if base == "fourbar" else weld_scene(False, t_end=0.5)
-    free = ("&joint name = 'E', kind = 'free', parent = 'crank', child = 'rocker', at = 0.4, 0.0, 0.0 /\n"
-            if base == "fourbar" else "&joint name = 'E', kind = 'free', parent = 'ground', child = 'arm' /\n")
+    free = ("&joint name = 'E', kind = 'free', parent = 'crank', child = 'rocker', at = 0.4, 0.0, 0.0, "
+            "child_at = 0.0, 0.0, 0.0 /\n" if base == "fourbar"
+            else "&joint name = 'E', kind = 'free', parent = 'ground', child = 'arm', child_at = 0.0, 0.0, 0.0 /\n")
     (tmp_path / "plain.nml").write_text(text)
     (tmp_path / "free.nml").write_text(text + free)
     plain = pymr.run(tmp_path / "plain.nml", tmp_path / "plain.csv")

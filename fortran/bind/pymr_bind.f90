@@ -376,11 +376,13 @@ subroutine pymr_write_modal(scene, overrides, body, path, stat, message)
   call load_model(scene, overrides, sc, model, error)
   if (.not. allocated(error)) then
     k = 0
-    do b = 2, model%d%nb
+    do b = 1, model%d%nb
       if (model%d%body_name(b) == body) k = b
     end do
     if (k == 0) then
       call fatal_error(error, scene // ": no body named '" // body // "'")
+    else if (k == 1) then
+      call fatal_error(error, scene // ": body '" // body // "' is the ground, not a beam (kind='beam')")
     else if (model%d%bshape(k)%ne == 0) then
       call fatal_error(error, scene // ": body '" // body // "' is not a beam (kind='beam')")
     else if (len(scene_input(sc, path)) > 0) then

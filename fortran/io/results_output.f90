@@ -7,7 +7,7 @@ module pymr_io_results_output
   use pymr_model_types, only : model_data, n_effects, effect_names, cut_free
   use pymr_io_fast_format, only : put_real
   use pymr_io_text, only : itoa
-  use pymr_io_text_file, only : write_text_file, sync_file, rename_file, file_size, check_size
+  use pymr_io_text_file, only : write_text_file, stage_text_file, sync_file, rename_file, file_size, check_size
   implicit none
   private
   public :: csv_writer, json_path, write_json, run_stats, pymr_version, output_plan, output_plan_of
@@ -24,6 +24,12 @@ module pymr_io_results_output
     real(dp) :: h_last = 0.0_dp
     !> Multirate: the last step ratio H/h (1 single-rate).
     integer :: ratio_last = 1
+    !> The static start: coordinates settled (-1: the run started at rest), Newton
+    !> iterations, the largest change in the last one.
+    integer :: static_settled = -1, static_iterations = 0
+    real(dp) :: static_change = 0.0_dp
+    !> Warnings of the run, one a line (a flexible body deflecting beyond its limit).
+    character(len=:), allocatable :: warnings
   end type run_stats
 
   !> The energy columns (energy.NAME): the four energies, their total, then the four works
@@ -360,9 +366,15 @@ contains
   !> Write the run statistics and settings as JSON (through path.tmp, checked, flushed,
   !> renamed): `status` 'complete' or 'failed', with the failure's message and the time
   !> reached.
-  subroutine write_json(path, scene_file, title, fingerprint, settings, d, st, status, failure, t_reached, error)
+  subroutine write_json(path, scene_file, title, fingerprint, settings, d, st, status, failure, t_reached, error, &
+    & overrides, scene_text, staged)
     !> fingerprint: 'sha256:...' of the resolved scene (pymr scene prints it).
     character(len=*), intent(in) :: path, scene_file, title, fingerprint, status, failure
+    !> The run's --set overrides (one a line) and its resolved scene (every item, files
+    !> absolute): what reproduces the run without the scene file as it was.
+    character(len=*), intent(in) :: overrides, scene_text
+    !> Leave the file complete in PATH.tmp for the caller's commit_staged (default: in place).
+    logical, intent(in), optional :: staged
     !> Integrator settings, already as JSON members ("\"method\": \"single\", ...").
     character(len=*), intent(in) :: settings
     type(model_data), intent(in) :: d
@@ -381,6 +393,8 @@ contains
     call put('  "scene": "' // escape(scene_file) // '",')
     call put('  "title": "' // escape(trim(title)) // '",')
     call put('  "scene_fingerprint": "' // fingerprint // '",')
+    call put('  "overrides": [' // json_lines(overrides) // '],')
+    call put('  "resolved_scene": "' // escape(scene_text) // '",')
     write(buf, '(a,g0.10,a)') '  "cpu_time_s": ', st%cpu_time_s, ','; call put(trim(buf))
     write(buf, '(a,g0.10,a)') '  "wall_time_s": ', st%wall_time_s, ','; call put(trim(buf))
     write(buf, '(a,g0.10,a)') '  "preflight_cpu_s": ', st%preflight_cpu_s, ','; call put(trim(buf))
@@ -411,11 +425,45 @@ contains
       text = text // '"' // trim(effect_names(i)) // trim(buf)
     end do
     call put('},')
+    if (st%static_settled >= 0) then
+      write(buf, '(a,i0,a,i0,a,es12.5,a)') '  "static_start": {"coordinates_settled": ', st%static_settled, &
+        & ', "newton_iterations": ', st%static_iterations, ', "last_change": ', st%static_change, '},'
+      call put(trim(buf))
+    end if
+    if (allocated(st%warnings)) then
+      call put('  "warnings": [' // json_lines(st%warnings) // '],')
+    else
+      call put('  "warnings": [],')
+    end if
     call put('  "integrator": {' // settings // '}')
     call put('}')
+    if (present(staged)) then
+      if (staged) then
+        call stage_text_file(path, text, error)
+        if (allocated(error)) error%message = error%message // ' (the statistics)'
+        return
+      end if
+    end if
     call write_text_file(path, text, error)
     if (allocated(error)) error%message = error%message // ' (the statistics)'
   contains
+    !> Lines of text as JSON strings, comma-separated ('' for no line).
+    function json_lines(lines) result(s)
+      character(len=*), intent(in) :: lines
+      character(len=:), allocatable :: s
+      integer :: i, j
+      s = ''
+      i = 1
+      do while (i <= len(lines))
+        j = index(lines(i:), new_line('a'))
+        j = merge(len(lines), i + j - 2, j == 0)
+        if (j >= i) then
+          if (len(s) > 0) s = s // ', '
+          s = s // '"' // escape(lines(i:j)) // '"'
+        end if
+        i = j + 2
+      end do
+    end function json_lines
     subroutine put(line)
       character(len=*), intent(in) :: line
       text = text // line // new_line('a')

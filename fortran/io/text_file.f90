@@ -8,8 +8,8 @@ module pymr_io_text_file
   use pymr_io_text, only : itoa
   implicit none
   private
-  public :: write_text_file, rename_file, sync_file, check_size, file_size, scene_relative, absolute_path, acquire_lock, &
-    & release_lock, not_regular
+  public :: write_text_file, stage_text_file, commit_staged, rename_file, sync_file, check_size, file_size, &
+    & scene_relative, absolute_path, acquire_lock, release_lock, not_regular, missing_folder, remove_file
 
   interface
     function c_rename(old, new) bind(c, name='rename') result(r)
@@ -68,6 +68,25 @@ contains
   subroutine write_text_file(path, text, error)
     character(len=*), intent(in) :: path, text
     type(error_type), allocatable, intent(out) :: error
+    call stage_text_file(path, text, error); if (allocated(error)) return
+    call commit_staged(path, error)
+  end subroutine write_text_file
+
+  !> Put `path` in place of its earlier version: rename the complete path.tmp that
+  !> stage_text_file left (removed if the rename fails).
+  subroutine commit_staged(path, error)
+    character(len=*), intent(in) :: path
+    type(error_type), allocatable, intent(out) :: error
+    call rename_file(path // '.tmp', path, error)
+    if (allocated(error)) call remove_file(path // '.tmp')
+  end subroutine commit_staged
+
+  !> The first half of write_text_file: `text` whole and on the disk in path.tmp (written,
+  !> size-checked, fsynced), path itself untouched, for a caller that puts several files in
+  !> place only once all of them are complete. A failed write leaves no path.tmp.
+  subroutine stage_text_file(path, text, error)
+    character(len=*), intent(in) :: path, text
+    type(error_type), allocatable, intent(out) :: error
     integer :: u, ios
     character(len=256) :: msg
     if (len(not_regular(path)) > 0) then
@@ -89,9 +108,16 @@ contains
     end if
     call check_size(path // '.tmp', int(len(text), int64), error); if (allocated(error)) return
     call sync_file(path // '.tmp', error)
-    if (.not. allocated(error)) call rename_file(path // '.tmp', path, error)
     if (allocated(error)) call remove_file(path // '.tmp')
-  end subroutine write_text_file
+  end subroutine stage_text_file
+
+  !> The folder `path` would be written in, when it is not there as a folder ('' when it is).
+  function missing_folder(path) result(folder)
+    character(len=*), intent(in) :: path
+    character(len=:), allocatable :: folder
+    folder = folder_of(path)
+    if (c_file_kind(folder // c_null_char) == 2) folder = ''
+  end function missing_folder
 
   !> Remove a file if it is there (a temporary one left by a failed write).
   subroutine remove_file(path)

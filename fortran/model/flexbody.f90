@@ -14,7 +14,7 @@ module pymr_model_flexbody
   implicit none
   private
   public :: flex_data, flex_invariants, flex_from_moments, flex_body_terms, flex_work, small_rotation, point_shapes, modal_nodes
-  public :: deformed_modal_moments, undeformed_modal_moments
+  public :: deformed_modal_moments, undeformed_modal_moments, point_deflection
 
   !> Invariants and modal properties of one flexible body.
   type :: flex_data
@@ -56,6 +56,22 @@ module pymr_model_flexbody
   end type flex_work
 
 contains
+
+  !> The largest displacement (m) of a flexible body's mass points at modal coordinates a,
+  !> and the body's size: its farthest mass point from its origin (m). Both 0 for a body
+  !> that keeps no mass points.
+  pure subroutine point_deflection(fd, a, deflection, size_m)
+    type(flex_data), intent(in) :: fd
+    real(dp), intent(in) :: a(:)
+    real(dp), intent(out) :: deflection, size_m
+    integer :: p
+    deflection = 0.0_dp; size_m = 0.0_dp
+    if (.not. allocated(fd%ppsi)) return
+    do p = 1, size(fd%pm)
+      size_m = max(size_m, norm2(fd%ps(:, p)))
+      deflection = max(deflection, norm2(matmul(fd%ppsi(:, :, p), a)))
+    end do
+  end subroutine point_deflection
 
   include 'vector_products.inc'
 

@@ -85,6 +85,11 @@ module pymr_model_scene
     !> The initial state: 'rest' (as given) or 'static' (modal coordinates, and the joints
     !> marked settle, in static equilibrium under the forces at t = 0).
     character(len=8) :: start = 'rest'
+    !> Largest deflection of a flexible body, as a fraction of its size, before the run
+    !> warns (linear modal theory holds for small deflections; 0: no check), and whether
+    !> passing it stops the run instead.
+    real(dp) :: deflection_limit = 0.1_dp
+    logical :: deflection_stop = .false.
     type(origin_t) :: origin
   end type scene_spec
 
@@ -254,6 +259,11 @@ contains
     call t%add('start', g%start, "initial state: 'rest' (as given by q0, qd0, a0, ad0) or 'static' (the modal " // &
       & 'coordinates, and the coordinates of joints marked settle, in static equilibrium under the forces at ' // &
       & 't = 0, solved by Newton before the run)', choices='rest static')
+    call t%add('deflection_limit', g%deflection_limit, '-', "largest deflection of a flexible body's points, " // &
+      & 'as a fraction of its size (its farthest point from its origin), before the run warns at an output ' // &
+      & 'time: linear modal theory holds for small deflections (0: no check)', ge=0.0_dp, le=1.0e3_dp)
+    call t%add('deflection_stop', g%deflection_stop, 'a deflection beyond deflection_limit stops the run ' // &
+      & '(exit 2) instead of a warning in the summary and the JSON')
   end subroutine describe_scene
 
   subroutine describe_integrator(g, t)
@@ -388,7 +398,8 @@ contains
     call t%add('child', g%child, 'the body the joint moves (required)')
     call t%add('at', g%at, 'm', "joint point in the parent's frame", ge=-big_length, le=big_length)
     call t%add('child_at', g%child_at, 'm', "joint point in the child's frame, for a joint that closes a loop " // &
-      & "(its child already has a parent joint)", ge=-big_length, le=big_length)
+      & "(its child already has a parent joint), which must give it (0, 0, 0: the child's origin)", &
+      & ge=-big_length, le=big_length)
     call t%add('axis', g%axis, '-', "axis of a revolute or prismatic joint in the parent's frame", &
       & ge=-big_length, le=big_length)
     call t%add('q0', g%q0, 'rad or m', 'initial coordinates, one per coordinate of the joint', &
@@ -467,7 +478,8 @@ contains
   end subroutine describe_marker
 
   !> Defaults that depend on other items, set once the scene is read: a joint's q0 and qd0
-  !> default to 0 for each of its coordinates.
+  !> default to 0 for each of its coordinates; one step serves both rates, and at one rate a
+  !> --set of h_slow alone sets the step.
   subroutine complete_scene(sc)
     type(scene_t), intent(inout) :: sc
     integer :: j, n
@@ -478,6 +490,11 @@ contains
     end do
     ! one step given: it serves both rates
     if (sc%integrator%h_fast == unset) sc%integrator%h_fast = sc%integrator%h_slow
+    ! at one rate h_slow is the step: a --set of it alone sets both
+    associate(o => sc%integrator%origin)
+      if (sc%integrator%method == 'single' .and. o%given('h_slow') .and. o%line_of('h_slow') < 0 .and. &
+        & .not. (o%given('h_fast') .and. o%line_of('h_fast') < 0)) sc%integrator%h_fast = sc%integrator%h_slow
+    end associate
     if (sc%integrator%h_slow == unset) sc%integrator%h_slow = sc%integrator%h_fast
     if (len_trim(sc%integrator%formula) == 0) then
       sc%integrator%formula = merge('adams', 'abm4 ', sc%integrator%adaptive .and. sc%integrator%method == 'single')

@@ -34,8 +34,21 @@ contains
     call check_joints(sc, errs)
     call check_loads_markers(sc, errs)
     call check_output(sc, errs)
+    call check_static_start(sc, errs)
     call errs%take(error)
   end subroutine check_scene
+
+  !> A static start settles the flexible bodies' modes and the joints marked settle: a
+  !> scene with neither has nothing for it to do, which is no start the user meant.
+  subroutine check_static_start(sc, errs)
+    type(scene_t), intent(in) :: sc
+    type(error_list), intent(inout) :: errs
+    if (sc%scene%start /= 'static') return
+    if (any(sc%bodies%kind == 'beam' .or. sc%bodies%kind == 'modal') .or. any(sc%joints%settle)) return
+    call errs%add(sc%scene%origin%where('start') // ": 'static' settles the modes of flexible bodies and the " // &
+      & "joints marked settle, and this scene has neither: nothing would settle (start = 'rest', or settle = " // &
+      & '.true. on a joint)')
+  end subroutine check_static_start
 
   !> &output quantities must write something beside the time.
   subroutine check_output(sc, errs)
@@ -118,6 +131,10 @@ contains
       if (s%formula == 'abm4' .and. sc%integrator%origin%given('order') .and. s%order /= 4) then
         call errs%add(w('order') // ": formula 'abm4' (the paper's) is of order 4; orders 0 (variable) to 12 " // &
           & "need formula = 'adams' with adaptive steps at one rate"); return
+      end if
+      if (s%h_max > 0.0_dp .and. s%h_min > s%h_max) then
+        call errs%add(w('h_min') // ': larger than h_max = ' // fmt(s%h_max) // ' s (got ' // fmt(s%h_min) // &
+          & ' s): no step would be allowed'); return
       end if
       ! bounded work: a fixed-step run's steps are known before it starts
       if (.not. s%adaptive .and. sc%scene%t_end/hf > real(s%max_steps, dp)) then
@@ -339,7 +356,7 @@ contains
   !> with its modes, where the model is built: build.f90 flexible_point), no coordinates of
   !> their own (no q0, qd0, settle, hold, drive, spring or motion), not at a beam whose geometric
   !> stiffness is on (the cut's load would not stiffen it), only through the mass matrix
-  !> (loop_refusal); child_at only on them.
+  !> (loop_refusal); child_at only on them, and given on each of them.
   subroutine check_loops(sc, errs)
     type(scene_t), intent(in) :: sc
     type(error_list), intent(inout) :: errs
@@ -353,6 +370,13 @@ contains
           if (any(jt%child_at /= 0.0_dp)) call errs%add(o%where('child_at') // ": only a joint that closes a loop (its " // &
             & "child already has a parent joint) takes child_at; this joint's point is the child's origin")
           cycle
+        end if
+        ! a second parent joint is a loop only when the scene says so: a repeated child
+        ! written by mistake would otherwise run as a constraint nobody meant
+        if (.not. o%given('child_at')) then
+          call errs%add(o%where('child') // ": body '" // trim(jt%child) // "' already has a parent joint ('" // &
+            & trim(first_parent(jt%child)) // "'); a second joint to it closes a loop, which it says by giving " // &
+            & "child_at (its point on the child; 0, 0, 0 for the child's origin)"); cycle
         end if
         if (nonzero(jt%q0) .or. nonzero(jt%qd0) .or. jt%settle .or. jt%hold) then
           call errs%add(o%where(trim(first_given([character(len=6) :: 'q0', 'qd0', 'settle', 'hold'], &
@@ -381,6 +405,11 @@ contains
       character(len=:), allocatable :: k
       k = trim(sc%bodies(body_index(sc, name))%kind)
     end function kind_of
+    function first_parent(child) result(name)
+      character(len=*), intent(in) :: child
+      character(len=:), allocatable :: name
+      name = trim(sc%joints(findloc(sc%joints%child, child, dim=1))%name)
+    end function first_parent
     pure function first_given(items, given) result(item)
       character(len=*), intent(in) :: items(:)
       logical, intent(in) :: given(:)
