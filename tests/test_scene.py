@@ -3,7 +3,7 @@ resolved, fingerprinted and written back through it; pymr.Scene uses the kernel'
 through the binding. Checked against independent expectations: stored results (within each
 scene's measured sensitivity to its last bits, docs/testing.md), the round trip of the
 resolved scene (text and values bit for bit, also for random valid scenes), sha256 from
-hashlib, the README's reference."""
+hashlib, the scene reference in docs/scenes.md."""
 from __future__ import annotations
 
 import hashlib
@@ -226,7 +226,7 @@ def test_pymr_scene_command_prints_the_resolved_scene_and_the_schema(tmp_path):
 
 
 def schema_markdown() -> str:
-    """The README's scene reference as the schema gives it: one table per group."""
+    """docs/scenes.md's scene reference as the schema gives it: one table per group."""
     out = []
     # a group starts at a line '&name' (an item's meaning may hold '&' too: '&effects gravity')
     for block in re.split(r"^&", pymr.schema(), flags=re.M)[1:]:
@@ -240,17 +240,17 @@ def schema_markdown() -> str:
 
 
 def test_readme_scene_reference_is_the_schema():
-    readme = (ROOT / "README.md").read_text()
+    readme = (ROOT / "docs" / "scenes.md").read_text()
     m = re.search(r"<!-- schema begin -->\n(.*?)<!-- schema end -->", readme, re.S)
-    assert m, "the README has no generated scene reference"
-    assert m.group(1) == schema_markdown(), "README scene reference differs from `pymr scene --schema`: " \
-        "regenerate it as the README's Development section says"
+    assert m, "docs/scenes.md has no generated scene reference"
+    assert m.group(1) == schema_markdown(), "docs/scenes.md's scene reference differs from `pymr scene --schema`: " \
+        "regenerate it as docs/development.md says"
 
 
 def test_readme_scene_reference_has_every_group_and_item_once():
-    """Read back apart from the generator: the README's tables name the kernel's groups, in
+    """Read back apart from the generator: docs/scenes.md's tables name the kernel's groups, in
     its order, each with its items and their type, default, range and unit."""
-    readme = (ROOT / "README.md").read_text()
+    readme = (ROOT / "docs" / "scenes.md").read_text()
     ref = re.search(r"<!-- schema begin -->\n(.*?)<!-- schema end -->", readme, re.S).group(1)
     groups = re.findall(r"^\*\*&(.*?)\*\*$", ref, re.M)
     expect = {}
