@@ -1,5 +1,6 @@
-"""The command lines as the README and docs/architecture.md give them, against the programs:
-mrsim's usage line, and every subcommand, bench and option of `pymr` (from its own parser)."""
+"""The command lines as docs/commands.md gives them (its synopsis block and its tables), against
+the programs: mrsim's usage line, and every subcommand, bench and option of `pymr` (from its own
+parser); and docs/architecture.md's Python API against `import pymr`."""
 from __future__ import annotations
 
 import re
@@ -12,14 +13,20 @@ import pymr
 from pymr.cli import build_parser
 
 ROOT = Path(__file__).resolve().parent.parent
-README = (ROOT / "README.md").read_text()
+COMMANDS = (ROOT / "docs" / "commands.md").read_text()
 ARCHITECTURE = (ROOT / "docs" / "architecture.md").read_text()
+README = (ROOT / "README.md").read_text()
 
 
 def readme_usage_block() -> str:
-    """The fenced block of the README's 'Command line' section."""
-    section = README.split("\n## Command line\n", 1)[1]
+    """The fenced block of docs/commands.md's 'Synopsis' section."""
+    section = COMMANDS.split("\n## Synopsis\n", 1)[1]
     return section.split("```\n", 2)[1]
+
+
+def pymr_table() -> str:
+    """docs/commands.md's section 'The `pymr` command line': its table of subcommands."""
+    return COMMANDS.split("\n## The `pymr` command line\n", 1)[1].split("\n## ", 1)[0]
 
 
 def subcommands() -> dict:
@@ -50,21 +57,21 @@ def test_mrsim_usage_is_the_documented_one(mrsim):
     assert r.returncode == 0
     usage = r.stdout.strip().removeprefix("usage: ").removesuffix(" | --version")
     assert readme_usage_block().splitlines()[0] == usage
-    assert f"```\n{usage}\n```" in ARCHITECTURE
+    assert f"```\n{usage}\n```" in COMMANDS
 
 
 @pytest.mark.parametrize("name", list(subcommands()))
 def test_every_pymr_subcommand_and_option_is_documented(name):
-    """Each subcommand has its line in the README's usage block and a row in architecture.md's
-    table, and both name every option it takes (short or long form)."""
+    """Each subcommand has its line in commands.md's synopsis block and a row in its table of
+    `pymr` subcommands, and both name every option it takes (short or long form)."""
     parser = subcommands()[name]
-    readme, arch = entries(readme_usage_block(), name), entries(ARCHITECTURE, name)
-    assert readme, f"README: no line for pymr {name}"
-    assert arch, f"docs/architecture.md: no row for pymr {name}"
+    readme, arch = entries(readme_usage_block(), name), entries(pymr_table(), name)
+    assert readme, f"docs/commands.md synopsis: no line for pymr {name}"
+    assert arch, f"docs/commands.md table: no row for pymr {name}"
     for action in parser._actions:
         if not action.option_strings or "--help" in action.option_strings:
             continue
-        for where, text in (("README", readme), ("docs/architecture.md", arch)):
+        for where, text in (("docs/commands.md synopsis", readme), ("docs/commands.md table", arch)):
             assert any(mentions(text, o) for o in action.option_strings), \
                 f"{where}: pymr {name} does not mention {'/'.join(action.option_strings)}"
 
@@ -74,7 +81,7 @@ def test_every_bench_is_documented():
     what = next(a for a in bench._actions if a.dest == "what")
     for choice in what.choices:
         assert f"pymr bench {choice}" in readme_usage_block()
-        assert choice in entries(ARCHITECTURE, "bench")
+        assert choice in entries(pymr_table(), "bench")
         assert f"{choice}:" in what.help, f"pymr bench --help does not describe {choice}"
 
 
