@@ -431,7 +431,7 @@ def print_table1(rows: list[dict]) -> None:
           "motion (single-rate h = 1e-5 s)")
 
 
-#: The spacecraft's cases (README "Where the scales separate"): name -> overrides.
+#: The spacecraft's cases (docs/performance.md, "Where the scales separate"): name -> overrides.
 SPACECRAFT_CASES = {
     "single-rate fixed h = 3e-5 s": {"integrator.adaptive": False, "integrator.h_slow": 3e-5, "integrator.h_fast": 3e-5},
     "single-rate adaptive rtol 1e-4": {"integrator.rtol": 1e-4, "integrator.atol": 1e-7},

@@ -75,7 +75,7 @@ def test_adaptive_rows_of_every_step_are_written_once_also_across_a_restart(tmp_
 
 def test_a_set_of_h_slow_sets_the_step_of_a_single_rate_run(tmp_path, mrsim):
     """The tank scene gives h_fast = h_slow = 1e-4 s; --set integrator.h_slow=5e-4 (the
-    README's example) runs at 5e-4 s as a scene file giving both would, and the statistics
+    example in docs/commands.md) runs at 5e-4 s as a scene file giving both would, and the statistics
     say both steps. A --set of h_fast alone on a single-rate run still contradicts h_slow."""
     out = tmp_path / "a.csv"
     r = mrsim_run(mrsim, TANK, out, "integrator.h_slow=5e-4")
@@ -117,7 +117,7 @@ def test_a_static_start_reports_what_it_settled(tmp_path, mrsim):
     assert "static_start" not in json.loads((tmp_path / "h.json").read_text())
 
 
-SAG = 9.35e-3          # the held barrel's static tip sag w L^4/(8 EI) at E = 2.07e11 (README)
+SAG = 9.35e-3          # the held barrel's static tip sag w L^4/(8 EI) at E = 2.07e11 (docs/tank_gun_turret.md)
 
 
 @pytest.mark.parametrize("sag", [0.40, 0.70])

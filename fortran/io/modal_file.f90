@@ -1,4 +1,4 @@
-!> Modal data files for `kind='modal'` bodies (format in README.md, "Modal data files").
+!> Modal data files for `kind='modal'` bodies (format in docs/scenes.md, "Modal data files").
 !>
 !>   # comment lines start with '#'
 !>   pymr-modal V                    (V = 1 or 2)

@@ -22,7 +22,7 @@ module pymr_model_scene
   !> surrogate follows only through the modal state, and the macro-step estimate misses it.
   !> Over rtol 1e-4 to 1e-8 that four-bar ended 14-44 rtol away at k_max = 50, 1.1-2.3 rtol at
   !> 8 and 0.3-1.3 at 5 to 7 (erratic with k), and 0.008-0.22 rtol at 4 at nine tolerances, in
-  !> 1.3-2.0x the CPU of k_max = 8 (README, "Closed loops").
+  !> 1.3-2.0x the CPU of k_max = 8 (docs/scenes.md, "Closed loops").
   integer, parameter :: k_max_flexible_loop = 4
 
   !> The groups of a scene file, in the order the resolved scene is written.
