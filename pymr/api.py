@@ -25,10 +25,10 @@ def write_file(path: str | os.PathLike, data: str | bytes, what: str) -> Path:
     the disk (fsync), then renamed over it, so an earlier complete file survives a failed
     write. A failure is an :class:`OutputError` naming the file and `what` it was to hold."""
     path = Path(path)
+    if path.is_dir() or not path.name:       # '.', '..', '/': no file name to write (or rename) to
+        raise OutputError(f"{path}: cannot write the {what} (it is a directory)")
     tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
     try:
-        if path.is_dir():
-            raise IsADirectoryError(21, "it is a directory")
         with open(tmp, "wb") as fh:
             fh.write(data.encode() if isinstance(data, str) else data)
             fh.flush()
@@ -357,17 +357,67 @@ def force_response(scene: str | os.PathLike, q, qd, t: float = 0.0, overrides=No
     return g[:, :nf].copy(), kf[:nf].copy(), df[:nf].copy()
 
 
-def modes(scene: str | os.PathLike, q, qd, t: float = 0.0, overrides=None):
+class Modes(tuple):
+    """What :func:`modes` gives: unpacked, ``(frequency, damping, shapes)`` of the
+    vibrations (``freq, zeta, shapes = pymr.modes(...)``); as attributes, every motion of the
+    linearised model by its kind:
+
+    - ``frequency`` (Hz, ascending), ``damping`` (ratios) and ``shapes`` (n, vibrations):
+      the vibrations, complex pairs of eigenvalues lambda whose size is resolved;
+    - ``rigid`` (n, r): the rigid-body motions, eigenvalues at zero within what the
+      linearisation resolves: nothing holds them (a free joint, an unloaded free chain, a
+      free body under gravity, whose uniform field neither restores nor pushes its
+      coordinates apart), an orthogonal basis of them;
+    - ``drift_rate`` (1/s) and ``drift_shapes`` (n, d): real eigenvalues that are resolved,
+      motions that grow (rate > 0, as an inverted pendulum falls) or decay (rate < 0,
+      overdamped) without oscillating;
+    - ``kind``, ``all_shapes``, ``all_frequency``, ``all_damping``, ``all_rate``: the same,
+      one entry per motion in the order rigid, drift (growing first), vibration, with
+      ``kind`` 'rigid', 'drift' or 'vibration' (what ``pymr modes`` prints).
+
+    Each shape is the coordinates' motion, its largest component 1."""
+
+    def __new__(cls, kind, freq, zeta, rate, shapes):
+        kind = np.array(kind, dtype=object)
+        vib, rigid, drift = (kind == "vibration"), (kind == "rigid"), (kind == "drift")
+        self = super().__new__(cls, (freq[vib].copy(), zeta[vib].copy(), shapes[:, vib].copy()))
+        self.frequency, self.damping, self.shapes = self
+        self.rigid = shapes[:, rigid].copy()
+        self.drift_rate, self.drift_shapes = rate[drift].copy(), shapes[:, drift].copy()
+        self.kind = [str(k) for k in kind]
+        self.all_frequency, self.all_damping, self.all_rate, self.all_shapes = freq, zeta, rate, shapes
+        return self
+
+    def __repr__(self) -> str:
+        return (f"Modes({len(self.frequency)} vibrations at {np.array2string(self.frequency, precision=5)} Hz, "
+                f"{self.rigid.shape[1]} rigid-body motions, {len(self.drift_rate)} drifts)")
+
+
+_MODE_KINDS = {1: "vibration", 2: "rigid", 3: "drift"}
+
+
+def modes(scene: str | os.PathLike, q, qd, t: float = 0.0, overrides=None) -> Modes:
     """Natural modes of the model linearised at (t, q, qd), by the pre-flight check's
-    linearisation (central differences of P, LAPACK dgeev of the state matrix): frequencies
-    (Hz, ascending), damping ratios, and shapes (shape (n, number of modes): each column the
-    coordinates' motion, its largest component 1); with closed loops, the constrained ones.
-    Drifting motions (a free joint) are not modes and are left out."""
-    nm, freq, zeta, shapes, stat, msg = _core.pymr_modes(*_scene_and_overrides(scene, overrides), _time(t),
-                                                          *_one_state(q, qd))
+    linearisation (central differences, LAPACK dgeev of the state matrix; with closed loops,
+    the constrained one), each motion labelled: vibrations, rigid-body motions and drifts
+    (see :class:`Modes`). Unpacked, the vibrations: ``freq, zeta, shapes = pymr.modes(...)``.
+
+    The rule (the kernel's, preflight.f90 normal_modes): an eigenvalue lambda whose size is
+    at most the larger of 1e-6 of the largest |lambda| and the square root of the difference
+    error of M^-1 K (1e-8 |M^-1| (|P| + |M| |qdd|), 1/s^2) is not resolved: a rigid-body
+    motion. A resolved complex pair is a vibration (frequency |lambda|/(2 pi), damping ratio
+    -Re(lambda)/|lambda|), a resolved real lambda a drift (rate lambda). At a state that
+    accelerates, the stiffness includes the change of the mass matrix with q (the
+    accelerations' own derivative), so a falling free body has six rigid-body motions and no
+    vibration."""
+    where = _scene_and_overrides(scene, overrides)
+    t = _time(t)
+    q, qd = _one_state(q, qd)
+    nm, kind, freq, zeta, rate, shapes, stat, msg = _core.pymr_modes(*where, t, q, qd)
     _raise(stat, msg)
     nm = int(nm)
-    return freq[:nm].copy(), zeta[:nm].copy(), shapes[:, :nm].copy()
+    return Modes([_MODE_KINDS[int(k)] for k in kind[:nm]], freq[:nm].copy(), zeta[:nm].copy(), rate[:nm].copy(),
+                 shapes[:, :nm].copy())
 
 
 def marker_shapes(scene, markers, q, qd, shapes, t: float = 0.0, overrides=None) -> dict[str, np.ndarray]:
