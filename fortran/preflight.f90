@@ -38,6 +38,12 @@ module pymr_preflight
   !> dropped: on the stiff barrel its Ritz values lay outside the spectrum (non-normal map).
   integer, parameter :: max_exact_state = 400, max_iterations = 3000
 
+  !> Natural modes: an eigenvalue of the linearised model below this size (1/s) is a rigid-body
+  !> motion whatever the rest of the spectrum: it changes a motion by a factor e in no less
+  !> than 1e9 s, the longest run (&scene t_end). A model with no force at all (a free chain
+  !> drifting) has nothing else to set the scale of its roundoff (1e-12 /s measured).
+  real(dp), parameter :: lambda_floor = 1.0e-9_dp
+
   !> The model linearised at a state, M qdd = -(K q + C qd), as a partitioned system: a
   !> stepper applied to it gives its linearised step map.
   type, extends(partitioned_system) :: linear_system
@@ -388,8 +394,8 @@ contains
   !> - kind 1, a vibration: a complex pair of lambda (one taken): the undamped natural
   !>   frequency |lambda|/(2 pi) (Hz), the damping ratio -Re(lambda)/|lambda|;
   !> - kind 2, a rigid-body motion: |lambda| not resolved by the linearisation (at most the
-  !>   larger of 1e-6 of the largest |lambda| and the square root of the size of the
-  !>   difference error of M^-1 K): nothing holds the motion (a free joint, a free body in a
+  !>   largest of 1e-6 of the largest |lambda|, the square root of the size of the
+  !>   difference error of M^-1 K, and lambda_floor): nothing holds the motion (a free joint, a free body in a
   !>   uniform field); frequency, damping ratio and rate 0: the motions u of the unresolved
   !>   eigenvectors' span with M^-1 K u = 0 and, with loops, G u = 0 (held_by_nothing): a
   !>   motion that would open a loop is none;
@@ -422,7 +428,7 @@ contains
     allocate(wr(2*n), wi(2*n), vr(2*n, 2*n), f(2*n), z(2*n), r(2*n), s(n, 2*n), kd(2*n), key(2*n), v(n))
     allocate(basis(n, n), phi(n))
     call geev_real(a, wr, wi, 'the linearised model', error, vr); if (allocated(error)) return
-    tol = max(1.0e-6_dp*maxval(hypot(wr, wi)), sqrt(noise2))
+    tol = max(1.0e-6_dp*maxval(hypot(wr, wi)), sqrt(noise2), lambda_floor)
     nr = 0
     do i = 1, 2*n
       lam = hypot(wr(i), wi(i))

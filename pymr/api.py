@@ -24,7 +24,7 @@ def write_file(path: str | os.PathLike, data: str | bytes, what: str) -> Path:
     """Write `data` to `path` whole or not at all: a temporary file beside it, flushed to
     the disk (fsync), then renamed over it, so an earlier complete file survives a failed
     write. A failure is an :class:`OutputError` naming the file and `what` it was to hold."""
-    path = Path(path)
+    path = Path(_path("path", path))
     if path.is_dir() or not path.name:       # '.', '..', '/': no file name to write (or rename) to
         raise OutputError(f"{path}: cannot write the {what} (it is a directory)")
     tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
@@ -61,12 +61,15 @@ def _raise(stat: int, message: bytes | str) -> None:
 # the argument, never numpy's or f2py's own exception. The kernel checks what the scene
 # makes of them (addresses, values, lengths); these check only what Python hands over.
 
+def _short(value: object) -> str:
+    """A short repr of `value` on one line, for a message."""
+    text = " ".join(repr(value).split())
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
 def _shown(value: object) -> str:
     """`value` for a one-line message: its type and a short repr on one line."""
-    text = " ".join(repr(value).split())
-    if len(text) > 60:
-        text = text[:57] + "..."
-    return f"{type(value).__name__} {text}"
+    return f"{type(value).__name__} {_short(value)}"
 
 
 def _path(name: str, value) -> str:
@@ -80,9 +83,11 @@ def _path(name: str, value) -> str:
 
 
 def _name(name: str, value) -> str:
-    """A name argument (a marker's, a body's, an item's address): text."""
+    """A name argument (a marker's, a body's, an item's address): text, not empty."""
     if not isinstance(value, str):
         raise ArgumentTypeError(f"{name}: a name (str), got {_shown(value)}")
+    if not value.strip():
+        raise SceneError(f"{name}: an empty name")
     return value
 
 
@@ -153,9 +158,9 @@ def nml_value(v: object, name: str = "value") -> str:
         return repr(float(v))
     if isinstance(v, (bytes, bytearray)):
         raise ArgumentTypeError(f"{name}: bytes {v!r}: give text as a str (bytes are not decoded)")
-    if isinstance(v, (list, tuple, np.ndarray)) and np.ndim(v) == 1 and len(v) > 0:
+    if isinstance(v, (list, tuple, np.ndarray)) and len(v) > 0:
         for x in v:
-            if isinstance(x, (list, tuple, np.ndarray, bytes, bytearray)):
+            if isinstance(x, (list, tuple, np.ndarray, bytes, bytearray)) or np.ndim(x) != 0:
                 raise ArgumentTypeError(f"{name}: a list of numbers, .true./.false. or texts, got {_shown(v)}")
         return ", ".join(nml_value(x, name) for x in v)
     raise ArgumentTypeError(f"{name}: a number, a bool, a text (str) or a list of them, got {_shown(v)}")
@@ -313,18 +318,18 @@ def _count(name: str, value) -> int:
     """A whole number from 1 to the kernel's largest (a C int): f2py raised OverflowError
     above it and a ValueError about 'intent(cache|hide)' arrays below 1."""
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not 1 <= value < 2**31 - 1:
-        raise SceneError(f"{name}: a whole number from 1 to {2**31 - 2}, got {value!r}")
+        raise SceneError(f"{name}: a whole number from 1 to {2**31 - 2}, got {_short(value)}")
     return int(value)
 
 
 def _time(t, name: str = "t") -> float:
     """One time (s) for the kernel: a finite number (not text, a bool or an array)."""
-    if isinstance(t, (str, bytes, bool, np.bool_)) or np.ndim(t) != 0:
-        raise ArgumentTypeError(f"{name}: a time in seconds, got {t!r}")
     try:
+        if isinstance(t, (str, bytes, bool, np.bool_)) or np.ndim(t) != 0:
+            raise TypeError
         value = float(t)
     except (TypeError, ValueError):
-        raise ArgumentTypeError(f"{name}: a time in seconds, got {t!r}") from None
+        raise ArgumentTypeError(f"{name}: a time in seconds, got {_short(t)}") from None
     if not np.isfinite(value):
         raise SceneError(f"{name}: {value} is not a finite time")
     return value
@@ -403,9 +408,10 @@ def modes(scene: str | os.PathLike, q, qd, t: float = 0.0, overrides=None) -> Mo
     (see :class:`Modes`). Unpacked, the vibrations: ``freq, zeta, shapes = pymr.modes(...)``.
 
     The rule (the kernel's, preflight.f90 normal_modes): an eigenvalue lambda whose size is
-    at most the larger of 1e-6 of the largest |lambda| and the square root of the difference
-    error of M^-1 K (1e-8 |M^-1| (|P| + |M| |qdd|), 1/s^2) is not resolved: a rigid-body
-    motion. A resolved complex pair is a vibration (frequency |lambda|/(2 pi), damping ratio
+    at most the largest of 1e-6 of the largest |lambda|, the square root of the difference
+    error of M^-1 K (1e-8 |M^-1| (|P| + |M| |qdd|), 1/s^2) and 1e-9 /s (an e-fold in no less
+    than the longest run, 1e9 s) is not resolved: with the motions it spans that nothing
+    holds and that keep the loops closed, a rigid-body motion. A resolved complex pair is a vibration (frequency |lambda|/(2 pi), damping ratio
     -Re(lambda)/|lambda|), a resolved real lambda a drift (rate lambda). At a state that
     accelerates, the stiffness includes the change of the mass matrix with q (the
     accelerations' own derivative), so a falling free body has six rigid-body motions and no
@@ -456,6 +462,9 @@ def step_history(scene: str | os.PathLike, overrides=None, max_steps: int = 200_
     error."""
     t, h, q, nh, stat, msg = _core.pymr_step_history(*_scene_and_overrides(scene, overrides),
                                                      _count("max_steps", max_steps) + 1)
+    if stat and int(nh) > max_steps:
+        # the kernel's 'the run takes more than N steps' is about this argument: name it
+        raise SolverError(f"max_steps: {_text(msg)} (give a larger max_steps)")
     _raise(stat, msg)
     nh = int(nh)
     return t[:nh].copy(), h[:nh].copy(), q[:nh].copy()
