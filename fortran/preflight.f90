@@ -11,7 +11,7 @@
 module pymr_preflight
   use pymr_kinds, only : dp, pi
   use pymr_error, only : error_type, fatal_error, stat_input
-  use pymr_lapack, only : potrf, potrs, geev_real, factor_inverse, general_solve
+  use pymr_lapack, only : potrf, potrs, geev_real, factor_inverse, general_solve, sygvd
   use pymr_model, only : model_t, modal_stiffness_damping, model_counters
   use pymr_model_loops, only : loop_rows, independent_rows, loop_jacobian, constrain_inverse
   use pymr_integrator_stability, only : pece_growth, pece_limit
@@ -37,6 +37,12 @@ module pymr_preflight
   !> (at most max_iterations macro steps). A Krylov (Arnoldi) estimate was tried and
   !> dropped: on the stiff barrel its Ritz values lay outside the spectrum (non-normal map).
   integer, parameter :: max_exact_state = 400, max_iterations = 3000
+
+  !> Natural modes: an eigenvalue of the linearised model below this size (1/s) is a rigid-body
+  !> motion whatever the rest of the spectrum: it changes a motion by a factor e in no less
+  !> than 1e9 s, the longest run (&scene t_end). A model with no force at all (a free chain
+  !> drifting) has nothing else to set the scale of its roundoff (1e-12 /s measured).
+  real(dp), parameter :: lambda_floor = 1.0e-9_dp
 
   !> The model linearised at a state, M qdd = -(K q + C qd), as a partitioned system: a
   !> stepper applied to it gives its linearised step map.
@@ -388,44 +394,180 @@ contains
     call constrain_inverse(minv, g, error)
   end subroutine mass_inverse
 
-  !> Natural modes of the model linearised at (t, x): for each vibration (complex pair of
-  !> eigenvalues lambda of the state matrix, one taken), the undamped natural frequency
-  !> |lambda|/(2 pi) (Hz), the damping ratio -Re(lambda)/|lambda|, and the mode shape in the
-  !> coordinates (the eigenvector's position part, scaled so that its largest component is
-  !> 1, real part), sorted by frequency; nm of them.
-  subroutine normal_modes(model, t, x, freq, zeta, shapes, nm, error)
+  !> Natural modes of the model linearised at (t, x), each of one kind (the eigenvalues
+  !> lambda of the state matrix [0 I; -M^-1 K  -M^-1 C]):
+  !> - kind 1, a vibration: a complex pair of lambda (one taken): the undamped natural
+  !>   frequency |lambda|/(2 pi) (Hz), the damping ratio -Re(lambda)/|lambda|;
+  !> - kind 2, a rigid-body motion: |lambda| not resolved by the linearisation (at most the
+  !>   largest of 1e-6 of the largest |lambda|, the square root of the size of the
+  !>   difference error of M^-1 K, and lambda_floor): nothing holds the motion (a free joint, a free body in a
+  !>   uniform field); frequency, damping ratio and rate 0: the motions u of the unresolved
+  !>   eigenvectors' span with M^-1 K u = 0 and, with loops, G u = 0 (held_by_nothing): a
+  !>   motion that would open a loop is none;
+  !> - kind 3, a drift: a real lambda that is resolved: the motion grows (rate lambda > 0,
+  !>   a divergence, as of an inverted pendulum) or decays (lambda < 0, overdamped) without
+  !>   oscillating; frequency 0, damping ratio -sign(lambda).
+  !> rate(j) is Re(lambda) (1/s). The mode shape is the coordinates' motion (the eigenvector's
+  !> position part, real part), scaled so that its largest component is 1; the rigid-body
+  !> motions are an orthogonal basis of theirs. Sorted: rigid-body motions, drifts (by rate,
+  !> growing first), vibrations (by frequency); nm of them (at most 2n). At a state that
+  !> accelerates the stiffness includes the change of M with q (accelerating_stiffness):
+  !> without it a free body falling under gravity showed a 'vibration' (0.3 to 80 Hz).
+  subroutine normal_modes(model, t, x, freq, zeta, rate, shapes, kind, nm, error)
     type(model_t), intent(inout) :: model
     real(dp), intent(in) :: t, x(:)
-    real(dp), intent(out) :: freq(:), zeta(:), shapes(:, :)
-    integer, intent(out) :: nm
+    real(dp), intent(out) :: freq(:), zeta(:), rate(:), shapes(:, :)
+    integer, intent(out) :: kind(:), nm
     type(error_type), allocatable, intent(out) :: error
     real(dp), allocatable :: m(:, :), minv(:, :), k(:, :), c(:, :), a(:, :), wr(:), wi(:), vr(:, :)
+    real(dp), allocatable :: f(:), z(:), r(:), s(:, :), key(:), basis(:, :), phi(:)
+    integer, allocatable :: kd(:), order(:)
     complex(dp), allocatable :: v(:)
-    integer :: n, i, j, top
-    integer, allocatable :: order(:)
-    real(dp), allocatable :: f(:), z(:), s(:, :)
+    real(dp) :: noise2, tol, lam
+    integer :: n, i, j, nr, top
     n = model%d%n
-    nm = 0
+    nm = 0; freq = 0.0_dp; zeta = 0.0_dp; rate = 0.0_dp; shapes = 0.0_dp; kind = 0
     call linear_state(model, t, x, m, minv, k, c, a, error); if (allocated(error)) return
-    allocate(wr(2*n), wi(2*n), vr(2*n, 2*n), f(n), z(n), s(n, n), v(n))
+    call accelerating_stiffness(model, t, x, minv, k, noise2, error); if (allocated(error)) return
+    call state_matrix(minv, k, c, a)
+    allocate(wr(2*n), wi(2*n), vr(2*n, 2*n), f(2*n), z(2*n), r(2*n), s(n, 2*n), kd(2*n), key(2*n), v(n))
+    allocate(basis(n, n), phi(n))
     call geev_real(a, wr, wi, 'the linearised model', error, vr); if (allocated(error)) return
-    do i = 1, 2*n - 1
-      ! one of each complex pair (wi > 0); eigenvalues at roundoff size are drift, not vibration
-      if (wi(i) <= 0.0_dp .or. nm == n) cycle
-      if (hypot(wr(i), wi(i)) <= 1.0e-8_dp*maxval(hypot(wr, wi))) cycle
+    tol = max(1.0e-6_dp*maxval(hypot(wr, wi)), sqrt(noise2), lambda_floor)
+    nr = 0
+    do i = 1, 2*n
+      lam = hypot(wr(i), wi(i))
+      if (lam <= tol) then
+        ! rigid: each of the real and imaginary parts of the position part, kept on the loops
+        call add_rigid(vr(1:n, i))
+        if (wi(i) > 0.0_dp .and. i < 2*n) call add_rigid(vr(1:n, i + 1))
+      else if (wi(i) > 0.0_dp .and. i < 2*n) then
+        v = cmplx(vr(1:n, i), vr(1:n, i + 1), dp)
+        top = maxloc(abs(v), 1)
+        v = v/v(top)
+        nm = nm + 1
+        kd(nm) = 1; f(nm) = lam/(2.0_dp*pi); z(nm) = -wr(i)/lam; r(nm) = wr(i); s(:, nm) = real(v, dp)
+        key(nm) = f(nm)
+      else if (wi(i) == 0.0_dp) then
+        nm = nm + 1
+        kd(nm) = 3; f(nm) = 0.0_dp; z(nm) = -sign(1.0_dp, wr(i)); r(nm) = wr(i)
+        s(:, nm) = vr(1:n, i)/vr(maxloc(abs(vr(1:n, i)), 1), i)
+        key(nm) = -wr(i)
+      end if
+    end do
+    if (nr > 0) then
+      call held_by_nothing(error); if (allocated(error)) return
+    end if
+    do j = 1, nr
       nm = nm + 1
-      f(nm) = hypot(wr(i), wi(i))/(2.0_dp*pi)
-      z(nm) = -wr(i)/hypot(wr(i), wi(i))
-      v = cmplx(vr(1:n, i), vr(1:n, i + 1), dp)
-      top = maxloc(abs(v), 1)
-      v = v/v(top)
-      s(:, nm) = real(v, dp)
+      kd(nm) = 2; f(nm) = 0.0_dp; z(nm) = 0.0_dp; r(nm) = 0.0_dp
+      s(:, nm) = basis(:, j)/basis(maxloc(abs(basis(:, j)), 1), j)
+      key(nm) = j
     end do
-    order = sort_index(f(1:nm))
-    do j = 1, nm
-      freq(j) = f(order(j)); zeta(j) = z(order(j)); shapes(:, j) = s(:, order(j))
+    ! rigid-body motions, drifts, vibrations; each kind by its key
+    i = 0
+    do top = 2, 4
+      order = pack([(j, j = 1, nm)], kd(1:nm) == merge(1, top, top == 4))
+      order = order(sort_index(key(order)))
+      do j = 1, size(order)
+        i = i + 1
+        freq(i) = f(order(j)); zeta(i) = z(order(j)); rate(i) = r(order(j)); kind(i) = kd(order(j))
+        shapes(:, i) = s(:, order(j))
+      end do
     end do
+  contains
+    !> The unresolved eigenvalues' eigenvectors span the rigid-body motions and, where the
+    !> zero eigenvalue is defective, motions chained to them; with loops also motions that
+    !> would open a loop (the constrained inverse leaves them without stiffness) and the
+    !> motions these lead into. The rigid-body motions are those u of the basis's span that
+    !> nothing holds, -M^-1 K u = 0 to the threshold tol^2, and that keep the loops closed,
+    !> G u = 0 to 1e-5 of |G|: the null space of B^T B, B = [G Q / (1e-5 |G|); M^-1 K Q / tol^2]
+    !> for the basis Q (eigenvalues at most 1).
+    subroutine held_by_nothing(error)
+      type(error_type), allocatable, intent(out) :: error
+      real(dp), allocatable :: g(:, :), b(:, :), e(:, :), mu(:), kept(:, :), eye(:, :)
+      integer :: l, nk
+      b = matmul(matmul(minv, k), basis(:, 1:nr))/max(tol**2, tiny(1.0_dp))
+      if (model%d%n_rows > 0) then
+        call loop_jacobian(model%d, x(1:n), g, error); if (allocated(error)) return
+        b = reshape([transpose(b), transpose(matmul(g, basis(:, 1:nr)))/max(1.0e-5_dp*norm2(g), tiny(1.0_dp))], &
+          & [nr, n + size(g, 1)])
+        b = transpose(b)
+      end if
+      e = matmul(transpose(b), b)
+      allocate(mu(nr), kept(n, nr), eye(nr, nr))
+      eye = 0.0_dp
+      do l = 1, nr
+        eye(l, l) = 1.0_dp
+      end do
+      call sygvd(e, eye, mu, 'the rigid-body motions', error); if (allocated(error)) return
+      nk = 0
+      do l = 1, nr
+        if (mu(l) > 1.0_dp) cycle
+        nk = nk + 1
+        kept(:, nk) = matmul(basis(:, 1:nr), e(:, l))
+      end do
+      nr = nk
+      basis(:, 1:nr) = kept(:, 1:nr)
+    end subroutine held_by_nothing
+
+    !> Add the motion u to the rigid-body basis unless the basis already holds it
+    !> (Gram-Schmidt: what is left is below 1e-3 of it).
+    subroutine add_rigid(u)
+      real(dp), intent(in) :: u(:)
+      integer :: l
+      if (nr == n) return
+      phi = u
+      lam = norm2(phi)
+      if (lam == 0.0_dp) return
+      do l = 1, nr
+        phi = phi - dot_product(basis(:, l), phi)*basis(:, l)
+      end do
+      if (norm2(phi) <= 1.0e-3_dp*lam) return
+      nr = nr + 1
+      basis(:, nr) = phi/norm2(phi)
+    end subroutine add_rigid
   end subroutine normal_modes
+
+  !> The stiffness of a state that accelerates: linearise's K = -dP/dq holds M at the state,
+  !> which makes -M^-1 K the accelerations' own derivative only where they vanish. With
+  !> qdd0 /= 0 the derivative of qdd = M^-1 P is -M^-1 (K + (dM/dq_j) qdd0) (column j): the
+  !> term is added here (central differences, linearise's increments). noise2 (1/s^2) is the
+  !> size of the difference error in M^-1 K: 1e-8 |M^-1| (|P| + |M| |qdd0|) (roundoff
+  !> 2.2e-16/1e-6 of the forces, with a margin of 45), under which a stiffness is not resolved.
+  subroutine accelerating_stiffness(model, t, x, minv, k, noise2, error)
+    type(model_t), intent(inout) :: model
+    real(dp), intent(in) :: t, x(:), minv(:, :)
+    real(dp), intent(inout) :: k(:, :)
+    real(dp), intent(out) :: noise2
+    type(error_type), allocatable, intent(out) :: error
+    type(model_counters) :: counters
+    real(dp), allocatable :: q(:), qd(:), a0(:), mp(:, :)
+    real(dp) :: del, forces
+    integer :: n, j
+    n = model%d%n
+    noise2 = 0.0_dp
+    counters = model%counters()
+    q = x(1:n); qd = x(n+1:2*n)
+    allocate(a0(n))
+    call model%accelerations(t, q, qd, a0, error)
+    if (.not. allocated(error)) then
+      call model%terms(t, q, qd)
+      forces = maxval(abs(model%d%p)) + maxval(sum(abs(model%d%mm), 2))*maxval(abs(a0))
+      noise2 = 1.0e-8_dp*maxval(sum(abs(minv), 2))*forces
+      if (any(a0 /= 0.0_dp)) then
+        do j = 1, n
+          del = 1.0e-6_dp*max(1.0_dp, abs(q(j)))
+          q(j) = x(j) + del; call model%terms(t, q, qd); mp = model%d%mm
+          q(j) = x(j) - del; call model%terms(t, q, qd)
+          q(j) = x(j)
+          k(:, j) = k(:, j) + matmul(mp - model%d%mm, a0)/(2.0_dp*del)
+        end do
+        call model%terms(t, q, qd)
+      end if
+    end if
+    call model%set_counters(counters)
+  end subroutine accelerating_stiffness
 
   !> The highest natural frequency (rad/s: the largest |lambda| of the state matrix) of the
   !> model linearised at x, its loops closed (the constrained inverse mass matrix).

@@ -16,7 +16,7 @@ except ImportError:
     raise ImportError("pymr's compiled kernel (pymr._core) is not here: this is the source folder, not the "
                       "installed package. Build and install it with 'bash .ci/setup' (or 'pip install "
                       "--no-build-isolation .') and import pymr from outside the checkout.") from None
-from .errors import OutputError, PymrError, ResultsError, SceneError, SolverError  # noqa: F401
+from .errors import ArgumentTypeError, OutputError, PymrError, ResultsError, SceneError, SolverError  # noqa: F401
 from .results import Results, load_results
 
 
@@ -24,11 +24,11 @@ def write_file(path: str | os.PathLike, data: str | bytes, what: str) -> Path:
     """Write `data` to `path` whole or not at all: a temporary file beside it, flushed to
     the disk (fsync), then renamed over it, so an earlier complete file survives a failed
     write. A failure is an :class:`OutputError` naming the file and `what` it was to hold."""
-    path = Path(path)
+    path = Path(_path("path", path))
+    if path.is_dir() or not path.name:       # '.', '..', '/': no file name to write (or rename) to
+        raise OutputError(f"{path}: cannot write the {what} (it is a directory)")
     tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
     try:
-        if path.is_dir():
-            raise IsADirectoryError(21, "it is a directory")
         with open(tmp, "wb") as fh:
             fh.write(data.encode() if isinstance(data, str) else data)
             fh.flush()
@@ -43,7 +43,7 @@ def write_file(path: str | os.PathLike, data: str | bytes, what: str) -> Path:
 def check_not_input(scene, path: str | os.PathLike, what: str, overrides=None) -> None:
     """`path`, an output, is none of the scene's inputs (the scene, its modal and table files:
     the kernel's rule, which the results and modal files obey too); else a SceneError."""
-    found, stat, msg = _core.pymr_scene_input(*_scene_and_overrides(scene, overrides), os.fspath(path))
+    found, stat, msg = _core.pymr_scene_input(*_scene_and_overrides(scene, overrides), _path("output", path))
     _raise(stat, msg)
     if _text(found):
         raise SceneError(f"{path}: would overwrite {_text(found)}; choose another {what}")
@@ -55,17 +55,87 @@ def _raise(stat: int, message: bytes | str) -> None:
     raise (SceneError if stat == 1 else SolverError)(_text(message))
 
 
-def format_overrides(overrides: Mapping[str, object] | Iterable[str] | None) -> str:
+# ------------------------------------------------------------------ arguments
+# The one place where the public functions' arguments are checked and converted for the
+# kernel: a wrong type or shape is an ArgumentTypeError or a SceneError whose one line names
+# the argument, never numpy's or f2py's own exception. The kernel checks what the scene
+# makes of them (addresses, values, lengths); these check only what Python hands over.
+
+def _short(value: object) -> str:
+    """A short repr of `value` on one line, for a message."""
+    text = " ".join(repr(value).split())
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _shown(value: object) -> str:
+    """`value` for a one-line message: its type and a short repr on one line."""
+    return f"{type(value).__name__} {_short(value)}"
+
+
+def _path(name: str, value) -> str:
+    """A file path argument (str or os.PathLike; bytes as the file system names them)."""
+    if isinstance(value, (str, bytes, os.PathLike)):
+        try:
+            return os.fsdecode(os.fspath(value))
+        except TypeError:          # an os.PathLike whose __fspath__ gives no str or bytes
+            pass
+    raise ArgumentTypeError(f"{name}: a file path (str or os.PathLike), got {_shown(value)}")
+
+
+def _name(name: str, value) -> str:
+    """A name argument (a marker's, a body's, an item's address): text, not empty."""
+    if not isinstance(value, str):
+        raise ArgumentTypeError(f"{name}: a name (str), got {_shown(value)}")
+    if not value.strip():
+        raise SceneError(f"{name}: an empty name")
+    return value
+
+
+def _names(name: str, value) -> list[str]:
+    """Names: one str (one name, not its characters) or an iterable of str."""
+    if isinstance(value, str):
+        return [value]
+    if isinstance(value, (bytes, Mapping)) or not isinstance(value, Iterable):
+        raise ArgumentTypeError(f"{name}: a name or a list of names (str), got {_shown(value)}")
+    items = list(value)
+    for k, item in enumerate(items):
+        _name(f"{name}[{k}]", item)
+    return items
+
+
+def _flag(name: str, value, none: bool = False) -> bool | None:
+    """A True/False argument (or None where `none`)."""
+    if value is None and none:
+        return None
+    if not isinstance(value, (bool, np.bool_)):
+        raise ArgumentTypeError(f"{name}: True or False{' (or None)' if none else ''}, got {_shown(value)}")
+    return bool(value)
+
+
+def format_overrides(overrides: Mapping[str, object] | Iterable[str] | None, name: str = "overrides") -> str:
     """Turn ``{"integrator.h_slow": 5e-4}`` or ``["integrator.h_slow=5e-4"]`` into the
-    kernel's override text (one ``GROUP.ITEM=VALUE`` per line, values in namelist syntax)."""
-    if not overrides:
+    kernel's override text (one ``GROUP.ITEM=VALUE`` per line, values in namelist syntax).
+    One str is one override (``"integrator.h_slow=5e-4"``), not a list of its characters.
+    Anything else (a number, bytes, a list of non-text) is an :class:`ArgumentTypeError`
+    naming `name`; the kernel checks each entry's address and value and names the scene."""
+    if overrides is None:
         return ""
     if isinstance(overrides, Mapping):
-        items = [f"{k}={nml_value(v)}" for k, v in overrides.items()]
+        items = []
+        for k, v in overrides.items():
+            if not isinstance(k, str):
+                raise ArgumentTypeError(f"{name}: keys are addresses GROUP.ITEM (str), got {_shown(k)}")
+            items.append(f"{k}={nml_value(v, f'{name}[{k!r}]')}")
     elif isinstance(overrides, str):
         items = [overrides]        # one override (iterating it gave one per character)
+    elif isinstance(overrides, (bytes, bytearray)) or not isinstance(overrides, Iterable):
+        raise ArgumentTypeError(f"{name}: a mapping {{'GROUP.ITEM': value}} or a list of 'GROUP.ITEM=VALUE' "
+                                f"texts, got {_shown(overrides)}")
     else:
-        items = [str(s) for s in overrides]
+        items = list(overrides)
+        for k, item in enumerate(items):
+            if not isinstance(item, str):
+                raise ArgumentTypeError(f"{name}[{k}]: an override 'GROUP.ITEM=VALUE' (str), got {_shown(item)}")
     for item in items:
         if "\n" in item or "\r" in item:
             # the kernel reads one override a line: a line break would make two of one
@@ -73,14 +143,27 @@ def format_overrides(overrides: Mapping[str, object] | Iterable[str] | None) -> 
     return "\n".join(items)   # the kernel checks each entry and names the scene file
 
 
-def nml_value(v: object) -> str:
-    if isinstance(v, bool):
+def nml_value(v: object, name: str = "value") -> str:
+    """A Python value as namelist text: a bool as .true./.false., a str quoted, a number, or
+    a list (tuple, 1-D array) of them. Anything else (None, bytes, a nested list) is an
+    :class:`ArgumentTypeError` naming `name`: bytes are refused, not decoded or written as
+    their repr ``b'...'`` (the text an item holds is a str; decode bytes first)."""
+    if isinstance(v, (bool, np.bool_)):
         return ".true." if v else ".false."
     if isinstance(v, str):
         return "'" + v.replace("'", "''") + "'"
-    if isinstance(v, (list, tuple, np.ndarray)):
-        return ", ".join(nml_value(x) for x in v)
-    return repr(float(v)) if isinstance(v, float) else str(v)
+    if isinstance(v, (int, np.integer)):
+        return str(int(v))
+    if isinstance(v, (float, np.floating)):
+        return repr(float(v))
+    if isinstance(v, (bytes, bytearray)):
+        raise ArgumentTypeError(f"{name}: bytes {v!r}: give text as a str (bytes are not decoded)")
+    if isinstance(v, (list, tuple, np.ndarray)) and len(v) > 0:
+        for x in v:
+            if isinstance(x, (list, tuple, np.ndarray, bytes, bytearray)) or np.ndim(x) != 0:
+                raise ArgumentTypeError(f"{name}: a list of numbers, .true./.false. or texts, got {_shown(v)}")
+        return ", ".join(nml_value(x, name) for x in v)
+    raise ArgumentTypeError(f"{name}: a number, a bool, a text (str) or a list of them, got {_shown(v)}")
 
 
 def _scene_and_overrides(scene, overrides) -> tuple[str, str]:
@@ -90,7 +173,23 @@ def _scene_and_overrides(scene, overrides) -> tuple[str, str]:
     from .scene import Scene
     if isinstance(scene, Scene):
         return str(scene.path), "\n".join(t for t in (scene.overrides, text) if t)
-    return os.fspath(scene), text
+    if isinstance(scene, (str, bytes, os.PathLike)):
+        return _path("scene", scene), text
+    raise ArgumentTypeError(f"scene: a scene file's path (str or os.PathLike) or a pymr.Scene, got {_shown(scene)}")
+
+
+def _array(name: str, value) -> np.ndarray:
+    """An array of real numbers (any shape) from `value`: numbers, not text, bools or
+    complex numbers, and not a ragged list."""
+    try:
+        a = np.asarray(value)
+        if a.dtype.kind == "O":
+            a = a.astype(float)
+    except (TypeError, ValueError, OverflowError):
+        raise ArgumentTypeError(f"{name}: an array of real numbers, got {_shown(value)}") from None
+    if a.dtype.kind not in "iuf":
+        raise ArgumentTypeError(f"{name}: an array of real numbers, got {_shown(value)}")
+    return a.astype(float, copy=False)
 
 
 def run(scene, output: str | os.PathLike | None = None,
@@ -111,7 +210,10 @@ def run(scene, output: str | os.PathLike | None = None,
     Raises :class:`SceneError` for bad input and :class:`SolverError` for a failed run.
     """
     scene, text = _scene_and_overrides(scene, overrides)
-    ckpt = "" if restart is None else os.fspath(restart)
+    if output is not None:
+        output = _path("output", output)
+    progress = _flag("progress", progress, none=True)
+    ckpt = "" if restart is None else _path("restart", restart)
     if restart is not None and not ckpt:
         # an empty name (an unset variable) would run from the start instead
         raise SceneError("restart: an empty checkpoint path (None runs from the start)")
@@ -129,7 +231,7 @@ def run(scene, output: str | os.PathLike | None = None,
             _raise(stat, msg)
             res = load_results(out)
     else:
-        out = os.fspath(output)
+        out = output
         stat, msg, summary, _ = _run_kernel(scene, text, out, ckpt, progress)
         _raise(stat, msg)
         res = load_results(out)
@@ -178,35 +280,35 @@ def model_size(scene: str | os.PathLike, overrides=None) -> tuple[int, int, int]
 
 
 def _states(q, qd) -> tuple[np.ndarray, np.ndarray]:
-    """q and qd as float arrays of one shape (ValueError naming qd otherwise)."""
-    q = np.asarray(q, dtype=float)
-    qd = np.asarray(qd, dtype=float)
+    """q and qd as finite float arrays of one shape (a SceneError naming q or qd otherwise:
+    a NaN state would come back as NaN, or be blamed on the mass matrix or on LAPACK)."""
+    q = _array("q", q)
+    qd = _array("qd", qd)
     if q.shape != qd.shape:
-        raise ValueError(f"qd: shape {qd.shape} differs from q's {q.shape}")
+        raise SceneError(f"qd: shape {qd.shape} differs from q's {q.shape}")
+    _finite("q", q)
+    _finite("qd", qd)
     return q, qd
 
 
-def _finite(q: np.ndarray, qd: np.ndarray) -> None:
-    """States whose values the kernel returns as they come (terms, energies, positions) must
-    be finite: their results would be NaN with no word. (The accelerations' own checks name
-    the LAPACK routine a non-finite entry would reach.)"""
-    for name, v in (("q", q), ("qd", qd)):
-        if not np.isfinite(v).all():
-            raise SceneError(f"{name}: {v.flat[np.argmin(np.isfinite(v))]} is not a finite number")
+def _finite(name: str, v: np.ndarray, where: str = "") -> None:
+    """A SceneError naming `name` unless every entry of `v` is finite."""
+    if not np.isfinite(v).all():
+        k = int(np.argmin(np.isfinite(v).ravel()))
+        raise SceneError(f"{name}: {v.flat[k]} is not a finite number{where}")
 
 
-def _many_states(t, q, qd, finite: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _many_states(t, q, qd) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Times (m,) and states q, qd (m, n) (one state (n,) is m = 1) for the kernel: t as
-    an array of m finite times, q and qd transposed to (n, m) in Fortran order (and finite
-    unless `finite` is False)."""
+    an array of m finite times, q and qd finite and transposed to (n, m) in Fortran order."""
     q, qd = _states(q, qd)
-    if finite:
-        _finite(q, qd)
+    if q.ndim not in (1, 2):
+        raise SceneError(f"q: one state of shape (n,) or states of shape (m, n) expected, got shape {q.shape}")
     q2 = np.asfortranarray(np.atleast_2d(q).T)
     qd2 = np.asfortranarray(np.atleast_2d(qd).T)
-    t1 = np.atleast_1d(np.asarray(t, dtype=float))
+    t1 = np.atleast_1d(_array("t", t))
     if t1.shape != (q2.shape[1],):
-        raise ValueError(f"t: one time per state expected, shape ({q2.shape[1]},), got shape {t1.shape}")
+        raise SceneError(f"t: one time per state expected, shape ({q2.shape[1]},), got shape {t1.shape}")
     if not np.isfinite(t1).all():
         raise SceneError(f"t: {t1[np.argmin(np.isfinite(t1))]} is not a finite time")
     return t1, q2, qd2
@@ -216,33 +318,34 @@ def _count(name: str, value) -> int:
     """A whole number from 1 to the kernel's largest (a C int): f2py raised OverflowError
     above it and a ValueError about 'intent(cache|hide)' arrays below 1."""
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not 1 <= value < 2**31 - 1:
-        raise SceneError(f"{name}: a whole number from 1 to {2**31 - 2}, got {value!r}")
+        raise SceneError(f"{name}: a whole number from 1 to {2**31 - 2}, got {_short(value)}")
     return int(value)
 
 
-def _time(t) -> float:
-    """One time (s) for the kernel: a finite number."""
+def _time(t, name: str = "t") -> float:
+    """One time (s) for the kernel: a finite number (not text, a bool or an array)."""
     try:
+        if isinstance(t, (str, bytes, bool, np.bool_)) or np.ndim(t) != 0:
+            raise TypeError
         value = float(t)
     except (TypeError, ValueError):
-        raise SceneError(f"t: a time in seconds, got {t!r}") from None
+        raise ArgumentTypeError(f"{name}: a time in seconds, got {_short(t)}") from None
     if not np.isfinite(value):
-        raise SceneError(f"t: {value} is not a finite time")
+        raise SceneError(f"{name}: {value} is not a finite time")
     return value
 
 
 def _one_state(q, qd) -> tuple[np.ndarray, np.ndarray]:
-    """q and qd of one state (shape (n,)), contiguous, for the kernel."""
+    """q and qd of one state (shape (n,)), finite and contiguous, for the kernel."""
     q, qd = _states(q, qd)
     if q.ndim != 1:
-        raise ValueError(f"q: one state of shape (n,) expected, got shape {q.shape}")
+        raise SceneError(f"q: one state of shape (n,) expected, got shape {q.shape}")
     return np.ascontiguousarray(q), np.ascontiguousarray(qd)
 
 
 def model_terms(scene: str | os.PathLike, q, qd, t: float = 0.0, overrides=None):
     """Mass matrix M and right-hand side P of ``M qdd = P`` at (t, q, qd)."""
     q, qd = _one_state(q, qd)
-    _finite(q, qd)
     mm, p, stat, msg = _core.pymr_model_terms(*_scene_and_overrides(scene, overrides), _time(t), q, qd)
     _raise(stat, msg)
     return mm, p
@@ -259,17 +362,68 @@ def force_response(scene: str | os.PathLike, q, qd, t: float = 0.0, overrides=No
     return g[:, :nf].copy(), kf[:nf].copy(), df[:nf].copy()
 
 
-def modes(scene: str | os.PathLike, q, qd, t: float = 0.0, overrides=None):
+class Modes(tuple):
+    """What :func:`modes` gives: unpacked, ``(frequency, damping, shapes)`` of the
+    vibrations (``freq, zeta, shapes = pymr.modes(...)``); as attributes, every motion of the
+    linearised model by its kind:
+
+    - ``frequency`` (Hz, ascending), ``damping`` (ratios) and ``shapes`` (n, vibrations):
+      the vibrations, complex pairs of eigenvalues lambda whose size is resolved;
+    - ``rigid`` (n, r): the rigid-body motions, eigenvalues at zero within what the
+      linearisation resolves: nothing holds them (a free joint, an unloaded free chain, a
+      free body under gravity, whose uniform field neither restores nor pushes its
+      coordinates apart), an orthogonal basis of them;
+    - ``drift_rate`` (1/s) and ``drift_shapes`` (n, d): real eigenvalues that are resolved,
+      motions that grow (rate > 0, as an inverted pendulum falls) or decay (rate < 0,
+      overdamped) without oscillating;
+    - ``kind``, ``all_shapes``, ``all_frequency``, ``all_damping``, ``all_rate``: the same,
+      one entry per motion in the order rigid, drift (growing first), vibration, with
+      ``kind`` 'rigid', 'drift' or 'vibration' (what ``pymr modes`` prints).
+
+    Each shape is the coordinates' motion, its largest component 1."""
+
+    def __new__(cls, kind, freq, zeta, rate, shapes):
+        kind = np.array(kind, dtype=object)
+        vib, rigid, drift = (kind == "vibration"), (kind == "rigid"), (kind == "drift")
+        self = super().__new__(cls, (freq[vib].copy(), zeta[vib].copy(), shapes[:, vib].copy()))
+        self.frequency, self.damping, self.shapes = self
+        self.rigid = shapes[:, rigid].copy()
+        self.drift_rate, self.drift_shapes = rate[drift].copy(), shapes[:, drift].copy()
+        self.kind = [str(k) for k in kind]
+        self.all_frequency, self.all_damping, self.all_rate, self.all_shapes = freq, zeta, rate, shapes
+        return self
+
+    def __repr__(self) -> str:
+        return (f"Modes({len(self.frequency)} vibrations at {np.array2string(self.frequency, precision=5)} Hz, "
+                f"{self.rigid.shape[1]} rigid-body motions, {len(self.drift_rate)} drifts)")
+
+
+_MODE_KINDS = {1: "vibration", 2: "rigid", 3: "drift"}
+
+
+def modes(scene: str | os.PathLike, q, qd, t: float = 0.0, overrides=None) -> Modes:
     """Natural modes of the model linearised at (t, q, qd), by the pre-flight check's
-    linearisation (central differences of P, LAPACK dgeev of the state matrix): frequencies
-    (Hz, ascending), damping ratios, and shapes (shape (n, number of modes): each column the
-    coordinates' motion, its largest component 1); with closed loops, the constrained ones.
-    Drifting motions (a free joint) are not modes and are left out."""
-    nm, freq, zeta, shapes, stat, msg = _core.pymr_modes(*_scene_and_overrides(scene, overrides), _time(t),
-                                                          *_one_state(q, qd))
+    linearisation (central differences, LAPACK dgeev of the state matrix; with closed loops,
+    the constrained one), each motion labelled: vibrations, rigid-body motions and drifts
+    (see :class:`Modes`). Unpacked, the vibrations: ``freq, zeta, shapes = pymr.modes(...)``.
+
+    The rule (the kernel's, preflight.f90 normal_modes): an eigenvalue lambda whose size is
+    at most the largest of 1e-6 of the largest |lambda|, the square root of the difference
+    error of M^-1 K (1e-8 |M^-1| (|P| + |M| |qdd|), 1/s^2) and 1e-9 /s (an e-fold in no less
+    than the longest run, 1e9 s) is not resolved: with the motions it spans that nothing
+    holds and that keep the loops closed, a rigid-body motion. A resolved complex pair is a vibration (frequency |lambda|/(2 pi), damping ratio
+    -Re(lambda)/|lambda|), a resolved real lambda a drift (rate lambda). At a state that
+    accelerates, the stiffness includes the change of the mass matrix with q (the
+    accelerations' own derivative), so a falling free body has six rigid-body motions and no
+    vibration."""
+    where = _scene_and_overrides(scene, overrides)
+    t = _time(t)
+    q, qd = _one_state(q, qd)
+    nm, kind, freq, zeta, rate, shapes, stat, msg = _core.pymr_modes(*where, t, q, qd)
     _raise(stat, msg)
     nm = int(nm)
-    return freq[:nm].copy(), zeta[:nm].copy(), shapes[:, :nm].copy()
+    return Modes([_MODE_KINDS[int(k)] for k in kind[:nm]], freq[:nm].copy(), zeta[:nm].copy(), rate[:nm].copy(),
+                 shapes[:, :nm].copy())
 
 
 def marker_shapes(scene, markers, q, qd, shapes, t: float = 0.0, overrides=None) -> dict[str, np.ndarray]:
@@ -278,11 +432,19 @@ def marker_shapes(scene, markers, q, qd, shapes, t: float = 0.0, overrides=None)
     :func:`modes` gives them) at (t, q, qd), by central differences of 1e-6 times the shape:
     metres per unit of the shape's coordinates."""
     q, qd = _one_state(q, qd)
-    shapes = np.asarray(shapes, dtype=float)
+    markers = _names("markers", markers)
+    t = _time(t)
+    shapes = _array("shapes", shapes)
     if shapes.ndim != 2 or shapes.shape[0] != q.size:
-        raise ValueError(f"shapes: an array ({q.size}, modes) expected (modes() gives one), got shape {shapes.shape}")
+        raise SceneError(f"shapes: an array ({q.size}, modes) expected (modes() gives one), got shape {shapes.shape}")
+    _finite("shapes", shapes)
     eps = 1e-6
     out = {}
+    if shapes.shape[1] == 0:             # no modes: each marker moves (3, 0)
+        with Model(scene, overrides) as model:
+            for name in markers:
+                model.marker_body(name)      # a marker the model does not have is named
+        return {name: np.zeros((3, 0)) for name in markers}
     with Model(scene, overrides) as model:
         for name in markers:
             plus = model.marker(name, np.full(shapes.shape[1], t), (q[:, None] + eps * shapes).T,
@@ -300,6 +462,9 @@ def step_history(scene: str | os.PathLike, overrides=None, max_steps: int = 200_
     error."""
     t, h, q, nh, stat, msg = _core.pymr_step_history(*_scene_and_overrides(scene, overrides),
                                                      _count("max_steps", max_steps) + 1)
+    if stat and int(nh) > max_steps:
+        # the kernel's 'the run takes more than N steps' is about this argument: name it
+        raise SolverError(f"max_steps: {_text(msg)} (give a larger max_steps)")
     _raise(stat, msg)
     nh = int(nh)
     return t[:nh].copy(), h[:nh].copy(), q[:nh].copy()
@@ -307,11 +472,10 @@ def step_history(scene: str | os.PathLike, overrides=None, max_steps: int = 200_
 
 def model_accelerations(scene: str | os.PathLike, t, q, qd, overrides=None) -> np.ndarray:
     """Accelerations for one state (q of shape (n,)) or many (shape (m, n), t of shape (m,))."""
-    single = np.ndim(q) == 1
-    t1, q2, qd2 = _many_states(t, q, qd, finite=False)
+    t1, q2, qd2 = _many_states(t, q, qd)
     qdd, stat, msg = _core.pymr_model_accelerations(*_scene_and_overrides(scene, overrides), t1, q2, qd2)
     _raise(stat, msg)
-    return qdd[:, 0].copy() if single else qdd.T.copy()
+    return qdd[:, 0].copy() if np.ndim(q) == 1 else qdd.T.copy()
 
 
 def loop_rows(scene: str | os.PathLike, q, qd, overrides=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -332,6 +496,7 @@ def model_energy(scene: str | os.PathLike, q, qd, overrides=None) -> tuple[np.nd
     """Kinetic and potential energy for states q, qd of shape (m, n) (or one state of shape
     (n,)): arrays of shape (m,). The potential energy is the flexible bodies' strain energy,
     plus gravity's and the joint springs' when those effects are on."""
+    q, qd = _states(q, qd)
     _, q2, qd2 = _many_states(np.zeros(np.atleast_2d(q).shape[0]), q, qd)
     ke, pe, stat, msg = _core.pymr_model_energy(*_scene_and_overrides(scene, overrides), q2, qd2)
     _raise(stat, msg)
@@ -341,7 +506,8 @@ def model_energy(scene: str | os.PathLike, q, qd, overrides=None) -> tuple[np.nd
 def write_modal_file(scene: str | os.PathLike, body: str, path: str | os.PathLike, overrides=None) -> None:
     """Write the modes of beam ``body`` of a scene to a modal data file, which a
     ``kind='modal'`` body can read back (``modal_file=...``)."""
-    stat, msg = _core.pymr_write_modal(*_scene_and_overrides(scene, overrides), body, os.fspath(path))
+    stat, msg = _core.pymr_write_modal(*_scene_and_overrides(scene, overrides), _name("body", body),
+                                       _path("path", path))
     _raise(stat, msg)
 
 
@@ -358,17 +524,22 @@ class Model:
         self.handle, self.n, self.evaluations = int(handle), int(n), 0
 
     def rhs(self, t: float, x) -> np.ndarray:
-        x = np.asarray(x, dtype=float)
+        x = _array("x", x)
         if x.shape != (2 * self.n,):
-            raise ValueError(f"x: the state [q; qd] of shape ({2 * self.n},) expected, got shape {x.shape}")
-        f, evals, stat, msg = _core.pymr_model_rhs(self.handle, float(t), x)
+            raise SceneError(f"x: the state [q; qd] of shape ({2 * self.n},) expected, got shape {x.shape}")
+        if not np.isfinite(x).all():
+            # named here: the kernel would blame the mass matrix (its articulated inertia)
+            k = int(np.argmin(np.isfinite(x)))
+            part, i = ("q", k) if k < self.n else ("qd", k - self.n)
+            _finite(part, x[k:k + 1], f" (x[{k}], entry {i} of {part} in x = [q; qd])")
+        f, evals, stat, msg = _core.pymr_model_rhs(self.handle, _time(t), x)
         if stat:
             _raise(stat, msg)
         self.evaluations = int(evals)
         return f
 
     def marker(self, name: str, t, q, qd) -> np.ndarray:
-        k = int(_core.pymr_model_marker_index(self.handle, name))
+        k = int(_core.pymr_model_marker_index(self.handle, _name("name", name)))
         if k == 0:
             raise SceneError(f"{self.scene}: no marker {name!r}")
         t1, q2, qd2 = self._states(t, q, qd)
@@ -388,12 +559,12 @@ class Model:
         """The kernel's (t, q, qd) of :func:`_many_states`, each state of this model's n coordinates."""
         t1, q2, qd2 = _many_states(t, q, qd)
         if q2.shape[0] != self.n:
-            raise ValueError(f"q: states of {self.n} coordinates expected, got {q2.shape[0]}")
+            raise SceneError(f"q: states of {self.n} coordinates expected, got {q2.shape[0]}")
         return t1, q2, qd2
 
     def marker_body(self, name: str) -> int:
         """The index (0-based, as in :meth:`frames`) of the body marker `name` is on."""
-        k = int(_core.pymr_model_marker_index(self.handle, name))
+        k = int(_core.pymr_model_marker_index(self.handle, _name("name", name)))
         if k == 0:
             raise SceneError(f"{self.scene}: no marker {name!r}")
         return int(_core.pymr_model_marker_body(self.handle, k)) - 1

@@ -68,7 +68,9 @@ def _count(name: str, text: str) -> int:
 
 
 def _cmd_modes(args: argparse.Namespace) -> int:
-    """Natural modes at the initial state, or at time T of the run (--at T)."""
+    """Natural modes at the initial state, or at time T of the run (--at T): every motion of
+    the linearised model, labelled rigid (nothing holds it), drift (grows or decays without
+    oscillating) or vibration (pymr.modes' rule)."""
     import csv
     import io
     import math
@@ -78,33 +80,50 @@ def _cmd_modes(args: argparse.Namespace) -> int:
     at = 0.0 if args.at is None else args.at
     if not (0.0 <= at < math.inf):
         raise SceneError(f"--at {at:g}: a time at or after the start of the run (s)")
-    if args.output:
+    if args.output == "":
+        raise SceneError("-o: an empty file name (leave -o out to write no file)")
+    if args.output is not None:
         check_not_input(args.scene, args.output, "modes file (-o)", over)
-    res = run(args.scene, overrides=over + [f"scene.t_end={at if at > 0 else 1e-9}", "output.dt=0.0"])
+    end = f"scene.t_end={at if at > 0 else 1e-9!r}"
+    try:
+        res = run(args.scene, overrides=over + [end, "output.dt=0.0"])
+    except SceneError as exc:
+        # the run to T is refused for T itself: say so of --at, not of an override never typed
+        if f"--set {end}:" not in str(exc):
+            raise
+        reason = str(exc).split(f"--set {end}:", 1)[1].strip().removeprefix("&scene: t_end:").strip()
+        raise SceneError(f"--at {at:g}: the run cannot be taken to this time (as &scene t_end it {reason})") from None
     q, qd = res.coordinates()
     names = [c for c in res.columns if re.search(r"\.(q\d*|a\d+)$", c)]
     # the state at T, or the initial state itself (the first row, not the end of the short run)
     k = -1 if at > 0 else 0
     t = float(res.t[k])
-    freq, zeta, shapes = modes(args.scene, q[k], qd[k], t=t, overrides=over)
+    found = modes(args.scene, q[k], qd[k], t=t, overrides=over)
+    shapes = found.all_shapes
     moves = marker_shapes(args.scene, res.markers, q[k], qd[k], shapes, t=t, overrides=over)
-    print(f"natural modes of {args.scene} linearised at t = {t:g} s "
-          f"({len(freq)} vibrations; drifting motions left out)")
-    print(f"{'mode':>4} {'frequency Hz':>13} {'damping ratio':>13}  largest motion (shapes scaled to 1 there)"
-          + ("; marker displacement (m)" if moves else ""))
-    for i, (f, z) in enumerate(zip(freq, zeta), 1):
-        big = int(np.argmax(np.abs(shapes[:, i - 1])))
-        line = f"{i:>4} {f:>13.5g} {z:>13.4g}  {names[big] if big < len(names) else big}"
+    counts = {kind: found.kind.count(kind) for kind in ("vibration", "rigid", "drift")}
+    print(f"natural modes of {args.scene} linearised at t = {t:g} s ({counts['vibration']} vibrations, "
+          f"{counts['rigid']} rigid-body motions, {counts['drift']} drifts)")
+    print(f"{'mode':>4} {'kind':<9} {'frequency Hz':>13} {'damping ratio':>13} {'rate 1/s':>11}  "
+          "largest motion (shapes scaled to 1 there)" + ("; marker displacement (m)" if moves else ""))
+    for i, kind in enumerate(found.kind):
+        f, z, r = found.all_frequency[i], found.all_damping[i], found.all_rate[i]
+        big = int(np.argmax(np.abs(shapes[:, i])))
+        cells = {"vibration": (f"{f:>13.5g}", f"{z:>13.4g}", f"{'':>11}"),
+                 "drift": (f"{'-':>13}", f"{'-':>13}", f"{r:>11.4g}"),
+                 "rigid": (f"{'-':>13}", f"{'-':>13}", f"{'-':>11}")}[kind]
+        line = f"{i + 1:>4} {kind:<9} {' '.join(cells)}  {names[big] if big < len(names) else big}"
         if moves:
-            line += "; " + ", ".join(f"{m} {np.linalg.norm(d[:, i - 1]):.4g}" for m, d in moves.items())
+            line += "; " + ", ".join(f"{m} {np.linalg.norm(d[:, i]):.4g}" for m, d in moves.items())
         print(line)
-    if args.output:
+    if args.output is not None:
         mcols = [f"{m}.d{c}" for m in moves for c in "xyz"]
         fh = io.StringIO(newline="")
         w = csv.writer(fh)
-        w.writerow(["mode", "frequency_hz", "damping_ratio", *names, *mcols])
-        for i in range(len(freq)):
-            w.writerow([i + 1, repr(float(freq[i])), repr(float(zeta[i])), *[repr(float(v)) for v in shapes[:, i]],
+        w.writerow(["mode", "kind", "frequency_hz", "damping_ratio", "rate_per_s", *names, *mcols])
+        for i, kind in enumerate(found.kind):
+            w.writerow([i + 1, kind, repr(float(found.all_frequency[i])), repr(float(found.all_damping[i])),
+                        repr(float(found.all_rate[i])), *[repr(float(v)) for v in shapes[:, i]],
                         *[repr(float(v)) for d in moves.values() for v in d[:, i]]])
         write_file(args.output, fh.getvalue(), "modes")
         print(f"written: {args.output}")
@@ -236,11 +255,13 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--json", help="also write the figures to this JSON file")
     b.set_defaults(func=_cmd_bench)
     md = sub.add_parser("modes", help="natural frequencies, damping ratios and mode shapes of the model "
-                        "linearised at the initial state (or at time T of the run)")
+                        "linearised at the initial state (or at time T of the run); rigid-body motions and drifts "
+                        "labelled as such")
     md.add_argument("scene", help="scene namelist file")
     md.add_argument("--at", metavar="T", type=_seconds, help="linearise at time T of the run (s) instead of at the initial state")
     md.add_argument("--set", action="append", metavar="GROUP.ITEM=VALUE", help="override (repeatable)")
-    md.add_argument("-o", "--output", help="write the modes to this CSV file (mode, frequency, damping, shape)")
+    md.add_argument("-o", "--output", help="write the modes to this CSV file (mode, kind, frequency, damping, rate, "
+                    "shape)")
     md.set_defaults(func=_cmd_modes)
     an = sub.add_parser("animate", help="animation of the moving mechanism from a run's results (GIF)")
     an.add_argument("csv", help="results CSV (its JSON beside it names the scene)")

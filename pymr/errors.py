@@ -7,7 +7,14 @@ class PymrError(RuntimeError):
 
 
 class SceneError(PymrError, ValueError):
-    """Bad input: the scene file, a group or an item is wrong (mrsim exit status 1)."""
+    """Bad input: the scene file, a group or an item, or an argument of a pymr function is
+    wrong (mrsim exit status 1). The message names the file, group and item, or the argument."""
+
+
+class ArgumentTypeError(SceneError, TypeError):
+    """Bad input: an argument of a pymr function is of the wrong type (a number where a path
+    is due, text where an array of numbers is due, bytes where text is due). A
+    :class:`SceneError` (and so a ValueError) and a TypeError; the message names the argument."""
 
 
 class SolverError(PymrError):

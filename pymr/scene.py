@@ -3,13 +3,14 @@ fingerprinted by the kernel's own reader through the binding. Python states no s
 every address, value and check is the kernel's (``pymr scene --schema`` lists them)."""
 from __future__ import annotations
 
+import functools
 import os
 import tempfile
 from pathlib import Path
 from typing import Iterable, Mapping
 
 from . import _kernel as _core
-from .api import SceneError, _raise, _text, format_overrides, nml_value, write_file
+from .api import SceneError, _flag, _name, _path, _raise, _text, format_overrides, nml_value, write_file
 
 
 class Scene:
@@ -22,11 +23,18 @@ class Scene:
 
     Setting an item reads the scene again in the kernel: a bad address or value raises
     :class:`SceneError` with the kernel's message and leaves the scene as it was.
+
+    Values are Python's: a number, a bool (``.true.``/``.false.``), a str, or a list of them.
+    An item that takes several values (its type in :func:`schema` has a count, such as
+    ``real(3)`` or ``string(1..6)``) is a list both ways, even with one value given:
+    ``scene["output.quantities"]`` -> ``['coordinates', 'markers']``, and that list (or one
+    str) sets it. Bytes are refused (:class:`pymr.ArgumentTypeError` naming the item), not
+    stored as their repr ``"b'abc'"``: text is a str.
     """
 
     def __init__(self, path: str | os.PathLike,
                  overrides: Mapping[str, object] | Iterable[str] | None = None) -> None:
-        self.path = Path(path)
+        self.path = Path(_path("path", path))
         self._overrides: list[str] = []
         self._resolved: str | None = None      # the kernel's text for the current overrides
         text = format_overrides(overrides)
@@ -37,12 +45,14 @@ class Scene:
     # ------------------------------------------------------------------ items
 
     def __getitem__(self, address: str) -> object:
-        value, stat, msg = _core.pymr_scene_item(str(self.path), self.overrides, address)
+        value, stat, msg = _core.pymr_scene_item(str(self.path), self.overrides, _name("address", address))
         _raise(stat, msg)
-        return parse_value(_text(value))
+        return parse_value(_text(value), _is_list(address))
 
     def __setitem__(self, address: str, value: object) -> None:
-        self._overrides.append(f"{address}={nml_value(value)}")
+        # one override, its value checked and written by the API's one conversion
+        address = _name("address", address)
+        self._overrides.append(format_overrides([f"{address}={nml_value(value, address)}"]))
         try:
             self._check()
         except SceneError:
@@ -62,7 +72,7 @@ class Scene:
         building its model, and a last comment line with its fingerprint. With
         ``absolute_paths`` the files it names are written absolute (for a copy elsewhere).
         The text is the kernel's reading of the file when the Scene was made or last set."""
-        if absolute_paths:
+        if _flag("absolute_paths", absolute_paths):
             return _kernel_text(str(self.path), self.overrides, 2)
         return self._resolved
 
@@ -98,11 +108,48 @@ def _kernel_text(scene: str, overrides: str, what: int) -> str:
         return Path(out).read_text()
 
 
-def parse_value(text: str) -> object:
-    """A resolved value as Python: numbers, .true./.false., quoted text, or a list of them."""
-    parts = [p.strip() for p in text.split(",")] if text and not text.startswith("'") else [text]
+def parse_value(text: str, is_list: bool = False) -> object:
+    """A resolved value as Python: numbers, .true./.false., quoted text, or a list of them
+    (values separated by commas outside quotes: ``'a, b', 'c'`` is two texts). With
+    `is_list` (an item of several values) a list even of one value."""
+    parts: list[str] = []
+    if text:
+        quoted, start = False, 0
+        for i, ch in enumerate(text):
+            if ch == "'":
+                quoted = not quoted          # '' inside a text toggles twice
+            elif ch == "," and not quoted:
+                parts.append(text[start:i].strip())
+                start = i + 1
+        parts.append(text[start:].strip())
+    else:
+        parts = [text]
     out = [_one(p) for p in parts]
-    return out[0] if len(out) == 1 else out
+    return out if is_list or len(out) > 1 else out[0]
+
+
+@functools.cache
+def _list_items() -> frozenset[tuple[str, str]]:
+    """(group, item) of every item that takes several values, from the kernel's schema
+    (its type has a count: ``real(3)``, ``string(1..6)``)."""
+    found, group = set(), ""
+    for line in schema().splitlines():
+        if line.startswith("&"):
+            group = line[1:].strip()
+        elif "\t" in line:
+            name, kind = line.split("\t")[:2]
+            if "(" in kind:
+                found.add((group, name))
+    return frozenset(found)
+
+
+def _is_list(address: str) -> bool:
+    """Whether the item at `address` (GROUP.ITEM or GROUP[NAME].ITEM, which the kernel has
+    just read) takes several values: its group is the address's first word, its item the
+    last."""
+    group = address.split("[", 1)[0].split(".", 1)[0].strip().lower()
+    item = address.rsplit(".", 1)[-1].strip().lower()
+    return (group, item) in _list_items()
 
 
 def _one(p: str) -> object:

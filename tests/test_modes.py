@@ -90,8 +90,8 @@ def test_mode_shapes_as_marker_displacements():
 
 
 def test_modes_command_writes_the_tank_s_coupled_modes(tmp_path):
-    """pymr modes on the tank at rest: the free turret and elevation joints drift (left out),
-    and four vibrations remain, the barrel's modes coupled to the joints, above the clamped
+    """pymr modes on the tank at rest: the free turret and elevation joints are rigid-body
+    motions (labelled 'rigid'), and four vibrations remain, the barrel's modes coupled to the joints, above the clamped
     6.409 and 40.16 Hz (measured 8.85, 20.3, 41.6, 52.9 Hz); the CSV holds them with a shape
     column per coordinate. --at 0.5 linearises at the run's state at 0.5 s."""
     tank = ROOT / "input" / "tank_gun_turret.nml"
@@ -99,6 +99,9 @@ def test_modes_command_writes_the_tank_s_coupled_modes(tmp_path):
     r = subprocess.run(["pymr", "modes", str(tank), "-o", str(out)], capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr
     rows = list(csv.DictReader(out.open()))
+    # the free turret and elevation are the two rigid-body motions, labelled as such (issue 30)
+    assert [row["kind"] for row in rows] == ["rigid", "rigid"] + ["vibration"] * 4
+    rows = [row for row in rows if row["kind"] == "vibration"]
     freq = np.array([float(row["frequency_hz"]) for row in rows])
     assert len(rows) == 4 and set(rows[0]) >= {"traverse.q", "elevation.q", "gun.a1", "gun.a4"}
     assert freq[0] > 6.409 and freq[2] > 40.16 and np.all(np.diff(freq) > 0)

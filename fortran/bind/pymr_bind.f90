@@ -133,8 +133,10 @@ subroutine pymr_format_reals(m, x, digits, text)
 end subroutine pymr_format_reals
 
 !> Natural modes of the model linearised at (t, q, qd) (the pre-flight check's
-!> linearisation): nm modes, frequency (Hz), damping ratio and shape in the coordinates.
-subroutine pymr_modes(scene, overrides, n, t, q, qd, nm, freq, zeta, shapes, stat, message)
+!> linearisation; preflight%normal_modes): nm modes (at most 2n), each of a kind (1 vibration,
+!> 2 rigid-body motion, 3 drift), its frequency (Hz), damping ratio, rate Re(lambda) (1/s) and
+!> shape in the coordinates.
+subroutine pymr_modes(scene, overrides, n, t, q, qd, nm, kind, freq, zeta, rate, shapes, stat, message)
   use pymr_error, only : error_type
   use pymr_bind_support, only : report
   use pymr_model_scene, only : scene_t
@@ -145,17 +147,17 @@ subroutine pymr_modes(scene, overrides, n, t, q, qd, nm, freq, zeta, shapes, sta
   character(len=*), intent(in) :: scene, overrides
   integer, intent(in) :: n
   double precision, intent(in) :: t, q(n), qd(n)
-  integer, intent(out) :: nm
-  double precision, intent(out) :: freq(n), zeta(n), shapes(n, n)
+  integer, intent(out) :: nm, kind(2*n)
+  double precision, intent(out) :: freq(2*n), zeta(2*n), rate(2*n), shapes(n, 2*n)
   integer, intent(out) :: stat
   character(len=8192), intent(out) :: message
   !f2py integer intent(hide), depend(q) :: n = len(q)
   type(error_type), allocatable :: error
   type(scene_t) :: sc
   type(model_t) :: model
-  freq = 0.0d0; zeta = 0.0d0; shapes = 0.0d0; nm = 0
+  freq = 0.0d0; zeta = 0.0d0; rate = 0.0d0; shapes = 0.0d0; kind = 0; nm = 0
   call load_model(scene, overrides, sc, model, error, n)
-  if (.not. allocated(error)) call normal_modes(model, t, [q, qd], freq, zeta, shapes, nm, error)
+  if (.not. allocated(error)) call normal_modes(model, t, [q, qd], freq, zeta, rate, shapes, kind, nm, error)
   call report(error, stat, message)
 end subroutine pymr_modes
 
