@@ -324,9 +324,9 @@ def _pymr(*args, cwd=None):
 
 
 def test_modes_command_on_a_scene_with_markers_and_no_vibration(tmp_path):
-    """The README's four-bar and a pendulum without gravity gave a traceback (ValueError:
-    unexpected array size); the table labels each motion."""
-    readme = (ROOT / "README.md").read_text()
+    """The scene reference's four-bar (docs/scenes.md) and a pendulum without gravity gave a
+    traceback (ValueError: unexpected array size); the table labels each motion."""
+    readme = (ROOT / "docs" / "scenes.md").read_text()
     start = readme.index("&scene title = 'four-bar'")
     (tmp_path / "fourbar.nml").write_text(readme[start:readme.index("```", start)])
     r = _pymr("modes", tmp_path / "fourbar.nml", "-o", tmp_path / "fourbar_modes.csv")
