@@ -4,12 +4,13 @@
 module pymr_io_text_file
   use, intrinsic :: iso_c_binding, only : c_char, c_int, c_long, c_null_char, c_size_t, c_ptr, c_associated
   use, intrinsic :: iso_fortran_env, only : int64
+  use pymr_kinds, only : dp
   use pymr_error, only : error_type, fatal_error, stat_solver
   use pymr_io_text, only : itoa
   implicit none
   private
   public :: write_text_file, rename_file, sync_file, check_size, file_size, scene_relative, absolute_path, acquire_lock, &
-    & release_lock, not_regular
+    & release_lock, not_regular, read_text_file, check_header_count
 
   interface
     function c_rename(old, new) bind(c, name='rename') result(r)
@@ -92,6 +93,63 @@ contains
     if (.not. allocated(error)) call rename_file(path // '.tmp', path, error)
     if (allocated(error)) call remove_file(path // '.tmp')
   end subroutine write_text_file
+
+  !> The whole file as text; a UTF-8 byte-order mark, which some editors write at the start,
+  !> reads as blanks (lines and columns stay those of the file).
+  subroutine read_text_file(file, text, error)
+    character(len=*), intent(in) :: file
+    character(len=:), allocatable, intent(out) :: text
+    type(error_type), allocatable, intent(out) :: error
+    integer :: u, ios, sz
+    character(len=256) :: msg
+    logical :: exists
+    if (len_trim(file) == 0) then
+      call fatal_error(error, 'no scene file given (its path is empty)'); return
+    end if
+    inquire(file=file, exist=exists)
+    if (.not. exists) then
+      call fatal_error(error, file // ': file not found'); return
+    end if
+    if (len(not_regular(file)) > 0) then
+      call fatal_error(error, file // ': cannot read: ' // not_regular(file)); return
+    end if
+    open(newunit=u, file=file, access='stream', form='unformatted', status='old', action='read', &
+      & iostat=ios, iomsg=msg)
+    if (ios /= 0) then
+      call fatal_error(error, file // ': cannot read: ' // trim(msg)); return
+    end if
+    inquire(unit=u, size=sz)
+    if (sz < 0) then
+      close(u)
+      call fatal_error(error, file // ': cannot read: not a regular file'); return
+    end if
+    allocate(character(len=sz) :: text)
+    if (sz > 0) read(u, iostat=ios, iomsg=msg) text
+    close(u)
+    if (ios /= 0) then
+      call fatal_error(error, file // ': cannot read: ' // trim(msg)); return
+    end if
+    if (sz >= 3) then
+      if (text(1:3) == achar(239) // achar(187) // achar(191)) text(1:3) = ' '
+    end if
+  end subroutine read_text_file
+
+  !> A count read from a file (a header's number of points, modes, entries) must fit the
+  !> file before anything is allocated by it: `count` items of at least `least` bytes each
+  !> cannot be in a file of fewer bytes. Else the error 'PATH: WHERE: COUNT WHAT cannot be
+  !> in this file (SIZE bytes)'. ('points 2000000000' in a modal file of 70 kB asked for
+  !> 48 GB, and the Fortran runtime stopped the program.)
+  subroutine check_header_count(path, where, count, least, what, error)
+    character(len=*), intent(in) :: path, where, what
+    integer(int64), intent(in) :: count
+    integer, intent(in) :: least
+    type(error_type), allocatable, intent(out) :: error
+    integer(int64) :: sz
+    sz = max(file_size(path), 0_int64)
+    if (real(count, dp)*real(least, dp) <= real(sz, dp)) return
+    call fatal_error(error, path // ': ' // where // ': ' // itoa(count) // ' ' // what // &
+      & ' cannot be in this file (' // itoa(sz) // ' bytes)')
+  end subroutine check_header_count
 
   !> Remove a file if it is there (a temporary one left by a failed write).
   subroutine remove_file(path)
