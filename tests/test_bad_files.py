@@ -1,0 +1,273 @@
+"""Files that contradict themselves (issue 30): every one is bad input, one line naming the
+file, the line and the item, exit status 1 (a pymr exception in Python); never a run on
+what the reader guessed, a compiler's runtime message, a LAPACK failure or a traceback.
+
+- Modal data files: each line holds exactly the numbers its header's counts give, every
+  number is finite, a count fits the file's size before anything is allocated by it, nothing
+  follows the points, and the modes are mass-normalised (to the kernel's stated 1e-4).
+- Time-history tables: two numbers a line, no third column.
+- ``pymr modal-import``: a Matrix Market size line is checked against the DOF layout and the
+  file before the dense matrix is allocated; its arguments are checked before any work;
+  its output may not be one of its inputs (by any spelling) nor a directory.
+"""
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import pymr
+from pymr.modal_import import ImportInputError, read_matrix_market
+
+ROOT = Path(__file__).resolve().parent.parent
+TANK = ROOT / "input" / "tank_gun_turret.nml"
+BEAM = ("  name = 'gun', kind = 'beam'\n  length = 5.3, youngs_modulus = 2.07e11, density = 7850.0\n"
+        "  r_outer = 0.11, r_inner = 0.06\n  n_elements = 20, modes_y = 2, modes_z = 2\n")
+
+
+def pymr_cli(*args, cwd):
+    """`pymr ARGS` in a fresh process of this interpreter (so the package under test runs)."""
+    return subprocess.run([sys.executable, "-m", "pymr", *map(str, args)], cwd=cwd, capture_output=True, text=True,
+                          timeout=300)
+
+
+def one_line(r) -> str:
+    """The single line of stderr of a run refused as bad input (exit status 1)."""
+    assert r.returncode == 1, (r.returncode, r.stdout, r.stderr)
+    lines = r.stderr.splitlines()
+    assert len(lines) == 1, r.stderr
+    return lines[0]
+
+
+# ----------------------------------------------------------------------------- modal files
+
+@pytest.fixture(scope="module")
+def gun_modal(tmp_path_factory) -> str:
+    """The tank barrel's modal file, as `pymr modal-file input/tank_gun_turret.nml gun` writes it:
+    2 comment lines, 'pymr-modal 1' (line 3), 'modes 4' (4), frequencies (5), 'points 101' (6),
+    then the 101 points, 28 numbers each (lines 7-107)."""
+    tmp = tmp_path_factory.mktemp("gun")
+    r = pymr_cli("modal-file", TANK, "gun", "-o", "gun.modal", cwd=tmp)
+    assert r.returncode == 0, r.stderr
+    text = (tmp / "gun.modal").read_text()
+    lines = text.splitlines()
+    assert lines[2:4] == ["pymr-modal 1", "modes 4"] and lines[5] == "points 101" and len(lines) == 107
+    assert {len(line.split()) for line in lines[6:]} == {28}
+    return text
+
+
+@pytest.fixture
+def modal_scene(tmp_path):
+    """The tank with its barrel read from g.modal; returns (folder, scene name, the error
+    prefix of a fault in g.modal)."""
+    text = TANK.read_text()
+    assert BEAM in text
+    text = text.replace(BEAM, "  name = 'gun', kind = 'modal', modal_file = 'g.modal'\n")
+    (tmp_path / "s.nml").write_text(text)
+    group = text.splitlines().index("  name = 'gun', kind = 'modal', modal_file = 'g.modal'")   # &body is the line before
+    return tmp_path, "s.nml", f"mrsim: error: s.nml:{group}: &body 'gun': modal_file: g.modal: "
+
+
+def mrsim_run(mrsim, folder, scene):
+    return subprocess.run([mrsim, scene, "-o", "out.csv", "--set", "scene.t_end=0.002"], cwd=folder,
+                          capture_output=True, text=True, timeout=120)
+
+
+def set_word(text: str, line: int, word: int, value: str) -> str:
+    """`text` with word `word` (1-based) of line `line` (1-based) replaced."""
+    lines = text.splitlines()
+    words = lines[line - 1].split()
+    words[word - 1] = value
+    lines[line - 1] = " ".join(words)
+    return "\n".join(lines) + "\n"
+
+
+def edit_lines(text: str, edit) -> str:
+    """`text` with each point line (7-107) replaced by edit(numbers)."""
+    lines = text.splitlines()
+    for i in range(6, len(lines)):
+        v = [float(x) for x in lines[i].split()]
+        lines[i] = " ".join(repr(x) for x in edit(v))
+    return "\n".join(lines) + "\n"
+
+
+def scale_mode(k: int, s: float):
+    """Point-line edit: the translational shape psi of mode k (1-4) times s."""
+    def edit(v):
+        for c in range(3):
+            v[4 + 3 * (k - 1) + c] *= s
+        return v
+    return edit
+
+
+def mix_modes(v):
+    """Point-line edit: mode 2's psi plus 1 % of mode 1's (no longer orthogonal)."""
+    for c in range(3):
+        v[7 + c] += 0.01 * v[4 + c]
+    return v
+
+
+POINT = "expected 28 numbers (x y z mass, then psi and phi of each of the 4 modes)"
+
+# (id, corruption of the file's text, expected fault after 'g.modal: '); {size} is the
+# corrupted file's size in bytes
+MODAL_CORRUPTIONS = [
+    ("modes_fewer_than_frequencies", lambda t: t.replace("modes 4", "modes 3"),
+     "line 5: frequencies_hz: expected 3 positive frequencies (modes 3), got 4 numbers"),
+    ("modes_zero", lambda t: t.replace("modes 4", "modes 0"),
+     "line 5: frequencies_hz: expected 0 positive frequencies (modes 0), got 4 numbers"),
+    ("modes_fewer_than_the_rows_hold",
+     lambda t: re.sub(r"(frequencies_hz.*) \S+\n", r"\1\n", t.replace("modes 4", "modes 3")),
+     "line 7: point 1: expected 22 numbers (x y z mass, then psi and phi of each of the 3 modes), got 28"),
+    ("modes_zero_rows_hold_four",
+     lambda t: re.sub(r"frequencies_hz.*", "frequencies_hz", t.replace("modes 4", "modes 0")),
+     "line 7: point 1: expected 4 numbers (x y z mass, then psi and phi of each of the 0 modes), got 28"),
+    ("modes_more_than_the_rows_hold", lambda t: t.replace("modes 4", "modes 5").replace(
+        "frequencies_hz ", "frequencies_hz 100.0 "),
+     "line 7: point 1: expected 34 numbers (x y z mass, then psi and phi of each of the 5 modes), got 28"),
+    ("format_version_3", lambda t: t.replace("pymr-modal 1", "pymr-modal 3"),
+     "line 3: pymr-modal: expected the format version 1 or 2, got '3'"),
+    ("format_version_1.0", lambda t: t.replace("pymr-modal 1", "pymr-modal 1.0"),
+     "line 3: pymr-modal: expected the format version 1 or 2, got '1.0'"),
+    ("format_version_two_words", lambda t: t.replace("pymr-modal 1", "pymr-modal 1 2"),
+     "line 3: pymr-modal: expected the format version 1 or 2, got '1 2'"),
+    ("extra_column", lambda t: set_word(t, 9, 28, t.splitlines()[8].split()[27] + " 0.5"),
+     f"line 9: point 3: {POINT}, got 29"),
+    ("missing_column", lambda t: "\n".join(
+        (" ".join(ln.split()[:-1]) if k == 99 else ln) for k, ln in enumerate(t.splitlines())) + "\n",
+     f"line 100: point 94: {POINT}, got 27"),
+    ("extra_frequency", lambda t: t.replace("frequencies_hz ", "frequencies_hz 3.0 "),
+     "line 5: frequencies_hz: expected 4 positive frequencies (modes 4), got 5 numbers"),
+    ("count_with_words_after", lambda t: t.replace("modes 4", "modes 4 modes"),
+     "line 4: modes: expected a count, got '4 modes'"),
+    ("nan_mass", lambda t: set_word(t, 7, 4, "NaN"), "line 7: point 1: mass: NaN is not a finite number"),
+    ("inf_psi", lambda t: set_word(t, 8, 5, "Inf"), "line 8: point 2: psi_x of mode 1: Inf is not a finite number"),
+    ("minus_inf_phi", lambda t: set_word(t, 50, 28, "-inf"),
+     "line 50: point 44: phi_z of mode 4: -inf is not a finite number"),
+    ("nan_frequency", lambda t: set_word(t, 5, 3, "nan"),
+     "line 5: frequencies_hz: frequency 2: nan is not a finite number"),
+    ("overflowing_number", lambda t: set_word(t, 7, 1, "1e999"), "line 7: point 1: x: 1e999 is not a finite number"),
+    ("not_a_number", lambda t: set_word(t, 8, 9, "abc"), "line 8: point 2: psi_y of mode 2: 'abc' is not a number"),
+    ("fortran_slash", lambda t: set_word(t, 8, 2, "1/2"), "line 8: point 2: y: '1/2' is not a number"),
+    ("fortran_repeat", lambda t: set_word(t, 8, 2, "2*0"), "line 8: point 2: y: '2*0' is not a number"),
+    ("negative_frequency", lambda t: set_word(t, 5, 3, "-40"),
+     "line 5: frequencies_hz: frequency 2: expected a positive frequency (Hz), got -40"),
+    ("points_more_than_the_file_holds", lambda t: t.replace("points 101", "points 102"),
+     "line 6: points: 102 points, but the file ends after 101 (line 107)"),
+    ("points_fewer_than_the_file_holds", lambda t: t.replace("points 101", "points 100"),
+     "line 107: more lines than the 100 points of line 6"),
+    ("points_2e9", lambda t: t.replace("points 101", "points 2000000000"),
+     "line 6: points: 2000000000 lines of 28 numbers cannot be in this file ({size} bytes)"),
+    ("modes_2e9", lambda t: t.replace("modes 4", "modes 2000000000"),
+     "line 4: modes: 2000000000 frequencies cannot be in this file ({size} bytes)"),
+    ("points_beyond_an_integer", lambda t: t.replace("points 101", "points 99999999999"),
+     "line 6: points: expected a positive count, got '99999999999'"),
+    ("mode_not_mass_normalised", lambda t: edit_lines(t, scale_mode(2, 1.01)),
+     "line 6: points: the modes are not mass-normalised: the sum of mass psi_2.psi_2 over the points is 1.0201, "
+     "expected 1 (to 0.0001)"),
+    ("modes_not_orthogonal", lambda t: edit_lines(t, mix_modes),
+     "line 6: points: the modes are not mass-normalised: the sum of mass psi_1.psi_2 over the points is 0.01, "
+     "expected 0 (to 0.0001)"),
+    ("more_modes_than_masses_can_carry", lambda t: "\n".join(t.replace("points 101", "points 1").splitlines()[:7]) + "\n",
+     "line 4: modes: 4 modes, but 1 point carries mass: at most 3 modes a point can be mass-normalised"),
+]
+
+
+@pytest.mark.parametrize("corrupt, fault", [c[1:] for c in MODAL_CORRUPTIONS], ids=[c[0] for c in MODAL_CORRUPTIONS])
+def test_a_modal_file_that_contradicts_itself_is_one_line_exit_1(gun_modal, modal_scene, mrsim, corrupt, fault):
+    """Each corruption of a real modal file: mrsim's exit status 1 and one line naming the
+    scene's group, the modal file, its line and the item (never a run, exit 2 or a runtime
+    message)."""
+    folder, scene, prefix = modal_scene
+    text = corrupt(gun_modal)
+    assert text != gun_modal
+    (folder / "g.modal").write_text(text)
+    fault = fault.format(size=len(text.encode()))
+    assert one_line(mrsim_run(mrsim, folder, scene)) == prefix + fault
+    assert not (folder / "out.csv").exists()
+
+
+def test_the_real_modal_file_runs_and_python_gets_the_same_line(gun_modal, modal_scene, mrsim):
+    """The file as written runs (exit 0); through Python a fault is a SceneError of the same
+    one line, and `pymr run` says it with exit status 1."""
+    folder, scene, prefix = modal_scene
+    (folder / "g.modal").write_text(gun_modal)
+    r = mrsim_run(mrsim, folder, scene)
+    assert r.returncode == 0, r.stderr
+    (folder / "g.modal").write_text(set_word(gun_modal, 7, 4, "NaN"))
+    fault = "line 7: point 1: mass: NaN is not a finite number"
+    with pytest.raises(pymr.SceneError) as exc:
+        pymr.run(folder / scene, folder / "py.csv", overrides={"scene.t_end": 0.002})
+    line = re.search(r"s\.nml:(\d+):", prefix).group(1)
+    assert str(exc.value) == f"{folder / scene}:{line}: &body 'gun': modal_file: {folder / 'g.modal'}: {fault}"
+    r = pymr_cli("run", scene, "-o", "cli.csv", "--set", "scene.t_end=0.002", cwd=folder)
+    assert one_line(r) == "pymr: error: " + prefix.removeprefix("mrsim: error: ") + fault
+
+
+@pytest.mark.parametrize("digits, runs", [(6, True), (4, False)])
+def test_mass_normalisation_tolerance_is_the_stated_one(gun_modal, modal_scene, mrsim, digits, runs):
+    """The kernel's tolerance, 1e-4 on |M_ij - delta_ij|: the barrel's file rounded to 6
+    significant digits (measured 2.0e-6 off) runs; a mode scaled so that its modal mass is
+    1 + 0.5e-4 runs, 1 + 2e-4 is refused. Rounded to 4 digits (1.6e-4 off) it is refused."""
+    folder, scene, prefix = modal_scene
+    rounded = re.sub(r"-?\d\.\d+E[+-]\d+", lambda m: f"{float(m.group(0)):.{digits - 1}e}", gun_modal)
+    (folder / "g.modal").write_text(rounded)
+    r = mrsim_run(mrsim, folder, scene)
+    if runs:
+        assert r.returncode == 0, r.stderr
+    else:
+        assert re.fullmatch(re.escape(prefix) + r"line 6: points: the modes are not mass-normalised: the sum of "
+                            r"mass psi_\d\.psi_\d over the points is [-0-9.e]+, expected [01] \(to 0\.0001\)",
+                            one_line(r))
+    for scale, ok in ((1 + 0.5e-4, True), (1 + 2e-4, False)):
+        (folder / "g.modal").write_text(edit_lines(gun_modal, scale_mode(3, float(np.sqrt(scale)))))
+        r = mrsim_run(mrsim, folder, scene)
+        if ok:
+            assert r.returncode == 0, r.stderr
+        else:
+            assert one_line(r) == prefix + ("line 6: points: the modes are not mass-normalised: the sum of mass "
+                                            "psi_3.psi_3 over the points is 1.0002, expected 1 (to 0.0001)")
+
+
+FORMAT2 = ("pymr-modal 2\nmodes 1\nfrequencies_hz 5.0\ninvariants\nmass 2.0\nfirst_moments\n0 1 0 0\n1 0 0 0\n"
+           "second_moments\n0 0 1 0 0 0 0 0 0 0 0\n0 1 0 0 0 0 0 0 0 0 0\n1 1 1 0 0 0 0 0 0 0 0\npoints 1\n"
+           "0 0 0 0 0 1 0 0 0 1\n")
+FORMAT2_CORRUPTIONS = [
+    ("nan_in_w", FORMAT2.replace("1 1 1 0 0 0 0 0", "1 1 1 0 0 0 NaN 0"),
+     "line 12: second_moments: W(2, 2, 1, 1): NaN is not a finite number"),
+    ("extra_column_in_first_moments", FORMAT2.replace("0 1 0 0\n", "0 1 0 0 0\n"),
+     "line 7: first_moments: expected 0 and F(1:3, 0), 4 numbers, got 5"),
+    ("extra_column_in_second_moments", FORMAT2.replace("0 1 0 0 0 0 0 0 0 0 0\n", "0 1 0 0 0 0 0 0 0 0 0 0\n"),
+     "line 11: second_moments: expected 0 1 and the 9 numbers of W(1:3, 1:3, 0, 1) row by row, 11 numbers, got 12"),
+    ("words_after_invariants", FORMAT2.replace("invariants\n", "invariants 2\n"),
+     "line 4: invariants: nothing may follow it on its line, got '2'"),
+    ("inf_mass", FORMAT2.replace("mass 2.0", "mass inf"), "line 5: mass: mass: inf is not a finite number"),
+    ("not_mass_normalised", FORMAT2.replace("1 1 1 0 0 0 0 0 0 0 0", "1 1 0.5 0 0 0 0 0 0 0 0"),
+     "line 12: second_moments: the modes are not mass-normalised: W11+W22+W33 of modes 1 and 1 is 0.5, expected 1 "
+     "(to 0.0001)"),
+    ("second_moments_beyond_the_file", "pymr-modal 2\nmodes 1000\nfrequencies_hz" + " 1" * 1000 +
+     "\ninvariants\nmass 2.0\nfirst_moments\n", "line 2: modes 1000: 501501 second_moments lines of 11 numbers "
+     "cannot be in this file ({size} bytes)"),
+]
+
+
+@pytest.mark.parametrize("text, fault", [c[1:] for c in FORMAT2_CORRUPTIONS], ids=[c[0] for c in FORMAT2_CORRUPTIONS])
+def test_a_format_2_file_that_contradicts_itself_is_one_line(tmp_path, text, fault):
+    """Format 2 (the invariants block that modal-import writes): the same rules, through
+    Python's SceneError (the kernel's one line)."""
+    scene = tmp_path / "s.nml"
+    scene.write_text("&scene t_end = 0.01 /\n&integrator method = 'single', h_slow = 1e-3 /\n"
+                     "&body name = 'g', kind = 'ground' /\n&body name = 'b', kind = 'modal', modal_file = 'b.modal' /\n"
+                     "&joint name = 'j', kind = 'fixed', parent = 'g', child = 'b' /\n")
+    (tmp_path / "b.modal").write_text(FORMAT2)
+    pymr.run(scene, tmp_path / "ok.csv")
+    (tmp_path / "b.modal").write_text(text)
+    with pytest.raises(pymr.SceneError) as exc:
+        pymr.run(scene, tmp_path / "x.csv")
+    where = f"{scene}:4: &body 'b': modal_file: {tmp_path / 'b.modal'}: "
+    assert str(exc.value) == where + fault.format(size=len(text.encode()))
