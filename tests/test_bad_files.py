@@ -271,3 +271,46 @@ def test_a_format_2_file_that_contradicts_itself_is_one_line(tmp_path, text, fau
         pymr.run(scene, tmp_path / "x.csv")
     where = f"{scene}:4: &body 'b': modal_file: {tmp_path / 'b.modal'}: "
     assert str(exc.value) == where + fault.format(size=len(text.encode()))
+
+
+# ----------------------------------------------------------------------------- tables
+
+RAIL = """&scene title = 'slider on a rail', t_end = 0.05 /
+&integrator method = 'single', h_slow = 1e-2 /
+&effects {effect} = .true. /
+&body name = 'ground', kind = 'ground' /
+&body name = 'slider', kind = 'rigid', mass = 2.0, inertia = 1.0, 1.0, 1.0, 0.0, 0.0, 0.0 /
+&joint name = 'rail', kind = 'prismatic', parent = 'ground', child = 'slider', axis = 1.0, 0.0, 0.0 /
+{group}
+"""
+TABLE = "# t (s), value\n0.0 0.0\n0.5, 2.0\n1.0 2.0\n"
+TABLE_CORRUPTIONS = [
+    ("three_columns", TABLE.replace("0.5, 2.0", "0.5, 2.0, 7.0"),
+     "line 3: expected two finite numbers (time, value), got 3: 0.5, 2.0, 7.0"),
+    ("three_columns_blanks", TABLE.replace("1.0 2.0", "1.0 2.0 3.0"),
+     "line 4: expected two finite numbers (time, value), got 3: 1.0 2.0 3.0"),
+    ("one_column", TABLE.replace("1.0 2.0", "1.0"), "line 4: expected two finite numbers (time, value), got 1: 1.0"),
+    ("trailing_comment", TABLE.replace("1.0 2.0", "1.0 2.0 # held"),
+     "line 4: expected two finite numbers (time, value), got 4: 1.0 2.0 # held"),
+    ("fortran_slash", TABLE.replace("1.0 2.0", "1.0 2/3"), "line 4: expected two finite numbers (time, value), got: 1.0 2/3"),
+    ("nan", TABLE.replace("1.0 2.0", "1.0 nan"), "line 4: expected two finite numbers (time, value), got: 1.0 nan"),
+]
+
+
+@pytest.mark.parametrize("group, effect, where", [
+    ("&drive joint = 'rail', form = 'table', file = 't.csv' /", "joint_drives", "s.nml:7: &drive #1: file"),
+    ("&motion joint = 'rail', form = 'table', file = 't.csv' /", "base_motion", "s.nml:7: &motion #1: file"),
+], ids=["drive", "motion"])
+@pytest.mark.parametrize("table, fault", [c[1:] for c in TABLE_CORRUPTIONS], ids=[c[0] for c in TABLE_CORRUPTIONS])
+def test_a_table_line_of_other_than_two_numbers_is_one_line_exit_1(tmp_path, mrsim, group, effect, where, table,
+                                                                   fault):
+    """A drive's or a motion's table with a third column (a file written for something
+    else) was read as its first two; now any line of other than two numbers is refused:
+    exit 1, one line naming the scene's item, the table file and its line."""
+    (tmp_path / "s.nml").write_text(RAIL.format(group=group, effect=effect))
+    (tmp_path / "t.csv").write_text(TABLE)
+    r = subprocess.run([mrsim, "s.nml", "-o", "ok.csv"], cwd=tmp_path, capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0, r.stderr
+    (tmp_path / "t.csv").write_text(table)
+    r = subprocess.run([mrsim, "s.nml", "-o", "out.csv"], cwd=tmp_path, capture_output=True, text=True, timeout=60)
+    assert one_line(r) == f"mrsim: error: {where}: 't.csv' {fault}"
