@@ -314,3 +314,25 @@ def test_a_table_line_of_other_than_two_numbers_is_one_line_exit_1(tmp_path, mrs
     (tmp_path / "t.csv").write_text(table)
     r = subprocess.run([mrsim, "s.nml", "-o", "out.csv"], cwd=tmp_path, capture_output=True, text=True, timeout=60)
     assert one_line(r) == f"mrsim: error: {where}: 't.csv' {fault}"
+
+
+# ----------------------------------------------------------------------------- header counts elsewhere
+
+def test_a_checkpoint_s_saved_scene_length_is_held_against_its_size(tmp_path):
+    """The checkpoint's one count, the length of its integrator settings' text, goes through
+    the same check_header_count as the modal file's (the checksum is made to hold: the file
+    is otherwise whole)."""
+    import hashlib
+    import struct
+    out = tmp_path / "job.csv"
+    pymr.run(TANK, out, overrides={"scene.t_end": 0.3, "output.checkpoint_dt": 0.2})
+    data = bytearray((tmp_path / "job.ckpt").read_bytes())
+    assert data[:8] == b"PYMRCKPT"
+    assert 0 < struct.unpack_from("<i", data, 60)[0] < len(data)     # after the tag, versions, sizes, name, time
+    struct.pack_into("<i", data, 60, 2_000_000_000)
+    data[-64:] = hashlib.sha256(bytes(data[:-64])).hexdigest().encode()
+    (tmp_path / "job.ckpt").write_bytes(bytes(data))
+    with pytest.raises(pymr.SceneError) as exc:
+        pymr.run(TANK, out, overrides={"output.checkpoint_dt": 0.2}, restart=tmp_path / "job.ckpt")
+    assert str(exc.value) == (f"{TANK}: {tmp_path / 'job.ckpt'}: its integrator settings: 2000000000 bytes cannot "
+                              f"be in this file ({len(data)} bytes)")
