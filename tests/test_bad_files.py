@@ -336,3 +336,20 @@ def test_a_checkpoint_s_saved_scene_length_is_held_against_its_size(tmp_path):
         pymr.run(TANK, out, overrides={"output.checkpoint_dt": 0.2}, restart=tmp_path / "job.ckpt")
     assert str(exc.value) == (f"{TANK}: {tmp_path / 'job.ckpt'}: its integrator settings: 2000000000 bytes cannot "
                               f"be in this file ({len(data)} bytes)")
+
+
+# ----------------------------------------------------------------------------- outputs over inputs
+
+@pytest.mark.parametrize("spelling", ["./p.nml", "../{folder}/p.nml", "link.nml"])
+def test_an_output_is_held_against_the_inputs_as_a_file_not_as_a_spelling(tmp_path, mrsim, spelling):
+    """The kernel's scene_input compared absolute paths, so `-o ../DIR/p.nml` was not the
+    scene p.nml and the results replaced it; same_file compares the files on the disk (the
+    rule modal-import's -o uses through the binding too)."""
+    (tmp_path / "p.nml").write_text((ROOT / "input" / "pendulum.nml").read_text())
+    os.symlink("p.nml", tmp_path / "link.nml")
+    before = (tmp_path / "p.nml").read_bytes()
+    out = spelling.format(folder=tmp_path.name)
+    r = subprocess.run([mrsim, "p.nml", "-o", out], cwd=tmp_path, capture_output=True, text=True, timeout=60)
+    assert one_line(r) == (f"mrsim: error: p.nml: output {out}: would overwrite the scene (p.nml); choose another "
+                           "results file")
+    assert (tmp_path / "p.nml").read_bytes() == before

@@ -10,7 +10,7 @@ module pymr_io_text_file
   implicit none
   private
   public :: write_text_file, rename_file, sync_file, check_size, file_size, scene_relative, absolute_path, acquire_lock, &
-    & release_lock, not_regular, read_text_file, check_header_count
+    & release_lock, not_regular, read_text_file, check_header_count, same_file
 
   interface
     function c_rename(old, new) bind(c, name='rename') result(r)
@@ -54,6 +54,11 @@ module pymr_io_text_file
       character(kind=c_char), intent(in) :: path(*)
       integer(c_int) :: kind
     end function c_file_kind
+    function c_same_file(a, b) bind(c, name='pymr_same_file') result(same)
+      import :: c_char, c_int
+      character(kind=c_char), intent(in) :: a(*), b(*)
+      integer(c_int) :: same
+    end function c_same_file
     function c_getcwd(buf, size) bind(c, name='getcwd') result(p)
       import :: c_char, c_size_t, c_ptr
       character(kind=c_char), intent(out) :: buf(*)
@@ -150,6 +155,23 @@ contains
     call fatal_error(error, path // ': ' // where // ': ' // itoa(count) // ' ' // what // &
       & ' cannot be in this file (' // itoa(sz) // ' bytes)')
   end subroutine check_header_count
+
+  !> Do `a` and `b` name one file? When both are there, whether they are the same file on
+  !> the disk (links followed; any spelling: './', '..', a link); else whether their
+  !> absolute paths are equal. The one rule by which an output is refused that would
+  !> replace an input.
+  function same_file(a, b) result(same)
+    character(len=*), intent(in) :: a, b
+    logical :: same
+    select case (c_same_file(a // c_null_char, b // c_null_char))
+    case (0)
+      same = .false.
+    case (1)
+      same = .true.
+    case default
+      same = absolute_path(a) == absolute_path(b)
+    end select
+  end function same_file
 
   !> Remove a file if it is there (a temporary one left by a failed write).
   subroutine remove_file(path)
