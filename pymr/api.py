@@ -20,15 +20,23 @@ from .errors import OutputError, PymrError, ResultsError, SceneError, SolverErro
 from .results import Results, load_results
 
 
+def check_writable(path: str | os.PathLike, what: str) -> Path:
+    """`path` can be written as a file: it is no directory (``-o .`` names one). Else an
+    :class:`OutputError` naming the file and `what` it was to hold. A command checks its
+    output with it before the work; :func:`write_file` again when it writes."""
+    path = Path(path)
+    if path.is_dir():
+        raise OutputError(f"{path}: cannot write the {what} (it is a directory)")
+    return path
+
+
 def write_file(path: str | os.PathLike, data: str | bytes, what: str) -> Path:
     """Write `data` to `path` whole or not at all: a temporary file beside it, flushed to
     the disk (fsync), then renamed over it, so an earlier complete file survives a failed
     write. A failure is an :class:`OutputError` naming the file and `what` it was to hold."""
-    path = Path(path)
+    path = check_writable(path, what)       # before the temporary name: '.' has none
     tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
     try:
-        if path.is_dir():
-            raise IsADirectoryError(21, "it is a directory")
         with open(tmp, "wb") as fh:
             fh.write(data.encode() if isinstance(data, str) else data)
             fh.flush()

@@ -316,6 +316,157 @@ def test_a_table_line_of_other_than_two_numbers_is_one_line_exit_1(tmp_path, mrs
     assert one_line(r) == f"mrsim: error: {where}: 't.csv' {fault}"
 
 
+# ----------------------------------------------------------------------------- pymr modal-import
+
+from test_modal_import import beam_matrices, write_fe  # noqa: E402
+
+
+@pytest.fixture
+def fe(tmp_path):
+    """A 4-element beam (5 nodes, 6 DOFs each: 30 rows) as Matrix Market files and a nodes
+    file, and a DOF map of its rows; the folder and the files' names."""
+    k, m, nodes = beam_matrices(2.0, 2e11, 7800.0, 1e-3, 1e-7, 2e-7, 4)
+    write_fe(tmp_path, k, m, nodes)
+    (tmp_path / "map.txt").write_text("".join(f"{r + 1} {r // 6 + 1} {r % 6 + 1}\n" for r in range(30)))
+    return tmp_path
+
+
+BASE = ["--mass", "m.mtx", "--stiffness", "k.mtx", "--nodes", "nodes.csv", "--interface", "1", "5"]
+INPUTS = [("mass matrix", "m.mtx"), ("stiffness matrix", "k.mtx"), ("nodes file", "nodes.csv"), ("DOF map", "map.txt")]
+
+
+@pytest.mark.parametrize("what, name", INPUTS, ids=[i[1] for i in INPUTS])
+@pytest.mark.parametrize("spelling", ["same", "dot", "dotdot", "link"])
+def test_modal_import_never_writes_over_its_input(fe, what, name, spelling):
+    """-o naming one of modal-import's own input files, by any spelling (./m.mtx, a path
+    through .., a symbolic link to it) replaced it with exit 0; now the kernel's same_file
+    refuses it before any work, from the command line (exit 1, one line) and from
+    pymr.modal_import(output=...) (ImportInputError), and the input is unchanged."""
+    dof = ["--dof-map", "map.txt"] if name == "map.txt" else []
+    out = {"same": name, "dot": f"./{name}", "dotdot": f"../{fe.name}/{name}", "link": "link"}[spelling]
+    if spelling == "link":
+        os.symlink(name, fe / "link")
+    before = (fe / name).read_bytes()
+    shown = str(Path(out))
+    r = pymr_cli("modal-import", *BASE, *dof, "-o", out, cwd=fe)
+    assert one_line(r) == (f"pymr: error: {shown}: would overwrite the {what} ({name}); choose another modal "
+                           "data file (-o)")
+    assert (fe / name).read_bytes() == before
+    with pytest.raises(ImportInputError, match=r"^[^\n]*: would overwrite the " + what + r" \([^\n]*\)"):
+        pymr.modal_import(fe / "m.mtx", fe / "k.mtx", fe / "nodes.csv", [1, 5], output=fe / out,
+                          dof_map=fe / "map.txt" if dof else None)
+    assert (fe / name).read_bytes() == before
+    r = pymr_cli("modal-import", *BASE, *dof, "-o", "body.modal", "-q", cwd=fe)
+    assert r.returncode == 0 and r.stderr == "" and (fe / "body.modal").is_file()
+
+
+@pytest.mark.parametrize("out", [".", "..", "folder"])
+def test_modal_import_into_a_directory_is_one_line(fe, out):
+    """-o . gave a traceback (ValueError: PosixPath('.') has an empty name); a directory is
+    now an OutputError before any work: exit 1, one line."""
+    (fe / "folder").mkdir()
+    r = pymr_cli("modal-import", *BASE, "-o", out, cwd=fe)
+    assert one_line(r) == f"pymr: error: {out}: cannot write the modal data file (it is a directory)"
+    with pytest.raises(pymr.OutputError, match=r"cannot write the modal data file \(it is a directory\)$"):
+        pymr.modal_import(fe / "m.mtx", fe / "k.mtx", fe / "nodes.csv", [1, 5], output=fe / out)
+
+
+def test_modal_import_keep_0_says_what_is_wrong_with_keep(fe):
+    """--keep 0 blamed the stiffness file ('the reduced body has no mode with mass'); it is
+    the option that is wrong. So is --modes 0 with no other interface node."""
+    r = pymr_cli("modal-import", *BASE, "--keep", "0", "-o", "b.modal", cwd=fe)
+    assert one_line(r) == "pymr: error: --keep 0: the count of modes to write, at least 1 (leave it out for all)"
+    r = pymr_cli("modal-import", *BASE[:-1], "--modes", "0", "-o", "b.modal", cwd=fe)
+    assert one_line(r) == ("pymr: error: --modes 0: the body would have no mode (no interface node besides the "
+                           "origin gives a constraint mode): ask for 1 or more")
+    assert not (fe / "b.modal").exists()
+
+
+MATRIX_CORRUPTIONS = [
+    ("rows_1e9", "%%MatrixMarket matrix coordinate real symmetric\n1000000000 1000000000 1\n1 1 1.0\n",
+     "line 2: 1000000000 rows, but nodes.csv has 5 nodes x 6 DOFs = 30"),
+    ("array_rows_1e9", "%%MatrixMarket matrix array real general\n1000000000 1000000000\n1.0\n",
+     "line 2: 1000000000 rows, but nodes.csv has 5 nodes x 6 DOFs = 30"),
+    ("entries_1e9", "%%MatrixMarket matrix coordinate real symmetric\n30 30 1000000000\n1 1 1.0\n",
+     "line 2: the size line gives 1000000000 entries (30 x 30, symmetric), the file holds 1"),
+    ("array_values_short", "%%MatrixMarket matrix array real general\n30 30\n1.0\n2.0\n",
+     "line 2: the size line gives 900 values (30 x 30, general), the file holds 2"),
+    ("rows_short", "%%MatrixMarket matrix coordinate real general\n24 24 1\n1 1 1.0\n",
+     "line 2: 24 rows, but nodes.csv has 5 nodes x 6 DOFs = 30"),
+]
+
+
+@pytest.mark.parametrize("which", ["m.mtx", "k.mtx"])
+@pytest.mark.parametrize("text, fault", [c[1:] for c in MATRIX_CORRUPTIONS], ids=[c[0] for c in MATRIX_CORRUPTIONS])
+def test_a_matrix_size_line_is_checked_before_allocation(fe, which, text, fault):
+    """A Matrix Market size line of 1e9 rows gave numpy's _ArrayMemoryError traceback: the
+    size line is now held against the DOF layout (nodes x DOFs, or the DOF map's lines) and
+    against the entries the file holds before the dense matrix is allocated."""
+    (fe / which).write_text(text)
+    r = pymr_cli("modal-import", *BASE, "-o", "b.modal", cwd=fe)
+    assert one_line(r) == f"pymr: error: {which}: {fault}"
+    r = pymr_cli("modal-import", *BASE, "--dof-map", "map.txt", "-o", "b.modal", cwd=fe)
+    by_map = fault.replace("nodes.csv has 5 nodes x 6 DOFs = 30", "map.txt maps 30 rows (one a line)")
+    assert one_line(r) == f"pymr: error: {which}: {by_map}"
+    assert not (fe / "b.modal").exists()
+
+
+def test_a_matrix_too_large_for_memory_is_one_line(tmp_path):
+    """Read alone (no layout to hold it against), a size line beyond the memory is an
+    ImportInputError, not numpy's MemoryError."""
+    path = tmp_path / "big.mtx"
+    path.write_text("%%MatrixMarket matrix coordinate real symmetric\n1000000000 1000000000 1\n1 1 1.0\n")
+    with pytest.raises(ImportInputError, match=r"^[^\n]*big\.mtx: line 2: 1000000000 x 1000000000: too large for "
+                                               r"this machine's memory as a dense matrix \(8e\+09 GB\)$"):
+        read_matrix_market(path)
+
+
+WRONG_ARGUMENTS = [
+    ({"modes": "many"}, "modes='many': a whole number of fixed-interface modes expected (0 or more), or None for all "
+                        "with mass"),
+    ({"modes": 2.5}, "modes=2.5: a whole number of fixed-interface modes expected (0 or more), or None for all with "
+                     "mass"),
+    ({"modes": True}, "modes=True: a whole number of fixed-interface modes expected (0 or more), or None for all "
+                      "with mass"),
+    ({"modes": -1}, "--modes -1: a count of modes (0 or more)"),
+    ({"keep": "3"}, "keep='3': a whole number of modes to write expected (1 or more), or None for all"),
+    ({"keep": 0}, "--keep 0: the count of modes to write, at least 1 (leave it out for all)"),
+    ({"interface": "15"}, "interface='15': node ids expected, whole numbers (a list such as [1, 21])"),
+    ({"interface": [1.0]}, "interface=[1.0]: node ids expected, whole numbers (a list such as [1, 21])"),
+    ({"interface": None}, "interface=None: node ids expected, whole numbers (a list such as [1, 21])"),
+    ({"clamp": "2"}, "clamp='2': node ids expected, whole numbers (a list such as [1, 21])"),
+    ({"dofs_per_node": "6"}, "dofs_per_node='6': 3 or 6 expected (or a dof_map)"),
+    ({"dofs_per_node": 4}, "--dofs-per-node 4: 3 or 6"),
+    ({"mass": 5}, "mass=5: a file name (str or path) expected"),
+    ({"stiffness": None}, "stiffness=None: a file name (str or path) expected"),
+    ({"nodes": b"nodes.csv"}, "nodes=b'nodes.csv': a file name (str or path) expected"),
+    ({"dof_map": 3}, "dof_map=3: a file name (str or path) expected"),
+    ({"output": ""}, "output='': a file name (str or path) expected"),
+    ({"title": 5}, "title=5: one line of text expected (the file's first comment)"),
+    ({"title": "a\npoints 1"}, "title='a\\npoints 1': one line of text expected (the file's first comment)"),
+]
+
+
+@pytest.mark.parametrize("change, message", WRONG_ARGUMENTS, ids=[f"{next(iter(c))}={c[next(iter(c))]!r}"
+                                                                   for c, _ in WRONG_ARGUMENTS])
+def test_modal_import_arguments_are_pymr_errors_naming_the_argument(fe, change, message):
+    """Wrong argument types raised numpy's or Python's own errors ('many' < 0, int('1') of a
+    string taken apart digit by digit); each is now an ImportInputError (a pymr.SceneError)
+    of one line naming the argument, raised before any file is read or written."""
+    args = {"mass": fe / "m.mtx", "stiffness": fe / "k.mtx", "nodes": fe / "nodes.csv", "interface": [1, 5],
+            "output": fe / "b.modal", **change}
+    with pytest.raises(ImportInputError) as exc:
+        pymr.modal_import(**args)
+    assert str(exc.value) == message
+    assert isinstance(exc.value, pymr.SceneError)
+    assert not (fe / "b.modal").exists()
+
+
+def test_modal_import_takes_one_interface_node_as_a_number(fe):
+    body = pymr.modal_import(fe / "m.mtx", fe / "k.mtx", fe / "nodes.csv", np.int64(1), modes=2)
+    assert len(body.frequencies_hz) == 2 and body.point_ids == [1]
+
+
 # ----------------------------------------------------------------------------- header counts elsewhere
 
 def test_a_checkpoint_s_saved_scene_length_is_held_against_its_size(tmp_path):
