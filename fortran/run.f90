@@ -21,7 +21,7 @@ module pymr_run
   use pymr_io_text, only : itoa, fmt
   use pymr_model_flexbody, only : point_deflection
   use pymr_io_text_file, only : absolute_path, scene_relative, acquire_lock, release_lock, not_regular, missing_folder, &
-    & commit_staged, remove_file
+    & commit_staged, remove_file, same_file
   use pymr_preflight, only : check_step_stability, check_mass_matrix, static_start
   use pymr_io_checkpoint, only : run_progress, write_checkpoint, read_checkpoint
   implicit none
@@ -155,7 +155,7 @@ contains
   contains
     logical function is(file, label)
       character(len=*), intent(in) :: file, label
-      is = absolute_path(file) == absolute_path(path)
+      is = same_file(file, path)
       if (is) what = label // ' (' // file // ')'
     end function is
   end function scene_input

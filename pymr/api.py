@@ -20,13 +20,21 @@ from .errors import ArgumentTypeError, OutputError, PymrError, ResultsError, Sce
 from .results import Results, load_results
 
 
+def check_writable(path: str | os.PathLike, what: str) -> Path:
+    """`path` can be written as a file: it is no directory (``-o .`` names one). Else an
+    :class:`OutputError` naming the file and `what` it was to hold. A command checks its
+    output with it before the work; :func:`write_file` again when it writes."""
+    path = Path(_path("path", path))
+    if path.is_dir() or not path.name:       # '.', '..', '/': no file name to write (or rename) to
+        raise OutputError(f"{path}: cannot write the {what} (it is a directory)")
+    return path
+
+
 def write_file(path: str | os.PathLike, data: str | bytes, what: str) -> Path:
     """Write `data` to `path` whole or not at all: a temporary file beside it, flushed to
     the disk (fsync), then renamed over it, so an earlier complete file survives a failed
     write. A failure is an :class:`OutputError` naming the file and `what` it was to hold."""
-    path = Path(_path("path", path))
-    if path.is_dir() or not path.name:       # '.', '..', '/': no file name to write (or rename) to
-        raise OutputError(f"{path}: cannot write the {what} (it is a directory)")
+    path = check_writable(path, what)       # before the temporary name: '.' has none
     tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
     try:
         with open(tmp, "wb") as fh:

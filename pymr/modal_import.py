@@ -26,7 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .api import SceneError, write_file
+from . import _kernel as _core
+from .api import SceneError, check_writable, write_file
 
 #: names of the six DOFs of a node, in the order of dofs_per_node 6 and DOF map numbers 1-6
 DOF_NAMES = ("u_x", "u_y", "u_z", "theta_x", "theta_y", "theta_z")
@@ -69,8 +70,12 @@ def _lines(path: Path, comment: str):
             yield k, s
 
 
-def read_matrix_market(path: str | os.PathLike) -> np.ndarray:
-    """A real Matrix Market matrix (coordinate or array; general or symmetric) as a dense array."""
+def read_matrix_market(path: str | os.PathLike, rows: tuple[int, str] | None = None) -> np.ndarray:
+    """A real Matrix Market matrix (coordinate or array; general or symmetric) as a dense array.
+    `rows`: (count, why) when the caller knows how many rows the matrix must have (`why` says
+    from what, for the message). The size line is checked against it, and against the
+    entries the file holds, before the dense array is allocated (a size line of 1e9 asked
+    numpy for exabytes)."""
     path = Path(path)
     try:
         with open(path) as fh:
@@ -86,10 +91,10 @@ def read_matrix_market(path: str | os.PathLike) -> np.ndarray:
             or sym not in ("general", "symmetric"):
         raise ImportInputError(f"{path}: line 1: {' '.join(header[2:])}: only real coordinate or array matrices, "
                                "general or symmetric, are read")
-    rows = list(_lines(path, "%"))
-    if not rows:
+    lines = list(_lines(path, "%"))
+    if not lines:
         raise ImportInputError(f"{path}: no size line")
-    k, size = rows[0]
+    k, size = lines[0]
     try:
         dims = [int(v) for v in size.split()]
     except ValueError:
@@ -100,12 +105,20 @@ def read_matrix_market(path: str | os.PathLike) -> np.ndarray:
     nr, nc = dims[:2]
     if nr != nc:
         raise ImportInputError(f"{path}: {nr} x {nc}: a square matrix expected")
-    a = np.zeros((nr, nc))
-    body = rows[1:]
+    if rows is not None and nr != rows[0]:
+        raise ImportInputError(f"{path}: line {k}: {nr} rows, but {rows[1]}")
+    body = lines[1:]
+    count = (nr * nc if sym == "general" else nr * (nr + 1) // 2) if form == "array" else dims[2]
+    if len(body) != count:
+        what = "values" if form == "array" else "entries"
+        raise ImportInputError(f"{path}: line {k}: the size line gives {count} {what} ({nr} x {nc}, {sym}), "
+                               f"the file holds {len(body)}")
+    try:
+        a = np.zeros((nr, nc))
+    except MemoryError:
+        raise ImportInputError(f"{path}: line {k}: {nr} x {nc}: too large for this machine's memory as a dense "
+                               f"matrix ({8 * nr * nc / 1e9:.3g} GB)") from None
     if form == "array":
-        count = nr * nc if sym == "general" else nr * (nr + 1) // 2
-        if len(body) != count:
-            raise ImportInputError(f"{path}: {len(body)} values, {count} expected for {nr} x {nc} ({sym})")
         values = [_number(path, k, s) for k, s in body]
         if sym == "general":
             a[:, :] = np.asarray(values).reshape(nc, nr).T
@@ -115,8 +128,6 @@ def read_matrix_market(path: str | os.PathLike) -> np.ndarray:
             a[il[order], jl[order]] = values
             a = np.tril(a) + np.tril(a, -1).T
         return a
-    if len(body) != dims[2]:
-        raise ImportInputError(f"{path}: {len(body)} entries, the size line says {dims[2]}")
     for k, s in body:
         parts = s.split()
         try:
@@ -463,6 +474,9 @@ def craig_bampton(k: np.ndarray, m: np.ndarray, clamped: np.ndarray, boundary: n
     nf = with_mass if modes is None else modes
     if nf > with_mass:
         raise ImportInputError(f"--modes {modes}: the inner DOFs have only {with_mass} modes with mass")
+    if nf + len(boundary) == 0:
+        raise ImportInputError(f"--modes {modes}: the body would have no mode (no interface node besides the origin "
+                               "gives a constraint mode): ask for 1 or more")
     phi_i = v[:, :nf] / np.sqrt(mu[:nf])
     psi_c = -np.linalg.solve(kii, k[np.ix_(inner, boundary)]) if len(inner) else np.zeros((0, len(boundary)))
     # basis over the free DOFs (inner first, then boundary)
@@ -503,13 +517,29 @@ def modal_import(mass: str | os.PathLike, stiffness: str | os.PathLike, nodes: s
     without rotations), `modes` fixed-interface modes (None: all) and the lowest `keep`
     modes of the reduced body written (None: all). Writes the modal file to `output` when
     given and returns the :class:`ModalBody`. Bad input raises :class:`ImportInputError`
-    (a :class:`pymr.SceneError`) naming the file."""
-    mpath, kpath, npath = Path(mass), Path(stiffness), Path(nodes)
+    (a :class:`pymr.SceneError`) naming the file, or the argument: each is checked before
+    any file is read (types, counts: `modes` 0 or more, `keep` 1 or more), and `output` may
+    not be one of the input files by any spelling (the kernel's same_file) nor a directory
+    (:class:`pymr.OutputError`)."""
+    mpath, kpath, npath = (_file_argument(n, v) for n, v in (("mass", mass), ("stiffness", stiffness),
+                                                                ("nodes", nodes)))
+    dof_map = None if dof_map is None else _file_argument("dof_map", dof_map)
+    interface, clamp = _node_ids("interface", interface), _node_ids("clamp", clamp)
+    _counts(dofs_per_node, dof_map, modes, keep)
+    if not isinstance(title, str) or "\n" in title or "\r" in title:
+        raise ImportInputError(f"title={title!r}: one line of text expected (the file's first comment)")
+    if output is not None:
+        output = _file_argument("output", output)
+        for what, path in (("mass matrix", mpath), ("stiffness matrix", kpath), ("nodes file", npath),
+                           ("DOF map", dof_map)):
+            if path is not None and _core.pymr_same_file(os.fspath(output), os.fspath(path)):
+                raise ImportInputError(f"{output}: would overwrite the {what} ({path}); choose another modal "
+                                       "data file (-o)")
+        check_writable(output, "modal data file")
     ids, xyz = read_nodes(npath)
-    mm = read_matrix_market(mpath)
-    kk = read_matrix_market(kpath)
-    if mm.shape != kk.shape:
-        raise ImportInputError(f"{kpath}: {kk.shape[0]} x {kk.shape[1]}, but {mpath} is {mm.shape[0]} x {mm.shape[1]}")
+    rows = layout_rows(ids, npath, dofs_per_node, dof_map)
+    mm = read_matrix_market(mpath, rows)
+    kk = read_matrix_market(kpath, rows)
     check_symmetric(mm, mpath)
     check_symmetric(kk, kpath)
     mm, kk = 0.5 * (mm + mm.T), 0.5 * (kk + kk.T)
@@ -518,8 +548,6 @@ def modal_import(mass: str | os.PathLike, stiffness: str | os.PathLike, nodes: s
         raise ImportInputError(f"{mpath}: not positive semi-definite (an eigenvalue {lowest:.3g}): not a mass matrix")
     dof = dof_layout(ids, mm.shape[0], mpath, npath, dofs_per_node, dof_map)
     index = {nid: n for n, nid in enumerate(ids)}
-    interface = [int(v) for v in interface]
-    clamp = [int(v) for v in clamp]
     if not interface:
         raise ImportInputError("--interface: give at least the node where the body is attached")
     for nid in interface + clamp:
@@ -532,9 +560,6 @@ def modal_import(mass: str | os.PathLike, stiffness: str | os.PathLike, nodes: s
     used = (dof >= 0).any(axis=1)             # nodes of the nodes file that the matrices leave out play no part
     ids, xyz, dof = [nid for nid, u_ in zip(ids, used) if u_], xyz[used], dof[used]
     index = {nid: n for n, nid in enumerate(ids)}
-    for name, v in (("--modes", modes), ("--keep", keep)):
-        if v is not None and v < 0:
-            raise ImportInputError(f"{name} {v}: a count of modes (0 or more)")
     attach = [interface[0]] + clamp
     held = [index[n] for n in attach]
     rows = lambda nodes_: np.array(sorted(int(d) for n in nodes_ for d in dof[n] if d >= 0), dtype=int)
@@ -557,6 +582,67 @@ def modal_import(mass: str | os.PathLike, stiffness: str | os.PathLike, nodes: s
     if output is not None:
         write_modal_v2(output, body, title or f"imported from {mpath.name}, {kpath.name}, {npath.name}")
     return body
+
+
+# ----------------------------------------------------------------------------- the arguments
+
+def _whole(value) -> bool:
+    return isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
+
+
+def _file_argument(name: str, value) -> Path:
+    """A file argument: a str or os.PathLike naming a file (not empty)."""
+    try:
+        path = Path(value)
+    except TypeError:
+        path = None
+    if path is None or os.fspath(value) == "":
+        raise ImportInputError(f"{name}={value!r}: a file name (str or path) expected")
+    return path
+
+
+def _node_ids(name: str, value) -> list[int]:
+    """Node ids: a whole number or a list of them (a str is not taken apart digit by digit)."""
+    if _whole(value):
+        return [int(value)]
+    if not isinstance(value, (str, bytes)):
+        try:
+            ids = list(value)
+        except TypeError:
+            ids = None
+        if ids is not None and all(_whole(v) for v in ids):
+            return [int(v) for v in ids]
+    raise ImportInputError(f"{name}={value!r}: node ids expected, whole numbers (a list such as [1, 21])")
+
+
+def _counts(dofs_per_node, dof_map, modes, keep) -> None:
+    """The counts: dofs_per_node 3 or 6 (None with a DOF map), modes 0 or more (None: all
+    with mass), keep 1 or more (None: all)."""
+    if not (dofs_per_node is None or _whole(dofs_per_node)):
+        raise ImportInputError(f"dofs_per_node={dofs_per_node!r}: 3 or 6 expected (or a dof_map)")
+    if dof_map is None and dofs_per_node not in (3, 6):
+        raise ImportInputError(f"--dofs-per-node {dofs_per_node}: 3 or 6")
+    if not (modes is None or _whole(modes)):
+        raise ImportInputError(f"modes={modes!r}: a whole number of fixed-interface modes expected (0 or more), "
+                               "or None for all with mass")
+    if modes is not None and modes < 0:
+        raise ImportInputError(f"--modes {modes}: a count of modes (0 or more)")
+    if not (keep is None or _whole(keep)):
+        raise ImportInputError(f"keep={keep!r}: a whole number of modes to write expected (1 or more), or None "
+                               "for all")
+    if keep is not None and keep < 1:
+        raise ImportInputError(f"--keep {keep}: the count of modes to write, at least 1 (leave it out for all)")
+
+
+def layout_rows(ids: list[int], nodes_path: Path, dofs_per_node: int | None, dof_map: Path | None):
+    """The matrices' row count the DOF layout gives, and from what (for messages): nodes x
+    dofs_per_node, or one row a line of the DOF map. The matrices' size lines are checked
+    against it before anything is allocated."""
+    if dof_map is None:
+        n = dofs_per_node * len(ids)
+        return n, f"{nodes_path} has {len(ids)} nodes x {dofs_per_node} DOFs = {n}"
+    n = sum(1 for _ in _lines(dof_map, "#"))
+    return n, f"{dof_map} maps {n} rows (one a line)"
 
 
 # ----------------------------------------------------------------------------- the file

@@ -729,3 +729,14 @@ subroutine pymr_scene_input(scene, overrides, path, what, stat, message)
   if (.not. allocated(error)) what = scene_input(sc, path)
   call report(error, stat, message)
 end subroutine pymr_scene_input
+
+!> Do `a` and `b` name one file (the kernel's same_file: the same file on the disk when both
+!> are there, else the same absolute path)? 1 yes, 0 no: the rule by which an output that
+!> would replace an input is refused, for the outputs Python writes.
+subroutine pymr_same_file(a, b, same)
+  use pymr_io_text_file, only : same_file
+  implicit none
+  character(len=*), intent(in) :: a, b
+  integer, intent(out) :: same
+  same = merge(1, 0, same_file(a, b))
+end subroutine pymr_same_file

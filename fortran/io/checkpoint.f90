@@ -9,7 +9,7 @@
 !> checked, flushed and renamed, so a run killed while writing keeps the previous checkpoint.
 module pymr_io_checkpoint
   use, intrinsic :: iso_fortran_env, only : int64
-  use pymr_io_text_file, only : rename_file, sync_file, check_size, not_regular
+  use pymr_io_text_file, only : rename_file, sync_file, check_size, not_regular, check_header_count
   use pymr_kinds, only : dp
   use pymr_error, only : error_type, fatal_error, stat_solver
   use pymr_integrator_stepper, only : stepper_t
@@ -139,6 +139,10 @@ contains
     end if
     if (ios == 0) read(u, iostat=ios) pv, n, nj, name, t, ls
     if (ios == 0) then
+      call check_header_count(path, 'its integrator settings', int(max(ls, 0), int64), 1, 'bytes', error)
+      if (allocated(error)) then
+        close(u); return
+      end if
       allocate(character(len=ls) :: saved)
       read(u, iostat=ios) saved, fp
     end if

@@ -11,7 +11,7 @@ module pymr_io_item_table
   use pymr_kinds, only : dp, name_len
   use pymr_error, only : error_type, fatal_error
   use pymr_io_namelist_parse, only : token_t
-  use pymr_io_text, only : itoa, lower, fmt, exact_text, char_length
+  use pymr_io_text, only : itoa, lower, fmt, exact_text, char_length, number_text
   use pymr_io_text_file, only : scene_relative, absolute_path
   implicit none
   private
@@ -398,61 +398,17 @@ contains
     clean_text = .true.
   end function clean_text
 
-  !> A number token: [sign] digits [. digits] [(e|d) [sign] digits], or nan/inf (read, then
-  !> refused as not finite). Anything else, or a quoted token, is not a number.
+  !> A number token: the kernel's one rule for numbers in text (pymr_io_text's
+  !> number_text). A quoted token is not a number.
   subroutine read_real(tok, x, ok)
     type(token_t), intent(in) :: tok
     real(dp), intent(out) :: x
     logical, intent(out) :: ok
-    character(len=:), allocatable :: t
-    integer :: i, ios, nd
     x = 0.0_dp
     ok = .false.
     if (tok%quoted) return
-    t = lower(tok%text)
-    i = 1
-    if (len(t) == 0) return
-    if (t(1:1) == '+' .or. t(1:1) == '-') i = 2
-    if (any(t(i:) == [character(len=8) :: 'nan', 'inf', 'infinity'])) then
-      x = huge(x); x = x*2
-      if (t(i:) == 'nan') x = x - x
-      ok = .true.; return
-    end if
-    nd = count_digits(t, i)
-    if (i <= len(t)) then
-      if (t(i:i) == '.') then
-        i = i + 1
-        nd = nd + count_digits(t, i)
-      end if
-    end if
-    if (nd == 0) return
-    if (i <= len(t)) then
-      if (t(i:i) /= 'e' .and. t(i:i) /= 'd') return
-      t(i:i) = 'e'
-      i = i + 1
-      if (i <= len(t)) then
-        if (t(i:i) == '+' .or. t(i:i) == '-') i = i + 1
-      end if
-      if (count_digits(t, i) == 0) return
-    end if
-    if (i <= len(t)) return
-    read(t, *, iostat=ios) x
-    if (ios /= 0) then
-      x = huge(x); x = 2*x
-    end if
-    ok = .true.
+    call number_text(tok%text, x, ok)
   end subroutine read_real
-
-  !> Number of decimal digits in t from i on; i ends past them.
-  integer function count_digits(t, i) result(n)
-    character(len=*), intent(in) :: t
-    integer, intent(inout) :: i
-    n = 0
-    do while (i <= len(t))
-      if (index('0123456789', t(i:i)) == 0) exit
-      i = i + 1; n = n + 1
-    end do
-  end function count_digits
 
   subroutine check_range(it, x, error)
     type(item_t), intent(in) :: it

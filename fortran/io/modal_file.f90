@@ -21,27 +21,40 @@
 !> W(i,j,alpha,beta) = int rho Z(i,alpha) Z(j,beta), Z = [s, Psi], are given and the points
 !> carry no mass. W(:,:,beta,alpha) = W(:,:,alpha,beta)^T gives the lower triangle.
 module pymr_io_modal_file
+  use, intrinsic :: iso_fortran_env, only : int64
+  use, intrinsic :: ieee_arithmetic, only : ieee_is_finite
   use pymr_kinds, only : dp, pi
   use pymr_error, only : error_type, fatal_error
   use pymr_model_flexbody, only : flex_data, flex_invariants, flex_from_moments, modal_nodes
   use pymr_model_beam_modes, only : beam_shape, beam_point_shapes
-  use pymr_io_text, only : itoa
-  use pymr_io_text_file, only : not_regular, write_text_file
+  use pymr_io_text, only : itoa, fmt, number_text, count_text, split_words
+  use pymr_io_text_file, only : not_regular, write_text_file, read_text_file, check_header_count
   implicit none
   private
-  public :: read_modal_file, write_modal_file
+  public :: read_modal_file, write_modal_file, normalised_tol
+
+  !> Largest |M_ij - delta_ij| of the modal mass matrix M = sum m_p Psi_p^T Psi_p (or the
+  !> traces of W's modal blocks) that a modal file's modes may have: a mode scaled by
+  !> 1 + e has its frequency off by e/2. Measured: the files pymr writes reach 4e-13
+  !> (modal-file, every beam of input/) and 3.2e-9 (modal-import, all 100 modes of a
+  !> 20-element barrel); rounded to 6 significant digits 2.8e-6, to 4 digits 1.7e-4.
+  real(dp), parameter :: normalised_tol = 1.0e-4_dp
 
 contains
 
-  !> Read a modal file into invariants (fd) and nodes.
+  !> Read a modal file into invariants (fd) and nodes. The file must agree with itself:
+  !> each line holds exactly the numbers its header's counts give (no more, no fewer), every
+  !> number is finite, the counts fit the file's size before anything is allocated by them
+  !> (check_header_count), nothing follows the points, and the modes are mass-normalised
+  !> to normalised_tol.
   subroutine read_modal_file(path, fd, nodes, error)
     character(len=*), intent(in) :: path
     type(flex_data), intent(out) :: fd
     type(modal_nodes), intent(out) :: nodes
     type(error_type), allocatable, intent(out) :: error
-    integer :: u, ios, m, np, p, line, version
-    character(len=256) :: msg
-    character(len=64) :: key
+    character(len=:), allocatable :: text, ln
+    integer, allocatable :: wa(:), wb(:), wline(:, :)
+    integer :: pos, line, nw, m, np, p, version, points_line, modes_line
     real(dp), allocatable :: f(:), row(:), mp(:), first(:, :), w(:, :, :, :)
     real(dp) :: mass
     logical :: exists, given
@@ -52,138 +65,319 @@ contains
     if (len(not_regular(path)) > 0) then
       call fatal_error(error, path // ': cannot open: ' // not_regular(path)); return
     end if
-    open(newunit=u, file=path, status='old', action='read', iostat=ios, iomsg=msg)
-    if (ios /= 0) then
-      call fatal_error(error, path // ': cannot open: ' // trim(msg)); return
+    call read_text_file(path, text, error); if (allocated(error)) return
+    pos = 1; line = 0
+    call key_line('pymr-modal'); if (allocated(error)) return
+    if (.not. count_word(version) .or. version < 1 .or. version > 2) then
+      call fail('pymr-modal: expected the format version 1 or 2, got ' // rest()); return
     end if
-    line = 0
-    call next_key('pymr-modal'); if (allocated(error)) goto 90
-    backspace(u); read(u, *, iostat=ios) key, version
-    if (ios /= 0 .or. version < 1 .or. version > 2) then
-      call fatal_error(error, path // ': line ' // itoa(line) // ': pymr-modal: expected the format version 1 or 2')
-      goto 90
+    call key_line('modes'); if (allocated(error)) return
+    modes_line = line
+    if (.not. count_word(m)) then
+      call fail('modes: expected a count, got ' // rest()); return
     end if
-    call next_key('modes'); if (allocated(error)) goto 90
-    backspace(u); read(u, *, iostat=ios, iomsg=msg) key, m
-    if (ios /= 0 .or. m < 0) then
-      call fatal_error(error, path // ': line ' // itoa(line) // ': modes: expected a count'); goto 90
-    end if
+    call check_header_count(path, 'line ' // itoa(line) // ': modes', int(m, int64), 2, 'frequencies', error)
+    if (allocated(error)) return
+    call key_line('frequencies_hz'); if (allocated(error)) return
     allocate(f(m))
-    call next_key('frequencies_hz'); if (allocated(error)) goto 90
-    backspace(u); read(u, *, iostat=ios, iomsg=msg) key, f
-    if (ios /= 0 .or. any(f <= 0.0_dp)) then
-      call fatal_error(error, path // ': line ' // itoa(line) // ': frequencies_hz: expected ' // itoa(m) // &
-        & ' positive frequencies'); goto 90
+    if (nw - 1 /= m) then
+      call fail('frequencies_hz: expected ' // itoa(m) // ' positive frequencies (modes ' // itoa(m) // '), got ' // &
+        & itoa(nw - 1) // ' numbers'); return
     end if
-    call skip_comments(); if (allocated(error)) goto 90
-    read(u, *, iostat=ios) key
-    backspace(u); line = line - 1
-    given = ios == 0 .and. key == 'invariants'
+    call numbers(2, f, 'frequencies_hz', 'frequency'); if (allocated(error)) return
+    do p = 1, m
+      if (.not. (f(p) > 0.0_dp)) then
+        call fail('frequencies_hz: frequency ' // itoa(p) // ': expected a positive frequency (Hz), got ' // &
+          & word(p + 1)); return
+      end if
+      if (.not. ieee_is_finite((2.0_dp*pi*f(p))**2)) then
+        call fail('frequencies_hz: frequency ' // itoa(p) // ': ' // word(p + 1) // ' Hz is too large (its ' // &
+          & '(2 pi f)^2 overflows)'); return
+      end if
+    end do
+    given = next_is('invariants')
     if (given) then
       if (version < 2) then
-        call fatal_error(error, path // ': line ' // itoa(line + 1) // ': invariants: needs pymr-modal 2'); goto 90
+        call fail('invariants: needs pymr-modal 2', line + 1); return
       end if
-      call read_invariants(); if (allocated(error)) goto 90
+      call read_invariants(); if (allocated(error)) return
     end if
-    call next_key('points'); if (allocated(error)) goto 90
-    backspace(u); read(u, *, iostat=ios, iomsg=msg) key, np
-    if (ios /= 0 .or. np < 1) then
-      call fatal_error(error, path // ': line ' // itoa(line) // ': points: expected a positive count'); goto 90
+    call key_line('points'); if (allocated(error)) return
+    points_line = line
+    if (.not. count_word(np) .or. np < 1) then
+      call fail('points: expected a positive count, got ' // rest()); return
     end if
+    call check_header_count(path, 'line ' // itoa(line) // ': points', int(np, int64), 2*(4 + 6*m), &
+      & 'lines of ' // itoa(4 + 6*m) // ' numbers', error)
+    if (allocated(error)) return
     nodes%np = np
     allocate(nodes%x(3, np), nodes%psi(3, m, np), nodes%phi(3, m, np), mp(np), row(4 + 6*m))
     do p = 1, np
-      call skip_comments(); if (allocated(error)) goto 90
-      read(u, *, iostat=ios, iomsg=msg) row
-      if (ios /= 0) then
-        call fatal_error(error, path // ': line ' // itoa(line) // ': point ' // itoa(p) // ': expected ' // &
-          & itoa(4 + 6*m) // ' numbers (x y z mass, then psi and phi of each mode)'); goto 90
+      if (.not. next_line()) then
+        call fail('points: ' // itoa(np) // ' points, but the file ends after ' // itoa(p - 1) // ' (line ' // &
+          & itoa(line) // ')', points_line); return
       end if
+      if (nw /= 4 + 6*m) then
+        call fail('point ' // itoa(p) // ': expected ' // itoa(4 + 6*m) // ' numbers (x y z mass, then psi and phi' // &
+          & ' of each of the ' // itoa(m) // ' modes), got ' // itoa(nw)); return
+      end if
+      call numbers(1, row, 'point ' // itoa(p), 'point'); if (allocated(error)) return
       if (row(4) < 0.0_dp) then
-        call fatal_error(error, path // ': line ' // itoa(line) // ': point ' // itoa(p) // ': negative mass')
-        goto 90
+        call fail('point ' // itoa(p) // ': negative mass'); return
       end if
       if (given .and. row(4) /= 0.0_dp) then
-        call fatal_error(error, path // ': line ' // itoa(line) // ': point ' // itoa(p) // &
-          & ': mass must be 0 (the invariants block gives the body''s inertia)'); goto 90
+        call fail('point ' // itoa(p) // ': mass must be 0 (the invariants block gives the body''s inertia)'); return
       end if
       nodes%x(:, p) = row(1:3); mp(p) = row(4)
       nodes%psi(:, :, p) = reshape(row(5:4 + 3*m), [3, m])
       nodes%phi(:, :, p) = reshape(row(5 + 3*m:4 + 6*m), [3, m])
     end do
+    if (next_line()) then
+      call fail('more lines than the ' // itoa(np) // ' points of line ' // itoa(points_line)); return
+    end if
     if (given) then
       call flex_from_moments(mass, first, w, fd)
     else
       if (.not. (sum(mp) > 0.0_dp)) then
-        call fatal_error(error, path // ': the points carry no mass'); goto 90
+        call fatal_error(error, path // ': line ' // itoa(points_line) // ': points: the points carry no mass'); return
+      end if
+      ! sum m_p Psi_p^T Psi_p has rank 3 per point at most: more modes cannot be mass-normalised
+      ! (and so the second moments W, (m+1)^2 blocks, stay within the file's size)
+      if (m > 3*count(mp > 0.0_dp)) then
+        call fatal_error(error, path // ': line ' // itoa(modes_line) // ': modes: ' // itoa(m) // ' modes, but ' // &
+          & itoa(count(mp > 0.0_dp)) // trim(merge(' point carries', ' points carry ', count(mp > 0.0_dp) == 1)) // ' ' // &
+          & 'mass: at most 3 modes a point can be mass-normalised'); return
       end if
       call flex_invariants(nodes%x, mp, nodes%psi, fd)
+      if (.not. (all(ieee_is_finite(fd%w)) .and. all(ieee_is_finite(fd%first)) .and. ieee_is_finite(fd%mass))) then
+        call fatal_error(error, path // ': line ' // itoa(points_line) // ': points: the inertia of the points ' // &
+          & 'overflows (a mass or a position too large)'); return
+      end if
     end if
+    call check_normalised(); if (allocated(error)) return
     fd%omega2 = (2.0_dp*pi*f)**2
-90  close(u)
   contains
     !> The invariants block: mass, first moments F(3, 0:m), second moments W (upper triangle
     !> of the pairs, the lower one by W(:,:,beta,alpha) = W(:,:,alpha,beta)^T).
     subroutine read_invariants()
       integer :: al, be, idx(2)
-      real(dp) :: v3(3), v9(9)
-      call next_key('invariants'); if (allocated(error)) return
-      call next_key('mass'); if (allocated(error)) return
-      backspace(u); read(u, *, iostat=ios) key, mass
-      if (ios /= 0 .or. .not. (mass > 0.0_dp)) then
-        call fatal_error(error, path // ': line ' // itoa(line) // ': mass: expected a positive mass'); return
+      real(dp) :: v1(1), v3(3), v9(9)
+      call key_line('invariants'); if (allocated(error)) return
+      if (nw /= 1) then
+        call fail('invariants: nothing may follow it on its line, got ' // rest()); return
       end if
-      allocate(first(3, 0:m), w(3, 3, 0:m, 0:m))
-      call next_key('first_moments'); if (allocated(error)) return
+      call key_line('mass'); if (allocated(error)) return
+      if (nw /= 2) then
+        call fail('mass: expected a positive mass, got ' // rest()); return
+      end if
+      call numbers(2, v1, 'mass', 'mass'); if (allocated(error)) return
+      mass = v1(1)
+      if (.not. (mass > 0.0_dp)) then
+        call fail('mass: expected a positive mass'); return
+      end if
+      ! (m+1)(m+2)/2 lines of 11 numbers: checked before W's 72 (m+1)^2 bytes are allocated
+      call check_header_count(path, 'line ' // itoa(modes_line) // ': modes ' // itoa(m), &
+        & int(m + 1, int64)*int(m + 2, int64)/2, 22, 'second_moments lines of 11 numbers', error)
+      if (allocated(error)) return
+      allocate(first(3, 0:m), w(3, 3, 0:m, 0:m), wline(0:m, 0:m))
+      call key_line('first_moments'); if (allocated(error)) return
       do al = 0, m
-        call skip_comments(); if (allocated(error)) return
-        read(u, *, iostat=ios) idx(1), v3
-        if (ios /= 0 .or. idx(1) /= al) then
-          call fatal_error(error, path // ': line ' // itoa(line) // ': first_moments: expected ' // itoa(al) // &
-            & ' and F(1:3, ' // itoa(al) // ')'); return
+        if (.not. data_line()) return
+        if (.not. count_word(idx(1), 1) .or. idx(1) /= al .or. nw /= 4) then
+          call fail('first_moments: expected ' // itoa(al) // ' and F(1:3, ' // itoa(al) // '), 4 numbers, got ' // &
+            & itoa(nw)); return
         end if
+        call numbers(2, v3, 'first_moments', 'F', al); if (allocated(error)) return
         first(:, al) = v3
       end do
-      call next_key('second_moments'); if (allocated(error)) return
+      call key_line('second_moments'); if (allocated(error)) return
       do al = 0, m
         do be = al, m
-          call skip_comments(); if (allocated(error)) return
-          read(u, *, iostat=ios) idx, v9
-          if (ios /= 0 .or. idx(1) /= al .or. idx(2) /= be) then
-            call fatal_error(error, path // ': line ' // itoa(line) // ': second_moments: expected ' // itoa(al) // &
-              & ' ' // itoa(be) // ' and the 9 numbers of W(1:3, 1:3, ' // itoa(al) // ', ' // itoa(be) // &
-              & ') row by row'); return
+          if (.not. data_line()) return
+          if (.not. count_word(idx(1), 1) .or. .not. count_word(idx(2), 2) .or. idx(1) /= al .or. idx(2) /= be &
+            & .or. nw /= 11) then
+            call fail('second_moments: expected ' // itoa(al) // ' ' // itoa(be) // ' and the 9 numbers of W(1:3, 1:3, ' &
+              & // itoa(al) // ', ' // itoa(be) // ') row by row, 11 numbers, got ' // itoa(nw)); return
           end if
+          call numbers(3, v9, 'second_moments', 'W', al, be); if (allocated(error)) return
           w(:, :, al, be) = transpose(reshape(v9, [3, 3]))
           w(:, :, be, al) = reshape(v9, [3, 3])
+          wline(al, be) = line; wline(be, al) = line
         end do
       end do
     end subroutine read_invariants
-    subroutine skip_comments()
-      character(len=1024) :: buf
-      do
-        read(u, '(a)', iostat=ios) buf
-        line = line + 1
-        if (ios /= 0) then
-          call fatal_error(error, path // ': unexpected end of file after line ' // itoa(line - 1)); return
-        end if
-        if (len_trim(buf) == 0) cycle
-        if (buf(verify(buf, ' '):verify(buf, ' ')) == '#') cycle
-        backspace(u); line = line - 1
-        exit
+
+    !> The modal mass matrix (the traces of W's modal blocks: sum m_p Psi_p^T Psi_p over the
+    !> points, or from the invariants block) must be the identity to normalised_tol.
+    subroutine check_normalised()
+      integer :: i, j, wi, wj
+      real(dp) :: d, worst
+      worst = -1.0_dp; wi = 0; wj = 0
+      do j = 1, m
+        do i = 1, j
+          d = abs(fd%mmm(i, j) - merge(1.0_dp, 0.0_dp, i == j))
+          if (.not. (d <= worst)) then
+            worst = d; wi = i; wj = j
+          end if
+        end do
       end do
-      line = line + 1
-    end subroutine skip_comments
-    subroutine next_key(expect)
-      character(len=*), intent(in) :: expect
-      character(len=64) :: word
-      call skip_comments(); if (allocated(error)) return
-      read(u, *, iostat=ios) word
-      if (ios /= 0 .or. trim(word) /= expect) then
-        call fatal_error(error, path // ': line ' // itoa(line) // ": expected '" // expect // "'")
+      if (wi == 0 .or. worst <= normalised_tol) return
+      if (given) then
+        call fatal_error(error, path // ': line ' // itoa(wline(wi, wj)) // ': second_moments: the modes are not ' // &
+          & 'mass-normalised: W11+W22+W33 of modes ' // itoa(wi) // ' and ' // itoa(wj) // ' is ' // &
+          & fmt(fd%mmm(wi, wj)) // ', expected ' // merge('1', '0', wi == wj) // ' (to ' // fmt(normalised_tol) // ')')
+      else
+        call fatal_error(error, path // ': line ' // itoa(points_line) // ': points: the modes are not ' // &
+          & 'mass-normalised: the sum of mass psi_' // itoa(wi) // '.psi_' // itoa(wj) // ' over the points is ' // &
+          & fmt(fd%mmm(wi, wj)) // ', expected ' // merge('1', '0', wi == wj) // ' (to ' // fmt(normalised_tol) // ')')
       end if
-    end subroutine next_key
+    end subroutine check_normalised
+
+    !> Words k0.. of the current line read as the numbers v (their count checked by the
+    !> caller): each by the kernel's number rule (number_text), and finite; `what` names the
+    !> line's item, `kind` the entry ('point', 'frequency', 'mass', 'F', 'W', with al, be).
+    subroutine numbers(k0, v, what, kind, al, be)
+      integer, intent(in) :: k0
+      real(dp), intent(out) :: v(:)
+      character(len=*), intent(in) :: what, kind
+      integer, intent(in), optional :: al, be
+      integer :: k, a, b
+      logical :: ok
+      a = 0; b = 0
+      if (present(al)) a = al
+      if (present(be)) b = be
+      do k = 1, size(v)
+        call number_text(word(k0 + k - 1), v(k), ok)
+        if (.not. ok) then
+          call fail(what // ': ' // entry_name(kind, k, m, a, b) // ': ''' // word(k0 + k - 1) // &
+            & ''' is not a number'); return
+        end if
+        if (.not. ieee_is_finite(v(k))) then
+          call fail(what // ': ' // entry_name(kind, k, m, a, b) // ': ' // word(k0 + k - 1) // &
+            & ' is not a finite number'); return
+        end if
+      end do
+    end subroutine numbers
+
+    !> Word k of the current line.
+    function word(k) result(s)
+      integer, intent(in) :: k
+      character(len=:), allocatable :: s
+      s = ln(wa(k):wb(k))
+    end function word
+
+    !> The current line after its first word, quoted (for messages), or 'nothing'.
+    function rest() result(s)
+      character(len=:), allocatable :: s
+      if (nw < 2) then
+        s = 'nothing'
+      else
+        s = '''' // ln(wa(2):wb(nw)) // ''''
+      end if
+    end function rest
+
+    !> Word `at` of the current line as a count; without `at`, word 2, the only word after
+    !> the key.
+    logical function count_word(k, at)
+      integer, intent(out) :: k
+      integer, intent(in), optional :: at
+      integer :: i
+      logical :: ok
+      i = 2
+      if (present(at)) i = at
+      k = 0
+      ok = nw >= i
+      if (.not. present(at)) ok = nw == 2
+      if (ok) call count_text(word(i), k, ok)
+      count_word = ok
+    end function count_word
+
+    !> The next line that is not blank and not a comment: ln, its words, its number `line`;
+    !> false at the end of the file.
+    logical function next_line()
+      integer :: e
+      next_line = .false.
+      do while (pos <= len(text))
+        e = index(text(pos:), new_line('a'))
+        if (e == 0) then
+          e = len(text) + 1
+        else
+          e = pos + e - 1
+        end if
+        ln = text(pos:e - 1)
+        pos = e + 1
+        line = line + 1
+        call split_words(ln, wa, wb, nw)
+        if (nw == 0) cycle
+        if (ln(wa(1):wa(1)) == '#') cycle
+        next_line = .true.
+        return
+      end do
+    end function next_line
+
+    !> next_line, with an error at the end of the file.
+    logical function data_line()
+      data_line = next_line()
+      if (.not. data_line) call fatal_error(error, path // ': unexpected end of file after line ' // itoa(line))
+    end function data_line
+
+    !> The next line, which must start with `expect`.
+    subroutine key_line(expect)
+      character(len=*), intent(in) :: expect
+      if (.not. data_line()) return
+      if (word(1) /= expect) call fail('expected ''' // expect // '''')
+    end subroutine key_line
+
+    !> Does the next data line start with `expect`? (Where the reading is stays unchanged.)
+    logical function next_is(expect)
+      character(len=*), intent(in) :: expect
+      integer :: pos0, line0
+      pos0 = pos; line0 = line
+      next_is = next_line()
+      if (next_is) next_is = word(1) == expect
+      pos = pos0; line = line0
+    end function next_is
+
+    !> The error 'PATH: line L: WHY' (L the current line, or `at`).
+    subroutine fail(why, at)
+      character(len=*), intent(in) :: why
+      integer, intent(in), optional :: at
+      integer :: l
+      l = line
+      if (present(at)) l = at
+      call fatal_error(error, path // ': line ' // itoa(l) // ': ' // why)
+    end subroutine fail
   end subroutine read_modal_file
+
+  !> Entry k of a modal file's line of `kind` ('point', 'frequency', 'F', 'W' of the modes
+  !> al, be; else the kind itself) for messages: 'x', 'mass', 'psi_y of mode 2', 'W(1, 3, 0, 2)'.
+  pure function entry_name(kind, k, m, al, be) result(s)
+    character(len=*), intent(in) :: kind
+    integer, intent(in) :: k, m, al, be
+    character(len=:), allocatable :: s
+    character(len=3), parameter :: xyz = 'xyz'
+    integer :: j
+    select case (kind)
+    case ('point')
+      if (k <= 3) then
+        s = xyz(k:k)
+      else if (k == 4) then
+        s = 'mass'
+      else
+        j = k - 5
+        s = merge('psi_', 'phi_', j < 3*m) // xyz(mod(j, 3) + 1:mod(j, 3) + 1) // ' of mode ' // &
+          & itoa(mod(j, 3*m)/3 + 1)
+      end if
+    case ('frequency')
+      s = 'frequency ' // itoa(k)
+    case ('F')
+      s = 'F(' // itoa(k) // ', ' // itoa(al) // ')'
+    case ('W')
+      s = 'W(' // itoa((k - 1)/3 + 1) // ', ' // itoa(mod(k - 1, 3) + 1) // ', ' // itoa(al) // ', ' // itoa(be) // ')'
+    case default
+      s = kind
+    end select
+  end function entry_name
 
   !> Write a built-in beam as a modal file: its Gauss mass points and its nodes (mass 0).
   !> The file is written whole or not at all (write_text_file), so an earlier one survives

@@ -12,7 +12,7 @@ module pymr_io_namelist_input
   use pymr_io_namelist_parse, only : group_text, item_text, token_t, parse_namelist, parse_values, group_label
   use pymr_io_text, only : itoa, lower
   use pymr_io_sha256, only : sha256_hex
-  use pymr_io_text_file, only : not_regular
+  use pymr_io_text_file, only : read_text_file
   implicit none
   private
   public :: read_scene, read_scene_text, resolved_text, schema_text, scene_fingerprint, item_value
@@ -64,46 +64,6 @@ contains
     end do
     call complete_scene(sc)
   end subroutine read_scene_text
-
-  !> The whole file as text; a UTF-8 byte-order mark, which some editors write at the start,
-  !> reads as blanks (lines and columns stay those of the file).
-  subroutine read_text_file(file, text, error)
-    character(len=*), intent(in) :: file
-    character(len=:), allocatable, intent(out) :: text
-    type(error_type), allocatable, intent(out) :: error
-    integer :: u, ios, sz
-    character(len=256) :: msg
-    logical :: exists
-    if (len_trim(file) == 0) then
-      call fatal_error(error, 'no scene file given (its path is empty)'); return
-    end if
-    inquire(file=file, exist=exists)
-    if (.not. exists) then
-      call fatal_error(error, file // ': file not found'); return
-    end if
-    if (len(not_regular(file)) > 0) then
-      call fatal_error(error, file // ': cannot read: ' // not_regular(file)); return
-    end if
-    open(newunit=u, file=file, access='stream', form='unformatted', status='old', action='read', &
-      & iostat=ios, iomsg=msg)
-    if (ios /= 0) then
-      call fatal_error(error, file // ': cannot read: ' // trim(msg)); return
-    end if
-    inquire(unit=u, size=sz)
-    if (sz < 0) then
-      close(u)
-      call fatal_error(error, file // ': cannot read: not a regular file'); return
-    end if
-    allocate(character(len=sz) :: text)
-    if (sz > 0) read(u, iostat=ios, iomsg=msg) text
-    close(u)
-    if (ios /= 0) then
-      call fatal_error(error, file // ': cannot read: ' // trim(msg)); return
-    end if
-    if (sz >= 3) then
-      if (text(1:3) == achar(239) // achar(187) // achar(191)) text(1:3) = ' '
-    end if
-  end subroutine read_text_file
 
   !> Unknown groups (with the nearest known name), single groups given twice, required
   !> groups missing.

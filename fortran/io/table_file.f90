@@ -1,11 +1,12 @@
 !> Time-history files for tabulated drives and motions: two numbers per line, the time (s)
 !> and the value, separated by blanks or a comma; lines starting with '#' and blank lines
-!> are skipped. Times must increase strictly.
+!> are skipped. Times must increase strictly. A line of any other count of numbers (a
+!> third column: a file written for something else) is refused, not cut to two.
 module pymr_io_table_file
   use pymr_kinds, only : dp
   use pymr_error, only : error_type, fatal_error
-  use pymr_io_text, only : itoa, fmt
-  use pymr_io_text_file, only : not_regular
+  use pymr_io_text, only : itoa, fmt, number_text, split_words
+  use pymr_io_text_file, only : not_regular, read_text_file
   implicit none
   private
   public :: read_time_table
@@ -18,12 +19,12 @@ contains
     character(len=*), intent(in) :: path, what
     real(dp), allocatable, intent(out) :: t(:), y(:)
     type(error_type), allocatable, intent(out) :: error
-    integer :: u, ios, line, n, k
-    character(len=1024) :: text
-    character(len=256) :: msg
+    integer :: pos, e, line, n, nw, k
+    integer, allocatable :: wa(:), wb(:)
+    character(len=:), allocatable :: text, ln
     real(dp) :: row(2)
     real(dp), allocatable :: tt(:), yy(:)
-    logical :: exists
+    logical :: exists, ok
     inquire(file=path, exist=exists)
     if (.not. exists) then
       call fatal_error(error, what // ": '" // path // "' not found"); return
@@ -31,25 +32,35 @@ contains
     if (len(not_regular(path)) > 0) then
       call fatal_error(error, what // ": '" // path // "' cannot be read: " // not_regular(path)); return
     end if
-    open(newunit=u, file=path, status='old', action='read', iostat=ios, iomsg=msg)
-    if (ios /= 0) then
-      call fatal_error(error, what // ": '" // path // "' cannot be read: " // trim(msg)); return
+    call read_text_file(path, text, error)
+    if (allocated(error)) then
+      error%message = what // ': ' // error%message; return
     end if
     allocate(tt(64), yy(64))
-    n = 0; line = 0
-    do
-      read(u, '(a)', iostat=ios) text
-      if (ios /= 0) exit
-      line = line + 1
-      text = adjustl(text)
-      if (len_trim(text) == 0 .or. text(1:1) == '#') cycle
-      do k = 1, len_trim(text)
-        if (text(k:k) == ',') text(k:k) = ' '
-      end do
-      read(text, *, iostat=ios) row
-      if (ios /= 0 .or. any(row /= row) .or. any(abs(row) > huge(1.0_dp))) then
-        call fail('expected two finite numbers (time, value), got: ' // trim(text)); return
+    n = 0; line = 0; pos = 1
+    do while (pos <= len(text))
+      e = index(text(pos:), new_line('a'))
+      if (e == 0) then
+        e = len(text) + 1
+      else
+        e = pos + e - 1
       end if
+      ln = text(pos:e - 1)
+      pos = e + 1
+      line = line + 1
+      call split_words(ln, wa, wb, nw)
+      if (nw == 0) cycle
+      if (ln(wa(1):wa(1)) == '#') cycle
+      ln = ln(wa(1):wb(nw))
+      if (nw /= 2) then
+        call fail('expected two finite numbers (time, value), got ' // itoa(nw) // ': ' // ln); return
+      end if
+      do k = 1, 2
+        call number_text(ln(wa(k) - wa(1) + 1:wb(k) - wa(1) + 1), row(k), ok)
+        if (.not. ok .or. row(k) /= row(k) .or. abs(row(k)) > huge(1.0_dp)) then
+          call fail('expected two finite numbers (time, value), got: ' // ln); return
+        end if
+      end do
       if (n > 0) then
         if (.not. (row(1) > tt(n))) then
           call fail('times must increase, but t = ' // fmt(row(1)) // ' follows t = ' // fmt(tt(n))); return
@@ -61,7 +72,6 @@ contains
       n = n + 1
       tt(n) = row(1); yy(n) = row(2)
     end do
-    close(u)
     if (n < 2) then
       call fatal_error(error, what // ": '" // path // "' has " // itoa(n) // ' rows; a table needs at least 2')
       return
@@ -70,7 +80,6 @@ contains
   contains
     subroutine fail(why)
       character(len=*), intent(in) :: why
-      close(u)
       call fatal_error(error, what // ": '" // path // "' line " // itoa(line) // ': ' // why)
     end subroutine fail
   end subroutine read_time_table

@@ -5,6 +5,7 @@ module pymr_io_text
   implicit none
   private
   public :: itoa, lower, fmt, decimal_text, exact_text, char_length, printable
+  public :: number_text, count_text, split_words
 
   !> Integer (default or 64-bit) to text without blanks.
   interface itoa
@@ -191,4 +192,113 @@ contains
     end do
     s = s(1:m)
   end function printable
+
+  !> A number as pymr reads it from any text (a scene's values, modal and table files):
+  !> [sign] digits [. digits] [(e|d) [sign] digits], or nan, inf, infinity (read, then
+  !> refused by the caller as not finite; so is a number beyond the largest real, read as
+  !> Inf). Anything else is not a number (ok false): Fortran's own reading would take
+  !> '1/2' as 1, '2*3' as 3 and 'T' as an error only sometimes.
+  subroutine number_text(text, x, ok)
+    character(len=*), intent(in) :: text
+    real(dp), intent(out) :: x
+    logical, intent(out) :: ok
+    character(len=:), allocatable :: t
+    integer :: i, ios, nd
+    x = 0.0_dp
+    ok = .false.
+    t = lower(text)
+    i = 1
+    if (len(t) == 0) return
+    if (t(1:1) == '+' .or. t(1:1) == '-') i = 2
+    if (any(t(i:) == [character(len=8) :: 'nan', 'inf', 'infinity'])) then
+      x = huge(x); x = x*2
+      if (t(i:) == 'nan') x = x - x
+      ok = .true.; return
+    end if
+    nd = count_digits(t, i)
+    if (i <= len(t)) then
+      if (t(i:i) == '.') then
+        i = i + 1
+        nd = nd + count_digits(t, i)
+      end if
+    end if
+    if (nd == 0) return
+    if (i <= len(t)) then
+      if (t(i:i) /= 'e' .and. t(i:i) /= 'd') return
+      t(i:i) = 'e'
+      i = i + 1
+      if (i <= len(t)) then
+        if (t(i:i) == '+' .or. t(i:i) == '-') i = i + 1
+      end if
+      if (count_digits(t, i) == 0) return
+    end if
+    if (i <= len(t)) return
+    read(t, *, iostat=ios) x
+    if (ios /= 0) then
+      x = huge(x); x = 2*x
+    end if
+    ok = .true.
+  end subroutine number_text
+
+  !> Number of decimal digits in t from i on; i ends past them.
+  integer function count_digits(t, i) result(n)
+    character(len=*), intent(in) :: t
+    integer, intent(inout) :: i
+    n = 0
+    do while (i <= len(t))
+      if (index('0123456789', t(i:i)) == 0) exit
+      i = i + 1; n = n + 1
+    end do
+  end function count_digits
+
+  !> A count as pymr reads it from a data file's header: [+] digits, at most huge(1)
+  !> (ok false for anything else: a sign, a point, an exponent, too many digits).
+  pure subroutine count_text(text, k, ok)
+    character(len=*), intent(in) :: text
+    integer, intent(out) :: k
+    logical, intent(out) :: ok
+    integer :: i, i0
+    integer(8) :: v
+    k = 0; v = 0
+    i0 = 1
+    if (len(text) > 0) then
+      if (text(1:1) == '+') i0 = 2
+    end if
+    ok = len(text) >= i0 .and. len(text) - i0 < 18
+    if (.not. ok) return
+    do i = i0, len(text)
+      ok = index('0123456789', text(i:i)) > 0
+      if (.not. ok) return
+      v = 10*v + (iachar(text(i:i)) - iachar('0'))
+    end do
+    ok = v <= huge(k)
+    if (ok) k = int(v)
+  end subroutine count_text
+
+  !> The words of one line of a data file, separated by blanks, tabs, carriage returns or
+  !> commas: word k is line(first(k):last(k)), n of them.
+  pure subroutine split_words(line, first, last, n)
+    character(len=*), intent(in) :: line
+    integer, allocatable, intent(out) :: first(:), last(:)
+    integer, intent(out) :: n
+    integer :: i, pass
+    logical :: inside
+    do pass = 1, 2
+      n = 0; inside = .false.
+      do i = 1, len(line)
+        if (index(' ,' // achar(9) // achar(13), line(i:i)) > 0) then
+          if (inside .and. pass == 2) last(n) = i - 1
+          inside = .false.
+        else if (.not. inside) then
+          n = n + 1; inside = .true.
+          if (pass == 2) first(n) = i
+        end if
+      end do
+      if (pass == 2) then
+        if (inside) last(n) = len(line)
+      else
+        allocate(first(n), last(n))
+      end if
+    end do
+  end subroutine split_words
 end module pymr_io_text

@@ -4,12 +4,14 @@
 module pymr_io_text_file
   use, intrinsic :: iso_c_binding, only : c_char, c_int, c_long, c_null_char, c_size_t, c_ptr, c_associated
   use, intrinsic :: iso_fortran_env, only : int64
+  use pymr_kinds, only : dp
   use pymr_error, only : error_type, fatal_error, stat_solver
   use pymr_io_text, only : itoa
   implicit none
   private
   public :: write_text_file, stage_text_file, commit_staged, rename_file, sync_file, check_size, file_size, &
-    & scene_relative, absolute_path, acquire_lock, release_lock, not_regular, missing_folder, remove_file
+    & scene_relative, absolute_path, acquire_lock, release_lock, not_regular, missing_folder, remove_file, &
+    & read_text_file, check_header_count, same_file
 
   interface
     function c_rename(old, new) bind(c, name='rename') result(r)
@@ -53,6 +55,11 @@ module pymr_io_text_file
       character(kind=c_char), intent(in) :: path(*)
       integer(c_int) :: kind
     end function c_file_kind
+    function c_same_file(a, b) bind(c, name='pymr_same_file') result(same)
+      import :: c_char, c_int
+      character(kind=c_char), intent(in) :: a(*), b(*)
+      integer(c_int) :: same
+    end function c_same_file
     function c_getcwd(buf, size) bind(c, name='getcwd') result(p)
       import :: c_char, c_size_t, c_ptr
       character(kind=c_char), intent(out) :: buf(*)
@@ -118,6 +125,80 @@ contains
     folder = folder_of(path)
     if (c_file_kind(folder // c_null_char) == 2) folder = ''
   end function missing_folder
+
+  !> The whole file as text; a UTF-8 byte-order mark, which some editors write at the start,
+  !> reads as blanks (lines and columns stay those of the file).
+  subroutine read_text_file(file, text, error)
+    character(len=*), intent(in) :: file
+    character(len=:), allocatable, intent(out) :: text
+    type(error_type), allocatable, intent(out) :: error
+    integer :: u, ios, sz
+    character(len=256) :: msg
+    logical :: exists
+    if (len_trim(file) == 0) then
+      call fatal_error(error, 'no scene file given (its path is empty)'); return
+    end if
+    inquire(file=file, exist=exists)
+    if (.not. exists) then
+      call fatal_error(error, file // ': file not found'); return
+    end if
+    if (len(not_regular(file)) > 0) then
+      call fatal_error(error, file // ': cannot read: ' // not_regular(file)); return
+    end if
+    open(newunit=u, file=file, access='stream', form='unformatted', status='old', action='read', &
+      & iostat=ios, iomsg=msg)
+    if (ios /= 0) then
+      call fatal_error(error, file // ': cannot read: ' // trim(msg)); return
+    end if
+    inquire(unit=u, size=sz)
+    if (sz < 0) then
+      close(u)
+      call fatal_error(error, file // ': cannot read: not a regular file'); return
+    end if
+    allocate(character(len=sz) :: text)
+    if (sz > 0) read(u, iostat=ios, iomsg=msg) text
+    close(u)
+    if (ios /= 0) then
+      call fatal_error(error, file // ': cannot read: ' // trim(msg)); return
+    end if
+    if (sz >= 3) then
+      if (text(1:3) == achar(239) // achar(187) // achar(191)) text(1:3) = ' '
+    end if
+  end subroutine read_text_file
+
+  !> A count read from a file (a header's number of points, modes, entries) must fit the
+  !> file before anything is allocated by it: `count` items of at least `least` bytes each
+  !> cannot be in a file of fewer bytes. Else the error 'PATH: WHERE: COUNT WHAT cannot be
+  !> in this file (SIZE bytes)'. ('points 2000000000' in a modal file of 70 kB asked for
+  !> 48 GB, and the Fortran runtime stopped the program.)
+  subroutine check_header_count(path, where, count, least, what, error)
+    character(len=*), intent(in) :: path, where, what
+    integer(int64), intent(in) :: count
+    integer, intent(in) :: least
+    type(error_type), allocatable, intent(out) :: error
+    integer(int64) :: sz
+    sz = max(file_size(path), 0_int64)
+    if (real(count, dp)*real(least, dp) <= real(sz, dp)) return
+    call fatal_error(error, path // ': ' // where // ': ' // itoa(count) // ' ' // what // &
+      & ' cannot be in this file (' // itoa(sz) // ' bytes)')
+  end subroutine check_header_count
+
+  !> Do `a` and `b` name one file? When both are there, whether they are the same file on
+  !> the disk (links followed; any spelling: './', '..', a link); else whether their
+  !> absolute paths are equal. The one rule by which an output is refused that would
+  !> replace an input.
+  function same_file(a, b) result(same)
+    character(len=*), intent(in) :: a, b
+    logical :: same
+    select case (c_same_file(a // c_null_char, b // c_null_char))
+    case (0)
+      same = .false.
+    case (1)
+      same = .true.
+    case default
+      same = absolute_path(a) == absolute_path(b)
+    end select
+  end function same_file
 
   !> Remove a file if it is there (a temporary one left by a failed write).
   subroutine remove_file(path)
