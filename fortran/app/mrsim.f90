@@ -7,9 +7,9 @@
 program mrsim
   use, intrinsic :: iso_fortran_env, only : error_unit, output_unit
   use, intrinsic :: iso_c_binding, only : c_int, c_funptr, c_intptr_t
-  use pymr_error, only : error_type
-  use pymr_io_text, only : printable
-  use pymr_run, only : run_scene
+  use pymr_env_error, only : error_type
+  use pymr_env_text, only : printable
+  use pymr_driver_run, only : run_scene
   use pymr_io_results_output, only : pymr_version
   implicit none
   interface

@@ -2,12 +2,12 @@
 !> `double precision` arrays and scalars only. Each call reports `stat` (0 ok,
 !> 1 bad input, 2 failed run) and a one-line `message`; Python raises on stat /= 0.
 
-!> Run a scene to result files (see pymr_run%run_scene); `path` returns the CSV written.
+!> Run a scene to result files (see pymr_driver_run%run_scene); `path` returns the CSV written.
 !> A non-empty `restart` continues from that checkpoint file.
 subroutine pymr_run_scene(scene, overrides, out, restart, stat, message, summary, path)
-  use pymr_error, only : error_type
+  use pymr_env_error, only : error_type
   use pymr_bind_support, only : report
-  use pymr_run, only : run_scene
+  use pymr_driver_run, only : run_scene
   implicit none
   character(len=*), intent(in) :: scene, overrides, out, restart
   integer, intent(out) :: stat
@@ -27,11 +27,11 @@ end subroutine pymr_run_scene
 
 !> Sizes of a scene's model: coordinates, bodies (with ground), markers.
 subroutine pymr_model_size(scene, overrides, n, nb, n_markers, stat, message)
-  use pymr_error, only : error_type
+  use pymr_env_error, only : error_type
   use pymr_bind_support, only : report
   use pymr_model_scene, only : scene_t
   use pymr_model, only : model_t
-  use pymr_run, only : load_model
+  use pymr_driver_run, only : load_model
   implicit none
   character(len=*), intent(in) :: scene, overrides
   integer, intent(out) :: n, nb, n_markers, stat
@@ -48,11 +48,11 @@ end subroutine pymr_model_size
 
 !> Mass matrix mm(n,n) and right-hand side p(n) of M qdd = P at (t, q, qd).
 subroutine pymr_model_terms(scene, overrides, n, t, q, qd, mm, p, stat, message)
-  use pymr_error, only : error_type, fatal_error
+  use pymr_env_error, only : error_type, fatal_error
   use pymr_bind_support, only : report
   use pymr_model_scene, only : scene_t
   use pymr_model, only : model_t, check_terms_finite
-  use pymr_run, only : load_model
+  use pymr_driver_run, only : load_model
   implicit none
   character(len=*), intent(in) :: scene, overrides
   integer, intent(in) :: n
@@ -79,11 +79,11 @@ end subroutine pymr_model_terms
 !> (Schur complement) evaluation, g(:, 1:nf) = M^-1 E and the fast force coefficients
 !> kf(1:nf), df(1:nf) (g, kf and df are n wide; nf columns are used).
 subroutine pymr_force_response(scene, overrides, n, t, q, qd, nf, g, kf, df, stat, message)
-  use pymr_error, only : error_type, fatal_error
+  use pymr_env_error, only : error_type, fatal_error
   use pymr_bind_support, only : report
   use pymr_model_scene, only : scene_t
   use pymr_model, only : model_t
-  use pymr_run, only : load_model
+  use pymr_driver_run, only : load_model
   implicit none
   character(len=*), intent(in) :: scene, overrides
   integer, intent(in) :: n
@@ -137,12 +137,12 @@ end subroutine pymr_format_reals
 !> 2 rigid-body motion, 3 drift), its frequency (Hz), damping ratio, rate Re(lambda) (1/s) and
 !> shape in the coordinates.
 subroutine pymr_modes(scene, overrides, n, t, q, qd, nm, kind, freq, zeta, rate, shapes, stat, message)
-  use pymr_error, only : error_type
+  use pymr_env_error, only : error_type
   use pymr_bind_support, only : report
   use pymr_model_scene, only : scene_t
   use pymr_model, only : model_t
-  use pymr_run, only : load_model
-  use pymr_preflight, only : normal_modes
+  use pymr_driver_run, only : load_model
+  use pymr_driver_preflight, only : normal_modes
   implicit none
   character(len=*), intent(in) :: scene, overrides
   integer, intent(in) :: n
@@ -163,11 +163,11 @@ end subroutine pymr_modes
 
 !> Accelerations qdd(n, m) for m states (t(m), q(n,m), qd(n,m)) of one model.
 subroutine pymr_model_accelerations(scene, overrides, n, m, t, q, qd, qdd, stat, message)
-  use pymr_error, only : error_type, fatal_error
+  use pymr_env_error, only : error_type, fatal_error
   use pymr_bind_support, only : report
   use pymr_model_scene, only : scene_t
   use pymr_model, only : model_t
-  use pymr_run, only : load_model
+  use pymr_driver_run, only : load_model
   implicit none
   character(len=*), intent(in) :: scene, overrides
   integer, intent(in) :: n, m
@@ -194,13 +194,13 @@ end subroutine pymr_model_accelerations
 !> phi(nr), Jacobian g(nr, n) and gam(nr) = -Gdot qd of every cut joint, nr of them (the
 !> arrays are nrmax long; call with nrmax = 0 to learn nr).
 subroutine pymr_loop_rows(scene, overrides, n, nrmax, q, qd, nr, phi, g, gam, stat, message)
-  use pymr_error, only : error_type, fatal_error
+  use pymr_env_error, only : error_type, fatal_error
   use pymr_bind_support, only : report
   use pymr_model_scene, only : scene_t
   use pymr_model, only : model_t
   use pymr_model_kinematics, only : forward_kinematics
   use pymr_model_loops, only : loop_rows
-  use pymr_run, only : load_model
+  use pymr_driver_run, only : load_model
   implicit none
   character(len=*), intent(in) :: scene, overrides
   integer, intent(in) :: n, nrmax
@@ -226,11 +226,11 @@ end subroutine pymr_loop_rows
 
 !> Kinetic and potential energy (J) for m states q(n,m), qd(n,m) of one model.
 subroutine pymr_model_energy(scene, overrides, n, m, q, qd, kinetic, potential, stat, message)
-  use pymr_error, only : error_type, fatal_error
+  use pymr_env_error, only : error_type, fatal_error
   use pymr_bind_support, only : report
   use pymr_model_scene, only : scene_t
   use pymr_model, only : model_t
-  use pymr_run, only : load_model
+  use pymr_driver_run, only : load_model
   implicit none
   character(len=*), intent(in) :: scene, overrides
   integer, intent(in) :: n, m
@@ -256,12 +256,12 @@ end subroutine pymr_model_energy
 !> Timing helper: CPU seconds per model evaluation over `reps` evaluations at
 !> the state (q, qd); the model is built once. Python takes medians over several calls.
 subroutine pymr_time_evaluation(scene, overrides, n, q, qd, reps, seconds, stat, message)
-  use pymr_error, only : error_type, fatal_error
+  use pymr_env_error, only : error_type, fatal_error
   use pymr_bind_support, only : report
   use pymr_model_scene, only : scene_t
   use pymr_model, only : model_t
-  use pymr_run, only : load_model
-  use pymr_clock, only : thread_cpu_time
+  use pymr_driver_run, only : load_model
+  use pymr_env_clock, only : thread_cpu_time
   implicit none
   character(len=*), intent(in) :: scene, overrides
   integer, intent(in) :: n, reps
@@ -301,9 +301,9 @@ end subroutine pymr_time_evaluation
 !> th, hh, qh: time, step and order of the first nmax accepted steps.
 subroutine pymr_ode_test(problem, t_end, h, adaptive, rtol, atol, n_corr, order, nx, nmax, x, steps, evals, &
     & rejected, th, hh, qh, stat, message)
-  use pymr_error, only : error_type
+  use pymr_env_error, only : error_type
   use pymr_bind_support, only : report
-  use pymr_test_odes, only : integrate_test_ode
+  use pymr_integrator_test_odes, only : integrate_test_ode
   implicit none
   integer, intent(in) :: problem, adaptive, n_corr, order, nx, nmax
   double precision, intent(in) :: t_end, h, rtol, atol
@@ -361,11 +361,11 @@ end subroutine pymr_step_ratio
 
 !> Write the modes of beam `body` of a scene to a modal data file (for kind='modal').
 subroutine pymr_write_modal(scene, overrides, body, path, stat, message)
-  use pymr_error, only : error_type, fatal_error
+  use pymr_env_error, only : error_type, fatal_error
   use pymr_bind_support, only : report
   use pymr_model_scene, only : scene_t
   use pymr_model, only : model_t
-  use pymr_run, only : load_model, scene_input
+  use pymr_driver_run, only : load_model, scene_input
   use pymr_io_modal_file, only : write_modal_file
   implicit none
   character(len=*), intent(in) :: scene, overrides, body, path
@@ -401,12 +401,12 @@ end subroutine pymr_write_modal
 !> Build a scene's model and keep it open: `handle` for pymr_model_rhs and friends, `n`
 !> its number of coordinates.
 subroutine pymr_model_open(scene, overrides, handle, n, stat, message)
-  use pymr_error, only : error_type
+  use pymr_env_error, only : error_type
   use pymr_bind_support, only : report
   use pymr_bind_models, only : open_models, open_flags
   use pymr_model_scene, only : scene_t
   use pymr_model, only : model_t
-  use pymr_run, only : load_model
+  use pymr_driver_run, only : load_model
   implicit none
   character(len=*), intent(in) :: scene, overrides
   integer, intent(out) :: handle, n, stat
@@ -456,7 +456,7 @@ end subroutine pymr_model_close
 !> f(t, x) = [qd; qdd] of an open model for the state x = [q; qd]; `evals` counts the
 !> model's full evaluations so far.
 subroutine pymr_model_rhs(handle, nx, t, x, f, evals, stat, message)
-  use pymr_error, only : error_type, fatal_error
+  use pymr_env_error, only : error_type, fatal_error
   use pymr_bind_support, only : report
   use pymr_bind_models, only : open_models, check_handle
   implicit none
@@ -483,7 +483,7 @@ end subroutine pymr_model_rhs
 !> Position (inertial, m) of marker `marker` (1-based) of an open model at m states
 !> (t(m), q(n,m), qd(n,m)); prescribed coordinates take their functions' values.
 subroutine pymr_model_marker(handle, marker, n, m, t, q, qd, pos, stat, message)
-  use pymr_error, only : error_type, fatal_error
+  use pymr_env_error, only : error_type, fatal_error
   use pymr_bind_support, only : report
   use pymr_bind_models, only : open_models, check_handle
   use pymr_model_kinematics, only : forward_kinematics, marker_motion
@@ -521,7 +521,7 @@ end subroutine pymr_model_marker
 
 !> Index (1-based; 0 when absent) of the marker called `name` in an open model.
 subroutine pymr_model_marker_index(handle, name, k)
-  use pymr_error, only : error_type
+  use pymr_env_error, only : error_type
   use pymr_bind_models, only : open_models, check_handle
   implicit none
   integer, intent(in) :: handle
@@ -540,7 +540,7 @@ end subroutine pymr_model_marker_index
 !> Progress of the run going on in this process (another thread's pymr_run_scene):
 !> simulated time reached, end time, and whether it is running.
 subroutine pymr_progress(t, t_end, running)
-  use pymr_run, only : progress_t, progress_t_end, progress_running
+  use pymr_driver_run, only : progress_t, progress_t_end, progress_running
   implicit none
   double precision, intent(out) :: t, t_end
   integer, intent(out) :: running
@@ -553,13 +553,13 @@ end subroutine pymr_progress
 !> same with the files it names made absolute, for a copy placed elsewhere) or the schema
 !> of the scene items (what = 1), written to `path`.
 subroutine pymr_scene_write(scene, overrides, what, path, stat, message)
-  use pymr_error, only : error_type
+  use pymr_env_error, only : error_type
   use pymr_bind_support, only : report
   use pymr_model_scene, only : scene_t
   use pymr_model, only : model_t
-  use pymr_run, only : load_model
+  use pymr_driver_run, only : load_model
   use pymr_io_namelist_input, only : resolved_text, schema_text, scene_fingerprint
-  use pymr_io_text_file, only : write_text_file
+  use pymr_env_text_file, only : write_text_file
   use pymr_io_sha256, only : sha256_hex
   implicit none
   character(len=*), intent(in) :: scene, overrides, path
@@ -589,7 +589,7 @@ end subroutine pymr_scene_write
 !> The value of one item (address GROUP.ITEM or GROUP[NAME].ITEM) of a scene read with
 !> its overrides, as the resolved scene writes it ('' when it holds no value).
 subroutine pymr_scene_item(scene, overrides, address, value, stat, message)
-  use pymr_error, only : error_type
+  use pymr_env_error, only : error_type
   use pymr_bind_support, only : report
   use pymr_model_scene, only : scene_t
   use pymr_io_namelist_input, only : read_scene, item_value
@@ -611,7 +611,7 @@ end subroutine pymr_scene_item
 !> LAPACK called with an illegal argument: info and the routine pymr's XERBLA recorded
 !> (the process goes on; the reference XERBLA would have stopped it).
 subroutine pymr_xerbla_probe(info, routine, argument)
-  use pymr_lapack, only : illegal_argument_probe, xerbla_routine, xerbla_argument
+  use pymr_env_lapack, only : illegal_argument_probe, xerbla_routine, xerbla_argument
   implicit none
   integer, intent(out) :: info, argument
   character(len=32), intent(out) :: routine
@@ -624,9 +624,9 @@ end subroutine pymr_xerbla_probe
 !> Step and order history of a scene's run (no output): time reached, step and order of
 !> each accepted step (entry 1: the start), nh entries, at most nmax.
 subroutine pymr_step_history(scene, overrides, nmax, t, h, q, nh, stat, message)
-  use pymr_error, only : error_type
+  use pymr_env_error, only : error_type
   use pymr_bind_support, only : report
-  use pymr_history, only : step_history
+  use pymr_driver_history, only : step_history
   implicit none
   character(len=*), intent(in) :: scene, overrides
   integer, intent(in) :: nmax
@@ -657,7 +657,7 @@ end subroutine pymr_adams_kernel
 !> Every body's frame (inertial origin pos(3, b, k) and its parent's index parent(b), 0 for
 !> the ground) of an open model at m states (t(m), q(n,m), qd(n,m)), for drawing.
 subroutine pymr_model_frames(handle, n, m, nb, t, q, qd, pos, parent, stat, message)
-  use pymr_error, only : error_type, fatal_error
+  use pymr_env_error, only : error_type, fatal_error
   use pymr_bind_support, only : report
   use pymr_bind_models, only : open_models, check_handle
   use pymr_model_kinematics, only : forward_kinematics
@@ -696,7 +696,7 @@ end subroutine pymr_model_frames
 !> The body (1-based, in the model's order) marker `marker` (1-based) of an open model is on;
 !> 0 for no such marker.
 subroutine pymr_model_marker_body(handle, marker, body)
-  use pymr_error, only : error_type
+  use pymr_env_error, only : error_type
   use pymr_bind_models, only : open_models, check_handle
   implicit none
   integer, intent(in) :: handle, marker
@@ -712,11 +712,11 @@ end subroutine pymr_model_marker_body
 !> What of a scene's input `path` is ('the scene (FILE)', 'a modal file of the scene (FILE)',
 !> ...), or '' : the kernel's rule for outputs Python writes beside a scene's files.
 subroutine pymr_scene_input(scene, overrides, path, what, stat, message)
-  use pymr_error, only : error_type
+  use pymr_env_error, only : error_type
   use pymr_bind_support, only : report
   use pymr_model_scene, only : scene_t
   use pymr_io_namelist_input, only : read_scene
-  use pymr_run, only : scene_input
+  use pymr_driver_run, only : scene_input
   implicit none
   character(len=*), intent(in) :: scene, overrides, path
   character(len=4096), intent(out) :: what
@@ -734,7 +734,7 @@ end subroutine pymr_scene_input
 !> are there, else the same absolute path)? 1 yes, 0 no: the rule by which an output that
 !> would replace an input is refused, for the outputs Python writes.
 subroutine pymr_same_file(a, b, same)
-  use pymr_io_text_file, only : same_file
+  use pymr_env_text_file, only : same_file
   implicit none
   character(len=*), intent(in) :: a, b
   integer, intent(out) :: same

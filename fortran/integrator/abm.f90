@@ -3,14 +3,14 @@
 !> The integrator owns its Nordsieck arrays and work vectors (allocated once in `init`)
 !> and reaches the model only through `ode_system%eval`.
 module pymr_integrator_abm
-  use pymr_kinds, only : dp
-  use pymr_error, only : error_type, fatal_error, stat_solver
+  use pymr_env_kinds, only : dp
+  use pymr_env_error, only : error_type, fatal_error, stat_solver
   use pymr_integrator_ode, only : ode_system
   use pymr_integrator_nordsieck, only : nq, corrector_l, nordsieck_predict, nordsieck_correct, &
     & nordsieck_rescale, nordsieck_value, nordsieck_from_history
   use pymr_integrator_control, only : step_control, error_weights, wrms_norm
   use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps
-  use pymr_io_text, only : fmt
+  use pymr_env_text, only : fmt
   implicit none
   private
   public :: abm_integrator, rk4_step, check_finite, hinit

@@ -11,14 +11,14 @@
 !> From the same polynomials come the local error estimates at orders q-1, q and q+1, which
 !> choose the next step and order.
 module pymr_integrator_adams
-  use pymr_kinds, only : dp
-  use pymr_error, only : error_type, fatal_error, stat_solver
+  use pymr_env_kinds, only : dp
+  use pymr_env_error, only : error_type, fatal_error, stat_solver
   use pymr_integrator_ode, only : ode_system
   use pymr_integrator_control, only : step_control, error_weights, wrms_norm
   use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps
   use pymr_integrator_abm, only : check_finite
-  use pymr_io_text, only : fmt, itoa
-  use pymr_lapack, only : lu_factor, lu_solve
+  use pymr_env_text, only : fmt, itoa
+  use pymr_env_lapack, only : lu_factor, lu_solve
   use pymr_integrator_nordsieck, only : nordsieck_predict_in_place, nordsieck_rescale, nordsieck_value
   implicit none
   private

@@ -1,6 +1,6 @@
 !> Step-size control: error weights and norms as in CVODE, and the step ratio rule.
 module pymr_integrator_control
-  use pymr_kinds, only : dp
+  use pymr_env_kinds, only : dp
   implicit none
   private
   public :: step_control, error_weights, wrms_norm

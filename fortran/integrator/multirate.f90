@@ -9,11 +9,11 @@
 !> complement) and the fast ones consistent with them; both are corrected. With k = 1
 !> this is the single-rate PECE method.
 module pymr_integrator_multirate
-  use pymr_kinds, only : dp
-  use pymr_error, only : error_type, fatal_error, stat_solver
+  use pymr_env_kinds, only : dp
+  use pymr_env_error, only : error_type, fatal_error, stat_solver
   use pymr_integrator_ode, only : ode_system, partitioned_system
   use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps
-  use pymr_io_text, only : fmt
+  use pymr_env_text, only : fmt
   use pymr_integrator_nordsieck, only : nq, nordsieck_predict, nordsieck_correct, nordsieck_value, &
     & nordsieck_from_history, nordsieck_rescale, corrector_l
   use pymr_integrator_abm, only : rk4_step, check_finite

@@ -7,7 +7,7 @@
 !> Rescaling, the value of the polynomial and the in-place Pascal predictor also serve
 !> arrays of any width z(n, 0:q) (formula 'adams', orders 1-12).
 module pymr_integrator_nordsieck
-  use pymr_kinds, only : dp
+  use pymr_env_kinds, only : dp
   implicit none
   private
   public :: nq, corrector_l, nordsieck_predict, nordsieck_correct, nordsieck_rescale

@@ -1,8 +1,8 @@
 !> The abstract first-order system x' = f(t, x) that the integrators advance.
 !> Models extend `ode_system`; one integrator serves every model.
 module pymr_integrator_ode
-  use pymr_kinds, only : dp
-  use pymr_error, only : error_type
+  use pymr_env_kinds, only : dp
+  use pymr_env_error, only : error_type
   implicit none
   private
   public :: ode_system, partitioned_system

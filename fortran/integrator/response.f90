@@ -21,15 +21,15 @@
 !> by the surrogate's error, measured at every full evaluation as the difference of the
 !> full and the surrogate accelerations at the same state.
 module pymr_integrator_response
-  use pymr_kinds, only : dp
-  use pymr_error, only : error_type, fatal_error, stat_solver
+  use pymr_env_kinds, only : dp
+  use pymr_env_error, only : error_type, fatal_error, stat_solver
   use pymr_integrator_ode, only : ode_system, partitioned_system
   use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps
   use pymr_integrator_nordsieck, only : nq, corrector_l, nordsieck_predict, nordsieck_correct, nordsieck_rescale, &
     & nordsieck_value
   use pymr_integrator_abm, only : abm_integrator, check_finite
   use pymr_integrator_control, only : step_control, error_weights, wrms_norm
-  use pymr_io_text, only : fmt
+  use pymr_env_text, only : fmt
   implicit none
   private
   public :: response_integrator, extrapolation_weights

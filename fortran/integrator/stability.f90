@@ -5,9 +5,9 @@
 !> G(q) is at most 1. On the imaginary axis this holds up to |q| = 0.4299, on the negative
 !> real axis down to q = -0.300.
 module pymr_integrator_stability
-  use pymr_kinds, only : dp
-  use pymr_error, only : error_type
-  use pymr_lapack, only : geev_complex
+  use pymr_env_kinds, only : dp
+  use pymr_env_error, only : error_type
+  use pymr_env_lapack, only : geev_complex
   use pymr_integrator_nordsieck, only : nq, corrector_l
   implicit none
   private

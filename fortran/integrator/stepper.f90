@@ -7,8 +7,8 @@
 !> pre-flight check use nothing else; which stepper a scene gets is chosen once, when it
 !> is made.
 module pymr_integrator_stepper
-  use pymr_kinds, only : dp
-  use pymr_error, only : error_type
+  use pymr_env_kinds, only : dp
+  use pymr_env_error, only : error_type
   use pymr_integrator_ode, only : ode_system
   implicit none
   private

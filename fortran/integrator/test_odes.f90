@@ -1,7 +1,7 @@
 !> ODEs with known solutions, used by the tests of the integrators.
-module pymr_test_odes
-  use pymr_kinds, only : dp
-  use pymr_error, only : error_type, fatal_error
+module pymr_integrator_test_odes
+  use pymr_env_kinds, only : dp
+  use pymr_env_error, only : error_type, fatal_error
   use pymr_integrator_ode, only : ode_system
   use pymr_integrator_abm, only : abm_integrator
   use pymr_integrator_adams, only : adams_integrator
@@ -163,4 +163,4 @@ contains
     end do
     st%q = order; st%h = h; st%t = 0.0_dp; st%tau = h
   end subroutine exact_start
-end module pymr_test_odes
+end module pymr_integrator_test_odes

@@ -9,12 +9,12 @@
 !> checked, flushed and renamed, so a run killed while writing keeps the previous checkpoint.
 module pymr_io_checkpoint
   use, intrinsic :: iso_fortran_env, only : int64
-  use pymr_io_text_file, only : rename_file, sync_file, check_size, not_regular, check_header_count
-  use pymr_kinds, only : dp
-  use pymr_error, only : error_type, fatal_error, stat_solver
+  use pymr_env_text_file, only : rename_file, sync_file, check_size, not_regular, check_header_count
+  use pymr_env_kinds, only : dp
+  use pymr_env_error, only : error_type, fatal_error, stat_solver
   use pymr_integrator_stepper, only : stepper_t
   use pymr_model, only : model_t
-  use pymr_io_text, only : itoa, fmt
+  use pymr_env_text, only : itoa, fmt
   use pymr_io_sha256, only : sha256_hex
   use pymr_io_results_output, only : pymr_version, n_work
   implicit none

@@ -6,7 +6,7 @@
 !> Beyond that range (subnormal numbers included) a formatted WRITE gives the correctly
 !> rounded digits.
 module pymr_io_fast_format
-  use pymr_kinds, only : dp
+  use pymr_env_kinds, only : dp
   use, intrinsic :: iso_fortran_env, only : int64
   implicit none
   private

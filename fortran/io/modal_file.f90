@@ -23,12 +23,12 @@
 module pymr_io_modal_file
   use, intrinsic :: iso_fortran_env, only : int64
   use, intrinsic :: ieee_arithmetic, only : ieee_is_finite
-  use pymr_kinds, only : dp, pi
-  use pymr_error, only : error_type, fatal_error
+  use pymr_env_kinds, only : dp, pi
+  use pymr_env_error, only : error_type, fatal_error
   use pymr_model_flexbody, only : flex_data, flex_invariants, flex_from_moments, modal_nodes
   use pymr_model_beam_modes, only : beam_shape, beam_point_shapes
-  use pymr_io_text, only : itoa, fmt, number_text, count_text, split_words
-  use pymr_io_text_file, only : not_regular, write_text_file, read_text_file, check_header_count
+  use pymr_env_text, only : itoa, fmt, number_text, count_text, split_words
+  use pymr_env_text_file, only : not_regular, write_text_file, read_text_file, check_header_count
   implicit none
   private
   public :: read_modal_file, write_modal_file, normalised_tol

@@ -2,17 +2,17 @@
 !> resolved scene back, and print the schema: all through the item tables of
 !> pymr_model_scene, one generic path for every group and item.
 module pymr_io_namelist_input
-  use pymr_kinds, only : dp, name_len
-  use pymr_error, only : error_type, fatal_error, prefix_error
+  use pymr_env_kinds, only : dp, name_len
+  use pymr_env_error, only : error_type, fatal_error, prefix_error
   use pymr_model_scene, only : scene_t, unset, group_names, single_groups, repeated_groups, describe_group, &
     & group_origin, &
     & group_count, naming_item, complete_scene, item_applies
-  use pymr_io_item_table, only : item_table, origin_t, set_item, value_text, suggestion, schema_line, comma_list, &
+  use pymr_env_item_table, only : item_table, origin_t, set_item, value_text, suggestion, schema_line, comma_list, &
     & t_string
-  use pymr_io_namelist_parse, only : group_text, item_text, token_t, parse_namelist, parse_values, group_label
-  use pymr_io_text, only : itoa, lower
+  use pymr_env_namelist_parse, only : group_text, item_text, token_t, parse_namelist, parse_values, group_label
+  use pymr_env_text, only : itoa, lower
   use pymr_io_sha256, only : sha256_hex
-  use pymr_io_text_file, only : read_text_file
+  use pymr_env_text_file, only : read_text_file
   implicit none
   private
   public :: read_scene, read_scene_text, resolved_text, schema_text, scene_fingerprint, item_value

@@ -1,13 +1,13 @@
 !> Result files: OUT.csv (comment lines, header, one row per output time) and OUT.json
 !> (run statistics), as fixed in ARCHITECTURE.md.
 module pymr_io_results_output
-  use pymr_kinds, only : dp
+  use pymr_env_kinds, only : dp
   use, intrinsic :: iso_fortran_env, only : int64
-  use pymr_error, only : error_type, fatal_error, stat_solver
+  use pymr_env_error, only : error_type, fatal_error, stat_solver
   use pymr_model_types, only : model_data, n_effects, effect_names, cut_free
   use pymr_io_fast_format, only : put_real
-  use pymr_io_text, only : itoa
-  use pymr_io_text_file, only : write_text_file, stage_text_file, sync_file, rename_file, file_size, check_size
+  use pymr_env_text, only : itoa
+  use pymr_env_text_file, only : write_text_file, stage_text_file, sync_file, rename_file, file_size, check_size
   implicit none
   private
   public :: csv_writer, json_path, write_json, run_stats, pymr_version, output_plan, output_plan_of

@@ -3,10 +3,10 @@
 !> are skipped. Times must increase strictly. A line of any other count of numbers (a
 !> third column: a file written for something else) is refused, not cut to two.
 module pymr_io_table_file
-  use pymr_kinds, only : dp
-  use pymr_error, only : error_type, fatal_error
-  use pymr_io_text, only : itoa, fmt, number_text, split_words
-  use pymr_io_text_file, only : not_regular, read_text_file
+  use pymr_env_kinds, only : dp
+  use pymr_env_error, only : error_type, fatal_error
+  use pymr_env_text, only : itoa, fmt, number_text, split_words
+  use pymr_env_text_file, only : not_regular, read_text_file
   implicit none
   private
   public :: read_time_table

@@ -25,9 +25,9 @@
 !> A joint of several coordinates is condensed one column at a time (its primitives are
 !> joined by massless frames); the flexible bodies' K_aa are factored by potrf.
 module pymr_model_articulated
-  use pymr_kinds, only : dp
-  use pymr_error, only : error_type, fatal_error, stat_solver
-  use pymr_lapack, only : potrf, potrs
+  use pymr_env_kinds, only : dp
+  use pymr_env_error, only : error_type, fatal_error, stat_solver
+  use pymr_env_lapack, only : potrf, potrs
   use pymr_model_types, only : model_data, effect_base_motion
   use pymr_model_effects, only : prescribed_motion
   implicit none

@@ -6,7 +6,7 @@
 !> subtree; M(j,k) = column_j . f_k for every column j on the path from the owner of k to
 !> the base, with f_k the spatial momentum of k's motion. P_k = tau_k - column_k . Wc.
 module pymr_model_assembly
-  use pymr_kinds, only : dp
+  use pymr_env_kinds, only : dp
   use pymr_model_types, only : model_data, effect_deformation_inertia
   use pymr_model_flexbody, only : flex_body_terms
   implicit none

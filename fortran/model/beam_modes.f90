@@ -11,9 +11,9 @@
 !> h^6, the relative error of f_n about (k_n h)^6/60480 with k_n = (2n-1) pi/(2L), from above
 !> (3.8e-12 for f_1 with 20 elements; tests/test_beam_modes.py measures it).
 module pymr_model_beam_modes
-  use pymr_kinds, only : dp, pi
-  use pymr_error, only : error_type
-  use pymr_lapack, only : sygvd, band_solve
+  use pymr_env_kinds, only : dp, pi
+  use pymr_env_error, only : error_type
+  use pymr_env_lapack, only : sygvd, band_solve
   use pymr_model_flexbody, only : flex_data, flex_invariants, point_shapes
   implicit none
   private

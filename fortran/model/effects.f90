@@ -1,7 +1,7 @@
 !> Optional physics. Each effect has its own routine; the model calls only those the
 !> scene turned on (the plan in model_data%effect_on is fixed at build time).
 module pymr_model_effects
-  use pymr_kinds, only : dp, pi
+  use pymr_env_kinds, only : dp, pi
   use pymr_model_types, only : model_data, effect_gravity, effect_joint_drives, effect_modal_damping, &
     & effect_joint_springs, effect_geometric_stiffening, effect_base_motion, effect_firing_load, motion_spinup, &
     & motion_table

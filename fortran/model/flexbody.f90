@@ -9,7 +9,7 @@
 !> W(i,j,alpha,beta) = sum m_p Z_p(i,alpha) Z_p(j,beta), computed once. The deformed
 !> point is c_p = Z_p [1; a].
 module pymr_model_flexbody
-  use pymr_kinds, only : dp
+  use pymr_env_kinds, only : dp
   use pymr_model_spatial, only : skew, rigid_inertia
   implicit none
   private

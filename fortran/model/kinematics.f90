@@ -8,7 +8,7 @@
 !> The points of the loop-closing joints (model/loops.f90) get their frames by the same
 !> rule (flexible_frame), after the tree.
 module pymr_model_kinematics
-  use pymr_kinds, only : dp
+  use pymr_env_kinds, only : dp
   use pymr_model_types, only : model_data, prim_revolute, cut_free
   use pymr_model_flexbody, only : small_rotation
   implicit none

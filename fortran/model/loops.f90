@@ -30,13 +30,13 @@
 !> (their modal columns at each child's joint enter G) and be cut at a point of one. The
 !> cut's force acts at the deformed point; its modal share is G^T lambda in the modal rows.
 module pymr_model_loops
-  use pymr_kinds, only : dp
-  use pymr_error, only : error_type, fatal_error, stat_solver, stat_input
-  use pymr_lapack, only : potrf, potrs
+  use pymr_env_kinds, only : dp
+  use pymr_env_error, only : error_type, fatal_error, stat_solver, stat_input
+  use pymr_env_lapack, only : potrf, potrs
   use pymr_model_types, only : model_data, cut_fixed, cut_revolute, cut_prismatic, cut_spherical, cut_free
   use pymr_model_kinematics, only : forward_kinematics
   use pymr_model_spatial, only : cross, unit_axes
-  use pymr_io_text, only : itoa, fmt
+  use pymr_env_text, only : itoa, fmt
   implicit none
   private
   public :: assemble_loops, loop_rows, choose_rows, independent_rows, constrained_accelerations, project_positions

@@ -1,11 +1,11 @@
 !> The multibody model as an ODE system: state x = [q; qd], f = [qd; qdd] with M qdd = P.
 module pymr_model
-  use pymr_kinds, only : dp
+  use pymr_env_kinds, only : dp
   use, intrinsic :: ieee_arithmetic, only : ieee_is_finite
-  use pymr_error, only : error_type, prefix_error, fatal_error, stat_solver
-  use pymr_lapack, only : potrf, potrs, factor_inverse
+  use pymr_env_error, only : error_type, prefix_error, fatal_error, stat_solver
+  use pymr_env_lapack, only : potrf, potrs, factor_inverse
   use pymr_integrator_ode, only : partitioned_system
-  use pymr_clock, only : thread_cpu_time
+  use pymr_env_clock, only : thread_cpu_time
   use pymr_model_types, only : model_data, effect_gravity, effect_joint_drives, effect_modal_damping, &
     & effect_joint_springs, effect_geometric_stiffening, effect_base_motion, effect_firing_load, &
     & effect_deformation_inertia, n_effects

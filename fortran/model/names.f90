@@ -1,7 +1,7 @@
 !> Name lookups in O(log n): an index of names sorted once (merge sort, stable), binary
 !> search for a name, and the first repeated name. Scenes with 10^5 markers stay fast.
 module pymr_model_names
-  use pymr_kinds, only : name_len
+  use pymr_env_kinds, only : name_len
   implicit none
   private
   public :: name_index

@@ -11,7 +11,7 @@
 !> row k of M qdd = P: the drive and spring load on the coordinate, or the force that
 !> holds a prescribed one to its motion.
 module pymr_model_reactions
-  use pymr_kinds, only : dp
+  use pymr_env_kinds, only : dp
   use pymr_model_types, only : model_data
   use pymr_model_spatial, only : cross
   implicit none

@@ -6,8 +6,8 @@
 !> without one. The reader, the writer of the resolved scene and the schema all go through
 !> these tables.
 module pymr_model_scene
-  use pymr_kinds, only : dp, name_len
-  use pymr_io_item_table, only : item_table, origin_t, unset
+  use pymr_env_kinds, only : dp, name_len
+  use pymr_env_item_table, only : item_table, origin_t, unset
   implicit none
   private
   public :: scene_t, body_spec, joint_spec, drive_spec, marker_spec, integrator_spec, effects_spec

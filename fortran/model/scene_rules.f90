@@ -4,13 +4,13 @@
 !> for the groups that need them, steps that fit together. check_scene applies them all in
 !> one pass and reports up to ten faults, each naming file, line, group and item.
 module pymr_model_scene_rules
-  use pymr_kinds, only : dp, name_len
-  use pymr_error, only : error_type, fatal_error, error_list
+  use pymr_env_kinds, only : dp, name_len
+  use pymr_env_error, only : error_type, fatal_error, error_list
   use pymr_model_scene, only : scene_t, body_spec, joint_spec, joint_ndof, unset, body_items, beam_mode_count, &
     & closes_loop, body_index
-  use pymr_io_item_table, only : origin_t
+  use pymr_env_item_table, only : origin_t
   use pymr_model_names, only : name_index
-  use pymr_io_text, only : itoa, fmt
+  use pymr_env_text, only : itoa, fmt
   implicit none
   private
   public :: check_scene, body_index, inertia_matrix, closes_loop
@@ -353,7 +353,7 @@ contains
 
   !> Loop-closing joints (closes_loop): any kind ('free' closes no constraint), at rigid
   !> bodies or at points of flexible ones (the points a flexible body allows are checked,
-  !> with its modes, where the model is built: build.f90 flexible_point), no coordinates of
+  !> with its modes, where the model is built: driver/build.f90 flexible_point), no coordinates of
   !> their own (no q0, qd0, settle, hold, drive, spring or motion), not at a beam whose geometric
   !> stiffness is on (the cut's load would not stiffen it), only through the mass matrix
   !> (loop_refusal); child_at only on them, and given on each of them.
@@ -697,7 +697,7 @@ contains
 
   !> Modal damping of beam i: one value or one per mode; its initial modal state: one value
   !> per mode (every mode counted: bending, axial, torsional). A modal file's mode count is
-  !> known only when the model reads it (model/build.f90 checks those bodies).
+  !> known only when the model reads it (driver/build.f90 checks those bodies).
   subroutine check_damping(sc, i, error)
     type(scene_t), intent(in) :: sc
     integer, intent(in) :: i

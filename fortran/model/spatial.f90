@@ -5,7 +5,7 @@
 !> point at the inertial origin, angular velocity) and force [f; n_O] (force, moment
 !> about the inertial origin), so that power is the plain dot product.
 module pymr_model_spatial
-  use pymr_kinds, only : dp
+  use pymr_env_kinds, only : dp
   implicit none
   private
   public :: cross, skew, motion_cross, rigid_inertia, unit_axes, quaternion

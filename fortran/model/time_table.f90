@@ -2,9 +2,9 @@
 !> motions through a natural cubic spline, whose value, rate and acceleration are
 !> continuous (a prescribed coordinate needs all three).
 module pymr_model_time_table
-  use pymr_kinds, only : dp
-  use pymr_error, only : error_type
-  use pymr_lapack, only : ptsv
+  use pymr_env_kinds, only : dp
+  use pymr_env_error, only : error_type
+  use pymr_env_lapack, only : ptsv
   implicit none
   private
   public :: time_table, table_linear, spline_setup, table_spline

@@ -1,7 +1,7 @@
 !> The model's data: the body tree in parent-before-child order, its coordinates, the
 !> effect plan and the work arrays of one evaluation (allocated once at build).
 module pymr_model_types
-  use pymr_kinds, only : dp, name_len
+  use pymr_env_kinds, only : dp, name_len
   use pymr_model_flexbody, only : flex_data, flex_work, modal_nodes
   use pymr_model_beam_modes, only : beam_shape
   use pymr_model_time_table, only : time_table

@@ -1,12 +1,12 @@
 !> Whole files written safely: to PATH.tmp, every write and the close checked, flushed to
 !> the disk (fsync), then renamed over PATH, so a complete earlier file is never lost to a
 !> failed or killed write.
-module pymr_io_text_file
+module pymr_env_text_file
   use, intrinsic :: iso_c_binding, only : c_char, c_int, c_long, c_null_char, c_size_t, c_ptr, c_associated
   use, intrinsic :: iso_fortran_env, only : int64
-  use pymr_kinds, only : dp
-  use pymr_error, only : error_type, fatal_error, stat_solver
-  use pymr_io_text, only : itoa
+  use pymr_env_kinds, only : dp
+  use pymr_env_error, only : error_type, fatal_error, stat_solver
+  use pymr_env_text, only : itoa
   implicit none
   private
   public :: write_text_file, stage_text_file, commit_staged, rename_file, sync_file, check_size, file_size, &
@@ -376,4 +376,4 @@ contains
       call fatal_error(error, new // ': cannot move the new file into place from ' // old)
     end if
   end subroutine rename_file
-end module pymr_io_text_file
+end module pymr_env_text_file

@@ -1,5 +1,5 @@
 !> Kinds and small constants shared by every module of pymr.
-module pymr_kinds
+module pymr_env_kinds
   implicit none
   private
   public :: dp, pi, name_len
@@ -10,4 +10,4 @@ module pymr_kinds
   real(dp), parameter :: pi = 3.14159265358979323846264338327950288_dp
   !> Length of names (bodies, joints, markers, effects).
   integer, parameter :: name_len = 64
-end module pymr_kinds
+end module pymr_env_kinds

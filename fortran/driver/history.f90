@@ -1,14 +1,14 @@
 !> The step and order history of a scene's run, for studies and tests: the run's own
 !> stepper from the initial state to t_end, without output, recording each accepted step.
-module pymr_history
-  use pymr_kinds, only : dp
-  use pymr_error, only : error_type, fatal_error
+module pymr_driver_history
+  use pymr_env_kinds, only : dp
+  use pymr_env_error, only : error_type, fatal_error
   use pymr_model_scene, only : scene_t
   use pymr_model, only : model_t
   use pymr_integrator_stepper, only : stepper_t
-  use pymr_stepper_setup, only : make_stepper
-  use pymr_run, only : load_model, starting_state
-  use pymr_io_text, only : itoa
+  use pymr_driver_stepper_setup, only : make_stepper
+  use pymr_driver_run, only : load_model, starting_state
+  use pymr_env_text, only : itoa
   implicit none
   private
   public :: step_history
@@ -44,4 +44,4 @@ contains
       t(nh) = st%time(); h(nh) = t(nh) - t_prev; q(nh) = st%order()
     end do
   end subroutine step_history
-end module pymr_history
+end module pymr_driver_history

@@ -1,8 +1,8 @@
 !> Build the model from a checked scene (model/scene_rules.f90): bodies in parent-before-child
 !> order, joints expanded into one-coordinate primitives, the effect plan, work arrays.
-module pymr_model_build
-  use pymr_kinds, only : dp, name_len, pi
-  use pymr_error, only : error_type, fatal_error
+module pymr_driver_build
+  use pymr_env_kinds, only : dp, name_len, pi
+  use pymr_env_error, only : error_type, fatal_error
   use pymr_model_scene, only : scene_t, body_spec, joint_spec, joint_ndof, unset, beam_mode_count
   use pymr_model_scene_rules, only : check_scene, body_index, inertia_matrix, closes_loop
   use pymr_model_types, only : model_data, prim_revolute, prim_prismatic, effect_gravity, effect_joint_drives, &
@@ -15,9 +15,9 @@ module pymr_model_build
   use pymr_io_modal_file, only : read_modal_file
   use pymr_model_flexbody, only : flex_data, modal_nodes, undeformed_modal_moments
   use pymr_model_spatial, only : unit_axes
-  use pymr_io_text_file, only : scene_relative
+  use pymr_env_text_file, only : scene_relative
   use pymr_model, only : model_t
-  use pymr_io_text, only : itoa, fmt
+  use pymr_env_text, only : itoa, fmt
   implicit none
   private
   public :: build_model
@@ -610,4 +610,4 @@ contains
     end do
   end function coordinate_index
 
-end module pymr_model_build
+end module pymr_driver_build

@@ -8,16 +8,16 @@
 !> coordinate (its `pece` steps). A multirate stepper is then applied to the linearised model
 !> itself: the growth of its macro step, by power iteration on its whole state, must stay
 !> below `run_growth` over the run.
-module pymr_preflight
-  use pymr_kinds, only : dp, pi
-  use pymr_error, only : error_type, fatal_error, stat_input
-  use pymr_lapack, only : potrf, potrs, geev_real, factor_inverse, general_solve, sygvd
+module pymr_driver_preflight
+  use pymr_env_kinds, only : dp, pi
+  use pymr_env_error, only : error_type, fatal_error, stat_input
+  use pymr_env_lapack, only : potrf, potrs, geev_real, factor_inverse, general_solve, sygvd
   use pymr_model, only : model_t, modal_stiffness_damping, model_counters
   use pymr_model_loops, only : loop_rows, independent_rows, loop_jacobian, constrain_inverse
   use pymr_integrator_stability, only : pece_growth, pece_limit
   use pymr_integrator_ode, only : partitioned_system
   use pymr_integrator_stepper, only : stepper_t, pece_steps, step_counts
-  use pymr_io_text, only : itoa
+  use pymr_env_text, only : itoa
   implicit none
   private
   public :: check_step_stability, check_mass_matrix, normal_modes, static_start, top_frequency
@@ -890,4 +890,4 @@ contains
     if (allocated(self%tfs)) ff(nf+1:) = ff(nf+1:) - matmul(self%tfs, acc_s)
     ff(1:nf) = xf(nf+1:)
   end subroutine lin_fast
-end module pymr_preflight
+end module pymr_driver_preflight

@@ -1,28 +1,28 @@
 !> One run from a scene file to result files: read, build, integrate, write.
 !> Shared by the `mrsim` program and the Python binding.
-module pymr_run
+module pymr_driver_run
   use, intrinsic :: iso_fortran_env, only : error_unit
-  use pymr_kinds, only : dp
-  use pymr_error, only : error_type, fatal_error, stat_solver, prefix_error
+  use pymr_env_kinds, only : dp
+  use pymr_env_error, only : error_type, fatal_error, stat_solver, prefix_error
   use pymr_model_scene, only : scene_t, unset
   use pymr_io_namelist_input, only : read_scene, scene_fingerprint, checkpoint_identity, resolved_text
-  use pymr_model_build, only : build_model
+  use pymr_driver_build, only : build_model
   use pymr_model, only : model_t
   use pymr_integrator_stepper, only : stepper_t, step_counts
-  use pymr_stepper_setup, only : make_stepper, stepper_label, method_label
+  use pymr_driver_stepper_setup, only : make_stepper, stepper_label, method_label
   use pymr_io_results_output, only : csv_writer, json_path, write_json, run_stats, output_plan_of, n_work
-  use pymr_output_quantities, only : write_output_row, work_at
+  use pymr_driver_output_quantities, only : write_output_row, work_at
   use pymr_model_kinematics, only : forward_kinematics, marker_motion
   use pymr_model_loops, only : assemble_loops
   use pymr_model_scene_rules, only : closes_loop
   use pymr_model_types, only : cut_free
-  use pymr_clock, only : thread_cpu_time
+  use pymr_env_clock, only : thread_cpu_time
   use pymr_model_effects, only : prescribed_motion
-  use pymr_io_text, only : itoa, fmt
+  use pymr_env_text, only : itoa, fmt
   use pymr_model_flexbody, only : point_deflection
-  use pymr_io_text_file, only : absolute_path, scene_relative, acquire_lock, release_lock, not_regular, missing_folder, &
+  use pymr_env_text_file, only : absolute_path, scene_relative, acquire_lock, release_lock, not_regular, missing_folder, &
     & commit_staged, remove_file, same_file
-  use pymr_preflight, only : check_step_stability, check_mass_matrix, static_start
+  use pymr_driver_preflight, only : check_step_stability, check_mass_matrix, static_start
   use pymr_io_checkpoint, only : run_progress, write_checkpoint, read_checkpoint
   implicit none
   private
@@ -673,4 +673,4 @@ contains
       & // ' more markers in the results)' // new_line('a')
     s = s // 'results: ' // path // ', ' // json_path(path)
   end function summary_text
-end module pymr_run
+end module pymr_driver_run

@@ -1,7 +1,7 @@
 !> Text of numbers and words for messages and files: integers, reals as a person writes
 !> them or in the fewest digits that read back exactly, lower case.
-module pymr_io_text
-  use pymr_kinds, only : dp
+module pymr_env_text
+  use pymr_env_kinds, only : dp
   implicit none
   private
   public :: itoa, lower, fmt, decimal_text, exact_text, char_length, printable
@@ -301,4 +301,4 @@ contains
       end if
     end do
   end subroutine split_words
-end module pymr_io_text
+end module pymr_env_text

@@ -1,8 +1,8 @@
 !> The stepper a scene asks for: the one place that chooses between the single-rate and the
 !> multirate steppers and their couplings (everything after uses the stepper interface).
-module pymr_stepper_setup
-  use pymr_kinds, only : dp
-  use pymr_error, only : error_type, fatal_error
+module pymr_driver_stepper_setup
+  use pymr_env_kinds, only : dp
+  use pymr_env_error, only : error_type, fatal_error
   use pymr_model_scene, only : scene_t
   use pymr_model, only : model_t
   use pymr_integrator_stepper, only : stepper_t
@@ -13,8 +13,8 @@ module pymr_stepper_setup
   use pymr_integrator_control, only : step_control
   use pymr_integrator_stability, only : pece_limit
   use pymr_model, only : modal_stiffness_damping
-  use pymr_preflight, only : top_frequency
-  use pymr_io_text, only : itoa
+  use pymr_driver_preflight, only : top_frequency
+  use pymr_env_text, only : itoa
   implicit none
   private
   public :: make_stepper, stepper_label, method_label
@@ -180,4 +180,4 @@ contains
     mr%hf = h0; mr%hs = k*h0
     call move_alloc(mr, st)
   end subroutine make_multirate
-end module pymr_stepper_setup
+end module pymr_driver_stepper_setup

@@ -1,9 +1,9 @@
 !> CPU time of the calling thread (Linux clock_gettime(CLOCK_THREAD_CPUTIME_ID)). A run
 !> happens in one thread; the process-wide cpu_time would also count other threads of a
 !> host process (numpy's BLAS threads when called from Python).
-module pymr_clock
+module pymr_env_clock
   use, intrinsic :: iso_c_binding, only : c_int, c_long
-  use pymr_kinds, only : dp
+  use pymr_env_kinds, only : dp
   implicit none
   private
   public :: thread_cpu_time
@@ -35,4 +35,4 @@ contains
       call cpu_time(t)
     end if
   end function thread_cpu_time
-end module pymr_clock
+end module pymr_env_clock

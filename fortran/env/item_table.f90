@@ -5,14 +5,14 @@
 !> points at the record field that holds it. The reader sets fields through these pointers
 !> from parsed tokens (checking count, type, finiteness, range and choices); the writer
 !> prints them back; the schema prints the tables. The field's initial value is the default.
-module pymr_io_item_table
+module pymr_env_item_table
   use, intrinsic :: iso_c_binding, only : c_f_pointer, c_loc
   use, intrinsic :: iso_fortran_env, only : int64
-  use pymr_kinds, only : dp, name_len
-  use pymr_error, only : error_type, fatal_error
-  use pymr_io_namelist_parse, only : token_t
-  use pymr_io_text, only : itoa, lower, fmt, exact_text, char_length, number_text
-  use pymr_io_text_file, only : scene_relative, absolute_path
+  use pymr_env_kinds, only : dp, name_len
+  use pymr_env_error, only : error_type, fatal_error
+  use pymr_env_namelist_parse, only : token_t
+  use pymr_env_text, only : itoa, lower, fmt, exact_text, char_length, number_text
+  use pymr_env_text_file, only : scene_relative, absolute_path
   implicit none
   private
   public :: item_t, item_table, origin_t, unset, t_real, t_integer, t_logical, t_string
@@ -398,7 +398,7 @@ contains
     clean_text = .true.
   end function clean_text
 
-  !> A number token: the kernel's one rule for numbers in text (pymr_io_text's
+  !> A number token: the kernel's one rule for numbers in text (pymr_env_text's
   !> number_text). A quoted token is not a number.
   subroutine read_real(tok, x, ok)
     type(token_t), intent(in) :: tok
@@ -720,4 +720,4 @@ contains
     s = itoa(n) // ' ' // word
     if (n /= 1) s = s // 's'
   end function plural
-end module pymr_io_item_table
+end module pymr_env_item_table

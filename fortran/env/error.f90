@@ -4,7 +4,7 @@
 !> `intent(out)` error argument with a status and a sentence, then returns;
 !> callers test `allocated(error)`. Only the `mrsim` program and the Python
 !> binding turn an error into an exit status or an exception.
-module pymr_error
+module pymr_env_error
   implicit none
   private
   public :: error_type, fatal_error, prefix_error, error_list, max_errors
@@ -81,4 +81,4 @@ contains
     character(len=*), intent(in) :: prefix
     error%message = prefix // ': ' // error%message
   end subroutine prefix_error
-end module pymr_error
+end module pymr_env_error

@@ -5,10 +5,10 @@
 !> negative `info`, which the wrappers turn into an error. Before each call the input is
 !> checked: a non-finite entry, or one beyond 1e150 where LAPACK's products and norms
 !> overflow, is an error naming the matrix instead of a call.
-module pymr_lapack
-  use pymr_kinds, only : dp
-  use pymr_error, only : error_type, fatal_error, stat_solver
-  use pymr_io_text, only : itoa, fmt
+module pymr_env_lapack
+  use pymr_env_kinds, only : dp
+  use pymr_env_error, only : error_type, fatal_error, stat_solver
+  use pymr_env_text, only : itoa, fmt
   implicit none
   private
   public :: potrf, potrs, sygvd, ptsv, geev_complex, geev_real, factor_inverse, band_solve
@@ -465,13 +465,13 @@ contains
     a = 1.0_dp
     call dpotrf('X', 1, a, 1, info)
   end subroutine illegal_argument_probe
-end module pymr_lapack
+end module pymr_env_lapack
 
 !> LAPACK's error handler, called with the routine's name and the number of the argument
 !> found illegal. Reference LAPACK prints and stops the process; pymr's records the fault
 !> and returns, so the routine returns info < 0 and the caller reports it as an error.
 subroutine xerbla(srname, info)
-  use pymr_lapack, only : xerbla_routine, xerbla_argument
+  use pymr_env_lapack, only : xerbla_routine, xerbla_argument
   implicit none
   character(len=*), intent(in) :: srname
   integer, intent(in) :: info

@@ -1,9 +1,9 @@
 !> The values of a result row beyond the coordinates (&output quantities), and the works
 !> that the energy columns integrate over the run. Only the groups the plan asks for are
 !> computed. Evaluations made for the output are not counted as the integrator's.
-module pymr_output_quantities
-  use pymr_kinds, only : dp
-  use pymr_error, only : error_type
+module pymr_driver_output_quantities
+  use pymr_env_kinds, only : dp
+  use pymr_env_error, only : error_type
   use pymr_model, only : model_t, model_counters
   use pymr_model_types, only : model_data, effect_joint_drives, effect_firing_load, &
     & effect_joint_springs, effect_modal_damping
@@ -225,4 +225,4 @@ contains
       end do
     end associate
   end function motion_power
-end module pymr_output_quantities
+end module pymr_driver_output_quantities

@@ -6,10 +6,10 @@
 !> `n*value`, or a bare word. `!` starts a comment outside quotes. Whatever else stands outside
 !> a group, an item without `=`, a subscripted item, an unclosed group or string, is an error
 !> naming its line. Nothing here knows which groups or items exist: that is the item tables'.
-module pymr_io_namelist_parse
-  use pymr_kinds, only : name_len
-  use pymr_error, only : error_type, fatal_error
-  use pymr_io_text, only : itoa, lower
+module pymr_env_namelist_parse
+  use pymr_env_kinds, only : name_len
+  use pymr_env_error, only : error_type, fatal_error
+  use pymr_env_text, only : itoa, lower
   implicit none
   private
   public :: token_t, item_text, group_text, parse_namelist, parse_values, group_label
@@ -457,4 +457,4 @@ contains
     b(1:size(a)) = a
     call move_alloc(b, a)
   end subroutine grow_tokens
-end module pymr_io_namelist_parse
+end module pymr_env_namelist_parse
