@@ -9,11 +9,19 @@ import sys
 import numpy as np
 
 from .api import PymrError, SceneError, SolverError, run, write_file
+from .outputs import check_output
+
+
+def _stem(path: str) -> str:
+    """A file's name without its folder and suffix, for the file names that messages offer."""
+    from pathlib import Path
+    return Path(path).stem or "out"
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    if args.output == "":
-        raise SceneError("-o: an empty file name (leave -o out for the default)")
+    if args.output is not None:
+        # the rest of the rule (the scene's inputs, the statistics, the checkpoint) is the kernel's
+        check_output(args.output, "results file", example=_stem(args.scene) + ".csv")
     res = run(args.scene, output=args.output or "", overrides=args.set or None, restart=args.restart,
               progress=None if args.progress is None else args.progress)
     if not args.quiet:
@@ -34,11 +42,16 @@ def _cmd_scene(args: argparse.Namespace) -> int:
 
 def _cmd_bench(args: argparse.Namespace) -> int:
     from . import bench
+    if args.json is not None:
+        check_output(args.json, "figures (JSON)", option="--json", example=f"{args.what}.json",
+                     if_left_out="no JSON file")
     return bench.main(args.what, repeats=args.repeats, json_path=args.json, pinocchio_cpp=args.pinocchio_cpp)
 
 
 def _cmd_modal_file(args: argparse.Namespace) -> int:
     from .api import write_modal_file
+    # the kernel refuses an output that would overwrite the scene or a file it reads
+    check_output(args.output, "modal file", example=f"{args.body}.modal", if_left_out=None)
     write_modal_file(args.scene, args.body, args.output, overrides=args.set or None)
     if not args.quiet:
         print(f"wrote the modes of beam {args.body!r} to {args.output}")
