@@ -275,7 +275,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--repeats", type=_count_of("runs per case"), default=5, help="runs per case; the CPU time is their median (default 5)")
     s.set_defaults(func=_cmd_study)
     w = sub.add_parser("sweep", help="run a parameter sweep (SWEEP.toml) on Dask, or emit SLURM job-array files")
-    w.add_argument("sweep", help="sweep file (TOML: scene, output, metric, [grid], [fixed], [reference])")
+    w.add_argument("sweep", help="sweep file (TOML: scene, output, metric, [grid], [fixed], [reference]); its "
+                   "output folder is relative to the working folder (default: the sweep file's stem)")
     w.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask scheduler (e.g. from dask-jobqueue on "
                    "SLURM or PBS); default: a LocalCluster on this machine")
     w.add_argument("--workers", type=_count_of("workers"), default=2, help="LocalCluster worker processes (default 2)")
