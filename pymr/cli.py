@@ -190,7 +190,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("-o", "--output", help="CSV result file (default: &output file, else SCENE.csv)")
     r.add_argument("--set", action="append", metavar="GROUP.ITEM=VALUE",
                    help="override a namelist value for this run, e.g. integrator.h_slow=5e-4 or "
-                        "body[gun].mass=1000 (repeatable)")
+                        "body[turret].mass=1000 (repeatable)")
     r.add_argument("--restart", metavar="CKPT", help="continue a run from its checkpoint file (written with "
                    "&output checkpoint_dt); the results file keeps the rows up to the checkpoint")
     r.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
