@@ -20,9 +20,13 @@ from pathlib import Path
 import numpy as np
 
 from .api import Model, PymrError, model_size
+from .outputs import check_output
 from .results import Results, load_results
 
 VIEWS = {"xy": (0, 1), "xz": (0, 2), "zy": (2, 1)}
+
+#: The animation formats: a GIF (Pillow, always here), or a video (matplotlib's ffmpeg writer).
+FORMATS = [".gif", ".mp4", ".mkv", ".mov", ".avi", ".webm"]
 
 
 class AnimateError(PymrError):
@@ -76,10 +80,28 @@ def motion(res: Results, scene: str | os.PathLike | None = None, exaggerate: flo
     return t, frames, parent - 1, markers, on
 
 
+def check_animation_path(output, option: str, res: Results, scene=None) -> Path:
+    """The animation's path checked by pymr's output rule before anything is drawn: not a
+    folder, in a folder that is there, a GIF (or a video where ffmpeg is installed), none of
+    the run's files (CSV, JSON) or the scene's."""
+    out = check_output(output, "animation", option=option, suffixes=FORMATS,
+                       example=(Path(res.path).stem if res.path else "anim") + ".gif",
+                       inputs=[res.path, Path(res.path).with_suffix(".json")] if res.path else [],
+                       scene=scene_of(res, scene))
+    if out.suffix.lower() != ".gif":
+        from matplotlib import animation
+        if not animation.writers.is_available("ffmpeg"):
+            raise AnimateError(f"{option} {out}: a {out.suffix} video needs ffmpeg, which is not installed here "
+                               "(write a .gif)")
+    return out
+
+
 def animate(results: Results | str | os.PathLike, output: str | os.PathLike, scene=None, view: str = "xy",
-            exaggerate: float = 1.0, fps: int = 25, frames: int = 200) -> Path:
-    """Write the animation (GIF, or any format matplotlib's writers know by the suffix:
-    MP4 needs ffmpeg) of at most ``frames`` evenly spaced output rows; return its path."""
+            exaggerate: float = 1.0, fps: int = 25, frames: int = 200, option: str = "output") -> Path:
+    """Write the animation (GIF, or a video by the suffix where ffmpeg is installed: .mp4,
+    .mkv, .mov, .avi, .webm) of at most ``frames`` evenly spaced output rows; return its
+    path. The output is checked first (:func:`check_animation_path`; `option` names it in
+    messages) and written whole or not at all."""
     import logging
     import matplotlib
     matplotlib.use("Agg")
@@ -93,6 +115,7 @@ def animate(results: Results | str | os.PathLike, output: str | os.PathLike, sce
         raise AnimateError(f"view {view!r}: one of {', '.join(VIEWS)}")
     if frames < 2 or fps < 1 or not 0 < exaggerate < np.inf:
         raise AnimateError("frames (at least 2), fps (at least 1) and exaggerate (above 0) must be positive")
+    out = check_animation_path(output, option, res, scene)
     rows = np.unique(np.linspace(0, len(res.t) - 1, min(frames, len(res.t))).round().astype(int))
     t, pos, parent, markers, on = motion(res, scene, exaggerate, rows)
     a, b = VIEWS[view]
@@ -127,22 +150,30 @@ def animate(results: Results | str | os.PathLike, output: str | os.PathLike, sce
         return [*links, *arms.values(), *dots.values(), *trails.values(), title]
 
     anim = FuncAnimation(fig, draw, frames=len(t), blit=False)
-    out = Path(output)
+    # written beside it under a temporary name (of the same suffix: the writers go by it),
+    # then renamed over it: an earlier animation survives a failed write
+    tmp = out.with_name(f".{out.stem}.{os.getpid()}.tmp{out.suffix}")
     try:
         if out.suffix.lower() == ".gif":
-            anim.save(out, writer=PillowWriter(fps=fps))
+            anim.save(tmp, writer=PillowWriter(fps=fps))
         else:
-            anim.save(out, fps=fps)
+            anim.save(tmp, writer="ffmpeg", fps=fps)
+        os.replace(tmp, out)
     except (OSError, ValueError, RuntimeError) as exc:
         raise AnimateError(f"{out}: cannot write the animation ({' '.join(str(exc).split())})") from None
     finally:
         plt.close(fig)
+        tmp.unlink(missing_ok=True)
     return out
 
 
 def main(csv: str, output: str | None = None, scene: str | None = None, view: str = "xy",
          exaggerate: float = 1.0, fps: int = 25, frames: int = 200) -> int:
-    out = Path(output) if output else Path(csv).with_suffix(".gif")
-    animate(csv, out, scene=scene, view=view, exaggerate=exaggerate, fps=fps, frames=frames)
+    res = load_results(csv)
+    if output is None:
+        out, option = Path(csv).with_suffix(".gif"), "the default animation (-o to choose)"
+    else:
+        out, option = output, "-o"
+    out = animate(res, out, scene=scene, view=view, exaggerate=exaggerate, fps=fps, frames=frames, option=option)
     print(f"wrote {out}")
     return 0

@@ -20,21 +20,13 @@ from .errors import ArgumentTypeError, OutputError, PymrError, ResultsError, Sce
 from .results import Results, load_results
 
 
-def check_writable(path: str | os.PathLike, what: str) -> Path:
-    """`path` can be written as a file: it is no directory (``-o .`` names one). Else an
-    :class:`OutputError` naming the file and `what` it was to hold. A command checks its
-    output with it before the work; :func:`write_file` again when it writes."""
-    path = Path(_path("path", path))
-    if path.is_dir() or not path.name:       # '.', '..', '/': no file name to write (or rename) to
-        raise OutputError(f"{path}: cannot write the {what} (it is a directory)")
-    return path
-
-
 def write_file(path: str | os.PathLike, data: str | bytes, what: str) -> Path:
     """Write `data` to `path` whole or not at all: a temporary file beside it, flushed to
     the disk (fsync), then renamed over it, so an earlier complete file survives a failed
     write. A failure is an :class:`OutputError` naming the file and `what` it was to hold."""
-    path = check_writable(path, what)       # before the temporary name: '.' has none
+    path = Path(_path("path", path))
+    if path.is_dir() or not path.name:       # '.', '..', '/': no file name to write (or rename) to
+        raise OutputError(f"{path}: cannot write the {what} (it is a directory)")
     tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
     try:
         with open(tmp, "wb") as fh:
@@ -248,7 +240,10 @@ def run(scene, output: str | os.PathLike | None = None,
 
 
 def _run_kernel(scene: str, text: str, out: str, ckpt: str, progress: bool | None):
-    """pymr_run_scene, with a progress bar on a terminal (or when asked)."""
+    """pymr_run_scene, with a progress bar on a terminal (or when asked). The bar appears
+    once the kernel has started stepping and knows its t_end (not 't = 0 of 1 s' before),
+    and is drawn for the last time by tqdm's close (not once more before it); a run that
+    never started stepping (bad input) shows no bar."""
     show = sys.stderr.isatty() if progress is None else progress
     if not show:
         return _core.pymr_run_scene(scene, text, out, ckpt)
@@ -256,21 +251,34 @@ def _run_kernel(scene: str, text: str, out: str, ckpt: str, progress: bool | Non
     result: list = []
     worker = threading.Thread(target=lambda: result.append(_core.pymr_run_scene(scene, text, out, ckpt)))
     worker.start()
-    with tqdm(total=1.0, unit="s", desc=f"pymr {Path(scene).name}", file=sys.stderr,
-              bar_format="{desc}: {percentage:3.0f}%|{bar}| t = {n:.4g} of {total:.4g} s "
-                         "[{elapsed}<{remaining}]") as bar:
+    bar = None
+
+    def open_bar(t: float, t_end: float, draw: bool = True):
+        return tqdm(total=float(t_end), initial=float(t), unit="s", desc=f"pymr {Path(scene).name}", file=sys.stderr,
+                    delay=0 if draw else float("inf"),
+                    bar_format="{desc}: {percentage:3.0f}%|{bar}| t = {n:.4g} of {total:.4g} s "
+                               "[{elapsed}<{remaining}]")
+    try:
         while worker.is_alive():
             worker.join(0.1)
             t, t_end, running = _core.pymr_progress()
             if running and t_end > 0:
-                bar.total = float(t_end)
-                bar.n = float(t)
-                bar.refresh()
+                if bar is None:
+                    bar = open_bar(t, t_end)
+                elif float(t) != bar.n:
+                    bar.n = float(t)
+                    bar.refresh()
         t, t_end, _ = _core.pymr_progress()
-        if t_end > 0:
-            bar.total = float(t_end)
-            bar.n = float(t_end) if result and result[0][0] == 0 else float(t)
-            bar.refresh()
+        ok = bool(result) and result[0][0] == 0
+        if bar is None and ok and t_end > 0:
+            # a run over before the first look: drawn once, by close (delay 0 from here)
+            bar = open_bar(t_end, t_end, draw=False)
+            bar.delay = 0
+        elif bar is not None:
+            bar.n = float(t_end) if ok else float(t)
+    finally:
+        if bar is not None:
+            bar.close()                           # draws the last state once, and ends the line
     return result[0]
 
 

@@ -9,11 +9,19 @@ import sys
 import numpy as np
 
 from .api import PymrError, SceneError, SolverError, run, write_file
+from .outputs import check_output
+
+
+def _stem(path: str) -> str:
+    """A file's name without its folder and suffix, for the file names that messages offer."""
+    from pathlib import Path
+    return Path(path).stem or "out"
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    if args.output == "":
-        raise SceneError("-o: an empty file name (leave -o out for the default)")
+    if args.output is not None:
+        # the rest of the rule (the scene's inputs, the statistics, the checkpoint) is the kernel's
+        check_output(args.output, "results file", example=_stem(args.scene) + ".csv")
     res = run(args.scene, output=args.output or "", overrides=args.set or None, restart=args.restart,
               progress=None if args.progress is None else args.progress)
     if not args.quiet:
@@ -34,11 +42,16 @@ def _cmd_scene(args: argparse.Namespace) -> int:
 
 def _cmd_bench(args: argparse.Namespace) -> int:
     from . import bench
+    if args.json is not None:
+        check_output(args.json, "figures (JSON)", option="--json", example=f"{args.what}.json",
+                     if_left_out="no JSON file")
     return bench.main(args.what, repeats=args.repeats, json_path=args.json, pinocchio_cpp=args.pinocchio_cpp)
 
 
 def _cmd_modal_file(args: argparse.Namespace) -> int:
     from .api import write_modal_file
+    # the kernel refuses an output that would overwrite the scene or a file it reads
+    check_output(args.output, "modal file", example=f"{args.body}.modal", if_left_out=None)
     write_modal_file(args.scene, args.body, args.output, overrides=args.set or None)
     if not args.quiet:
         print(f"wrote the modes of beam {args.body!r} to {args.output}")
@@ -47,6 +60,8 @@ def _cmd_modal_file(args: argparse.Namespace) -> int:
 
 def _cmd_modal_import(args: argparse.Namespace) -> int:
     from .modal_import import modal_import
+    from .outputs import check_output
+    check_output(args.output, "modal data file", example="body.modal", if_left_out=None)
     modes = None if args.modes == "all" else _count("--modes", args.modes)
     body = modal_import(args.mass, args.stiffness, args.nodes, args.interface, args.output,
                         dofs_per_node=None if args.dof_map else args.dofs_per_node, dof_map=args.dof_map,
@@ -75,15 +90,15 @@ def _cmd_modes(args: argparse.Namespace) -> int:
     import io
     import math
     import re
-    from .api import check_not_input, modes, marker_shapes
+    from .api import modes, marker_shapes
+    from .outputs import check_output
     over = list(args.set or [])
     at = 0.0 if args.at is None else args.at
     if not (0.0 <= at < math.inf):
         raise SceneError(f"--at {at:g}: a time at or after the start of the run (s)")
-    if args.output == "":
-        raise SceneError("-o: an empty file name (leave -o out to write no file)")
     if args.output is not None:
-        check_not_input(args.scene, args.output, "modes file (-o)", over)
+        check_output(args.output, "modes file", example="modes.csv", scene=args.scene, overrides=over,
+                     if_left_out="no file")
     end = f"scene.t_end={at if at > 0 else 1e-9!r}"
     try:
         res = run(args.scene, overrides=over + [end, "output.dt=0.0"])
@@ -196,7 +211,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("-o", "--output", help="CSV result file (default: &output file, else SCENE.csv)")
     r.add_argument("--set", action="append", metavar="GROUP.ITEM=VALUE",
                    help="override a namelist value for this run, e.g. integrator.h_slow=5e-4 or "
-                        "body[gun].mass=1000 (repeatable)")
+                        "body[turret].mass=1000 (repeatable)")
     r.add_argument("--restart", metavar="CKPT", help="continue a run from its checkpoint file (written with "
                    "&output checkpoint_dt); the results file keeps the rows up to the checkpoint")
     r.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
@@ -283,7 +298,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--repeats", type=_count_of("runs per case"), default=5, help="runs per case; the CPU time is their median (default 5)")
     s.set_defaults(func=_cmd_study)
     w = sub.add_parser("sweep", help="run a parameter sweep (SWEEP.toml) on Dask, or emit SLURM job-array files")
-    w.add_argument("sweep", help="sweep file (TOML: scene, output, metric, [grid], [fixed], [reference])")
+    w.add_argument("sweep", help="sweep file (TOML: scene, output, metric, [grid], [fixed], [reference]); its "
+                   "output folder is relative to the working folder (default: the sweep file's stem)")
     w.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask scheduler (e.g. from dask-jobqueue on "
                    "SLURM or PBS); default: a LocalCluster on this machine")
     w.add_argument("--workers", type=_count_of("workers"), default=2, help="LocalCluster worker processes (default 2)")

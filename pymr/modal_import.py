@@ -27,7 +27,8 @@ from pathlib import Path
 import numpy as np
 
 from . import _kernel as _core
-from .api import SceneError, check_writable, write_file
+from .api import SceneError, write_file
+from .outputs import check_output
 
 #: names of the six DOFs of a node, in the order of dofs_per_node 6 and DOF map numbers 1-6
 DOF_NAMES = ("u_x", "u_y", "u_z", "theta_x", "theta_y", "theta_z")
@@ -535,7 +536,7 @@ def modal_import(mass: str | os.PathLike, stiffness: str | os.PathLike, nodes: s
             if path is not None and _core.pymr_same_file(os.fspath(output), os.fspath(path)):
                 raise ImportInputError(f"{output}: would overwrite the {what} ({path}); choose another modal "
                                        "data file (-o)")
-        check_writable(output, "modal data file")
+        check_output(output, "modal data file", option="output", example="body.modal", if_left_out=None)
     ids, xyz = read_nodes(npath)
     rows = layout_rows(ids, npath, dofs_per_node, dof_map)
     mm = read_matrix_market(mpath, rows)

@@ -16,14 +16,16 @@ column's name and holds one line per run whose data are the run's arrays themsel
 """
 from __future__ import annotations
 
+import io
 import os
 import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Sequence, Union
 
-from .api import PymrError
+from .api import PymrError, write_file
 from .errors import ResultsError
+from .outputs import check_output
 from .results import Results, load_results
 
 RunLike = Union[Results, str, os.PathLike]
@@ -138,6 +140,8 @@ def plot_results(runs: Sequence[RunLike], output: str | os.PathLike | None = Non
     from matplotlib.figure import Figure
     from matplotlib.gridspec import GridSpec
 
+    if output is not None:
+        output = check_figure_path(output, "output", runs)
     runs = load_runs(runs)
     if isinstance(markers, str):
         markers = [markers]
@@ -177,18 +181,46 @@ def plot_results(runs: Sequence[RunLike], output: str | os.PathLike | None = Non
     except ValueError:                               # matplotlib < 3.7: no "outside" placement
         fig.legend(handles, names, loc="lower center", ncol=min(len(runs), 4), fontsize=9)
     if output is not None:
+        # drawn in memory, then written whole (an earlier figure survives a failed write)
+        image = io.BytesIO()
         try:
-            fig.savefig(output, dpi=100)
+            fig.savefig(image, dpi=100, format=output.suffix.lstrip(".").lower())
         except (OSError, ValueError) as exc:
-            raise PlotError(f"{output}: cannot write the figure ({' '.join(str(exc).split())})") from None
+            raise PlotError(f"{output}: cannot draw the figure ({' '.join(str(exc).split())})") from None
+        write_file(output, image.getvalue(), "figure")
     return fig
+
+
+def figure_formats() -> list[str]:
+    """The suffixes of the figure formats matplotlib writes here (".png", ".pdf", ".svg", ...)."""
+    from matplotlib.backend_bases import FigureCanvasBase
+    formats = FigureCanvasBase.get_supported_filetypes()
+    return ["." + f for f in ["png", *sorted(f for f in formats if f != "png")]]
+
+
+def check_figure_path(output, option: str, runs: Sequence[RunLike]) -> Path:
+    """The figure's path checked by pymr's output rule before anything is drawn: not a
+    folder, in a folder that is there, of a format matplotlib writes, none of the runs'
+    files (their CSV and JSON)."""
+    inputs = []
+    for run in runs:
+        path = run.path if isinstance(run, Results) else run
+        if path:
+            inputs += [Path(path), Path(path).with_suffix(".json")]
+    first = runs[0].path if runs and isinstance(runs[0], Results) else runs[0] if runs else None
+    return check_output(output, "figure", option=option, suffixes=figure_formats(), inputs=inputs,
+                        example=Path(first).stem + ".png" if first else "fig.png")
 
 
 def main(csvs: Sequence[str], output: str | None = None, markers: Sequence[str] | None = None,
          joints: Sequence[str] | None = None, labels: Sequence[str] | None = None,
          title: str | None = None, quiet: bool = False) -> int:
-    """``pymr plot``: write the figure of the result files (default: FIRST_STEM.png here)."""
-    out = Path(output) if output else Path(Path(csvs[0]).stem + ".png") if csvs else None
+    """``pymr plot``: write the figure of the result files (default: FIRST_STEM.png in the
+    working folder). The output is checked before anything is read or drawn."""
+    if output is None:
+        out = check_figure_path(Path(Path(csvs[0]).stem + ".png"), "the default figure (-o to choose)", csvs)
+    else:
+        out = check_figure_path(output, "-o", csvs)
     fig = plot_results(csvs, out, markers=markers, joints=joints, labels=labels, title=title)
     if not quiet:
         print(f"wrote {out}: {len(csvs)} run{'s' if len(csvs) != 1 else ''}, {len(fig.axes)} panels")

@@ -39,7 +39,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .api import Model, PymrError, SceneError, SolverError, check_not_input, run, write_file
+from .api import Model, PymrError, SceneError, SolverError, run, write_file
+from .outputs import check_output
 from .scene import Scene
 
 
@@ -643,12 +644,7 @@ class Study:
 
 def main(scene: str, marker: str | None = None, output: str | None = None, quick: bool = False,
          repeats: int | None = 5) -> int:
-    prefix = Path(output) if output else Path(Path(scene).stem + "_study")
-    if not prefix.parent.is_dir():
-        raise SceneError(f"-o {prefix}: the folder {prefix.parent} is not there (the study writes its files "
-                         "there at the end)")
-    for path in study_files(prefix):
-        check_not_input(scene, path, "output prefix (-o)")
+    prefix = check_study_prefix(scene, output)
     study = Study(scene, marker, quick=quick, repeats=5 if repeats is None else repeats)
     study.run_all()
     print()
@@ -668,6 +664,21 @@ def main(scene: str, marker: str | None = None, output: str | None = None, quick
     study.plot(figure)
     print(f"written: {table}, {figure}, {history}")
     return 0
+
+
+def check_study_prefix(scene, output: str | os.PathLike | None) -> Path:
+    """The output prefix (-o, default SCENE_study in the working folder) and the three files
+    it names, checked by pymr's output rule before the study's minutes of runs: the prefix
+    is not a folder and its folder is there; no file is a folder, the scene or a file the
+    scene reads."""
+    option = "-o" if output is not None else "the default prefix (-o to choose)"
+    example = Path(getattr(scene, "path", scene)).stem + "_study"
+    prefix = check_output(Path(example) if output is None else output, "study's files (a prefix of their names)",
+                          option=option,
+                          example=example)
+    for path, what in zip(study_files(prefix), ("study's table", "study's figure", "step histories")):
+        check_output(path, what, option=f"{option} {prefix}:", scene=scene)
+    return prefix
 
 
 def study_files(prefix: Path) -> tuple[Path, Path, Path]:

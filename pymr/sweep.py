@@ -6,7 +6,8 @@ SWEEP.toml::
 
     scene = "input/tank_gun_turret.nml"     # relative to the TOML file
     output = "sweep"                         # folder for the cases' results and the summary,
-                                             # relative to the TOML file (default: its stem)
+                                             # relative to the working folder (default: the
+                                             # TOML file's stem, in the working folder)
     metric = "deviation:muzzle"              # or "final:COLUMN", "max_abs:COLUMN"
 
     [grid]                                   # every combination of these values is a case
@@ -16,13 +17,23 @@ SWEEP.toml::
     [fixed]                                  # overrides shared by every case (optional)
     "integrator.method" = "multirate"
 
-    [reference]                              # overrides of the reference run (deviation metric)
+    [reference]                              # integration settings of the reference runs
     "integrator.h_slow" = 2.5e-5
 
 Keys are ``--set`` keys: ``group.item``, with repeated groups named by their name (body,
 joint, marker), joint (drive, spring, motion) or marker (load). ``deviation:MARKER`` is the
-largest distance over the run between the marker's position and the reference run's (the
-base scene with the [reference] overrides, at the same output times).
+largest distance over the run between the marker's position and its reference run's, at the
+same output times. Each case's reference run is the case itself, its [fixed] and [grid]
+values, with the [reference] overrides on top: it shares the case's physics (a grid of
+damping values gets a damped reference for each damped case), so the deviation measures
+the case's integration error, not a difference of physics. Cases with the same reference
+share its run (``referenceNNNN.csv`` in the output folder; the summary names each case's).
+
+The output folder, like every output of pymr, is relative to the working folder (not to
+the TOML file, which may sit in a checkout or in the installed package). Before any case
+runs, every case's scene (and its reference's) is read by the kernel, and the metric's
+marker or column is looked up in the columns the case's results will have: a bad key, value
+or metric is one line naming the sweep file, with exit 1.
 """
 from __future__ import annotations
 
@@ -41,6 +52,8 @@ from pathlib import Path
 import numpy as np
 
 from .api import PymrError, SceneError, run, write_file
+from .errors import ResultsError
+from .outputs import check_output
 from .results import load_results
 from .scene import Scene
 
@@ -92,9 +105,13 @@ def load_sweep(path: str | os.PathLike) -> Sweep:
     scene = (path.parent / spec["scene"]).resolve()
     if not scene.exists():
         raise SweepError(f"{path}: scene: {scene} not found")
-    output = (path.parent / spec.get("output", path.stem)).resolve()
+    if spec.get("output", None) == "":
+        raise SweepError(f"{path}: output: an empty folder name (leave it out for {path.stem}/ in the working folder)")
+    # outputs are relative to the working folder, as every pymr output is (not to the TOML file)
+    output = Path(spec.get("output", path.stem)).resolve()
     sw = Sweep(path, scene, output, metric, grid, spec.get("fixed", {}), spec.get("reference", {}))
     check_cases(sw)
+    check_metric(sw)
     return sw
 
 
@@ -113,10 +130,12 @@ def check_types(path: Path, spec: dict) -> None:
 
 
 def check_cases(sw: Sweep) -> None:
-    """Every case's scene (and the reference's) read and checked by the kernel before any
+    """Every case's scene (and its reference's) read and checked by the kernel before any
     case runs: a bad key or value is one error naming the case."""
-    named = [("reference", {**sw.fixed, **sw.reference})] + [(case_name(i), {**sw.fixed, **c})
-                                                                for i, c in enumerate(sw.cases)]
+    named = [(case_name(i), {**sw.fixed, **c}) for i, c in enumerate(sw.cases)]
+    if sw.metric.startswith("deviation:"):
+        named += [(f"the reference of {', '.join(case_name(i) for i in cases)}", over)
+                  for over, cases in references(sw)]
     for name, overrides in named:
         try:
             Scene(sw.scene, overrides)
@@ -124,12 +143,75 @@ def check_cases(sw: Sweep) -> None:
             raise SweepError(f"{sw.path}: {name} {overrides}: {exc}") from None
 
 
+def references(sw: Sweep) -> list[tuple[dict, list[int]]]:
+    """The deviation metric's reference runs: each case's overrides (fixed, then grid) with
+    the [reference] overrides on top, so that the reference shares the case's physics; the
+    cases with the same overrides share one run. A list of (overrides, case indices)."""
+    out: dict[str, tuple[dict, list[int]]] = {}
+    for i, case in enumerate(sw.cases):
+        over = {**sw.fixed, **case, **sw.reference}
+        out.setdefault(repr(sorted(over.items(), key=lambda kv: kv[0])), (over, []))[1].append(i)
+    return list(out.values())
+
+
+def reference_file(k: int) -> str:
+    return f"reference{k:04d}.csv"
+
+
+#: The groups whose items can change the columns of the results (the markers, joints,
+#: flexible bodies' modes and &output quantities); the others (integrator, effects, drives,
+#: ...) cannot, so cases differing only in them share one probe in check_metric.
+COLUMN_GROUPS = ("body", "joint", "marker", "output")
+
+
+def check_metric(sw: Sweep) -> None:
+    """The metric's marker or column is one the cases' results will have, found before any
+    case runs (it was found only after every case had run, or at --collect as a traceback):
+    a probe run of the case's scene to t = 1e-9 s (from rest, without the pre-flight check:
+    only its columns are wanted), one for each distinct set of the overrides that can change
+    the columns. A probe the kernel cannot run leaves that case to report its own error."""
+    if not sw.metric:
+        return
+    kind, what = sw.metric.split(":", 1)
+    probed: dict[str, list[str] | None] = {}
+    for i, case in enumerate(sw.cases):
+        over = {**sw.fixed, **case}
+        key = repr(sorted((k, v) for k, v in over.items() if k.split(".")[0].split("[")[0] in COLUMN_GROUPS))
+        if key not in probed:
+            probe = {**over, "scene.t_end": 1e-9, "scene.start": "rest", "output.dt": 0.0,
+                     "output.checkpoint_dt": 0.0, "integrator.stability_check": False}
+            try:
+                res = run(sw.scene, overrides=probe, progress=False)
+                probed[key] = (res.markers if kind == "deviation" else list(res.columns))
+            except PymrError:
+                probed[key] = None
+            names = probed[key]
+            if names is not None and what not in names:
+                raise SweepError(f"{sw.path}: metric {sw.metric!r}: " + _missing(kind, what, names, case_name(i)))
+
+
+def _missing(kind: str, what: str, names: list[str], case: str) -> str:
+    """One line: the results of `case` have no marker (or column) `what`; the names like it."""
+    import difflib
+    noun = "marker" if kind == "deviation" else "column"
+    near = difflib.get_close_matches(what, names, n=4, cutoff=0.6)
+    if near:
+        hint = "did you mean " + " or ".join(repr(n) for n in near) + "?"
+    elif kind == "deviation":
+        hint = f"markers: {', '.join(names) or 'none (&output quantities must hold markers)'}"
+    else:
+        hint = f"columns: {', '.join(names[:8])}{', ...' if len(names) > 8 else ''} ({len(names)} in all)"
+    return f"the results of {case} have no {noun} {what!r} ({hint})"
+
+
 def case_name(i: int) -> str:
     return f"case{i:04d}"
 
 
-def run_case(scene: str, overrides: dict, out: str, metric: str, reference: np.ndarray | None) -> dict:
-    """Run one case; return its metric, CPU time and status (errors are recorded, not raised)."""
+def run_case(scene: str, overrides: dict, out: str, metric: str, reference) -> dict:
+    """Run one case; return its metric, CPU time and status (errors are recorded, not
+    raised). `reference` is the marker's positions of the case's reference run, or the
+    reference run's error (a string)."""
     row = {"metric": math.nan, "cpu_time_s": math.nan, "status": "ok"}
     try:
         res = run(scene, out, overrides=overrides, progress=False)
@@ -141,13 +223,15 @@ def run_case(scene: str, overrides: dict, out: str, metric: str, reference: np.n
     return row
 
 
-def case_metric(res, metric: str, reference: np.ndarray | None) -> tuple[float, str]:
+def case_metric(res, metric: str, reference) -> tuple[float, str]:
     """The sweep's metric of one case's results, and its status ('ok' or the error)."""
     if not metric:
         return math.nan, "ok"
     kind, what = metric.split(":", 1)
     try:
         if kind == "deviation":
+            if isinstance(reference, str):
+                return math.nan, f"error: the reference run failed: {reference}"
             pos = res.marker(what)[0]
             if reference is None or len(reference) != len(pos):
                 return math.nan, "error: the case's output times differ from the reference's"
@@ -159,37 +243,112 @@ def case_metric(res, metric: str, reference: np.ndarray | None) -> tuple[float, 
         return math.nan, f"error: {exc.args[0]}"
 
 
-def reference_positions(sw: Sweep, folder: Path | None = None) -> np.ndarray | None:
+def reference_run(scene: str, overrides: dict, out: str, marker: str):
+    """One reference run: the marker's positions, or its error as a string (recorded by the
+    cases that use it, not raised)."""
+    try:
+        return run(scene, out, overrides=overrides, progress=False).marker(marker)[0]
+    except (PymrError, KeyError) as exc:
+        return str(exc.args[0] if isinstance(exc, KeyError) else exc)
+
+
+def reference_positions(sw: Sweep, folder: Path | None = None) -> list | None:
+    """Each case's reference positions (or the error of its reference run), the references
+    run here one after another; None without the deviation metric."""
     if not sw.metric.startswith("deviation:"):
         return None
-    res = run(sw.scene, (folder or sw.output) / "reference.csv", overrides={**sw.fixed, **sw.reference},
-              progress=False)
-    return res.marker(sw.metric.split(":", 1)[1])[0]
+    marker = sw.metric.split(":", 1)[1]
+    out: list = [None] * len(sw.cases)
+    for k, (over, cases) in enumerate(references(sw)):
+        pos = reference_run(str(sw.scene), over, str((folder or sw.output) / reference_file(k)), marker)
+        for i in cases:
+            out[i] = pos
+    return out
+
+
+def reference_names(sw: Sweep) -> list[str]:
+    """Each case's reference file name ('' without the deviation metric)."""
+    names = [""] * len(sw.cases)
+    if sw.metric.startswith("deviation:"):
+        for k, (_, cases) in enumerate(references(sw)):
+            for i in cases:
+                names[i] = reference_file(k)
+    return names
+
+
+#: The statuses of a collected case that has not run to its end (a SLURM task not started,
+#: still running, or stopped by its time limit): not counted as failed.
+NOT_RUN = ("not run", "not finished")
 
 
 def collect(sw: Sweep, folder: str | os.PathLike) -> list[dict]:
     """The summary of a sweep run as a SLURM job array (``--emit-slurm``): each case's
-    complete results in `folder` give its metric and CPU time; a case without them is
-    recorded as missing (not run yet, or failed: its caseNNNN.json.partial says why). The
-    deviation metric's reference is run here. Writes folder/summary.csv."""
+    complete results in `folder` give its metric and CPU time. A case is 'ok', 'failed: ...'
+    (its run failed: its caseNNNN.json.partial holds the error; or its results cannot be
+    read, a truncated file), 'not finished' (a caseNNNN.csv.partial without an error: still
+    running, or stopped by its time limit) or 'not run' (no files). The deviation metric's
+    references are run here. Writes folder/summary.csv."""
     folder = Path(folder)
     if not (folder / "sweep.slurm").exists():
-        raise SweepError(f"{folder}: no sweep.slurm here (emit the cases with --emit-slurm first)")
+        raise SweepError(f"--collect {folder}: no sweep.slurm here (emit the cases with --emit-slurm first)")
+    check_output(folder / "summary.csv", "sweep's summary", option="--collect")
     ref = reference_positions(sw, folder)
+    names = reference_names(sw)
     rows = []
     for i, case in enumerate(sw.cases):
-        row = {"case": case_name(i), **case, "metric": math.nan, "cpu_time_s": math.nan}
-        out = folder / f"{case_name(i)}.csv"
-        if not out.exists():
-            partial = folder / f"{case_name(i)}.json.partial"
-            row["status"] = ("failed: see " + partial.name) if partial.exists() else "missing: no results yet"
-        else:
-            res = load_results(out)
-            row["cpu_time_s"] = float(res.stats.get("cpu_time_s", math.nan))
-            row["metric"], row["status"] = case_metric(res, sw.metric, ref)
+        row = {"case": case_name(i), **case, "metric": math.nan, "cpu_time_s": math.nan, "reference": names[i]}
+        row.update(collect_case(folder, case_name(i), sw.metric, ref[i] if ref else None))
         rows.append(row)
     write_summary(sw, rows, folder)
     return rows
+
+
+def collect_case(folder: Path, name: str, metric: str, reference) -> dict:
+    """One case of --collect: its status, and its metric and CPU time when it is complete."""
+    out = folder / f"{name}.csv"
+    if not out.exists():
+        partial = folder / f"{name}.json.partial"
+        if partial.exists():
+            return {"status": f"failed: {_partial_error(partial)}"}
+        if (folder / f"{name}.csv.partial").exists():
+            return {"status": f"not finished: {name}.csv.partial without an error (running, or stopped by its time "
+                              "limit)"}
+        return {"status": "not run"}
+    try:
+        res = load_results(out)
+    except ResultsError as exc:
+        return {"status": f"failed: incomplete results: {exc}"}
+    short = _incomplete(res, out)
+    if short:
+        return {"status": f"failed: incomplete results: {short}"}
+    value, status = case_metric(res, metric, reference)
+    return {"metric": value, "cpu_time_s": float(res.stats.get("cpu_time_s", math.nan)),
+            "status": "failed: " + status.removeprefix("error: ") if status != "ok" else "ok"}
+
+
+def _incomplete(res, out: Path) -> str:
+    """Why a case's results that load are not a complete run ('' when they are): the
+    statistics beside them are missing or not 'complete', or their row count is not the
+    file's (a CSV cut at a line's end loads, with fewer rows)."""
+    stats = res.stats or {}
+    if not stats:
+        return f"{out}: no statistics file {out.with_suffix('.json').name} beside it"
+    if stats.get("status") != "complete":
+        return f"{out}: its statistics say status {stats.get('status')!r}, not 'complete'"
+    rows = stats.get("rows")
+    if isinstance(rows, int) and rows != len(res.t):
+        return f"{out}: {len(res.t)} rows of the {rows} the run wrote (the file was cut)"
+    return ""
+
+
+def _partial_error(partial: Path) -> str:
+    """The error a failed run wrote into its OUT.json.partial (or where to look for it)."""
+    import json
+    try:
+        error = json.loads(partial.read_text()).get("error", "")
+    except (OSError, ValueError, AttributeError):
+        error = ""
+    return " ".join(str(error).split()) or f"see {partial.name}"
 
 
 #: Thread counts of the BLAS libraries a LAPACK may use (OpenBLAS, OpenMP, MKL): a sweep's
@@ -209,7 +368,7 @@ def run_sweep(sw: Sweep, scheduler: str | None = None, workers: int = 2) -> list
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise SweepError(f"workers: a whole number of worker processes, at least 1, got {workers!r}")
     make_folder(sw.output, "output")
-    ref = reference_positions(sw)
+    summary = check_output(sw.output / "summary.csv", "sweep's summary", option=f"{sw.path}: output")
     cases = sw.cases
     cluster = None
     if scheduler:
@@ -224,21 +383,31 @@ def run_sweep(sw: Sweep, scheduler: str | None = None, workers: int = 2) -> list
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None)
         client = Client(cluster)
     try:
+        # the references run on the cluster too; each case waits for its own
+        refs: list = [None] * len(cases)
+        if sw.metric.startswith("deviation:"):
+            marker = sw.metric.split(":", 1)[1]
+            for k, (over, users) in enumerate(references(sw)):
+                fut = client.submit(reference_run, str(sw.scene), over, str(sw.output / reference_file(k)), marker,
+                                    pure=False)
+                for i in users:
+                    refs[i] = fut
         futures = [client.submit(run_case, str(sw.scene), {**sw.fixed, **case},
-                                 str(sw.output / f"{case_name(i)}.csv"), sw.metric, ref, pure=False)
+                                 str(sw.output / f"{case_name(i)}.csv"), sw.metric, refs[i], pure=False)
                    for i, case in enumerate(cases)]
         results = client.gather(futures, errors="skip")
         done = {f.key: r for f, r in zip([f for f in futures if f.status == "finished"], results)}
         rows = []
+        names = reference_names(sw)
         for i, (case, fut) in enumerate(zip(cases, futures)):
             row = done.get(fut.key) or {"metric": math.nan, "cpu_time_s": math.nan,
                                         "status": f"error: {fut.exception()!r}"}
-            rows.append({"case": case_name(i), **case, **row})
+            rows.append({"case": case_name(i), **case, **row, "reference": names[i]})
     finally:
         client.close()
         if cluster is not None:
             cluster.close()
-    write_summary(sw, rows)
+    write_summary(sw, rows, summary.parent)
     return rows
 
 
@@ -253,7 +422,8 @@ def make_folder(folder: Path, what: str) -> None:
 
 def write_summary(sw: Sweep, rows: list[dict], folder: Path | None = None) -> Path:
     """folder/summary.csv, written whole (an earlier summary stays until the new one is complete)."""
-    fields = ["case", *sw.grid, "metric", "cpu_time_s", "status"]
+    fields = ["case", *sw.grid, "metric", *(["reference"] if sw.metric.startswith("deviation:") else []),
+              "cpu_time_s", "status"]
     fh = io.StringIO(newline="")
     w = csv.DictWriter(fh, fieldnames=fields, extrasaction="ignore")
     w.writeheader()
@@ -314,6 +484,8 @@ MRSIM="${{PYMR_MRSIM:-{exe}}}"
 
 def main(toml: str, scheduler: str | None = None, workers: int = 2, emit: str | None = None,
          collect_from: str | None = None) -> int:
+    """``pymr sweep``: exit 0 when every case ran and gave its metric; 2 when a case failed,
+    or (--collect) has not run or not finished: the summary lists every case either way."""
     sw = load_sweep(toml)
     if emit:
         script = emit_slurm(sw, emit)
@@ -327,13 +499,19 @@ def main(toml: str, scheduler: str | None = None, workers: int = 2, emit: str | 
     else:
         rows = run_sweep(sw, scheduler=scheduler, workers=workers)
         where = sw.output / "summary.csv"
-    failed = sum(r["status"] != "ok" for r in rows)
-    print(f"{len(rows)} cases, {failed} failed, {time.time() - t0:.1f} s: {where}")
+    not_run = [r["case"] for r in rows if r["status"].startswith(NOT_RUN)]
+    failed = [r["case"] for r in rows if r["status"] != "ok" and r["case"] not in not_run]
+    counts = f"{len(rows) - len(failed) - len(not_run)} ok, {len(failed)} failed"
+    if collect_from:
+        counts += f", {len(not_run)} not run or not finished"
+    print(f"{len(rows)} cases: {counts}, {time.time() - t0:.1f} s: {where}")
     for r in rows:
         params = ", ".join(f"{k}={r[k]}" for k in sw.grid)
         print(f"  {r['case']}  {params}  metric {r['metric']:.4g}  cpu {r['cpu_time_s']:.3f} s  {r['status'][:90]}")
-    if failed:
-        print(f"pymr: error: {failed} of {len(rows)} cases failed: "
-              + ", ".join(r["case"] for r in rows if r["status"] != "ok"), file=sys.stderr)
+    if failed or not_run:
+        parts = [f"{len(failed)} failed ({', '.join(failed)})"] if failed else []
+        if not_run:
+            parts.append(f"{len(not_run)} not run or not finished ({', '.join(not_run)})")
+        print(f"pymr: error: of {len(rows)} cases, {' and '.join(parts)}: see {where}", file=sys.stderr)
         return 2
     return 0

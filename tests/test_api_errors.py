@@ -347,7 +347,8 @@ def test_modes_command_on_a_scene_with_markers_and_no_vibration(tmp_path):
     (["--at", "1e308"], r"^pymr: error: --at 1e\+308: the run cannot be taken to this time \(as &scene t_end it "
                         r"must be in \(0, 1e\+9\], got 1e\+308\)$"),
     (["--at", "-1"], r"^pymr: error: --at -1: a time at or after the start of the run \(s\)$"),
-    (["-o", "."], r"^pymr: error: \.: cannot write the modes \(it is a directory\)$"),
+    (["-o", "."], r"^pymr: error: -o \.: is a folder, not a file: give a file name for the modes file, such as "
+                r"\./modes\.csv$"),
     (["-o", ""], r"^pymr: error: -o: an empty file name"),
 ])
 def test_modes_command_names_its_own_options(tmp_path, args, expect):

@@ -366,8 +366,10 @@ def test_modal_import_into_a_directory_is_one_line(fe, out):
     now an OutputError before any work: exit 1, one line."""
     (fe / "folder").mkdir()
     r = pymr_cli("modal-import", *BASE, "-o", out, cwd=fe)
-    assert one_line(r) == f"pymr: error: {out}: cannot write the modal data file (it is a directory)"
-    with pytest.raises(pymr.OutputError, match=r"cannot write the modal data file \(it is a directory\)$"):
+    assert one_line(r) == (f"pymr: error: -o {out}: is a folder, not a file: give a file name for the modal data "
+                           f"file, such as {out}/body.modal")
+    with pytest.raises(pymr.OutputError, match=r"^output [^\n]*: is a folder, not a file: give a file name for the "
+                                               r"modal data file, such as [^\n]*body\.modal$"):
         pymr.modal_import(fe / "m.mtx", fe / "k.mtx", fe / "nodes.csv", [1, 5], output=fe / out)
 
 

@@ -542,10 +542,10 @@ def test_version_and_bench_outside_the_checkout(tmp_path, mrsim):
                  "per second, at least 1", id="animate_fps"),
     pytest.param(["sweep", "s.toml", "--workers", "0"], "sweep: argument --workers: '0': a whole number of workers",
                  id="sweep_workers"),
-    pytest.param(["modes", "base.nml", "-o", "nowhere/modes.csv"], "nowhere/modes.csv: cannot write the modes "
-                 "(No such file or directory)", id="modes_output_folder_missing"),
-    pytest.param(["modes", "base.nml", "-o", "base.nml"], "pymr: error: base.nml: would overwrite the scene "
-                 "(base.nml); choose another modes file (-o)", id="modes_output_is_the_scene"),
+    pytest.param(["modes", "base.nml", "-o", "nowhere/modes.csv"], "pymr: error: -o nowhere/modes.csv: the folder "
+                 "nowhere is not there (make it first)", id="modes_output_folder_missing"),
+    pytest.param(["modes", "base.nml", "-o", "base.nml"], "pymr: error: -o base.nml: would overwrite the scene "
+                 "(base.nml); choose another modes file", id="modes_output_is_the_scene"),
     pytest.param(["study", "base.nml", "-o", "nowhere/st"], "-o nowhere/st: the folder nowhere is not there",
                  id="study_output_folder_missing"),
     pytest.param(["study", "base.nml", "--marker", "nope"], "base.nml: no marker 'nope' (markers: tip)",

@@ -32,6 +32,9 @@ def test_mrsim_progress_lines_only_when_asked(tmp_path, mrsim):
     got = [pat.fullmatch(line) for line in lines]
     assert all(got) and len(got) >= 2
     assert float(got[0].group(2)) < 1.0 and float(got[-1].group(2)) == 100.0
+    # each line is news: the simulated time only grows (the last line was not printed twice)
+    times = [float(g.group(1)) for g in got]
+    assert all(a < b for a, b in zip(times, times[1:])), lines
 
 
 def _pymr_on_a_terminal(args: list[str], cwd: Path) -> str:
@@ -77,3 +80,30 @@ def test_python_progress_reads_the_kernel_during_the_run(tmp_path, capsys):
     assert any(0.0 < v < 40.0 for v in values), err[-500:]
     pymr.run(LONG, tmp_path / "b.csv", overrides={"scene.t_end": 1.0}, progress=False)
     assert capsys.readouterr().err == ""
+
+
+def test_the_bar_shows_the_run_s_t_end_from_its_first_line_and_its_last_line_once(tmp_path, capsys):
+    """Issue 30: the first line of a 300 s run read 't = 0 of 1 s' (the bar was drawn before
+    the kernel had said its t_end) and the last line was drawn twice (once more by tqdm's
+    close). A run long enough for several lines: every drawing says 'of 60 s', the time only
+    grows, and the last state is drawn once. A run refused before it starts draws no bar."""
+    pymr.run(LONG, tmp_path / "a.csv", overrides={"scene.t_end": 60.0}, progress=True)
+    err = capsys.readouterr().err
+    drawn = [part for part in re.split(r"[\r\n]", err) if part.strip()]
+    assert len(drawn) >= 3, err
+    totals = [re.search(r"t = [\d.]+ of ([\d.]+) s", d).group(1) for d in drawn]
+    assert totals == ["60"] * len(drawn), drawn
+    times = [float(re.search(r"t = ([\d.]+) of", d).group(1)) for d in drawn]
+    assert all(a < b for a, b in zip(times, times[1:])), drawn
+    assert times[-1] == 60.0 and "100%" in drawn[-1]
+    assert err.endswith("\n") and err.count("\n") == 1
+    with pytest.raises(pymr.SceneError):
+        pymr.run(LONG, tmp_path / "b.csv", overrides={"scene.t_end": -1.0}, progress=True)
+    assert "%|" not in capsys.readouterr().err
+
+
+def test_a_run_over_before_the_first_look_draws_its_bar_once(tmp_path, capsys):
+    """A run shorter than the bar's first look (0.1 s) still shows where it ended, once."""
+    pymr.run(LONG, tmp_path / "a.csv", overrides={"scene.t_end": 0.01}, progress=True)
+    drawn = [part for part in re.split(r"[\r\n]", capsys.readouterr().err) if part.strip()]
+    assert len(drawn) == 1 and "100%" in drawn[0] and "t = 0.01 of 0.01 s" in drawn[0], drawn

@@ -35,21 +35,24 @@ metric = "deviation:muzzle"
 """
 
 
-def test_sweep_on_a_local_cluster_equals_the_cases_run_one_by_one(tmp_path):
+def test_sweep_on_a_local_cluster_equals_the_cases_run_one_by_one(tmp_path, monkeypatch):
     """8 variants (step ratio 5 and 10, both couplings, damping 0 and 0.02) on 2 Dask
     workers: every case's results file equals a run of the same overrides in this process,
-    and the summary's metric is the muzzle's largest deviation from the reference run."""
+    and the summary's metric is the muzzle's largest deviation from the case's reference
+    run: the case's own scene (damping included) with the [reference] settings."""
+    monkeypatch.chdir(tmp_path)
     toml = tmp_path / "tank.toml"
     toml.write_text(GRID.format(scene=TANK))
     sw = load_sweep(toml)
-    assert len(sw.cases) == 8
+    assert len(sw.cases) == 8 and sw.output == tmp_path / "out"
     rows = run_sweep(sw, workers=2)
     assert [r["status"] for r in rows] == ["ok"] * 8
-    ref = pymr.run(TANK, overrides={**sw.fixed, **sw.reference})
     for i, (case, row) in enumerate(zip(sw.cases, rows)):
         alone = pymr.run(TANK, overrides={**sw.fixed, **case})
+        ref = pymr.run(TANK, overrides={**sw.fixed, **case, **sw.reference})
         swept = pymr.load_results(sw.output / f"case{i:04d}.csv")
         assert np.array_equal(swept.data, alone.data)
+        assert np.array_equal(pymr.load_results(sw.output / row["reference"]).data, ref.data)
         dev = np.linalg.norm(alone.marker("muzzle")[0] - ref.marker("muzzle")[0], axis=1).max()
         assert row["metric"] == dev
     summary = list(csv.DictReader(open(sw.output / "summary.csv")))
@@ -74,13 +77,15 @@ metric = "final:elevation.q"
 """
 
 
-def test_a_failing_case_is_recorded_and_the_others_run(tmp_path):
+def test_a_failing_case_is_recorded_and_the_others_run(tmp_path, monkeypatch):
     """A case whose run breaks down (multirate k = 50 with the stability check off: the
     linearised macro step grows by 1.42 per step) is recorded with its error; the others run
     and equal the same overrides run alone."""
+    monkeypatch.chdir(tmp_path)
     toml = tmp_path / "bad.toml"
     toml.write_text(FAILING_CASE.format(scene=TANK, top="", extra=""))
     rows = run_sweep(load_sweep(toml), workers=2)
+    assert (tmp_path / "bad" / "summary.csv").exists()       # the default output: the stem, here
     # the run breaks down where its values first leave LAPACK's range (which matrix: roundoff)
     assert rows[0]["status"].startswith("error: ") and re.search(r"at t = .* s: .*(M_e|M_ff|mass matrix)",
                                                                   rows[0]["status"])
@@ -166,7 +171,7 @@ def test_sweep_command_exit_statuses(tmp_path):
     r = subprocess.run(["pymr", "sweep", "fail.toml", "--workers", "1"], cwd=tmp_path, capture_output=True, text=True,
                        timeout=300)
     assert r.returncode == 2, r.stderr
-    assert "pymr: error: 1 of 2 cases failed: case0000" in r.stderr
+    assert r.stderr.count("\n") == 1 and "pymr: error: of 2 cases, 1 failed (case0000)" in r.stderr, r.stderr
     assert (tmp_path / "runs" / "summary.csv").exists()
     r = subprocess.run(["pymr", "run"], cwd=tmp_path, capture_output=True, text=True, timeout=60)
     assert r.returncode == 1
@@ -175,7 +180,8 @@ def test_sweep_command_exit_statuses(tmp_path):
 def test_a_slurm_sweep_is_collected_into_its_summary(tmp_path, mrsim):
     """--emit-slurm names this installation's mrsim by its absolute path (PYMR_MRSIM
     overrides it); after two of the eight tasks ran, --collect writes the summary: those two
-    with the metric run_case gives for the same case, the six others missing, exit 2."""
+    with the metric run_case gives for the same case, the six others 'not run' (not
+    'failed'), exit 2."""
     toml = tmp_path / "tank.toml"
     toml.write_text(GRID.format(scene=TANK))
     sw = load_sweep(toml)
@@ -188,11 +194,179 @@ def test_a_slurm_sweep_is_collected_into_its_summary(tmp_path, mrsim):
         assert r.returncode == 0, r.stderr
     r = subprocess.run(["pymr", "sweep", str(toml), "--collect", str(folder)], capture_output=True, text=True,
                        timeout=300)
-    assert r.returncode == 2 and "6 of 8 cases failed" in r.stderr, r.stderr
+    assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
+    assert "of 8 cases, 6 not run or not finished (case0000, case0002, case0003, case0004, case0005, case0007)" \
+        in r.stderr and "failed" not in r.stderr, r.stderr
+    assert "8 cases: 2 ok, 0 failed, 6 not run or not finished" in r.stdout
     rows = list(csv.DictReader((folder / "summary.csv").open()))
     assert [row["status"] for row in rows].count("ok") == 2
-    assert all(row["status"].startswith("missing") for i, row in enumerate(rows) if i not in (1, 6))
+    assert all(row["status"] == "not run" for i, row in enumerate(rows) if i not in (1, 6))
     from pymr.sweep import reference_positions, run_case
     ref = reference_positions(sw, tmp_path)
-    alone = run_case(str(TANK), {**sw.fixed, **sw.cases[6]}, str(tmp_path / "alone.csv"), sw.metric, ref)
+    alone = run_case(str(TANK), {**sw.fixed, **sw.cases[6]}, str(tmp_path / "alone.csv"), sw.metric, ref[6])
     assert float(rows[6]["metric"]) == pytest.approx(alone["metric"], rel=1e-12)
+
+
+# ------------------------------------------------------------- issue 30: sweeps' rough edges
+
+#: A pendulum with two markers, for sweeps that must be quick.
+PENDULUM = """\
+&scene title = 'pendulum', t_end = 0.2, gravity = 0.0, -9.81, 0.0 /
+&integrator method = 'single', h_slow = 1.0e-3 /
+&effects gravity = .true., joint_springs = .true. /
+&body name = 'ground', kind = 'ground' /
+&body name = 'bob', kind = 'rigid', mass = 1.0, inertia = 1e-3, 1e-3, 1e-3, 0.0, 0.0, 0.0 /
+&joint name = 'pivot', kind = 'revolute', parent = 'ground', child = 'bob', q0 = 0.5 /
+&spring joint = 'pivot', stiffness = 0.0, damping = 0.0 /
+&marker name = 'tip', body = 'bob', at = 0.0, -1.0, 0.0 /
+"""
+
+
+@pytest.mark.parametrize("metric, message", [
+    ("deviation:tipp", r"metric 'deviation:tipp': the results of case0000 have no marker 'tipp' "
+                       r"\(did you mean 'tip'\?\)$"),
+    ("deviation:nose", r"no marker 'nose' \(markers: tip\)$"),
+    ("final:pivot.qq", r"metric 'final:pivot.qq': the results of case0000 have no column 'pivot.qq' \(did you mean "
+                       r"'pivot.q' or 'pivot.qd'\?\)$"),
+    ("max_abs:zzz", r"have no column 'zzz' \(columns: t, pivot.q, pivot.qd, tip.x, .*\(9 in all\)\)$"),
+    ("deviation:tip", r"the results of case0001 have no marker 'tip' \(markers: none \(&output quantities must hold "
+                      r"markers\)\)$"),
+])
+@pytest.mark.parametrize("mode", [[], ["--emit-slurm", "runs"], ["--collect", "runs"]])
+def test_a_metric_the_results_lack_is_refused_before_anything_runs(tmp_path, metric, message, mode):
+    """Issue 30: a metric naming a marker that does not exist was accepted by --emit-slurm
+    and gave a traceback at --collect; a misspelt column was reported after every case had
+    run. Every metric kind, in every mode: one line naming the sweep file, exit 1, before
+    any case or reference runs (no folder made). The last case makes the columns depend on
+    the case: its second case writes no markers."""
+    (tmp_path / "p.nml").write_text(PENDULUM)
+    grid = ('"output.quantities" = [["coordinates", "markers"], ["coordinates"]]' if metric == "deviation:tip"
+            else '"joint[pivot].q0" = [0.5, 0.6]')
+    (tmp_path / "s.toml").write_text(f'scene = "p.nml"\noutput = "out"\nmetric = "{metric}"\n[grid]\n{grid}\n')
+    if mode and mode[0] == "--collect":
+        (tmp_path / "runs").mkdir()
+        (tmp_path / "runs" / "sweep.slurm").write_text("")
+    r = subprocess.run(["pymr", "sweep", "s.toml", *mode], cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert r.returncode == 1 and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr, r.stderr
+    assert r.stderr.startswith("pymr: error: s.toml: metric ") and re.search(message, r.stderr.strip()), r.stderr
+    assert not (tmp_path / "out").exists()
+    assert sorted(p.name for p in (tmp_path / "runs").glob("*")) == (["sweep.slurm"] if mode[:1] == ["--collect"]
+                                                                      else [])
+
+
+def test_collect_lists_each_case_as_ok_failed_not_finished_or_not_run(tmp_path, mrsim):
+    """Issue 30: --collect counted cases that never ran as 'failed', and a truncated case CSV
+    stopped it with a traceback-free exit 1 instead of being listed. Now each case is listed:
+    ok; failed (its run failed: the error from its .json.partial; results cut mid-line or at
+    a line's end); not finished (a .csv.partial and no error: running or stopped); not run.
+    Exit 2, one line counting both kinds."""
+    toml = tmp_path / "s.toml"
+    toml.write_text(f"""
+scene = "{TANK}"
+metric = "final:elevation.q"
+[grid]
+"integrator.h_slow" = [5e-3, 2e-4, 4e-4, 6e-4, 8e-4, 1e-3]
+[fixed]
+"integrator.method" = "multirate"
+"integrator.coupling" = "full"
+"integrator.h_fast" = 1e-4
+"integrator.stability_check" = false
+"output.dt" = 1e-2
+"scene.t_end" = 0.3
+""")
+    folder = tmp_path / "runs"
+    emit_slurm(load_sweep(toml), folder)
+    for i in range(4):
+        r = subprocess.run([mrsim, f"case{i:04d}.nml", "-o", f"case{i:04d}.csv", "--quiet"], cwd=folder,
+                           capture_output=True, text=True)
+        assert r.returncode == (2 if i == 0 else 0), r.stderr
+    rows = (folder / "case0002.csv").read_text().splitlines(keepends=True)
+    (folder / "case0002.csv").write_text("".join(rows[:20]) + rows[20][:7])          # cut mid-line
+    (folder / "case0003.csv").write_text("".join(rows[:20]))                        # cut at a line's end
+    (folder / "case0005.csv.partial").write_text("".join(rows[:10]))                # a task still running
+    r = subprocess.run(["pymr", "sweep", str(toml), "--collect", str(folder)], capture_output=True, text=True,
+                       timeout=120)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr, r.stderr
+    assert ("of 6 cases, 3 failed (case0000, case0002, case0003) and 2 not run or not finished (case0004, "
+            "case0005)") in r.stderr
+    status = [row["status"] for row in csv.DictReader((folder / "summary.csv").open())]
+    assert re.fullmatch(r"failed: .*case0000.nml: at t = .* s: .*", status[0]), status[0]
+    assert status[1] == "ok"
+    assert status[2].startswith("failed: incomplete results: ") and "case0002.csv" in status[2]
+    assert re.fullmatch(r"failed: incomplete results: .*case0003.csv: 1\d rows of the 31 the run wrote \(the file "
+                        r"was cut\)", status[3]), status[3]
+    assert status[4] == "not run"
+    assert status[5].startswith("not finished: case0005.csv.partial")
+
+
+def test_each_case_s_reference_shares_its_physics(tmp_path, monkeypatch):
+    """Issue 30: the shipped sweep put modal damping on a grid axis against one undamped
+    reference, so its deviation showed the damping's physics (mm) as integration error. A
+    case's reference is now the case itself with the [reference] settings: a grid over
+    physics (damping, a drive's amplitude, gravity) whose cases integrate as their
+    reference does deviates by exactly 0, and cases sharing a reference share its run."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "s.toml").write_text(f"""
+scene = "{TANK}"
+metric = "deviation:muzzle"
+[grid]
+"body[gun].modal_damping" = [0.0, 0.05]
+"drive[traverse].amplitude" = [-45500.0, -30000.0]
+"scene.gravity" = [[0.0, -9.81, 0.0], [0.0, -1.62, 0.0]]
+[fixed]
+"effects.modal_damping" = true
+"scene.t_end" = 0.2
+[reference]
+"integrator.h_slow" = 1e-4
+"integrator.h_fast" = 1e-4
+""")
+    sw = load_sweep(tmp_path / "s.toml")
+    rows = run_sweep(sw, workers=1)
+    assert [r["metric"] for r in rows] == [0.0] * 8, [r["metric"] for r in rows]
+    assert len({r["reference"] for r in rows}) == 8
+    # the same sweep with a coarser case step: each deviation is that step's error alone
+    sw.fixed["integrator.h_slow"] = sw.fixed["integrator.h_fast"] = 4e-4
+    rows = run_sweep(sw, workers=1)
+    assert all(0 < r["metric"] < 1e-4 for r in rows), [r["metric"] for r in rows]
+
+
+def test_the_shipped_sweep_measures_integration_error_in_the_working_folder(tmp_path, monkeypatch):
+    """input/tank_sweep.toml: each case's reference differs from the case only in
+    integration settings ([reference]'s keys, all of &integrator), and its output folder is
+    in the working folder, not in the checkout. docs/commands.md prints the same file."""
+    from pymr.sweep import references
+    monkeypatch.chdir(tmp_path)
+    sw = load_sweep(ROOT / "input" / "tank_sweep.toml")
+    assert sw.output == tmp_path / "sweep"
+    assert all(k.startswith("integrator.") for k in sw.reference)
+    for over, users in references(sw):
+        for i in users:
+            case = {**sw.fixed, **sw.cases[i]}
+            assert {k: v for k, v in over.items() if not k.startswith("integrator.")} == \
+                   {k: v for k, v in case.items() if not k.startswith("integrator.")}
+    readme = (ROOT / "docs" / "commands.md").read_text()
+    block = readme.split("```toml\n# input/tank_sweep.toml\n", 1)[1].split("```", 1)[0]
+    shipped = (ROOT / "input" / "tank_sweep.toml").read_text().split("\n", 1)[1]
+    assert block == shipped
+
+
+def test_a_sweep_s_output_is_relative_to_the_working_folder(tmp_path, monkeypatch):
+    """The output folder (given, or the TOML's stem by default) is in the working folder, as
+    every pymr output is; the scene stays relative to the TOML file. An empty output, and a
+    summary.csv that is a folder, are refused before anything runs."""
+    (tmp_path / "defs").mkdir()
+    (tmp_path / "defs" / "p.nml").write_text(PENDULUM)
+    (tmp_path / "work").mkdir()
+    monkeypatch.chdir(tmp_path / "work")
+    (tmp_path / "defs" / "a.toml").write_text('scene = "p.nml"\n[grid]\n"joint[pivot].q0" = [0.5]\n')
+    (tmp_path / "defs" / "b.toml").write_text('scene = "p.nml"\noutput = "o/x"\n[grid]\n"joint[pivot].q0" = [0.5]\n')
+    (tmp_path / "defs" / "c.toml").write_text('scene = "p.nml"\noutput = ""\n[grid]\n"joint[pivot].q0" = [0.5]\n')
+    a, b = load_sweep(tmp_path / "defs" / "a.toml"), load_sweep(tmp_path / "defs" / "b.toml")
+    assert (a.output, b.output, a.scene) == (tmp_path / "work" / "a", tmp_path / "work" / "o" / "x",
+                                             tmp_path / "defs" / "p.nml")
+    with pytest.raises(SweepError, match=r"c.toml: output: an empty folder name"):
+        load_sweep(tmp_path / "defs" / "c.toml")
+    (tmp_path / "work" / "a" / "summary.csv").mkdir(parents=True)
+    with pytest.raises(pymr.OutputError, match=r"a.toml: output .*a/summary.csv: is a folder, not a file"):
+        run_sweep(a, workers=1)
+    assert list((tmp_path / "work" / "a").iterdir()) == [tmp_path / "work" / "a" / "summary.csv"]
