@@ -34,13 +34,36 @@ class AnimateError(PymrError):
 
 
 def scene_of(res: Results, scene: str | os.PathLike | None = None) -> Path:
-    """The scene file of the results: the one given, or the one their statistics name."""
-    path = Path(scene) if scene else (Path(res.stats["scene"]) if res.stats.get("scene") else None)
-    if path is None:
+    """The scene of the results: the one given; else the resolved scene their statistics
+    hold (the scene as the run read it, --set overrides applied), written to a temporary
+    file; else the scene file their statistics name."""
+    if scene:
+        path = Path(scene)
+    elif res.stats.get("resolved_scene"):
+        return _resolved_scene_file(res.stats["resolved_scene"])
+    elif res.stats.get("scene"):
+        path = Path(res.stats["scene"])
+    else:
         raise AnimateError(f"{res.path}: the results name no scene (no statistics file beside them): give --scene")
     if not path.exists():
         raise AnimateError(f"{res.path}: the scene {path} is not there: give --scene")
     return path
+
+
+_RESOLVED: dict[str, Path] = {}
+
+
+def _resolved_scene_file(text: str) -> Path:
+    """A temporary file holding a resolved scene (one per text, removed at exit)."""
+    if text not in _RESOLVED:
+        import atexit
+        import shutil
+        import tempfile
+        folder = tempfile.mkdtemp(prefix="pymr-scene-")
+        atexit.register(shutil.rmtree, folder, ignore_errors=True)
+        _RESOLVED[text] = Path(folder) / "resolved.nml"
+        _RESOLVED[text].write_text(text)
+    return _RESOLVED[text]
 
 
 def check_geometry(res: Results, model: Model, path: Path, q: np.ndarray, qd: np.ndarray) -> None:
@@ -86,7 +109,8 @@ def check_animation_path(output, option: str, res: Results, scene=None) -> Path:
     the run's files (CSV, JSON) or the scene's."""
     out = check_output(output, "animation", option=option, suffixes=FORMATS,
                        example=(Path(res.path).stem if res.path else "anim") + ".gif",
-                       inputs=[res.path, Path(res.path).with_suffix(".json")] if res.path else [],
+                       inputs=([res.path, Path(res.path).with_suffix(".json")] if res.path else [])
+                       + ([res.stats["scene"]] if res.stats.get("scene") else []),
                        scene=scene_of(res, scene))
     if out.suffix.lower() != ".gif":
         from matplotlib import animation

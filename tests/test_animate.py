@@ -52,14 +52,20 @@ def test_animation_is_written_frame_by_frame(tank_results, tmp_path):
     assert (tmp_path / "b.gif").stat().st_size > 1000
 
 
-def test_results_of_another_scene_are_refused(tmp_path):
-    """A run whose --set overrides moved the geometry is not the scene file's: one line,
-    exit 1, asking for the resolved scene (which then works); results with no statistics
-    file need --scene."""
+def test_a_run_with_overrides_is_drawn_from_the_scene_its_statistics_hold(tmp_path):
+    """A run whose --set overrides moved the geometry is drawn from the resolved scene its
+    statistics hold (issue 30: it was refused as 'not the scene of this run'). Given the
+    scene file instead, which is not the run's, it is refused in one line (exit 1) that
+    asks for the resolved scene; results with no statistics file need --scene."""
     out = tmp_path / "o.csv"
     over = {"scene.t_end": 0.05, "marker[muzzle].at": [5.0, 0.0, 0.0]}
     pymr.run(TANK, out, overrides=over)
-    r = subprocess.run(["pymr", "animate", str(out)], capture_output=True, text=True, timeout=120)
+    r = subprocess.run(["pymr", "animate", str(out), "-o", str(tmp_path / "a.gif"), "--frames", "3"],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "a.gif").stat().st_size > 1000
+    r = subprocess.run(["pymr", "animate", str(out), "--scene", str(TANK), "-o", str(tmp_path / "b.gif")],
+                       capture_output=True, text=True, timeout=120)
     assert r.returncode == 1 and r.stderr.count("\n") == 1
     assert "is not the scene of this run" in r.stderr and "--scene" in r.stderr
     resolved = pymr.Scene(TANK, over).write(tmp_path / "resolved.nml", absolute_paths=True)
