@@ -231,7 +231,7 @@ contains
     type(run_stats) :: stats
     type(run_progress) :: prog
     real(dp), allocatable :: x(:)
-    real(dp) :: h, h0, dt_out, t_next, eps, cpu0, cpu1, t_ckpt, t_step, t_first_row, work(n_work), work_step(n_work)
+    real(dp) :: h, h0, dt_out, t_next, eps, cpu0, cpu1, t_ckpt, t_step, t_first_row, t_line, work(n_work), work_step(n_work)
     integer :: n, k_out
     integer(8) :: c0, c1, rate, c_line
     logical :: restarting, lines
@@ -315,6 +315,7 @@ contains
     progress_t_end = sc%scene%t_end; progress_t = st%time(); progress_running = .true.
     c_line = c0
     if (lines) call progress_line(st%time(), sc%scene%t_end, c0, rate)
+    t_line = st%time()
     t_ckpt = huge(1.0_dp)
     if (sc%output%checkpoint_dt > 0.0_dp) t_ckpt = (floor(st%time()/sc%output%checkpoint_dt + 1.0e-9_dp) + 1)*sc%output%checkpoint_dt
     do
@@ -368,12 +369,14 @@ contains
       if (lines) then
         call system_clock(c1)
         if (c1 - c_line >= rate) then
-          call progress_line(st%time(), sc%scene%t_end, c0, rate); c_line = c1
+          call progress_line(st%time(), sc%scene%t_end, c0, rate); c_line = c1; t_line = st%time()
         end if
       end if
     end do
     progress_running = .false.
-    if (lines .and. .not. allocated(error)) call progress_line(sc%scene%t_end, sc%scene%t_end, c0, rate)
+    ! the last line, unless the loop's last one was already at t_end
+    if (lines .and. .not. allocated(error) .and. t_line < sc%scene%t_end - eps) &
+      & call progress_line(sc%scene%t_end, sc%scene%t_end, c0, rate)
     if (.not. allocated(error)) then
       call st%value_at(sc%scene%t_end, x)
       if (dt_out <= 0.0_dp .or. abs(t_next - dt_out - sc%scene%t_end) > eps) then
@@ -454,10 +457,14 @@ contains
     character(len=160) :: buf
     call system_clock(c)
     wall = real(c - c0, dp)/real(rate, dp)
-    eta = 0.0_dp
-    if (t > 0.0_dp) eta = wall*max(t_end - t, 0.0_dp)/t
-    write(buf, '(a,es11.4,a,es11.4,a,f6.1,a,f9.1,a,f9.1,a)') 'mrsim: t = ', t, ' s of ', t_end, ' s (', &
-      & 100.0_dp*min(t/t_end, 1.0_dp), ' %), ', wall, ' s elapsed, ETA ', eta, ' s'
+    write(buf, '(a,es11.4,a,es11.4,a,f6.1,a,f9.1,a)') 'mrsim: t = ', t, ' s of ', t_end, ' s (', &
+      & 100.0_dp*min(t/t_end, 1.0_dp), ' %), ', wall, ' s elapsed'
+    ! the time to go, from the pace so far: none before 1 % of the run or 1 s of it (the
+    ! start-up's pace says nothing of the rest), none at the end
+    if (t >= 0.01_dp*t_end .and. wall >= 1.0_dp .and. t < t_end) then
+      eta = wall*(t_end - t)/t
+      write(buf, '(a,a,f9.1,a)') trim(buf), ', ETA ', eta, ' s'
+    end if
     write(error_unit, '(a)') trim(buf)
     flush(error_unit)
   end subroutine progress_line
