@@ -319,8 +319,10 @@ def test_every_input_scene_labels_each_motion_once(tmp_path):
 
 
 def _pymr(*args, cwd=None):
+    """`pymr ARGS`, run outside the checkout unless told (from its root, `python -m pymr`
+    would import the source folder, which has no compiled kernel)."""
     return subprocess.run([sys.executable, "-m", "pymr", *map(str, args)], capture_output=True, text=True,
-                          timeout=120, cwd=cwd)
+                          timeout=120, cwd=cwd or ROOT.parent)
 
 
 def test_modes_command_on_a_scene_with_markers_and_no_vibration(tmp_path):

@@ -18,7 +18,7 @@ module pymr_driver_run
   use pymr_model_types, only : cut_free
   use pymr_env_clock, only : thread_cpu_time
   use pymr_model_effects, only : prescribed_motion
-  use pymr_env_text, only : itoa, fmt
+  use pymr_env_text, only : itoa, fmt, next_text_line
   use pymr_model_flexbody, only : point_deflection
   use pymr_env_text_file, only : absolute_path, scene_relative, acquire_lock, release_lock, not_regular, missing_folder, &
     & commit_staged, remove_file, same_file
@@ -619,6 +619,7 @@ contains
     real(dp), intent(in) :: x(:)
     character(len=:), allocatable :: s
     character(len=256) :: buf
+    character(len=:), allocatable :: warning
     real(dp) :: r(3), v(3)
     integer :: i, j, n
     n = model%d%n
@@ -655,11 +656,9 @@ contains
       s = s // new_line('a') // trim(buf) // ')'
     end if
     if (allocated(st%warnings)) then
-      i = 1
-      do while (i < len(st%warnings))
-        j = index(st%warnings(i:), new_line('a')) + i - 1
-        s = s // new_line('a') // 'warning: ' // st%warnings(i:j - 1)
-        i = j + 1
+      j = 1
+      do while (next_text_line(st%warnings, j, warning))
+        if (len(warning) > 0) s = s // new_line('a') // 'warning: ' // warning
       end do
     end if
     s = s // new_line('a')

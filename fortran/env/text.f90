@@ -5,7 +5,7 @@ module pymr_env_text
   implicit none
   private
   public :: itoa, lower, fmt, decimal_text, exact_text, char_length, printable
-  public :: number_text, count_text, split_words
+  public :: number_text, count_text, split_words, next_text_line
 
   !> Integer (default or 64-bit) to text without blanks.
   interface itoa
@@ -13,6 +13,21 @@ module pymr_env_text
   end interface itoa
 
 contains
+
+  !> The line of `text` that starts at `pos` (without its line break), and `pos` moved to the
+  !> next one; false when `pos` is past the end. The one way the kernel walks text by lines.
+  logical function next_text_line(text, pos, line) result(found)
+    character(len=*), intent(in) :: text
+    integer, intent(inout) :: pos
+    character(len=:), allocatable, intent(out) :: line
+    integer :: e
+    found = pos <= len(text)
+    if (.not. found) return
+    e = index(text(pos:), new_line('a'))
+    e = merge(len(text) + 1, pos + e - 1, e == 0)
+    line = text(pos:e - 1)
+    pos = e + 1
+  end function next_text_line
 
   pure function itoa_default(i) result(s)
     integer, intent(in) :: i

@@ -27,7 +27,7 @@ module pymr_io_modal_file
   use pymr_env_error, only : error_type, fatal_error
   use pymr_model_flexbody, only : flex_data, flex_invariants, flex_from_moments, modal_nodes
   use pymr_model_beam_modes, only : beam_shape, beam_point_shapes
-  use pymr_env_text, only : itoa, fmt, number_text, count_text, split_words
+  use pymr_env_text, only : itoa, fmt, number_text, count_text, split_words, next_text_line
   use pymr_env_text_file, only : not_regular, write_text_file, read_text_file, check_header_count
   implicit none
   private
@@ -295,17 +295,8 @@ contains
     !> The next line that is not blank and not a comment: ln, its words, its number `line`;
     !> false at the end of the file.
     logical function next_line()
-      integer :: e
       next_line = .false.
-      do while (pos <= len(text))
-        e = index(text(pos:), new_line('a'))
-        if (e == 0) then
-          e = len(text) + 1
-        else
-          e = pos + e - 1
-        end if
-        ln = text(pos:e - 1)
-        pos = e + 1
+      do while (next_text_line(text, pos, ln))
         line = line + 1
         call split_words(ln, wa, wb, nw)
         if (nw == 0) cycle

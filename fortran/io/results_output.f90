@@ -6,7 +6,7 @@ module pymr_io_results_output
   use pymr_env_error, only : error_type, fatal_error, stat_solver
   use pymr_model_types, only : model_data, n_effects, effect_names, cut_free
   use pymr_io_fast_format, only : put_real
-  use pymr_env_text, only : itoa
+  use pymr_env_text, only : itoa, next_text_line
   use pymr_env_text_file, only : write_text_file, stage_text_file, sync_file, rename_file, file_size, check_size
   implicit none
   private
@@ -450,18 +450,14 @@ contains
     !> Lines of text as JSON strings, comma-separated ('' for no line).
     function json_lines(lines) result(s)
       character(len=*), intent(in) :: lines
-      character(len=:), allocatable :: s
-      integer :: i, j
+      character(len=:), allocatable :: s, one
+      integer :: pos
       s = ''
-      i = 1
-      do while (i <= len(lines))
-        j = index(lines(i:), new_line('a'))
-        j = merge(len(lines), i + j - 2, j == 0)
-        if (j >= i) then
-          if (len(s) > 0) s = s // ', '
-          s = s // '"' // escape(lines(i:j)) // '"'
-        end if
-        i = j + 2
+      pos = 1
+      do while (next_text_line(lines, pos, one))
+        if (len(one) == 0) cycle
+        if (len(s) > 0) s = s // ', '
+        s = s // '"' // escape(one) // '"'
       end do
     end function json_lines
     subroutine put(line)

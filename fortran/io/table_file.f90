@@ -5,7 +5,7 @@
 module pymr_io_table_file
   use pymr_env_kinds, only : dp
   use pymr_env_error, only : error_type, fatal_error
-  use pymr_env_text, only : itoa, fmt, number_text, split_words
+  use pymr_env_text, only : itoa, fmt, number_text, split_words, next_text_line
   use pymr_env_text_file, only : not_regular, read_text_file
   implicit none
   private
@@ -19,7 +19,7 @@ contains
     character(len=*), intent(in) :: path, what
     real(dp), allocatable, intent(out) :: t(:), y(:)
     type(error_type), allocatable, intent(out) :: error
-    integer :: pos, e, line, n, nw, k
+    integer :: pos, line, n, nw, k
     integer, allocatable :: wa(:), wb(:)
     character(len=:), allocatable :: text, ln
     real(dp) :: row(2)
@@ -38,15 +38,7 @@ contains
     end if
     allocate(tt(64), yy(64))
     n = 0; line = 0; pos = 1
-    do while (pos <= len(text))
-      e = index(text(pos:), new_line('a'))
-      if (e == 0) then
-        e = len(text) + 1
-      else
-        e = pos + e - 1
-      end if
-      ln = text(pos:e - 1)
-      pos = e + 1
+    do while (next_text_line(text, pos, ln))
       line = line + 1
       call split_words(ln, wa, wb, nw)
       if (nw == 0) cycle
