@@ -27,7 +27,7 @@ def mrsim_run(mrsim, scene, out, *sets, cwd=None):
     return subprocess.run(args, capture_output=True, text=True, timeout=300, cwd=cwd)
 
 
-def refused_at_reading(r, out: Path, *words: str) -> None:
+def check_refused_at_reading(r, out: Path, *words: str) -> None:
     """Exit 1, one line, the words in it, and nothing written."""
     assert r.returncode == 1, r.stderr
     assert r.stderr.count("\n") == 1 and r.stderr.startswith("mrsim: error: "), r.stderr
@@ -43,7 +43,7 @@ def test_smallest_step_above_the_largest_is_refused_at_reading(tmp_path, mrsim, 
     out = tmp_path / "p.csv"
     r = mrsim_run(mrsim, PENDULUM, out, "integrator.adaptive=.true.", f"integrator.h_min={h_min!r}",
                   f"integrator.h_max={h_max!r}")
-    refused_at_reading(r, out, "&integrator: h_min: larger than h_max")
+    check_refused_at_reading(r, out, "&integrator: h_min: larger than h_max")
     ok = mrsim_run(mrsim, PENDULUM, out, "integrator.adaptive=.true.", f"integrator.h_min={h_max!r}",
                    f"integrator.h_max={h_min!r}", "scene.t_end=0.1")
     assert ok.returncode == 0, ok.stderr
@@ -53,7 +53,7 @@ def test_smallest_step_above_the_largest_is_refused_at_reading(tmp_path, mrsim, 
 def test_a_checkpoint_in_a_missing_folder_is_refused_before_the_run(tmp_path, mrsim, where):
     out = tmp_path / "p.csv"
     r = mrsim_run(mrsim, PENDULUM, out, "output.checkpoint_dt=1", f"output.checkpoint_file='{where}'", cwd=tmp_path)
-    refused_at_reading(r, out, "&output: checkpoint_file: the folder", "does not exist")
+    check_refused_at_reading(r, out, "&output: checkpoint_file: the folder", "does not exist")
 
 
 def test_adaptive_rows_of_every_step_are_written_once_also_across_a_restart(tmp_path, mrsim):
@@ -95,7 +95,7 @@ def test_a_static_start_with_nothing_to_settle_is_refused(tmp_path, mrsim):
     nothing, and is refused naming &scene start."""
     out = tmp_path / "p.csv"
     r = mrsim_run(mrsim, PENDULUM, out, "scene.start='static'")
-    refused_at_reading(r, out, "&scene: start: 'static'", "nothing would settle")
+    check_refused_at_reading(r, out, "&scene: start: 'static'", "nothing would settle")
 
 
 def test_a_static_start_reports_what_it_settled(tmp_path, mrsim):
