@@ -60,3 +60,14 @@ def test_module_names_mirror_their_paths():
             if name.lower() != expected:
                 wrong.append(f"{rel}: {name} (expected {expected})")
     assert wrong == []
+
+
+def test_the_shipped_binding_exports_no_test_hook():
+    """The test hooks (kernel internals for the suite) live in pymr._testhooks, an extension
+    apart from pymr._core, and the ODE test problems are compiled into it alone, not into
+    the kernel library that mrsim and _core link."""
+    from pymr import _core, _testhooks
+    hooks = {n for n in dir(_testhooks) if n.startswith("pymr_")}
+    assert len(hooks) == 7 and not hooks & set(dir(_core))
+    kernel = (ROOT / "meson.build").read_text().split("kernel_src = files(", 1)[1].split(")", 1)[0]
+    assert "test_odes" not in kernel and "test_hooks" not in kernel

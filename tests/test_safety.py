@@ -7,13 +7,14 @@ from __future__ import annotations
 import json
 import re
 import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 import pymr
-from pymr import _core
+from pymr import _testhooks
 
 ROOT = Path(__file__).resolve().parent.parent
 PENDULUM = (ROOT / "input" / "pendulum.nml").read_text().replace(
@@ -23,10 +24,17 @@ PENDULUM = (ROOT / "input" / "pendulum.nml").read_text().replace(
 def test_lapack_illegal_argument_returns_to_pymr():
     """dpotrf called with uplo = 'X' reports argument 1 to XERBLA; pymr's XERBLA records it
     and returns (the reference one prints and ends the process with status 0), so LAPACK
-    gives info = -1 and this test goes on."""
-    info, routine, argument = _core.pymr_xerbla_probe()
-    assert info == -1
-    assert routine.decode().strip() == "DPOTRF" and argument == 1
+    gives info = -1 and the process goes on. The test-hook extension is loaded alone in a
+    fresh process: LAPACK's call to XERBLA binds to the kernel of the first extension that
+    loads LAPACK, and in a process that imported pymr that is pymr._core's copy."""
+    probe = ("import importlib.util, sys\n"
+             "spec = importlib.util.spec_from_file_location('_testhooks', sys.argv[1])\n"
+             "m = importlib.util.module_from_spec(spec); spec.loader.exec_module(m)\n"
+             "info, routine, argument = m.pymr_xerbla_probe()\n"
+             "print(info, routine.decode().strip(), argument)\n")
+    r = subprocess.run([sys.executable, "-c", probe, _testhooks.__file__], capture_output=True, text=True,
+                       timeout=60, cwd=ROOT.parent)
+    assert r.returncode == 0 and r.stdout.split() == ["-1", "DPOTRF", "1"], (r.stdout, r.stderr)
 
 
 def test_statistics_are_valid_json_whatever_the_title_holds(tmp_path):
