@@ -432,8 +432,11 @@ contains
     integer :: b
     character(len=:), allocatable :: said
     if (sc%scene%deflection_limit <= 0.0_dp) return
+    if (.not. allocated(stats%warnings)) stats%warnings = ''
     do b = 2, model%d%nb
       if (model%d%nm(b) == 0) cycle
+      ! a body is warned about once: not measured again after that
+      if (index(stats%warnings, "body '" // trim(model%d%body_name(b)) // "' deflects") > 0) cycle
       call point_deflection(model%d%flex(b), q(model%d%a0(b):model%d%a0(b) + model%d%nm(b) - 1), deflection, size_m)
       if (deflection <= sc%scene%deflection_limit*size_m) cycle
       said = "body '" // trim(model%d%body_name(b)) // "' deflects " // fmt(deflection) // ' m, ' // &
@@ -442,8 +445,6 @@ contains
       if (sc%scene%deflection_stop) then
         call fatal_error(error, 'at t = ' // fmt(t) // ' s: ' // said // ' (deflection_stop)', stat_solver); return
       end if
-      if (.not. allocated(stats%warnings)) stats%warnings = ''
-      if (index(stats%warnings, "body '" // trim(model%d%body_name(b)) // "' deflects") > 0) cycle
       stats%warnings = stats%warnings // 'at t = ' // fmt(t) // ' s: ' // said // new_line('a')
     end do
   end subroutine watch_deflection
