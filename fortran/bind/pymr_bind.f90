@@ -43,7 +43,7 @@ subroutine pymr_model_size(scene, overrides, n, nb, n_markers, stat, message)
   call load_model(scene, overrides, sc, model, error)
   call report(error, stat, message)
   if (stat /= 0) return
-  n = model%d%n; nb = model%d%nb; n_markers = model%d%n_markers
+  n = model%d%n; nb = model%d%nb; n_markers = model%d%markers%n
 end subroutine pymr_model_size
 
 !> Mass matrix mm(n,n) and right-hand side p(n) of M qdd = P at (t, q, qd).
@@ -72,7 +72,7 @@ subroutine pymr_model_terms(scene, overrides, n, t, q, qd, mm, p, stat, message)
   end if
   call report(error, stat, message)
   if (stat /= 0) return
-  mm = model%d%mm; p = model%d%p
+  mm = model%wk%mm; p = model%wk%p
 end subroutine pymr_model_terms
 
 !> The 'response' coupling's fast-force response at (t, q, qd): after one synchronised
@@ -197,11 +197,11 @@ subroutine pymr_loop_rows(scene, overrides, n, nrmax, q, qd, nr, phi, g, gam, st
   call load_model(scene, overrides, sc, model, error, n)
   call report(error, stat, message)
   if (stat /= 0) return
-  nr = model%d%n_rows
+  nr = model%d%cuts%n_rows
   if (nrmax < nr) return
-  call forward_kinematics(model%d, q, qd)
-  call loop_rows(model%d)
-  phi(1:nr) = model%d%phi; g(1:nr, :) = model%d%gj; gam(1:nr) = model%d%gam
+  call forward_kinematics(model%d, model%wk, q, qd)
+  call loop_rows(model%d, model%wk)
+  phi(1:nr) = model%wk%loops%residual; g(1:nr, :) = model%wk%loops%jac; gam(1:nr) = model%wk%loops%gamma
 end subroutine pymr_loop_rows
 
 !> Kinetic and potential energy (J) for m states q(n,m), qd(n,m) of one model.
@@ -386,7 +386,7 @@ subroutine pymr_model_rhs(handle, nx, t, x, f, evals, stat, message)
       call fatal_error(error, 'x has the wrong length')
     else
       call open_models(handle)%eval(t, x, f, error)
-      evals = open_models(handle)%d%evals
+      evals = open_models(handle)%wk%count%evals
     end if
   end if
   call report(error, stat, message)
@@ -416,17 +416,17 @@ subroutine pymr_model_marker(handle, marker, n, m, t, q, qd, pos, stat, message)
   if (.not. allocated(error)) then
     if (open_models(handle)%d%n /= n) then
       call fatal_error(error, 'q has the wrong length')
-    else if (marker < 1 .or. marker > open_models(handle)%d%n_markers) then
+    else if (marker < 1 .or. marker > open_models(handle)%d%markers%n) then
       call fatal_error(error, 'no marker with this index')
     end if
   end if
   call report(error, stat, message)
   if (stat /= 0) return
-  associate(d => open_models(handle)%d)
+  associate(d => open_models(handle)%d, wk => open_models(handle)%wk)
     do k = 1, m
-      call impose_prescribed_state(d, t(k), q(:, k), qd(:, k))
-      call forward_kinematics(d, d%qx, d%qdx)
-      call marker_motion(d, marker, d%qx, d%qdx, pos(:, k), v)
+      call impose_prescribed_state(d, wk, t(k), q(:, k), qd(:, k))
+      call forward_kinematics(d, wk, wk%qx, wk%qdx)
+      call marker_motion(d, wk, marker, wk%qx, wk%qdx, pos(:, k), v)
     end do
   end associate
 end subroutine pymr_model_marker
@@ -444,8 +444,8 @@ subroutine pymr_model_marker_index(handle, name, k)
   k = 0
   call check_handle(handle, error)
   if (allocated(error)) return
-  do i = 1, open_models(handle)%d%n_markers
-    if (trim(open_models(handle)%d%marker_name(i)) == trim(name)) k = i
+  do i = 1, open_models(handle)%d%markers%n
+    if (trim(open_models(handle)%d%markers%name(i)) == trim(name)) k = i
   end do
 end subroutine pymr_model_marker_index
 
@@ -566,12 +566,12 @@ subroutine pymr_model_frames(handle, n, m, nb, t, q, qd, pos, parent, stat, mess
   end if
   call report(error, stat, message)
   if (stat /= 0) return
-  associate(d => open_models(handle)%d)
+  associate(d => open_models(handle)%d, wk => open_models(handle)%wk)
     parent = d%parent(1:nb)
     do k = 1, m
-      call impose_prescribed_state(d, t(k), q(:, k), qd(:, k))
-      call forward_kinematics(d, d%qx, d%qdx)
-      pos(:, :, k) = d%pos(:, 1:nb)
+      call impose_prescribed_state(d, wk, t(k), q(:, k), qd(:, k))
+      call forward_kinematics(d, wk, wk%qx, wk%qdx)
+      pos(:, :, k) = wk%pos(:, 1:nb)
     end do
   end associate
 end subroutine pymr_model_frames
@@ -588,8 +588,8 @@ subroutine pymr_model_marker_body(handle, marker, body)
   body = 0
   call check_handle(handle, error)
   if (allocated(error)) return
-  if (marker < 1 .or. marker > open_models(handle)%d%n_markers) return
-  body = open_models(handle)%d%marker_body(marker)
+  if (marker < 1 .or. marker > open_models(handle)%d%markers%n) return
+  body = open_models(handle)%d%markers%body(marker)
 end subroutine pymr_model_marker_body
 
 !> What of a scene's input `path` is ('the scene (FILE)', 'a modal file of the scene (FILE)',

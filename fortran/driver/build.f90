@@ -5,7 +5,7 @@ module pymr_driver_build
   use pymr_env_error, only : error_type, fatal_error
   use pymr_model_scene, only : scene_t, body_spec, joint_spec, joint_ndof, unset, beam_mode_count
   use pymr_model_scene_rules, only : check_scene, body_index, inertia_matrix, closes_loop
-  use pymr_model_types, only : model_data, prim_revolute, prim_prismatic, effect_gravity, effect_joint_drives, &
+  use pymr_model_types, only : model_data, model_work, prim_revolute, prim_prismatic, effect_gravity, effect_joint_drives, &
     & effect_modal_damping, effect_joint_springs, effect_geometric_stiffening, effect_base_motion, n_effects, &
     & effect_firing_load, effect_deformation_inertia, &
     & motion_sine, motion_spinup, motion_table, cut_fixed, cut_revolute, cut_spherical, cut_prismatic, cut_free
@@ -32,7 +32,7 @@ contains
     integer, allocatable :: order(:), inboard(:)
     call check_scene(sc, error); if (allocated(error)) return
     call tree_order(sc, order, inboard, error); if (allocated(error)) return
-    call fill_model(sc, order, inboard, model%d, error)
+    call fill_model(sc, order, inboard, model%d, model%wk, error)
   end subroutine build_model
 
 
@@ -129,10 +129,11 @@ contains
   end subroutine tree_order
 
   !> Fill model data from a checked scene in tree order.
-  subroutine fill_model(sc, order, inboard, d, error)
+  subroutine fill_model(sc, order, inboard, d, wk, error)
     type(scene_t), intent(in) :: sc
     integer, intent(in) :: order(:), inboard(:)
     type(model_data), intent(out) :: d
+    type(model_work), intent(inout) :: wk
     type(error_type), allocatable, intent(out) :: error
     integer :: nb, b, i, j, k, m, nmod, nmb, pos_in(size(order))
     type(flex_data), allocatable :: mfd(:)
@@ -164,12 +165,12 @@ contains
     associate(n => d%n, mx => d%mmax)
       allocate(d%body_name(nb), d%joint_name(nb), d%parent(nb), d%c0(nb), d%nc(nb), d%mass(nb), d%com(3, nb), &
         & d%inertia(3, 3, nb), d%at(3, nb), d%prim(n), d%cbody(n), d%cgrp(n), d%axis(3, n), d%qname(n), &
-        & d%qdname(n), d%flexible(nb), d%nm(nb), d%a0(nb), d%flex(nb), d%fwork(nb), d%bshape(nb), d%mnodes(nb), &
-        & d%att_psi(3, mx, nb), d%att_phi(3, mx, nb), d%cm(6, mx, nb), d%mva(6, mx, nb), d%wam(mx, nb))
+        & d%qdname(n), d%flexible(nb), d%nm(nb), d%a0(nb), d%flex(nb), wk%fwork(nb), d%bshape(nb), d%mnodes(nb), &
+        & d%att_psi(3, mx, nb), d%att_phi(3, mx, nb), wk%cm(6, mx, nb), wk%mva(6, mx, nb), wk%wam(mx, nb))
     end associate
     d%parent = 0; d%c0 = 1; d%nc = 0; d%mass = 0.0_dp; d%com = 0.0_dp; d%inertia = 0.0_dp; d%at = 0.0_dp
     d%joint_name = ''; d%flexible = .false.; d%nm = 0; d%a0 = d%n + 1
-    d%att_psi = 0.0_dp; d%att_phi = 0.0_dp; d%cm = 0.0_dp; d%mva = 0.0_dp; d%wam = 0.0_dp
+    d%att_psi = 0.0_dp; d%att_phi = 0.0_dp; wk%cm = 0.0_dp; wk%mva = 0.0_dp; wk%wam = 0.0_dp
     d%body_name(1) = sc%bodies(order(1))%name
     k = 0; m = d%nj
     do b = 2, nb
@@ -180,10 +181,10 @@ contains
       d%at(:, b) = sc%joints(j)%at
       call add_joint(sc%joints(j), b, k, d)
       if (sc%bodies(i)%kind == 'beam') then
-        call add_beam(sc, i, b, m, d, error); if (allocated(error)) return
+        call add_beam(sc, i, b, m, d, wk, error); if (allocated(error)) return
       else if (sc%bodies(i)%kind == 'modal') then
         d%flex(b) = mfd(b); d%mnodes(b) = mnd(b)
-        call add_flexible(sc%bodies(i)%name, b, m, d)
+        call add_flexible(sc%bodies(i)%name, b, m, d, wk)
       else
         d%mass(b) = sc%bodies(i)%mass
         d%com(:, b) = sc%bodies(i)%com
@@ -206,65 +207,66 @@ contains
           & d%att_psi(:, :, b), d%att_phi(:, :, b), error); if (allocated(error)) return
       end if
     end do
-    call fill_loads_markers(sc, pos_in, d, error); if (allocated(error)) return
-    call fill_cuts(sc, pos_in, d, error); if (allocated(error)) return
-    allocate(d%rot(3, 3, nb), d%pos(3, nb), d%vel(6, nb), d%acc(6, nb), d%s(6, d%n), d%i6(6, 6, nb), &
-      & d%w(6, nb), d%ic(6, 6, nb), d%wc(6, nb), d%mm(d%n, d%n), d%lf(d%n, d%n), d%p(d%n), d%tau(d%n))
-    d%i6 = 0.0_dp; d%w = 0.0_dp; d%ic = 0.0_dp; d%wc = 0.0_dp; d%mm = 0.0_dp; d%tau = 0.0_dp; d%s = 0.0_dp
+    call fill_loads_markers(sc, pos_in, d, wk, error); if (allocated(error)) return
+    call fill_cuts(sc, pos_in, d, wk, error); if (allocated(error)) return
+    allocate(wk%rot(3, 3, nb), wk%pos(3, nb), wk%vel(6, nb), wk%acc(6, nb), wk%s(6, d%n), wk%i6(6, 6, nb), &
+      & wk%w(6, nb), wk%ic(6, 6, nb), wk%wc(6, nb), wk%mm(d%n, d%n), wk%lf(d%n, d%n), wk%p(d%n), wk%tau(d%n))
+    wk%i6 = 0.0_dp; wk%w = 0.0_dp; wk%ic = 0.0_dp; wk%wc = 0.0_dp; wk%mm = 0.0_dp; wk%tau = 0.0_dp; wk%s = 0.0_dp
   end subroutine fill_model
 
   !> The loop-closing joints (closes_loop) and their constraint rows (model/loops.f90); a
   !> cut joint's point on a flexible body takes the body's mode shapes there (flexible_point).
-  subroutine fill_cuts(sc, pos_in, d, error)
+  subroutine fill_cuts(sc, pos_in, d, wk, error)
     type(scene_t), intent(in) :: sc
     integer, intent(in) :: pos_in(:)
     type(model_data), intent(inout) :: d
+    type(model_work), intent(inout) :: wk
     type(error_type), allocatable, intent(out) :: error
     integer :: j, c, mx
     real(dp) :: u(3), e(3)
-    d%n_cut = count([(closes_loop(sc, j), j = 1, size(sc%joints))])
+    d%cuts%n = count([(closes_loop(sc, j), j = 1, size(sc%joints))])
     mx = d%mmax
-    allocate(d%cut_name(d%n_cut), d%cut_parent(d%n_cut), d%cut_child(d%n_cut), d%cut_kind(d%n_cut), &
-      & d%cut_row0(d%n_cut), d%cut_nrow(d%n_cut), d%cut_at(3, d%n_cut), d%cut_child_at(3, d%n_cut), &
-      & d%cut_axis(3, d%n_cut), d%cut_normal(3, 2, d%n_cut), d%cut_psi(3, mx, 2, d%n_cut), &
-      & d%cut_phi(3, mx, 2, d%n_cut), d%cut_rot(3, 3, 2, d%n_cut), d%cut_pos(3, 2, d%n_cut), &
-      & d%cut_vel(6, 2, d%n_cut), d%cut_acc(6, 2, d%n_cut), d%cut_cm(6, mx, 2, d%n_cut))
-    d%cut_psi = 0.0_dp; d%cut_phi = 0.0_dp; d%cut_cm = 0.0_dp
-    c = 0; d%n_rows = 0
+    allocate(d%cuts%name(d%cuts%n), d%cuts%parent(d%cuts%n), d%cuts%child(d%cuts%n), d%cuts%kind(d%cuts%n), &
+      & d%cuts%row0(d%cuts%n), d%cuts%nrow(d%cuts%n), d%cuts%at(3, d%cuts%n), d%cuts%child_at(3, d%cuts%n), &
+      & d%cuts%axis(3, d%cuts%n), d%cuts%normal(3, 2, d%cuts%n), d%cuts%psi(3, mx, 2, d%cuts%n), &
+      & d%cuts%phi(3, mx, 2, d%cuts%n), wk%loops%rot(3, 3, 2, d%cuts%n), wk%loops%pos(3, 2, d%cuts%n), &
+      & wk%loops%vel(6, 2, d%cuts%n), wk%loops%acc(6, 2, d%cuts%n), wk%loops%cm(6, mx, 2, d%cuts%n))
+    d%cuts%psi = 0.0_dp; d%cuts%phi = 0.0_dp; wk%loops%cm = 0.0_dp
+    c = 0; d%cuts%n_rows = 0
     do j = 1, size(sc%joints)
       if (.not. closes_loop(sc, j)) cycle
       c = c + 1
       associate(jt => sc%joints(j))
-        d%cut_name(c) = jt%name
-        d%cut_parent(c) = pos_in(body_index(sc, jt%parent)); d%cut_child(c) = pos_in(body_index(sc, jt%child))
-        d%cut_at(:, c) = jt%at; d%cut_child_at(:, c) = jt%child_at
+        d%cuts%name(c) = jt%name
+        d%cuts%parent(c) = pos_in(body_index(sc, jt%parent)); d%cuts%child(c) = pos_in(body_index(sc, jt%child))
+        d%cuts%at(:, c) = jt%at; d%cuts%child_at(:, c) = jt%child_at
         u = jt%axis/norm2(jt%axis)
         ! two unit normals of the axis: the unit axis least aligned with it, made normal
         e = unit_axes(:, minloc(abs(u), dim=1))
         e = e - dot_product(e, u)*u; e = e/norm2(e)
-        d%cut_axis(:, c) = u; d%cut_normal(:, 1, c) = e
-        d%cut_normal(:, 2, c) = [u(2)*e(3) - u(3)*e(2), u(3)*e(1) - u(1)*e(3), u(1)*e(2) - u(2)*e(1)]
+        d%cuts%axis(:, c) = u; d%cuts%normal(:, 1, c) = e
+        d%cuts%normal(:, 2, c) = [u(2)*e(3) - u(3)*e(2), u(3)*e(1) - u(1)*e(3), u(1)*e(2) - u(2)*e(1)]
         select case (trim(jt%kind))
-        case ('fixed'); d%cut_kind(c) = cut_fixed; d%cut_nrow(c) = 6
-        case ('revolute'); d%cut_kind(c) = cut_revolute; d%cut_nrow(c) = 5
-        case ('prismatic'); d%cut_kind(c) = cut_prismatic; d%cut_nrow(c) = 5
-        case ('free'); d%cut_kind(c) = cut_free; d%cut_nrow(c) = 0
-        case default; d%cut_kind(c) = cut_spherical; d%cut_nrow(c) = 3
+        case ('fixed'); d%cuts%kind(c) = cut_fixed; d%cuts%nrow(c) = 6
+        case ('revolute'); d%cuts%kind(c) = cut_revolute; d%cuts%nrow(c) = 5
+        case ('prismatic'); d%cuts%kind(c) = cut_prismatic; d%cuts%nrow(c) = 5
+        case ('free'); d%cuts%kind(c) = cut_free; d%cuts%nrow(c) = 0
+        case default; d%cuts%kind(c) = cut_spherical; d%cuts%nrow(c) = 3
         end select
-        if (d%cut_kind(c) /= cut_free .and. d%nm(d%cut_parent(c)) > 0) then
-          call flexible_point(d, d%cut_parent(c), jt%at, jt%origin%where('at'), d%cut_psi(:, :, 1, c), &
-            & d%cut_phi(:, :, 1, c), error); if (allocated(error)) return
+        if (d%cuts%kind(c) /= cut_free .and. d%nm(d%cuts%parent(c)) > 0) then
+          call flexible_point(d, d%cuts%parent(c), jt%at, jt%origin%where('at'), d%cuts%psi(:, :, 1, c), &
+            & d%cuts%phi(:, :, 1, c), error); if (allocated(error)) return
         end if
-        if (d%cut_kind(c) /= cut_free .and. d%nm(d%cut_child(c)) > 0) then
-          call flexible_point(d, d%cut_child(c), jt%child_at, jt%origin%where('child_at'), &
-            & d%cut_psi(:, :, 2, c), d%cut_phi(:, :, 2, c), error); if (allocated(error)) return
+        if (d%cuts%kind(c) /= cut_free .and. d%nm(d%cuts%child(c)) > 0) then
+          call flexible_point(d, d%cuts%child(c), jt%child_at, jt%origin%where('child_at'), &
+            & d%cuts%psi(:, :, 2, c), d%cuts%phi(:, :, 2, c), error); if (allocated(error)) return
         end if
       end associate
-      d%cut_row0(c) = d%n_rows + 1; d%n_rows = d%n_rows + d%cut_nrow(c)
+      d%cuts%row0(c) = d%cuts%n_rows + 1; d%cuts%n_rows = d%cuts%n_rows + d%cuts%nrow(c)
     end do
-    allocate(d%row_used(d%n_rows), d%phi(d%n_rows), d%gj(d%n_rows, d%n), d%gam(d%n_rows), d%lambda(d%n_rows), &
-      & d%ymg(d%n, d%n_rows))
-    d%lambda = 0.0_dp
+    allocate(wk%loops%row_used(d%cuts%n_rows), wk%loops%residual(d%cuts%n_rows), wk%loops%jac(d%cuts%n_rows, d%n), wk%loops%gamma(d%cuts%n_rows), wk%loops%lambda(d%cuts%n_rows), &
+      & wk%loops%ymg(d%n, d%cuts%n_rows))
+    wk%loops%lambda = 0.0_dp
   end subroutine fill_cuts
 
   !> Expand joint jt of body b into primitives, coordinates k+1 ... (k is advanced).
@@ -304,11 +306,12 @@ contains
   end subroutine add_joint
 
   !> Build beam i of the scene as model body b; its modal coordinates follow index m.
-  subroutine add_beam(sc, i, b, m, d, error)
+  subroutine add_beam(sc, i, b, m, d, wk, error)
     type(scene_t), intent(in) :: sc
     integer, intent(in) :: i, b
     integer, intent(inout) :: m
     type(model_data), intent(inout) :: d
+    type(model_work), intent(inout) :: wk
     type(error_type), allocatable, intent(out) :: error
     type(beam_section) :: sec
     associate(bs => sc%bodies(i))
@@ -327,23 +330,24 @@ contains
       if (allocated(error)) then
         error%message = sc%bodies(i)%origin%where() // ': ' // error%message; return
       end if
-      call add_flexible(bs%name, b, m, d)
+      call add_flexible(bs%name, b, m, d, wk)
     end associate
   end subroutine add_beam
 
   !> Register flexible body b (its flex data already set): modal coordinates after m.
-  subroutine add_flexible(name, b, m, d)
+  subroutine add_flexible(name, b, m, d, wk)
     character(len=*), intent(in) :: name
     integer, intent(in) :: b
     integer, intent(inout) :: m
     type(model_data), intent(inout) :: d
+    type(model_work), intent(inout) :: wk
     integer :: k, nmb
     nmb = d%flex(b)%m
     d%flexible(b) = .true.
     d%nm(b) = nmb
     d%a0(b) = m + 1
     d%mass(b) = d%flex(b)%mass
-    allocate(d%fwork(b)%wa(3, 3, 0:nmb), d%fwork(b)%cr(3, nmb))
+    allocate(wk%fwork(b)%wa(3, 3, 0:nmb), wk%fwork(b)%cr(3, nmb))
     do k = 1, nmb
       d%cbody(m + k) = b; d%cgrp(m + k) = d%nb + b
       d%qname(m + k) = trim(name) // '.a' // itoa(k)
@@ -406,15 +410,16 @@ contains
 
   !> What acts on the model, from the scene: effects, springs, drives, prescribed motion and
   !> its tables, geometric stiffness, markers and loads.
-  subroutine fill_loads_markers(sc, pos_in, d, error)
+  subroutine fill_loads_markers(sc, pos_in, d, wk, error)
     type(scene_t), intent(in) :: sc
     integer, intent(in) :: pos_in(:)
     type(model_data), intent(inout) :: d
+    type(model_work), intent(inout) :: wk
     type(error_type), allocatable, intent(out) :: error
-    call fill_effect_plan(sc, d)
+    call fill_effect_plan(sc, d, wk)
     call fill_springs(sc, pos_in, d)
     call fill_drives(sc, pos_in, d)
-    call fill_motions(sc, pos_in, d)
+    call fill_motions(sc, pos_in, d, wk)
     call fill_tables(sc, d, error); if (allocated(error)) return
     call fill_stiffening(d)
     call fill_markers(sc, pos_in, d, error); if (allocated(error)) return
@@ -423,9 +428,10 @@ contains
 
   !> The effects on, and the plan: the active effects in evaluation order (loads first; base
   !> motion last). Without the deformation inertia, the modal moments are the undeformed ones.
-  subroutine fill_effect_plan(sc, d)
+  subroutine fill_effect_plan(sc, d, wk)
     type(scene_t), intent(in) :: sc
     type(model_data), intent(inout) :: d
+    type(model_work), intent(inout) :: wk
     integer :: i, b
     d%effect_on(effect_gravity) = sc%effects%gravity
     d%effect_on(effect_joint_drives) = sc%effects%joint_drives .and. size(sc%drives) > 0
@@ -437,7 +443,7 @@ contains
     d%effect_on(effect_deformation_inertia) = sc%effects%deformation_inertia == 'full' .and. any(d%nm > 0)
     if (.not. d%effect_on(effect_deformation_inertia)) then
       do b = 2, d%nb
-        if (d%nm(b) > 0) call undeformed_modal_moments(d%flex(b), d%fwork(b))
+        if (d%nm(b) > 0) call undeformed_modal_moments(d%flex(b), wk%fwork(b))
       end do
     end if
     d%n_plan = 0
@@ -446,7 +452,8 @@ contains
       d%n_plan = d%n_plan + 1
       d%plan(d%n_plan) = i
     end do
-    allocate(d%every(d%nb))
+    allocate(d%every(d%nb), wk%count%effect_evals(n_effects), wk%count%effect_timed(n_effects), wk%count%effect_cpu(n_effects))
+    wk%count%effect_evals = 0; wk%count%effect_timed = 0; wk%count%effect_cpu = 0.0_dp
     d%every = .true.
     d%gravity = sc%scene%gravity
   end subroutine fill_effect_plan
@@ -481,15 +488,16 @@ contains
   end subroutine fill_drives
 
   !> The prescribed coordinates (none when base motion is off): coordinate, form, parameters.
-  subroutine fill_motions(sc, pos_in, d)
+  subroutine fill_motions(sc, pos_in, d, wk)
     type(scene_t), intent(in) :: sc
     integer, intent(in) :: pos_in(:)
     type(model_data), intent(inout) :: d
+    type(model_work), intent(inout) :: wk
     integer :: i
     d%n_prescribed = 0
     if (d%effect_on(effect_base_motion)) d%n_prescribed = size(sc%motions)
     allocate(d%pres_coord(d%n_prescribed), d%pres_form(d%n_prescribed), d%pres_par(6, d%n_prescribed), &
-      & d%qx(d%n), d%qdx(d%n), d%prescribed(d%n))
+      & wk%qx(d%n), wk%qdx(d%n), d%prescribed(d%n))
     d%prescribed = .false.
     do i = 1, d%n_prescribed
       associate(mo => sc%motions(i))
@@ -562,18 +570,18 @@ contains
     type(model_data), intent(inout) :: d
     type(error_type), allocatable, intent(out) :: error
     integer :: i, b
-    d%n_markers = size(sc%markers)
-    allocate(d%marker_name(d%n_markers), d%marker_body(d%n_markers), d%marker_at(3, d%n_markers), &
-      & d%marker_psi(3, d%mmax, d%n_markers), d%marker_phi(3, d%mmax, d%n_markers))
-    d%marker_psi = 0.0_dp; d%marker_phi = 0.0_dp
-    do i = 1, d%n_markers
-      d%marker_name(i) = sc%markers(i)%name
+    d%markers%n = size(sc%markers)
+    allocate(d%markers%name(d%markers%n), d%markers%body(d%markers%n), d%markers%at(3, d%markers%n), &
+      & d%markers%psi(3, d%mmax, d%markers%n), d%markers%phi(3, d%mmax, d%markers%n))
+    d%markers%psi = 0.0_dp; d%markers%phi = 0.0_dp
+    do i = 1, d%markers%n
+      d%markers%name(i) = sc%markers(i)%name
       b = pos_in(body_index(sc, sc%markers(i)%body))
-      d%marker_body(i) = b
-      d%marker_at(:, i) = sc%markers(i)%at
+      d%markers%body(i) = b
+      d%markers%at(:, i) = sc%markers(i)%at
       if (d%nm(b) > 0) then
         call flexible_point(d, b, sc%markers(i)%at, sc%markers(i)%origin%where('at'), &
-          & d%marker_psi(:, :, i), d%marker_phi(:, :, i), error); if (allocated(error)) return
+          & d%markers%psi(:, :, i), d%markers%phi(:, :, i), error); if (allocated(error)) return
       end if
     end do
   end subroutine fill_markers
@@ -587,8 +595,8 @@ contains
     if (d%effect_on(effect_firing_load)) d%n_loads = size(sc%loads)
     allocate(d%load_marker(d%n_loads), d%load_dir(3, d%n_loads), d%load_par(3, d%n_loads))
     do i = 1, d%n_loads
-      do j = 1, d%n_markers
-        if (d%marker_name(j) == sc%loads(i)%marker) d%load_marker(i) = j
+      do j = 1, d%markers%n
+        if (d%markers%name(j) == sc%loads(i)%marker) d%load_marker(i) = j
       end do
       d%load_dir(:, i) = sc%loads(i)%direction/norm2(sc%loads(i)%direction)
       d%load_par(:, i) = [sc%loads(i)%peak, sc%loads(i)%start, sc%loads(i)%duration]

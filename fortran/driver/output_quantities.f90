@@ -5,7 +5,7 @@ module pymr_driver_output_quantities
   use pymr_env_kinds, only : dp
   use pymr_env_error, only : error_type
   use pymr_model, only : model_t, model_counters
-  use pymr_model_types, only : model_data, effect_joint_drives, effect_firing_load, &
+  use pymr_model_types, only : model_data, model_work, effect_joint_drives, effect_firing_load, &
     & effect_joint_springs, effect_modal_damping
   use pymr_model_kinematics, only : forward_kinematics, marker_motion, marker_acceleration, marker_rotation
   use pymr_model_reactions, only : body_accelerations, joint_wrenches, child_frame_wrench
@@ -33,20 +33,21 @@ contains
     real(dp), intent(in) :: t, q(:), qd(:), work(n_work)
     type(error_type), allocatable, intent(out) :: error
     real(dp) :: qe(size(q)), qde(size(qd)), extra(csv%plan%extra)
-    call imposed_state(model%d, t, q, qd, qe, qde)
+    call imposed_state(model%d, model%wk, t, q, qd, qe, qde)
     call output_values(csv%plan, model, t, qe, qde, work, extra, error)
     if (allocated(error)) return
     call csv%write_row(model%d, t, qe, qde, extra)
   end subroutine write_output_row
 
   !> The state with the prescribed coordinates on their functions.
-  subroutine imposed_state(d, t, q, qd, qe, qde)
-    type(model_data), intent(inout) :: d
+  subroutine imposed_state(d, wk, t, q, qd, qe, qde)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
     real(dp), intent(in) :: t, q(:), qd(:)
     real(dp), intent(out) :: qe(:), qde(:)
     if (d%n_prescribed > 0) then
-      call impose_prescribed_state(d, t, q, qd)
-      qe = d%qx; qde = d%qdx
+      call impose_prescribed_state(d, wk, t, q, qd)
+      qe = wk%qx; qde = wk%qdx
     else
       qe = q; qde = qd
     end if
@@ -64,32 +65,32 @@ contains
     integer :: k, i, b
     if (plan%accelerations .or. plan%reactions) then
       call output_accelerations(model, t, q, qd, qdd, error); if (allocated(error)) return
-      call body_accelerations(model%d, qdd, lin)
-      if (plan%reactions) call tree_joint_wrenches(model%d, qdd, lin, jw)
+      call body_accelerations(model%d, model%wk, qdd, lin)
+      if (plan%reactions) call tree_joint_wrenches(model%d, model%wk, qdd, lin, jw)
     else if (plan%markers .or. plan%orientations) then
-      call forward_kinematics(model%d, q, qd)
+      call forward_kinematics(model%d, model%wk, q, qd)
     end if
     k = 0
-    associate(d => model%d)
-      do i = 1, d%n_markers
+    associate(d => model%d, wk => model%wk)
+      do i = 1, d%markers%n
         if (.not. (plan%markers .or. plan%accelerations .or. plan%orientations)) exit
-        call marker_motion(d, i, q, qd, r, vel)
+        call marker_motion(d, wk, i, q, qd, r, vel)
         if (plan%markers) call put([r, vel])
         if (plan%accelerations) then
-          b = d%marker_body(i)
-          call marker_acceleration(d, i, qd, qdd, d%acc(:, b) + lin(:, b), r, vel, a)
+          b = d%markers%body(i)
+          call marker_acceleration(d, wk, i, qd, qdd, wk%acc(:, b) + lin(:, b), r, vel, a)
           call put(a)
         end if
         if (plan%orientations) then
-          call marker_rotation(d, i, q, rm)
+          call marker_rotation(d, wk, i, q, rm)
           call put(quaternion(rm))
         end if
       end do
       do b = 2, d%nb
-        if (plan%reactions) call put(child_frame_wrench(d, b, jw(:, b)))
+        if (plan%reactions) call put(child_frame_wrench(d, wk, b, jw(:, b)))
       end do
-      do i = 1, d%n_cut
-        if (plan%reactions) call put(cut_wrench(d, i))
+      do i = 1, d%cuts%n
+        if (plan%reactions) call put(cut_wrench(d, wk, i))
       end do
     end associate
     if (plan%energy) then
@@ -106,16 +107,17 @@ contains
 
   !> The tree joints' wrenches (reactions.f90) after an evaluation at accelerations qdd, the
   !> loop-closing joints' forces counted as loads on their bodies.
-  subroutine tree_joint_wrenches(d, qdd, lin, jw)
+  subroutine tree_joint_wrenches(d, wk, qdd, lin, jw)
     type(model_data), intent(in) :: d
+    type(model_work), intent(in) :: wk
     real(dp), intent(in) :: qdd(:), lin(:, :)
     real(dp), intent(out) :: jw(:, :)
     real(dp) :: ext(6, d%nb)
-    if (d%n_cut == 0) then
-      call joint_wrenches(d, qdd, lin, jw); return
+    if (d%cuts%n == 0) then
+      call joint_wrenches(d, wk, qdd, lin, jw); return
     end if
-    call cut_body_wrenches(d, ext)
-    call joint_wrenches(d, qdd, lin, jw, ext)
+    call cut_body_wrenches(d, wk, ext)
+    call joint_wrenches(d, wk, qdd, lin, jw, ext)
   end subroutine tree_joint_wrenches
 
   !> Accelerations at (t, q, qd) for the output, leaving the model's counters as they were.
@@ -163,15 +165,15 @@ contains
     type(error_type), allocatable, intent(out) :: error
     real(dp) :: qe(size(q)), qde(size(qd))
     integer :: i, b, m
-    call imposed_state(model%d, t, q, qd, qe, qde)
+    call imposed_state(model%d, model%wk, t, q, qd, qe, qde)
     p = 0.0_dp
-    associate(d => model%d)
+    associate(d => model%d, wk => model%wk)
       if (d%effect_on(effect_joint_drives)) then
         do i = 1, d%n_drives
           p(1) = p(1) + drive_force(d, i, t)*qde(d%drive_coord(i))
         end do
       end if
-      if (d%effect_on(effect_firing_load) .and. d%n_loads > 0) p(2) = load_power(d, t, qe, qde)
+      if (d%effect_on(effect_firing_load) .and. d%n_loads > 0) p(2) = load_power(d, wk, t, qe, qde)
       if (d%n_prescribed > 0) then
         p(3) = motion_power(model, t, qe, qde, error); if (allocated(error)) return
       end if
@@ -190,19 +192,20 @@ contains
   end subroutine powers
 
   !> Power of the point loads: the force at each loaded marker times its velocity.
-  real(dp) function load_power(d, t, q, qd) result(p)
-    type(model_data), intent(inout) :: d
+  real(dp) function load_power(d, wk, t, q, qd) result(p)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
     real(dp), intent(in) :: t, q(:), qd(:)
     integer :: i, mk
     real(dp) :: r(3), v(3), f
     p = 0.0_dp
-    call forward_kinematics(d, q, qd)
+    call forward_kinematics(d, wk, q, qd)
     do i = 1, d%n_loads
       f = load_force(d, i, t)
       if (f == 0.0_dp) cycle
       mk = d%load_marker(i)
-      call marker_motion(d, mk, q, qd, r, v)
-      p = p + f*dot_product(matmul(d%rot(:, :, d%marker_body(mk)), d%load_dir(:, i)), v)
+      call marker_motion(d, wk, mk, q, qd, r, v)
+      p = p + f*dot_product(matmul(wk%rot(:, :, d%markers%body(mk)), d%load_dir(:, i)), v)
     end do
   end function load_power
 
@@ -216,12 +219,12 @@ contains
     integer :: i, k
     p = 0.0_dp
     call output_accelerations(model, t, q, qd, qdd, error); if (allocated(error)) return
-    call body_accelerations(model%d, qdd, lin)
-    call tree_joint_wrenches(model%d, qdd, lin, jw)
-    associate(d => model%d)
+    call body_accelerations(model%d, model%wk, qdd, lin)
+    call tree_joint_wrenches(model%d, model%wk, qdd, lin, jw)
+    associate(d => model%d, wk => model%wk)
       do i = 1, d%n_prescribed
         k = d%pres_coord(i)
-        p = p + (dot_product(d%s(:, k), jw(:, d%cbody(k))) - d%tau(k))*qd(k)
+        p = p + (dot_product(wk%s(:, k), jw(:, d%cbody(k))) - wk%tau(k))*qd(k)
       end do
     end associate
   end function motion_power

@@ -175,7 +175,7 @@ contains
     q = x(1:n); qd = x(n+1:2*n)
     allocate(k(n, n), c(n, n), pp(n), pm(n))
     call model%terms(t, q, qd)
-    m = 0.5_dp*(model%d%mm + transpose(model%d%mm))
+    m = 0.5_dp*(model%wk%mm + transpose(model%wk%mm))
     do j = 1, n
       del = 1.0e-6_dp*max(1.0_dp, abs(q(j)))
       q(j) = x(j) + del; call model%forces(t, q, qd, pp)
@@ -213,10 +213,10 @@ contains
     iterations = 0; last_change = 0.0_dp
     if (size(u) == 0) return
     counters = model%counters()
-    loops = model%d%n_used > 0
+    loops = model%wk%loops%n_used > 0
     if (loops) then
       call check_settle_loops(model, u, x, error); if (allocated(error)) return
-      allocate(lam(model%d%n_used))
+      allocate(lam(model%wk%loops%n_used))
       lam = 0.0_dp
     end if
     do it = 1, newton_max
@@ -263,7 +263,7 @@ contains
     integer :: n
     n = model%d%n
     call model%terms(0.0_dp, x(1:n), x(n+1:))
-    du = model%d%p(u)
+    du = model%wk%p(u)
     call linearise(model, 0.0_dp, x, m, k, c)
     ku = k(u, u)
     call general_solve(ku, du, 'the stiffness of the coordinates to settle', error)
@@ -315,12 +315,12 @@ contains
     real(dp), intent(out) :: r(:)
     real(dp), allocatable, intent(out), optional :: gu(:, :), phi(:)
     real(dp) :: p(size(q))
-    associate(d => model%d)
+    associate(d => model%d, wk => model%wk)
       call model%forces(0.0_dp, q, qd, p)
-      call loop_rows(d)
-      r = p(u) + matmul(lam, d%gj(d%row_used(1:d%n_used), u))
-      if (present(gu)) gu = d%gj(d%row_used(1:d%n_used), u)
-      if (present(phi)) phi = d%phi(d%row_used(1:d%n_used))
+      call loop_rows(d, wk)
+      r = p(u) + matmul(lam, wk%loops%jac(wk%loops%row_used(1:wk%loops%n_used), u))
+      if (present(gu)) gu = wk%loops%jac(wk%loops%row_used(1:wk%loops%n_used), u)
+      if (present(phi)) phi = wk%loops%residual(wk%loops%row_used(1:wk%loops%n_used))
     end associate
   end subroutine settle_residual
 
@@ -334,13 +334,13 @@ contains
     type(error_type), allocatable, intent(out) :: error
     real(dp) :: r(size(u))
     real(dp), allocatable :: gu(:, :), phi(:)
-    integer :: used(model%d%n_used), n_ind
-    call settle_residual(model, x(1:model%d%n), x(model%d%n+1:), u, [(0.0_dp, n_ind = 1, model%d%n_used)], &
+    integer :: used(model%wk%loops%n_used), n_ind
+    call settle_residual(model, x(1:model%d%n), x(model%d%n+1:), u, [(0.0_dp, n_ind = 1, model%wk%loops%n_used)], &
       & r, gu, phi)
     call independent_rows(gu, used, n_ind)
-    if (n_ind < model%d%n_used) call fatal_error(error, '&scene: start: the coordinates to settle (the modal ' // &
+    if (n_ind < model%wk%loops%n_used) call fatal_error(error, '&scene: start: the coordinates to settle (the modal ' // &
       & 'ones and those of the joints marked settle) move only ' // itoa(n_ind) // ' of the loops'' ' // &
-      & itoa(model%d%n_used) // ' independent constraints: the joints held fast hold the loops (mark settle ' // &
+      & itoa(model%wk%loops%n_used) // ' independent constraints: the joints held fast hold the loops (mark settle ' // &
       & 'every joint of a loop that should settle)', stat_input)
     if (.not. allocated(error) .and. size(u) <= n_ind) call fatal_error(error, '&scene: start: the loops leave ' // &
       & 'the coordinates to settle no freedom (' // itoa(size(u)) // ' coordinates, ' // itoa(n_ind) // &
@@ -389,8 +389,8 @@ contains
     allocate(minv(size(m, 1), size(m, 1)))
     call potrf(l, 'the mass matrix at the linearisation state', error); if (allocated(error)) return
     call factor_inverse(l, minv, 'the mass matrix', error); if (allocated(error)) return
-    if (model%d%n_rows == 0) return
-    call loop_jacobian(model%d, x(1:model%d%n), g, error); if (allocated(error)) return
+    if (model%d%cuts%n_rows == 0) return
+    call loop_jacobian(model%d, model%wk, x(1:model%d%n), g, error); if (allocated(error)) return
     call constrain_inverse(minv, g, error)
   end subroutine mass_inverse
 
@@ -488,8 +488,8 @@ contains
       real(dp), allocatable :: g(:, :), b(:, :), e(:, :), mu(:), kept(:, :), eye(:, :)
       integer :: l, nk
       b = matmul(matmul(minv, k), basis(:, 1:nr))/max(tol**2, tiny(1.0_dp))
-      if (model%d%n_rows > 0) then
-        call loop_jacobian(model%d, x(1:n), g, error); if (allocated(error)) return
+      if (model%d%cuts%n_rows > 0) then
+        call loop_jacobian(model%d, model%wk, x(1:n), g, error); if (allocated(error)) return
         b = reshape([transpose(b), transpose(matmul(g, basis(:, 1:nr)))/max(1.0e-5_dp*norm2(g), tiny(1.0_dp))], &
           & [nr, n + size(g, 1)])
         b = transpose(b)
@@ -553,15 +553,15 @@ contains
     call model%accelerations(t, q, qd, a0, error)
     if (.not. allocated(error)) then
       call model%terms(t, q, qd)
-      forces = maxval(abs(model%d%p)) + maxval(sum(abs(model%d%mm), 2))*maxval(abs(a0))
+      forces = maxval(abs(model%wk%p)) + maxval(sum(abs(model%wk%mm), 2))*maxval(abs(a0))
       noise2 = 1.0e-8_dp*maxval(sum(abs(minv), 2))*forces
       if (any(a0 /= 0.0_dp)) then
         do j = 1, n
           del = 1.0e-6_dp*max(1.0_dp, abs(q(j)))
-          q(j) = x(j) + del; call model%terms(t, q, qd); mp = model%d%mm
+          q(j) = x(j) + del; call model%terms(t, q, qd); mp = model%wk%mm
           q(j) = x(j) - del; call model%terms(t, q, qd)
           q(j) = x(j)
-          k(:, j) = k(:, j) + matmul(mp - model%d%mm, a0)/(2.0_dp*del)
+          k(:, j) = k(:, j) + matmul(mp - model%wk%mm, a0)/(2.0_dp*del)
         end do
         call model%terms(t, q, qd)
       end if
@@ -615,12 +615,12 @@ contains
     counters = model%counters()
     call model%terms(0.0_dp, x(1:n), x(n+1:2*n))
     call model%set_counters(counters)
-    l = model%d%mm
+    l = model%wk%mm
     call potrf(l, 'the mass matrix', error, minor)
     if (.not. allocated(error)) then
       ! nearly singular: a pivot that keeps less than 1e-10 of its diagonal entry
       do minor = 1, n
-        if (l(minor, minor)**2 < 1.0e-10_dp*model%d%mm(minor, minor)) exit
+        if (l(minor, minor)**2 < 1.0e-10_dp*model%wk%mm(minor, minor)) exit
       end do
       if (minor > n) return
       call fatal_error(error, '')
@@ -704,8 +704,8 @@ contains
     call factor_inverse(l, sys%mffinv, 'M_ff', error); if (allocated(error)) return
     sys%mfs = m(ns+1:, 1:ns)
     call modal_stiffness_damping(model%d, sys%kf, sys%df)
-    if (model%d%n_rows == 0) return
-    call loop_jacobian(model%d, x(1:n), g, error); if (allocated(error)) return
+    if (model%d%cuts%n_rows == 0) return
+    call loop_jacobian(model%d, model%wk, x(1:n), g, error); if (allocated(error)) return
     allocate(used(size(g, 1)), sys%tfs(nf, ns))
     call independent_rows(g(:, ns+1:), used, n_fast)
     sys%tfs = 0.0_dp

@@ -70,7 +70,7 @@ contains
     case ('articulated'); articulated_dynamics = .true.
     case ('mass_matrix'); articulated_dynamics = .false.
     case default; articulated_dynamics = (model%d%nj >= articulated_from .or. .not. any(model%d%flexible)) &
-      & .and. model%d%n_rows == 0
+      & .and. model%d%cuts%n_rows == 0
     end select
   end function articulated_dynamics
 
@@ -392,7 +392,7 @@ contains
     ! the new results replace the earlier ones only once both files are complete: the
     ! statistics wait in PATH.json.tmp while the rows are put in place
     if (.not. allocated(error)) call write_json(json_path(path), file, sc%scene%title, scene_fingerprint(sc), &
-      & settings_json(sc), model%d, stats, 'complete', '', sc%scene%t_end, error, overrides, scene_text, staged=.true.)
+      & settings_json(sc), model%d, model%wk, stats, 'complete', '', sc%scene%t_end, error, overrides, scene_text, staged=.true.)
     if (.not. allocated(error)) then
       call csv%finish(error)
       if (allocated(error)) call remove_file(json_path(path) // '.tmp')
@@ -402,7 +402,7 @@ contains
       call csv%close()
       error%message = file // ': ' // error%message
       call write_json(json_path(path) // '.partial', file, sc%scene%title, scene_fingerprint(sc), &
-        & settings_json(sc), model%d, stats, 'failed', error%message, st%time(), json_error, overrides, scene_text)
+        & settings_json(sc), model%d, model%wk, stats, 'failed', error%message, st%time(), json_error, overrides, scene_text)
       return
     end if
     call commit_staged(json_path(path), error)
@@ -492,8 +492,8 @@ contains
     c = st%counts()
     stats%steps_slow = c%steps_slow; stats%steps_fast = c%steps_fast
     stats%rejected_steps = c%rejected; stats%h_last = c%h_last; stats%ratio_last = c%ratio
-    stats%rhs_full = model%d%evals
-    stats%rhs_fast = model%d%evals_fast_rows + c%evals_fast
+    stats%rhs_full = model%wk%count%evals
+    stats%rhs_fast = model%wk%count%evals_fast_rows + c%evals_fast
   end subroutine fill_stats
 
   !> [q0; qd0] from the joints' q0 and qd0 in model coordinate order.
@@ -548,7 +548,7 @@ contains
     integer :: b, j, i, n
     call initial_state(sc, model, x)
     n = model%d%n
-    call assemble_loops(model%d, x(1:n), x(n+1:), marked_coordinates(sc, model, sc%joints%hold), error)
+    call assemble_loops(model%d, model%wk, x(1:n), x(n+1:), marked_coordinates(sc, model, sc%joints%hold), error)
     if (allocated(error)) then
       ! the loops' fault is no single line's: it names the first loop-closing joint
       do j = 1, size(sc%joints)
@@ -576,7 +576,7 @@ contains
     ! the equilibrium closes the loops to Newton's tolerance; the projection closes them to
     ! the run's and takes the rates' motion across them away at the settled positions
     call model%project(0.0_dp, x, error)
-    model%d%closure_drift = 0.0_dp     ! the statistic is of the run's steps
+    model%wk%loops%closure_drift = 0.0_dp     ! the statistic is of the run's steps
   end subroutine starting_state
 
   !> The coordinates of the tree joints marked in `marked` (one flag per &joint: settle,
@@ -637,17 +637,17 @@ contains
     write(buf, '(a,f10.4,a,f10.4,a)') 'cpu time ', st%cpu_time_s, ' s, wall time ', st%wall_time_s, ' s'
     s = s // trim(buf)
     if (st%preflight_cpu_s > 0.0_dp) s = s // ' (pre-flight stability check: ' // fmt(st%preflight_cpu_s) // ' s CPU)'
-    if (model%d%n_cut > 0) then
-      write(buf, '(a,i0,a)') 'loops: ', model%d%n_cut, ' closing joints'
-      if (any(model%d%cut_kind == cut_free)) write(buf, '(a,i0,a)') trim(buf) // ' (', &
-        & count(model%d%cut_kind == cut_free), " 'free': no constraint)"
+    if (model%d%cuts%n > 0) then
+      write(buf, '(a,i0,a)') 'loops: ', model%d%cuts%n, ' closing joints'
+      if (any(model%d%cuts%kind == cut_free)) write(buf, '(a,i0,a)') trim(buf) // ' (', &
+        & count(model%d%cuts%kind == cut_free), " 'free': no constraint)"
       write(buf, '(a,i0,a,i0,a,es9.2,a,es9.2,a)') trim(buf) // ', ', &
-        & model%d%n_rows, ' constraint rows, ', model%d%n_redundant, ' redundant (dropped); the initial ' // &
-        & 'state assembled with largest changes ', model%d%assembly_dq, ' (q), ', model%d%assembly_dqd, ' (qd)'
+        & model%d%cuts%n_rows, ' constraint rows, ', model%wk%loops%n_redundant, ' redundant (dropped); the initial ' // &
+        & 'state assembled with largest changes ', model%wk%loops%assembly_dq, ' (q), ', model%wk%loops%assembly_dqd, ' (qd)'
       s = s // new_line('a') // trim(buf)
-      if (model%d%n_rows > 0) then
+      if (model%d%cuts%n_rows > 0) then
         write(buf, '(a,es9.2,a)') 'loops: the largest closure error a step left (removed by projection): ', &
-          & model%d%closure_drift, ' (m; rad for rotation rows)'
+          & model%wk%loops%closure_drift, ' (m; rad for rotation rows)'
         s = s // new_line('a') // trim(buf)
       end if
     end if
@@ -663,20 +663,20 @@ contains
       end do
     end if
     s = s // new_line('a')
-    call forward_kinematics(model%d, x(1:n), x(n+1:))
-    do i = 1, min(model%d%n_markers, max_summary_markers)
-      call marker_motion(model%d, i, x(1:n), x(n+1:), r, v)
+    call forward_kinematics(model%d, model%wk, x(1:n), x(n+1:))
+    do i = 1, min(model%d%markers%n, max_summary_markers)
+      call marker_motion(model%d, model%wk, i, x(1:n), x(n+1:), r, v)
       ! fixed digits for ordinary values; exponents when a run went far off (a diverging model)
       if (maxval(abs([r, v])) < 1.0e5_dp) then
-        write(buf, '(a,3f12.6,a,3f12.6,a)') 'final ' // trim(model%d%marker_name(i)) // ': position', r, &
+        write(buf, '(a,3f12.6,a,3f12.6,a)') 'final ' // trim(model%d%markers%name(i)) // ': position', r, &
           & ' m, velocity', v, ' m/s'
       else
-        write(buf, '(a,3es12.4,a,3es12.4,a)') 'final ' // trim(model%d%marker_name(i)) // ': position', r, &
+        write(buf, '(a,3es12.4,a,3es12.4,a)') 'final ' // trim(model%d%markers%name(i)) // ': position', r, &
           & ' m, velocity', v, ' m/s'
       end if
       s = s // trim(buf) // new_line('a')
     end do
-    if (model%d%n_markers > max_summary_markers) s = s // '(and ' // itoa(model%d%n_markers - max_summary_markers) &
+    if (model%d%markers%n > max_summary_markers) s = s // '(and ' // itoa(model%d%markers%n - max_summary_markers) &
       & // ' more markers in the results)' // new_line('a')
     s = s // 'results: ' // path // ', ' // json_path(path)
   end function summary_text

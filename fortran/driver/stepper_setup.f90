@@ -95,7 +95,7 @@ contains
     if (size(kf) == 0) return
     call modal_stiffness_damping(model%d, kf, df)
     omega = sqrt(maxval(kf))
-    if (model%d%n_rows > 0) then
+    if (model%d%cuts%n_rows > 0) then
       omega = max(omega, top_frequency(model, x, error)); if (allocated(error)) return
     end if
   end subroutine top_vibration

@@ -4,7 +4,7 @@ module pymr_io_results_output
   use pymr_env_kinds, only : dp
   use, intrinsic :: iso_fortran_env, only : int64
   use pymr_env_error, only : error_type, fatal_error, stat_solver
-  use pymr_model_types, only : model_data, n_effects, effect_names, cut_free
+  use pymr_model_types, only : model_data, model_work, n_effects, effect_names, cut_free
   use pymr_io_fast_format, only : put_real
   use pymr_env_text, only : itoa, next_text_line
   use pymr_env_text_file, only : write_text_file, stage_text_file, sync_file, rename_file, file_size, check_size
@@ -108,8 +108,8 @@ contains
     plan%orientations = has('marker_orientations')
     plan%reactions = has('reactions')
     plan%energy = has('energy')
-    plan%extra = d%n_markers*(merge(6, 0, plan%markers) + merge(3, 0, plan%accelerations) + &
-      & merge(4, 0, plan%orientations)) + merge(6*(d%nb - 1 + d%n_cut), 0, plan%reactions) + merge(n_energy, 0, plan%energy)
+    plan%extra = d%markers%n*(merge(6, 0, plan%markers) + merge(3, 0, plan%accelerations) + &
+      & merge(4, 0, plan%orientations)) + merge(6*(d%nb - 1 + d%cuts%n), 0, plan%reactions) + merge(n_energy, 0, plan%energy)
   contains
     logical function has(word)
       character(len=*), intent(in) :: word
@@ -131,7 +131,7 @@ contains
     character(len=:), allocatable :: line
     character(len=:), allocatable :: buf, m
     integer :: pos, i, j
-    allocate(character(len=(len(d%qname) + 8)*(2*d%n + 13*d%n_markers + 6*d%nb) + 16*n_energy + 8) :: buf)
+    allocate(character(len=(len(d%qname) + 8)*(2*d%n + 13*d%markers%n + 6*d%nb) + 16*n_energy + 8) :: buf)
     pos = 0
     call add('t')
     do i = 1, d%n
@@ -144,19 +144,19 @@ contains
         end do
       end if
     end do
-    do i = 1, d%n_markers
-      m = trim(d%marker_name(i))
+    do i = 1, d%markers%n
+      m = trim(d%markers%name(i))
       if (plan%markers) call add(',' // m // '.x,' // m // '.y,' // m // '.z,' // m // '.vx,' // m // '.vy,' // m // '.vz')
       if (plan%accelerations) call add(',' // m // '.ax,' // m // '.ay,' // m // '.az')
       if (plan%orientations) call add(',' // m // '.qw,' // m // '.qx,' // m // '.qy,' // m // '.qz')
     end do
     ! the tree joints', then the loop-closing joints' reactions
-    do i = 2, d%nb + d%n_cut
+    do i = 2, d%nb + d%cuts%n
       if (.not. plan%reactions) exit
       if (i <= d%nb) then
         m = trim(d%joint_name(i))
       else
-        m = trim(d%cut_name(i - d%nb))
+        m = trim(d%cuts%name(i - d%nb))
       end if
       call add(',' // m // '.fx,' // m // '.fy,' // m // '.fz,' // m // '.mx,' // m // '.my,' // m // '.mz')
     end do
@@ -366,7 +366,7 @@ contains
   !> Write the run statistics and settings as JSON (through path.tmp, checked, flushed,
   !> renamed): `status` 'complete' or 'failed', with the failure's message and the time
   !> reached.
-  subroutine write_json(path, scene_file, title, fingerprint, settings, d, st, status, failure, t_reached, error, &
+  subroutine write_json(path, scene_file, title, fingerprint, settings, d, wk, st, status, failure, t_reached, error, &
     & overrides, scene_text, staged)
     !> fingerprint: 'sha256:...' of the resolved scene (pymr scene prints it).
     character(len=*), intent(in) :: path, scene_file, title, fingerprint, status, failure
@@ -378,6 +378,7 @@ contains
     !> Integrator settings, already as JSON members ("\"method\": \"single\", ...").
     character(len=*), intent(in) :: settings
     type(model_data), intent(in) :: d
+    type(model_work), intent(in) :: wk
     type(run_stats), intent(in) :: st
     real(dp), intent(in) :: t_reached
     type(error_type), allocatable, intent(out) :: error
@@ -407,12 +408,12 @@ contains
     write(buf, '(a,i0,a)') '  "step_ratio_last": ', st%ratio_last, ','; call put(trim(buf))
     write(buf, '(a,i0,a)') '  "rows": ', st%rows, ','; call put(trim(buf))
     write(buf, '(a,i0,a)') '  "n_coordinates": ', d%n, ','; call put(trim(buf))
-    if (d%n_cut > 0) then
-      write(buf, '(a,i0,a,i0,a,i0,a,i0,a)') '  "loops": {"closing_joints": ', d%n_cut, ', "free_closing_joints": ', &
-        & count(d%cut_kind == cut_free), ', "constraint_rows": ', d%n_rows, ', "redundant_rows": ', d%n_redundant, ','
+    if (d%cuts%n > 0) then
+      write(buf, '(a,i0,a,i0,a,i0,a,i0,a)') '  "loops": {"closing_joints": ', d%cuts%n, ', "free_closing_joints": ', &
+        & count(d%cuts%kind == cut_free), ', "constraint_rows": ', d%cuts%n_rows, ', "redundant_rows": ', wk%loops%n_redundant, ','
       call put(trim(buf))
-      write(buf, '(a,es12.5,a,es12.5,a,es12.5,a)') '    "assembly_change_q": ', d%assembly_dq, &
-        & ', "assembly_change_qd": ', d%assembly_dqd, ', "closure_drift": ', d%closure_drift, '},'
+      write(buf, '(a,es12.5,a,es12.5,a,es12.5,a)') '    "assembly_change_q": ', wk%loops%assembly_dq, &
+        & ', "assembly_change_qd": ', wk%loops%assembly_dqd, ', "closure_drift": ', wk%loops%closure_drift, '},'
       call put(trim(buf))
     end if
     text = text // '  "effects": {'
@@ -420,8 +421,8 @@ contains
       if (.not. d%effect_on(i)) cycle
       if (text(len(text):len(text)) /= '{') text = text // ', '
       cpu = 0.0_dp
-      if (d%effect_timed(i) > 0) cpu = d%effect_cpu(i)*real(d%effect_evals(i), dp)/real(d%effect_timed(i), dp)
-      write(buf, '(a,i0,a,es12.5,a)') '": {"evaluations": ', d%effect_evals(i), ', "cpu_time_s": ', cpu, '}'
+      if (wk%count%effect_timed(i) > 0) cpu = wk%count%effect_cpu(i)*real(wk%count%effect_evals(i), dp)/real(wk%count%effect_timed(i), dp)
+      write(buf, '(a,i0,a,es12.5,a)') '": {"evaluations": ', wk%count%effect_evals(i), ', "cpu_time_s": ', cpu, '}'
       text = text // '"' // trim(effect_names(i)) // trim(buf)
     end do
     call put('},')

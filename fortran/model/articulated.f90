@@ -28,7 +28,7 @@ module pymr_model_articulated
   use pymr_env_kinds, only : dp
   use pymr_env_error, only : error_type, fatal_error, stat_solver
   use pymr_env_lapack, only : potrf, potrs
-  use pymr_model_types, only : model_data, effect_base_motion
+  use pymr_model_types, only : model_data, model_work, effect_base_motion
   use pymr_model_effects, only : prescribed_motion
   implicit none
   private
@@ -37,26 +37,28 @@ module pymr_model_articulated
 contains
 
   !> qdd of the state whose body terms, applied loads (w, wam, tau) and kinematics d holds.
-  subroutine articulated_accelerations(d, t, qdd, error)
-    type(model_data), intent(inout) :: d
+  subroutine articulated_accelerations(d, wk, t, qdd, error)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
     real(dp), intent(in) :: t
     real(dp), intent(out) :: qdd(:)
     type(error_type), allocatable, intent(out) :: error
     integer :: b
-    call prescribed_accelerations(d, t, qdd)
+    call prescribed_accelerations(d, wk, t, qdd)
     do b = d%nb, 2, -1
-      call subtree_terms(d, b, error); if (allocated(error)) return
-      call through_joint(d, b, qdd, error); if (allocated(error)) return
+      call subtree_terms(d, wk, b, error); if (allocated(error)) return
+      call through_joint(d, wk, b, qdd, error); if (allocated(error)) return
     end do
-    d%ab_lin(:, 1) = 0.0_dp
+    wk%ab%lin(:, 1) = 0.0_dp
     do b = 2, d%nb
-      call body_acceleration(d, b, qdd)
+      call body_acceleration(d, wk, b, qdd)
     end do
   end subroutine articulated_accelerations
 
   !> The prescribed coordinates' accelerations (their functions' second derivatives).
-  subroutine prescribed_accelerations(d, t, qdd)
-    type(model_data), intent(inout) :: d
+  subroutine prescribed_accelerations(d, wk, t, qdd)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
     real(dp), intent(in) :: t
     real(dp), intent(inout) :: qdd(:)
     integer :: i
@@ -65,48 +67,50 @@ contains
     do i = 1, d%n_prescribed
       call prescribed_motion(d, i, t, f, fd, qdd(d%pres_coord(i)))
     end do
-    d%effect_evals(effect_base_motion) = d%effect_evals(effect_base_motion) + 1
+    wk%count%effect_evals(effect_base_motion) = wk%count%effect_evals(effect_base_motion) + 1
   end subroutine prescribed_accelerations
 
   !> Articulated inertia and bias of body b's subtree at b's frame (before b's joint), in
-  !> d%ab_ia(:, :, b), d%ab_pa(:, b); a flexible body's modal accelerations condensed out.
-  subroutine subtree_terms(d, b, error)
-    type(model_data), intent(inout) :: d
+  !> wk%ab%ia(:, :, b), wk%ab%pa(:, b); a flexible body's modal accelerations condensed out.
+  subroutine subtree_terms(d, wk, b, error)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
     integer, intent(in) :: b
     type(error_type), allocatable, intent(out) :: error
     integer :: i, c, m
-    associate(ia => d%ab_ia(:, :, b), pa => d%ab_pa(:, b))
-      ia = d%i6(:, :, b); pa = d%w(:, b)
+    associate(ia => wk%ab%ia(:, :, b), pa => wk%ab%pa(:, b))
+      ia = wk%i6(:, :, b); pa = wk%w(:, b)
       m = d%nm(b)
       do i = d%child_ptr(b), d%child_ptr(b + 1) - 1
         c = d%child_idx(i)
-        ia = ia + d%ab_ia(:, :, c); pa = pa + d%ab_pa(:, c)
+        ia = ia + wk%ab%ia(:, :, c); pa = pa + wk%ab%pa(:, c)
       end do
       if (m == 0) return
-      call condense_modes(d, b, m, ia, pa, error)
+      call condense_modes(d, wk, b, m, ia, pa, error)
     end associate
   end subroutine subtree_terms
 
   !> A flexible body's modal accelerations condensed out of its subtree's terms (ia, pa on
   !> entry: K_AA and b_A), keeping the factored K_aa, K_Aa and b_a for the forward pass.
-  subroutine condense_modes(d, b, m, ia, pa, error)
-    type(model_data), intent(inout) :: d
+  subroutine condense_modes(d, wk, b, m, ia, pa, error)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
     integer, intent(in) :: b, m
     real(dp), intent(inout) :: ia(6, 6), pa(6)
     type(error_type), allocatable, intent(out) :: error
     integer :: i, c, l
     real(dp) :: x(m, 6), y(m), g(6)
-    associate(kaa => d%ab_kaa(1:m, 1:m, b), kam => d%ab_kam(:, 1:m, b), ba => d%ab_ba(1:m, b))
-      kam = d%mva(:, 1:m, b)
+    associate(kaa => wk%ab%kaa(1:m, 1:m, b), kam => wk%ab%kam(:, 1:m, b), ba => wk%ab%ba(1:m, b))
+      kam = wk%mva(:, 1:m, b)
       kaa = d%flex(b)%mmm
-      ba = d%wam(1:m, b) - d%tau(d%a0(b):d%a0(b) + m - 1)
+      ba = wk%wam(1:m, b) - wk%tau(d%a0(b):d%a0(b) + m - 1)
       do i = d%child_ptr(b), d%child_ptr(b + 1) - 1
         c = d%child_idx(i)
         do l = 1, m
-          g = matmul(d%ab_ia(:, :, c), d%cm(:, l, c))
+          g = matmul(wk%ab%ia(:, :, c), wk%cm(:, l, c))
           kam(:, l) = kam(:, l) + g
-          kaa(:, l) = kaa(:, l) + matmul(transpose(d%cm(:, 1:m, c)), g)
-          ba(l) = ba(l) + dot_product(d%cm(:, l, c), d%ab_pa(:, c))
+          kaa(:, l) = kaa(:, l) + matmul(transpose(wk%cm(:, 1:m, c)), g)
+          ba(l) = ba(l) + dot_product(wk%cm(:, l, c), wk%ab%pa(:, c))
         end do
       end do
       call potrf(kaa, "the modal mass of body '" // trim(d%body_name(b)) // "' with what it carries", error)
@@ -124,35 +128,36 @@ contains
   !> Body b's joint: its columns, from the child's side to the parent's, condensed out of
   !> the subtree's terms one at a time (the joint is a chain of one-coordinate primitives
   !> with massless frames between them), leaving the articulated terms the parent sees in
-  !> d%ab_ia(:, :, b), d%ab_pa(:, b). A prescribed column's known acceleration moves into
+  !> wk%ab%ia(:, :, b), wk%ab%pa(:, b). A prescribed column's known acceleration moves into
   !> the bias; a free column k keeps u_k / D_k and r_k / D_k (u_k = IA s_k, D_k = s_k . u_k,
   !> r_k = tau_k - s_k . pA) for the forward pass: qdd_k = (r_k - u_k . lin) / D_k.
-  subroutine through_joint(d, b, qdd, error)
-    type(model_data), intent(inout) :: d
+  subroutine through_joint(d, wk, b, qdd, error)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
     integer, intent(in) :: b
     real(dp), intent(in) :: qdd(:)
     type(error_type), allocatable, intent(out) :: error
     integer :: k, i, j
     real(dp) :: u(6), v(6), dd, r
-    associate(ia => d%ab_ia(:, :, b), pa => d%ab_pa(:, b))
+    associate(ia => wk%ab%ia(:, :, b), pa => wk%ab%pa(:, b))
       do k = d%c0(b) + d%nc(b) - 1, d%c0(b), -1
         do i = 1, 6
-          u(i) = ia(i, 1)*d%s(1, k) + ia(i, 2)*d%s(2, k) + ia(i, 3)*d%s(3, k) + ia(i, 4)*d%s(4, k) + &
-            & ia(i, 5)*d%s(5, k) + ia(i, 6)*d%s(6, k)
+          u(i) = ia(i, 1)*wk%s(1, k) + ia(i, 2)*wk%s(2, k) + ia(i, 3)*wk%s(3, k) + ia(i, 4)*wk%s(4, k) + &
+            & ia(i, 5)*wk%s(5, k) + ia(i, 6)*wk%s(6, k)
         end do
         if (d%prescribed(k)) then
           pa = pa + u*qdd(k)
           cycle
         end if
-        dd = dot_product(u, d%s(:, k))
+        dd = dot_product(u, wk%s(:, k))
         if (.not. dd > 0.0_dp) then
           call fatal_error(error, 'the mass matrix is not positive definite: the articulated inertia of ' // &
             & 'coordinate ' // trim(d%qname(k)) // ' is ' // trim(real_text(dd)), stat_solver); return
         end if
-        r = d%tau(k) - dot_product(d%s(:, k), pa)
+        r = wk%tau(k) - dot_product(wk%s(:, k), pa)
         v = u/dd
         j = k - d%c0(b) + 1
-        d%ab_u(:, j, b) = v; d%ab_r(j, b) = r/dd
+        wk%ab%u(:, j, b) = v; wk%ab%r(j, b) = r/dd
         do j = 1, 6
           do i = 1, 6
             ia(i, j) = ia(i, j) - u(i)*v(j)
@@ -165,31 +170,32 @@ contains
 
   !> Forward pass at body b: its coordinates' accelerations, from the parent's side, the
   !> part of its spatial acceleration linear in qdd, and (flexible) its modal accelerations.
-  subroutine body_acceleration(d, b, qdd)
-    type(model_data), intent(inout) :: d
+  subroutine body_acceleration(d, wk, b, qdd)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
     integer, intent(in) :: b
     real(dp), intent(inout) :: qdd(:)
     integer :: a, l, k, j, m
     real(dp) :: lin(6)
     type(error_type), allocatable :: e
     a = d%parent(b)
-    lin = d%ab_lin(:, a)
+    lin = wk%ab%lin(:, a)
     do l = 1, d%nm(a)
-      lin = lin + d%cm(:, l, b)*qdd(d%a0(a) + l - 1)
+      lin = lin + wk%cm(:, l, b)*qdd(d%a0(a) + l - 1)
     end do
     do k = d%c0(b), d%c0(b) + d%nc(b) - 1
       if (.not. d%prescribed(k)) then
         j = k - d%c0(b) + 1
-        qdd(k) = d%ab_r(j, b) - dot_product(d%ab_u(:, j, b), lin)
+        qdd(k) = wk%ab%r(j, b) - dot_product(wk%ab%u(:, j, b), lin)
       end if
-      lin = lin + d%s(:, k)*qdd(k)
+      lin = lin + wk%s(:, k)*qdd(k)
     end do
-    d%ab_lin(:, b) = lin
+    wk%ab%lin(:, b) = lin
     m = d%nm(b)
     if (m == 0) return
     associate(add => qdd(d%a0(b):d%a0(b) + m - 1))
-      add = -(matmul(transpose(d%ab_kam(:, 1:m, b)), lin) + d%ab_ba(1:m, b))
-      call potrs(d%ab_kaa(1:m, 1:m, b), add, 'K_aa', e)
+      add = -(matmul(transpose(wk%ab%kam(:, 1:m, b)), lin) + wk%ab%ba(1:m, b))
+      call potrs(wk%ab%kaa(1:m, 1:m, b), add, 'K_aa', e)
     end associate
   end subroutine body_acceleration
 

@@ -7,7 +7,7 @@
 !> the base, with f_k the spatial momentum of k's motion. P_k = tau_k - column_k . Wc.
 module pymr_model_assembly
   use pymr_env_kinds, only : dp
-  use pymr_model_types, only : model_data, effect_deformation_inertia
+  use pymr_model_types, only : model_data, model_work, effect_deformation_inertia
   use pymr_model_flexbody, only : flex_body_terms
   implicit none
   private
@@ -19,8 +19,9 @@ contains
 
   !> Spatial inertia and bias wrench I a_bias + v x* I v of every body (no applied
   !> loads); flexible bodies add their modal coupling, modal bias and elastic forces.
-  pure subroutine body_terms(d, q, qd, only)
-    type(model_data), intent(inout) :: d
+  pure subroutine body_terms(d, wk, q, qd, only)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
     real(dp), intent(in) :: q(:), qd(:)
     !> Restrict to these bodies (the fast rows).
     logical, intent(in), optional :: only(:)
@@ -36,14 +37,14 @@ contains
       end if
       if (d%flexible(b)) then
         m = d%nm(b)
-        call flex_body_terms(d%flex(b), d%fwork(b), d%rot(:, :, b), d%pos(:, b), d%vel(:, b), d%acc(:, b), &
-          & q(d%a0(b):d%a0(b) + m - 1), qd(d%a0(b):d%a0(b) + m - 1), d%i6(:, :, b), d%mva(:, 1:m, b), &
-          & d%w(:, b), d%wam(1:m, b), modal_only, d%effect_on(effect_deformation_inertia))
+        call flex_body_terms(d%flex(b), wk%fwork(b), wk%rot(:, :, b), wk%pos(:, b), wk%vel(:, b), wk%acc(:, b), &
+          & q(d%a0(b):d%a0(b) + m - 1), qd(d%a0(b):d%a0(b) + m - 1), wk%i6(:, :, b), wk%mva(:, 1:m, b), &
+          & wk%w(:, b), wk%wam(1:m, b), modal_only, d%effect_on(effect_deformation_inertia))
         cycle
       end if
-      r = d%rot(:, :, b); ib = d%inertia(:, :, b); c = d%com(:, b)
-      call rigid_body_terms(d%mass(b), d%pos(:, b) + matmul(r, c), matmul(r, matmul(ib, transpose(r))), &
-        & d%vel(:, b), d%acc(:, b), d%i6(:, :, b), d%w(:, b))
+      r = wk%rot(:, :, b); ib = d%inertia(:, :, b); c = d%com(:, b)
+      call rigid_body_terms(d%mass(b), wk%pos(:, b) + matmul(r, c), matmul(r, matmul(ib, transpose(r))), &
+        & wk%vel(:, b), wk%acc(:, b), wk%i6(:, :, b), wk%w(:, b))
     end do
   end subroutine body_terms
 
@@ -76,27 +77,29 @@ contains
   end subroutine rigid_body_terms
 
   !> Composite inertia and wrench of each subtree, from the leaves to the base.
-  pure subroutine composite_terms(d, only)
-    type(model_data), intent(inout) :: d
+  pure subroutine composite_terms(d, wk, only)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
     logical, intent(in), optional :: only(:)
     integer :: b, a
-    d%ic(:, :, 2:) = d%i6(:, :, 2:)
-    d%wc(:, 2:) = d%w(:, 2:)
+    wk%ic(:, :, 2:) = wk%i6(:, :, 2:)
+    wk%wc(:, 2:) = wk%w(:, 2:)
     do b = d%nb, 2, -1
       if (present(only)) then
         if (.not. only(b)) cycle
       end if
       a = d%parent(b)
       if (a > 1) then
-        d%ic(:, :, a) = d%ic(:, :, a) + d%ic(:, :, b)
-        d%wc(:, a) = d%wc(:, a) + d%wc(:, b)
+        wk%ic(:, :, a) = wk%ic(:, :, a) + wk%ic(:, :, b)
+        wk%wc(:, a) = wk%wc(:, a) + wk%wc(:, b)
       end if
     end do
   end subroutine composite_terms
 
   !> Mass matrix (generalised composite-rigid-body recursion; O(n * depth)).
-  pure subroutine assemble_mass(d, only)
-    type(model_data), intent(inout) :: d
+  pure subroutine assemble_mass(d, wk, only)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
     logical, intent(in), optional :: only(:)
     integer :: b, k
     do b = 2, d%nb
@@ -104,62 +107,64 @@ contains
         if (.not. only(b)) cycle
         ! a joint column of a body with no flexible body above it has no fast rows
         if (.not. d%in_fast(d%parent(b))) then
-          if (d%nm(b) > 0) call modal_block(d, b)
+          if (d%nm(b) > 0) call modal_block(d, wk, b)
           cycle
         end if
       end if
       do k = d%c0(b), d%c0(b) + d%nc(b) - 1
-        call walk_up(d, b, k, matmul(d%ic(:, :, b), d%s(:, k)))
+        call walk_up(d, wk, b, k, matmul(wk%ic(:, :, b), wk%s(:, k)))
       end do
-      if (d%nm(b) > 0) call modal_block(d, b)
+      if (d%nm(b) > 0) call modal_block(d, wk, b)
     end do
   end subroutine assemble_mass
 
   !> Entries of a flexible body's modal coordinates: their own block (modal mass plus the
   !> children carried by the modes) and their coupling to every column above them.
-  pure subroutine modal_block(d, b)
-    type(model_data), intent(inout) :: d
+  pure subroutine modal_block(d, wk, b)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
     integer, intent(in) :: b
     integer :: m, k, l, i, c, ck, cl
     real(dp) :: f(6), g(6)
     m = d%nm(b)
     do k = 1, m
       ck = d%a0(b) + k - 1
-      f = d%mva(:, k, b)
+      f = wk%mva(:, k, b)
       do l = 1, m
-        d%mm(d%a0(b) + l - 1, ck) = d%flex(b)%mmm(l, k)
+        wk%mm(d%a0(b) + l - 1, ck) = d%flex(b)%mmm(l, k)
       end do
       do i = d%child_ptr(b), d%child_ptr(b + 1) - 1
         c = d%child_idx(i)
-        g = matmul(d%ic(:, :, c), d%cm(:, k, c))
+        g = matmul(wk%ic(:, :, c), wk%cm(:, k, c))
         f = f + g
         do l = 1, m
           cl = d%a0(b) + l - 1
-          d%mm(cl, ck) = d%mm(cl, ck) + dot_product(d%cm(:, l, c), g)
+          wk%mm(cl, ck) = wk%mm(cl, ck) + dot_product(wk%cm(:, l, c), g)
         end do
       end do
-      call walk_up(d, b, ck, f)
+      call walk_up(d, wk, b, ck, f)
     end do
   end subroutine modal_block
 
   !> Fill M(j, col) = column_j . f (and its mirror) for every column on the path from
   !> body b to the base: joint columns of each body and its parent's modal columns.
-  pure subroutine walk_up(d, b, col, f)
-    type(model_data), intent(inout) :: d
+  pure subroutine walk_up(d, wk, b, col, f)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
     integer, intent(in) :: b, col
     real(dp), intent(in) :: f(6)
     integer :: a, j, l, pa
     a = b
     do while (a > 1)
       do j = d%c0(a), d%c0(a) + d%nc(a) - 1
-        d%mm(j, col) = dot_product(d%s(:, j), f)
-        d%mm(col, j) = d%mm(j, col)
+        wk%mm(j, col) = dot_product(wk%s(:, j), f)
+        wk%mm(col, j) = wk%mm(j, col)
       end do
       pa = d%parent(a)
       do l = 1, d%nm(pa)
         j = d%a0(pa) + l - 1
-        d%mm(j, col) = dot_product(d%cm(:, l, a), f)
-        d%mm(col, j) = d%mm(j, col)
+        wk%mm(j, col) = dot_product(wk%cm(:, l, a), f)
+        wk%mm(col, j) = wk%mm(j, col)
       end do
       a = pa
     end do
@@ -167,8 +172,9 @@ contains
 
   !> Right-hand side P = tau - column . Wc (modal: minus the body's modal bias and the
   !> children's composite wrenches through the modal columns).
-  pure subroutine assemble_rhs(d, only)
-    type(model_data), intent(inout) :: d
+  pure subroutine assemble_rhs(d, wk, only)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
     logical, intent(in), optional :: only(:)
     integer :: b, k, i, c
     do b = 2, d%nb
@@ -176,31 +182,32 @@ contains
         if (.not. only(b)) cycle
       end if
       do k = d%c0(b), d%c0(b) + d%nc(b) - 1
-        d%p(k) = d%tau(k) - dot_product(d%s(:, k), d%wc(:, b))
+        wk%p(k) = wk%tau(k) - dot_product(wk%s(:, k), wk%wc(:, b))
       end do
       do k = 1, d%nm(b)
-        d%p(d%a0(b) + k - 1) = d%tau(d%a0(b) + k - 1) - d%wam(k, b)
+        wk%p(d%a0(b) + k - 1) = wk%tau(d%a0(b) + k - 1) - wk%wam(k, b)
         do i = d%child_ptr(b), d%child_ptr(b + 1) - 1
           c = d%child_idx(i)
-          d%p(d%a0(b) + k - 1) = d%p(d%a0(b) + k - 1) - dot_product(d%cm(:, k, c), d%wc(:, c))
+          wk%p(d%a0(b) + k - 1) = wk%p(d%a0(b) + k - 1) - dot_product(wk%cm(:, k, c), wk%wc(:, c))
         end do
       end do
     end do
   end subroutine assemble_rhs
 
   !> Kinetic energy 1/2 u^T M_b u summed over bodies (after body_terms); qd gives modal rates.
-  pure function kinetic_energy(d, qd) result(e)
+  pure function kinetic_energy(d, wk, qd) result(e)
     type(model_data), intent(in) :: d
+    type(model_work), intent(in) :: wk
     real(dp), intent(in) :: qd(:)
     real(dp) :: e
     integer :: b, m
     e = 0.0_dp
     do b = 2, d%nb
-      e = e + 0.5_dp*dot_product(d%vel(:, b), matmul(d%i6(:, :, b), d%vel(:, b)))
+      e = e + 0.5_dp*dot_product(wk%vel(:, b), matmul(wk%i6(:, :, b), wk%vel(:, b)))
       m = d%nm(b)
       if (m == 0) cycle
       associate(ad => qd(d%a0(b):d%a0(b) + m - 1))
-        e = e + dot_product(d%vel(:, b), matmul(d%mva(:, 1:m, b), ad)) + &
+        e = e + dot_product(wk%vel(:, b), matmul(wk%mva(:, 1:m, b), ad)) + &
           & 0.5_dp*dot_product(ad, matmul(d%flex(b)%mmm, ad))
       end associate
     end do

@@ -2,7 +2,7 @@
 !> scene turned on (the plan in model_data%effect_on is fixed at build time).
 module pymr_model_effects
   use pymr_env_kinds, only : dp, pi
-  use pymr_model_types, only : model_data, effect_gravity, effect_joint_drives, effect_modal_damping, &
+  use pymr_model_types, only : model_data, model_work, effect_gravity, effect_joint_drives, effect_modal_damping, &
     & effect_joint_springs, effect_geometric_stiffening, effect_base_motion, effect_firing_load, motion_spinup, &
     & motion_table
   use pymr_model_time_table, only : table_linear, table_spline
@@ -19,49 +19,52 @@ contains
   include 'vector_products.inc'
 
   !> Centre of mass of body b (inertial; deformed for flexible bodies, after body_terms).
-  pure function body_com(d, b) result(c)
+  pure function body_com(d, wk, b) result(c)
     type(model_data), intent(in) :: d
+    type(model_work), intent(in) :: wk
     integer, intent(in) :: b
     real(dp) :: c(3)
     if (d%flexible(b)) then
-      c = d%pos(:, b) + matmul(d%rot(:, :, b), d%fwork(b)%s)/d%flex(b)%mass
+      c = wk%pos(:, b) + matmul(wk%rot(:, :, b), wk%fwork(b)%s)/d%flex(b)%mass
     else
-      c = d%pos(:, b) + matmul(d%rot(:, :, b), d%com(:, b))
+      c = wk%pos(:, b) + matmul(wk%rot(:, :, b), d%com(:, b))
     end if
   end function body_com
 
   !> Subtract the gravity wrench [m g; c x m g] of every body from its bias wrench, and
   !> the modal gravity loads S1^T R^T g from the modal bias of flexible bodies.
-  pure subroutine add_gravity(d, only)
-    type(model_data), intent(inout) :: d
+  pure subroutine add_gravity(d, wk, only)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
     !> The bodies to load (all, or those of the fast rows).
     logical, intent(in) :: only(:)
     integer :: b, k
     real(dp) :: c(3), f(3), gb(3)
     do b = 2, d%nb
       if (.not. only(b)) cycle
-      c = body_com(d, b)
+      c = body_com(d, wk, b)
       f = d%mass(b)*d%gravity
-      d%w(1:3, b) = d%w(1:3, b) - f
-      d%w(4:6, b) = d%w(4:6, b) - cross(c, f)
+      wk%w(1:3, b) = wk%w(1:3, b) - f
+      wk%w(4:6, b) = wk%w(4:6, b) - cross(c, f)
       if (d%nm(b) == 0) cycle
-      gb = matmul(transpose(d%rot(:, :, b)), d%gravity)
+      gb = matmul(transpose(wk%rot(:, :, b)), d%gravity)
       do k = 1, d%nm(b)
-        d%wam(k, b) = d%wam(k, b) - dot_product(d%flex(b)%first(:, k), gb)
+        wk%wam(k, b) = wk%wam(k, b) - dot_product(d%flex(b)%first(:, k), gb)
       end do
     end do
-    d%effect_evals(effect_gravity) = d%effect_evals(effect_gravity) + 1
+    wk%count%effect_evals(effect_gravity) = wk%count%effect_evals(effect_gravity) + 1
   end subroutine add_gravity
 
   !> Add the drive loads to the generalised forces.
-  pure subroutine add_joint_drives(d, t)
-    type(model_data), intent(inout) :: d
+  pure subroutine add_joint_drives(d, wk, t)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
     real(dp), intent(in) :: t
     integer :: i
     do i = 1, d%n_drives
-      d%tau(d%drive_coord(i)) = d%tau(d%drive_coord(i)) + drive_force(d, i, t)
+      wk%tau(d%drive_coord(i)) = wk%tau(d%drive_coord(i)) + drive_force(d, i, t)
     end do
-    d%effect_evals(effect_joint_drives) = d%effect_evals(effect_joint_drives) + 1
+    wk%count%effect_evals(effect_joint_drives) = wk%count%effect_evals(effect_joint_drives) + 1
   end subroutine add_joint_drives
 
   !> Generalised force of drive i at time t: offset + amplitude sin(2 pi f t + phase), or
@@ -81,27 +84,29 @@ contains
 
   !> Modal damping forces (2 zeta omega + alpha + beta omega^2) ad added to the modal bias
   !> of flexible bodies.
-  pure subroutine add_modal_damping(d, qd, only)
-    type(model_data), intent(inout) :: d
+  pure subroutine add_modal_damping(d, wk, qd, only)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
     real(dp), intent(in) :: qd(:)
     logical, intent(in) :: only(:)
     integer :: b, m
     do b = 2, d%nb
       m = d%nm(b)
       if (m == 0 .or. .not. only(b)) cycle
-      d%wam(1:m, b) = d%wam(1:m, b) + d%flex(b)%damp*qd(d%a0(b):d%a0(b) + m - 1)
+      wk%wam(1:m, b) = wk%wam(1:m, b) + d%flex(b)%damp*qd(d%a0(b):d%a0(b) + m - 1)
     end do
-    d%effect_evals(effect_modal_damping) = d%effect_evals(effect_modal_damping) + 1
+    wk%count%effect_evals(effect_modal_damping) = wk%count%effect_evals(effect_modal_damping) + 1
   end subroutine add_modal_damping
 
   !> Gravitational potential energy -sum m g.c (J), after body_terms.
-  pure function gravity_potential(d) result(v)
+  pure function gravity_potential(d, wk) result(v)
     type(model_data), intent(in) :: d
+    type(model_work), intent(in) :: wk
     real(dp) :: v
     integer :: b
     v = 0.0_dp
     do b = 2, d%nb
-      v = v - d%mass(b)*dot_product(d%gravity, body_com(d, b))
+      v = v - d%mass(b)*dot_product(d%gravity, body_com(d, wk, b))
     end do
   end function gravity_potential
 
@@ -120,17 +125,18 @@ contains
   end function elastic_potential
 
   !> Joint spring-dampers: tau_k += -stiffness (q_k - free_position) - damping qd_k.
-  pure subroutine add_joint_springs(d, q, qd)
-    type(model_data), intent(inout) :: d
+  pure subroutine add_joint_springs(d, wk, q, qd)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
     real(dp), intent(in) :: q(:), qd(:)
     integer :: i, k
     do i = 1, d%n_springs
       k = d%spring_coord(i)
       associate(p => d%spring_par(:, i))
-        d%tau(k) = d%tau(k) - p(1)*(q(k) - p(3)) - p(2)*qd(k)
+        wk%tau(k) = wk%tau(k) - p(1)*(q(k) - p(3)) - p(2)*qd(k)
       end associate
     end do
-    d%effect_evals(effect_joint_springs) = d%effect_evals(effect_joint_springs) + 1
+    wk%count%effect_evals(effect_joint_springs) = wk%count%effect_evals(effect_joint_springs) + 1
   end subroutine add_joint_springs
 
   !> Potential energy of the joint springs, 1/2 sum stiffness (q - free_position)^2 (J).
@@ -151,8 +157,9 @@ contains
   !> part proportional to the accelerations is not known before the solve) and the
   !> centrifugal load of its rotation (body-frame components). Its modal stiffness
   !> K_G = (g_x - a0_x) kg1 + (w_y^2 + w_z^2) kg2 adds K_G a to the modal bias.
-  pure subroutine add_geometric_stiffening(d, q, only)
-    type(model_data), intent(inout) :: d
+  pure subroutine add_geometric_stiffening(d, wk, q, only)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
     real(dp), intent(in) :: q(:)
     logical, intent(in) :: only(:)
     integer :: b, m, k
@@ -162,7 +169,7 @@ contains
     do b = 2, d%nb
       if (.not. allocated(d%flex(b)%kg1) .or. .not. only(b)) cycle
       m = d%nm(b)
-      associate(rot => d%rot(:, :, b), pos => d%pos(:, b), vel => d%vel(:, b), acc => d%acc(:, b))
+      associate(rot => wk%rot(:, :, b), pos => wk%pos(:, b), vel => wk%vel(:, b), acc => wk%acc(:, b))
         wb = matmul(transpose(rot), vel(4:6))
         pd = vel(1:3) + cross(vel(4:6), pos)
         alv = matmul(transpose(rot), acc(1:3) + cross(acc(4:6), pos) + cross(vel(4:6), pd))
@@ -172,11 +179,11 @@ contains
       c2 = wb(2)**2 + wb(3)**2
       associate(a => q(d%a0(b):d%a0(b) + m - 1))
         do k = 1, m
-          d%wam(k, b) = d%wam(k, b) + c1*dot_product(d%flex(b)%kg1(:, k), a) + c2*dot_product(d%flex(b)%kg2(:, k), a)
+          wk%wam(k, b) = wk%wam(k, b) + c1*dot_product(d%flex(b)%kg1(:, k), a) + c2*dot_product(d%flex(b)%kg2(:, k), a)
         end do
       end associate
     end do
-    d%effect_evals(effect_geometric_stiffening) = d%effect_evals(effect_geometric_stiffening) + 1
+    wk%count%effect_evals(effect_geometric_stiffening) = wk%count%effect_evals(effect_geometric_stiffening) + 1
   end subroutine add_geometric_stiffening
 
   !> Geometric stiffening of beams by the bodies they carry (after composite_terms): a body
@@ -185,8 +192,9 @@ contains
   !> the part proportional to the accelerations is not known before the solve). Its
   !> component along the beam axis is a tension N_c = -x_b . f_c on [0, x_c], adding
   !> N_c kgc_c a to the beam's modal bias.
-  pure subroutine add_carried_load_stiffening(d, q, only)
-    type(model_data), intent(inout) :: d
+  pure subroutine add_carried_load_stiffening(d, wk, q, only)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
     real(dp), intent(in) :: q(:)
     logical, intent(in) :: only(:)
     integer :: c, b, m, k
@@ -195,10 +203,10 @@ contains
       if (.not. d%child_kg(c) .or. .not. only(c)) cycle
       b = d%parent(c)
       m = d%nm(b)
-      tension = -dot_product(d%rot(:, 1, b), d%wc(1:3, c))
+      tension = -dot_product(wk%rot(:, 1, b), wk%wc(1:3, c))
       associate(a => q(d%a0(b):d%a0(b) + m - 1))
         do k = 1, m
-          d%wam(k, b) = d%wam(k, b) + tension*dot_product(d%kgc(k, 1:m, c), a)
+          wk%wam(k, b) = wk%wam(k, b) + tension*dot_product(d%kgc(k, 1:m, c), a)
         end do
       end associate
     end do
@@ -218,28 +226,29 @@ contains
   !> Point loads at markers (after kinematics): the force f = R (direction F(t)) at the
   !> marker's point r enters the body's wrench as [f; r x f] and, on a flexible body, the
   !> modal forces Psi(marker)^T (direction F(t)).
-  pure subroutine add_firing_load(d, t, q, qd, only)
-    type(model_data), intent(inout) :: d
+  pure subroutine add_firing_load(d, wk, t, q, qd, only)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
     real(dp), intent(in) :: t, q(:), qd(:)
     logical, intent(in) :: only(:)
     integer :: i, b, k, mk
     real(dp) :: fmag, fb(3), f(3), r(3), v(3)
     do i = 1, d%n_loads
       mk = d%load_marker(i)
-      b = d%marker_body(mk)
+      b = d%markers%body(mk)
       if (.not. only(b)) cycle
       fmag = load_force(d, i, t)
       if (fmag == 0.0_dp) cycle
       fb = d%load_dir(:, i)*fmag
-      f = matmul(d%rot(:, :, b), fb)
-      call marker_motion(d, mk, q, qd, r, v)
-      d%w(1:3, b) = d%w(1:3, b) - f
-      d%w(4:6, b) = d%w(4:6, b) - cross(r, f)
+      f = matmul(wk%rot(:, :, b), fb)
+      call marker_motion(d, wk, mk, q, qd, r, v)
+      wk%w(1:3, b) = wk%w(1:3, b) - f
+      wk%w(4:6, b) = wk%w(4:6, b) - cross(r, f)
       do k = 1, d%nm(b)
-        d%wam(k, b) = d%wam(k, b) - dot_product(d%marker_psi(:, k, mk), fb)
+        wk%wam(k, b) = wk%wam(k, b) - dot_product(d%markers%psi(:, k, mk), fb)
       end do
     end do
-    d%effect_evals(effect_firing_load) = d%effect_evals(effect_firing_load) + 1
+    wk%count%effect_evals(effect_firing_load) = wk%count%effect_evals(effect_firing_load) + 1
   end subroutine add_firing_load
 
   !> Value, rate and acceleration at time t of prescribed coordinate i.
@@ -276,35 +285,37 @@ contains
     end associate
   end subroutine prescribed_motion
 
-  !> Copies of (q, qd) in d%qx, d%qdx with the prescribed coordinates set to their functions.
-  pure subroutine impose_prescribed_state(d, t, q, qd)
-    type(model_data), intent(inout) :: d
+  !> Copies of (q, qd) in wk%qx, wk%qdx with the prescribed coordinates set to their functions.
+  pure subroutine impose_prescribed_state(d, wk, t, q, qd)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
     real(dp), intent(in) :: t, q(:), qd(:)
     integer :: i
     real(dp) :: fdd
-    d%qx = q; d%qdx = qd
+    wk%qx = q; wk%qdx = qd
     do i = 1, d%n_prescribed
-      call prescribed_motion(d, i, t, d%qx(d%pres_coord(i)), d%qdx(d%pres_coord(i)), fdd)
+      call prescribed_motion(d, i, t, wk%qx(d%pres_coord(i)), wk%qdx(d%pres_coord(i)), fdd)
     end do
   end subroutine impose_prescribed_state
 
   !> After assembly: each prescribed coordinate j gets the equation qdd_j = f''(t). Its known
   !> acceleration moves to the right-hand side of the other rows and its row and column
   !> are cleared (M stays symmetric positive definite).
-  pure subroutine prescribe_rows(d, t)
-    type(model_data), intent(inout) :: d
+  pure subroutine prescribe_rows(d, wk, t)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
     real(dp), intent(in) :: t
     integer :: i, j
     real(dp) :: f, fd, fdd
     do i = 1, d%n_prescribed
       j = d%pres_coord(i)
       call prescribed_motion(d, i, t, f, fd, fdd)
-      d%p = d%p - d%mm(:, j)*fdd
-      d%mm(:, j) = 0.0_dp
-      d%mm(j, :) = 0.0_dp
-      d%mm(j, j) = 1.0_dp
-      d%p(j) = fdd
+      wk%p = wk%p - wk%mm(:, j)*fdd
+      wk%mm(:, j) = 0.0_dp
+      wk%mm(j, :) = 0.0_dp
+      wk%mm(j, j) = 1.0_dp
+      wk%p(j) = fdd
     end do
-    d%effect_evals(effect_base_motion) = d%effect_evals(effect_base_motion) + 1
+    wk%count%effect_evals(effect_base_motion) = wk%count%effect_evals(effect_base_motion) + 1
   end subroutine prescribe_rows
 end module pymr_model_effects

@@ -9,7 +9,7 @@
 !> rule (flexible_frame), after the tree.
 module pymr_model_kinematics
   use pymr_env_kinds, only : dp
-  use pymr_model_types, only : model_data, prim_revolute, cut_free
+  use pymr_model_types, only : model_data, model_work, prim_revolute, cut_free
   use pymr_model_flexbody, only : small_rotation
   implicit none
   private
@@ -20,28 +20,29 @@ contains
   include 'vector_products.inc'
 
   !> Positions, velocities, bias accelerations and coordinate columns for state (q, qd).
-  pure subroutine forward_kinematics(d, q, qd)
-    type(model_data), intent(inout) :: d
+  pure subroutine forward_kinematics(d, wk, q, qd)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
     !> Coordinates and rates (joint coordinates, then modal coordinates).
     real(dp), intent(in) :: q(:), qd(:)
     integer :: b, a, k, m, c
     real(dp) :: rf(3, 3), pf(3), vf(6), af(6), u(3), sk(6)
-    d%rot(:, :, 1) = 0.0_dp
+    wk%rot(:, :, 1) = 0.0_dp
     do k = 1, 3
-      d%rot(k, k, 1) = 1.0_dp
+      wk%rot(k, k, 1) = 1.0_dp
     end do
-    d%pos(:, 1) = 0.0_dp; d%vel(:, 1) = 0.0_dp; d%acc(:, 1) = 0.0_dp
+    wk%pos(:, 1) = 0.0_dp; wk%vel(:, 1) = 0.0_dp; wk%acc(:, 1) = 0.0_dp
     do b = 2, d%nb
       a = d%parent(b)
-      vf = d%vel(:, a); af = d%acc(:, a)
+      vf = wk%vel(:, a); af = wk%acc(:, a)
       if (d%nm(a) > 0) then
         m = d%nm(a)
-        call flexible_frame(d%rot(:, :, a), d%pos(:, a), d%vel(:, a), d%at(:, b), d%att_psi(:, 1:m, b), &
+        call flexible_frame(wk%rot(:, :, a), wk%pos(:, a), wk%vel(:, a), d%at(:, b), d%att_psi(:, 1:m, b), &
           & d%att_phi(:, 1:m, b), q(d%a0(a):d%a0(a) + m - 1), qd(d%a0(a):d%a0(a) + m - 1), rf, pf, &
-          & d%cm(:, 1:m, b), vf, af)
+          & wk%cm(:, 1:m, b), vf, af)
       else
-        rf = d%rot(:, :, a)
-        pf = d%pos(:, a) + matmul(rf, d%at(:, b))
+        rf = wk%rot(:, :, a)
+        pf = wk%pos(:, a) + matmul(rf, d%at(:, b))
       end if
       do k = d%c0(b), d%c0(b) + d%nc(b) - 1
         u = matmul(rf, d%axis(:, k))
@@ -54,38 +55,39 @@ contains
         end if
         vf = vf + sk*qd(k)
         af = af + motion_cross(vf, sk)*qd(k)
-        d%s(:, k) = sk
+        wk%s(:, k) = sk
       end do
-      d%rot(:, :, b) = rf; d%pos(:, b) = pf; d%vel(:, b) = vf; d%acc(:, b) = af
+      wk%rot(:, :, b) = rf; wk%pos(:, b) = pf; wk%vel(:, b) = vf; wk%acc(:, b) = af
     end do
-    do c = 1, d%n_cut
-      if (d%cut_kind(c) == cut_free) cycle
-      call cut_frame(d, c, 1, d%cut_parent(c), d%cut_at(:, c), q, qd)
-      call cut_frame(d, c, 2, d%cut_child(c), d%cut_child_at(:, c), q, qd)
+    do c = 1, d%cuts%n
+      if (d%cuts%kind(c) == cut_free) cycle
+      call cut_frame(d, wk, c, 1, d%cuts%parent(c), d%cuts%at(:, c), q, qd)
+      call cut_frame(d, wk, c, 2, d%cuts%child(c), d%cuts%child_at(:, c), q, qd)
     end do
   end subroutine forward_kinematics
 
   !> The frame at point r (body frame) of body b, side s of cut joint c (1 its parent's,
   !> 2 its child's), after the tree's kinematics: on a rigid body b's frame moved to the
   !> point; on a flexible one the deformed frame there (flexible_frame, with the shapes
-  !> d%cut_psi, d%cut_phi) and the columns of b's modal rates at it.
-  pure subroutine cut_frame(d, c, s, b, r, q, qd)
-    type(model_data), intent(inout) :: d
+  !> d%cuts%psi, d%cuts%phi) and the columns of b's modal rates at it.
+  pure subroutine cut_frame(d, wk, c, s, b, r, q, qd)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
     integer, intent(in) :: c, s, b
     real(dp), intent(in) :: r(3), q(:), qd(:)
     integer :: m
     real(dp) :: rf(3, 3), pf(3), vf(6), af(6)
     m = d%nm(b)
-    vf = d%vel(:, b); af = d%acc(:, b)
+    vf = wk%vel(:, b); af = wk%acc(:, b)
     if (m == 0) then
-      rf = d%rot(:, :, b)
-      pf = d%pos(:, b) + matmul(rf, r)
+      rf = wk%rot(:, :, b)
+      pf = wk%pos(:, b) + matmul(rf, r)
     else
-      call flexible_frame(d%rot(:, :, b), d%pos(:, b), d%vel(:, b), r, d%cut_psi(:, 1:m, s, c), &
-        & d%cut_phi(:, 1:m, s, c), q(d%a0(b):d%a0(b) + m - 1), qd(d%a0(b):d%a0(b) + m - 1), rf, pf, &
-        & d%cut_cm(:, 1:m, s, c), vf, af)
+      call flexible_frame(wk%rot(:, :, b), wk%pos(:, b), wk%vel(:, b), r, d%cuts%psi(:, 1:m, s, c), &
+        & d%cuts%phi(:, 1:m, s, c), q(d%a0(b):d%a0(b) + m - 1), qd(d%a0(b):d%a0(b) + m - 1), rf, pf, &
+        & wk%loops%cm(:, 1:m, s, c), vf, af)
     end if
-    d%cut_rot(:, :, s, c) = rf; d%cut_pos(:, s, c) = pf; d%cut_vel(:, s, c) = vf; d%cut_acc(:, s, c) = af
+    wk%loops%rot(:, :, s, c) = rf; wk%loops%pos(:, s, c) = pf; wk%loops%vel(:, s, c) = vf; wk%loops%acc(:, s, c) = af
   end subroutine cut_frame
 
   !> Turn the frame rf (its columns, inertial) by angle about the inertial unit axis u
@@ -141,56 +143,59 @@ contains
 
   !> Inertial position and velocity of marker m (after forward_kinematics); q, qd give the
   !> deflection of a marker on a flexible body.
-  pure subroutine marker_motion(d, m, q, qd, r, v)
+  pure subroutine marker_motion(d, wk, m, q, qd, r, v)
     type(model_data), intent(in) :: d
+    type(model_work), intent(in) :: wk
     integer, intent(in) :: m
     real(dp), intent(in) :: q(:), qd(:)
     real(dp), intent(out) :: r(3), v(3)
     integer :: b, nm
     real(dp) :: loc(3)
-    b = d%marker_body(m)
+    b = d%markers%body(m)
     nm = d%nm(b)
-    loc = d%marker_at(:, m)
-    if (nm > 0) loc = loc + matmul(d%marker_psi(:, 1:nm, m), q(d%a0(b):d%a0(b) + nm - 1))
-    r = d%pos(:, b) + matmul(d%rot(:, :, b), loc)
-    v = d%vel(1:3, b) + cross(d%vel(4:6, b), r)
-    if (nm > 0) v = v + matmul(d%rot(:, :, b), matmul(d%marker_psi(:, 1:nm, m), qd(d%a0(b):d%a0(b) + nm - 1)))
+    loc = d%markers%at(:, m)
+    if (nm > 0) loc = loc + matmul(d%markers%psi(:, 1:nm, m), q(d%a0(b):d%a0(b) + nm - 1))
+    r = wk%pos(:, b) + matmul(wk%rot(:, :, b), loc)
+    v = wk%vel(1:3, b) + cross(wk%vel(4:6, b), r)
+    if (nm > 0) v = v + matmul(wk%rot(:, :, b), matmul(d%markers%psi(:, 1:nm, m), qd(d%a0(b):d%a0(b) + nm - 1)))
   end subroutine marker_motion
 
   !> Inertial acceleration of marker m from its body's spatial acceleration acc_b = [a_O; alpha]
   !> (after forward_kinematics; r, v from marker_motion): a = a_O + alpha x r + w x v, and on
   !> a flexible body + w x (R Psi ad) + R Psi add.
-  pure subroutine marker_acceleration(d, m, qd, qdd, acc_b, r, v, a)
+  pure subroutine marker_acceleration(d, wk, m, qd, qdd, acc_b, r, v, a)
     type(model_data), intent(in) :: d
+    type(model_work), intent(in) :: wk
     integer, intent(in) :: m
     real(dp), intent(in) :: qd(:), qdd(:), acc_b(6), r(3), v(3)
     real(dp), intent(out) :: a(3)
     integer :: b, nm
     real(dp) :: vd(3)
-    b = d%marker_body(m)
+    b = d%markers%body(m)
     nm = d%nm(b)
-    a = acc_b(1:3) + cross(acc_b(4:6), r) + cross(d%vel(4:6, b), v)
+    a = acc_b(1:3) + cross(acc_b(4:6), r) + cross(wk%vel(4:6, b), v)
     if (nm == 0) return
-    associate(psi => d%marker_psi(:, 1:nm, m), rot => d%rot(:, :, b))
+    associate(psi => d%markers%psi(:, 1:nm, m), rot => wk%rot(:, :, b))
       vd = matmul(rot, matmul(psi, qd(d%a0(b):d%a0(b) + nm - 1)))
-      a = a + cross(d%vel(4:6, b), vd) + matmul(rot, matmul(psi, qdd(d%a0(b):d%a0(b) + nm - 1)))
+      a = a + cross(wk%vel(4:6, b), vd) + matmul(rot, matmul(psi, qdd(d%a0(b):d%a0(b) + nm - 1)))
     end associate
   end subroutine marker_acceleration
 
   !> Orientation of marker m's frame (inertial from marker axes; after forward_kinematics):
   !> its body's, turned on a flexible body by the small rotation exp((Phi a)~) of the point.
-  pure subroutine marker_rotation(d, m, q, rm)
+  pure subroutine marker_rotation(d, wk, m, q, rm)
     type(model_data), intent(in) :: d
+    type(model_work), intent(in) :: wk
     integer, intent(in) :: m
     real(dp), intent(in) :: q(:)
     real(dp), intent(out) :: rm(3, 3)
     integer :: b, nm
     real(dp) :: th(3), rr(3, 3), jl(3, 3), jd(3)
-    b = d%marker_body(m)
+    b = d%markers%body(m)
     nm = d%nm(b)
-    rm = d%rot(:, :, b)
+    rm = wk%rot(:, :, b)
     if (nm == 0) return
-    th = matmul(d%marker_phi(:, 1:nm, m), q(d%a0(b):d%a0(b) + nm - 1))
+    th = matmul(d%markers%phi(:, 1:nm, m), q(d%a0(b):d%a0(b) + nm - 1))
     call small_rotation(th, [0.0_dp, 0.0_dp, 0.0_dp], rr, jl, jd)
     rm = matmul(rm, rr)
   end subroutine marker_rotation

@@ -19,10 +19,10 @@
 !> row used this is the same constraint (rows turned by an orthogonal matrix).
 !>
 !> Their Jacobian G comes from the recursive kinematics: the columns s_k on the path of a
-!> body, and on a flexible body its own modal columns at the point (d%cut_cm), give the
+!> body, and on a flexible body its own modal columns at the point (wk%loops%cm), give the
 !> point frame's velocity v_O + w x p and angular velocity w, so G qd is the relative
 !> velocity of the two points (and the relative angular velocity across the rotation rows),
-!> and gamma = -Gdot qd follows from the frames' bias accelerations (d%cut_acc, with the
+!> and gamma = -Gdot qd follows from the frames' bias accelerations (wk%loops%acc, with the
 !> modal velocity-product terms of a flexible point). The accelerations solve
 !> M qdd = P + G^T lambda, G qdd = gamma through M's Cholesky factor. Dependent rows (a
 !> planar loop of 3-D joints) are found once, at assembly, by a pivoted (rank-revealing)
@@ -33,7 +33,7 @@ module pymr_model_loops
   use pymr_env_kinds, only : dp
   use pymr_env_error, only : error_type, fatal_error, stat_solver, stat_input
   use pymr_env_lapack, only : potrf, potrs
-  use pymr_model_types, only : model_data, cut_fixed, cut_revolute, cut_prismatic, cut_spherical, cut_free
+  use pymr_model_types, only : model_data, model_work, cut_fixed, cut_revolute, cut_prismatic, cut_spherical, cut_free
   use pymr_model_kinematics, only : forward_kinematics
   use pymr_model_spatial, only : cross, unit_axes
   use pymr_env_text, only : itoa, fmt
@@ -51,102 +51,104 @@ module pymr_model_loops
   integer, parameter :: max_iterations = 30
   !> Assembly: the given state may miss closure by this fraction of the loops' size.
   real(dp), parameter :: assembly_tol = 1.0e-3_dp
-  !> The sides of a cut joint (d%cut_rot(:, :, side, c) and the like).
+  !> The sides of a cut joint (wk%loops%rot(:, :, side, c) and the like).
   integer, parameter :: parent = 1, child = 2
 
 contains
 
   !> Assemble the initial state: choose the independent rows, then project the given q and
-  !> qd onto the constraints (least change, recorded in d%assembly_dq, d%assembly_dqd),
+  !> qd onto the constraints (least change, recorded in wk%loops%assembly_dq, wk%loops%assembly_dqd),
   !> keeping the coordinates marked held. A state further than assembly_tol of the loops'
   !> size (m; rad) from closure is an error, and so are held coordinates that leave the
   !> loops too few others to close them.
-  subroutine assemble_loops(d, q, qd, held, error)
-    type(model_data), intent(inout) :: d
+  subroutine assemble_loops(d, wk, q, qd, held, error)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
     real(dp), intent(inout) :: q(:), qd(:)
     logical, intent(in) :: held(:)
     type(error_type), allocatable, intent(out) :: error
     real(dp) :: q0(size(q)), qd0(size(qd))
-    integer :: used(d%n_rows), n_free
-    if (d%n_rows == 0) return
-    call forward_kinematics(d, q, 0.0_dp*q)
-    call loop_rows(d)
-    call choose_rows(d, error); if (allocated(error)) return
-    call independent_rows(held_columns(free_columns(d, d%gj(d%row_used(1:d%n_used), :)), held), used, n_free)
-    if (n_free < d%n_used) then
+    integer :: used(d%cuts%n_rows), n_free
+    if (d%cuts%n_rows == 0) return
+    call forward_kinematics(d, wk, q, 0.0_dp*q)
+    call loop_rows(d, wk)
+    call choose_rows(d, wk, error); if (allocated(error)) return
+    call independent_rows(held_columns(free_columns(d, wk%loops%jac(wk%loops%row_used(1:wk%loops%n_used), :)), held), used, n_free)
+    if (n_free < wk%loops%n_used) then
       call fatal_error(error, 'the joints held (hold = .true.) leave the loops ' // itoa(n_free) // ' of the ' // &
-        & itoa(d%n_used) // ' independent constraints to close by the other coordinates', stat_input); return
+        & itoa(wk%loops%n_used) // ' independent constraints to close by the other coordinates', stat_input); return
     end if
-    d%loop_size = max(maxval(norm2(d%pos, dim=1)), maxval(norm2(d%cut_at, dim=1)), &
-      & maxval(norm2(d%cut_child_at, dim=1)), tiny(1.0_dp))
-    if (maxval(abs(d%phi)) > assembly_tol*d%loop_size) then
-      call fatal_error(error, 'the initial state does not close the loops: residual ' // fmt(maxval(abs(d%phi))) // &
-        & ' exceeds ' // fmt(assembly_tol) // ' of the loops'' size ' // fmt(d%loop_size) // ' m (give consistent q0)')
+    wk%loops%size = max(maxval(norm2(wk%pos, dim=1)), maxval(norm2(d%cuts%at, dim=1)), &
+      & maxval(norm2(d%cuts%child_at, dim=1)), tiny(1.0_dp))
+    if (maxval(abs(wk%loops%residual)) > assembly_tol*wk%loops%size) then
+      call fatal_error(error, 'the initial state does not close the loops: residual ' // fmt(maxval(abs(wk%loops%residual))) // &
+        & ' exceeds ' // fmt(assembly_tol) // ' of the loops'' size ' // fmt(wk%loops%size) // ' m (give consistent q0)')
       return
     end if
     q0 = q; qd0 = qd
-    call project_positions(d, q, d%loop_size, error, held=held)
-    if (.not. allocated(error)) call project_velocities(d, q, qd, error, held)
+    call project_positions(d, wk, q, wk%loops%size, error, held=held)
+    if (.not. allocated(error)) call project_velocities(d, wk, q, qd, error, held)
     if (allocated(error)) then
       ! a state that cannot be assembled is the scene's fault, not the run's
       error%stat = stat_input; error%message = 'cannot assemble the initial state: ' // error%message; return
     end if
-    d%assembly_dq = maxval(abs(q - q0)); d%assembly_dqd = maxval(abs(qd - qd0))
+    wk%loops%assembly_dq = maxval(abs(q - q0)); wk%loops%assembly_dqd = maxval(abs(qd - qd0))
   end subroutine assemble_loops
 
-  !> Residual d%phi, Jacobian d%gj and d%gam = -Gdot qd of every cut joint, after
-  !> forward_kinematics at (q, qd), from the frames at the cut's two points (d%cut_rot,
-  !> d%cut_pos, d%cut_vel, d%cut_acc: a rigid body's frame, or the deformed frame at a point
+  !> Residual wk%loops%residual, Jacobian wk%loops%jac and wk%loops%gamma = -Gdot qd of every cut joint, after
+  !> forward_kinematics at (q, qd), from the frames at the cut's two points (wk%loops%rot,
+  !> wk%loops%pos, wk%loops%vel, wk%loops%acc: a rigid body's frame, or the deformed frame at a point
   !> of a flexible body).
-  pure subroutine loop_rows(d)
-    type(model_data), intent(inout) :: d
+  pure subroutine loop_rows(d, wk)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
     integer :: c, r, rr, i, j
     real(dp) :: pp(3), pc(3), vp(3), vc(3), ap(3), ac(3), wp(3), wc(3), alp(3), alc(3), uc(3), ci(3), ni(3), nd(3)
-    d%gj = 0.0_dp
-    do c = 1, d%n_cut
-      if (d%cut_kind(c) == cut_free) cycle
-      r = d%cut_row0(c)
-      pp = d%cut_pos(:, 1, c); pc = d%cut_pos(:, 2, c)
-      wp = d%cut_vel(4:6, 1, c); wc = d%cut_vel(4:6, 2, c)
-      alp = d%cut_acc(4:6, 1, c); alc = d%cut_acc(4:6, 2, c)
-      vp = d%cut_vel(1:3, 1, c) + cross(wp, pp); vc = d%cut_vel(1:3, 2, c) + cross(wc, pc)
-      ap = d%cut_acc(1:3, 1, c) + cross(alp, pp) + cross(wp, vp)
-      ac = d%cut_acc(1:3, 2, c) + cross(alc, pc) + cross(wc, vc)
-      if (d%cut_kind(c) == cut_prismatic) then
-        call sliding_rows(d, c, r, pp, pc, vp, vc, ap, ac, wp, alp)
+    wk%loops%jac = 0.0_dp
+    do c = 1, d%cuts%n
+      if (d%cuts%kind(c) == cut_free) cycle
+      r = d%cuts%row0(c)
+      pp = wk%loops%pos(:, 1, c); pc = wk%loops%pos(:, 2, c)
+      wp = wk%loops%vel(4:6, 1, c); wc = wk%loops%vel(4:6, 2, c)
+      alp = wk%loops%acc(4:6, 1, c); alc = wk%loops%acc(4:6, 2, c)
+      vp = wk%loops%vel(1:3, 1, c) + cross(wp, pp); vc = wk%loops%vel(1:3, 2, c) + cross(wc, pc)
+      ap = wk%loops%acc(1:3, 1, c) + cross(alp, pp) + cross(wp, vp)
+      ac = wk%loops%acc(1:3, 2, c) + cross(alc, pc) + cross(wc, vc)
+      if (d%cuts%kind(c) == cut_prismatic) then
+        call sliding_rows(d, wk, c, r, pp, pc, vp, vc, ap, ac, wp, alp)
       else
-        d%phi(r:r + 2) = pc - pp
-        d%gam(r:r + 2) = ap - ac
+        wk%loops%residual(r:r + 2) = pc - pp
+        wk%loops%gamma(r:r + 2) = ap - ac
         do i = 1, 3
-          call add_point_columns(d, c, child, pc, unit_axes(:, i), 1.0_dp, r + i - 1)
-          call add_point_columns(d, c, parent, pp, unit_axes(:, i), -1.0_dp, r + i - 1)
+          call add_point_columns(d, wk, c, child, pc, unit_axes(:, i), 1.0_dp, r + i - 1)
+          call add_point_columns(d, wk, c, parent, pp, unit_axes(:, i), -1.0_dp, r + i - 1)
         end do
-        call to_parent_axes(d, r, d%cut_rot(:, :, parent, c))
+        call to_parent_axes(d, wk, r, wk%loops%rot(:, :, parent, c))
       end if
-      select case (d%cut_kind(c))
+      select case (d%cuts%kind(c))
       case (cut_fixed, cut_prismatic)
         ! the frames agree: rows rr .. rr + 2 after the 3 point rows (fixed) or the 2 sliding ones
-        rr = r + merge(2, 3, d%cut_kind(c) == cut_prismatic)
-        d%phi(rr:rr + 2) = 0.0_dp
+        rr = r + merge(2, 3, d%cuts%kind(c) == cut_prismatic)
+        wk%loops%residual(rr:rr + 2) = 0.0_dp
         do j = 1, 3
-          d%phi(rr:rr + 2) = d%phi(rr:rr + 2) + 0.5_dp*cross(d%cut_rot(:, j, parent, c), d%cut_rot(:, j, child, c))
+          wk%loops%residual(rr:rr + 2) = wk%loops%residual(rr:rr + 2) + 0.5_dp*cross(wk%loops%rot(:, j, parent, c), wk%loops%rot(:, j, child, c))
         end do
-        d%gam(rr:rr + 2) = alp - alc
+        wk%loops%gamma(rr:rr + 2) = alp - alc
         do i = 1, 3
-          call add_turn_columns(d, c, child, unit_axes(:, i), 1.0_dp, rr + i - 1)
-          call add_turn_columns(d, c, parent, unit_axes(:, i), -1.0_dp, rr + i - 1)
+          call add_turn_columns(d, wk, c, child, unit_axes(:, i), 1.0_dp, rr + i - 1)
+          call add_turn_columns(d, wk, c, parent, unit_axes(:, i), -1.0_dp, rr + i - 1)
         end do
-        call to_parent_axes(d, rr, d%cut_rot(:, :, parent, c))
+        call to_parent_axes(d, wk, rr, wk%loops%rot(:, :, parent, c))
       case (cut_revolute)
-        uc = matmul(d%cut_rot(:, :, child, c), d%cut_axis(:, c))
+        uc = matmul(wk%loops%rot(:, :, child, c), d%cuts%axis(:, c))
         do i = 1, 2
-          ci = matmul(d%cut_rot(:, :, parent, c), d%cut_normal(:, i, c))
+          ci = matmul(wk%loops%rot(:, :, parent, c), d%cuts%normal(:, i, c))
           ni = cross(uc, ci)
           nd = cross(cross(wc, uc), ci) + cross(uc, cross(wp, ci))
-          d%phi(r + 2 + i) = dot_product(ci, uc)
-          d%gam(r + 2 + i) = -dot_product(alc - alp, ni) - dot_product(wc - wp, nd)
-          call add_turn_columns(d, c, child, ni, 1.0_dp, r + 2 + i)
-          call add_turn_columns(d, c, parent, ni, -1.0_dp, r + 2 + i)
+          wk%loops%residual(r + 2 + i) = dot_product(ci, uc)
+          wk%loops%gamma(r + 2 + i) = -dot_product(alc - alp, ni) - dot_product(wc - wp, nd)
+          call add_turn_columns(d, wk, c, child, ni, 1.0_dp, r + 2 + i)
+          call add_turn_columns(d, wk, c, parent, ni, -1.0_dp, r + 2 + i)
         end do
       end select
     end do
@@ -157,15 +159,16 @@ contains
   !> Jacobian is that of the turned residual at closure (the parent's turning times the
   !> residual is dropped, as for the frame rows' own Jacobian), so every loop's motion is
   !> unchanged.
-  pure subroutine to_parent_axes(d, r, rp)
-    type(model_data), intent(inout) :: d
+  pure subroutine to_parent_axes(d, wk, r, rp)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
     integer, intent(in) :: r
     real(dp), intent(in) :: rp(3, 3)
     real(dp) :: rt(3, 3)
     rt = transpose(rp)
-    d%phi(r:r + 2) = matmul(rt, d%phi(r:r + 2))
-    d%gam(r:r + 2) = matmul(rt, d%gam(r:r + 2))
-    d%gj(r:r + 2, :) = matmul(rt, d%gj(r:r + 2, :))
+    wk%loops%residual(r:r + 2) = matmul(rt, wk%loops%residual(r:r + 2))
+    wk%loops%gamma(r:r + 2) = matmul(rt, wk%loops%gamma(r:r + 2))
+    wk%loops%jac(r:r + 2, :) = matmul(rt, wk%loops%jac(r:r + 2, :))
   end subroutine to_parent_axes
 
   !> A prismatic cut's two sliding rows r, r + 1: the child point stays on the line through
@@ -173,92 +176,98 @@ contains
   !> turn with the parent's frame at its point. Their rate is n_i . (vc - vp) + wp . (n_i x (pc - pp)), and
   !> gamma = -[n_i . (ac - ap) + 2 (wp x n_i) . (vc - vp) + (alpha_p x n_i + wp x (wp x n_i)) . (pc - pp)]
   !> with the bias (qdd = 0) point accelerations ap, ac and angular acceleration alpha_p.
-  pure subroutine sliding_rows(d, c, r, pp, pc, vp, vc, ap, ac, wp, alp)
-    type(model_data), intent(inout) :: d
+  pure subroutine sliding_rows(d, wk, c, r, pp, pc, vp, vc, ap, ac, wp, alp)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
     integer, intent(in) :: c, r
     real(dp), intent(in) :: pp(3), pc(3), vp(3), vc(3), ap(3), ac(3), wp(3), alp(3)
     integer :: i
     real(dp) :: n(3), dl(3)
     dl = pc - pp
     do i = 1, 2
-      n = matmul(d%cut_rot(:, :, parent, c), d%cut_normal(:, i, c))
-      d%phi(r + i - 1) = dot_product(n, dl)
-      d%gam(r + i - 1) = -(dot_product(n, ac - ap) + 2.0_dp*dot_product(cross(wp, n), vc - vp) + &
+      n = matmul(wk%loops%rot(:, :, parent, c), d%cuts%normal(:, i, c))
+      wk%loops%residual(r + i - 1) = dot_product(n, dl)
+      wk%loops%gamma(r + i - 1) = -(dot_product(n, ac - ap) + 2.0_dp*dot_product(cross(wp, n), vc - vp) + &
         & dot_product(cross(alp, n) + cross(wp, cross(wp, n)), dl))
-      call add_point_columns(d, c, child, pc, n, 1.0_dp, r + i - 1)
-      call add_point_columns(d, c, parent, pp, n, -1.0_dp, r + i - 1)
-      call add_turn_columns(d, c, parent, cross(n, dl), 1.0_dp, r + i - 1)
+      call add_point_columns(d, wk, c, child, pc, n, 1.0_dp, r + i - 1)
+      call add_point_columns(d, wk, c, parent, pp, n, -1.0_dp, r + i - 1)
+      call add_turn_columns(d, wk, c, parent, cross(n, dl), 1.0_dp, r + i - 1)
     end do
   end subroutine sliding_rows
 
   !> Row `row` of G += sgn * (direction e . velocity of the inertial point p of side s of cut
   !> c) per unit rate of each coordinate that moves it: e . (s_v + s_w x p) =
   !> e . s_v + (p x e) . s_w.
-  pure subroutine add_point_columns(d, c, s, p, e, sgn, row)
-    type(model_data), intent(inout) :: d
+  pure subroutine add_point_columns(d, wk, c, s, p, e, sgn, row)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
     integer, intent(in) :: c, s, row
     real(dp), intent(in) :: p(3), e(3), sgn
-    call add_frame_columns(d, c, s, sgn*e, sgn*cross(p, e), row)
+    call add_frame_columns(d, wk, c, s, sgn*e, sgn*cross(p, e), row)
   end subroutine add_point_columns
 
   !> Row `row` of G += sgn * (direction e . angular velocity of side s's frame of cut c) per
   !> unit rate.
-  pure subroutine add_turn_columns(d, c, s, e, sgn, row)
-    type(model_data), intent(inout) :: d
+  pure subroutine add_turn_columns(d, wk, c, s, e, sgn, row)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
     integer, intent(in) :: c, s, row
     real(dp), intent(in) :: e(3), sgn
-    call add_frame_columns(d, c, s, [0.0_dp, 0.0_dp, 0.0_dp], sgn*e, row)
+    call add_frame_columns(d, wk, c, s, [0.0_dp, 0.0_dp, 0.0_dp], sgn*e, row)
   end subroutine add_turn_columns
 
   !> Row `row` of G += ev . s_v + ew . s_w for every spatial column s that moves the frame
   !> at side s of cut c: the columns on its body's path (add_path_columns) and, on a
-  !> flexible body, the body's own modal columns at the point (d%cut_cm).
-  pure subroutine add_frame_columns(d, c, s, ev, ew, row)
-    type(model_data), intent(inout) :: d
+  !> flexible body, the body's own modal columns at the point (wk%loops%cm).
+  pure subroutine add_frame_columns(d, wk, c, s, ev, ew, row)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
     integer, intent(in) :: c, s, row
     real(dp), intent(in) :: ev(3), ew(3)
     integer :: b, l, k
-    b = merge(d%cut_parent(c), d%cut_child(c), s == parent)
-    call add_path_columns(d, b, ev, ew, row)
+    b = merge(d%cuts%parent(c), d%cuts%child(c), s == parent)
+    call add_path_columns(d, wk, b, ev, ew, row)
     do l = 1, d%nm(b)
       k = d%a0(b) + l - 1
-      d%gj(row, k) = d%gj(row, k) + dot_product(ev, d%cut_cm(1:3, l, s, c)) + dot_product(ew, d%cut_cm(4:6, l, s, c))
+      wk%loops%jac(row, k) = wk%loops%jac(row, k) + dot_product(ev, wk%loops%cm(1:3, l, s, c)) + dot_product(ew, wk%loops%cm(4:6, l, s, c))
     end do
   end subroutine add_frame_columns
 
   !> Row `row` of G += ev . s_v + ew . s_w for every spatial column s on body b's path: the
-  !> joint columns, and the modal columns (d%cm) of each flexible body the path crosses.
-  pure subroutine add_path_columns(d, b, ev, ew, row)
-    type(model_data), intent(inout) :: d
+  !> joint columns, and the modal columns (wk%cm) of each flexible body the path crosses.
+  pure subroutine add_path_columns(d, wk, b, ev, ew, row)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
     integer, intent(in) :: b, row
     real(dp), intent(in) :: ev(3), ew(3)
     integer :: a, k, l, pa
     a = b
     do while (a > 1)
       do k = d%c0(a), d%c0(a) + d%nc(a) - 1
-        d%gj(row, k) = d%gj(row, k) + dot_product(ev, d%s(1:3, k)) + dot_product(ew, d%s(4:6, k))
+        wk%loops%jac(row, k) = wk%loops%jac(row, k) + dot_product(ev, wk%s(1:3, k)) + dot_product(ew, wk%s(4:6, k))
       end do
       pa = d%parent(a)
       do l = 1, d%nm(pa)
         k = d%a0(pa) + l - 1
-        d%gj(row, k) = d%gj(row, k) + dot_product(ev, d%cm(1:3, l, a)) + dot_product(ew, d%cm(4:6, l, a))
+        wk%loops%jac(row, k) = wk%loops%jac(row, k) + dot_product(ev, wk%cm(1:3, l, a)) + dot_product(ew, wk%cm(4:6, l, a))
       end do
       a = pa
     end do
   end subroutine add_path_columns
 
-  !> The independent rows of G (d%gj, after loop_rows): independent_rows of its free
+  !> The independent rows of G (wk%loops%jac, after loop_rows): independent_rows of its free
   !> columns; the others are redundant. Chosen once, at the first evaluation or at assembly.
   !> A loop that leaves no motion is an error.
-  subroutine choose_rows(d, error)
-    type(model_data), intent(inout) :: d
+  subroutine choose_rows(d, wk, error)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
     type(error_type), allocatable, intent(out) :: error
-    call independent_rows(free_columns(d, d%gj), d%row_used, d%n_used)
-    d%n_redundant = d%n_rows - d%n_used
-    d%rows_chosen = .true.
+    call independent_rows(free_columns(d, wk%loops%jac), wk%loops%row_used, wk%loops%n_used)
+    wk%loops%n_redundant = d%cuts%n_rows - wk%loops%n_used
+    wk%loops%rows_chosen = .true.
     ! with prescribed coordinates the loops may take every other coordinate (a driven mechanism)
-    if (d%n_prescribed == 0 .and. d%n_used >= d%n) call fatal_error(error, &
-      & 'the loops lock the mechanism: ' // itoa(d%n_used) // ' independent constraints on ' // itoa(d%n) // &
+    if (d%n_prescribed == 0 .and. wk%loops%n_used >= d%n) call fatal_error(error, &
+      & 'the loops lock the mechanism: ' // itoa(wk%loops%n_used) // ' independent constraints on ' // itoa(d%n) // &
       & ' coordinates leave no motion')
   end subroutine choose_rows
 
@@ -288,33 +297,35 @@ contains
     end do
   end subroutine independent_rows
 
-  !> Add the constraint forces to qdd = M^-1 P (M's Cholesky factor in d%lf), after an
+  !> Add the constraint forces to qdd = M^-1 P (M's Cholesky factor in wk%lf), after an
   !> evaluation's kinematics (the rows chosen at the first).
-  subroutine constrained_accelerations(d, qdd, error)
-    type(model_data), intent(inout) :: d
+  subroutine constrained_accelerations(d, wk, qdd, error)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
     real(dp), intent(inout) :: qdd(:)
     type(error_type), allocatable, intent(out) :: error
-    call loop_rows(d)
-    if (.not. d%rows_chosen) then
-      call choose_rows(d, error); if (allocated(error)) return
+    call loop_rows(d, wk)
+    if (.not. wk%loops%rows_chosen) then
+      call choose_rows(d, wk, error); if (allocated(error)) return
     end if
-    call add_multipliers(d, qdd, error)
+    call add_multipliers(d, wk, qdd, error)
   end subroutine constrained_accelerations
 
   !> lambda from (G M^-1 G^T) lambda = gamma - G qdd on the used rows, then
-  !> qdd += M^-1 G^T lambda; d%lambda keeps them (0 on redundant rows).
-  subroutine add_multipliers(d, qdd, error)
-    type(model_data), intent(inout) :: d
+  !> qdd += M^-1 G^T lambda; wk%loops%lambda keeps them (0 on redundant rows).
+  subroutine add_multipliers(d, wk, qdd, error)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
     real(dp), intent(inout) :: qdd(:)
     type(error_type), allocatable, intent(out) :: error
-    real(dp) :: lam(d%n_used), gu(d%n_used, d%n), gf(d%n_used, d%n)
-    gu = d%gj(d%row_used(1:d%n_used), :)
+    real(dp) :: lam(wk%loops%n_used), gu(wk%loops%n_used, d%n), gf(wk%loops%n_used, d%n)
+    gu = wk%loops%jac(wk%loops%row_used(1:wk%loops%n_used), :)
     gf = free_columns(d, gu)
-    lam = d%gam(d%row_used(1:d%n_used)) - matmul(gu, qdd)
-    call add_row_forces(d%lf, 'the mass matrix', gf, d%ymg(:, 1:d%n_used), lam, qdd, error)
+    lam = wk%loops%gamma(wk%loops%row_used(1:wk%loops%n_used)) - matmul(gu, qdd)
+    call add_row_forces(wk%lf, 'the mass matrix', gf, wk%loops%ymg(:, 1:wk%loops%n_used), lam, qdd, error)
     if (allocated(error)) return
-    d%lambda = 0.0_dp
-    d%lambda(d%row_used(1:d%n_used)) = lam
+    wk%loops%lambda = 0.0_dp
+    wk%loops%lambda(wk%loops%row_used(1:wk%loops%n_used)) = lam
   end subroutine add_multipliers
 
   !> The forces g^T lambda along independent rows g that bring the accelerations qdd = M^-1 P
@@ -368,8 +379,9 @@ contains
 
   !> Close the loops from q by the least change: q <- q - G^T (G G^T)^-1 Phi, iterated until
   !> |Phi| <= closure_tol * max(scale, 1 m) (m; rad for rotation rows); an error if that fails.
-  subroutine project_positions(d, q, scale, error, residual, held)
-    type(model_data), intent(inout) :: d
+  subroutine project_positions(d, wk, q, scale, error, residual, held)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
     real(dp), intent(inout) :: q(:)
     real(dp), intent(in) :: scale
     type(error_type), allocatable, intent(out) :: error
@@ -377,36 +389,37 @@ contains
     real(dp), intent(out), optional :: residual
     !> Coordinates the projection keeps (the assembly's held ones).
     logical, intent(in), optional :: held(:)
-    real(dp) :: gu(d%n_used, d%n), y(d%n_used), a(d%n_used, d%n_used)
+    real(dp) :: gu(wk%loops%n_used, d%n), y(wk%loops%n_used), a(wk%loops%n_used, wk%loops%n_used)
     integer :: it
     do it = 1, max_iterations
-      call forward_kinematics(d, q, 0.0_dp*q)
-      call loop_rows(d)
-      if (it == 1 .and. present(residual)) residual = maxval(abs(d%phi))
-      if (maxval(abs(d%phi)) <= closure_tol*max(scale, 1.0_dp)) return
-      gu = free_columns(d, d%gj(d%row_used(1:d%n_used), :))
+      call forward_kinematics(d, wk, q, 0.0_dp*q)
+      call loop_rows(d, wk)
+      if (it == 1 .and. present(residual)) residual = maxval(abs(wk%loops%residual))
+      if (maxval(abs(wk%loops%residual)) <= closure_tol*max(scale, 1.0_dp)) return
+      gu = free_columns(d, wk%loops%jac(wk%loops%row_used(1:wk%loops%n_used), :))
       if (present(held)) gu = held_columns(gu, held)
       a = matmul(gu, transpose(gu))
-      y = d%phi(d%row_used(1:d%n_used))
+      y = wk%loops%residual(wk%loops%row_used(1:wk%loops%n_used))
       call solve_rows(a, y, error); if (allocated(error)) return
       q = q - matmul(y, gu)
     end do
-    call fatal_error(error, 'the loops cannot be closed (constraint residual ' // fmt(maxval(abs(d%phi))) // &
+    call fatal_error(error, 'the loops cannot be closed (constraint residual ' // fmt(maxval(abs(wk%loops%residual))) // &
       & ' after ' // itoa(max_iterations) // ' projections)', stat_solver)
   end subroutine project_positions
 
   !> Remove the rates' motion across the loops: qd <- qd - G^T (G G^T)^-1 G qd (G at q).
-  subroutine project_velocities(d, q, qd, error, held)
-    type(model_data), intent(inout) :: d
+  subroutine project_velocities(d, wk, q, qd, error, held)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
     real(dp), intent(in) :: q(:)
     real(dp), intent(inout) :: qd(:)
     type(error_type), allocatable, intent(out) :: error
     !> Coordinates whose rates the projection keeps (the assembly's held ones).
     logical, intent(in), optional :: held(:)
-    real(dp) :: gu(d%n_used, d%n), y(d%n_used), a(d%n_used, d%n_used)
-    call forward_kinematics(d, q, qd)
-    call loop_rows(d)
-    gu = d%gj(d%row_used(1:d%n_used), :)
+    real(dp) :: gu(wk%loops%n_used, d%n), y(wk%loops%n_used), a(wk%loops%n_used, wk%loops%n_used)
+    call forward_kinematics(d, wk, q, qd)
+    call loop_rows(d, wk)
+    gu = wk%loops%jac(wk%loops%row_used(1:wk%loops%n_used), :)
     y = matmul(gu, qd)
     gu = free_columns(d, gu)
     if (present(held)) gu = held_columns(gu, held)
@@ -416,38 +429,39 @@ contains
   end subroutine project_velocities
 
   !> The force f and torque cut joint c puts on its child at its child point pc (inertial;
-  !> from d%lambda, after forward_kinematics). A 'free' cut puts none.
-  pure subroutine cut_force(d, c, f, torque, pc)
+  !> from wk%loops%lambda, after forward_kinematics). A 'free' cut puts none.
+  pure subroutine cut_force(d, wk, c, f, torque, pc)
     type(model_data), intent(in) :: d
+    type(model_work), intent(in) :: wk
     integer, intent(in) :: c
     real(dp), intent(out) :: f(3), torque(3), pc(3)
     real(dp) :: uc(3), ci(3)
     integer :: r, i
-    r = d%cut_row0(c)
-    pc = d%cut_pos(:, child, c)
+    r = d%cuts%row0(c)
+    pc = wk%loops%pos(:, child, c)
     f = 0.0_dp; torque = 0.0_dp
     ! the point and frame rows are along the axes of the parent's frame at its point
-    associate(rp => d%cut_rot(:, :, parent, c))
-      select case (d%cut_kind(c))
+    associate(rp => wk%loops%rot(:, :, parent, c))
+      select case (d%cuts%kind(c))
       case (cut_free)
-        pc = d%pos(:, d%cut_child(c)) + matmul(d%rot(:, :, d%cut_child(c)), d%cut_child_at(:, c))
+        pc = wk%pos(:, d%cuts%child(c)) + matmul(wk%rot(:, :, d%cuts%child(c)), d%cuts%child_at(:, c))
       case (cut_spherical)
-        f = matmul(rp, d%lambda(r:r + 2))
+        f = matmul(rp, wk%loops%lambda(r:r + 2))
       case (cut_fixed)
-        f = matmul(rp, d%lambda(r:r + 2))
-        torque = matmul(rp, d%lambda(r + 3:r + 5))
+        f = matmul(rp, wk%loops%lambda(r:r + 2))
+        torque = matmul(rp, wk%loops%lambda(r + 3:r + 5))
       case (cut_prismatic)
         ! the sliding rows push along the normals, the frame rows turn
         do i = 1, 2
-          f = f + d%lambda(r + i - 1)*matmul(rp, d%cut_normal(:, i, c))
+          f = f + wk%loops%lambda(r + i - 1)*matmul(rp, d%cuts%normal(:, i, c))
         end do
-        torque = matmul(rp, d%lambda(r + 2:r + 4))
+        torque = matmul(rp, wk%loops%lambda(r + 2:r + 4))
       case (cut_revolute)
-        f = matmul(rp, d%lambda(r:r + 2))
-      uc = matmul(d%cut_rot(:, :, child, c), d%cut_axis(:, c))
+        f = matmul(rp, wk%loops%lambda(r:r + 2))
+      uc = matmul(wk%loops%rot(:, :, child, c), d%cuts%axis(:, c))
       do i = 1, 2
-        ci = matmul(d%cut_rot(:, :, parent, c), d%cut_normal(:, i, c))
-        torque = torque + d%lambda(r + 2 + i)*cross(uc, ci)
+        ci = matmul(wk%loops%rot(:, :, parent, c), d%cuts%normal(:, i, c))
+        torque = torque + wk%loops%lambda(r + 2 + i)*cross(uc, ci)
       end do
       end select
     end associate
@@ -455,28 +469,30 @@ contains
 
   !> Cut joint c's force and moment on its child in the child's frame, the moment about
   !> the child point (a &output 'reactions' column group).
-  pure function cut_wrench(d, c) result(w)
+  pure function cut_wrench(d, wk, c) result(w)
     type(model_data), intent(in) :: d
+    type(model_work), intent(in) :: wk
     integer, intent(in) :: c
     real(dp) :: w(6), f(3), torque(3), pc(3)
-    call cut_force(d, c, f, torque, pc)
-    w(1:3) = matmul(f, d%rot(:, :, d%cut_child(c)))
-    w(4:6) = matmul(torque, d%rot(:, :, d%cut_child(c)))
+    call cut_force(d, wk, c, f, torque, pc)
+    w(1:3) = matmul(f, wk%rot(:, :, d%cuts%child(c)))
+    w(4:6) = matmul(torque, wk%rot(:, :, d%cuts%child(c)))
   end function cut_wrench
 
   !> The cut joints' wrenches [f; n_O] (inertial, moment about the origin) on each body
   !> (6, nb): + on the child, - on the parent.
-  pure subroutine cut_body_wrenches(d, ext)
+  pure subroutine cut_body_wrenches(d, wk, ext)
     type(model_data), intent(in) :: d
+    type(model_work), intent(in) :: wk
     real(dp), intent(out) :: ext(:, :)
     real(dp) :: f(3), torque(3), pc(3), w(6)
     integer :: c
     ext = 0.0_dp
-    do c = 1, d%n_cut
-      call cut_force(d, c, f, torque, pc)
+    do c = 1, d%cuts%n
+      call cut_force(d, wk, c, f, torque, pc)
       w(1:3) = f; w(4:6) = cross(pc, f) + torque
-      ext(:, d%cut_child(c)) = ext(:, d%cut_child(c)) + w
-      ext(:, d%cut_parent(c)) = ext(:, d%cut_parent(c)) - w
+      ext(:, d%cuts%child(c)) = ext(:, d%cuts%child(c)) + w
+      ext(:, d%cuts%parent(c)) = ext(:, d%cuts%parent(c)) - w
     end do
   end subroutine cut_body_wrenches
 
@@ -486,8 +502,9 @@ contains
   !> G_f (the others constrain only the slow motion, given here). With exact acc_s this is
   !> the fast part of the constrained accelerations. lff: M_ff's Cholesky factor; after
   !> forward_kinematics at the step's state.
-  subroutine constrain_fast_accelerations(d, lff, acc_s, qdd_f, error)
-    type(model_data), intent(inout) :: d
+  subroutine constrain_fast_accelerations(d, wk, lff, acc_s, qdd_f, error)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
     real(dp), intent(in) :: lff(:, :), acc_s(:)
     real(dp), intent(inout) :: qdd_f(:)
     type(error_type), allocatable, intent(out) :: error
@@ -495,17 +512,17 @@ contains
     real(dp), allocatable :: gf(:, :), y(:, :), mu(:)
     integer :: ns, n_fast
     ns = d%nj
-    call loop_rows(d)
-    if (.not. d%rows_chosen) then
-      call choose_rows(d, error); if (allocated(error)) return
+    call loop_rows(d, wk)
+    if (.not. wk%loops%rows_chosen) then
+      call choose_rows(d, wk, error); if (allocated(error)) return
     end if
-    r = d%row_used(1:d%n_used)
-    allocate(fast_used(d%n_used))
-    call independent_rows(d%gj(r, ns+1:), fast_used, n_fast)
+    r = wk%loops%row_used(1:wk%loops%n_used)
+    allocate(fast_used(wk%loops%n_used))
+    call independent_rows(wk%loops%jac(r, ns+1:), fast_used, n_fast)
     if (n_fast == 0) return
     r = r(fast_used(1:n_fast))
-    gf = d%gj(r, ns+1:)
-    mu = d%gam(r) - matmul(d%gj(r, 1:ns), acc_s) - matmul(gf, qdd_f)
+    gf = wk%loops%jac(r, ns+1:)
+    mu = wk%loops%gamma(r) - matmul(wk%loops%jac(r, 1:ns), acc_s) - matmul(gf, qdd_f)
     allocate(y(size(qdd_f), n_fast))
     call add_row_forces(lff, 'M_ff', gf, y, mu, qdd_f, error)
   end subroutine constrain_fast_accelerations
@@ -513,12 +530,13 @@ contains
   !> The response g = M^-1 E of the last constrained evaluation (add_multipliers: its rows
   !> G and Y = M^-1 G^T) made the loops' response: a force f moves the accelerations by
   !> M^-1 f + Y lambda with (G Y) lambda = -G M^-1 f, so g <- g - Y (G Y)^-1 G g.
-  subroutine constrain_response(d, g, error)
-    type(model_data), intent(inout) :: d
+  subroutine constrain_response(d, wk, g, error)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
     real(dp), intent(inout) :: g(:, :)
     type(error_type), allocatable, intent(out) :: error
-    real(dp) :: a(d%n_used, d%n_used), b(d%n_used, size(g, 2))
-    associate(y => d%ymg(:, 1:d%n_used), gu => d%gj(d%row_used(1:d%n_used), :))
+    real(dp) :: a(wk%loops%n_used, wk%loops%n_used), b(wk%loops%n_used, size(g, 2))
+    associate(y => wk%loops%ymg(:, 1:wk%loops%n_used), gu => wk%loops%jac(wk%loops%row_used(1:wk%loops%n_used), :))
       a = matmul(free_columns(d, gu), y)
       b = matmul(gu, g)
       call potrf(a, 'the loop constraints (a singular position of a loop)', error); if (allocated(error)) return
@@ -530,17 +548,18 @@ contains
   !> The loops' used rows of G at positions q (the kinematics at rest), without the
   !> prescribed coordinates' columns (the pre-flight linearisation's constraints); the rows
   !> are chosen here if no evaluation has yet.
-  subroutine loop_jacobian(d, q, g, error)
-    type(model_data), intent(inout) :: d
+  subroutine loop_jacobian(d, wk, q, g, error)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
     real(dp), intent(in) :: q(:)
     real(dp), allocatable, intent(out) :: g(:, :)
     type(error_type), allocatable, intent(out) :: error
-    call forward_kinematics(d, q, 0.0_dp*q)
-    call loop_rows(d)
-    if (.not. d%rows_chosen) then
-      call choose_rows(d, error); if (allocated(error)) return
+    call forward_kinematics(d, wk, q, 0.0_dp*q)
+    call loop_rows(d, wk)
+    if (.not. wk%loops%rows_chosen) then
+      call choose_rows(d, wk, error); if (allocated(error)) return
     end if
-    g = free_columns(d, d%gj(d%row_used(1:d%n_used), :))
+    g = free_columns(d, wk%loops%jac(wk%loops%row_used(1:wk%loops%n_used), :))
   end subroutine loop_jacobian
 
   !> For independent rows g of constraints on coordinates whose inverse mass matrix is

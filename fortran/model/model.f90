@@ -6,7 +6,7 @@ module pymr_model
   use pymr_env_lapack, only : potrf, potrs, factor_inverse
   use pymr_integrator_ode, only : partitioned_system
   use pymr_env_clock, only : thread_cpu_time
-  use pymr_model_types, only : model_data, effect_gravity, effect_joint_drives, effect_modal_damping, &
+  use pymr_model_types, only : model_data, model_work, model_counters, effect_gravity, effect_joint_drives, effect_modal_damping, &
     & effect_joint_springs, effect_geometric_stiffening, effect_base_motion, effect_firing_load, &
     & effect_deformation_inertia, n_effects
   use pymr_model_kinematics, only : forward_kinematics
@@ -25,18 +25,12 @@ module pymr_model
   !> One evaluation in this many times its effects.
   integer, parameter :: timing_interval = 32
 
-  !> A model's evaluation counters (saved and restored around evaluations that are not the
-  !> run's: the pre-flight check's, the output's).
-  type :: model_counters
-    integer :: evals = 0, evals_fast_rows = 0
-    integer :: effect_evals(n_effects) = 0, effect_timed(n_effects) = 0
-    real(dp) :: effect_cpu(n_effects) = 0.0_dp
-  end type model_counters
 
   !> A built model: data and work arrays, and the ODE interface the integrators use.
   !> Slow coordinates are the joint coordinates (1..nj), fast ones the modal coordinates.
   type, extends(partitioned_system) :: model_t
     type(model_data) :: d
+    type(model_work) :: wk
     !> Multirate work: Cholesky factors of M_ff and M_e, M_fs, M_ff^-1 M_fs, M_ff^-1 Q_f and
     !> M_ff^-1 (held when M_ff is constant; the 'response' coupling's g uses it).
     real(dp), allocatable :: lff(:, :), le(:, :), mfs(:, :), xfs(:, :), yf(:), mffinv(:, :)
@@ -74,7 +68,7 @@ module pymr_model
 
 contains
 
-  !> Mass matrix and right-hand side at (t, q, qd), left in self%d%mm and self%d%p.
+  !> Mass matrix and right-hand side at (t, q, qd), left in self%wk%mm and self%wk%p.
   !> With fast_only, only the rows of the modal coordinates are assembled (the bodies
   !> on and below flexible bodies; joint drives and springs act on joint rows and are skipped).
   !> Prescribed coordinates (base_motion) take their functions' values before kinematics.
@@ -86,74 +80,78 @@ contains
     fo = .false.
     if (present(fast_only)) fo = fast_only
     if (self%d%n_prescribed > 0) then
-      call impose_prescribed_state(self%d, t, q, qd)
-      call terms_at(self%d, t, self%d%qx, self%d%qdx, fo)
+      call impose_prescribed_state(self%d, self%wk, t, q, qd)
+      call terms_at(self%d, self%wk, t, self%wk%qx, self%wk%qdx, fo)
     else
-      call terms_at(self%d, t, q, qd, fo)
+      call terms_at(self%d, self%wk, t, q, qd, fo)
     end if
   end subroutine model_terms
 
   !> model_terms at a state with the prescribed coordinates already imposed.
-  subroutine terms_at(d, t, q, qd, fo)
-    type(model_data), intent(inout) :: d
+  subroutine terms_at(d, wk, t, q, qd, fo)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
     real(dp), intent(in) :: t, q(:), qd(:)
     logical, intent(in) :: fo
     if (fo) then
-      call forward_kinematics(d, q, qd)
-      if (d%effect_on(effect_deformation_inertia)) call timed_deformation(d, q, d%in_fast)
-      call body_terms(d, q, qd, d%in_fast)
-      call apply_effects(d, t, q, qd, d%in_fast, .true.)
-      call composite_terms(d, d%in_fast)
-      if (d%effect_on(effect_geometric_stiffening)) call add_carried_load_stiffening(d, q, d%in_fast)
-      call assemble_mass(d, d%in_fast)
-      call assemble_rhs(d, d%in_fast)
-      d%evals_fast_rows = d%evals_fast_rows + 1
+      call forward_kinematics(d, wk, q, qd)
+      if (d%effect_on(effect_deformation_inertia)) call timed_deformation(d, wk, q, d%in_fast)
+      call body_terms(d, wk, q, qd, d%in_fast)
+      call apply_effects(d, wk, t, q, qd, d%in_fast, .true.)
+      call composite_terms(d, wk, d%in_fast)
+      if (d%effect_on(effect_geometric_stiffening)) call add_carried_load_stiffening(d, wk, q, d%in_fast)
+      call assemble_mass(d, wk, d%in_fast)
+      call assemble_rhs(d, wk, d%in_fast)
+      wk%count%evals_fast_rows = wk%count%evals_fast_rows + 1
     else
-      call composite_loads(d, t, q, qd)
-      call assemble_mass(d)
-      call assemble_rhs(d)
-      d%evals = d%evals + 1
+      call composite_loads(d, wk, t, q, qd)
+      call assemble_mass(d, wk)
+      call assemble_rhs(d, wk)
+      wk%count%evals = wk%count%evals + 1
     end if
-    if (d%n_prescribed > 0) call timed_prescribe_rows(d, t)
+    if (d%n_prescribed > 0) call timed_prescribe_rows(d, wk, t)
   end subroutine terms_at
 
   !> A full evaluation's kinematics, body terms and applied loads (the bias wrenches and
   !> modal forces with the effects, and the joint loads tau).
-  subroutine body_loads(d, t, q, qd)
-    type(model_data), intent(inout) :: d
+  subroutine body_loads(d, wk, t, q, qd)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
     real(dp), intent(in) :: t, q(:), qd(:)
-    call forward_kinematics(d, q, qd)
-    if (d%effect_on(effect_deformation_inertia)) call timed_deformation(d, q, d%every)
-    call body_terms(d, q, qd)
-    d%tau = 0.0_dp
-    call apply_effects(d, t, q, qd, d%every, .false.)
+    call forward_kinematics(d, wk, q, qd)
+    if (d%effect_on(effect_deformation_inertia)) call timed_deformation(d, wk, q, d%every)
+    call body_terms(d, wk, q, qd)
+    wk%tau = 0.0_dp
+    call apply_effects(d, wk, t, q, qd, d%every, .false.)
   end subroutine body_loads
 
   !> body_loads and the subtrees' composite terms (with the geometric stiffness of the loads
   !> beams carry), all that P needs before its assembly.
-  subroutine composite_loads(d, t, q, qd)
-    type(model_data), intent(inout) :: d
+  subroutine composite_loads(d, wk, t, q, qd)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
     real(dp), intent(in) :: t, q(:), qd(:)
-    call body_loads(d, t, q, qd)
-    call composite_terms(d)
-    if (d%effect_on(effect_geometric_stiffening)) call add_carried_load_stiffening(d, q, d%every)
+    call body_loads(d, wk, t, q, qd)
+    call composite_terms(d, wk)
+    if (d%effect_on(effect_geometric_stiffening)) call add_carried_load_stiffening(d, wk, q, d%every)
   end subroutine composite_loads
 
   !> Accelerations by the articulated-body algorithm at a state with the prescribed
   !> coordinates imposed (geometric stiffness from carried loads needs the composite wrenches).
-  subroutine articulated_at(d, t, q, qd, qdd, error)
-    type(model_data), intent(inout) :: d
+  subroutine articulated_at(d, wk, t, q, qd, qdd, error)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
     real(dp), intent(in) :: t, q(:), qd(:)
     real(dp), intent(out) :: qdd(:)
     type(error_type), allocatable, intent(out) :: error
     integer :: k
-    call body_loads(d, t, q, qd)
+    call body_loads(d, wk, t, q, qd)
     if (d%effect_on(effect_geometric_stiffening)) then
-      call composite_terms(d)
-      call add_carried_load_stiffening(d, q, d%every)
+      call composite_terms(d, wk)
+      call add_carried_load_stiffening(d, wk, q, d%every)
     end if
-    call articulated_accelerations(d, t, qdd, error)
-    d%evals = d%evals + 1
+    call articulated_accelerations(d, wk, t, qdd, error)
+    wk%count%evals = wk%count%evals + 1
     if (allocated(error)) return
     do k = 1, d%n
       if (.not. ieee_is_finite(qdd(k))) then
@@ -173,11 +171,11 @@ contains
     if (self%d%n_prescribed > 0) then
       call self%terms(t, q, qd)
     else
-      call composite_loads(self%d, t, q, qd)
-      call assemble_rhs(self%d)
-      self%d%evals = self%d%evals + 1
+      call composite_loads(self%d, self%wk, t, q, qd)
+      call assemble_rhs(self%d, self%wk)
+      self%wk%count%evals = self%wk%count%evals + 1
     end if
-    p = self%d%p
+    p = self%wk%p
   end subroutine model_forces
 
   !> Solve single-rate evaluations by the articulated-body algorithm (on) or through M (off).
@@ -186,87 +184,91 @@ contains
     logical, intent(in) :: on
     integer :: nb, mx
     self%d%articulated = on
-    if (.not. on .or. allocated(self%d%ab_ia)) return
+    if (.not. on .or. allocated(self%wk%ab%ia)) return
     nb = self%d%nb; mx = max(self%d%mmax, 1)
-    allocate(self%d%ab_ia(6, 6, nb), self%d%ab_pa(6, nb), self%d%ab_u(6, 6, nb), self%d%ab_r(6, nb), &
-      & self%d%ab_lin(6, nb), self%d%ab_kaa(mx, mx, nb), self%d%ab_kam(6, mx, nb), self%d%ab_ba(mx, nb))
+    allocate(self%wk%ab%ia(6, 6, nb), self%wk%ab%pa(6, nb), self%wk%ab%u(6, 6, nb), self%wk%ab%r(6, nb), &
+      & self%wk%ab%lin(6, nb), self%wk%ab%kaa(mx, mx, nb), self%wk%ab%kam(6, mx, nb), self%wk%ab%ba(mx, nb))
   end subroutine model_use_articulated
 
   !> The effect plan: each active effect's routine, in plan order, on the bodies in
   !> `mask`; joint loads only in full evaluations. Every 32nd evaluation times each effect
   !> (thread CPU time); the JSON reports the estimate for all evaluations.
-  subroutine apply_effects(d, t, q, qd, mask, fast_only)
-    type(model_data), intent(inout) :: d
+  subroutine apply_effects(d, wk, t, q, qd, mask, fast_only)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
     real(dp), intent(in) :: t, q(:), qd(:)
     logical, intent(in) :: mask(:), fast_only
     integer :: i, e
     logical :: timed
     real(dp) :: c0
-    timed = mod(d%evals + d%evals_fast_rows, timing_interval) == 0
+    timed = mod(wk%count%evals + wk%count%evals_fast_rows, timing_interval) == 0
     c0 = 0.0_dp
     do i = 1, d%n_plan
       e = d%plan(i)
       if (timed) c0 = thread_cpu_time()
       select case (e)
-      case (effect_gravity); call add_gravity(d, mask)
-      case (effect_joint_drives); if (.not. fast_only) call add_joint_drives(d, t)
-      case (effect_joint_springs); if (.not. fast_only) call add_joint_springs(d, q, qd)
-      case (effect_modal_damping); call add_modal_damping(d, qd, mask)
-      case (effect_geometric_stiffening); call add_geometric_stiffening(d, q, mask)
-      case (effect_firing_load); call add_firing_load(d, t, q, qd, mask)
+      case (effect_gravity); call add_gravity(d, wk, mask)
+      case (effect_joint_drives); if (.not. fast_only) call add_joint_drives(d, wk, t)
+      case (effect_joint_springs); if (.not. fast_only) call add_joint_springs(d, wk, q, qd)
+      case (effect_modal_damping); call add_modal_damping(d, wk, qd, mask)
+      case (effect_geometric_stiffening); call add_geometric_stiffening(d, wk, q, mask)
+      case (effect_firing_load); call add_firing_load(d, wk, t, q, qd, mask)
       case default; cycle
       end select
       if (timed) then
-        d%effect_cpu(e) = d%effect_cpu(e) + (thread_cpu_time() - c0)
-        d%effect_timed(e) = d%effect_timed(e) + 1
+        wk%count%effect_cpu(e) = wk%count%effect_cpu(e) + (thread_cpu_time() - c0)
+        wk%count%effect_timed(e) = wk%count%effect_timed(e) + 1
       end if
     end do
   end subroutine apply_effects
 
   !> prescribe_rows, timed like the other effects.
-  subroutine timed_prescribe_rows(d, t)
-    type(model_data), intent(inout) :: d
+  subroutine timed_prescribe_rows(d, wk, t)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
     real(dp), intent(in) :: t
     logical :: timed
     real(dp) :: c0
-    timed = mod(d%evals + d%evals_fast_rows, timing_interval) == 1
+    timed = mod(wk%count%evals + wk%count%evals_fast_rows, timing_interval) == 1
     c0 = 0.0_dp
     if (timed) c0 = thread_cpu_time()
-    call prescribe_rows(d, t)
+    call prescribe_rows(d, wk, t)
     if (timed) then
-      d%effect_cpu(effect_base_motion) = d%effect_cpu(effect_base_motion) + (thread_cpu_time() - c0)
-      d%effect_timed(effect_base_motion) = d%effect_timed(effect_base_motion) + 1
+      wk%count%effect_cpu(effect_base_motion) = wk%count%effect_cpu(effect_base_motion) + (thread_cpu_time() - c0)
+      wk%count%effect_timed(effect_base_motion) = wk%count%effect_timed(effect_base_motion) + 1
     end if
   end subroutine timed_prescribe_rows
 
   !> deformation_inertia 'full': the deformed modal moments of the flexible bodies in
   !> `mask` (before body_terms), timed like the other effects.
-  subroutine timed_deformation(d, q, mask)
-    type(model_data), intent(inout) :: d
+  subroutine timed_deformation(d, wk, q, mask)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
     real(dp), intent(in) :: q(:)
     logical, intent(in) :: mask(:)
     logical :: timed
     real(dp) :: c0
-    timed = mod(d%evals + d%evals_fast_rows, timing_interval) == 0
+    timed = mod(wk%count%evals + wk%count%evals_fast_rows, timing_interval) == 0
     c0 = 0.0_dp
     if (timed) c0 = thread_cpu_time()
-    call deform_moments(d, q, mask)
-    d%effect_evals(effect_deformation_inertia) = d%effect_evals(effect_deformation_inertia) + 1
+    call deform_moments(d, wk, q, mask)
+    wk%count%effect_evals(effect_deformation_inertia) = wk%count%effect_evals(effect_deformation_inertia) + 1
     if (timed) then
-      d%effect_cpu(effect_deformation_inertia) = d%effect_cpu(effect_deformation_inertia) + (thread_cpu_time() - c0)
-      d%effect_timed(effect_deformation_inertia) = d%effect_timed(effect_deformation_inertia) + 1
+      wk%count%effect_cpu(effect_deformation_inertia) = wk%count%effect_cpu(effect_deformation_inertia) + (thread_cpu_time() - c0)
+      wk%count%effect_timed(effect_deformation_inertia) = wk%count%effect_timed(effect_deformation_inertia) + 1
     end if
   end subroutine timed_deformation
 
   !> The deformed modal moments of the flexible bodies in `mask`.
-  pure subroutine deform_moments(d, q, mask)
-    type(model_data), intent(inout) :: d
+  pure subroutine deform_moments(d, wk, q, mask)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
     real(dp), intent(in) :: q(:)
     logical, intent(in) :: mask(:)
     integer :: b
     do b = 2, d%nb
       if (d%nm(b) == 0 .or. .not. mask(b)) cycle
-      call deformed_modal_moments(d%flex(b), d%fwork(b), q(d%a0(b):d%a0(b) + d%nm(b) - 1))
+      call deformed_modal_moments(d%flex(b), wk%fwork(b), q(d%a0(b):d%a0(b) + d%nm(b) - 1))
     end do
   end subroutine deform_moments
 
@@ -279,26 +281,26 @@ contains
     integer :: minor
     if (self%d%articulated) then
       if (self%d%n_prescribed > 0) then
-        call impose_prescribed_state(self%d, t, q, qd)
-        call articulated_at(self%d, t, self%d%qx, self%d%qdx, qdd, error)
+        call impose_prescribed_state(self%d, self%wk, t, q, qd)
+        call articulated_at(self%d, self%wk, t, self%wk%qx, self%wk%qdx, qdd, error)
       else
-        call articulated_at(self%d, t, q, qd, qdd, error)
+        call articulated_at(self%d, self%wk, t, q, qd, qdd, error)
       end if
       call add_time(error, t)
       return
     end if
     call self%terms(t, q, qd)
-    associate(d => self%d)
-      d%lf = d%mm
-      call potrf(d%lf, 'the mass matrix', error, minor)
+    associate(d => self%d, wk => self%wk)
+      wk%lf = wk%mm
+      call potrf(wk%lf, 'the mass matrix', error, minor)
       if (allocated(error)) then
         if (minor > 0) error%message = error%message // ' (coordinate ' // trim(d%qname(minor)) // ')'
         call prefix_error(error, 'at t = ' // time_text(t))
         return
       end if
-      qdd = d%p
-      call potrs(d%lf, qdd, 'the mass matrix', error)
-      if (d%n_rows > 0 .and. .not. allocated(error)) call constrained_accelerations(d, qdd, error)
+      qdd = wk%p
+      call potrs(wk%lf, qdd, 'the mass matrix', error)
+      if (d%cuts%n_rows > 0 .and. .not. allocated(error)) call constrained_accelerations(d, wk, qdd, error)
       call add_time(error, t)
     end associate
   end subroutine model_accelerations
@@ -312,15 +314,15 @@ contains
     type(error_type), allocatable, intent(out) :: error
     integer :: n
     real(dp) :: residual
-    if (self%d%n_rows == 0 .or. .not. self%d%rows_chosen) return
+    if (self%d%cuts%n_rows == 0 .or. .not. self%wk%loops%rows_chosen) return
     n = self%d%n
     if (self%d%n_prescribed > 0) then
-      call impose_prescribed_state(self%d, t, x(1:n), x(n+1:))
-      x(1:n) = self%d%qx; x(n+1:) = self%d%qdx
+      call impose_prescribed_state(self%d, self%wk, t, x(1:n), x(n+1:))
+      x(1:n) = self%wk%qx; x(n+1:) = self%wk%qdx
     end if
-    call project_positions(self%d, x(1:n), self%d%loop_size, error, residual); if (allocated(error)) return
-    self%d%closure_drift = max(self%d%closure_drift, residual)
-    call project_velocities(self%d, x(1:n), x(n+1:), error)
+    call project_positions(self%d, self%wk, x(1:n), self%wk%loops%size, error, residual); if (allocated(error)) return
+    self%wk%loops%closure_drift = max(self%wk%loops%closure_drift, residual)
+    call project_velocities(self%d, self%wk, x(1:n), x(n+1:), error)
   end subroutine model_project
 
   !> f(t, x) for x = [q; qd].
@@ -374,12 +376,12 @@ contains
     class(model_t), intent(inout) :: self
     real(dp), intent(in) :: q(:), qd(:)
     real(dp), intent(out) :: e(4)
-    call forward_kinematics(self%d, q, qd)
-    if (self%d%effect_on(effect_deformation_inertia)) call deform_moments(self%d, q, self%d%every)
-    call body_terms(self%d, q, qd)
+    call forward_kinematics(self%d, self%wk, q, qd)
+    if (self%d%effect_on(effect_deformation_inertia)) call deform_moments(self%d, self%wk, q, self%d%every)
+    call body_terms(self%d, self%wk, q, qd)
     e = 0.0_dp
-    e(1) = kinetic_energy(self%d, qd)
-    if (self%d%effect_on(effect_gravity)) e(2) = gravity_potential(self%d)
+    e(1) = kinetic_energy(self%d, self%wk, qd)
+    if (self%d%effect_on(effect_gravity)) e(2) = gravity_potential(self%d, self%wk)
     e(3) = elastic_potential(self%d, q)
     if (self%d%effect_on(effect_joint_springs)) e(4) = spring_potential(self%d, q)
   end subroutine model_energy_parts
@@ -438,7 +440,7 @@ contains
     integer :: ns, minor
     if (self%mff_fixed .and. self%mff_factored) return
     ns = self%d%nj
-    self%lff = self%d%mm(ns+1:, ns+1:)
+    self%lff = self%wk%mm(ns+1:, ns+1:)
     call potrf(self%lff, 'the fast (modal) mass matrix M_ff', error, minor)
     self%mff_factored = .not. allocated(error)
     if (allocated(error)) then
@@ -460,7 +462,7 @@ contains
     ns = self%d%nj; nf = self%d%n - ns
     call gather(self, xs, xf)
     call self%terms(t, self%qw, self%qdw)
-    associate(mm => self%d%mm, p => self%d%p)
+    associate(mm => self%wk%mm, p => self%wk%p)
       self%mfs = mm(ns+1:, 1:ns)
       if (self%mff_fixed .and. self%mff_factored) then
         ! constant M_ff: its inverse is held from the first synchronised evaluation
@@ -484,7 +486,7 @@ contains
       call potrs(self%le, fs(ns+1:), 'M_e', error); call add_time(error, t); if (allocated(error)) return
       ff(nf+1:) = self%yf - matmul(self%xfs, fs(ns+1:))
     end associate
-    if (self%d%n_rows > 0) then
+    if (self%d%cuts%n_rows > 0) then
       call constrain_sync(self, t, fs(ns+1:), ff(nf+1:), error); if (allocated(error)) return
     end if
     fs(1:ns) = xs(ns+1:)
@@ -502,10 +504,10 @@ contains
     real(dp) :: qdd(self%d%n)
     integer :: ns
     ns = self%d%nj
-    self%d%lf = self%d%mm
-    call potrf(self%d%lf, 'the mass matrix', error); call add_time(error, t); if (allocated(error)) return
+    self%wk%lf = self%wk%mm
+    call potrf(self%wk%lf, 'the mass matrix', error); call add_time(error, t); if (allocated(error)) return
     qdd(1:ns) = acc_s; qdd(ns+1:) = acc_f
-    call constrained_accelerations(self%d, qdd, error); call add_time(error, t); if (allocated(error)) return
+    call constrained_accelerations(self%d, self%wk, qdd, error); call add_time(error, t); if (allocated(error)) return
     acc_s = qdd(1:ns); acc_f = qdd(ns+1:)
   end subroutine constrain_sync
 
@@ -522,10 +524,10 @@ contains
     call gather(self, xs, xf)
     call self%terms(t, self%qw, self%qdw, fast_only=.true.)
     call factor_ff(self, t, error); if (allocated(error)) return
-    ff(nf+1:) = self%d%p(ns+1:) - matmul(self%d%mm(ns+1:, 1:ns), acc_s)
+    ff(nf+1:) = self%wk%p(ns+1:) - matmul(self%wk%mm(ns+1:, 1:ns), acc_s)
     call potrs(self%lff, ff(nf+1:), 'M_ff', error)
-    if (self%d%n_rows > 0 .and. .not. allocated(error)) &
-      & call constrain_fast_accelerations(self%d, self%lff, acc_s, ff(nf+1:), error)
+    if (self%d%cuts%n_rows > 0 .and. .not. allocated(error)) &
+      & call constrain_fast_accelerations(self%d, self%wk, self%lff, acc_s, ff(nf+1:), error)
     call add_time(error, t)
     ff(1:nf) = xf(nf+1:)
   end subroutine model_fast_rhs
@@ -545,8 +547,8 @@ contains
     call potrs(self%le, gs, 'M_e', error); if (allocated(error)) return
     g(1:ns, :) = -gs
     g(ns+1:, :) = self%mffinv + matmul(self%xfs, gs)
-    if (self%d%n_rows > 0) then
-      call constrain_response(self%d, g, error); if (allocated(error)) return
+    if (self%d%cuts%n_rows > 0) then
+      call constrain_response(self%d, self%wk, g, error); if (allocated(error)) return
     end if
     kf = self%kf; df = self%df
   end subroutine model_force_response
@@ -584,7 +586,7 @@ contains
     type(error_type), allocatable, intent(out) :: error
     integer :: k
     do k = 1, self%d%n
-      if (ieee_is_finite(self%d%p(k)) .and. all(ieee_is_finite(self%d%mm(:, k)))) cycle
+      if (ieee_is_finite(self%wk%p(k)) .and. all(ieee_is_finite(self%wk%mm(:, k)))) cycle
       call fatal_error(error, 'at t = ' // time_text(t) // ': non-finite mass matrix or force term of coordinate ' &
         & // trim(self%d%qname(k)) // ' (the state or a load is out of range)', stat_solver); return
     end do
@@ -602,16 +604,14 @@ contains
   pure function model_get_counters(self) result(c)
     class(model_t), intent(in) :: self
     type(model_counters) :: c
-    c = model_counters(self%d%evals, self%d%evals_fast_rows, self%d%effect_evals, self%d%effect_timed, &
-      & self%d%effect_cpu)
+    c = self%wk%count
   end function model_get_counters
 
   !> Put back counters saved by `counters`.
   pure subroutine model_set_counters(self, c)
     class(model_t), intent(inout) :: self
     type(model_counters), intent(in) :: c
-    self%d%evals = c%evals; self%d%evals_fast_rows = c%evals_fast_rows
-    self%d%effect_evals = c%effect_evals; self%d%effect_timed = c%effect_timed; self%d%effect_cpu = c%effect_cpu
+    self%wk%count = c
   end subroutine model_set_counters
 
   !> Write the model's per-run state to an open unformatted stream unit: its evaluation
@@ -623,8 +623,8 @@ contains
     write(unit, iostat=ios) allocated(self%lff)
     if (ios == 0 .and. allocated(self%lff)) write(unit, iostat=ios) self%lff, self%le, self%mfs, self%xfs, &
       & self%yf, self%mffinv, self%mff_factored
-    if (ios == 0) write(unit, iostat=ios) self%d%evals, self%d%evals_fast_rows, self%d%effect_evals, &
-      & self%d%effect_timed, self%d%effect_cpu, self%d%closure_drift
+    if (ios == 0) write(unit, iostat=ios) self%wk%count%evals, self%wk%count%evals_fast_rows, self%wk%count%effect_evals, &
+      & self%wk%count%effect_timed, self%wk%count%effect_cpu, self%wk%loops%closure_drift
   end subroutine model_save_run
 
   !> Read what model_save_run wrote into a model built from the same scene (partitioned
@@ -641,7 +641,7 @@ contains
     end if
     if (partitioned) read(unit, iostat=ios) self%lff, self%le, self%mfs, self%xfs, self%yf, &
       & self%mffinv, self%mff_factored
-    if (ios == 0) read(unit, iostat=ios) self%d%evals, self%d%evals_fast_rows, self%d%effect_evals, &
-      & self%d%effect_timed, self%d%effect_cpu, self%d%closure_drift
+    if (ios == 0) read(unit, iostat=ios) self%wk%count%evals, self%wk%count%evals_fast_rows, self%wk%count%effect_evals, &
+      & self%wk%count%effect_timed, self%wk%count%effect_cpu, self%wk%loops%closure_drift
   end subroutine model_load_run
 end module pymr_model

@@ -12,7 +12,7 @@
 !> holds a prescribed one to its motion.
 module pymr_model_reactions
   use pymr_env_kinds, only : dp
-  use pymr_model_types, only : model_data
+  use pymr_model_types, only : model_data, model_work
   use pymr_model_spatial, only : cross
   implicit none
   private
@@ -22,9 +22,10 @@ contains
 
   !> The parts of the bodies' spatial accelerations linear in qdd (6, nb; inertial Pluecker),
   !> from the base to the leaves: the parent's, its modal columns at the joint point and
-  !> the joint's own columns. The whole acceleration adds d%acc (the bias part).
-  pure subroutine body_accelerations(d, qdd, lin)
+  !> the joint's own columns. The whole acceleration adds wk%acc (the bias part).
+  pure subroutine body_accelerations(d, wk, qdd, lin)
     type(model_data), intent(in) :: d
+    type(model_work), intent(in) :: wk
     real(dp), intent(in) :: qdd(:)
     real(dp), intent(out) :: lin(:, :)
     integer :: b, a, k, l
@@ -33,10 +34,10 @@ contains
       a = d%parent(b)
       lin(:, b) = lin(:, a)
       do l = 1, d%nm(a)
-        lin(:, b) = lin(:, b) + d%cm(:, l, b)*qdd(d%a0(a) + l - 1)
+        lin(:, b) = lin(:, b) + wk%cm(:, l, b)*qdd(d%a0(a) + l - 1)
       end do
       do k = d%c0(b), d%c0(b) + d%nc(b) - 1
-        lin(:, b) = lin(:, b) + d%s(:, k)*qdd(k)
+        lin(:, b) = lin(:, b) + wk%s(:, k)*qdd(k)
       end do
     end do
   end subroutine body_accelerations
@@ -45,17 +46,18 @@ contains
   !> (inertial; moment about the inertial origin), after a full evaluation's body terms.
   !> lin: body_accelerations of qdd; ext: further loads on each body (the loop-closing
   !> joints' wrenches, 6 x nb), when there are such.
-  pure subroutine joint_wrenches(d, qdd, lin, jw, ext)
+  pure subroutine joint_wrenches(d, wk, qdd, lin, jw, ext)
     type(model_data), intent(in) :: d
+    type(model_work), intent(in) :: wk
     real(dp), intent(in) :: qdd(:), lin(:, :)
     real(dp), intent(out) :: jw(:, :)
     real(dp), intent(in), optional :: ext(:, :)
     integer :: b, m
     jw(:, 1) = 0.0_dp
     do b = 2, d%nb
-      jw(:, b) = matmul(d%i6(:, :, b), lin(:, b)) + d%w(:, b)
+      jw(:, b) = matmul(wk%i6(:, :, b), lin(:, b)) + wk%w(:, b)
       m = d%nm(b)
-      if (m > 0) jw(:, b) = jw(:, b) + matmul(d%mva(:, 1:m, b), qdd(d%a0(b):d%a0(b) + m - 1))
+      if (m > 0) jw(:, b) = jw(:, b) + matmul(wk%mva(:, 1:m, b), qdd(d%a0(b):d%a0(b) + m - 1))
       if (present(ext)) jw(:, b) = jw(:, b) - ext(:, b)
     end do
     do b = d%nb, 2, -1
@@ -65,12 +67,13 @@ contains
 
   !> Body b's joint wrench in b's own axes, the moment about b's frame origin (the joint
   !> point): [R^T f; R^T (n_O - p x f)].
-  pure function child_frame_wrench(d, b, jw) result(r)
+  pure function child_frame_wrench(d, wk, b, jw) result(r)
     type(model_data), intent(in) :: d
+    type(model_work), intent(in) :: wk
     integer, intent(in) :: b
     real(dp), intent(in) :: jw(6)
     real(dp) :: r(6)
-    r(1:3) = matmul(transpose(d%rot(:, :, b)), jw(1:3))
-    r(4:6) = matmul(transpose(d%rot(:, :, b)), jw(4:6) - cross(d%pos(:, b), jw(1:3)))
+    r(1:3) = matmul(transpose(wk%rot(:, :, b)), jw(1:3))
+    r(4:6) = matmul(transpose(wk%rot(:, :, b)), jw(4:6) - cross(wk%pos(:, b), jw(1:3)))
   end function child_frame_wrench
 end module pymr_model_reactions

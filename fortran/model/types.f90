@@ -1,5 +1,6 @@
-!> The model's data: the body tree in parent-before-child order, its coordinates, the
-!> effect plan and the work arrays of one evaluation (allocated once at build).
+!> The model's types: its definition (the body tree in parent-before-child order, its
+!> coordinates, markers and cut joints; constant after build) apart from the work of its
+!> evaluations (model_work, allocated once at build).
 module pymr_model_types
   use pymr_env_kinds, only : dp, name_len
   use pymr_model_flexbody, only : flex_data, flex_work, modal_nodes
@@ -7,7 +8,8 @@ module pymr_model_types
   use pymr_model_time_table, only : time_table
   implicit none
   private
-  public :: model_data, prim_revolute, prim_prismatic
+  public :: model_data, model_work, model_counters, marker_set, cut_set, articulated_work, loop_work
+  public :: prim_revolute, prim_prismatic
   public :: effect_gravity, effect_joint_drives, effect_modal_damping, effect_joint_springs
   public :: effect_geometric_stiffening, effect_base_motion, effect_firing_load, effect_deformation_inertia
   public :: n_effects, effect_names
@@ -30,7 +32,34 @@ module pymr_model_types
   !> Forms of a prescribed coordinate's time function.
   integer, parameter :: motion_sine = 1, motion_spinup = 2, motion_table = 3
 
-  !> Everything one model evaluation needs.
+  !> Markers: body and point (body frame), and on flexible bodies the mode shapes there:
+  !> translation and small rotation (3, mmax, n).
+  type :: marker_set
+    integer :: n = 0
+    character(len=name_len), allocatable :: name(:)
+    integer, allocatable :: body(:)
+    real(dp), allocatable :: at(:, :), psi(:, :, :), phi(:, :, :)
+  end type marker_set
+
+  !> Loop-closing (cut) joints (model/loops.f90): name, parent and child body, kind
+  !> (cut_fixed, cut_revolute, cut_spherical, cut_prismatic, cut_free), joint point in the
+  !> parent's and in the child's frame, and a revolute joint's axis and two unit normals of
+  !> it (parent frame); their first constraint row and number of rows (3 for the point, + 3
+  !> fixed, + 2 revolute; prismatic 2 + 3; free none). Mode shapes at the points on flexible
+  !> bodies (side 1 the parent's point, 2 the child's): translation and small rotation
+  !> (3, mmax, 2, n). The loops' size (m): the farthest body origin or cut joint point from
+  !> the origin.
+  type :: cut_set
+    integer :: n = 0, n_rows = 0
+    character(len=name_len), allocatable :: name(:)
+    integer, allocatable :: parent(:), child(:), kind(:), row0(:), nrow(:)
+    real(dp), allocatable :: at(:, :), child_at(:, :), axis(:, :), normal(:, :, :)
+    real(dp), allocatable :: psi(:, :, :, :), phi(:, :, :, :)
+  end type cut_set
+
+  !> A model's definition: the body tree, its coordinates and markers and cut joints, fixed
+  !> at build. The evaluations' work is apart (model_work); the effects are records in the
+  !> model's list (model/effect.f90).
   type :: model_data
     !> Bodies (1 = ground), coordinates (joint coordinates 1..nj first, then modal ones),
     !> the largest number of modes of one body.
@@ -49,115 +78,105 @@ module pymr_model_types
     integer, allocatable :: child_ptr(:), child_idx(:)
     !> Output group of each coordinate (the joint's body, or nb + body for modal ones).
     integer, allocatable :: cgrp(:)
-    !> Invariants, evaluation work and (beams) mode shapes of each flexible body.
+    !> Invariants and (beams) mode shapes of each flexible body.
     type(flex_data), allocatable :: flex(:)
-    type(flex_work), allocatable :: fwork(:)
     type(beam_shape), allocatable :: bshape(:)
     type(modal_nodes), allocatable :: mnodes(:)
     !> Mode shapes of the parent at each body's joint point: translation, rotation (3, mmax, nb).
     real(dp), allocatable :: att_psi(:, :, :), att_phi(:, :, :)
-    !> Spatial columns of the parent's modal rates at each body's joint point (6, mmax, nb).
-    real(dp), allocatable :: cm(:, :, :)
-    !> Flexible bodies' coupling columns (6, mmax, nb) and modal bias forces (mmax, nb).
-    real(dp), allocatable :: mva(:, :, :), wam(:, :)
     !> Per coordinate: primitive kind, axis in the frame before the primitive, owning body.
     integer, allocatable :: prim(:), cbody(:)
     real(dp), allocatable :: axis(:, :)
     !> Coordinate names for output (joint.q, joint.q1, ...).
     character(len=name_len+4), allocatable :: qname(:), qdname(:)
-    !> Markers: body and point (body frame).
-    integer :: n_markers = 0
-    character(len=name_len), allocatable :: marker_name(:)
-    integer, allocatable :: marker_body(:)
-    real(dp), allocatable :: marker_at(:, :)
-    !> Mode shapes at markers on flexible bodies: translation and small rotation (3, mmax, n_markers).
-    real(dp), allocatable :: marker_psi(:, :, :), marker_phi(:, :, :)
-    !> Effect plan: which effects are on, the active ones in evaluation order, their
-    !> evaluation counters, and their CPU time measured on every 32nd evaluation
-    !> (effect_cpu over effect_timed evaluations).
+    type(marker_set) :: markers
+    type(cut_set) :: cuts
+    !> Every body (the mask of a full evaluation); bodies on or below a flexible body
+    !> (whose terms the fast rows need).
+    logical, allocatable :: every(:), in_fast(:)
+    !> Per coordinate: prescribed by a &motion (base_motion on); how many are.
+    logical, allocatable :: prescribed(:)
+    integer :: n_prescribed = 0
+    !> The flexible bodies' modal moments follow their deformation (deformation_inertia 'full').
+    logical :: deformed_moments = .false.
+    !> TRANSITIONAL (effects as records replace these).
     logical :: effect_on(n_effects) = .false.
     integer :: n_plan = 0, plan(n_effects) = 0
-    integer :: effect_evals(n_effects) = 0, effect_timed(n_effects) = 0
-    real(dp) :: effect_cpu(n_effects) = 0.0_dp
-    !> Every body (the mask of a full evaluation).
-    logical, allocatable :: every(:)
-    !> Joint springs: coordinate, stiffness, damping, free position.
     integer :: n_springs = 0
     integer, allocatable :: spring_coord(:)
     real(dp), allocatable :: spring_par(:, :)
-    !> Point loads: marker, direction (body frame, unit), peak (N), start and duration (s).
     integer :: n_loads = 0
     integer, allocatable :: load_marker(:)
     real(dp), allocatable :: load_dir(:, :), load_par(:, :)
-    !> Prescribed coordinates: coordinate, form and parameters (offset, amplitude,
-    !> frequency, phase, rate, ramp time); work copies of q and qd with them imposed.
-    integer :: n_prescribed = 0
     integer, allocatable :: pres_coord(:), pres_form(:)
-    real(dp), allocatable :: pres_par(:, :), qx(:), qdx(:)
-    !> Tabulated histories, and the table of each drive and prescribed coordinate (0: none).
+    real(dp), allocatable :: pres_par(:, :)
     type(time_table), allocatable :: tables(:)
     integer, allocatable :: drive_table(:), pres_table(:)
-    !> Bodies jointed to a beam with geometric stiffness, and the beam's geometric stiffness
-    !> per newton of the axial load such a body puts on it (mmax, mmax, nb).
     logical, allocatable :: child_kg(:)
     real(dp), allocatable :: kgc(:, :, :)
-    !> Gravity (m/s^2, inertial).
     real(dp) :: gravity(3) = 0.0_dp
-    !> Drives: coordinate and offset, amplitude, frequency (Hz), phase (rad).
     integer :: n_drives = 0
     integer, allocatable :: drive_coord(:)
     real(dp), allocatable :: drive_par(:, :)
-    !> Kinematic state of one evaluation (inertial frame).
+    logical :: articulated = .false.
+  end type model_data
+
+  !> Evaluation counters: full assemblies, fast-row assemblies, and per effect of the
+  !> model's list its evaluations and its CPU time measured on every 32nd evaluation
+  !> (effect_cpu over effect_timed evaluations).
+  type :: model_counters
+    integer :: evals = 0, evals_fast_rows = 0
+    integer, allocatable :: effect_evals(:), effect_timed(:)
+    real(dp), allocatable :: effect_cpu(:)
+  end type model_counters
+
+  !> The articulated-body algorithm's work (model/articulated.f90): per body the
+  !> articulated inertia and bias after its joint, per joint column u/D and r/D (u = IA s,
+  !> D = s . u, r = tau - s . pA), the part of the acceleration linear in qdd, and a flexible
+  !> body's factored K_aa, K_Aa and b_a.
+  type :: articulated_work
+    real(dp), allocatable :: ia(:, :, :), pa(:, :), u(:, :, :), r(:, :), lin(:, :)
+    real(dp), allocatable :: kaa(:, :, :), kam(:, :, :), ba(:, :)
+  end type articulated_work
+
+  !> The loops' work (model/loops.f90). The frames at the cut joints' points (after
+  !> forward_kinematics; side 1 the parent's, 2 the child's): orientation, origin, spatial
+  !> velocity and bias acceleration (inertial Pluecker), and the spatial columns of a
+  !> flexible body's own modal rates there (6, mmax, 2, n_cut). The independent rows (chosen
+  !> once, at assembly) and how many were redundant. Constraint residual Phi, Jacobian G
+  !> (n_rows, n), gamma = -Gdot qd, the multipliers of the last evaluation (0 on redundant
+  !> rows), and M^-1 G^T of the used rows. The assembly's largest change of a coordinate and
+  !> of a rate, and the largest residual a projection after a step removed (m; rad). The
+  !> loops' size (m), set at assembly: the farthest body origin or cut joint point from the
+  !> origin.
+  type :: loop_work
+    real(dp), allocatable :: rot(:, :, :, :), pos(:, :, :), vel(:, :, :), acc(:, :, :), cm(:, :, :, :)
+    integer :: n_used = 0, n_redundant = 0
+    logical :: rows_chosen = .false.
+    integer, allocatable :: row_used(:)
+    real(dp), allocatable :: residual(:), jac(:, :), gamma(:), lambda(:), ymg(:, :)
+    real(dp) :: assembly_dq = 0.0_dp, assembly_dqd = 0.0_dp, closure_drift = 0.0_dp, size = 1.0_dp
+  end type loop_work
+
+  !> The work of one evaluation (allocated once at build).
+  type :: model_work
+    !> Kinematic state (inertial frame): orientation, origin, spatial velocity and bias
+    !> acceleration, joint columns.
     real(dp), allocatable :: rot(:, :, :), pos(:, :), vel(:, :), acc(:, :), s(:, :)
     !> Spatial inertia, bias wrench, composite inertia and composite wrench per body.
     real(dp), allocatable :: i6(:, :, :), w(:, :), ic(:, :, :), wc(:, :)
     !> Mass matrix, its Cholesky factor, right-hand side, generalised applied forces.
     real(dp), allocatable :: mm(:, :), lf(:, :), p(:), tau(:)
-    !> Per coordinate: prescribed by a &motion (base_motion on).
-    logical, allocatable :: prescribed(:)
-    !> Forward dynamics by the articulated-body algorithm (model/articulated.f90) instead of
-    !> assembling and factoring M, and its work: per body the articulated inertia and bias
-    !> after its joint, per joint column u/D and r/D (u = IA s, D = s . u, r = tau - s . pA),
-    !> the part of the acceleration linear in qdd, and a flexible body's factored K_aa, K_Aa
-    !> and b_a.
-    logical :: articulated = .false.
-    real(dp), allocatable :: ab_ia(:, :, :), ab_pa(:, :), ab_u(:, :, :), ab_r(:, :), ab_lin(:, :)
-    real(dp), allocatable :: ab_kaa(:, :, :), ab_kam(:, :, :), ab_ba(:, :)
-    !> Bodies on or below a flexible body (whose terms the fast rows need).
-    logical, allocatable :: in_fast(:)
-    !> Loop-closing (cut) joints (model/loops.f90): name, parent and child body, kind
-    !> (cut_fixed, cut_revolute, cut_spherical, cut_prismatic, cut_free), joint point in the
-    !> parent's and in the child's frame, and a revolute joint's axis and two unit normals of
-    !> it (parent frame); their first constraint row and number of rows (3 for the point, + 3
-    !> fixed, + 2 revolute; prismatic 2 + 3; free none).
-    integer :: n_cut = 0, n_rows = 0
-    character(len=name_len), allocatable :: cut_name(:)
-    integer, allocatable :: cut_parent(:), cut_child(:), cut_kind(:), cut_row0(:), cut_nrow(:)
-    real(dp), allocatable :: cut_at(:, :), cut_child_at(:, :), cut_axis(:, :), cut_normal(:, :, :)
-    !> Mode shapes at a cut joint's points on flexible bodies (side 1 the parent's point, 2 the
-    !> child's): translation and small rotation (3, mmax, 2, n_cut).
-    real(dp), allocatable :: cut_psi(:, :, :, :), cut_phi(:, :, :, :)
-    !> The frames at the cut joints' points (after forward_kinematics; side 1 the parent's, 2
-    !> the child's): orientation, origin, spatial velocity and bias acceleration (inertial
-    !> Pluecker), and the spatial columns of a flexible body's own modal rates there (6, mmax,
-    !> 2, n_cut). On a rigid body the frame is the body's, moved to the point; on a flexible
-    !> one it moves and turns with the deflection there, as a child's joint frame does.
-    real(dp), allocatable :: cut_rot(:, :, :, :), cut_pos(:, :, :), cut_vel(:, :, :), cut_acc(:, :, :)
-    real(dp), allocatable :: cut_cm(:, :, :, :)
-    !> The independent rows (chosen once, at assembly) and how many were redundant.
-    integer :: n_used = 0, n_redundant = 0
-    logical :: rows_chosen = .false.
-    integer, allocatable :: row_used(:)
-    !> Constraint residual Phi, Jacobian G (n_rows, n), gamma = -Gdot qd, the multipliers
-    !> of the last evaluation (0 on redundant rows), and M^-1 G^T of the used rows.
-    real(dp), allocatable :: phi(:), gj(:, :), gam(:), lambda(:), ymg(:, :)
-    !> Assembly of the initial state: the largest change of a coordinate and of a rate.
-    real(dp) :: assembly_dq = 0.0_dp, assembly_dqd = 0.0_dp
-    !> The largest constraint residual a projection after a step removed (m; rad for rotation rows).
-    real(dp) :: closure_drift = 0.0_dp
-    !> The loops' size (m): the farthest body origin or cut joint point from the origin.
-    real(dp) :: loop_size = 1.0_dp
-    !> Evaluation counters: full assemblies, fast-row assemblies.
-    integer :: evals = 0, evals_fast_rows = 0
-  end type model_data
+    !> Copies of q and qd with the prescribed coordinates imposed.
+    real(dp), allocatable :: qx(:), qdx(:)
+    !> Flexible bodies' evaluation work.
+    type(flex_work), allocatable :: fwork(:)
+    !> Spatial columns of the parent's modal rates at each body's joint point (6, mmax, nb).
+    real(dp), allocatable :: cm(:, :, :)
+    !> Flexible bodies' coupling columns (6, mmax, nb) and modal bias forces (mmax, nb).
+    real(dp), allocatable :: mva(:, :, :), wam(:, :)
+    type(articulated_work) :: ab
+    type(loop_work) :: loops
+    type(model_counters) :: count
+  end type model_work
 end module pymr_model_types
