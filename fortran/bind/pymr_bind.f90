@@ -399,7 +399,6 @@ subroutine pymr_model_marker(handle, marker, n, m, t, q, qd, pos, stat, message)
   use pymr_bind_support, only : report
   use pymr_bind_models, only : open_models, check_handle
   use pymr_model_kinematics, only : forward_kinematics, marker_motion
-  use pymr_model_effects, only : impose_prescribed_state
   implicit none
   integer, intent(in) :: handle, marker, n, m
   double precision, intent(in) :: t(m), q(n, m), qd(n, m)
@@ -422,9 +421,9 @@ subroutine pymr_model_marker(handle, marker, n, m, t, q, qd, pos, stat, message)
   end if
   call report(error, stat, message)
   if (stat /= 0) return
-  associate(d => open_models(handle)%d, wk => open_models(handle)%wk)
+  associate(model => open_models(handle), d => open_models(handle)%d, wk => open_models(handle)%wk)
     do k = 1, m
-      call impose_prescribed_state(d, wk, t(k), q(:, k), qd(:, k))
+      call model%impose(t(k), q(:, k), qd(:, k))
       call forward_kinematics(d, wk, wk%qx, wk%qdx)
       call marker_motion(d, wk, marker, wk%qx, wk%qdx, pos(:, k), v)
     end do
@@ -544,7 +543,6 @@ subroutine pymr_model_frames(handle, n, m, nb, t, q, qd, pos, parent, stat, mess
   use pymr_bind_support, only : report
   use pymr_bind_models, only : open_models, check_handle
   use pymr_model_kinematics, only : forward_kinematics
-  use pymr_model_effects, only : impose_prescribed_state
   implicit none
   integer, intent(in) :: handle, n, m, nb
   double precision, intent(in) :: t(m), q(n, m), qd(n, m)
@@ -566,10 +564,10 @@ subroutine pymr_model_frames(handle, n, m, nb, t, q, qd, pos, parent, stat, mess
   end if
   call report(error, stat, message)
   if (stat /= 0) return
-  associate(d => open_models(handle)%d, wk => open_models(handle)%wk)
+  associate(model => open_models(handle), d => open_models(handle)%d, wk => open_models(handle)%wk)
     parent = d%parent(1:nb)
     do k = 1, m
-      call impose_prescribed_state(d, wk, t(k), q(:, k), qd(:, k))
+      call model%impose(t(k), q(:, k), qd(:, k))
       call forward_kinematics(d, wk, wk%qx, wk%qdx)
       pos(:, :, k) = wk%pos(:, 1:nb)
     end do

@@ -1,17 +1,16 @@
 !> Build the model from a checked scene (model/scene_rules.f90): bodies in parent-before-child
-!> order, joints expanded into one-coordinate primitives, the effect plan, work arrays.
+!> order, joints expanded into one-coordinate primitives, markers, cut joints, work arrays;
+!> then the effects' list (driver/build_effects.f90).
 module pymr_driver_build
   use pymr_env_kinds, only : dp, name_len, pi
   use pymr_env_error, only : error_type, fatal_error
   use pymr_model_scene, only : scene_t, body_spec, joint_spec, joint_ndof, unset, beam_mode_count
   use pymr_model_scene_rules, only : check_scene, body_index, inertia_matrix, closes_loop
-  use pymr_model_types, only : model_data, model_work, prim_revolute, prim_prismatic, effect_gravity, effect_joint_drives, &
-    & effect_modal_damping, effect_joint_springs, effect_geometric_stiffening, effect_base_motion, n_effects, &
-    & effect_firing_load, effect_deformation_inertia, &
-    & motion_sine, motion_spinup, motion_table, cut_fixed, cut_revolute, cut_spherical, cut_prismatic, cut_free
-  use pymr_model_time_table, only : spline_setup
-  use pymr_io_table_file, only : read_time_table
-  use pymr_model_beam_modes, only : build_beam, beam_section, beam_point_shapes, beam_point_load_stiffness
+  use pymr_model_types, only : model_data, model_work, prim_revolute, prim_prismatic, &
+    & cut_fixed, cut_revolute, cut_spherical, cut_prismatic, cut_free
+  use pymr_model_beam_modes, only : build_beam, beam_section, beam_point_shapes
+  use pymr_model_effect, only : start_effect_counters
+  use pymr_driver_build_effects, only : build_effects
   use pymr_io_modal_file, only : read_modal_file
   use pymr_model_flexbody, only : flex_data, modal_nodes, undeformed_modal_moments
   use pymr_model_spatial, only : unit_axes
@@ -32,7 +31,9 @@ contains
     integer, allocatable :: order(:), inboard(:)
     call check_scene(sc, error); if (allocated(error)) return
     call tree_order(sc, order, inboard, error); if (allocated(error)) return
-    call fill_model(sc, order, inboard, model%d, model%wk, error)
+    call fill_model(sc, order, inboard, model%d, model%wk, error); if (allocated(error)) return
+    call build_effects(sc, order, model%d, model%effects, error); if (allocated(error)) return
+    call start_effect_counters(model%effects, model%wk)
   end subroutine build_model
 
 
@@ -207,7 +208,7 @@ contains
           & d%att_psi(:, :, b), d%att_phi(:, :, b), error); if (allocated(error)) return
       end if
     end do
-    call fill_loads_markers(sc, pos_in, d, wk, error); if (allocated(error)) return
+    call fill_markers_moments(sc, pos_in, d, wk, error); if (allocated(error)) return
     call fill_cuts(sc, pos_in, d, wk, error); if (allocated(error)) return
     allocate(wk%rot(3, 3, nb), wk%pos(3, nb), wk%vel(6, nb), wk%acc(6, nb), wk%s(6, d%n), wk%i6(6, 6, nb), &
       & wk%w(6, nb), wk%ic(6, 6, nb), wk%wc(6, nb), wk%mm(d%n, d%n), wk%lf(d%n, d%n), wk%p(d%n), wk%tau(d%n))
@@ -408,160 +409,25 @@ contains
     call beam_point_shapes(d%bshape(b), r, psi(:, 1:d%nm(b)), phi(:, 1:d%nm(b)))
   end subroutine flexible_point
 
-  !> What acts on the model, from the scene: effects, springs, drives, prescribed motion and
-  !> its tables, geometric stiffness, markers and loads.
-  subroutine fill_loads_markers(sc, pos_in, d, wk, error)
+  !> The markers, the prescribed coordinates' mask (set by the base motion's effect), the
+  !> modal moments (the undeformed ones when they do not follow the deformation) and the
+  !> geometric stiffness (dropped when its effect is off).
+  subroutine fill_markers_moments(sc, pos_in, d, wk, error)
     type(scene_t), intent(in) :: sc
     integer, intent(in) :: pos_in(:)
     type(model_data), intent(inout) :: d
     type(model_work), intent(inout) :: wk
     type(error_type), allocatable, intent(out) :: error
-    call fill_effect_plan(sc, d, wk)
-    call fill_springs(sc, pos_in, d)
-    call fill_drives(sc, pos_in, d)
-    call fill_motions(sc, pos_in, d, wk)
-    call fill_tables(sc, d, error); if (allocated(error)) return
-    call fill_stiffening(d)
-    call fill_markers(sc, pos_in, d, error); if (allocated(error)) return
-    call fill_loads(sc, d)
-  end subroutine fill_loads_markers
-
-  !> The effects on, and the plan: the active effects in evaluation order (loads first; base
-  !> motion last). Without the deformation inertia, the modal moments are the undeformed ones.
-  subroutine fill_effect_plan(sc, d, wk)
-    type(scene_t), intent(in) :: sc
-    type(model_data), intent(inout) :: d
-    type(model_work), intent(inout) :: wk
-    integer :: i, b
-    d%effect_on(effect_gravity) = sc%effects%gravity
-    d%effect_on(effect_joint_drives) = sc%effects%joint_drives .and. size(sc%drives) > 0
-    d%effect_on(effect_modal_damping) = sc%effects%modal_damping .and. any(d%nm > 0)
-    d%effect_on(effect_joint_springs) = sc%effects%joint_springs .and. size(sc%springs) > 0
-    d%effect_on(effect_geometric_stiffening) = sc%effects%geometric_stiffening
-    d%effect_on(effect_base_motion) = sc%effects%base_motion .and. size(sc%motions) > 0
-    d%effect_on(effect_firing_load) = sc%effects%firing_load .and. size(sc%loads) > 0
-    d%effect_on(effect_deformation_inertia) = sc%effects%deformation_inertia == 'full' .and. any(d%nm > 0)
-    if (.not. d%effect_on(effect_deformation_inertia)) then
-      do b = 2, d%nb
-        if (d%nm(b) > 0) call undeformed_modal_moments(d%flex(b), wk%fwork(b))
-      end do
-    end if
-    d%n_plan = 0
-    do i = 1, n_effects
-      if (.not. d%effect_on(i)) cycle
-      d%n_plan = d%n_plan + 1
-      d%plan(d%n_plan) = i
-    end do
-    allocate(d%every(d%nb), wk%count%effect_evals(n_effects), wk%count%effect_timed(n_effects), wk%count%effect_cpu(n_effects))
-    wk%count%effect_evals = 0; wk%count%effect_timed = 0; wk%count%effect_cpu = 0.0_dp
-    d%every = .true.
-    d%gravity = sc%scene%gravity
-  end subroutine fill_effect_plan
-
-  !> The joint springs (none when the effect is off): coordinate, stiffness, damping, free position.
-  subroutine fill_springs(sc, pos_in, d)
-    type(scene_t), intent(in) :: sc
-    integer, intent(in) :: pos_in(:)
-    type(model_data), intent(inout) :: d
-    integer :: i
-    d%n_springs = 0
-    if (d%effect_on(effect_joint_springs)) d%n_springs = size(sc%springs)
-    allocate(d%spring_coord(d%n_springs), d%spring_par(3, d%n_springs))
-    do i = 1, d%n_springs
-      d%spring_coord(i) = coordinate_index(sc, pos_in, d, sc%springs(i)%joint, sc%springs(i)%coordinate)
-      d%spring_par(:, i) = [sc%springs(i)%stiffness, sc%springs(i)%damping, sc%springs(i)%free_position]
-    end do
-  end subroutine fill_springs
-
-  !> The joint drives: coordinate, offset, amplitude, frequency, phase.
-  subroutine fill_drives(sc, pos_in, d)
-    type(scene_t), intent(in) :: sc
-    integer, intent(in) :: pos_in(:)
-    type(model_data), intent(inout) :: d
-    integer :: i
-    d%n_drives = size(sc%drives)
-    allocate(d%drive_coord(d%n_drives), d%drive_par(4, d%n_drives))
-    do i = 1, d%n_drives
-      d%drive_coord(i) = coordinate_index(sc, pos_in, d, sc%drives(i)%joint, sc%drives(i)%coordinate)
-      d%drive_par(:, i) = [sc%drives(i)%offset, sc%drives(i)%amplitude, sc%drives(i)%frequency, sc%drives(i)%phase]
-    end do
-  end subroutine fill_drives
-
-  !> The prescribed coordinates (none when base motion is off): coordinate, form, parameters.
-  subroutine fill_motions(sc, pos_in, d, wk)
-    type(scene_t), intent(in) :: sc
-    integer, intent(in) :: pos_in(:)
-    type(model_data), intent(inout) :: d
-    type(model_work), intent(inout) :: wk
-    integer :: i
-    d%n_prescribed = 0
-    if (d%effect_on(effect_base_motion)) d%n_prescribed = size(sc%motions)
-    allocate(d%pres_coord(d%n_prescribed), d%pres_form(d%n_prescribed), d%pres_par(6, d%n_prescribed), &
-      & wk%qx(d%n), wk%qdx(d%n), d%prescribed(d%n))
-    d%prescribed = .false.
-    do i = 1, d%n_prescribed
-      associate(mo => sc%motions(i))
-        d%pres_coord(i) = coordinate_index(sc, pos_in, d, mo%joint, mo%coordinate)
-        d%prescribed(d%pres_coord(i)) = .true.
-        d%pres_form(i) = motion_sine
-        if (mo%form == 'spinup') d%pres_form(i) = motion_spinup
-        if (mo%form == 'table') d%pres_form(i) = motion_table
-        d%pres_par(:, i) = [mo%offset, mo%amplitude, mo%frequency, mo%phase, mo%rate, mo%ramp_time]
-      end associate
-    end do
-  end subroutine fill_motions
-
-  !> The time tables: one per tabulated drive (when drives are on) or prescribed motion,
-  !> read once; a motion's table is also splined once.
-  subroutine fill_tables(sc, d, error)
-    type(scene_t), intent(in) :: sc
-    type(model_data), intent(inout) :: d
-    type(error_type), allocatable, intent(out) :: error
-    integer :: i, j
-    character(len=:), allocatable :: where_file
-    allocate(d%tables(count(sc%drives%form == 'table') + count(sc%motions%form == 'table')), &
-      & d%drive_table(size(sc%drives)), d%pres_table(d%n_prescribed))
-    d%drive_table = 0; d%pres_table = 0
-    j = 0
-    do i = 1, size(sc%drives)
-      if (sc%drives(i)%form /= 'table' .or. .not. d%effect_on(effect_joint_drives)) cycle
-      j = j + 1
-      d%drive_table(i) = j
-      call read_time_table(scene_relative(sc%file, trim(sc%drives(i)%file)), sc%drives(i)%origin%where('file'), &
-        & d%tables(j)%t, d%tables(j)%y, error)
-      if (allocated(error)) return
-    end do
-    do i = 1, d%n_prescribed
-      if (sc%motions(i)%form /= 'table') cycle
-      j = j + 1
-      d%pres_table(i) = j
-      where_file = sc%motions(i)%origin%where('file')
-      call read_time_table(scene_relative(sc%file, trim(sc%motions(i)%file)), where_file, d%tables(j)%t, &
-        & d%tables(j)%y, error)
-      if (allocated(error)) return
-      call spline_setup(d%tables(j), where_file, error); if (allocated(error)) return
-    end do
-  end subroutine fill_tables
-
-  !> Geometric stiffness: dropped when the effect is off; bodies whose joint sits on a
-  !> stiffened beam get the stiffness of their axial load carried to the beam's root.
-  subroutine fill_stiffening(d)
-    type(model_data), intent(inout) :: d
     integer :: b
-    if (.not. d%effect_on(effect_geometric_stiffening)) then
-      do b = 2, d%nb
-        if (allocated(d%flex(b)%kg1)) deallocate(d%flex(b)%kg1, d%flex(b)%kg2)
-      end do
-    end if
-    allocate(d%child_kg(d%nb), d%kgc(d%mmax, d%mmax, d%nb))
-    d%child_kg = .false.
+    allocate(d%every(d%nb), d%prescribed(d%n), wk%qx(d%n), wk%qdx(d%n))
+    d%every = .true.; d%prescribed = .false.; d%n_prescribed = 0
+    d%deformed_moments = sc%effects%deformation_inertia == 'full' .and. any(d%nm > 0)
     do b = 2, d%nb
-      if (.not. allocated(d%flex(d%parent(b))%kg1)) cycle
-      d%child_kg(b) = .true.
-      call beam_point_load_stiffness(d%bshape(d%parent(b)), d%at(1, b), &
-        & d%kgc(1:d%nm(d%parent(b)), 1:d%nm(d%parent(b)), b))
+      if (d%nm(b) > 0 .and. .not. d%deformed_moments) call undeformed_modal_moments(d%flex(b), wk%fwork(b))
+      if (allocated(d%flex(b)%kg1) .and. .not. sc%effects%geometric_stiffening) deallocate(d%flex(b)%kg1, d%flex(b)%kg2)
     end do
-  end subroutine fill_stiffening
+    call fill_markers(sc, pos_in, d, error)
+  end subroutine fill_markers_moments
 
   !> The markers: body, point, and on a flexible body the point's mode shapes.
   subroutine fill_markers(sc, pos_in, d, error)
@@ -586,36 +452,5 @@ contains
     end do
   end subroutine fill_markers
 
-  !> The load pulses (none when the effect is off): marker, unit direction, peak, start, duration.
-  subroutine fill_loads(sc, d)
-    type(scene_t), intent(in) :: sc
-    type(model_data), intent(inout) :: d
-    integer :: i, j
-    d%n_loads = 0
-    if (d%effect_on(effect_firing_load)) d%n_loads = size(sc%loads)
-    allocate(d%load_marker(d%n_loads), d%load_dir(3, d%n_loads), d%load_par(3, d%n_loads))
-    do i = 1, d%n_loads
-      do j = 1, d%markers%n
-        if (d%markers%name(j) == sc%loads(i)%marker) d%load_marker(i) = j
-      end do
-      d%load_dir(:, i) = sc%loads(i)%direction/norm2(sc%loads(i)%direction)
-      d%load_par(:, i) = [sc%loads(i)%peak, sc%loads(i)%start, sc%loads(i)%duration]
-    end do
-  end subroutine fill_loads
-
-  !> Model coordinate of a joint's coordinate.
-  integer function coordinate_index(sc, pos_in, d, joint, coordinate)
-    type(scene_t), intent(in) :: sc
-    integer, intent(in) :: pos_in(:)
-    type(model_data), intent(in) :: d
-    character(len=*), intent(in) :: joint
-    integer, intent(in) :: coordinate
-    integer :: j
-    coordinate_index = 0
-    do j = 1, size(sc%joints)
-      if (sc%joints(j)%name /= joint) cycle
-      coordinate_index = d%c0(pos_in(body_index(sc, sc%joints(j)%child))) + coordinate - 1
-    end do
-  end function coordinate_index
 
 end module pymr_driver_build

@@ -5,12 +5,11 @@ module pymr_driver_output_quantities
   use pymr_env_kinds, only : dp
   use pymr_env_error, only : error_type
   use pymr_model, only : model_t, model_counters
-  use pymr_model_types, only : model_data, model_work, effect_joint_drives, effect_firing_load, &
-    & effect_joint_springs, effect_modal_damping
+  use pymr_model_types, only : model_data, model_work
   use pymr_model_kinematics, only : forward_kinematics, marker_motion, marker_acceleration, marker_rotation
   use pymr_model_reactions, only : body_accelerations, joint_wrenches, child_frame_wrench
   use pymr_model_loops, only : cut_wrench, cut_body_wrenches
-  use pymr_model_effects, only : impose_prescribed_state, drive_force, load_force
+  use pymr_model_effect, only : effect_powers
   use pymr_model_spatial, only : quaternion
   use pymr_integrator_stepper, only : stepper_t
   use pymr_io_results_output, only : csv_writer, output_plan, n_energy, n_work
@@ -33,21 +32,20 @@ contains
     real(dp), intent(in) :: t, q(:), qd(:), work(n_work)
     type(error_type), allocatable, intent(out) :: error
     real(dp) :: qe(size(q)), qde(size(qd)), extra(csv%plan%extra)
-    call imposed_state(model%d, model%wk, t, q, qd, qe, qde)
+    call imposed_state(model, t, q, qd, qe, qde)
     call output_values(csv%plan, model, t, qe, qde, work, extra, error)
     if (allocated(error)) return
     call csv%write_row(model%d, t, qe, qde, extra)
   end subroutine write_output_row
 
   !> The state with the prescribed coordinates on their functions.
-  subroutine imposed_state(d, wk, t, q, qd, qe, qde)
-    type(model_data), intent(in) :: d
-    type(model_work), intent(inout) :: wk
+  subroutine imposed_state(model, t, q, qd, qe, qde)
+    type(model_t), intent(inout) :: model
     real(dp), intent(in) :: t, q(:), qd(:)
     real(dp), intent(out) :: qe(:), qde(:)
-    if (d%n_prescribed > 0) then
-      call impose_prescribed_state(d, wk, t, q, qd)
-      qe = wk%qx; qde = wk%qdx
+    if (model%d%n_prescribed > 0) then
+      call model%impose(t, q, qd)
+      qe = model%wk%qx; qde = model%wk%qdx
     else
       qe = q; qde = qd
     end if
@@ -164,50 +162,13 @@ contains
     real(dp), intent(out) :: p(n_work)
     type(error_type), allocatable, intent(out) :: error
     real(dp) :: qe(size(q)), qde(size(qd))
-    integer :: i, b, m
-    call imposed_state(model%d, model%wk, t, q, qd, qe, qde)
+    call imposed_state(model, t, q, qd, qe, qde)
     p = 0.0_dp
-    associate(d => model%d, wk => model%wk)
-      if (d%effect_on(effect_joint_drives)) then
-        do i = 1, d%n_drives
-          p(1) = p(1) + drive_force(d, i, t)*qde(d%drive_coord(i))
-        end do
-      end if
-      if (d%effect_on(effect_firing_load) .and. d%n_loads > 0) p(2) = load_power(d, wk, t, qe, qde)
-      if (d%n_prescribed > 0) then
-        p(3) = motion_power(model, t, qe, qde, error); if (allocated(error)) return
-      end if
-      if (d%effect_on(effect_joint_springs)) then
-        do i = 1, d%n_springs
-          p(4) = p(4) + d%spring_par(2, i)*qde(d%spring_coord(i))**2
-        end do
-      end if
-      if (d%effect_on(effect_modal_damping)) then
-        do b = 2, d%nb
-          m = d%nm(b)
-          if (m > 0) p(4) = p(4) + sum(d%flex(b)%damp*qde(d%a0(b):d%a0(b) + m - 1)**2)
-        end do
-      end if
-    end associate
+    call effect_powers(model%effects, model%d, model%wk, t, qe, qde, p)
+    if (model%d%n_prescribed > 0) then
+      p(3) = motion_power(model, t, qe, qde, error); if (allocated(error)) return
+    end if
   end subroutine powers
-
-  !> Power of the point loads: the force at each loaded marker times its velocity.
-  real(dp) function load_power(d, wk, t, q, qd) result(p)
-    type(model_data), intent(in) :: d
-    type(model_work), intent(inout) :: wk
-    real(dp), intent(in) :: t, q(:), qd(:)
-    integer :: i, mk
-    real(dp) :: r(3), v(3), f
-    p = 0.0_dp
-    call forward_kinematics(d, wk, q, qd)
-    do i = 1, d%n_loads
-      f = load_force(d, i, t)
-      if (f == 0.0_dp) cycle
-      mk = d%load_marker(i)
-      call marker_motion(d, wk, mk, q, qd, r, v)
-      p = p + f*dot_product(matmul(wk%rot(:, :, d%markers%body(mk)), d%load_dir(:, i)), v)
-    end do
-  end function load_power
 
   !> Power of the prescribed motions: each prescribed coordinate's generalised force beyond
   !> the drive and spring on it (s_k . J_b - tau_k) times its rate.
@@ -216,14 +177,14 @@ contains
     real(dp), intent(in) :: t, q(:), qd(:)
     type(error_type), allocatable, intent(out) :: error
     real(dp) :: qdd(size(q)), lin(6, model%d%nb), jw(6, model%d%nb)
-    integer :: i, k
+    integer :: k
     p = 0.0_dp
     call output_accelerations(model, t, q, qd, qdd, error); if (allocated(error)) return
     call body_accelerations(model%d, model%wk, qdd, lin)
     call tree_joint_wrenches(model%d, model%wk, qdd, lin, jw)
     associate(d => model%d, wk => model%wk)
-      do i = 1, d%n_prescribed
-        k = d%pres_coord(i)
+      do k = 1, d%n
+        if (.not. d%prescribed(k)) cycle
         p = p + (dot_product(wk%s(:, k), jw(:, d%cbody(k))) - wk%tau(k))*qd(k)
       end do
     end associate

@@ -703,7 +703,7 @@ contains
     call potrf(l, 'M_ff at the initial state', error); if (allocated(error)) return
     call factor_inverse(l, sys%mffinv, 'M_ff', error); if (allocated(error)) return
     sys%mfs = m(ns+1:, 1:ns)
-    call modal_stiffness_damping(model%d, sys%kf, sys%df)
+    call modal_stiffness_damping(model%d, model%effects, sys%kf, sys%df)
     if (model%d%cuts%n_rows == 0) return
     call loop_jacobian(model%d, model%wk, x(1:n), g, error); if (allocated(error)) return
     allocate(used(size(g, 1)), sys%tfs(nf, ns))

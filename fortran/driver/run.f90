@@ -17,7 +17,6 @@ module pymr_driver_run
   use pymr_model_scene_rules, only : closes_loop
   use pymr_model_types, only : cut_free
   use pymr_env_clock, only : thread_cpu_time
-  use pymr_model_effects, only : prescribed_motion
   use pymr_env_text, only : itoa, fmt, next_text_line
   use pymr_model_flexbody, only : point_deflection
   use pymr_env_text_file, only : absolute_path, scene_relative, acquire_lock, release_lock, not_regular, missing_folder, &
@@ -499,10 +498,9 @@ contains
   !> [q0; qd0] from the joints' q0 and qd0 in model coordinate order.
   subroutine initial_state(sc, model, x)
     type(scene_t), intent(in) :: sc
-    type(model_t), intent(in) :: model
+    type(model_t), intent(inout) :: model
     real(dp), intent(out) :: x(:)
-    integer :: b, j, m, n, i
-    real(dp) :: fdd
+    integer :: b, j, m, n
     n = model%d%n
     x = 0.0_dp
     do b = 2, model%d%nb
@@ -525,9 +523,10 @@ contains
       end do
     end do
     ! prescribed coordinates start on their functions
-    do i = 1, model%d%n_prescribed
-      call prescribed_motion(model%d, i, 0.0_dp, x(model%d%pres_coord(i)), x(n + model%d%pres_coord(i)), fdd)
-    end do
+    if (model%d%n_prescribed > 0) then
+      call model%impose(0.0_dp, x(1:n), x(n+1:))
+      x(1:n) = model%wk%qx; x(n+1:) = model%wk%qdx
+    end if
   end subroutine initial_state
 
   !> The state a run starts from: as the scene gives it (its loops assembled), then, for

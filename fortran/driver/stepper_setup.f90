@@ -93,7 +93,7 @@ contains
     real(dp) :: kf(model%d%n - model%d%nj), df(model%d%n - model%d%nj)
     omega = 0.0_dp
     if (size(kf) == 0) return
-    call modal_stiffness_damping(model%d, kf, df)
+    call modal_stiffness_damping(model%d, model%effects, kf, df)
     omega = sqrt(maxval(kf))
     if (model%d%cuts%n_rows > 0) then
       omega = max(omega, top_frequency(model, x, error)); if (allocated(error)) return

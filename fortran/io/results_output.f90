@@ -4,7 +4,7 @@ module pymr_io_results_output
   use pymr_env_kinds, only : dp
   use, intrinsic :: iso_fortran_env, only : int64
   use pymr_env_error, only : error_type, fatal_error, stat_solver
-  use pymr_model_types, only : model_data, model_work, n_effects, effect_names, cut_free
+  use pymr_model_types, only : model_data, model_work, cut_free
   use pymr_io_fast_format, only : put_real
   use pymr_env_text, only : itoa, next_text_line
   use pymr_env_text_file, only : write_text_file, stage_text_file, sync_file, rename_file, file_size, check_size
@@ -417,13 +417,12 @@ contains
       call put(trim(buf))
     end if
     text = text // '  "effects": {'
-    do i = 1, n_effects
-      if (.not. d%effect_on(i)) cycle
+    do i = 1, size(wk%count%effect_evals)
       if (text(len(text):len(text)) /= '{') text = text // ', '
       cpu = 0.0_dp
       if (wk%count%effect_timed(i) > 0) cpu = wk%count%effect_cpu(i)*real(wk%count%effect_evals(i), dp)/real(wk%count%effect_timed(i), dp)
       write(buf, '(a,i0,a,es12.5,a)') '": {"evaluations": ', wk%count%effect_evals(i), ', "cpu_time_s": ', cpu, '}'
-      text = text // '"' // trim(effect_names(i)) // trim(buf)
+      text = text // '"' // trim(wk%count%effect_name(i)) // trim(buf)
     end do
     call put('},')
     if (st%static_settled >= 0) then

@@ -28,23 +28,21 @@ module pymr_model_articulated
   use pymr_env_kinds, only : dp
   use pymr_env_error, only : error_type, fatal_error, stat_solver
   use pymr_env_lapack, only : potrf, potrs
-  use pymr_model_types, only : model_data, model_work, effect_base_motion
-  use pymr_model_effects, only : prescribed_motion
+  use pymr_model_types, only : model_data, model_work
   implicit none
   private
   public :: articulated_accelerations
 
 contains
 
-  !> qdd of the state whose body terms, applied loads (w, wam, tau) and kinematics d holds.
-  subroutine articulated_accelerations(d, wk, t, qdd, error)
+  !> qdd of the state whose body terms, applied loads (w, wam, tau) and kinematics wk holds;
+  !> the prescribed coordinates' accelerations are given in qdd.
+  subroutine articulated_accelerations(d, wk, qdd, error)
     type(model_data), intent(in) :: d
     type(model_work), intent(inout) :: wk
-    real(dp), intent(in) :: t
-    real(dp), intent(out) :: qdd(:)
+    real(dp), intent(inout) :: qdd(:)
     type(error_type), allocatable, intent(out) :: error
     integer :: b
-    call prescribed_accelerations(d, wk, t, qdd)
     do b = d%nb, 2, -1
       call subtree_terms(d, wk, b, error); if (allocated(error)) return
       call through_joint(d, wk, b, qdd, error); if (allocated(error)) return
@@ -54,21 +52,6 @@ contains
       call body_acceleration(d, wk, b, qdd)
     end do
   end subroutine articulated_accelerations
-
-  !> The prescribed coordinates' accelerations (their functions' second derivatives).
-  subroutine prescribed_accelerations(d, wk, t, qdd)
-    type(model_data), intent(in) :: d
-    type(model_work), intent(inout) :: wk
-    real(dp), intent(in) :: t
-    real(dp), intent(inout) :: qdd(:)
-    integer :: i
-    real(dp) :: f, fd
-    if (d%n_prescribed == 0) return
-    do i = 1, d%n_prescribed
-      call prescribed_motion(d, i, t, f, fd, qdd(d%pres_coord(i)))
-    end do
-    wk%count%effect_evals(effect_base_motion) = wk%count%effect_evals(effect_base_motion) + 1
-  end subroutine prescribed_accelerations
 
   !> Articulated inertia and bias of body b's subtree at b's frame (before b's joint), in
   !> wk%ab%ia(:, :, b), wk%ab%pa(:, b); a flexible body's modal accelerations condensed out.

@@ -7,7 +7,7 @@
 !> the base, with f_k the spatial momentum of k's motion. P_k = tau_k - column_k . Wc.
 module pymr_model_assembly
   use pymr_env_kinds, only : dp
-  use pymr_model_types, only : model_data, model_work, effect_deformation_inertia
+  use pymr_model_types, only : model_data, model_work
   use pymr_model_flexbody, only : flex_body_terms
   implicit none
   private
@@ -39,7 +39,7 @@ contains
         m = d%nm(b)
         call flex_body_terms(d%flex(b), wk%fwork(b), wk%rot(:, :, b), wk%pos(:, b), wk%vel(:, b), wk%acc(:, b), &
           & q(d%a0(b):d%a0(b) + m - 1), qd(d%a0(b):d%a0(b) + m - 1), wk%i6(:, :, b), wk%mva(:, 1:m, b), &
-          & wk%w(:, b), wk%wam(1:m, b), modal_only, d%effect_on(effect_deformation_inertia))
+          & wk%w(:, b), wk%wam(1:m, b), modal_only, d%deformed_moments)
         cycle
       end if
       r = wk%rot(:, :, b); ib = d%inertia(:, :, b); c = d%com(:, b)

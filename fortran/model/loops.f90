@@ -353,10 +353,10 @@ contains
     type(model_data), intent(in) :: d
     real(dp), intent(in) :: g(:, :)
     real(dp) :: gf(size(g, 1), size(g, 2))
-    integer :: i
+    integer :: k
     gf = g
-    do i = 1, d%n_prescribed
-      gf(:, d%pres_coord(i)) = 0.0_dp
+    do k = 1, d%n
+      if (d%prescribed(k)) gf(:, k) = 0.0_dp
     end do
   end function free_columns
 

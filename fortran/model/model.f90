@@ -5,32 +5,27 @@ module pymr_model
   use pymr_env_error, only : error_type, prefix_error, fatal_error, stat_solver
   use pymr_env_lapack, only : potrf, potrs, factor_inverse
   use pymr_integrator_ode, only : partitioned_system
-  use pymr_env_clock, only : thread_cpu_time
-  use pymr_model_types, only : model_data, model_work, model_counters, effect_gravity, effect_joint_drives, effect_modal_damping, &
-    & effect_joint_springs, effect_geometric_stiffening, effect_base_motion, effect_firing_load, &
-    & effect_deformation_inertia, n_effects
+  use pymr_model_types, only : model_data, model_work, model_counters
   use pymr_model_kinematics, only : forward_kinematics
-  use pymr_model_flexbody, only : deformed_modal_moments
   use pymr_model_assembly, only : body_terms, composite_terms, assemble_mass, assemble_rhs, kinetic_energy
   use pymr_model_articulated, only : articulated_accelerations
   use pymr_model_loops, only : constrained_accelerations, project_positions, project_velocities, &
     & constrain_fast_accelerations, constrain_response
-  use pymr_model_effects, only : add_gravity, add_joint_drives, add_modal_damping, gravity_potential, &
-    & elastic_potential, add_joint_springs, spring_potential, add_geometric_stiffening, impose_prescribed_state, &
-    & prescribe_rows, add_firing_load, add_carried_load_stiffening
+  use pymr_model_effect, only : effect_slot, stage_carried, impose_effects, deform_effects, load_effects, carried_effects, &
+    & rows_effects, accelerate_effects, effect_energies, effect_fast_damping
   implicit none
   private
   public :: model_t, modal_stiffness_damping, model_counters, check_terms_finite
 
-  !> One evaluation in this many times its effects.
-  integer, parameter :: timing_interval = 32
-
-
   !> A built model: data and work arrays, and the ODE interface the integrators use.
   !> Slow coordinates are the joint coordinates (1..nj), fast ones the modal coordinates.
   type, extends(partitioned_system) :: model_t
+    !> The definition, the evaluations' work, and the effects the scene turned on.
     type(model_data) :: d
     type(model_work) :: wk
+    type(effect_slot), allocatable :: effects(:)
+    !> Single-rate evaluations solve by the articulated-body algorithm (else through M).
+    logical :: articulated = .false.
     !> Multirate work: Cholesky factors of M_ff and M_e, M_fs, M_ff^-1 M_fs, M_ff^-1 Q_f and
     !> M_ff^-1 (held when M_ff is constant; the 'response' coupling's g uses it).
     real(dp), allocatable :: lff(:, :), le(:, :), mfs(:, :), xfs(:, :), yf(:), mffinv(:, :)
@@ -62,6 +57,7 @@ module pymr_model
     procedure :: save_run => model_save_run
     procedure :: load_run => model_load_run
     procedure :: use_articulated => model_use_articulated
+    procedure :: impose => model_impose
     procedure :: counters => model_get_counters
     procedure :: set_counters => model_set_counters
   end type model_t
@@ -70,7 +66,7 @@ contains
 
   !> Mass matrix and right-hand side at (t, q, qd), left in self%wk%mm and self%wk%p.
   !> With fast_only, only the rows of the modal coordinates are assembled (the bodies
-  !> on and below flexible bodies; joint drives and springs act on joint rows and are skipped).
+  !> on and below flexible bodies; effects on joint rows only are skipped).
   !> Prescribed coordinates (base_motion) take their functions' values before kinematics.
   subroutine model_terms(self, t, q, qd, fast_only)
     class(model_t), intent(inout) :: self
@@ -80,86 +76,101 @@ contains
     fo = .false.
     if (present(fast_only)) fo = fast_only
     if (self%d%n_prescribed > 0) then
-      call impose_prescribed_state(self%d, self%wk, t, q, qd)
-      call terms_at(self%d, self%wk, t, self%wk%qx, self%wk%qdx, fo)
+      call impose_effects(self%effects, self%wk, t, q, qd)
+      call terms_at(self, t, self%wk%qx, self%wk%qdx, fo)
     else
-      call terms_at(self%d, self%wk, t, q, qd, fo)
+      call terms_at(self, t, q, qd, fo)
     end if
   end subroutine model_terms
 
   !> model_terms at a state with the prescribed coordinates already imposed.
-  subroutine terms_at(d, wk, t, q, qd, fo)
-    type(model_data), intent(in) :: d
-    type(model_work), intent(inout) :: wk
+  subroutine terms_at(self, t, q, qd, fo)
+    class(model_t), intent(inout) :: self
     real(dp), intent(in) :: t, q(:), qd(:)
     logical, intent(in) :: fo
-    if (fo) then
-      call forward_kinematics(d, wk, q, qd)
-      if (d%effect_on(effect_deformation_inertia)) call timed_deformation(d, wk, q, d%in_fast)
-      call body_terms(d, wk, q, qd, d%in_fast)
-      call apply_effects(d, wk, t, q, qd, d%in_fast, .true.)
-      call composite_terms(d, wk, d%in_fast)
-      if (d%effect_on(effect_geometric_stiffening)) call add_carried_load_stiffening(d, wk, q, d%in_fast)
-      call assemble_mass(d, wk, d%in_fast)
-      call assemble_rhs(d, wk, d%in_fast)
-      wk%count%evals_fast_rows = wk%count%evals_fast_rows + 1
-    else
-      call composite_loads(d, wk, t, q, qd)
-      call assemble_mass(d, wk)
-      call assemble_rhs(d, wk)
-      wk%count%evals = wk%count%evals + 1
-    end if
-    if (d%n_prescribed > 0) call timed_prescribe_rows(d, wk, t)
+    associate(d => self%d, wk => self%wk, fx => self%effects)
+      if (fo) then
+        call forward_kinematics(d, wk, q, qd)
+        call deform_effects(fx, d, wk, q, d%in_fast)
+        call body_terms(d, wk, q, qd, d%in_fast)
+        call load_effects(fx, d, wk, t, q, qd, d%in_fast, .true.)
+        call composite_terms(d, wk, d%in_fast)
+        call carried_effects(fx, d, wk, q, d%in_fast)
+        call assemble_mass(d, wk, d%in_fast)
+        call assemble_rhs(d, wk, d%in_fast)
+      else
+        call composite_loads(self, t, q, qd)
+        call assemble_mass(d, wk)
+        call assemble_rhs(d, wk)
+      end if
+      call rows_effects(fx, wk, t)
+      if (fo) then
+        wk%count%evals_fast_rows = wk%count%evals_fast_rows + 1
+      else
+        wk%count%evals = wk%count%evals + 1
+      end if
+    end associate
   end subroutine terms_at
 
   !> A full evaluation's kinematics, body terms and applied loads (the bias wrenches and
   !> modal forces with the effects, and the joint loads tau).
-  subroutine body_loads(d, wk, t, q, qd)
-    type(model_data), intent(in) :: d
-    type(model_work), intent(inout) :: wk
+  subroutine body_loads(self, t, q, qd)
+    class(model_t), intent(inout) :: self
     real(dp), intent(in) :: t, q(:), qd(:)
-    call forward_kinematics(d, wk, q, qd)
-    if (d%effect_on(effect_deformation_inertia)) call timed_deformation(d, wk, q, d%every)
-    call body_terms(d, wk, q, qd)
-    wk%tau = 0.0_dp
-    call apply_effects(d, wk, t, q, qd, d%every, .false.)
+    associate(d => self%d, wk => self%wk, fx => self%effects)
+      call forward_kinematics(d, wk, q, qd)
+      call deform_effects(fx, d, wk, q, d%every)
+      call body_terms(d, wk, q, qd)
+      wk%tau = 0.0_dp
+      call load_effects(fx, d, wk, t, q, qd, d%every, .false.)
+    end associate
   end subroutine body_loads
 
-  !> body_loads and the subtrees' composite terms (with the geometric stiffness of the loads
-  !> beams carry), all that P needs before its assembly.
-  subroutine composite_loads(d, wk, t, q, qd)
-    type(model_data), intent(in) :: d
-    type(model_work), intent(inout) :: wk
+  !> body_loads and the subtrees' composite terms (with the loads that need them: the
+  !> geometric stiffness of the loads beams carry), all that P needs before its assembly.
+  subroutine composite_loads(self, t, q, qd)
+    class(model_t), intent(inout) :: self
     real(dp), intent(in) :: t, q(:), qd(:)
-    call body_loads(d, wk, t, q, qd)
-    call composite_terms(d, wk)
-    if (d%effect_on(effect_geometric_stiffening)) call add_carried_load_stiffening(d, wk, q, d%every)
+    call body_loads(self, t, q, qd)
+    call composite_terms(self%d, self%wk)
+    call carried_effects(self%effects, self%d, self%wk, q, self%d%every)
   end subroutine composite_loads
 
   !> Accelerations by the articulated-body algorithm at a state with the prescribed
-  !> coordinates imposed (geometric stiffness from carried loads needs the composite wrenches).
-  subroutine articulated_at(d, wk, t, q, qd, qdd, error)
-    type(model_data), intent(in) :: d
-    type(model_work), intent(inout) :: wk
+  !> coordinates imposed (loads carried by beams need the composite wrenches first).
+  subroutine articulated_at(self, t, q, qd, qdd, error)
+    class(model_t), intent(inout) :: self
     real(dp), intent(in) :: t, q(:), qd(:)
     real(dp), intent(out) :: qdd(:)
     type(error_type), allocatable, intent(out) :: error
     integer :: k
-    call body_loads(d, wk, t, q, qd)
-    if (d%effect_on(effect_geometric_stiffening)) then
-      call composite_terms(d, wk)
-      call add_carried_load_stiffening(d, wk, q, d%every)
+    if (any(carries(self))) then
+      call composite_loads(self, t, q, qd)
+    else
+      call body_loads(self, t, q, qd)
     end if
-    call articulated_accelerations(d, wk, t, qdd, error)
-    wk%count%evals = wk%count%evals + 1
+    qdd = 0.0_dp
+    call accelerate_effects(self%effects, self%wk, t, qdd)
+    call articulated_accelerations(self%d, self%wk, qdd, error)
+    self%wk%count%evals = self%wk%count%evals + 1
     if (allocated(error)) return
-    do k = 1, d%n
+    do k = 1, self%d%n
       if (.not. ieee_is_finite(qdd(k))) then
-        call fatal_error(error, 'non-finite acceleration of coordinate ' // trim(d%qname(k)) // &
+        call fatal_error(error, 'non-finite acceleration of coordinate ' // trim(self%d%qname(k)) // &
           & ' (the state or a load is out of range)', stat_solver); return
       end if
     end do
   end subroutine articulated_at
+
+  !> Per effect of the list: it acts after the composite terms.
+  pure function carries(self) result(c)
+    class(model_t), intent(in) :: self
+    logical :: c(size(self%effects))
+    integer :: i
+    do i = 1, size(self%effects)
+      c(i) = self%effects(i)%e%acts(stage_carried)
+    end do
+  end function carries
 
   !> The generalised forces P at (t, q, qd) without assembling M (O(n); the pre-flight
   !> linearisation's differences), the same P as terms gives; through terms when coordinates
@@ -171,106 +182,32 @@ contains
     if (self%d%n_prescribed > 0) then
       call self%terms(t, q, qd)
     else
-      call composite_loads(self%d, self%wk, t, q, qd)
+      call composite_loads(self, t, q, qd)
       call assemble_rhs(self%d, self%wk)
       self%wk%count%evals = self%wk%count%evals + 1
     end if
     p = self%wk%p
   end subroutine model_forces
 
+  !> Copies of (q, qd) in self%wk%qx, self%wk%qdx with the prescribed coordinates on their
+  !> functions of time t.
+  subroutine model_impose(self, t, q, qd)
+    class(model_t), intent(inout) :: self
+    real(dp), intent(in) :: t, q(:), qd(:)
+    call impose_effects(self%effects, self%wk, t, q, qd)
+  end subroutine model_impose
+
   !> Solve single-rate evaluations by the articulated-body algorithm (on) or through M (off).
   subroutine model_use_articulated(self, on)
     class(model_t), intent(inout) :: self
     logical, intent(in) :: on
     integer :: nb, mx
-    self%d%articulated = on
+    self%articulated = on
     if (.not. on .or. allocated(self%wk%ab%ia)) return
     nb = self%d%nb; mx = max(self%d%mmax, 1)
     allocate(self%wk%ab%ia(6, 6, nb), self%wk%ab%pa(6, nb), self%wk%ab%u(6, 6, nb), self%wk%ab%r(6, nb), &
       & self%wk%ab%lin(6, nb), self%wk%ab%kaa(mx, mx, nb), self%wk%ab%kam(6, mx, nb), self%wk%ab%ba(mx, nb))
   end subroutine model_use_articulated
-
-  !> The effect plan: each active effect's routine, in plan order, on the bodies in
-  !> `mask`; joint loads only in full evaluations. Every 32nd evaluation times each effect
-  !> (thread CPU time); the JSON reports the estimate for all evaluations.
-  subroutine apply_effects(d, wk, t, q, qd, mask, fast_only)
-    type(model_data), intent(in) :: d
-    type(model_work), intent(inout) :: wk
-    real(dp), intent(in) :: t, q(:), qd(:)
-    logical, intent(in) :: mask(:), fast_only
-    integer :: i, e
-    logical :: timed
-    real(dp) :: c0
-    timed = mod(wk%count%evals + wk%count%evals_fast_rows, timing_interval) == 0
-    c0 = 0.0_dp
-    do i = 1, d%n_plan
-      e = d%plan(i)
-      if (timed) c0 = thread_cpu_time()
-      select case (e)
-      case (effect_gravity); call add_gravity(d, wk, mask)
-      case (effect_joint_drives); if (.not. fast_only) call add_joint_drives(d, wk, t)
-      case (effect_joint_springs); if (.not. fast_only) call add_joint_springs(d, wk, q, qd)
-      case (effect_modal_damping); call add_modal_damping(d, wk, qd, mask)
-      case (effect_geometric_stiffening); call add_geometric_stiffening(d, wk, q, mask)
-      case (effect_firing_load); call add_firing_load(d, wk, t, q, qd, mask)
-      case default; cycle
-      end select
-      if (timed) then
-        wk%count%effect_cpu(e) = wk%count%effect_cpu(e) + (thread_cpu_time() - c0)
-        wk%count%effect_timed(e) = wk%count%effect_timed(e) + 1
-      end if
-    end do
-  end subroutine apply_effects
-
-  !> prescribe_rows, timed like the other effects.
-  subroutine timed_prescribe_rows(d, wk, t)
-    type(model_data), intent(in) :: d
-    type(model_work), intent(inout) :: wk
-    real(dp), intent(in) :: t
-    logical :: timed
-    real(dp) :: c0
-    timed = mod(wk%count%evals + wk%count%evals_fast_rows, timing_interval) == 1
-    c0 = 0.0_dp
-    if (timed) c0 = thread_cpu_time()
-    call prescribe_rows(d, wk, t)
-    if (timed) then
-      wk%count%effect_cpu(effect_base_motion) = wk%count%effect_cpu(effect_base_motion) + (thread_cpu_time() - c0)
-      wk%count%effect_timed(effect_base_motion) = wk%count%effect_timed(effect_base_motion) + 1
-    end if
-  end subroutine timed_prescribe_rows
-
-  !> deformation_inertia 'full': the deformed modal moments of the flexible bodies in
-  !> `mask` (before body_terms), timed like the other effects.
-  subroutine timed_deformation(d, wk, q, mask)
-    type(model_data), intent(in) :: d
-    type(model_work), intent(inout) :: wk
-    real(dp), intent(in) :: q(:)
-    logical, intent(in) :: mask(:)
-    logical :: timed
-    real(dp) :: c0
-    timed = mod(wk%count%evals + wk%count%evals_fast_rows, timing_interval) == 0
-    c0 = 0.0_dp
-    if (timed) c0 = thread_cpu_time()
-    call deform_moments(d, wk, q, mask)
-    wk%count%effect_evals(effect_deformation_inertia) = wk%count%effect_evals(effect_deformation_inertia) + 1
-    if (timed) then
-      wk%count%effect_cpu(effect_deformation_inertia) = wk%count%effect_cpu(effect_deformation_inertia) + (thread_cpu_time() - c0)
-      wk%count%effect_timed(effect_deformation_inertia) = wk%count%effect_timed(effect_deformation_inertia) + 1
-    end if
-  end subroutine timed_deformation
-
-  !> The deformed modal moments of the flexible bodies in `mask`.
-  pure subroutine deform_moments(d, wk, q, mask)
-    type(model_data), intent(in) :: d
-    type(model_work), intent(inout) :: wk
-    real(dp), intent(in) :: q(:)
-    logical, intent(in) :: mask(:)
-    integer :: b
-    do b = 2, d%nb
-      if (d%nm(b) == 0 .or. .not. mask(b)) cycle
-      call deformed_modal_moments(d%flex(b), wk%fwork(b), q(d%a0(b):d%a0(b) + d%nm(b) - 1))
-    end do
-  end subroutine deform_moments
 
   !> Accelerations qdd from M qdd = P (LAPACK Cholesky).
   subroutine model_accelerations(self, t, q, qd, qdd, error)
@@ -279,12 +216,12 @@ contains
     real(dp), intent(out), contiguous :: qdd(:)
     type(error_type), allocatable, intent(out) :: error
     integer :: minor
-    if (self%d%articulated) then
+    if (self%articulated) then
       if (self%d%n_prescribed > 0) then
-        call impose_prescribed_state(self%d, self%wk, t, q, qd)
-        call articulated_at(self%d, self%wk, t, self%wk%qx, self%wk%qdx, qdd, error)
+        call impose_effects(self%effects, self%wk, t, q, qd)
+        call articulated_at(self, t, self%wk%qx, self%wk%qdx, qdd, error)
       else
-        call articulated_at(self%d, self%wk, t, q, qd, qdd, error)
+        call articulated_at(self, t, q, qd, qdd, error)
       end if
       call add_time(error, t)
       return
@@ -317,7 +254,7 @@ contains
     if (self%d%cuts%n_rows == 0 .or. .not. self%wk%loops%rows_chosen) return
     n = self%d%n
     if (self%d%n_prescribed > 0) then
-      call impose_prescribed_state(self%d, self%wk, t, x(1:n), x(n+1:))
+      call impose_effects(self%effects, self%wk, t, x(1:n), x(n+1:))
       x(1:n) = self%wk%qx; x(n+1:) = self%wk%qdx
     end if
     call project_positions(self%d, self%wk, x(1:n), self%wk%loops%size, error, residual); if (allocated(error)) return
@@ -377,14 +314,27 @@ contains
     real(dp), intent(in) :: q(:), qd(:)
     real(dp), intent(out) :: e(4)
     call forward_kinematics(self%d, self%wk, q, qd)
-    if (self%d%effect_on(effect_deformation_inertia)) call deform_moments(self%d, self%wk, q, self%d%every)
+    call deform_effects(self%effects, self%d, self%wk, q, self%d%every)
     call body_terms(self%d, self%wk, q, qd)
     e = 0.0_dp
     e(1) = kinetic_energy(self%d, self%wk, qd)
-    if (self%d%effect_on(effect_gravity)) e(2) = gravity_potential(self%d, self%wk)
     e(3) = elastic_potential(self%d, q)
-    if (self%d%effect_on(effect_joint_springs)) e(4) = spring_potential(self%d, q)
+    call effect_energies(self%effects, self%d, self%wk, q, e)
   end subroutine model_energy_parts
+
+  !> Elastic energy 1/2 sum omega^2 a^2 of the flexible bodies (J).
+  pure function elastic_potential(d, q) result(v)
+    type(model_data), intent(in) :: d
+    real(dp), intent(in) :: q(:)
+    real(dp) :: v
+    integer :: b, m
+    v = 0.0_dp
+    do b = 2, d%nb
+      m = d%nm(b)
+      if (m == 0) cycle
+      v = v + 0.5_dp*sum(d%flex(b)%omega2*q(d%a0(b):d%a0(b) + m - 1)**2)
+    end do
+  end function elastic_potential
 
   pure integer function model_n_slow(self)
     class(model_t), intent(in) :: self
@@ -412,13 +362,14 @@ contains
     do b = 2, self%d%nb
       if (self%d%flexible(b) .and. self%d%child_ptr(b + 1) > self%d%child_ptr(b)) self%mff_fixed = .false.
     end do
-    call modal_stiffness_damping(self%d, self%kf, self%df)
+    call modal_stiffness_damping(self%d, self%effects, self%kf, self%df)
   end subroutine model_init_partition
 
   !> Per fast (modal) coordinate: modal stiffness omega^2 and damping (2 zeta omega + ...;
   !> 0 when modal_damping is off): the fast forces kf a + df ad linear in the fast state.
-  pure subroutine modal_stiffness_damping(d, kf, df)
+  subroutine modal_stiffness_damping(d, effects, kf, df)
     type(model_data), intent(in) :: d
+    type(effect_slot), intent(in) :: effects(:)
     real(dp), intent(out) :: kf(:), df(:)
     integer :: b, m, f0
     kf = 0.0_dp; df = 0.0_dp
@@ -427,8 +378,8 @@ contains
       if (m == 0) cycle
       f0 = d%a0(b) - d%nj
       kf(f0:f0 + m - 1) = d%flex(b)%omega2
-      if (d%effect_on(effect_modal_damping)) df(f0:f0 + m - 1) = d%flex(b)%damp
     end do
+    call effect_fast_damping(effects, d, df)
   end subroutine modal_stiffness_damping
 
   !> Factor M_ff of the last assembly (Cholesky), naming time and minor on failure; once

@@ -5,32 +5,17 @@ module pymr_model_types
   use pymr_env_kinds, only : dp, name_len
   use pymr_model_flexbody, only : flex_data, flex_work, modal_nodes
   use pymr_model_beam_modes, only : beam_shape
-  use pymr_model_time_table, only : time_table
   implicit none
   private
   public :: model_data, model_work, model_counters, marker_set, cut_set, articulated_work, loop_work
   public :: prim_revolute, prim_prismatic
-  public :: effect_gravity, effect_joint_drives, effect_modal_damping, effect_joint_springs
-  public :: effect_geometric_stiffening, effect_base_motion, effect_firing_load, effect_deformation_inertia
-  public :: n_effects, effect_names
-  public :: motion_sine, motion_spinup, motion_table
   public :: cut_fixed, cut_revolute, cut_spherical, cut_prismatic, cut_free
 
   !> Kinds of one-coordinate joint primitives: every joint is a chain of them.
   integer, parameter :: prim_revolute = 1, prim_prismatic = 2
 
-  !> Effect identifiers (index into counters and names).
-  integer, parameter :: effect_gravity = 1, effect_joint_drives = 2, effect_modal_damping = 3, &
-    & effect_joint_springs = 4, effect_geometric_stiffening = 5, effect_firing_load = 6, effect_base_motion = 7, &
-    & effect_deformation_inertia = 8, n_effects = 8
-  character(len=*), parameter :: effect_names(n_effects) = [character(len=20) :: 'gravity', 'joint_drives', &
-    & 'modal_damping', 'joint_springs', 'geometric_stiffening', 'firing_load', 'base_motion', 'deformation_inertia']
-
   !> Kinds of loop-closing joints ('free' closes no constraint: no rows).
   integer, parameter :: cut_fixed = 1, cut_revolute = 2, cut_spherical = 3, cut_prismatic = 4, cut_free = 5
-
-  !> Forms of a prescribed coordinate's time function.
-  integer, parameter :: motion_sine = 1, motion_spinup = 2, motion_table = 3
 
   !> Markers: body and point (body frame), and on flexible bodies the mode shapes there:
   !> translation and small rotation (3, mmax, n).
@@ -99,33 +84,14 @@ module pymr_model_types
     integer :: n_prescribed = 0
     !> The flexible bodies' modal moments follow their deformation (deformation_inertia 'full').
     logical :: deformed_moments = .false.
-    !> TRANSITIONAL (effects as records replace these).
-    logical :: effect_on(n_effects) = .false.
-    integer :: n_plan = 0, plan(n_effects) = 0
-    integer :: n_springs = 0
-    integer, allocatable :: spring_coord(:)
-    real(dp), allocatable :: spring_par(:, :)
-    integer :: n_loads = 0
-    integer, allocatable :: load_marker(:)
-    real(dp), allocatable :: load_dir(:, :), load_par(:, :)
-    integer, allocatable :: pres_coord(:), pres_form(:)
-    real(dp), allocatable :: pres_par(:, :)
-    type(time_table), allocatable :: tables(:)
-    integer, allocatable :: drive_table(:), pres_table(:)
-    logical, allocatable :: child_kg(:)
-    real(dp), allocatable :: kgc(:, :, :)
-    real(dp) :: gravity(3) = 0.0_dp
-    integer :: n_drives = 0
-    integer, allocatable :: drive_coord(:)
-    real(dp), allocatable :: drive_par(:, :)
-    logical :: articulated = .false.
   end type model_data
 
   !> Evaluation counters: full assemblies, fast-row assemblies, and per effect of the
-  !> model's list its evaluations and its CPU time measured on every 32nd evaluation
+  !> model's list its name, its evaluations and its CPU time measured on every 32nd evaluation
   !> (effect_cpu over effect_timed evaluations).
   type :: model_counters
     integer :: evals = 0, evals_fast_rows = 0
+    character(len=24), allocatable :: effect_name(:)
     integer, allocatable :: effect_evals(:), effect_timed(:)
     real(dp), allocatable :: effect_cpu(:)
   end type model_counters

@@ -1,0 +1,191 @@
+!> The effects' registry: the model's list of effect records (model/effect.f90), built from
+!> the scene's &effects switches and the groups that parametrise them. Each effect has one
+!> constructor here and one line in `build_effects`; the line's place is the effect's place
+!> in the list, which is the order of evaluation and of the JSON's effect statistics.
+module pymr_driver_build_effects
+  use pymr_env_kinds, only : dp
+  use pymr_env_error, only : error_type
+  use pymr_model_scene, only : scene_t
+  use pymr_model_scene_rules, only : body_index
+  use pymr_model_types, only : model_data, model_work
+  use pymr_model_time_table, only : spline_setup
+  use pymr_io_table_file, only : read_time_table
+  use pymr_env_text_file, only : scene_relative
+  use pymr_model_beam_modes, only : beam_point_load_stiffness
+  use pymr_model_effect, only : effect_slot, effect_t
+  use pymr_model_effect_gravity, only : gravity_effect_of
+  use pymr_model_effect_joint_drives, only : joint_drive, joint_drives_effect_of
+  use pymr_model_effect_modal_damping, only : modal_damping_effect_of
+  use pymr_model_effect_joint_springs, only : joint_spring, joint_springs_effect_of
+  use pymr_model_effect_geometric_stiffening, only : stiffening_effect_of
+  use pymr_model_effect_firing_load, only : point_load, firing_load_effect_of
+  use pymr_model_effect_base_motion, only : prescribed_motion, base_motion_effect_of, motion_sine, &
+    & motion_spinup, motion_table
+  use pymr_model_effect_deformation_inertia, only : deformation_effect_of
+  implicit none
+  private
+  public :: build_effects
+
+contains
+
+  !> The effects the scene turns on, in evaluation order; `d` gets the prescribed
+  !> coordinates' mask.
+  subroutine build_effects(sc, order, d, list, error)
+    type(scene_t), intent(in) :: sc
+    integer, intent(in) :: order(:)
+    type(model_data), intent(inout) :: d
+    type(effect_slot), allocatable, intent(out) :: list(:)
+    type(error_type), allocatable, intent(out) :: error
+    integer :: pos_in(size(order)), b
+    do b = 1, size(order)
+      pos_in(order(b)) = b
+    end do
+    allocate(list(0))
+    if (sc%effects%gravity) call append(list, gravity_effect_of(sc%scene%gravity))
+    if (sc%effects%joint_drives .and. size(sc%drives) > 0) then
+      call append(list, joint_drives_effect_of(drives_of(sc, pos_in, d, error))); if (allocated(error)) return
+    end if
+    if (sc%effects%modal_damping .and. any(d%nm > 0)) call append(list, modal_damping_effect_of())
+    if (sc%effects%joint_springs .and. size(sc%springs) > 0) call append(list, joint_springs_effect_of(springs_of(sc, pos_in, d)))
+    if (sc%effects%geometric_stiffening) call append(list, stiffening_of(sc, d))
+    if (sc%effects%firing_load .and. size(sc%loads) > 0) call append(list, firing_load_effect_of(loads_of(sc, d)))
+    if (sc%effects%base_motion .and. size(sc%motions) > 0) then
+      call append(list, base_motion_effect_of(motions_of(sc, pos_in, d, error))); if (allocated(error)) return
+    end if
+    if (d%deformed_moments) call append(list, deformation_effect_of())
+  end subroutine build_effects
+
+  !> Put effect e at the list's end.
+  subroutine append(list, e)
+    type(effect_slot), allocatable, intent(inout) :: list(:)
+    class(effect_t), intent(in) :: e
+    type(effect_slot), allocatable :: longer(:)
+    integer :: i
+    allocate(longer(size(list) + 1))
+    do i = 1, size(list)
+      call move_alloc(list(i)%e, longer(i)%e)
+    end do
+    allocate(longer(size(list) + 1)%e, source=e)
+    call move_alloc(longer, list)
+  end subroutine append
+
+  !> The joint drives, each with its table read when tabulated.
+  function drives_of(sc, pos_in, d, error) result(drives)
+    type(scene_t), intent(in) :: sc
+    integer, intent(in) :: pos_in(:)
+    type(model_data), intent(in) :: d
+    type(error_type), allocatable, intent(out) :: error
+    type(joint_drive) :: drives(size(sc%drives))
+    integer :: i
+    do i = 1, size(sc%drives)
+      associate(dr => sc%drives(i))
+        drives(i)%coord = coordinate_index(sc, pos_in, d, dr%joint, dr%coordinate)
+        drives(i)%offset = dr%offset; drives(i)%amplitude = dr%amplitude
+        drives(i)%frequency = dr%frequency; drives(i)%phase = dr%phase
+        drives(i)%tabulated = dr%form == 'table'
+        if (.not. drives(i)%tabulated) cycle
+        call read_time_table(scene_relative(sc%file, trim(dr%file)), dr%origin%where('file'), &
+          & drives(i)%table%t, drives(i)%table%y, error)
+        if (allocated(error)) return
+      end associate
+    end do
+  end function drives_of
+
+  !> The joint spring-dampers.
+  function springs_of(sc, pos_in, d) result(springs)
+    type(scene_t), intent(in) :: sc
+    integer, intent(in) :: pos_in(:)
+    type(model_data), intent(in) :: d
+    type(joint_spring) :: springs(size(sc%springs))
+    integer :: i
+    do i = 1, size(sc%springs)
+      associate(sp => sc%springs(i))
+        springs(i) = joint_spring(coordinate_index(sc, pos_in, d, sp%joint, sp%coordinate), sp%stiffness, &
+          & sp%damping, sp%free_position)
+      end associate
+    end do
+  end function springs_of
+
+  !> Geometric stiffness: bodies whose joint sits on a stiffened beam get the stiffness of
+  !> their axial load carried to the beam's root; gravity counts when its effect is on.
+  function stiffening_of(sc, d) result(e)
+    use pymr_model_effect_geometric_stiffening, only : stiffening_effect
+    type(scene_t), intent(in) :: sc
+    type(model_data), intent(in) :: d
+    type(stiffening_effect) :: e
+    logical :: child_kg(d%nb)
+    real(dp) :: kgc(d%mmax, d%mmax, d%nb), g(3)
+    integer :: b
+    child_kg = .false.; kgc = 0.0_dp
+    do b = 2, d%nb
+      if (.not. allocated(d%flex(d%parent(b))%kg1)) cycle
+      child_kg(b) = .true.
+      call beam_point_load_stiffness(d%bshape(d%parent(b)), d%at(1, b), &
+        & kgc(1:d%nm(d%parent(b)), 1:d%nm(d%parent(b)), b))
+    end do
+    g = 0.0_dp
+    if (sc%effects%gravity) g = sc%scene%gravity
+    e = stiffening_effect_of(g, child_kg, kgc)
+  end function stiffening_of
+
+  !> The load pulses: marker, unit direction, peak, start, duration.
+  function loads_of(sc, d) result(loads)
+    type(scene_t), intent(in) :: sc
+    type(model_data), intent(in) :: d
+    type(point_load) :: loads(size(sc%loads))
+    integer :: i, j
+    do i = 1, size(sc%loads)
+      do j = 1, d%markers%n
+        if (d%markers%name(j) == sc%loads(i)%marker) loads(i)%marker = j
+      end do
+      loads(i)%direction = sc%loads(i)%direction/norm2(sc%loads(i)%direction)
+      loads(i)%peak = sc%loads(i)%peak
+      loads(i)%start = sc%loads(i)%start
+      loads(i)%duration = sc%loads(i)%duration
+    end do
+  end function loads_of
+
+  !> The prescribed coordinates (marked in d), each with its table read and splined when
+  !> tabulated.
+  function motions_of(sc, pos_in, d, error) result(motions)
+    type(scene_t), intent(in) :: sc
+    integer, intent(in) :: pos_in(:)
+    type(model_data), intent(inout) :: d
+    type(error_type), allocatable, intent(out) :: error
+    type(prescribed_motion) :: motions(size(sc%motions))
+    integer :: i
+    character(len=:), allocatable :: where_file
+    d%n_prescribed = size(sc%motions)
+    do i = 1, size(sc%motions)
+      associate(mo => sc%motions(i), pm => motions(i))
+        pm%coord = coordinate_index(sc, pos_in, d, mo%joint, mo%coordinate)
+        d%prescribed(pm%coord) = .true.
+        pm%form = motion_sine
+        if (mo%form == 'spinup') pm%form = motion_spinup
+        if (mo%form == 'table') pm%form = motion_table
+        pm%offset = mo%offset; pm%amplitude = mo%amplitude; pm%frequency = mo%frequency; pm%phase = mo%phase
+        pm%rate = mo%rate; pm%ramp_time = mo%ramp_time
+        if (pm%form /= motion_table) cycle
+        where_file = mo%origin%where('file')
+        call read_time_table(scene_relative(sc%file, trim(mo%file)), where_file, pm%table%t, pm%table%y, error)
+        if (allocated(error)) return
+        call spline_setup(pm%table, where_file, error); if (allocated(error)) return
+      end associate
+    end do
+  end function motions_of
+
+  !> Model coordinate of a joint's coordinate.
+  integer function coordinate_index(sc, pos_in, d, joint, coordinate)
+    type(scene_t), intent(in) :: sc
+    integer, intent(in) :: pos_in(:)
+    type(model_data), intent(in) :: d
+    character(len=*), intent(in) :: joint
+    integer, intent(in) :: coordinate
+    integer :: j
+    coordinate_index = 0
+    do j = 1, size(sc%joints)
+      if (sc%joints(j)%name /= joint) cycle
+      coordinate_index = d%c0(pos_in(body_index(sc, sc%joints(j)%child))) + coordinate - 1
+    end do
+  end function coordinate_index
+end module pymr_driver_build_effects
