@@ -136,42 +136,15 @@ contains
     type(model_data), intent(out) :: d
     type(model_work), intent(inout) :: wk
     type(error_type), allocatable, intent(out) :: error
-    integer :: nb, b, i, j, k, m, nmod, nmb, pos_in(size(order))
+    integer :: nb, b, i, j, k, m, pos_in(size(order))
     type(flex_data), allocatable :: mfd(:)
     type(modal_nodes), allocatable :: mnd(:)
     nb = size(order)
     do b = 1, nb
       pos_in(order(b)) = b
     end do
-    d%nb = nb
-    d%nj = 0; nmod = 0; d%mmax = 0
-    allocate(mfd(nb), mnd(nb))
-    do b = 2, nb
-      d%nj = d%nj + joint_ndof(sc%joints(inboard(order(b)))%kind)
-      associate(bs => sc%bodies(order(b)))
-        nmb = 0
-        if (bs%kind == 'beam') nmb = beam_mode_count(bs)
-        if (bs%kind == 'modal') then
-          call read_modal_file(scene_relative(sc%file, trim(bs%modal_file)), mfd(b), mnd(b), error)
-          if (allocated(error)) then
-            error%message = sc%bodies(order(b))%origin%where() // ': modal_file: ' // error%message; return
-          end if
-          nmb = mfd(b)%m
-        end if
-        nmod = nmod + nmb
-        d%mmax = max(d%mmax, nmb)
-      end associate
-    end do
-    d%n = d%nj + nmod
-    associate(n => d%n, mx => d%mmax)
-      allocate(d%body_name(nb), d%joint_name(nb), d%parent(nb), d%c0(nb), d%nc(nb), d%mass(nb), d%com(3, nb), &
-        & d%inertia(3, 3, nb), d%at(3, nb), d%prim(n), d%cbody(n), d%cgrp(n), d%axis(3, n), d%qname(n), &
-        & d%qdname(n), d%flexible(nb), d%nm(nb), d%a0(nb), d%flex(nb), wk%fwork(nb), d%bshape(nb), d%mnodes(nb), &
-        & d%att_psi(3, mx, nb), d%att_phi(3, mx, nb), wk%cm(6, mx, nb), wk%mva(6, mx, nb), wk%wam(mx, nb))
-    end associate
-    d%parent = 0; d%c0 = 1; d%nc = 0; d%mass = 0.0_dp; d%com = 0.0_dp; d%inertia = 0.0_dp; d%at = 0.0_dp
-    d%joint_name = ''; d%flexible = .false.; d%nm = 0; d%a0 = d%n + 1
-    d%att_psi = 0.0_dp; d%att_phi = 0.0_dp; wk%cm = 0.0_dp; wk%mva = 0.0_dp; wk%wam = 0.0_dp
+    call count_coordinates(sc, order, inboard, d, mfd, mnd, error); if (allocated(error)) return
+    call allocate_tree(d, wk)
     d%body_name(1) = sc%bodies(order(1))%name
     k = 0; m = d%nj
     do b = 2, nb
@@ -197,23 +170,90 @@ contains
       end if
     end do
     call fill_children(d)
-    allocate(d%in_fast(nb))
+    call fill_joint_shapes(sc, order, inboard, d, error); if (allocated(error)) return
+    call fill_markers_moments(sc, pos_in, d, wk, error); if (allocated(error)) return
+    call fill_cuts(sc, pos_in, d, wk, error); if (allocated(error)) return
+    call allocate_work(d, wk)
+  end subroutine fill_model
+
+  !> The coordinates: joint coordinates, then each flexible body's modes (a modal body's
+  !> file read here, into mfd and mnd); the largest number of modes of one body.
+  subroutine count_coordinates(sc, order, inboard, d, mfd, mnd, error)
+    type(scene_t), intent(in) :: sc
+    integer, intent(in) :: order(:), inboard(:)
+    type(model_data), intent(inout) :: d
+    type(flex_data), allocatable, intent(out) :: mfd(:)
+    type(modal_nodes), allocatable, intent(out) :: mnd(:)
+    type(error_type), allocatable, intent(out) :: error
+    integer :: b, nmb, nmod
+    d%nb = size(order)
+    d%nj = 0; nmod = 0; d%mmax = 0
+    allocate(mfd(d%nb), mnd(d%nb))
+    do b = 2, d%nb
+      d%nj = d%nj + joint_ndof(sc%joints(inboard(order(b)))%kind)
+      associate(bs => sc%bodies(order(b)))
+        nmb = 0
+        if (bs%kind == 'beam') nmb = beam_mode_count(bs)
+        if (bs%kind == 'modal') then
+          call read_modal_file(scene_relative(sc%file, trim(bs%modal_file)), mfd(b), mnd(b), error)
+          if (allocated(error)) then
+            error%message = sc%bodies(order(b))%origin%where() // ': modal_file: ' // error%message; return
+          end if
+          nmb = mfd(b)%m
+        end if
+        nmod = nmod + nmb
+        d%mmax = max(d%mmax, nmb)
+      end associate
+    end do
+    d%n = d%nj + nmod
+  end subroutine count_coordinates
+
+  !> The tree's arrays, sized and cleared.
+  subroutine allocate_tree(d, wk)
+    type(model_data), intent(inout) :: d
+    type(model_work), intent(inout) :: wk
+    associate(n => d%n, mx => d%mmax, nb => d%nb)
+      allocate(d%body_name(nb), d%joint_name(nb), d%parent(nb), d%c0(nb), d%nc(nb), d%mass(nb), d%com(3, nb), &
+        & d%inertia(3, 3, nb), d%at(3, nb), d%prim(n), d%cbody(n), d%cgrp(n), d%axis(3, n), d%qname(n), &
+        & d%qdname(n), d%flexible(nb), d%nm(nb), d%a0(nb), d%flex(nb), wk%fwork(nb), d%bshape(nb), d%mnodes(nb), &
+        & d%att_psi(3, mx, nb), d%att_phi(3, mx, nb), wk%cm(6, mx, nb), wk%mva(6, mx, nb), wk%wam(mx, nb))
+    end associate
+    d%parent = 0; d%c0 = 1; d%nc = 0; d%mass = 0.0_dp; d%com = 0.0_dp; d%inertia = 0.0_dp; d%at = 0.0_dp
+    d%joint_name = ''; d%flexible = .false.; d%nm = 0; d%a0 = d%n + 1
+    d%att_psi = 0.0_dp; d%att_phi = 0.0_dp; wk%cm = 0.0_dp; wk%mva = 0.0_dp; wk%wam = 0.0_dp
+  end subroutine allocate_tree
+
+  !> The bodies on or below a flexible body, and the parent's mode shapes at each joint
+  !> point on a flexible body.
+  subroutine fill_joint_shapes(sc, order, inboard, d, error)
+    type(scene_t), intent(in) :: sc
+    integer, intent(in) :: order(:), inboard(:)
+    type(model_data), intent(inout) :: d
+    type(error_type), allocatable, intent(out) :: error
+    integer :: b
+    allocate(d%in_fast(d%nb))
     d%in_fast(1) = .false.
-    do b = 2, nb
+    do b = 2, d%nb
       d%in_fast(b) = d%flexible(b) .or. d%in_fast(d%parent(b))
     end do
-    do b = 2, nb
+    do b = 2, d%nb
       if (d%nm(d%parent(b)) > 0) then
         call flexible_point(d, d%parent(b), d%at(:, b), sc%joints(inboard(order(b)))%origin%where('at'), &
           & d%att_psi(:, :, b), d%att_phi(:, :, b), error); if (allocated(error)) return
       end if
     end do
-    call fill_markers_moments(sc, pos_in, d, wk, error); if (allocated(error)) return
-    call fill_cuts(sc, pos_in, d, wk, error); if (allocated(error)) return
+  end subroutine fill_joint_shapes
+
+  !> The evaluations' kinematics and terms, sized and cleared.
+  subroutine allocate_work(d, wk)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
+    integer :: nb
+    nb = d%nb
     allocate(wk%rot(3, 3, nb), wk%pos(3, nb), wk%vel(6, nb), wk%acc(6, nb), wk%s(6, d%n), wk%i6(6, 6, nb), &
       & wk%w(6, nb), wk%ic(6, 6, nb), wk%wc(6, nb), wk%mm(d%n, d%n), wk%lf(d%n, d%n), wk%p(d%n), wk%tau(d%n))
     wk%i6 = 0.0_dp; wk%w = 0.0_dp; wk%ic = 0.0_dp; wk%wc = 0.0_dp; wk%mm = 0.0_dp; wk%tau = 0.0_dp; wk%s = 0.0_dp
-  end subroutine fill_model
+  end subroutine allocate_work
 
   !> The loop-closing joints (closes_loop) and their constraint rows (model/loops.f90); a
   !> cut joint's point on a flexible body takes the body's mode shapes there (flexible_point).

@@ -210,27 +210,40 @@ contains
       wv(1:3) = matmul(rot, f)
       wv(4:6) = matmul(rot, n) + cross(pos, wv(1:3))
     end if
-    do k = 1, m
+    call modal_bias(fd, wk, a, ad, wb, alv, alw, full_inertia, wam)
+  end subroutine flex_body_terms
+
+  !> The modal rows' bias forces: the modal inertia of the body-frame motion of the origin
+  !> (alv, alw, wb), the deformed body's gyroscopic forces (full_inertia) and the stiffness.
+  pure subroutine modal_bias(fd, wk, a, ad, wb, alv, alw, full_inertia, wam)
+    type(flex_data), intent(in) :: fd
+    type(flex_work), intent(in) :: wk
+    real(dp), intent(in) :: a(:), ad(:), wb(3), alv(3), alw(3)
+    logical, intent(in) :: full_inertia
+    real(dp), intent(out) :: wam(:)
+    integer :: k, l
+    real(dp) :: tr
+    do k = 1, fd%m
       tr = wk%wa(1, 1, k) + wk%wa(2, 2, k) + wk%wa(3, 3, k)
       wam(k) = dot_product(fd%first(:, k), alv) + dot_product(wk%cr(:, k), alw) &
         & + quad_form(wk%wa(:, :, k), wb) - dot_product(wb, wb)*tr
       if (full_inertia) then
-        do l = 1, m
+        do l = 1, fd%m
           ! 2 sum_p m_p Psi_k . (w x Psi_l) ad_l
           wam(k) = wam(k) + 2.0_dp*ad(l)*dot_product(wb, fd%gyro(:, l, k))
         end do
       end if
       wam(k) = wam(k) + fd%omega2(k)*a(k)
     end do
-  contains
-    !> v . (A v) for a 3 x 3 matrix A.
-    pure real(dp) function quad_form(a3, v)
-      real(dp), intent(in) :: a3(3, 3), v(3)
-      quad_form = v(1)*(a3(1, 1)*v(1) + a3(1, 2)*v(2) + a3(1, 3)*v(3)) &
-        & + v(2)*(a3(2, 1)*v(1) + a3(2, 2)*v(2) + a3(2, 3)*v(3)) &
-        & + v(3)*(a3(3, 1)*v(1) + a3(3, 2)*v(2) + a3(3, 3)*v(3))
-    end function quad_form
-  end subroutine flex_body_terms
+  end subroutine modal_bias
+
+  !> v . (A v) for a 3 x 3 matrix A.
+  pure real(dp) function quad_form(a3, v)
+    real(dp), intent(in) :: a3(3, 3), v(3)
+    quad_form = v(1)*(a3(1, 1)*v(1) + a3(1, 2)*v(2) + a3(1, 3)*v(3)) &
+      & + v(2)*(a3(2, 1)*v(1) + a3(2, 2)*v(2) + a3(2, 3)*v(3)) &
+      & + v(3)*(a3(3, 1)*v(1) + a3(3, 2)*v(2) + a3(3, 3)*v(3))
+  end function quad_form
 
   !> deformation_inertia 'full': the deformed parts of the second moments,
   !> Wa(:,:,k) = sum_p m_p c_p Psi_p(:,k)^T (k = 1..m) with c_p = s_p + Psi_p a, and the
