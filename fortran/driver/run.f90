@@ -22,7 +22,8 @@ module pymr_driver_run
   use pymr_model_flexbody, only : point_deflection
   use pymr_env_text_file, only : absolute_path, scene_relative, acquire_lock, release_lock, not_regular, missing_folder, &
     & commit_staged, remove_file, same_file
-  use pymr_driver_preflight, only : check_step_stability, check_mass_matrix, static_start
+  use pymr_driver_preflight, only : check_step_stability, check_mass_matrix
+  use pymr_driver_static_start, only : static_start
   use pymr_io_checkpoint, only : run_progress, write_checkpoint, read_checkpoint
   implicit none
   private
