@@ -1,5 +1,6 @@
 !> Natural modes of the model linearised at a state (`pymr modes`), and its highest natural
-!> frequency (the step of adaptive starts).
+!> frequency (which bounds the largest step of adaptive runs whose closed loops pass
+!> through flexible bodies).
 module pymr_driver_normal_modes
   use pymr_env_kinds, only : dp, pi
   use pymr_env_error, only : error_type

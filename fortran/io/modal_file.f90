@@ -274,7 +274,8 @@ contains
     end if
     path = r%path; m = r%m
     if (.not. (sum(mp) > 0.0_dp)) then
-      call fatal_error(r%error, path // ': line ' // itoa(r%points_line) // ': points: the points carry no mass'); return
+      call fatal_error(r%error, path // ': line ' // itoa(r%points_line) // ': points: the points carry no mass')
+      return
     end if
     ! sum m_p Psi_p^T Psi_p has rank 3 per point at most: more modes cannot be mass-normalised
     ! (and so the second moments W, (m+1)^2 blocks, stay within the file's size)
