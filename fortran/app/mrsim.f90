@@ -25,52 +25,12 @@ program mrsim
   !> compiler's runtime turns into a backtrace. SIG_IGN is the handler value 1.
   integer(c_int), parameter :: sigxfsz = 25
   type(c_funptr) :: previous
-  character(len=:), allocatable :: scene, out, overrides, summary, arg, restart, written
+  character(len=:), allocatable :: scene, out, overrides, summary, restart, written
   type(error_type), allocatable :: error
-  integer :: i, nargs
   logical :: quiet, progress
 
   previous = c_signal(sigxfsz, transfer(1_c_intptr_t, previous))
-  scene = ''; out = ''; overrides = ''; restart = ''; quiet = .false.; progress = .false.
-  nargs = command_argument_count()
-  i = 1
-  do while (i <= nargs)
-    arg = get_arg(i)
-    select case (arg)
-    case ('--version')
-      write(output_unit, '(a)') 'mrsim (pymr) ' // pymr_version
-      stop
-    case ('-h', '--help')
-      write(output_unit, '(a)') 'usage: mrsim SCENE.nml [-o OUT.csv] [--set GROUP.ITEM=VALUE ...] [--restart CKPT] ' &
-        & // '[--progress] [--quiet] | --version'
-      stop
-    case ('-o', '--output')
-      if (i == nargs) call usage_error(arg // ' needs a file name')
-      i = i + 1; out = get_arg(i)
-      if (len(out) == 0) call usage_error(arg // ' needs a file name (got an empty one)')
-    case ('--set')
-      if (i == nargs) call usage_error('--set needs GROUP.ITEM=VALUE')
-      i = i + 1; arg = get_arg(i)
-      ! the kernel reads one override a line: a line break would make two of one
-      if (scan(arg, achar(10) // achar(13)) > 0) call usage_error('--set ' // escaped_breaks(arg) // &
-        & ': a line break in an override (one GROUP.ITEM=VALUE, on one line)')
-      overrides = overrides // arg // achar(10)
-    case ('--restart')
-      if (i == nargs) call usage_error('--restart needs a checkpoint file')
-      i = i + 1; restart = get_arg(i)
-      ! an empty name (an unset shell variable) would run from the start instead
-      if (len(restart) == 0) call usage_error('--restart needs a checkpoint file (got an empty name)')
-    case ('--progress')
-      progress = .true.
-    case ('-q', '--quiet')
-      quiet = .true.
-    case default
-      if (arg(1:1) == '-') call usage_error('unknown option ' // arg)
-      if (len(scene) > 0) call usage_error('one scene file at a time (got ' // scene // ' and ' // arg // ')')
-      scene = arg
-    end select
-    i = i + 1
-  end do
+  call read_arguments()
   if (len(scene) == 0) call usage_error('no scene file (usage: mrsim SCENE.nml [-o OUT.csv] [--set G.I=V ...])')
 
   call run_scene(scene, overrides, out, summary, error, written, restart=restart, progress_lines=progress)
@@ -82,6 +42,53 @@ program mrsim
   if (.not. quiet) write(output_unit, '(a)') summary
 
 contains
+
+  !> The command line: the scene, -o, --set, --restart, --progress, --quiet (--version and
+  !> --help answer and stop; a bad argument stops with status 1).
+  subroutine read_arguments()
+    integer :: i, nargs
+    character(len=:), allocatable :: arg
+    scene = ''; out = ''; overrides = ''; restart = ''; quiet = .false.; progress = .false.
+    nargs = command_argument_count()
+    i = 1
+    do while (i <= nargs)
+      arg = get_arg(i)
+      select case (arg)
+      case ('--version')
+        write(output_unit, '(a)') 'mrsim (pymr) ' // pymr_version
+        stop
+      case ('-h', '--help')
+        write(output_unit, '(a)') 'usage: mrsim SCENE.nml [-o OUT.csv] [--set GROUP.ITEM=VALUE ...] [--restart CKPT] ' &
+          & // '[--progress] [--quiet] | --version'
+        stop
+      case ('-o', '--output')
+        if (i == nargs) call usage_error(arg // ' needs a file name')
+        i = i + 1; out = get_arg(i)
+        if (len(out) == 0) call usage_error(arg // ' needs a file name (got an empty one)')
+      case ('--set')
+        if (i == nargs) call usage_error('--set needs GROUP.ITEM=VALUE')
+        i = i + 1; arg = get_arg(i)
+        ! the kernel reads one override a line: a line break would make two of one
+        if (scan(arg, achar(10) // achar(13)) > 0) call usage_error('--set ' // escaped_breaks(arg) // &
+          & ': a line break in an override (one GROUP.ITEM=VALUE, on one line)')
+        overrides = overrides // arg // achar(10)
+      case ('--restart')
+        if (i == nargs) call usage_error('--restart needs a checkpoint file')
+        i = i + 1; restart = get_arg(i)
+        ! an empty name (an unset shell variable) would run from the start instead
+        if (len(restart) == 0) call usage_error('--restart needs a checkpoint file (got an empty name)')
+      case ('--progress')
+        progress = .true.
+      case ('-q', '--quiet')
+        quiet = .true.
+      case default
+        if (arg(1:1) == '-') call usage_error('unknown option ' // arg)
+        if (len(scene) > 0) call usage_error('one scene file at a time (got ' // scene // ' and ' // arg // ')')
+        scene = arg
+      end select
+      i = i + 1
+    end do
+  end subroutine read_arguments
 
   function get_arg(k) result(a)
     integer, intent(in) :: k

@@ -40,6 +40,31 @@ module pymr_io_modal_file
   !> 20-element barrel); rounded to 6 significant digits 2.8e-6, to 4 digits 1.7e-4.
   real(dp), parameter :: normalised_tol = 1.0e-4_dp
 
+  !> Where the reading of a modal file is: its text and current line (its words wa:wb, nw
+  !> of them, its number), what the header gave, and the first error.
+  type :: modal_reader
+    character(len=:), allocatable :: path, text, ln
+    integer, allocatable :: wa(:), wb(:)
+    integer :: pos = 1, line = 0, nw = 0
+    !> Format version, number of modes, the lines of 'modes' and 'points'.
+    integer :: version = 0, m = 0, modes_line = 0, points_line = 0
+    !> Whether an invariants block is given, and the line of each pair of its second moments.
+    logical :: given = .false.
+    integer, allocatable :: wline(:, :)
+    type(error_type), allocatable :: error
+  contains
+    procedure :: numbers => reader_numbers
+    procedure :: word => reader_word
+    procedure :: rest => reader_rest
+    procedure :: count_word => reader_count_word
+    procedure :: next_line => reader_next_line
+    procedure :: data_line => reader_data_line
+    procedure :: key_line => reader_key_line
+    procedure :: next_is => reader_next_is
+    procedure :: fail => reader_fail
+  end type modal_reader
+
+
 contains
 
   !> Read a modal file into invariants (fd) and nodes. The file must agree with itself:
@@ -52,12 +77,10 @@ contains
     type(flex_data), intent(out) :: fd
     type(modal_nodes), intent(out) :: nodes
     type(error_type), allocatable, intent(out) :: error
-    character(len=:), allocatable :: text, ln
-    integer, allocatable :: wa(:), wb(:), wline(:, :)
-    integer :: pos, line, nw, m, np, p, version, points_line, modes_line
-    real(dp), allocatable :: f(:), row(:), mp(:), first(:, :), w(:, :, :, :)
+    type(modal_reader) :: r
+    real(dp), allocatable :: f(:), mp(:), first(:, :), w(:, :, :, :)
     real(dp) :: mass
-    logical :: exists, given
+    logical :: exists
     inquire(file=path, exist=exists)
     if (.not. exists) then
       call fatal_error(error, path // ': modal file not found'); return
@@ -65,280 +88,352 @@ contains
     if (len(not_regular(path)) > 0) then
       call fatal_error(error, path // ': cannot open: ' // not_regular(path)); return
     end if
-    call read_text_file(path, text, error); if (allocated(error)) return
-    pos = 1; line = 0
-    call key_line('pymr-modal'); if (allocated(error)) return
-    if (.not. count_word(version) .or. version < 1 .or. version > 2) then
-      call fail('pymr-modal: expected the format version 1 or 2, got ' // rest()); return
+    r%path = path
+    call read_text_file(path, r%text, error); if (allocated(error)) return
+    call read_header(r, f)
+    if (.not. allocated(r%error)) then
+      r%given = r%next_is('invariants')
+      if (r%given) then
+        if (r%version < 2) then
+          call r%fail('invariants: needs pymr-modal 2', r%line + 1)
+        else
+          call read_invariants(r, mass, first, w)
+        end if
+      end if
     end if
-    call key_line('modes'); if (allocated(error)) return
-    modes_line = line
-    if (.not. count_word(m)) then
-      call fail('modes: expected a count, got ' // rest()); return
+    if (.not. allocated(r%error)) call read_points(r, nodes, mp)
+    if (.not. allocated(r%error)) call body_invariants(r, nodes, mp, mass, first, w, fd)
+    if (.not. allocated(r%error)) call check_normalised(r, fd)
+    if (allocated(r%error)) then
+      call move_alloc(r%error, error); return
     end if
-    call check_header_count(path, 'line ' // itoa(line) // ': modes', int(m, int64), 2, 'frequencies', error)
-    if (allocated(error)) return
-    call key_line('frequencies_hz'); if (allocated(error)) return
-    allocate(f(m))
-    if (nw - 1 /= m) then
-      call fail('frequencies_hz: expected ' // itoa(m) // ' positive frequencies (modes ' // itoa(m) // '), got ' // &
-        & itoa(nw - 1) // ' numbers'); return
+    fd%omega2 = (2.0_dp*pi*f)**2
+  end subroutine read_modal_file
+
+  !> The header: the format version, the modes' count and their frequencies f (Hz).
+  subroutine read_header(r, f)
+    type(modal_reader), intent(inout) :: r
+    real(dp), allocatable, intent(out) :: f(:)
+    integer :: p
+    call r%key_line('pymr-modal'); if (allocated(r%error)) return
+    if (.not. r%count_word(r%version) .or. r%version < 1 .or. r%version > 2) then
+      call r%fail('pymr-modal: expected the format version 1 or 2, got ' // r%rest()); return
     end if
-    call numbers(2, f, 'frequencies_hz', 'frequency'); if (allocated(error)) return
-    do p = 1, m
+    call r%key_line('modes'); if (allocated(r%error)) return
+    r%modes_line = r%line
+    if (.not. r%count_word(r%m)) then
+      call r%fail('modes: expected a count, got ' // r%rest()); return
+    end if
+    call check_header_count(r%path, 'line ' // itoa(r%line) // ': modes', int(r%m, int64), 2, 'frequencies', r%error)
+    if (allocated(r%error)) return
+    call r%key_line('frequencies_hz'); if (allocated(r%error)) return
+    allocate(f(r%m))
+    if (r%nw - 1 /= r%m) then
+      call r%fail('frequencies_hz: expected ' // itoa(r%m) // ' positive frequencies (modes ' // itoa(r%m) // &
+        & '), got ' // itoa(r%nw - 1) // ' numbers'); return
+    end if
+    call r%numbers(2, f, 'frequencies_hz', 'frequency'); if (allocated(r%error)) return
+    do p = 1, r%m
       if (.not. (f(p) > 0.0_dp)) then
-        call fail('frequencies_hz: frequency ' // itoa(p) // ': expected a positive frequency (Hz), got ' // &
-          & word(p + 1)); return
+        call r%fail('frequencies_hz: frequency ' // itoa(p) // ': expected a positive frequency (Hz), got ' // &
+          & r%word(p + 1)); return
       end if
       if (.not. ieee_is_finite((2.0_dp*pi*f(p))**2)) then
-        call fail('frequencies_hz: frequency ' // itoa(p) // ': ' // word(p + 1) // ' Hz is too large (its ' // &
+        call r%fail('frequencies_hz: frequency ' // itoa(p) // ': ' // r%word(p + 1) // ' Hz is too large (its ' // &
           & '(2 pi f)^2 overflows)'); return
       end if
     end do
-    given = next_is('invariants')
-    if (given) then
-      if (version < 2) then
-        call fail('invariants: needs pymr-modal 2', line + 1); return
+  end subroutine read_header
+
+  !> The invariants block: mass, first moments F(3, 0:m), second moments W (upper triangle
+  !> of the pairs, the lower one by W(:,:,beta,alpha) = W(:,:,alpha,beta)^T).
+  subroutine read_invariants(r, mass, first, w)
+    type(modal_reader), intent(inout) :: r
+    real(dp), intent(out) :: mass
+    real(dp), allocatable, intent(out) :: first(:, :), w(:, :, :, :)
+    real(dp) :: v1(1)
+    integer :: m
+    m = r%m
+    call r%key_line('invariants'); if (allocated(r%error)) return
+    if (r%nw /= 1) then
+      call r%fail('invariants: nothing may follow it on its line, got ' // r%rest()); return
+    end if
+    call r%key_line('mass'); if (allocated(r%error)) return
+    if (r%nw /= 2) then
+      call r%fail('mass: expected a positive mass, got ' // r%rest()); return
+    end if
+    call r%numbers(2, v1, 'mass', 'mass'); if (allocated(r%error)) return
+    mass = v1(1)
+    if (.not. (mass > 0.0_dp)) then
+      call r%fail('mass: expected a positive mass'); return
+    end if
+    ! (m+1)(m+2)/2 lines of 11 numbers: checked before W's 72 (m+1)^2 bytes are allocated
+    call check_header_count(r%path, 'line ' // itoa(r%modes_line) // ': modes ' // itoa(m), &
+      & int(m + 1, int64)*int(m + 2, int64)/2, 22, 'second_moments lines of 11 numbers', r%error)
+    if (allocated(r%error)) return
+    allocate(first(3, 0:m), w(3, 3, 0:m, 0:m), r%wline(0:m, 0:m))
+    call read_first_moments(r, first); if (allocated(r%error)) return
+    call read_second_moments(r, w)
+  end subroutine read_invariants
+
+  !> The first moments F(1:3, alpha), alpha = 0..m: a line each after the key.
+  subroutine read_first_moments(r, first)
+    type(modal_reader), intent(inout) :: r
+    real(dp), intent(inout) :: first(:, 0:)
+    integer :: al, idx
+    real(dp) :: v3(3)
+    call r%key_line('first_moments'); if (allocated(r%error)) return
+    do al = 0, r%m
+      if (.not. r%data_line()) return
+      if (.not. r%count_word(idx, 1) .or. idx /= al .or. r%nw /= 4) then
+        call r%fail('first_moments: expected ' // itoa(al) // ' and F(1:3, ' // itoa(al) // '), 4 numbers, got ' // &
+          & itoa(r%nw)); return
       end if
-      call read_invariants(); if (allocated(error)) return
+      call r%numbers(2, v3, 'first_moments', 'F', al); if (allocated(r%error)) return
+      first(:, al) = v3
+    end do
+  end subroutine read_first_moments
+
+  !> The second moments W(1:3, 1:3, alpha, beta), beta = alpha..m, row by row: a line each
+  !> after the key; the line of each pair kept for messages.
+  subroutine read_second_moments(r, w)
+    type(modal_reader), intent(inout) :: r
+    real(dp), intent(inout) :: w(:, :, 0:, 0:)
+    integer :: al, be, idx(2)
+    real(dp) :: v9(9)
+    call r%key_line('second_moments'); if (allocated(r%error)) return
+    do al = 0, r%m
+      do be = al, r%m
+        if (.not. r%data_line()) return
+        if (.not. r%count_word(idx(1), 1) .or. .not. r%count_word(idx(2), 2) .or. idx(1) /= al .or. idx(2) /= be &
+          & .or. r%nw /= 11) then
+          call r%fail('second_moments: expected ' // itoa(al) // ' ' // itoa(be) // ' and the 9 numbers of W(1:3, ' // &
+            & '1:3, ' // itoa(al) // ', ' // itoa(be) // ') row by row, 11 numbers, got ' // itoa(r%nw)); return
+        end if
+        call r%numbers(3, v9, 'second_moments', 'W', al, be); if (allocated(r%error)) return
+        w(:, :, al, be) = transpose(reshape(v9, [3, 3]))
+        w(:, :, be, al) = reshape(v9, [3, 3])
+        r%wline(al, be) = r%line; r%wline(be, al) = r%line
+      end do
+    end do
+  end subroutine read_second_moments
+
+  !> The points block: each point's position, mass mp and mode shapes; nothing may follow it.
+  subroutine read_points(r, nodes, mp)
+    type(modal_reader), intent(inout) :: r
+    type(modal_nodes), intent(inout) :: nodes
+    real(dp), allocatable, intent(out) :: mp(:)
+    real(dp), allocatable :: row(:)
+    integer :: np, p, m
+    m = r%m
+    call r%key_line('points'); if (allocated(r%error)) return
+    r%points_line = r%line
+    if (.not. r%count_word(np) .or. np < 1) then
+      call r%fail('points: expected a positive count, got ' // r%rest()); return
     end if
-    call key_line('points'); if (allocated(error)) return
-    points_line = line
-    if (.not. count_word(np) .or. np < 1) then
-      call fail('points: expected a positive count, got ' // rest()); return
-    end if
-    call check_header_count(path, 'line ' // itoa(line) // ': points', int(np, int64), 2*(4 + 6*m), &
-      & 'lines of ' // itoa(4 + 6*m) // ' numbers', error)
-    if (allocated(error)) return
+    call check_header_count(r%path, 'line ' // itoa(r%line) // ': points', int(np, int64), 2*(4 + 6*m), &
+      & 'lines of ' // itoa(4 + 6*m) // ' numbers', r%error)
+    if (allocated(r%error)) return
     nodes%np = np
     allocate(nodes%x(3, np), nodes%psi(3, m, np), nodes%phi(3, m, np), mp(np), row(4 + 6*m))
     do p = 1, np
-      if (.not. next_line()) then
-        call fail('points: ' // itoa(np) // ' points, but the file ends after ' // itoa(p - 1) // ' (line ' // &
-          & itoa(line) // ')', points_line); return
+      if (.not. r%next_line()) then
+        call r%fail('points: ' // itoa(np) // ' points, but the file ends after ' // itoa(p - 1) // ' (line ' // &
+          & itoa(r%line) // ')', r%points_line); return
       end if
-      if (nw /= 4 + 6*m) then
-        call fail('point ' // itoa(p) // ': expected ' // itoa(4 + 6*m) // ' numbers (x y z mass, then psi and phi' // &
-          & ' of each of the ' // itoa(m) // ' modes), got ' // itoa(nw)); return
+      if (r%nw /= 4 + 6*m) then
+        call r%fail('point ' // itoa(p) // ': expected ' // itoa(4 + 6*m) // ' numbers (x y z mass, then psi and ' // &
+          & 'phi of each of the ' // itoa(m) // ' modes), got ' // itoa(r%nw)); return
       end if
-      call numbers(1, row, 'point ' // itoa(p), 'point'); if (allocated(error)) return
+      call r%numbers(1, row, 'point ' // itoa(p), 'point'); if (allocated(r%error)) return
       if (row(4) < 0.0_dp) then
-        call fail('point ' // itoa(p) // ': negative mass'); return
+        call r%fail('point ' // itoa(p) // ': negative mass'); return
       end if
-      if (given .and. row(4) /= 0.0_dp) then
-        call fail('point ' // itoa(p) // ': mass must be 0 (the invariants block gives the body''s inertia)'); return
+      if (r%given .and. row(4) /= 0.0_dp) then
+        call r%fail('point ' // itoa(p) // ': mass must be 0 (the invariants block gives the body''s inertia)'); return
       end if
       nodes%x(:, p) = row(1:3); mp(p) = row(4)
       nodes%psi(:, :, p) = reshape(row(5:4 + 3*m), [3, m])
       nodes%phi(:, :, p) = reshape(row(5 + 3*m:4 + 6*m), [3, m])
     end do
-    if (next_line()) then
-      call fail('more lines than the ' // itoa(np) // ' points of line ' // itoa(points_line)); return
+    if (r%next_line()) call r%fail('more lines than the ' // itoa(np) // ' points of line ' // itoa(r%points_line))
+  end subroutine read_points
+
+  !> The body's invariants fd: from the invariants block when given, else from the points'
+  !> masses (which must carry the body's mass, and hold at most 3 modes a point).
+  subroutine body_invariants(r, nodes, mp, mass, first, w, fd)
+    type(modal_reader), intent(inout) :: r
+    type(modal_nodes), intent(in) :: nodes
+    real(dp), intent(in) :: mp(:), mass
+    real(dp), allocatable, intent(in) :: first(:, :), w(:, :, :, :)
+    type(flex_data), intent(inout) :: fd
+    character(len=:), allocatable :: path
+    integer :: m
+    if (r%given) then
+      call flex_from_moments(mass, first, w, fd); return
     end if
-    if (given) then
-      call flex_from_moments(mass, first, w, fd)
+    path = r%path; m = r%m
+    if (.not. (sum(mp) > 0.0_dp)) then
+      call fatal_error(r%error, path // ': line ' // itoa(r%points_line) // ': points: the points carry no mass')
+      return
+    end if
+    ! sum m_p Psi_p^T Psi_p has rank 3 per point at most: more modes cannot be mass-normalised
+    ! (and so the second moments W, (m+1)^2 blocks, stay within the file's size)
+    if (m > 3*count(mp > 0.0_dp)) then
+      call fatal_error(r%error, path // ': line ' // itoa(r%modes_line) // ': modes: ' // itoa(m) // ' modes, but ' &
+        & // itoa(count(mp > 0.0_dp)) // trim(merge(' point carries', ' points carry ', count(mp > 0.0_dp) == 1)) // &
+        & ' ' // 'mass: at most 3 modes a point can be mass-normalised'); return
+    end if
+    call flex_invariants(nodes%x, mp, nodes%psi, fd)
+    if (.not. (all(ieee_is_finite(fd%w)) .and. all(ieee_is_finite(fd%first)) .and. ieee_is_finite(fd%mass))) then
+      call fatal_error(r%error, path // ': line ' // itoa(r%points_line) // ': points: the inertia of the points ' // &
+        & 'overflows (a mass or a position too large)')
+    end if
+  end subroutine body_invariants
+
+  !> The modal mass matrix (the traces of W's modal blocks: sum m_p Psi_p^T Psi_p over the
+  !> points, or from the invariants block) must be the identity to normalised_tol.
+  subroutine check_normalised(r, fd)
+    type(modal_reader), intent(inout) :: r
+    type(flex_data), intent(in) :: fd
+    integer :: i, j, wi, wj
+    real(dp) :: d, worst
+    worst = -1.0_dp; wi = 0; wj = 0
+    do j = 1, r%m
+      do i = 1, j
+        d = abs(fd%mmm(i, j) - merge(1.0_dp, 0.0_dp, i == j))
+        if (.not. (d <= worst)) then
+          worst = d; wi = i; wj = j
+        end if
+      end do
+    end do
+    if (wi == 0 .or. worst <= normalised_tol) return
+    if (r%given) then
+      call fatal_error(r%error, r%path // ': line ' // itoa(r%wline(wi, wj)) // ': second_moments: the modes are ' // &
+        & 'not mass-normalised: W11+W22+W33 of modes ' // itoa(wi) // ' and ' // itoa(wj) // ' is ' // &
+        & fmt(fd%mmm(wi, wj)) // ', expected ' // merge('1', '0', wi == wj) // ' (to ' // fmt(normalised_tol) // ')')
     else
-      if (.not. (sum(mp) > 0.0_dp)) then
-        call fatal_error(error, path // ': line ' // itoa(points_line) // ': points: the points carry no mass'); return
-      end if
-      ! sum m_p Psi_p^T Psi_p has rank 3 per point at most: more modes cannot be mass-normalised
-      ! (and so the second moments W, (m+1)^2 blocks, stay within the file's size)
-      if (m > 3*count(mp > 0.0_dp)) then
-        call fatal_error(error, path // ': line ' // itoa(modes_line) // ': modes: ' // itoa(m) // ' modes, but ' // &
-          & itoa(count(mp > 0.0_dp)) // trim(merge(' point carries', ' points carry ', count(mp > 0.0_dp) == 1)) // ' ' // &
-          & 'mass: at most 3 modes a point can be mass-normalised'); return
-      end if
-      call flex_invariants(nodes%x, mp, nodes%psi, fd)
-      if (.not. (all(ieee_is_finite(fd%w)) .and. all(ieee_is_finite(fd%first)) .and. ieee_is_finite(fd%mass))) then
-        call fatal_error(error, path // ': line ' // itoa(points_line) // ': points: the inertia of the points ' // &
-          & 'overflows (a mass or a position too large)'); return
-      end if
+      call fatal_error(r%error, r%path // ': line ' // itoa(r%points_line) // ': points: the modes are not ' // &
+        & 'mass-normalised: the sum of mass psi_' // itoa(wi) // '.psi_' // itoa(wj) // ' over the points is ' // &
+        & fmt(fd%mmm(wi, wj)) // ', expected ' // merge('1', '0', wi == wj) // ' (to ' // fmt(normalised_tol) // ')')
     end if
-    call check_normalised(); if (allocated(error)) return
-    fd%omega2 = (2.0_dp*pi*f)**2
-  contains
-    !> The invariants block: mass, first moments F(3, 0:m), second moments W (upper triangle
-    !> of the pairs, the lower one by W(:,:,beta,alpha) = W(:,:,alpha,beta)^T).
-    subroutine read_invariants()
-      integer :: al, be, idx(2)
-      real(dp) :: v1(1), v3(3), v9(9)
-      call key_line('invariants'); if (allocated(error)) return
-      if (nw /= 1) then
-        call fail('invariants: nothing may follow it on its line, got ' // rest()); return
+  end subroutine check_normalised
+
+  !> Words k0.. of the current line read as the numbers v (their count checked by the
+  !> caller): each by the kernel's number rule (number_text), and finite; `what` names the
+  !> line's item, `kind` the entry ('point', 'frequency', 'mass', 'F', 'W', with al, be).
+  subroutine reader_numbers(r, k0, v, what, kind, al, be)
+    class(modal_reader), intent(inout) :: r
+    integer, intent(in) :: k0
+    real(dp), intent(out) :: v(:)
+    character(len=*), intent(in) :: what, kind
+    integer, intent(in), optional :: al, be
+    integer :: k, a, b
+    logical :: ok
+    a = 0; b = 0
+    if (present(al)) a = al
+    if (present(be)) b = be
+    do k = 1, size(v)
+      call number_text(r%word(k0 + k - 1), v(k), ok)
+      if (.not. ok) then
+        call r%fail(what // ': ' // entry_name(kind, k, r%m, a, b) // ': ''' // r%word(k0 + k - 1) // &
+          & ''' is not a number'); return
       end if
-      call key_line('mass'); if (allocated(error)) return
-      if (nw /= 2) then
-        call fail('mass: expected a positive mass, got ' // rest()); return
+      if (.not. ieee_is_finite(v(k))) then
+        call r%fail(what // ': ' // entry_name(kind, k, r%m, a, b) // ': ' // r%word(k0 + k - 1) // &
+          & ' is not a finite number'); return
       end if
-      call numbers(2, v1, 'mass', 'mass'); if (allocated(error)) return
-      mass = v1(1)
-      if (.not. (mass > 0.0_dp)) then
-        call fail('mass: expected a positive mass'); return
-      end if
-      ! (m+1)(m+2)/2 lines of 11 numbers: checked before W's 72 (m+1)^2 bytes are allocated
-      call check_header_count(path, 'line ' // itoa(modes_line) // ': modes ' // itoa(m), &
-        & int(m + 1, int64)*int(m + 2, int64)/2, 22, 'second_moments lines of 11 numbers', error)
-      if (allocated(error)) return
-      allocate(first(3, 0:m), w(3, 3, 0:m, 0:m), wline(0:m, 0:m))
-      call key_line('first_moments'); if (allocated(error)) return
-      do al = 0, m
-        if (.not. data_line()) return
-        if (.not. count_word(idx(1), 1) .or. idx(1) /= al .or. nw /= 4) then
-          call fail('first_moments: expected ' // itoa(al) // ' and F(1:3, ' // itoa(al) // '), 4 numbers, got ' // &
-            & itoa(nw)); return
-        end if
-        call numbers(2, v3, 'first_moments', 'F', al); if (allocated(error)) return
-        first(:, al) = v3
-      end do
-      call key_line('second_moments'); if (allocated(error)) return
-      do al = 0, m
-        do be = al, m
-          if (.not. data_line()) return
-          if (.not. count_word(idx(1), 1) .or. .not. count_word(idx(2), 2) .or. idx(1) /= al .or. idx(2) /= be &
-            & .or. nw /= 11) then
-            call fail('second_moments: expected ' // itoa(al) // ' ' // itoa(be) // ' and the 9 numbers of W(1:3, 1:3, ' &
-              & // itoa(al) // ', ' // itoa(be) // ') row by row, 11 numbers, got ' // itoa(nw)); return
-          end if
-          call numbers(3, v9, 'second_moments', 'W', al, be); if (allocated(error)) return
-          w(:, :, al, be) = transpose(reshape(v9, [3, 3]))
-          w(:, :, be, al) = reshape(v9, [3, 3])
-          wline(al, be) = line; wline(be, al) = line
-        end do
-      end do
-    end subroutine read_invariants
+    end do
+  end subroutine reader_numbers
 
-    !> The modal mass matrix (the traces of W's modal blocks: sum m_p Psi_p^T Psi_p over the
-    !> points, or from the invariants block) must be the identity to normalised_tol.
-    subroutine check_normalised()
-      integer :: i, j, wi, wj
-      real(dp) :: d, worst
-      worst = -1.0_dp; wi = 0; wj = 0
-      do j = 1, m
-        do i = 1, j
-          d = abs(fd%mmm(i, j) - merge(1.0_dp, 0.0_dp, i == j))
-          if (.not. (d <= worst)) then
-            worst = d; wi = i; wj = j
-          end if
-        end do
-      end do
-      if (wi == 0 .or. worst <= normalised_tol) return
-      if (given) then
-        call fatal_error(error, path // ': line ' // itoa(wline(wi, wj)) // ': second_moments: the modes are not ' // &
-          & 'mass-normalised: W11+W22+W33 of modes ' // itoa(wi) // ' and ' // itoa(wj) // ' is ' // &
-          & fmt(fd%mmm(wi, wj)) // ', expected ' // merge('1', '0', wi == wj) // ' (to ' // fmt(normalised_tol) // ')')
-      else
-        call fatal_error(error, path // ': line ' // itoa(points_line) // ': points: the modes are not ' // &
-          & 'mass-normalised: the sum of mass psi_' // itoa(wi) // '.psi_' // itoa(wj) // ' over the points is ' // &
-          & fmt(fd%mmm(wi, wj)) // ', expected ' // merge('1', '0', wi == wj) // ' (to ' // fmt(normalised_tol) // ')')
-      end if
-    end subroutine check_normalised
+  !> Word k of the current line.
+  function reader_word(r, k) result(s)
+    class(modal_reader), intent(in) :: r
+    integer, intent(in) :: k
+    character(len=:), allocatable :: s
+    s = r%ln(r%wa(k):r%wb(k))
+  end function reader_word
 
-    !> Words k0.. of the current line read as the numbers v (their count checked by the
-    !> caller): each by the kernel's number rule (number_text), and finite; `what` names the
-    !> line's item, `kind` the entry ('point', 'frequency', 'mass', 'F', 'W', with al, be).
-    subroutine numbers(k0, v, what, kind, al, be)
-      integer, intent(in) :: k0
-      real(dp), intent(out) :: v(:)
-      character(len=*), intent(in) :: what, kind
-      integer, intent(in), optional :: al, be
-      integer :: k, a, b
-      logical :: ok
-      a = 0; b = 0
-      if (present(al)) a = al
-      if (present(be)) b = be
-      do k = 1, size(v)
-        call number_text(word(k0 + k - 1), v(k), ok)
-        if (.not. ok) then
-          call fail(what // ': ' // entry_name(kind, k, m, a, b) // ': ''' // word(k0 + k - 1) // &
-            & ''' is not a number'); return
-        end if
-        if (.not. ieee_is_finite(v(k))) then
-          call fail(what // ': ' // entry_name(kind, k, m, a, b) // ': ' // word(k0 + k - 1) // &
-            & ' is not a finite number'); return
-        end if
-      end do
-    end subroutine numbers
+  !> The current line after its first word, quoted (for messages), or 'nothing'.
+  function reader_rest(r) result(s)
+    class(modal_reader), intent(in) :: r
+    character(len=:), allocatable :: s
+    if (r%nw < 2) then
+      s = 'nothing'
+    else
+      s = '''' // r%ln(r%wa(2):r%wb(r%nw)) // ''''
+    end if
+  end function reader_rest
 
-    !> Word k of the current line.
-    function word(k) result(s)
-      integer, intent(in) :: k
-      character(len=:), allocatable :: s
-      s = ln(wa(k):wb(k))
-    end function word
+  !> Word `at` of the current line as a count; without `at`, word 2, the only word after
+  !> the key.
+  logical function reader_count_word(r, k, at)
+    class(modal_reader), intent(in) :: r
+    integer, intent(out) :: k
+    integer, intent(in), optional :: at
+    integer :: i
+    logical :: ok
+    i = 2
+    if (present(at)) i = at
+    k = 0
+    ok = r%nw >= i
+    if (.not. present(at)) ok = r%nw == 2
+    if (ok) call count_text(r%word(i), k, ok)
+    reader_count_word = ok
+  end function reader_count_word
 
-    !> The current line after its first word, quoted (for messages), or 'nothing'.
-    function rest() result(s)
-      character(len=:), allocatable :: s
-      if (nw < 2) then
-        s = 'nothing'
-      else
-        s = '''' // ln(wa(2):wb(nw)) // ''''
-      end if
-    end function rest
+  !> The next line that is not blank and not a comment: ln, its words, its number `line`;
+  !> false at the end of the file.
+  logical function reader_next_line(r)
+    class(modal_reader), intent(inout) :: r
+    reader_next_line = .false.
+    do while (next_text_line(r%text, r%pos, r%ln))
+      r%line = r%line + 1
+      call split_words(r%ln, r%wa, r%wb, r%nw)
+      if (r%nw == 0) cycle
+      if (r%ln(r%wa(1):r%wa(1)) == '#') cycle
+      reader_next_line = .true.
+      return
+    end do
+  end function reader_next_line
 
-    !> Word `at` of the current line as a count; without `at`, word 2, the only word after
-    !> the key.
-    logical function count_word(k, at)
-      integer, intent(out) :: k
-      integer, intent(in), optional :: at
-      integer :: i
-      logical :: ok
-      i = 2
-      if (present(at)) i = at
-      k = 0
-      ok = nw >= i
-      if (.not. present(at)) ok = nw == 2
-      if (ok) call count_text(word(i), k, ok)
-      count_word = ok
-    end function count_word
+  !> next_line, with an error at the end of the file.
+  logical function reader_data_line(r)
+    class(modal_reader), intent(inout) :: r
+    reader_data_line = r%next_line()
+    if (.not. reader_data_line) call fatal_error(r%error, r%path // ': unexpected end of file after line ' // &
+      & itoa(r%line))
+  end function reader_data_line
 
-    !> The next line that is not blank and not a comment: ln, its words, its number `line`;
-    !> false at the end of the file.
-    logical function next_line()
-      next_line = .false.
-      do while (next_text_line(text, pos, ln))
-        line = line + 1
-        call split_words(ln, wa, wb, nw)
-        if (nw == 0) cycle
-        if (ln(wa(1):wa(1)) == '#') cycle
-        next_line = .true.
-        return
-      end do
-    end function next_line
+  !> The next line, which must start with `expect`.
+  subroutine reader_key_line(r, expect)
+    class(modal_reader), intent(inout) :: r
+    character(len=*), intent(in) :: expect
+    if (.not. r%data_line()) return
+    if (r%word(1) /= expect) call r%fail('expected ''' // expect // '''')
+  end subroutine reader_key_line
 
-    !> next_line, with an error at the end of the file.
-    logical function data_line()
-      data_line = next_line()
-      if (.not. data_line) call fatal_error(error, path // ': unexpected end of file after line ' // itoa(line))
-    end function data_line
+  !> Does the next data line start with `expect`? (Where the reading is stays unchanged.)
+  logical function reader_next_is(r, expect)
+    class(modal_reader), intent(inout) :: r
+    character(len=*), intent(in) :: expect
+    integer :: pos0, line0
+    pos0 = r%pos; line0 = r%line
+    reader_next_is = r%next_line()
+    if (reader_next_is) reader_next_is = r%word(1) == expect
+    r%pos = pos0; r%line = line0
+  end function reader_next_is
 
-    !> The next line, which must start with `expect`.
-    subroutine key_line(expect)
-      character(len=*), intent(in) :: expect
-      if (.not. data_line()) return
-      if (word(1) /= expect) call fail('expected ''' // expect // '''')
-    end subroutine key_line
-
-    !> Does the next data line start with `expect`? (Where the reading is stays unchanged.)
-    logical function next_is(expect)
-      character(len=*), intent(in) :: expect
-      integer :: pos0, line0
-      pos0 = pos; line0 = line
-      next_is = next_line()
-      if (next_is) next_is = word(1) == expect
-      pos = pos0; line = line0
-    end function next_is
-
-    !> The error 'PATH: line L: WHY' (L the current line, or `at`).
-    subroutine fail(why, at)
-      character(len=*), intent(in) :: why
-      integer, intent(in), optional :: at
-      integer :: l
-      l = line
-      if (present(at)) l = at
-      call fatal_error(error, path // ': line ' // itoa(l) // ': ' // why)
-    end subroutine fail
-  end subroutine read_modal_file
+  !> The error 'PATH: line L: WHY' (L the current line, or `at`).
+  subroutine reader_fail(r, why, at)
+    class(modal_reader), intent(inout) :: r
+    character(len=*), intent(in) :: why
+    integer, intent(in), optional :: at
+    integer :: l
+    l = r%line
+    if (present(at)) l = at
+    call fatal_error(r%error, r%path // ': line ' // itoa(l) // ': ' // why)
+  end subroutine reader_fail
 
   !> Entry k of a modal file's line of `kind` ('point', 'frequency', 'F', 'W' of the modes
   !> al, be; else the kind itself) for messages: 'x', 'mass', 'psi_y of mode 2', 'W(1, 3, 0, 2)'.

@@ -1,0 +1,391 @@
+!> One simulation of a scene, from its file to its result files: a `simulation_t` owns the
+!> scene, the model, the stepper, the results writer, the statistics and the clocks.
+!>
+!>     call sim%open(file, overrides, out, restarting, lines, error)   ! model, output, lock
+!>     call sim%initial_state(error)                  ! starting state, stepper, output plan
+!>     call sim%start(restart, error)                 ! a new run, or one from a checkpoint
+!>     call sim%run_to(t, error)                      ! rows, checkpoints and steps up to t
+!>     call sim%finish(error)                         ! last row, statistics, files in place
+!>     call sim%close()                               ! the results file's lock released
+module pymr_driver_simulation
+  use pymr_env_kinds, only : dp
+  use pymr_env_error, only : error_type, fatal_error, stat_solver, prefix_error
+  use pymr_env_text, only : itoa, fmt
+  use pymr_env_clock, only : thread_cpu_time
+  use pymr_env_text_file, only : acquire_lock, release_lock, commit_staged, remove_file
+  use pymr_model_scene, only : scene_t
+  use pymr_model, only : model_t
+  use pymr_integrator_stepper, only : stepper_t, step_counts
+  use pymr_io_namelist_input, only : scene_fingerprint, checkpoint_identity, resolved_text
+  use pymr_io_results_output, only : csv_writer, json_path, write_json, run_stats, output_plan_of, n_work
+  use pymr_io_checkpoint, only : run_progress, write_checkpoint, read_checkpoint
+  use pymr_driver_stepper_setup, only : make_stepper, stepper_label, method_label
+  use pymr_driver_output_quantities, only : write_output_row, work_at
+  use pymr_driver_preflight, only : check_step_stability, check_mass_matrix
+  use pymr_driver_load_model, only : load_model
+  use pymr_driver_output_paths, only : default_output, check_output_path, checkpoint_default
+  use pymr_driver_output_size, only : check_output_size
+  use pymr_driver_starting_state, only : starting_state
+  use pymr_driver_deflection_watch, only : watch_deflection
+  use pymr_driver_progress, only : run_clock
+  use pymr_driver_settings_json, only : settings_json
+  use pymr_driver_summary, only : summary_text
+  implicit none
+  private
+  public :: simulation_t
+
+  !> A simulation and where it is.
+  type :: simulation_t
+    !> The scene file as the caller named it (messages begin with it), and its overrides.
+    character(len=:), allocatable :: file, overrides
+    type(scene_t) :: sc
+    type(model_t) :: model
+    class(stepper_t), allocatable :: st
+    type(csv_writer) :: csv
+    type(run_stats) :: stats
+    type(run_clock) :: clock
+    !> The results file, and the lock on it once held.
+    character(len=:), allocatable :: path, locked
+    !> The checkpoint file, and what a checkpoint must share with the scene (only when
+    !> checkpoints are written or read).
+    character(len=:), allocatable :: ckpt_path, settings, fingerprint
+    !> The state [q; qd] (of the time last asked of the stepper).
+    real(dp), allocatable :: x(:)
+    !> The first step; the output interval (0: a row every step); times closer than eps are one.
+    real(dp) :: h0 = 0.0_dp, dt_out = 0.0_dp, eps = 0.0_dp
+    !> The next output row: its number and time.
+    integer :: k_out = 1
+    real(dp) :: t_next = 0.0_dp
+    !> The works of the energy columns at t_step, the start of the stepper's last step.
+    real(dp) :: t_step = 0.0_dp, work_step(n_work) = 0.0_dp
+    !> The time of the row the integration starts from, and of the next checkpoint.
+    real(dp) :: t_first_row = 0.0_dp, t_ckpt = huge(1.0_dp)
+    !> Whether the rows and works of the time the stepper has reached are written.
+    logical :: reached_written = .false.
+  contains
+    procedure :: open => simulation_open
+    procedure :: initial_state => simulation_initial_state
+    procedure :: start => simulation_start
+    procedure :: step => simulation_step
+    procedure :: run_to => simulation_run_to
+    procedure :: finish => simulation_finish
+    procedure :: summary => simulation_summary
+    procedure :: close => simulation_close
+    procedure, private :: begin_new, resume, put_row, put_rows_reached, put_last_row, checkpoint_if_due
+    procedure, private :: write_results, name_file
+  end type simulation_t
+
+contains
+
+  !> Read and build the scene's model (with overrides), choose the results file (`out`, or
+  !> the default) and check it, and take its lock. `restarting`: the run continues from a
+  !> checkpoint; `lines`: progress lines on stderr.
+  subroutine simulation_open(self, file, overrides, out, restarting, lines, error)
+    class(simulation_t), intent(inout) :: self
+    character(len=*), intent(in) :: file, overrides, out
+    logical, intent(in) :: restarting, lines
+    type(error_type), allocatable, intent(out) :: error
+    self%file = file; self%overrides = overrides
+    self%clock%lines = lines
+    call load_model(file, overrides, self%sc, self%model, error); if (allocated(error)) return
+    self%path = default_output(self%sc, out)
+    call check_output_path(self%sc, self%path, error); if (allocated(error)) return
+    call acquire_lock(self%path, error); if (allocated(error)) return
+    self%locked = self%path
+    if (restarting .or. self%sc%output%checkpoint_dt > 0.0_dp) &
+      & call checkpoint_identity(self%sc, self%settings, self%fingerprint)
+    self%ckpt_path = trim(self%sc%output%checkpoint_file)
+    if (len(self%ckpt_path) == 0) self%ckpt_path = checkpoint_default(self%path)
+  end subroutine simulation_open
+
+  !> The clocks started, the state the run starts from, the output plan and the stepper
+  !> (made, not started).
+  subroutine simulation_initial_state(self, error)
+    class(simulation_t), intent(inout) :: self
+    type(error_type), allocatable, intent(out) :: error
+    real(dp) :: h
+    call self%clock%start()
+    h = self%sc%integrator%h_slow
+    allocate(self%x(2*self%model%d%n))
+    call starting_state(self%sc, self%model, self%x, error, self%stats)
+    if (allocated(error)) then
+      call self%name_file(error); return
+    end if
+    self%dt_out = self%sc%output%dt
+    if (self%dt_out <= 0.0_dp .and. .not. self%sc%integrator%adaptive) self%dt_out = h
+    self%eps = 1.0e-9_dp*h
+    self%k_out = 1
+    self%t_next = self%dt_out
+    self%csv%digits = self%sc%output%precision
+    self%csv%plan = output_plan_of(self%sc%output%quantities, self%model%d)
+    self%work_step = 0.0_dp; self%t_step = 0.0_dp
+    call make_stepper(self%sc, self%model, self%x, self%st, self%h0, error)
+    if (allocated(error)) call self%name_file(error)
+  end subroutine simulation_initial_state
+
+  !> Start the integration: from the checkpoint file `restart` (its results file keeps the
+  !> rows written up to it), or ('') a new run from the initial state.
+  subroutine simulation_start(self, restart, error)
+    class(simulation_t), intent(inout) :: self
+    character(len=*), intent(in) :: restart
+    type(error_type), allocatable, intent(out) :: error
+    if (len_trim(restart) > 0) then
+      call self%resume(restart, error)
+    else
+      call self%begin_new(error)
+    end if
+    if (allocated(error)) return
+    self%t_first_row = self%st%time()
+    self%reached_written = .false.
+    call self%clock%run_begins(self%st%time(), self%sc%scene%t_end)
+    self%t_ckpt = huge(1.0_dp)
+    if (self%sc%output%checkpoint_dt > 0.0_dp) self%t_ckpt = next_checkpoint(self%sc, self%st%time())
+  end subroutine simulation_start
+
+  !> A new run: the results file opened and its first row written, the pre-flight checks,
+  !> the stepper started.
+  subroutine begin_new(self, error)
+    class(simulation_t), intent(inout) :: self
+    type(error_type), allocatable, intent(out) :: error
+    call check_output_size(self%sc, self%model, self%csv, self%dt_out, error); if (allocated(error)) return
+    call self%csv%open(self%path, self%model%d, self%sc%scene%title, method_label(self%sc), error)
+    if (allocated(error)) return
+    call check_mass_matrix(self%model, self%x, self%file // ': ', error)
+    if (.not. allocated(error)) call self%put_row(0.0_dp, self%work_step, error)
+    self%stats%rows = 1
+    if (allocated(error)) then
+      call self%csv%discard(); return
+    end if
+    if (.not. self%sc%integrator%adaptive .and. self%sc%integrator%stability_check) then
+      self%stats%preflight_cpu_s = thread_cpu_time()
+      call check_step_stability(self%model, self%x, self%st, stepper_label(self%sc), self%sc%scene%t_end, &
+        & self%file // ': &integrator: ', error)
+      if (allocated(error)) then
+        call self%csv%discard(); return
+      end if
+      self%stats%preflight_cpu_s = thread_cpu_time() - self%stats%preflight_cpu_s
+      self%clock%cpu0 = self%clock%cpu0 + self%stats%preflight_cpu_s
+    end if
+    call self%st%start(self%model, 0.0_dp, self%x, self%h0, error)
+    if (allocated(error)) then
+      call self%csv%discard()
+      call self%name_file(error)
+    end if
+  end subroutine begin_new
+
+  !> A run continued from the checkpoint file `restart`: the stepper and the model as they
+  !> were, the results file reopened at the rows the checkpoint counts.
+  subroutine resume(self, restart, error)
+    class(simulation_t), intent(inout) :: self
+    character(len=*), intent(in) :: restart
+    type(error_type), allocatable, intent(out) :: error
+    type(run_progress) :: prog
+    call read_checkpoint(restart, self%st, self%model, prog, self%settings, self%fingerprint, &
+      & self%sc%scene%t_end, error)
+    if (.not. allocated(error)) call self%csv%reopen(self%path, self%model%d, prog%rows, error)
+    if (allocated(error)) then
+      call self%csv%close()
+      call self%name_file(error)
+      return
+    end if
+    self%stats%rows = prog%rows; self%k_out = prog%k_out; self%t_next = prog%t_next; self%work_step = prog%work
+    self%t_step = self%st%time()
+    self%clock%cpu0 = self%clock%cpu0 - prog%cpu_s
+  end subroutine resume
+
+  !> One step: advance, the loops closed again, and the step count checked.
+  subroutine simulation_step(self, error)
+    class(simulation_t), intent(inout) :: self
+    type(error_type), allocatable, intent(out) :: error
+    type(step_counts) :: done
+    call self%st%advance(self%model, error); if (allocated(error)) return
+    call self%st%project(self%model, error)
+    if (allocated(error)) then
+      call prefix_error(error, 'at t = ' // fmt(self%st%time()) // ' s'); return
+    end if
+    done = self%st%counts()
+    if (done%steps_fast > self%sc%integrator%max_steps) then
+      call fatal_error(error, 'at t = ' // fmt(self%st%time()) // ' s: the run took more than max_steps = ' // &
+        & itoa(self%sc%integrator%max_steps) // ' steps (&integrator max_steps lifts the limit)', stat_solver)
+    end if
+    self%reached_written = .false.
+  end subroutine simulation_step
+
+  !> Integrate until the stepper has reached t: the rows of every output time passed, the
+  !> checkpoints due, and the steps.
+  subroutine simulation_run_to(self, t, error)
+    class(simulation_t), intent(inout) :: self
+    real(dp), intent(in) :: t
+    type(error_type), allocatable, intent(out) :: error
+    do
+      if (.not. self%reached_written) then
+        call self%put_rows_reached(error); if (allocated(error)) return
+        self%reached_written = .true.
+      end if
+      if (self%st%time() >= t - self%eps) return
+      call self%checkpoint_if_due(error); if (allocated(error)) return
+      if (self%csv%ios /= 0) then
+        call fatal_error(error, 'at t = ' // fmt(self%st%time()) // ' s: ' // self%csv%partial // ': cannot ' // &
+          & 'write the results: ' // trim(self%csv%io_message), stat_solver); return
+      end if
+      call self%step(error); if (allocated(error)) return
+      call self%clock%reached(self%st%time())
+    end do
+  end subroutine simulation_run_to
+
+  !> The rows of the output times up to the time the stepper has reached (every step's
+  !> row with dt = 0, but not again the row of the state the integration starts from, nor
+  !> the last, written at the end), and the works there.
+  subroutine put_rows_reached(self, error)
+    class(simulation_t), intent(inout) :: self
+    type(error_type), allocatable, intent(out) :: error
+    real(dp) :: work(n_work), t_end, t
+    t_end = self%sc%scene%t_end
+    if (self%dt_out > 0.0_dp) then
+      do while (self%t_next <= min(self%st%time(), t_end) + self%eps)
+        call self%st%value_at(self%t_next, self%x)
+        call work_at(self%csv%plan, self%st, self%model, self%t_step, self%work_step, self%t_next, work, error)
+        if (allocated(error)) return
+        call self%put_row(self%t_next, work, error); if (allocated(error)) return
+        self%stats%rows = self%stats%rows + 1
+        self%k_out = self%k_out + 1; self%t_next = self%k_out*self%dt_out
+      end do
+    end if
+    ! the works at the time reached (for its row, the checkpoint, and the start of the next step)
+    t = self%st%time()
+    call work_at(self%csv%plan, self%st, self%model, self%t_step, self%work_step, t, work, error)
+    if (allocated(error)) return
+    self%work_step = work; self%t_step = t
+    if (self%dt_out <= 0.0_dp .and. t > self%t_first_row + self%eps .and. t < t_end - self%eps) then
+      call self%st%value_at(t, self%x)
+      call self%put_row(t, self%work_step, error)
+      self%stats%rows = self%stats%rows + 1
+    end if
+  end subroutine put_rows_reached
+
+  !> Write the row of the state x at time t, and watch the flexible bodies' deflection there.
+  subroutine put_row(self, t, row_work, error)
+    class(simulation_t), intent(inout) :: self
+    real(dp), intent(in) :: t, row_work(:)
+    type(error_type), allocatable, intent(out) :: error
+    integer :: n
+    n = self%model%d%n
+    call write_output_row(self%csv, self%model, t, self%x(1:n), self%x(n+1:), row_work, error)
+    if (allocated(error)) return
+    call watch_deflection(self%sc, self%model, t, self%x(1:n), self%stats, error)
+  end subroutine put_row
+
+  !> A checkpoint when its time has come: the rows up to now are on disk (checked) before
+  !> the checkpoint that counts them.
+  subroutine checkpoint_if_due(self, error)
+    class(simulation_t), intent(inout) :: self
+    type(error_type), allocatable, intent(out) :: error
+    type(run_progress) :: prog
+    if (self%st%time() < self%t_ckpt - self%eps) return
+    call self%csv%flush_rows()
+    if (self%csv%ios /= 0) return
+    prog = run_progress(rows=self%stats%rows, k_out=self%k_out, t_next=self%t_next, cpu_s=self%clock%cpu_s(), &
+      & t_checkpoint=self%st%time(), work=self%work_step)
+    call write_checkpoint(self%ckpt_path, self%st, self%model, prog, self%settings, self%fingerprint, error)
+    if (allocated(error)) return
+    self%t_ckpt = next_checkpoint(self%sc, self%st%time())
+  end subroutine checkpoint_if_due
+
+  !> The first checkpoint time after t.
+  real(dp) function next_checkpoint(sc, t)
+    type(scene_t), intent(in) :: sc
+    real(dp), intent(in) :: t
+    next_checkpoint = (floor(t/sc%output%checkpoint_dt + 1.0e-9_dp) + 1)*sc%output%checkpoint_dt
+  end function next_checkpoint
+
+  !> End the run: with no `error` from the integration, the last row (at t_end) and the
+  !> result files put in place; with one, the rows so far kept in PATH.partial and described
+  !> by PATH.json.partial, and `error` named after the scene file.
+  subroutine simulation_finish(self, error)
+    class(simulation_t), intent(inout) :: self
+    type(error_type), allocatable, intent(inout) :: error
+    call self%clock%run_ends(.not. allocated(error), self%eps)
+    if (.not. allocated(error)) call self%put_last_row(error)
+    call self%clock%stop(self%stats%cpu_time_s, self%stats%wall_time_s)
+    call fill_stats(self%st, self%model, self%stats)
+    call self%write_results(error)
+  end subroutine simulation_finish
+
+  !> The row at t_end, unless the last output row was already there.
+  subroutine put_last_row(self, error)
+    class(simulation_t), intent(inout) :: self
+    type(error_type), allocatable, intent(out) :: error
+    real(dp) :: work(n_work), t_end
+    t_end = self%sc%scene%t_end
+    call self%st%value_at(t_end, self%x)
+    if (self%dt_out <= 0.0_dp .or. abs(self%t_next - self%dt_out - t_end) > self%eps) then
+      call work_at(self%csv%plan, self%st, self%model, self%t_step, self%work_step, t_end, work, error)
+      if (.not. allocated(error)) call self%put_row(t_end, work, error)
+      self%stats%rows = self%stats%rows + 1
+    end if
+  end subroutine put_last_row
+
+  !> The statistics and the rows in place. The new results replace the earlier ones only
+  !> once both files are complete: the statistics wait in PATH.json.tmp while the rows are
+  !> put in place. A run that failed (error given, or here) leaves PATH.partial and
+  !> PATH.json.partial.
+  subroutine write_results(self, error)
+    class(simulation_t), intent(inout) :: self
+    type(error_type), allocatable, intent(inout) :: error
+    type(error_type), allocatable :: json_error
+    character(len=:), allocatable :: scene_text
+    scene_text = resolved_text(self%sc, absolute_paths=.true.)
+    if (.not. allocated(error)) call write_json(json_path(self%path), self%file, self%sc%scene%title, &
+      & scene_fingerprint(self%sc), settings_json(self%sc), self%model%d, self%model%wk, self%stats, 'complete', '', &
+      & self%sc%scene%t_end, error, self%overrides, scene_text, staged=.true.)
+    if (.not. allocated(error)) then
+      call self%csv%finish(error)
+      if (allocated(error)) call remove_file(json_path(self%path) // '.tmp')
+    end if
+    if (allocated(error)) then
+      call self%csv%close()
+      error%message = self%file // ': ' // error%message
+      call write_json(json_path(self%path) // '.partial', self%file, self%sc%scene%title, scene_fingerprint(self%sc), &
+        & settings_json(self%sc), self%model%d, self%model%wk, self%stats, 'failed', error%message, self%st%time(), json_error, &
+        & self%overrides, scene_text)
+      return
+    end if
+    call commit_staged(json_path(self%path), error)
+    if (allocated(error)) error%message = self%file // ': ' // error%message // ' (the statistics; ' // &
+      & self%path // ' is the new results)'
+  end subroutine write_results
+
+  !> Step and evaluation counts of a run: steps from the stepper, evaluations from the model.
+  subroutine fill_stats(st, model, stats)
+    class(stepper_t), intent(in) :: st
+    type(model_t), intent(in) :: model
+    type(run_stats), intent(inout) :: stats
+    type(step_counts) :: c
+    c = st%counts()
+    stats%steps_slow = c%steps_slow; stats%steps_fast = c%steps_fast
+    stats%rejected_steps = c%rejected; stats%h_last = c%h_last; stats%ratio_last = c%ratio
+    stats%rhs_full = model%wk%count%evals
+    stats%rhs_fast = model%wk%count%evals_fast_rows + c%evals_fast
+  end subroutine fill_stats
+
+  !> The run's summary: a few human-readable lines.
+  function simulation_summary(self) result(s)
+    class(simulation_t), intent(inout) :: self
+    character(len=:), allocatable :: s
+    s = summary_text(self%sc, self%model, self%stats, self%path, self%x)
+  end function simulation_summary
+
+  !> Release the results file's lock, if held.
+  subroutine simulation_close(self)
+    class(simulation_t), intent(inout) :: self
+    if (allocated(self%locked)) call release_lock(self%locked)
+    if (allocated(self%locked)) deallocate(self%locked)
+  end subroutine simulation_close
+
+  !> An error message begins with the scene file's name (as the caller gave it).
+  subroutine name_file(self, error)
+    class(simulation_t), intent(in) :: self
+    type(error_type), intent(inout) :: error
+    if (index(error%message, self%file) /= 1) error%message = self%file // ': ' // error%message
+  end subroutine name_file
+end module pymr_driver_simulation

@@ -1,0 +1,69 @@
+"""The run's settings in its statistics file ("integrator" of OUT.json) are generated from
+the &integrator item table: every item of the schema is there with the scene's resolved
+value, and the keys the results have always had keep their values."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+import pymr
+
+ROOT = Path(__file__).resolve().parent.parent
+
+#: The keys of the hand-written settings before issue 31, read by pymr and the tests.
+OLD_KEYS = ["method", "h_fast", "h_slow", "rtol", "atol", "h_min", "h_max", "n_corrector", "t_end", "adaptive",
+            "coupling", "formula", "order", "corrector", "dynamics", "k_max"]
+
+
+def integrator_items():
+    """The &integrator items of the schema, in its order: {name: type}."""
+    items, group = {}, None
+    for line in pymr.schema().splitlines():
+        if line.startswith("&"):
+            group = line[1:]
+        elif group == "integrator" and line.strip():
+            name, kind = line.split("\t")[:2]
+            items[name] = kind
+    return items
+
+
+@pytest.mark.parametrize("scene, overrides", [
+    ("pendulum.nml", {"scene.t_end": 0.05}),
+    ("pendulum.nml", {"scene.t_end": 0.05, "integrator.adaptive": True, "integrator.rtol": 3e-7,
+                      "integrator.formula": "adams", "integrator.order": 5, "integrator.corrector": "fixed-point",
+                      "integrator.max_steps": 123456, "integrator.h_max": 0.0125}),
+    ("tank_gun_turret.nml", {"scene.t_end": 0.002, "integrator.method": "multirate", "integrator.h_fast": 1e-5,
+                             "integrator.h_slow": 1e-4, "integrator.stability_check": False}),
+])
+def test_every_integrator_item_is_in_the_settings(tmp_path, scene, overrides):
+    res = pymr.run(ROOT / "input" / scene, tmp_path / "out.csv", overrides=overrides)
+    settings = json.loads((tmp_path / "out.json").read_text())["integrator"]
+    resolved = pymr.Scene(ROOT / "input" / scene, overrides)
+    items = integrator_items()
+    assert len(items) >= 17 and set(OLD_KEYS) - {"t_end"} <= set(items)
+    assert sorted(settings) == sorted([*items, "t_end"])
+    types = {"real": float, "integer": int, "logical": bool, "string": str}
+    for item, kind in items.items():
+        value = resolved[f"integrator.{item}"]
+        assert type(settings[item]) is types[kind], item
+        if kind == "real":
+            # ten significant digits, as the settings have always been written
+            assert settings[item] == pytest.approx(value, rel=1e-10, abs=0), item
+        else:
+            assert settings[item] == value, item
+    assert settings["t_end"] == overrides["scene.t_end"]
+    assert res.stats["integrator"] == settings
+
+
+def test_settings_keep_their_values(tmp_path):
+    """The pendulum's settings, key by key, as the hand-written JSON gave them."""
+    pymr.run(ROOT / "input" / "pendulum.nml", tmp_path / "p.csv", overrides={"scene.t_end": 0.05})
+    settings = json.loads((tmp_path / "p.json").read_text())["integrator"]
+    assert {k: settings[k] for k in OLD_KEYS} == {
+        "method": "single", "h_fast": 1e-3, "h_slow": 1e-3, "rtol": 1e-6, "atol": 1e-8, "h_min": 0.0, "h_max": 0.0,
+        "n_corrector": 1, "t_end": 0.05, "adaptive": False, "coupling": "response", "formula": "abm4", "order": 4,
+        "corrector": "newton", "dynamics": "auto", "k_max": 50}
+    text = (tmp_path / "p.json").read_text()
+    assert '"h_slow": 0.1000000000E-2' in text and '"stability_check": true' in text
