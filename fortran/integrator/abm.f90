@@ -19,9 +19,11 @@ module pymr_integrator_abm
   type, extends(stepper_t) :: abm_integrator
     !> Number of state components.
     integer :: n = 0
-    !> Time of the Nordsieck array (s) and current step (s); the start time (fixed steps
-    !> reach t0 + n h with an integer n, not a sum of steps).
-    real(dp) :: t = 0.0_dp, h = 0.0_dp, t0 = 0.0_dp
+    !> Time of the Nordsieck array (s); the start time (fixed steps reach t0 + n h with an
+    !> integer n, not a sum of steps).
+    real(dp) :: t = 0.0_dp, t0 = 0.0_dp
+    !> Current step (s): set by init, changed by the stepper only.
+    real(dp), private :: h = 0.0_dp
     !> Nordsieck array z(n, 0:3) at time t, scaled with h.
     real(dp), allocatable :: z(:, :)
     !> Number of corrector evaluations per step (1 = PECE).
@@ -52,14 +54,17 @@ module pymr_integrator_abm
 
 contains
 
-  !> Allocate the arrays for `n` components and set the options.
-  subroutine abm_init(self, n, adaptive, ctl, n_corr)
+  !> Allocate the arrays for `n` components and set the options and the step h (s) the
+  !> start takes (the pre-flight check reads it before the start).
+  subroutine abm_init(self, n, adaptive, ctl, n_corr, h)
     class(abm_integrator), intent(inout) :: self
     integer, intent(in) :: n
     logical, intent(in) :: adaptive
     type(step_control), intent(in) :: ctl
     integer, intent(in) :: n_corr
+    real(dp), intent(in), optional :: h
     self%n = n
+    if (present(h)) self%h = h
     self%adaptive = adaptive
     self%ctl = ctl
     self%n_corr = max(1, n_corr)

@@ -22,17 +22,45 @@ module pymr_integrator_multirate
   private
   public :: multirate_integrator
 
+  !> What a multirate run has done.
+  type :: mr_counts_t
+    !> Macro (slow) steps, fast steps, slow, fast and starting evaluations, rejected macro steps.
+    integer :: steps_slow = 0, steps_fast = 0, evals_slow = 0, evals_fast = 0, evals_start = 0, rejected = 0
+  end type mr_counts_t
+
+  !> Work arrays of a macro step.
+  type :: mr_work_t
+    !> Adaptive: the arrays at the start of the macro step, the error weights, the coupling
+    !> error's fast derivative.
+    real(dp), allocatable :: zs0(:, :), zf0(:, :), ws(:), wf(:), fx(:)
+    !> Predicted and corrected slow (zp, zn) and fast (wp, wn) arrays, derivatives, corrections,
+    !> the extrapolated slow state and accelerations.
+    real(dp), allocatable :: zp(:, :), zn(:, :), wp(:, :), wn(:, :), fs(:), ff(:), gs(:), gf(:), xs(:), acc(:)
+  end type mr_work_t
+
+  !> Dense output of the fast state inside the last macro step (or the start): its values
+  !> xb(:, 0:nb) and derivatives fb(:, 0:nb) at the fast steps from tb on, nb steps of hb.
+  !> The fast array's polynomial is its last step's: evaluated back over the macro step it
+  !> would grow like s^3 (at k = 30 it put 13 m/s of error into the tank's muzzle velocity).
+  type :: fast_steps_t
+    real(dp), allocatable :: xb(:, :), fb(:, :)
+    real(dp) :: tb = 0.0_dp, hb = 0.0_dp
+    integer :: nb = 0
+  end type fast_steps_t
+
   !> Multirate integrator state.
   type, extends(stepper_t) :: multirate_integrator
     !> Slow and fast coordinates, step ratio k = H/h.
     integer :: ns = 0, nf = 0, k = 1
-    !> Time of the Nordsieck arrays (s), slow step H and fast step h (s), start time (fixed
-    !> steps end at t0 + n H with an integer n, not a sum of steps).
-    real(dp) :: t = 0.0_dp, hs = 0.0_dp, hf = 0.0_dp, t0 = 0.0_dp
+    !> Time of the Nordsieck arrays (s), start time (fixed steps end at t0 + n H with an
+    !> integer n, not a sum of steps).
+    real(dp) :: t = 0.0_dp, t0 = 0.0_dp
+    !> Slow step H and fast step h (s): set by init, changed by the stepper only.
+    real(dp), private :: hs = 0.0_dp, hf = 0.0_dp
     !> Slow Nordsieck array (2ns, 0:3) scaled with H, fast one (2nf, 0:3) scaled with h.
     real(dp), allocatable :: zs(:, :), zf(:, :)
-    !> Counters: macro (slow) steps, fast steps, slow and fast evaluations, rejected macro steps.
-    integer :: steps_slow = 0, steps_fast = 0, evals_slow = 0, evals_fast = 0, evals_start = 0, rejected = 0
+    !> Counters.
+    type(mr_counts_t) :: cnt
     !> Adaptive: local-error control of both steps (weighted RMS norms, as CVODE), the step
     !> ratio k chosen within [1, k_max].
     logical :: adaptive = .false.
@@ -41,19 +69,12 @@ module pymr_integrator_multirate
     !> Adaptive: the largest fast step (s), within the PECE stability limit of the fastest
     !> mode (an error estimate sees an instability only once it has grown).
     real(dp) :: hf_max = huge(1.0_dp)
-    !> Adaptive work: the arrays at the start of the macro step, the error weights.
-    real(dp), allocatable :: zs0(:, :), zf0(:, :), ws(:), wf(:), fx(:)
     !> Work arrays.
-    real(dp), allocatable :: zp(:, :), zn(:, :), wp(:, :), wn(:, :), fs(:), ff(:), gs(:), gf(:), xs(:), acc(:)
+    type(mr_work_t) :: wk
     !> Positions of the slow and fast states in the full state (for error messages).
     integer, allocatable :: slow_map(:), fast_map(:)
-    !> Dense output of the fast state inside the last macro step (or the start): its values
-    !> xb(:, 0:nb) and derivatives fb(:, 0:nb) at the fast steps from tb on, nb steps of hb.
-    !> The fast array's polynomial is its last step's: evaluated back over the macro step it
-    !> would grow like s^3 (at k = 30 it put 13 m/s of error into the tank's muzzle velocity).
-    real(dp), allocatable :: xb(:, :), fb(:, :)
-    real(dp) :: tb = 0.0_dp, hb = 0.0_dp
-    integer :: nb = 0
+    !> Dense output of the fast state.
+    type(fast_steps_t) :: dense
   contains
     procedure :: init => mr_init
     procedure :: start => mr_start
@@ -76,26 +97,31 @@ contains
 
   !> Allocate for ns slow and nf fast coordinates, step ratio k; adaptive runs control
   !> both steps with `ctl`, the fast one at most hf_max, and keep the ratio within [1, k_max].
-  subroutine mr_init(self, ns, nf, k, adaptive, ctl, k_max, hf_max)
+  !> h: the fast step the start takes (its macro step k h), which the pre-flight check reads
+  !> before the start.
+  subroutine mr_init(self, ns, nf, k, adaptive, ctl, k_max, hf_max, h)
     class(multirate_integrator), intent(inout) :: self
     integer, intent(in) :: ns, nf, k
     logical, intent(in), optional :: adaptive
     type(step_control), intent(in), optional :: ctl
     integer, intent(in), optional :: k_max
-    real(dp), intent(in), optional :: hf_max
+    real(dp), intent(in), optional :: hf_max, h
     self%ns = ns; self%nf = nf; self%k = k
+    if (present(h)) then
+      self%hf = h; self%hs = k*h
+    end if
     if (present(hf_max)) self%hf_max = hf_max
     if (present(adaptive)) self%adaptive = adaptive
     if (present(ctl)) self%ctl = ctl
     self%k_max = max(k, 1)
     if (present(k_max)) self%k_max = max(k_max, 1)
-    allocate(self%zs0(2*ns, 0:nq), self%zf0(2*nf, 0:nq), self%ws(2*ns), self%wf(2*nf), self%fx(2*nf))
-    allocate(self%zs(2*ns, 0:nq), self%zf(2*nf, 0:nq), self%zp(2*ns, 0:nq), self%zn(2*ns, 0:nq), &
-      & self%wp(2*nf, 0:nq), self%wn(2*nf, 0:nq), self%fs(2*ns), self%ff(2*nf), self%gs(2*ns), self%gf(2*nf), &
-      & self%xs(2*ns), self%acc(ns))
+    allocate(self%wk%zs0(2*ns, 0:nq), self%wk%zf0(2*nf, 0:nq), self%wk%ws(2*ns), self%wk%wf(2*nf), self%wk%fx(2*nf))
+    allocate(self%zs(2*ns, 0:nq), self%zf(2*nf, 0:nq), self%wk%zp(2*ns, 0:nq), self%wk%zn(2*ns, 0:nq), &
+      & self%wk%wp(2*nf, 0:nq), self%wk%wn(2*nf, 0:nq), self%wk%fs(2*ns), self%wk%ff(2*nf), self%wk%gs(2*ns), self%wk%gf(2*nf), &
+      & self%wk%xs(2*ns), self%wk%acc(ns))
     self%slow_map = slow_index(ns, nf)
     self%fast_map = fast_index(ns, nf)
-    allocate(self%xb(2*nf, 0:2*k), self%fb(2*nf, 0:2*k))
+    allocate(self%dense%xb(2*nf, 0:2*k), self%dense%fb(2*nf, 0:2*k))
   end subroutine mr_init
 
   !> Start at (t0, x0), x0 = [q_s; q_f; qd_s; qd_f]: classical RK4 steps of size h on the
@@ -138,23 +164,23 @@ contains
     class(multirate_integrator), intent(in) :: self
     integer, intent(in) :: unit
     integer, intent(out) :: ios
-    write(unit, iostat=ios) self%k, self%t, self%hs, self%hf, self%t0, self%zs, self%zf, self%steps_slow, self%steps_fast, &
-      & self%evals_slow, self%evals_fast, self%evals_start, self%rejected
+    write(unit, iostat=ios) self%k, self%t, self%hs, self%hf, self%t0, self%zs, self%zf, self%cnt%steps_slow, self%cnt%steps_fast, &
+      & self%cnt%evals_slow, self%cnt%evals_fast, self%cnt%evals_start, self%cnt%rejected
   end subroutine mr_save
 
   subroutine mr_load(self, unit, ios)
     class(multirate_integrator), intent(inout) :: self
     integer, intent(in) :: unit
     integer, intent(out) :: ios
-    read(unit, iostat=ios) self%k, self%t, self%hs, self%hf, self%t0, self%zs, self%zf, self%steps_slow, self%steps_fast, &
-      & self%evals_slow, self%evals_fast, self%evals_start, self%rejected
+    read(unit, iostat=ios) self%k, self%t, self%hs, self%hf, self%t0, self%zs, self%zf, self%cnt%steps_slow, self%cnt%steps_fast, &
+      & self%cnt%evals_slow, self%cnt%evals_fast, self%cnt%evals_start, self%cnt%rejected
   end subroutine mr_load
 
   pure function mr_counts(self) result(c)
     class(multirate_integrator), intent(in) :: self
     type(step_counts) :: c
-    c%steps_slow = self%steps_slow; c%steps_fast = self%steps_fast
-    c%rejected = self%rejected; c%h_last = self%hs; c%ratio = self%k
+    c%steps_slow = self%cnt%steps_slow; c%steps_fast = self%cnt%steps_fast
+    c%rejected = self%cnt%rejected; c%h_last = self%hs; c%ratio = self%k
   end function mr_counts
 
   pure function mr_name(self) result(s)
@@ -221,22 +247,22 @@ contains
     allocate(x(2*n), f(2*n), fsl(2*ns, 0:2), ffa(2*nf, 0:nsteps))
     x = x0; t = t0
     do i = 0, nsteps
-      call sys%eval(t, x, f, error); self%evals_start = self%evals_start + 1
+      call sys%eval(t, x, f, error); self%cnt%evals_start = self%cnt%evals_start + 1
       if (allocated(error)) return
       call check_finite(sys, t, f, 'derivative', error); if (allocated(error)) return
       if (mod(i, self%k) == 0) fsl(:, i/self%k) = slow_part(f)
       ffa(:, i) = fast_part(f)
       call keep_fast_point(self, i, fast_part(x), ffa(:, i))
       if (i == nsteps) exit
-      call rk4_step(sys, t, self%hf, x, f, self%evals_start, error); if (allocated(error)) return
+      call rk4_step(sys, t, self%hf, x, f, self%cnt%evals_start, error); if (allocated(error)) return
       t = t0 + (i + 1)*self%hf
     end do
     call nordsieck_from_history(slow_part(x), fsl(:, 2), fsl(:, 1), fsl(:, 0), self%hs, self%zs)
     call nordsieck_from_history(fast_part(x), ffa(:, nsteps), ffa(:, nsteps - 1), ffa(:, nsteps - 2), self%hf, self%zf)
     self%t0 = t0
     self%t = t0 + 2*hs
-    self%steps_slow = 2; self%steps_fast = nsteps
-    self%tb = t0; self%hb = self%hf; self%nb = nsteps
+    self%cnt%steps_slow = 2; self%cnt%steps_fast = nsteps
+    self%dense%tb = t0; self%dense%hb = self%hf; self%dense%nb = nsteps
   contains
     pure function slow_part(v) result(r)
       real(dp), intent(in) :: v(:)
@@ -265,14 +291,14 @@ contains
       call finish_macro_step(self, sys, error)
       return
     end if
-    self%zs0 = self%zs; self%zf0 = self%zf
+    self%wk%zs0 = self%zs; self%wk%zf0 = self%zf
     hs0 = self%hs; hf0 = self%hf
-    call error_weights(self%ctl, self%zs(:, 0), self%ws)
-    call error_weights(self%ctl, self%zf(:, 0), self%wf)
+    call error_weights(self%ctl, self%zs(:, 0), self%wk%ws)
+    call error_weights(self%ctl, self%zf(:, 0), self%wk%wf)
     do
       call try_macro_step(self, sys, err_s, err_f, error); if (allocated(error)) return
       if (err_s <= 1.0_dp .and. err_f <= 1.0_dp) exit
-      self%rejected = self%rejected + 1
+      self%cnt%rejected = self%cnt%rejected + 1
       hs_new = self%hs*min(self%ctl%ratio(err_s, err_s <= 1.0_dp), 1.0_dp)
       hf_new = self%hf*min(self%ctl%ratio(err_f, err_f <= 1.0_dp), 1.0_dp)
       call choose_ratio(self, hs_new, hf_new, k_new)
@@ -281,7 +307,7 @@ contains
           & ' s below h_min)', stat_solver); return
       end if
       ! back to the start of the macro step, with the arrays' own scaling
-      self%zs = self%zs0; self%zf = self%zf0
+      self%zs = self%wk%zs0; self%zf = self%wk%zf0
       self%hs = hs0; self%hf = hf0
       call rescale_steps(self, hs_new, hf_new, k_new)
     end do
@@ -318,11 +344,11 @@ contains
     class(multirate_integrator), intent(inout) :: self
     class(partitioned_system), intent(inout) :: sys
     type(error_type), allocatable, intent(out) :: error
-    self%zs = self%zn
-    self%zf = self%wn
-    self%steps_fast = self%steps_fast + 1
+    self%zs = self%wk%zn
+    self%zf = self%wk%wn
+    self%cnt%steps_fast = self%cnt%steps_fast + 1
     self%t = macro_end(self)
-    self%steps_slow = self%steps_slow + 1
+    self%cnt%steps_slow = self%cnt%steps_slow + 1
     call check_finite(sys, self%t, self%zs(:, 0), 'state', error, self%slow_map); if (allocated(error)) return
     call check_finite(sys, self%t, self%zf(:, 0), 'state', error, self%fast_map)
   end subroutine finish_macro_step
@@ -345,29 +371,29 @@ contains
       s = real(i, dp)/self%k
       ti = self%t + i*self%hf
       call slow_extrapolation(self, s)
-      call nordsieck_predict(self%zf, self%wp)
-      call sys%fast_rhs(ti, self%xs, self%wp(:, 0), self%acc, self%ff, error)
-      self%evals_fast = self%evals_fast + 1
+      call nordsieck_predict(self%zf, self%wk%wp)
+      call sys%fast_rhs(ti, self%wk%xs, self%wk%wp(:, 0), self%wk%acc, self%wk%ff, error)
+      self%cnt%evals_fast = self%cnt%evals_fast + 1
       if (allocated(error)) return
-      self%ff = self%hf*self%ff
-      call nordsieck_correct(self%wp, self%ff, self%wn, self%gf)
-      if (self%adaptive) err_f = max(err_f, wrms_norm(corrector_l(0)*self%gf, self%wf))
-      call keep_fast_point(self, i, self%wn(:, 0), self%wn(:, 1)/self%hf)
-      self%zf = self%wn
-      self%steps_fast = self%steps_fast + 1
+      self%wk%ff = self%hf*self%wk%ff
+      call nordsieck_correct(self%wk%wp, self%wk%ff, self%wk%wn, self%wk%gf)
+      if (self%adaptive) err_f = max(err_f, wrms_norm(corrector_l(0)*self%wk%gf, self%wk%wf))
+      call keep_fast_point(self, i, self%wk%wn(:, 0), self%wk%wn(:, 1)/self%hf)
+      self%zf = self%wk%wn
+      self%cnt%steps_fast = self%cnt%steps_fast + 1
     end do
-    call nordsieck_predict(self%zs, self%zp)
-    call nordsieck_predict(self%zf, self%wp)
-    call sys%sync_rhs(macro_end(self), self%zp(:, 0), self%wp(:, 0), self%fs, self%ff, error)
-    self%evals_slow = self%evals_slow + 1
+    call nordsieck_predict(self%zs, self%wk%zp)
+    call nordsieck_predict(self%zf, self%wk%wp)
+    call sys%sync_rhs(macro_end(self), self%wk%zp(:, 0), self%wk%wp(:, 0), self%wk%fs, self%wk%ff, error)
+    self%cnt%evals_slow = self%cnt%evals_slow + 1
     if (allocated(error)) return
-    call nordsieck_correct(self%zp, self%hs*self%fs, self%zn, self%gs)
-    call nordsieck_correct(self%wp, self%hf*self%ff, self%wn, self%gf)
-    call keep_fast_point(self, self%k, self%wn(:, 0), self%wn(:, 1)/self%hf)
-    self%tb = self%t; self%hb = self%hf; self%nb = self%k
+    call nordsieck_correct(self%wk%zp, self%hs*self%wk%fs, self%wk%zn, self%wk%gs)
+    call nordsieck_correct(self%wk%wp, self%hf*self%wk%ff, self%wk%wn, self%wk%gf)
+    call keep_fast_point(self, self%k, self%wk%wn(:, 0), self%wk%wn(:, 1)/self%hf)
+    self%dense%tb = self%t; self%dense%hb = self%hf; self%dense%nb = self%k
     if (.not. self%adaptive) return
-    err_s = wrms_norm(corrector_l(0)*self%gs, self%ws)
-    err_f = max(err_f, wrms_norm(corrector_l(0)*self%gf, self%wf))
+    err_s = wrms_norm(corrector_l(0)*self%wk%gs, self%wk%ws)
+    err_f = max(err_f, wrms_norm(corrector_l(0)*self%wk%gf, self%wk%wf))
     if (self%k == 1) return
     ! Coupling error: the fast substeps used slow accelerations extrapolated from the slow
     ! array. Their error at the end of the macro step shows in the fast accelerations with
@@ -375,13 +401,13 @@ contains
     ! the quadratic extrapolation's error s(s+1)(s+2)/6 over the step, it displaces the
     ! fast state by 0.106 H^2 d and its rates by 0.375 H d; this error bounds H.
     call slow_extrapolation(self, 1.0_dp)
-    call sys%fast_rhs(self%t + self%hs, self%xs, self%wp(:, 0), self%acc, self%fx, error)
-    self%evals_fast = self%evals_fast + 1
+    call sys%fast_rhs(self%t + self%hs, self%wk%xs, self%wk%wp(:, 0), self%wk%acc, self%wk%fx, error)
+    self%cnt%evals_fast = self%cnt%evals_fast + 1
     if (allocated(error)) return
     nf = self%nf
-    self%fx(1:nf) = 0.10556_dp*self%hs**2*(self%ff(nf+1:) - self%fx(nf+1:))
-    self%fx(nf+1:) = 0.375_dp*self%hs*(self%ff(nf+1:) - self%fx(nf+1:))
-    err_s = max(err_s, wrms_norm(self%fx, self%wf))
+    self%wk%fx(1:nf) = 0.10556_dp*self%hs**2*(self%wk%ff(nf+1:) - self%wk%fx(nf+1:))
+    self%wk%fx(nf+1:) = 0.375_dp*self%hs*(self%wk%ff(nf+1:) - self%wk%fx(nf+1:))
+    err_s = max(err_s, wrms_norm(self%wk%fx, self%wk%wf))
   end subroutine try_macro_step
 
   !> End of the macro step being taken: t + H, or with fixed steps t0 + n H.
@@ -390,7 +416,7 @@ contains
     if (self%adaptive) then
       macro_end = self%t + self%hs
     else
-      macro_end = self%t0 + (self%steps_slow + 1)*self%hs
+      macro_end = self%t0 + (self%cnt%steps_slow + 1)*self%hs
     end if
   end function macro_end
 
@@ -414,8 +440,8 @@ contains
     real(dp), intent(in) :: s
     integer :: ns
     ns = self%ns
-    call nordsieck_value(self%zs, s, self%xs)
-    self%acc = (self%zs(ns+1:, 1) + s*(2.0_dp*self%zs(ns+1:, 2) + 3.0_dp*s*self%zs(ns+1:, 3)))/self%hs
+    call nordsieck_value(self%zs, s, self%wk%xs)
+    self%wk%acc = (self%zs(ns+1:, 1) + s*(2.0_dp*self%zs(ns+1:, 2) + 3.0_dp*s*self%zs(ns+1:, 3)))/self%hs
   end subroutine slow_extrapolation
 
   !> Full state [q_s; q_f; qd_s; qd_f] at time t (t within the last macro step).
@@ -427,7 +453,7 @@ contains
     integer :: ns, nf, n
     ns = self%ns; nf = self%nf; n = ns + nf
     call nordsieck_value(self%zs, (t - self%t)/self%hs, xs)
-    if (self%nb > 0) then
+    if (self%dense%nb > 0) then
       call fast_dense(self, t, xf)
     else
       call nordsieck_value(self%zf, (t - self%t)/self%hf, xf)
@@ -442,13 +468,13 @@ contains
     integer, intent(in) :: i
     real(dp), intent(in) :: x(:), f(:)
     real(dp), allocatable :: grown(:, :)
-    if (size(self%xb, 2) <= i) then
+    if (size(self%dense%xb, 2) <= i) then
       allocate(grown(size(x), 0:2*i + 1))
-      grown(:, 0:size(self%xb, 2) - 1) = self%xb; call move_alloc(grown, self%xb)
+      grown(:, 0:size(self%dense%xb, 2) - 1) = self%dense%xb; call move_alloc(grown, self%dense%xb)
       allocate(grown(size(x), 0:2*i + 1))
-      grown(:, 0:size(self%fb, 2) - 1) = self%fb; call move_alloc(grown, self%fb)
+      grown(:, 0:size(self%dense%fb, 2) - 1) = self%dense%fb; call move_alloc(grown, self%dense%fb)
     end if
-    self%xb(:, i) = x; self%fb(:, i) = f
+    self%dense%xb(:, i) = x; self%dense%fb(:, i) = f
   end subroutine keep_fast_point
 
   !> Fast state at t from the cubic Hermite interpolant of the kept fast steps (the order
@@ -459,10 +485,10 @@ contains
     real(dp), intent(out) :: xf(:)
     real(dp) :: th
     integer :: i
-    i = min(max(ceiling((t - self%tb)/self%hb - 1.0e-9_dp), 1), self%nb)
-    th = (t - (self%tb + (i - 1)*self%hb))/self%hb
-    xf = (2*th**3 - 3*th**2 + 1)*self%xb(:, i - 1) + (th**3 - 2*th**2 + th)*self%hb*self%fb(:, i - 1) + &
-      & (3*th**2 - 2*th**3)*self%xb(:, i) + (th**3 - th**2)*self%hb*self%fb(:, i)
+    i = min(max(ceiling((t - self%dense%tb)/self%dense%hb - 1.0e-9_dp), 1), self%dense%nb)
+    th = (t - (self%dense%tb + (i - 1)*self%dense%hb))/self%dense%hb
+    xf = (2*th**3 - 3*th**2 + 1)*self%dense%xb(:, i - 1) + (th**3 - 2*th**2 + th)*self%dense%hb*self%dense%fb(:, i - 1) + &
+      & (3*th**2 - 2*th**3)*self%dense%xb(:, i) + (th**3 - th**2)*self%dense%hb*self%dense%fb(:, i)
   end subroutine fast_dense
 
   !> Project the value columns of the slow and fast Nordsieck arrays, joined into the full
@@ -478,7 +504,7 @@ contains
     call sys%project(self%time(), x, error); if (allocated(error)) return
     self%zs(:, 0) = [x(1:ns), x(ns+nf+1:2*ns+nf)]
     self%zf(:, 0) = [x(ns+1:ns+nf), x(2*ns+nf+1:)]
-    if (self%nb > 0) self%xb(:, self%nb) = self%zf(:, 0)
+    if (self%dense%nb > 0) self%dense%xb(:, self%dense%nb) = self%zf(:, 0)
   end subroutine mr_project
 
 end module pymr_integrator_multirate

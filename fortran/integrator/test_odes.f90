@@ -128,7 +128,7 @@ contains
     type is (abm_integrator)
       steps = integ%steps; evals = integ%evals; rejected = integ%rejected
     type is (adams_integrator)
-      steps = integ%steps; evals = integ%evals; rejected = integ%rejected
+      steps = integ%cnt%steps; evals = integ%cnt%evals; rejected = integ%cnt%rejected
     end select
   end subroutine integrate_test_ode
 
