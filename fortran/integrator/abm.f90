@@ -9,7 +9,7 @@ module pymr_integrator_abm
   use pymr_integrator_nordsieck, only : nq, corrector_l, nordsieck_predict, nordsieck_correct, &
     & nordsieck_rescale, nordsieck_value, nordsieck_from_history
   use pymr_integrator_control, only : step_control, error_weights, wrms_norm
-  use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps
+  use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps, state_record
   use pymr_env_text, only : fmt
   implicit none
   private
@@ -42,8 +42,7 @@ module pymr_integrator_abm
     procedure :: project => abm_project
     procedure :: time => abm_time
     procedure :: value_at => abm_value_at
-    procedure :: save => abm_save
-    procedure :: load => abm_load
+    procedure :: record => abm_record
     procedure :: counts => abm_counts
     procedure :: name => abm_name
     procedure :: pece => abm_steps
@@ -226,19 +225,13 @@ contains
     abm_time = self%t
   end function abm_time
 
-  subroutine abm_save(self, unit, ios)
-    class(abm_integrator), intent(in) :: self
-    integer, intent(in) :: unit
-    integer, intent(out) :: ios
-    write(unit, iostat=ios) self%t, self%h, self%t0, self%z, self%steps, self%rejected, self%evals
-  end subroutine abm_save
-
-  subroutine abm_load(self, unit, ios)
+  !> What a checkpoint keeps beside the Nordsieck array: times, step, counts.
+  subroutine abm_record(self, rec)
     class(abm_integrator), intent(inout) :: self
-    integer, intent(in) :: unit
-    integer, intent(out) :: ios
-    read(unit, iostat=ios) self%t, self%h, self%t0, self%z, self%steps, self%rejected, self%evals
-  end subroutine abm_load
+    type(state_record), intent(inout) :: rec
+    call rec%item(self%t); call rec%item(self%h); call rec%item(self%t0)
+    call rec%item(self%steps); call rec%item(self%rejected); call rec%item(self%evals)
+  end subroutine abm_record
 
   pure function abm_counts(self) result(c)
     class(abm_integrator), intent(in) :: self

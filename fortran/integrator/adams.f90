@@ -15,7 +15,7 @@ module pymr_integrator_adams
   use pymr_env_error, only : error_type, fatal_error, stat_solver
   use pymr_integrator_ode, only : ode_system
   use pymr_integrator_control, only : step_control, error_weights, wrms_norm
-  use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps
+  use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps, state_record
   use pymr_integrator_abm, only : check_finite
   use pymr_env_text, only : fmt, itoa
   use pymr_env_lapack, only : lu_factor, lu_solve
@@ -136,8 +136,7 @@ module pymr_integrator_adams
     procedure :: project => adams_project
     procedure :: time => adams_time
     procedure :: value_at => adams_value_at
-    procedure :: save => adams_save
-    procedure :: load => adams_load
+    procedure :: record => adams_record
     procedure :: counts => adams_counts
     procedure :: name => adams_name
     procedure :: pece => adams_steps
@@ -608,25 +607,21 @@ contains
     adams_order = self%q
   end function adams_order
 
-  subroutine adams_save(self, unit, ios)
-    class(adams_integrator), intent(in) :: self
-    integer, intent(in) :: unit
-    integer, intent(out) :: ios
-    write(unit, iostat=ios) self%t, self%h, self%q, self%z, self%tau, self%wait, self%eta_max, self%e_saved, &
-      & self%tq5_saved, self%have_saved, self%rate, self%gamma_rate, self%cnt%steps, self%cnt%rejected, self%cnt%evals, &
-      & self%cnt%corrector_fails, self%cnt%order_steps, self%nt%gamma_lu, self%nt%jac_age
-    if (ios == 0 .and. self%newton) write(unit, iostat=ios) self%nt%jac, self%nt%lu, self%nt%piv
-  end subroutine adams_save
-
-  subroutine adams_load(self, unit, ios)
+  !> What a checkpoint keeps beside the Nordsieck array: times, step and order, the step and
+  !> order choice's memory, the corrector's rate, counts, and Newton's matrices.
+  subroutine adams_record(self, rec)
     class(adams_integrator), intent(inout) :: self
-    integer, intent(in) :: unit
-    integer, intent(out) :: ios
-    read(unit, iostat=ios) self%t, self%h, self%q, self%z, self%tau, self%wait, self%eta_max, self%e_saved, &
-      & self%tq5_saved, self%have_saved, self%rate, self%gamma_rate, self%cnt%steps, self%cnt%rejected, self%cnt%evals, &
-      & self%cnt%corrector_fails, self%cnt%order_steps, self%nt%gamma_lu, self%nt%jac_age
-    if (ios == 0 .and. self%newton) read(unit, iostat=ios) self%nt%jac, self%nt%lu, self%nt%piv
-  end subroutine adams_load
+    type(state_record), intent(inout) :: rec
+    call rec%item(self%t); call rec%item(self%h); call rec%item(self%q); call rec%item(self%tau)
+    call rec%item(self%wait); call rec%item(self%eta_max); call rec%item(self%e_saved)
+    call rec%item(self%tq5_saved); call rec%item(self%have_saved); call rec%item(self%rate)
+    call rec%item(self%gamma_rate)
+    call rec%item(self%cnt%steps); call rec%item(self%cnt%rejected); call rec%item(self%cnt%evals)
+    call rec%item(self%cnt%corrector_fails); call rec%item(self%cnt%order_steps)
+    call rec%item(self%nt%gamma_lu); call rec%item(self%nt%jac_age)
+    if (.not. self%newton) return
+    call rec%item(self%nt%jac); call rec%item(self%nt%lu); call rec%item(self%nt%piv)
+  end subroutine adams_record
 
   pure function adams_counts(self) result(c)
     class(adams_integrator), intent(in) :: self

@@ -12,7 +12,7 @@ module pymr_integrator_multirate
   use pymr_env_kinds, only : dp
   use pymr_env_error, only : error_type, fatal_error, stat_solver
   use pymr_integrator_ode, only : ode_system, partitioned_system
-  use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps
+  use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps, state_record
   use pymr_env_text, only : fmt
   use pymr_integrator_nordsieck, only : nq, nordsieck_predict, nordsieck_correct, nordsieck_value, &
     & nordsieck_from_history, nordsieck_rescale, corrector_l
@@ -82,8 +82,7 @@ module pymr_integrator_multirate
     procedure :: project => mr_project
     procedure :: time => mr_time
     procedure :: value_at => mr_value_at
-    procedure :: save => mr_save
-    procedure :: load => mr_load
+    procedure :: record => mr_record
     procedure :: counts => mr_counts
     procedure :: name => mr_name
     procedure :: pece => mr_steps
@@ -160,21 +159,15 @@ contains
     mr_time = self%t
   end function mr_time
 
-  subroutine mr_save(self, unit, ios)
-    class(multirate_integrator), intent(in) :: self
-    integer, intent(in) :: unit
-    integer, intent(out) :: ios
-    write(unit, iostat=ios) self%k, self%t, self%hs, self%hf, self%t0, self%zs, self%zf, self%cnt%steps_slow, self%cnt%steps_fast, &
-      & self%cnt%evals_slow, self%cnt%evals_fast, self%cnt%evals_start, self%cnt%rejected
-  end subroutine mr_save
-
-  subroutine mr_load(self, unit, ios)
+  !> What a checkpoint keeps beside the Nordsieck arrays: ratio, times, steps, counts.
+  subroutine mr_record(self, rec)
     class(multirate_integrator), intent(inout) :: self
-    integer, intent(in) :: unit
-    integer, intent(out) :: ios
-    read(unit, iostat=ios) self%k, self%t, self%hs, self%hf, self%t0, self%zs, self%zf, self%cnt%steps_slow, self%cnt%steps_fast, &
-      & self%cnt%evals_slow, self%cnt%evals_fast, self%cnt%evals_start, self%cnt%rejected
-  end subroutine mr_load
+    type(state_record), intent(inout) :: rec
+    call rec%item(self%k); call rec%item(self%t); call rec%item(self%hs); call rec%item(self%hf)
+    call rec%item(self%t0)
+    call rec%item(self%cnt%steps_slow); call rec%item(self%cnt%steps_fast); call rec%item(self%cnt%evals_slow)
+    call rec%item(self%cnt%evals_fast); call rec%item(self%cnt%evals_start); call rec%item(self%cnt%rejected)
+  end subroutine mr_record
 
   pure function mr_counts(self) result(c)
     class(multirate_integrator), intent(in) :: self

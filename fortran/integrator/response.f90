@@ -24,7 +24,7 @@ module pymr_integrator_response
   use pymr_env_kinds, only : dp
   use pymr_env_error, only : error_type, fatal_error, stat_solver
   use pymr_integrator_ode, only : ode_system, partitioned_system
-  use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps
+  use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps, state_record
   use pymr_integrator_nordsieck, only : nq, corrector_l, nordsieck_predict, nordsieck_correct, nordsieck_rescale, &
     & nordsieck_value
   use pymr_integrator_abm, only : abm_integrator, check_finite
@@ -96,8 +96,7 @@ module pymr_integrator_response
     procedure :: project => rs_project
     procedure :: time => rs_time
     procedure :: value_at => rs_value_at
-    procedure :: save => rs_save
-    procedure :: load => rs_load
+    procedure :: record => rs_record
     procedure :: counts => rs_counts
     procedure :: name => rs_name
     procedure :: pece => rs_steps
@@ -360,29 +359,26 @@ contains
     call nordsieck_value(self%zbuf(:, :, j), (t - (self%t_macro + j*self%hb))/self%hb, x)
   end subroutine rs_value_at
 
-  subroutine rs_save(self, unit, ios)
-    class(response_integrator), intent(in) :: self
-    integer, intent(in) :: unit
-    integer, intent(out) :: ios
-    write(unit, iostat=ios) self%k, self%kn, self%t, self%h, self%t_macro, self%hb, self%t0, self%kb, self%z, &
-      & self%zbuf(:, :, 1:self%kb), self%hist%nh, self%hist%th, self%hist%hq, self%hist%hy, self%hist%g, self%hist%kf, self%hist%df, self%cnt%steps_slow, self%cnt%steps_fast, &
-      & self%cnt%rejected, self%cnt%evals_surrogate
-  end subroutine rs_save
-
-  subroutine rs_load(self, unit, ios)
+  !> What a checkpoint keeps beside the Nordsieck array and the history's accelerations and
+  !> fast states: ratios, times, steps, the last macro step's arrays, the rest of the
+  !> history, counts. Loading refuses ratios outside [1, k_max].
+  subroutine rs_record(self, rec)
     class(response_integrator), intent(inout) :: self
-    integer, intent(in) :: unit
-    integer, intent(out) :: ios
-    read(unit, iostat=ios) self%k, self%kn, self%t, self%h, self%t_macro, self%hb, self%t0, self%kb
-    if (ios /= 0) return
-    if (self%kb < 1 .or. self%kb > self%k_max .or. self%k < 1 .or. self%k > self%k_max .or. self%kn < 1 .or. &
-      & self%kn > self%k_max) then
-      ios = 1; return
+    type(state_record), intent(inout) :: rec
+    call rec%item(self%k); call rec%item(self%kn); call rec%item(self%kb)
+    if (rec%loading) then
+      if (min(self%k, self%kn, self%kb) < 1 .or. max(self%k, self%kn, self%kb) > self%k_max) rec%ok = .false.
+      if (.not. rec%ok) return
+      call hold_steps(self, self%kb)
     end if
-    call hold_steps(self, self%kb)
-    read(unit, iostat=ios) self%z, self%zbuf(:, :, 1:self%kb), self%hist%nh, self%hist%th, self%hist%hq, self%hist%hy, self%hist%g, &
-      & self%hist%kf, self%hist%df, self%cnt%steps_slow, self%cnt%steps_fast, self%cnt%rejected, self%cnt%evals_surrogate
-  end subroutine rs_load
+    call rec%item(self%t); call rec%item(self%h); call rec%item(self%t_macro); call rec%item(self%hb)
+    call rec%item(self%t0)
+    call rec%item(self%zbuf(:, :, 1:self%kb))
+    call rec%item(self%hist%nh); call rec%item(self%hist%th); call rec%item(self%hist%g)
+    call rec%item(self%hist%kf); call rec%item(self%hist%df)
+    call rec%item(self%cnt%steps_slow); call rec%item(self%cnt%steps_fast); call rec%item(self%cnt%rejected)
+    call rec%item(self%cnt%evals_surrogate)
+  end subroutine rs_record
 
   pure function rs_counts(self) result(c)
     class(response_integrator), intent(in) :: self

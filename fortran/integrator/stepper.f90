@@ -12,7 +12,7 @@ module pymr_integrator_stepper
   use pymr_integrator_ode, only : ode_system
   implicit none
   private
-  public :: stepper_t, step_counts, pece_steps
+  public :: stepper_t, step_counts, pece_steps, state_record
 
   !> What a stepper has done (its system counts the evaluations).
   type :: step_counts
@@ -35,14 +35,34 @@ module pymr_integrator_stepper
     character(len=8) :: item_joint = 'h_slow', item_modal = 'h_slow'
   end type pece_steps
 
+  !> The part of a stepper's state that its state vector (get_state) does not hold: times,
+  !> steps, ratio, counts, histories. A stepper lists these once, in its `record`, for both
+  !> directions: saving appends each item to the reals r or the integers k, loading takes
+  !> them back in the same order (ok false when the record runs short).
+  type :: state_record
+    logical :: loading = .false., ok = .true.
+    real(dp), allocatable :: r(:)
+    integer, allocatable :: k(:)
+    integer :: nr = 0, nk = 0
+  contains
+    procedure, private :: real_0, real_1, real_2, real_3, int_0, int_1, logical_0
+    generic :: item => real_0, real_1, real_2, real_3, int_0, int_1, logical_0
+    procedure, private :: reals, ints
+  end type state_record
+
   type, abstract :: stepper_t
   contains
     procedure(start_iface), deferred :: start
     procedure(advance_iface), deferred :: advance
     procedure(time_iface), deferred :: time
     procedure(value_iface), deferred :: value_at
-    procedure(save_iface), deferred :: save
-    procedure(load_iface), deferred :: load
+    !> Write (read) the whole state to (from) an open unformatted stream unit: the state
+    !> vector and the record, built on get_state and record for every stepper.
+    procedure :: save => save_stepper
+    procedure :: load => load_stepper
+    !> Its record (state_record): the one list of what a checkpoint keeps beside the state
+    !> vector.
+    procedure(record_iface), deferred :: record
     procedure(counts_iface), deferred :: counts
     procedure(name_iface), deferred :: name
     procedure(steps_iface), deferred :: pece
@@ -85,19 +105,12 @@ module pymr_integrator_stepper
       real(dp), intent(in) :: t
       real(dp), intent(out) :: x(:)
     end subroutine value_iface
-    !> Write (read) the whole state to (from) an open unformatted stream unit.
-    subroutine save_iface(self, unit, ios)
-      import :: stepper_t
-      class(stepper_t), intent(in) :: self
-      integer, intent(in) :: unit
-      integer, intent(out) :: ios
-    end subroutine save_iface
-    subroutine load_iface(self, unit, ios)
-      import :: stepper_t
+    !> Pass every item of the record through rec (saving or loading).
+    subroutine record_iface(self, rec)
+      import :: stepper_t, state_record
       class(stepper_t), intent(inout) :: self
-      integer, intent(in) :: unit
-      integer, intent(out) :: ios
-    end subroutine load_iface
+      type(state_record), intent(inout) :: rec
+    end subroutine record_iface
     pure function counts_iface(self) result(c)
       import :: stepper_t, step_counts
       class(stepper_t), intent(in) :: self
@@ -141,6 +154,137 @@ module pymr_integrator_stepper
   end interface
 
 contains
+
+  !> The state vector's length and values, then the record's sizes and items.
+  subroutine save_stepper(self, unit, ios)
+    class(stepper_t), intent(inout) :: self
+    integer, intent(in) :: unit
+    integer, intent(out) :: ios
+    real(dp) :: v(self%state_size())
+    type(state_record) :: rec
+    call self%get_state(v)
+    allocate(rec%r(0), rec%k(0))
+    call self%record(rec)
+    write(unit, iostat=ios) size(v), v, rec%nr, rec%nk, rec%r(1:rec%nr), rec%k(1:rec%nk)
+  end subroutine save_stepper
+
+  !> Read what save_stepper wrote into a stepper made for the same scene; ios /= 0 when the
+  !> sizes do not match it.
+  subroutine load_stepper(self, unit, ios)
+    class(stepper_t), intent(inout) :: self
+    integer, intent(in) :: unit
+    integer, intent(out) :: ios
+    real(dp) :: v(self%state_size())
+    type(state_record) :: rec
+    integer :: nv, nr, nk
+    read(unit, iostat=ios) nv
+    if (ios /= 0) return
+    if (nv /= size(v)) then
+      ios = 1; return
+    end if
+    read(unit, iostat=ios) v, nr, nk
+    if (ios /= 0) return
+    if (nr < 0 .or. nk < 0) then
+      ios = 1; return
+    end if
+    allocate(rec%r(nr), rec%k(nk), stat=ios)
+    if (ios /= 0) return
+    read(unit, iostat=ios) rec%r, rec%k
+    if (ios /= 0) return
+    rec%loading = .true.
+    call self%record(rec)
+    if (.not. rec%ok .or. rec%nr /= nr .or. rec%nk /= nk) then
+      ios = 1; return
+    end if
+    call self%set_state(v)
+  end subroutine load_stepper
+
+  !> Append x to the reals (saving) or take them back from them (loading).
+  subroutine reals(rec, x)
+    class(state_record), intent(inout) :: rec
+    real(dp), intent(inout) :: x(:)
+    real(dp), allocatable :: grown(:)
+    integer :: m
+    m = size(x)
+    if (rec%loading) then
+      if (rec%nr + m > size(rec%r)) rec%ok = .false.
+      if (rec%ok) x = rec%r(rec%nr+1:rec%nr+m)
+    else
+      if (rec%nr + m > size(rec%r)) then
+        allocate(grown(max(2*size(rec%r), rec%nr + m, 16)))
+        grown(1:rec%nr) = rec%r(1:rec%nr); call move_alloc(grown, rec%r)
+      end if
+      rec%r(rec%nr+1:rec%nr+m) = x
+    end if
+    rec%nr = rec%nr + m
+  end subroutine reals
+
+  !> Append x to the integers (saving) or take them back from them (loading).
+  subroutine ints(rec, x)
+    class(state_record), intent(inout) :: rec
+    integer, intent(inout) :: x(:)
+    integer, allocatable :: grown(:)
+    integer :: m
+    m = size(x)
+    if (rec%loading) then
+      if (rec%nk + m > size(rec%k)) rec%ok = .false.
+      if (rec%ok) x = rec%k(rec%nk+1:rec%nk+m)
+    else
+      if (rec%nk + m > size(rec%k)) then
+        allocate(grown(max(2*size(rec%k), rec%nk + m, 16)))
+        grown(1:rec%nk) = rec%k(1:rec%nk); call move_alloc(grown, rec%k)
+      end if
+      rec%k(rec%nk+1:rec%nk+m) = x
+    end if
+    rec%nk = rec%nk + m
+  end subroutine ints
+
+  subroutine real_0(rec, x)
+    class(state_record), intent(inout) :: rec
+    real(dp), intent(inout) :: x
+    real(dp) :: a(1)
+    a(1) = x; call rec%reals(a); x = a(1)
+  end subroutine real_0
+
+  subroutine real_1(rec, x)
+    class(state_record), intent(inout) :: rec
+    real(dp), intent(inout) :: x(:)
+    call rec%reals(x)
+  end subroutine real_1
+
+  subroutine real_2(rec, x)
+    class(state_record), intent(inout) :: rec
+    real(dp), intent(inout) :: x(:, :)
+    real(dp) :: a(size(x))
+    a = reshape(x, [size(x)]); call rec%reals(a); x = reshape(a, shape(x))
+  end subroutine real_2
+
+  subroutine real_3(rec, x)
+    class(state_record), intent(inout) :: rec
+    real(dp), intent(inout) :: x(:, :, :)
+    real(dp) :: a(size(x))
+    a = reshape(x, [size(x)]); call rec%reals(a); x = reshape(a, shape(x))
+  end subroutine real_3
+
+  subroutine int_0(rec, x)
+    class(state_record), intent(inout) :: rec
+    integer, intent(inout) :: x
+    integer :: a(1)
+    a(1) = x; call rec%ints(a); x = a(1)
+  end subroutine int_0
+
+  subroutine int_1(rec, x)
+    class(state_record), intent(inout) :: rec
+    integer, intent(inout) :: x(:)
+    call rec%ints(x)
+  end subroutine int_1
+
+  subroutine logical_0(rec, x)
+    class(state_record), intent(inout) :: rec
+    logical, intent(inout) :: x
+    integer :: a(1)
+    a(1) = merge(1, 0, x); call rec%ints(a); x = a(1) /= 0
+  end subroutine logical_0
 
   pure integer function order_four(self)
     class(stepper_t), intent(in) :: self
