@@ -356,10 +356,6 @@ contains
           & 'results: ' // trim(csv%io_message), stat_solver); exit
       end if
       call st%advance(model, error); if (allocated(error)) exit
-      call st%project(model, error)
-      if (allocated(error)) then
-        call prefix_error(error, 'at t = ' // fmt(st%time()) // ' s'); exit
-      end if
       done = st%counts()
       if (done%steps_fast > sc%integrator%max_steps) then
         call fatal_error(error, 'at t = ' // fmt(st%time()) // ' s: the run took more than max_steps = ' // &

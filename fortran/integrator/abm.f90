@@ -9,7 +9,7 @@ module pymr_integrator_abm
   use pymr_integrator_nordsieck, only : nq, corrector_l, nordsieck_predict, nordsieck_correct, &
     & nordsieck_rescale, nordsieck_value, nordsieck_from_history
   use pymr_integrator_control, only : step_control, error_weights, wrms_norm
-  use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps, state_record
+  use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps, state_record, project_step, projection_eta
   use pymr_env_text, only : fmt
   implicit none
   private
@@ -39,7 +39,6 @@ module pymr_integrator_abm
     procedure :: init => abm_init
     procedure :: start => abm_start
     procedure :: advance => abm_step
-    procedure :: project => abm_project
     procedure :: time => abm_time
     procedure :: value_at => abm_value_at
     procedure :: record => abm_record
@@ -157,25 +156,35 @@ contains
   !> Advance one accepted step. Fixed step: one predictor, `n_corr` evaluations and
   !> corrections. Adaptive: the corrector-predictor difference is the local error
   !> estimate; a rejected step is retried smaller, an accepted one may change h next time.
+  !> The accepted state is projected onto the system's constraints; a step whose projection
+  !> fails is retried smaller too (project_step).
   subroutine abm_step(self, sys, error)
     class(abm_integrator), intent(inout) :: self
     class(ode_system), intent(inout) :: sys
     type(error_type), allocatable, intent(out) :: error
     real(dp) :: err, eta, tn
+    integer :: projection_fails
+    logical :: retry
+    projection_fails = 0
     do
       tn = self%t + self%h
       if (.not. self%adaptive) tn = self%t0 + (self%steps + 1)*self%h
       call try_step(self, sys, tn, error); if (allocated(error)) return
-      if (.not. self%adaptive) exit
-      call error_weights(self%ctl, self%z(:, 0), self%w)
-      err = wrms_norm(corrector_l(0)*self%g, self%w)
+      err = 0.0_dp
+      if (self%adaptive) then
+        call error_weights(self%ctl, self%z(:, 0), self%w)
+        err = wrms_norm(corrector_l(0)*self%g, self%w)
+      end if
       if (err <= 1.0_dp) then
-        eta = self%ctl%ratio(err, .true.)
-        eta = min(eta, self%ctl%h_max/self%h)
-        exit
+        call check_finite(sys, tn, self%zn(:, 0), 'state', error); if (allocated(error)) return
+        call project_step(sys, tn, self%zn(:, 0), self%adaptive, projection_fails, retry, error)
+        if (allocated(error)) return
+        if (.not. retry) exit
+        eta = projection_eta
+      else
+        eta = self%ctl%ratio(err, .false.)
       end if
       self%rejected = self%rejected + 1
-      eta = self%ctl%ratio(err, .false.)
       if (eta*self%h < self%ctl%h_min) then
         call fatal_error(error, 'step size underflow at t = ' // fmt(self%t) // ' s (step ' // fmt(eta*self%h) // &
           & ' s below h_min)', stat_solver)
@@ -187,8 +196,9 @@ contains
     self%z = self%zn
     self%t = tn
     self%steps = self%steps + 1
-    call check_finite(sys, tn, self%z(:, 0), 'state', error); if (allocated(error)) return
-    if (self%adaptive .and. eta /= 1.0_dp) then
+    if (.not. self%adaptive) return
+    eta = min(self%ctl%ratio(err, .true.), self%ctl%h_max/self%h)
+    if (eta /= 1.0_dp) then
       call nordsieck_rescale(self%z, eta)
       self%h = eta*self%h
     end if
@@ -291,13 +301,5 @@ contains
       end if
     end do
   end subroutine check_finite
-
-  !> Project the value column of the Nordsieck array onto the system's constraints.
-  subroutine abm_project(self, sys, error)
-    class(abm_integrator), intent(inout) :: self
-    class(ode_system), intent(inout) :: sys
-    type(error_type), allocatable, intent(out) :: error
-    call sys%project(self%time(), self%z(:, 0), error)
-  end subroutine abm_project
 
 end module pymr_integrator_abm

@@ -15,7 +15,7 @@ module pymr_integrator_adams
   use pymr_env_error, only : error_type, fatal_error, stat_solver
   use pymr_integrator_ode, only : ode_system
   use pymr_integrator_control, only : step_control, error_weights, wrms_norm
-  use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps, state_record
+  use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps, state_record, project_step, projection_eta
   use pymr_integrator_abm, only : check_finite
   use pymr_env_text, only : fmt, itoa
   use pymr_env_lapack, only : lu_factor, lu_solve
@@ -133,7 +133,6 @@ module pymr_integrator_adams
     procedure :: init => adams_init
     procedure :: start => adams_start
     procedure :: advance => adams_advance
-    procedure :: project => adams_project
     procedure :: time => adams_time
     procedure :: value_at => adams_value_at
     procedure :: record => adams_record
@@ -233,15 +232,17 @@ contains
 
   !> One accepted step: predict, correct to convergence, test the local error; on a
   !> failure restore the array and retry smaller (and lower the order after repeated
-  !> failures). After it, choose the next step and order.
+  !> failures). The corrected state is projected onto the system's constraints; a step
+  !> whose projection fails is retried smaller too (project_step). After it, choose the
+  !> next step and order.
   subroutine adams_advance(self, sys, error)
     class(adams_integrator), intent(inout) :: self
     class(ode_system), intent(inout) :: sys
     type(error_type), allocatable, intent(out) :: error
-    integer :: error_fails, corr_fails
+    integer :: error_fails, corr_fails, projection_fails
     real(dp) :: tn, acnrm, dsm
-    logical :: converged
-    error_fails = 0; corr_fails = 0
+    logical :: converged, retry
+    error_fails = 0; corr_fails = 0; projection_fails = 0
     call error_weights(self%ctl, self%z(:, 0), self%wk%w)
     do
       self%wk%z_old(:, 0:self%q) = self%z(:, 0:self%q)
@@ -266,7 +267,16 @@ contains
         cycle
       end if
       dsm = acnrm*self%tq(2)
-      if (dsm <= 1.0_dp .or. .not. self%adaptive) exit
+      if (dsm <= 1.0_dp .or. .not. self%adaptive) then
+        call correct_array(self, sys, tn, error); if (allocated(error)) return
+        call project_step(sys, tn, self%z(:, 0), self%adaptive, projection_fails, retry, error)
+        if (allocated(error)) return
+        if (.not. retry) exit
+        self%z(:, 0:self%q) = self%wk%z_old(:, 0:self%q)
+        self%cnt%rejected = self%cnt%rejected + 1
+        call shrink(self, projection_eta, error); if (allocated(error)) return
+        cycle
+      end if
       self%z(:, 0:self%q) = self%wk%z_old(:, 0:self%q)
       error_fails = error_fails + 1; self%cnt%rejected = self%cnt%rejected + 1
       if (error_fails >= max_error_fails) then
@@ -275,7 +285,7 @@ contains
       end if
       call after_error_failure(self, sys, dsm, error_fails, error); if (allocated(error)) return
     end do
-    call accept(self, sys, tn, error); if (allocated(error)) return
+    call accept(self, tn)
     if (self%adaptive) call choose_next(self, dsm)
   end subroutine adams_advance
 
@@ -378,9 +388,8 @@ contains
     self%nt%gamma_lu = gamma; self%rate = 1.0_dp; self%gamma_rate = gamma
   end subroutine newton_setup
 
-  !> Take the step: z = z(0) + e l (z holds the prediction), shift the step history, count, and keep the correction
-  !> for the q+1 estimate one step before an order choice.
-  subroutine accept(self, sys, tn, error)
+  !> The corrected array z = z(0) + e l (z holds the prediction), its state checked finite.
+  subroutine correct_array(self, sys, tn, error)
     class(adams_integrator), intent(inout) :: self
     class(ode_system), intent(inout) :: sys
     real(dp), intent(in) :: tn
@@ -389,12 +398,19 @@ contains
     do j = 0, self%q
       self%z(:, j) = self%z(:, j) + self%l(j)*self%wk%e
     end do
+    call check_finite(sys, tn, self%z(:, 0), 'state', error)
+  end subroutine correct_array
+
+  !> Take the corrected step to tn: shift the step history, count, and keep the correction
+  !> for the q+1 estimate one step before an order choice.
+  subroutine accept(self, tn)
+    class(adams_integrator), intent(inout) :: self
+    real(dp), intent(in) :: tn
     self%t = tn
     self%cnt%steps = self%cnt%steps + 1
     self%cnt%order_steps(self%q) = self%cnt%order_steps(self%q) + 1
     self%tau(2:) = self%tau(:max_order)
     self%tau(1) = self%h
-    call check_finite(sys, tn, self%z(:, 0), 'state', error); if (allocated(error)) return
     self%wait = self%wait - 1
     if (self%wait == 1 .and. self%q < self%q_top) then
       self%e_saved = self%wk%e; self%tq5_saved = self%tq(5); self%have_saved = .true.
@@ -660,13 +676,5 @@ contains
     real(dp), intent(in) :: v(:)
     self%z = reshape(v, shape(self%z))
   end subroutine adams_set_state
-
-  !> Project the value column of the Nordsieck array onto the system's constraints.
-  subroutine adams_project(self, sys, error)
-    class(adams_integrator), intent(inout) :: self
-    class(ode_system), intent(inout) :: sys
-    type(error_type), allocatable, intent(out) :: error
-    call sys%project(self%time(), self%z(:, 0), error)
-  end subroutine adams_project
 
 end module pymr_integrator_adams

@@ -12,7 +12,7 @@ module pymr_integrator_multirate
   use pymr_env_kinds, only : dp
   use pymr_env_error, only : error_type, fatal_error, stat_solver
   use pymr_integrator_ode, only : ode_system, partitioned_system
-  use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps, state_record
+  use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps, state_record, project_step, projection_eta
   use pymr_env_text, only : fmt
   use pymr_integrator_nordsieck, only : nq, nordsieck_predict, nordsieck_correct, nordsieck_value, &
     & nordsieck_from_history, nordsieck_rescale, corrector_l
@@ -79,7 +79,6 @@ module pymr_integrator_multirate
     procedure :: init => mr_init
     procedure :: start => mr_start
     procedure :: advance => mr_advance
-    procedure :: project => mr_project
     procedure :: time => mr_time
     procedure :: value_at => mr_value_at
     procedure :: record => mr_record
@@ -272,16 +271,20 @@ contains
   !> One macro step. Fixed steps: `try_macro_step` once. Adaptive: the slow corrector's
   !> error estimate sets the next macro step H, the largest fast one sets the fast step h,
   !> and k = H/h is rounded into [1, k_max] (H shrinks when k would exceed k_max). A
-  !> rejected macro step is retried from its start with both steps rescaled.
+  !> rejected macro step is retried from its start with both steps rescaled, and so is one
+  !> whose state the system's projection does not bring onto its constraints.
   subroutine mr_step(self, sys, error)
     class(multirate_integrator), intent(inout) :: self
     class(partitioned_system), intent(inout) :: sys
     type(error_type), allocatable, intent(out) :: error
     real(dp) :: err_s, err_f, hs_new, hf_new, hs0, hf0
-    integer :: k_new
+    integer :: k_new, projection_fails
+    logical :: retry
+    projection_fails = 0
     if (.not. self%adaptive) then
       call try_macro_step(self, sys, err_s, err_f, error); if (allocated(error)) return
-      call finish_macro_step(self, sys, error)
+      call close_macro_step(self, sys, projection_fails, retry, error); if (allocated(error)) return
+      call finish_macro_step(self)
       return
     end if
     self%wk%zs0 = self%zs; self%wk%zf0 = self%zf
@@ -290,10 +293,15 @@ contains
     call error_weights(self%ctl, self%zf(:, 0), self%wk%wf)
     do
       call try_macro_step(self, sys, err_s, err_f, error); if (allocated(error)) return
-      if (err_s <= 1.0_dp .and. err_f <= 1.0_dp) exit
+      if (err_s <= 1.0_dp .and. err_f <= 1.0_dp) then
+        call close_macro_step(self, sys, projection_fails, retry, error); if (allocated(error)) return
+        if (.not. retry) exit
+        hs_new = projection_eta*self%hs; hf_new = projection_eta*self%hf
+      else
+        hs_new = self%hs*min(self%ctl%ratio(err_s, err_s <= 1.0_dp), 1.0_dp)
+        hf_new = self%hf*min(self%ctl%ratio(err_f, err_f <= 1.0_dp), 1.0_dp)
+      end if
       self%cnt%rejected = self%cnt%rejected + 1
-      hs_new = self%hs*min(self%ctl%ratio(err_s, err_s <= 1.0_dp), 1.0_dp)
-      hf_new = self%hf*min(self%ctl%ratio(err_f, err_f <= 1.0_dp), 1.0_dp)
       call choose_ratio(self, hs_new, hf_new, k_new)
       if (hf_new < self%ctl%h_min) then
         call fatal_error(error, 'step size underflow at t = ' // fmt(self%t) // ' s (fast step ' // fmt(hf_new) // &
@@ -304,7 +312,7 @@ contains
       self%hs = hs0; self%hf = hf0
       call rescale_steps(self, hs_new, hf_new, k_new)
     end do
-    call finish_macro_step(self, sys, error); if (allocated(error)) return
+    call finish_macro_step(self)
     hs_new = min(self%hs*self%ctl%ratio(err_s, .true.), self%ctl%h_max)
     hf_new = min(self%hf*self%ctl%ratio(err_f, .true.), self%hf_max)
     call choose_ratio(self, hs_new, hf_new, k_new)
@@ -332,18 +340,14 @@ contains
     self%hs = hs; self%hf = hf; self%k = k
   end subroutine rescale_steps
 
-  !> Accept the macro step computed by try_macro_step.
-  subroutine finish_macro_step(self, sys, error)
+  !> Accept the macro step computed by try_macro_step and closed by close_macro_step.
+  subroutine finish_macro_step(self)
     class(multirate_integrator), intent(inout) :: self
-    class(partitioned_system), intent(inout) :: sys
-    type(error_type), allocatable, intent(out) :: error
     self%zs = self%wk%zn
     self%zf = self%wk%wn
     self%cnt%steps_fast = self%cnt%steps_fast + 1
     self%t = macro_end(self)
     self%cnt%steps_slow = self%cnt%steps_slow + 1
-    call check_finite(sys, self%t, self%zs(:, 0), 'state', error, self%slow_map); if (allocated(error)) return
-    call check_finite(sys, self%t, self%zf(:, 0), 'state', error, self%fast_map)
   end subroutine finish_macro_step
 
   !> k - 1 fast ABM steps with the extrapolated slow state, then the predicted slow and
@@ -484,20 +488,29 @@ contains
       & (3*th**2 - 2*th**3)*self%dense%xb(:, i) + (th**3 - th**2)*self%dense%hb*self%dense%fb(:, i)
   end subroutine fast_dense
 
-  !> Project the value columns of the slow and fast Nordsieck arrays, joined into the full
-  !> state [q_s; q_f; qd_s; qd_f], onto the system's constraints.
-  subroutine mr_project(self, sys, error)
+  !> The macro step computed by try_macro_step (zn, wn) checked finite and its state, the
+  !> value columns of both arrays joined into [q_s; q_f; qd_s; qd_f], projected onto the
+  !> system's constraints (project_step: retry when an adaptive step is to be redone
+  !> smaller); the dense output's last fast point follows.
+  subroutine close_macro_step(self, sys, fails, retry, error)
     class(multirate_integrator), intent(inout) :: self
-    class(ode_system), intent(inout) :: sys
+    class(partitioned_system), intent(inout) :: sys
+    integer, intent(inout) :: fails
+    logical, intent(out) :: retry
     type(error_type), allocatable, intent(out) :: error
-    real(dp) :: x(2*(self%ns + self%nf))
+    real(dp) :: x(2*(self%ns + self%nf)), t
     integer :: ns, nf
     ns = self%ns; nf = self%nf
-    x = [self%zs(1:ns, 0), self%zf(1:nf, 0), self%zs(ns+1:, 0), self%zf(nf+1:, 0)]
-    call sys%project(self%time(), x, error); if (allocated(error)) return
-    self%zs(:, 0) = [x(1:ns), x(ns+nf+1:2*ns+nf)]
-    self%zf(:, 0) = [x(ns+1:ns+nf), x(2*ns+nf+1:)]
-    if (self%dense%nb > 0) self%dense%xb(:, self%dense%nb) = self%zf(:, 0)
-  end subroutine mr_project
+    retry = .false.
+    t = macro_end(self)
+    call check_finite(sys, t, self%wk%zn(:, 0), 'state', error, self%slow_map); if (allocated(error)) return
+    call check_finite(sys, t, self%wk%wn(:, 0), 'state', error, self%fast_map); if (allocated(error)) return
+    x = [self%wk%zn(1:ns, 0), self%wk%wn(1:nf, 0), self%wk%zn(ns+1:, 0), self%wk%wn(nf+1:, 0)]
+    call project_step(sys, t, x, self%adaptive, fails, retry, error)
+    if (allocated(error) .or. retry) return
+    self%wk%zn(:, 0) = [x(1:ns), x(ns+nf+1:2*ns+nf)]
+    self%wk%wn(:, 0) = [x(ns+1:ns+nf), x(2*ns+nf+1:)]
+    if (self%dense%nb > 0) self%dense%xb(:, self%dense%nb) = self%wk%wn(:, 0)
+  end subroutine close_macro_step
 
 end module pymr_integrator_multirate

@@ -24,7 +24,7 @@ module pymr_integrator_response
   use pymr_env_kinds, only : dp
   use pymr_env_error, only : error_type, fatal_error, stat_solver
   use pymr_integrator_ode, only : ode_system, partitioned_system
-  use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps, state_record
+  use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps, state_record, project_step, projection_eta
   use pymr_integrator_nordsieck, only : nq, corrector_l, nordsieck_predict, nordsieck_correct, nordsieck_rescale, &
     & nordsieck_value
   use pymr_integrator_abm, only : abm_integrator, check_finite
@@ -93,7 +93,6 @@ module pymr_integrator_response
     procedure :: init => rs_init
     procedure :: start => rs_start
     procedure :: advance => rs_advance
-    procedure :: project => rs_project
     procedure :: time => rs_time
     procedure :: value_at => rs_value_at
     procedure :: record => rs_record
@@ -166,12 +165,15 @@ contains
   !> tolerance is retried from its start with the steps the errors ask for; one that broke
   !> down (a step beyond the fast stability limit grows until a factorisation fails) is
   !> retried with both steps at the smallest ratio, up to max_breakdowns times in a row.
+  !> The accepted state is projected onto the system's constraints; a macro step whose
+  !> projection fails is retried with its fast step smaller (project_step).
   subroutine rs_advance(self, sys, error)
     class(response_integrator), intent(inout) :: self
     class(ode_system), intent(inout) :: sys
     type(error_type), allocatable, intent(out) :: error
     real(dp) :: err_f, err_s, t0, h0
-    integer :: breakdowns
+    integer :: breakdowns, projection_fails
+    logical :: retry
     select type (sys)
     class is (partitioned_system)
       t0 = self%t; h0 = self%h
@@ -179,7 +181,7 @@ contains
         self%wk%z0 = self%z
         call error_weights(self%ctl, self%z(:, 0), self%wk%w)
       end if
-      breakdowns = 0
+      breakdowns = 0; projection_fails = 0
       do
         call try_macro_step(self, sys, err_f, err_s, error)
         if (allocated(error)) then
@@ -188,20 +190,28 @@ contains
           deallocate(error)
           err_f = huge(1.0_dp); err_s = huge(1.0_dp)
         end if
-        if (.not. self%adaptive) exit
         if (.not. err_f <= huge(1.0_dp)) err_f = huge(1.0_dp)     ! NaN: rejected, steps shrunk most
         if (.not. err_s <= huge(1.0_dp)) err_s = huge(1.0_dp)
-        if (err_f <= 1.0_dp .and. err_s <= 1.0_dp) exit
+        retry = .false.
+        if (.not. self%adaptive .or. (err_f <= 1.0_dp .and. err_s <= 1.0_dp)) then
+          call check_finite(sys, self%t, self%z(:, 0), 'state', error); if (allocated(error)) return
+          call project_step(sys, self%t, self%z(:, 0), self%adaptive, projection_fails, retry, error)
+          if (allocated(error)) return
+          if (.not. retry) exit
+        end if
         self%cnt%rejected = self%cnt%rejected + 1
         ! back to the start of the macro step (the array scaled with the step just tried)
         self%z = self%wk%z0; self%t = t0
         call nordsieck_rescale(self%z, self%h/h0)
-        call resize_steps(self, err_f, err_s, .false., error); if (allocated(error)) return
+        if (retry) then
+          call shrink_fast_step(self, error); if (allocated(error)) return
+        else
+          call resize_steps(self, err_f, err_s, .false., error); if (allocated(error)) return
+        end if
       end do
       call commit_evaluation(self)
       self%cnt%steps_slow = self%cnt%steps_slow + 1
       self%kn = self%k
-      call check_finite(sys, self%t, self%z(:, 0), 'state', error); if (allocated(error)) return
       if (self%adaptive) call resize_steps(self, err_f, err_s, .true., error)
     class default
       call fatal_error(error, "the 'response' coupling needs a system partitioned into slow and fast coordinates")
@@ -344,6 +354,19 @@ contains
     end if
   end subroutine resize_steps
 
+  !> The fast step times projection_eta, the ratio kept (a macro step whose projection
+  !> failed); the array is rescaled to it.
+  subroutine shrink_fast_step(self, error)
+    class(response_integrator), intent(inout) :: self
+    type(error_type), allocatable, intent(out) :: error
+    if (projection_eta*self%h < self%ctl%h_min) then
+      call fatal_error(error, 'step size underflow at t = ' // fmt(self%t) // ' s (fast step ' // &
+        & fmt(projection_eta*self%h) // ' s below h_min)', stat_solver); return
+    end if
+    call nordsieck_rescale(self%z, projection_eta)
+    self%h = projection_eta*self%h
+  end subroutine shrink_fast_step
+
   pure real(dp) function rs_time(self)
     class(response_integrator), intent(in) :: self
     rs_time = self%t
@@ -447,13 +470,5 @@ contains
     character(len=:), allocatable :: s
     s = 'multirate'
   end function rs_name
-
-  !> Project the value column of the Nordsieck array onto the system's constraints.
-  subroutine rs_project(self, sys, error)
-    class(response_integrator), intent(inout) :: self
-    class(ode_system), intent(inout) :: sys
-    type(error_type), allocatable, intent(out) :: error
-    call sys%project(self%time(), self%z(:, 0), error)
-  end subroutine rs_project
 
 end module pymr_integrator_response

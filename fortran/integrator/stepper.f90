@@ -8,11 +8,19 @@
 !> is made.
 module pymr_integrator_stepper
   use pymr_env_kinds, only : dp
-  use pymr_env_error, only : error_type
+  use pymr_env_error, only : error_type, prefix_error
+  use pymr_env_text, only : fmt, itoa
   use pymr_integrator_ode, only : ode_system
   implicit none
   private
-  public :: stepper_t, step_counts, pece_steps, state_record
+  public :: stepper_t, step_counts, pece_steps, state_record, project_step
+
+  !> A step whose projection onto the system's constraints fails is redone with its step
+  !> times projection_eta, at most max_projection_fails times in one step (adaptive steppers;
+  !> fixed steps stop at the first failure): CVODE's defaults (CVodeSetMaxNumProjFails,
+  !> CVodeSetProjFailEta).
+  integer, parameter :: max_projection_fails = 10
+  real(dp), parameter, public :: projection_eta = 0.25_dp
 
   !> What a stepper has done (its system counts the evaluations).
   type :: step_counts
@@ -73,9 +81,6 @@ module pymr_integrator_stepper
     procedure :: set_ratio => no_ratio
     !> Order of the method in the last step (4 for the paper's ABM4).
     procedure :: order => order_four
-    !> Project the state reached (the Nordsieck array's value column) onto the system's
-    !> constraints after an accepted step (sys%project).
-    procedure(project_iface), deferred :: project
   end type stepper_t
 
   abstract interface
@@ -87,7 +92,8 @@ module pymr_integrator_stepper
       real(dp), intent(in) :: t0, x0(:), h
       type(error_type), allocatable, intent(out) :: error
     end subroutine start_iface
-    !> One accepted (macro) step.
+    !> One accepted (macro) step, its state projected onto the system's constraints
+    !> (project_step): every caller retraces the same steps.
     subroutine advance_iface(self, sys, error)
       import :: stepper_t, ode_system, error_type
       class(stepper_t), intent(inout) :: self
@@ -128,12 +134,6 @@ module pymr_integrator_stepper
       class(stepper_t), intent(in) :: self
       type(pece_steps) :: s
     end function steps_iface
-    subroutine project_iface(self, sys, error)
-      import :: stepper_t, ode_system, error_type
-      class(stepper_t), intent(inout) :: self
-      class(ode_system), intent(inout) :: sys
-      type(error_type), allocatable, intent(out) :: error
-    end subroutine project_iface
     !> Length of its whole state as a vector.
     pure integer function state_size_iface(self)
       import :: stepper_t
@@ -154,6 +154,30 @@ module pymr_integrator_stepper
   end interface
 
 contains
+
+  !> Project the state x a step reached at t onto the system's constraints (sys%project),
+  !> inside the stepper's advance once the step passed its error test. When that fails, an
+  !> adaptive stepper redoes the step smaller: retry is true, fails counts the failures of
+  !> this step; otherwise (fixed steps, or max_projection_fails reached) the error, which
+  !> names the time.
+  subroutine project_step(sys, t, x, adaptive, fails, retry, error)
+    class(ode_system), intent(inout) :: sys
+    real(dp), intent(in) :: t
+    real(dp), intent(inout) :: x(:)
+    logical, intent(in) :: adaptive
+    integer, intent(inout) :: fails
+    logical, intent(out) :: retry
+    type(error_type), allocatable, intent(out) :: error
+    retry = .false.
+    call sys%project(t, x, error)
+    if (.not. allocated(error)) return
+    if (adaptive .and. fails < max_projection_fails) then
+      fails = fails + 1; retry = .true.
+      deallocate(error); return
+    end if
+    if (fails > 0) error%message = error%message // ' (the step redone ' // itoa(fails) // ' times smaller)'
+    call prefix_error(error, 'at t = ' // fmt(t) // ' s')
+  end subroutine project_step
 
   !> The state vector's length and values, then the record's sizes and items.
   subroutine save_stepper(self, unit, ios)
