@@ -13,7 +13,7 @@ module pymr_integrator_abm
   use pymr_env_text, only : fmt
   implicit none
   private
-  public :: abm_integrator, rk4_step, check_finite, hinit
+  public :: abm_integrator, rk4_step, check_finite, hinit, pece_step
 
   !> Nordsieck ABM integrator state.
   type, extends(stepper_t) :: abm_integrator
@@ -210,17 +210,33 @@ contains
     class(ode_system), intent(inout) :: sys
     real(dp), intent(in) :: tn
     type(error_type), allocatable, intent(out) :: error
-    integer :: m
-    call nordsieck_predict(self%z, self%zp)
-    self%x = self%zp(:, 0)
-    do m = 1, self%n_corr
-      call sys%eval(tn, self%x, self%f, error); self%evals = self%evals + 1
-      if (allocated(error)) return
-      call check_finite(sys, tn, self%f, 'derivative', error); if (allocated(error)) return
-      call nordsieck_correct(self%zp, self%h*self%f, self%zn, self%g)
-      self%x = self%zn(:, 0)
-    end do
+    call pece_step(sys, tn, self%h, self%n_corr, self%z, self%zp, self%zn, self%x, self%f, self%g, self%evals, error)
   end subroutine try_step
+
+  !> One step of the Nordsieck ABM formula to tn of the array z (scaled with the step h):
+  !> predicted into zp, then n_corr times evaluated (f at x) and corrected into zn, with the
+  !> correction g; evals counts the evaluations. The single-rate stepper's step, and the
+  !> 'full' multirate coupling's fast steps (on the fast equations with the slow motion
+  !> extrapolated).
+  subroutine pece_step(sys, tn, h, n_corr, z, zp, zn, x, f, g, evals, error)
+    class(ode_system), intent(inout) :: sys
+    real(dp), intent(in) :: tn, h
+    integer, intent(in) :: n_corr
+    real(dp), intent(in) :: z(:, 0:)
+    real(dp), intent(out) :: zp(:, 0:), zn(:, 0:), x(:), f(:), g(:)
+    integer, intent(inout) :: evals
+    type(error_type), allocatable, intent(out) :: error
+    integer :: m
+    call nordsieck_predict(z, zp)
+    x = zp(:, 0)
+    do m = 1, n_corr
+      call sys%eval(tn, x, f, error); evals = evals + 1
+      if (allocated(error)) return
+      call check_finite(sys, tn, f, 'derivative', error); if (allocated(error)) return
+      call nordsieck_correct(zp, h*f, zn, g)
+      x = zn(:, 0)
+    end do
+  end subroutine pece_step
 
   !> State at time t from the Nordsieck polynomial of the last step (dense output).
   pure subroutine abm_value_at(self, t, x)

@@ -16,7 +16,7 @@ module pymr_integrator_multirate
   use pymr_env_text, only : fmt
   use pymr_integrator_nordsieck, only : nq, nordsieck_predict, nordsieck_correct, nordsieck_value, &
     & nordsieck_from_history, nordsieck_rescale, corrector_l
-  use pymr_integrator_abm, only : rk4_step, check_finite
+  use pymr_integrator_abm, only : rk4_step, check_finite, pece_step
   use pymr_integrator_control, only : step_control, error_weights, wrms_norm
   implicit none
   private
@@ -34,8 +34,9 @@ module pymr_integrator_multirate
     !> error's fast derivative.
     real(dp), allocatable :: zs0(:, :), zf0(:, :), ws(:), wf(:), fx(:)
     !> Predicted and corrected slow (zp, zn) and fast (wp, wn) arrays, derivatives, corrections,
-    !> the extrapolated slow state and accelerations.
-    real(dp), allocatable :: zp(:, :), zn(:, :), wp(:, :), wn(:, :), fs(:), ff(:), gs(:), gf(:), xs(:), acc(:)
+    !> the extrapolated slow state and accelerations, the fast steps' iterate.
+    real(dp), allocatable :: zp(:, :), zn(:, :), wp(:, :), wn(:, :), fs(:), ff(:), gs(:), gf(:), xs(:), acc(:), &
+      & xf(:)
   end type mr_work_t
 
   !> Dense output of the fast state inside the last macro step (or the start): its values
@@ -47,6 +48,20 @@ module pymr_integrator_multirate
     real(dp) :: tb = 0.0_dp, hb = 0.0_dp
     integer :: nb = 0
   end type fast_steps_t
+
+  !> The fast equations as a system of their own, for the fast steps inside a macro step:
+  !> the fast state's derivative with the slow state xs and accelerations acc given (their
+  !> extrapolation from the slow array), as MRIStep's inner system is forced by the slow
+  !> one. The fast steps are the single-rate stepper's (pece_step) on it.
+  type, extends(ode_system) :: forced_fast_system
+    class(partitioned_system), pointer :: full => null()
+    real(dp), allocatable :: xs(:), acc(:)
+    !> Positions of the fast state in the full one (for error messages).
+    integer, allocatable :: fast_map(:)
+  contains
+    procedure :: eval => forced_eval
+    procedure :: component_name => forced_name
+  end type forced_fast_system
 
   !> Multirate integrator state.
   type, extends(stepper_t) :: multirate_integrator
@@ -116,7 +131,7 @@ contains
     allocate(self%wk%zs0(2*ns, 0:nq), self%wk%zf0(2*nf, 0:nq), self%wk%ws(2*ns), self%wk%wf(2*nf), self%wk%fx(2*nf))
     allocate(self%zs(2*ns, 0:nq), self%zf(2*nf, 0:nq), self%wk%zp(2*ns, 0:nq), self%wk%zn(2*ns, 0:nq), &
       & self%wk%wp(2*nf, 0:nq), self%wk%wn(2*nf, 0:nq), self%wk%fs(2*ns), self%wk%ff(2*nf), self%wk%gs(2*ns), self%wk%gf(2*nf), &
-      & self%wk%xs(2*ns), self%wk%acc(ns))
+      & self%wk%xs(2*ns), self%wk%acc(ns), self%wk%xf(2*nf))
     self%slow_map = slow_index(ns, nf)
     self%fast_map = fast_index(ns, nf)
     allocate(self%dense%xb(2*nf, 0:2*k), self%dense%fb(2*nf, 0:2*k))
@@ -359,26 +374,9 @@ contains
     class(partitioned_system), intent(inout) :: sys
     real(dp), intent(out) :: err_s, err_f
     type(error_type), allocatable, intent(out) :: error
-    integer :: i, ns, nf
-    real(dp) :: s, ti
-    ns = self%ns
-    err_s = 0.0_dp; err_f = 0.0_dp
-    call keep_fast_point(self, 0, self%zf(:, 0), self%zf(:, 1)/self%hf)
-    do i = 1, self%k - 1
-      s = real(i, dp)/self%k
-      ti = self%t + i*self%hf
-      call slow_extrapolation(self, s)
-      call nordsieck_predict(self%zf, self%wk%wp)
-      call sys%fast_rhs(ti, self%wk%xs, self%wk%wp(:, 0), self%wk%acc, self%wk%ff, error)
-      self%cnt%evals_fast = self%cnt%evals_fast + 1
-      if (allocated(error)) return
-      self%wk%ff = self%hf*self%wk%ff
-      call nordsieck_correct(self%wk%wp, self%wk%ff, self%wk%wn, self%wk%gf)
-      if (self%adaptive) err_f = max(err_f, wrms_norm(corrector_l(0)*self%wk%gf, self%wk%wf))
-      call keep_fast_point(self, i, self%wk%wn(:, 0), self%wk%wn(:, 1)/self%hf)
-      self%zf = self%wk%wn
-      self%cnt%steps_fast = self%cnt%steps_fast + 1
-    end do
+    integer :: nf
+    err_s = 0.0_dp
+    call fast_steps(self, sys, err_f, error); if (allocated(error)) return
     call nordsieck_predict(self%zs, self%wk%zp)
     call nordsieck_predict(self%zf, self%wk%wp)
     call sys%sync_rhs(macro_end(self), self%wk%zp(:, 0), self%wk%wp(:, 0), self%wk%fs, self%wk%ff, error)
@@ -397,7 +395,7 @@ contains
     ! the extrapolated and the synchronised slow accelerations, d = ff - f_x. Grown like
     ! the quadratic extrapolation's error s(s+1)(s+2)/6 over the step, it displaces the
     ! fast state by 0.106 H^2 d and its rates by 0.375 H d; this error bounds H.
-    call slow_extrapolation(self, 1.0_dp)
+    call slow_extrapolation(self%zs, self%hs, 1.0_dp, self%wk%xs, self%wk%acc)
     call sys%fast_rhs(self%t + self%hs, self%wk%xs, self%wk%wp(:, 0), self%wk%acc, self%wk%fx, error)
     self%cnt%evals_fast = self%cnt%evals_fast + 1
     if (allocated(error)) return
@@ -431,15 +429,60 @@ contains
     idx = [(ns + i, i = 1, nf), (2*ns + nf + i, i = 1, nf)]
   end function fast_index
 
-  !> Slow state xs and accelerations acc at t + s H from the slow Nordsieck polynomial.
-  pure subroutine slow_extrapolation(self, s)
-    class(multirate_integrator), intent(inout) :: self
-    real(dp), intent(in) :: s
+  !> Slow state xs and accelerations acc at t + s H from the slow Nordsieck array zs
+  !> (scaled with H = hs).
+  pure subroutine slow_extrapolation(zs, hs, s, xs, acc)
+    real(dp), intent(in) :: zs(:, 0:), hs, s
+    real(dp), intent(out) :: xs(:), acc(:)
     integer :: ns
-    ns = self%ns
-    call nordsieck_value(self%zs, s, self%wk%xs)
-    self%wk%acc = (self%zs(ns+1:, 1) + s*(2.0_dp*self%zs(ns+1:, 2) + 3.0_dp*s*self%zs(ns+1:, 3)))/self%hs
+    ns = size(acc)
+    call nordsieck_value(zs, s, xs)
+    acc = (zs(ns+1:, 1) + s*(2.0_dp*zs(ns+1:, 2) + 3.0_dp*s*zs(ns+1:, 3)))/hs
   end subroutine slow_extrapolation
+
+  !> The k - 1 fast steps of the macro step from (t, zf): the single-rate ABM step
+  !> (pece_step) on the fast equations forced by the slow motion extrapolated to each step.
+  !> err_f: the largest weighted corrector estimate of them (adaptive runs).
+  subroutine fast_steps(self, sys, err_f, error)
+    class(multirate_integrator), intent(inout) :: self
+    class(partitioned_system), intent(inout), target :: sys
+    real(dp), intent(out) :: err_f
+    type(error_type), allocatable, intent(out) :: error
+    type(forced_fast_system) :: fast
+    integer :: i
+    err_f = 0.0_dp
+    fast%full => sys
+    allocate(fast%xs(2*self%ns), fast%acc(self%ns))
+    fast%fast_map = self%fast_map
+    call keep_fast_point(self, 0, self%zf(:, 0), self%zf(:, 1)/self%hf)
+    do i = 1, self%k - 1
+      call slow_extrapolation(self%zs, self%hs, real(i, dp)/self%k, fast%xs, fast%acc)
+      call pece_step(fast, self%t + i*self%hf, self%hf, 1, self%zf, self%wk%wp, self%wk%wn, self%wk%xf, self%wk%ff, &
+        & self%wk%gf, self%cnt%evals_fast, error); if (allocated(error)) return
+      if (self%adaptive) err_f = max(err_f, wrms_norm(corrector_l(0)*self%wk%gf, self%wk%wf))
+      call keep_fast_point(self, i, self%wk%wn(:, 0), self%wk%wn(:, 1)/self%hf)
+      self%zf = self%wk%wn
+      self%cnt%steps_fast = self%cnt%steps_fast + 1
+    end do
+  end subroutine fast_steps
+
+  !> The fast derivative [qd_f; qdd_f] at (t, x) with the slow state and accelerations held.
+  subroutine forced_eval(self, t, x, f, error)
+    class(forced_fast_system), intent(inout) :: self
+    real(dp), intent(in) :: t
+    real(dp), intent(in), contiguous :: x(:)
+    real(dp), intent(out), contiguous :: f(:)
+    type(error_type), allocatable, intent(out) :: error
+    call self%full%fast_rhs(t, self%xs, x, self%acc, f, error)
+  end subroutine forced_eval
+
+  !> The name of fast state component i: the full system's.
+  function forced_name(self, i) result(name)
+    class(forced_fast_system), intent(in) :: self
+    integer, intent(in) :: i
+    character(len=:), allocatable :: name
+    name = self%full%component_name(self%fast_map(i))
+  end function forced_name
 
   !> Full state [q_s; q_f; qd_s; qd_f] at time t (t within the last macro step).
   pure subroutine mr_value_at(self, t, x)
