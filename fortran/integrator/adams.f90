@@ -169,7 +169,7 @@ contains
     if (allocated(self%nt%jac)) deallocate(self%nt%jac, self%nt%lu, self%nt%piv)
     if (newton) allocate(self%nt%jac(n, n), self%nt%lu(n, n), self%nt%piv(n))
     self%nt%jac_age = jac_max_age; self%nt%gamma_lu = 0.0_dp
-    self%cnt%steps = 0; self%cnt%rejected = 0; self%cnt%evals = 0; self%cnt%corrector_fails = 0; self%cnt%order_steps = 0
+    self%cnt = adams_counts_t()
   end subroutine adams_init
 
   !> Start at (t0, x0) at order 1 with a first step from the tolerances (at most h).

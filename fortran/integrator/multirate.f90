@@ -130,7 +130,8 @@ contains
     if (present(k_max)) self%k_max = max(k_max, 1)
     allocate(self%wk%zs0(2*ns, 0:nq), self%wk%zf0(2*nf, 0:nq), self%wk%ws(2*ns), self%wk%wf(2*nf), self%wk%fx(2*nf))
     allocate(self%zs(2*ns, 0:nq), self%zf(2*nf, 0:nq), self%wk%zp(2*ns, 0:nq), self%wk%zn(2*ns, 0:nq), &
-      & self%wk%wp(2*nf, 0:nq), self%wk%wn(2*nf, 0:nq), self%wk%fs(2*ns), self%wk%ff(2*nf), self%wk%gs(2*ns), self%wk%gf(2*nf), &
+      & self%wk%wp(2*nf, 0:nq), self%wk%wn(2*nf, 0:nq), self%wk%fs(2*ns), self%wk%ff(2*nf), self%wk%gs(2*ns), &
+      & self%wk%gf(2*nf), &
       & self%wk%xs(2*ns), self%wk%acc(ns), self%wk%xf(2*nf))
     self%slow_map = slow_index(ns, nf)
     self%fast_map = fast_index(ns, nf)
@@ -525,10 +526,12 @@ contains
     real(dp), intent(out) :: xf(:)
     real(dp) :: th
     integer :: i
-    i = min(max(ceiling((t - self%dense%tb)/self%dense%hb - 1.0e-9_dp), 1), self%dense%nb)
-    th = (t - (self%dense%tb + (i - 1)*self%dense%hb))/self%dense%hb
-    xf = (2*th**3 - 3*th**2 + 1)*self%dense%xb(:, i - 1) + (th**3 - 2*th**2 + th)*self%dense%hb*self%dense%fb(:, i - 1) + &
-      & (3*th**2 - 2*th**3)*self%dense%xb(:, i) + (th**3 - th**2)*self%dense%hb*self%dense%fb(:, i)
+    associate (d => self%dense)
+      i = min(max(ceiling((t - d%tb)/d%hb - 1.0e-9_dp), 1), d%nb)
+      th = (t - (d%tb + (i - 1)*d%hb))/d%hb
+      xf = (2*th**3 - 3*th**2 + 1)*d%xb(:, i - 1) + (th**3 - 2*th**2 + th)*d%hb*d%fb(:, i - 1) + &
+        & (3*th**2 - 2*th**3)*d%xb(:, i) + (th**3 - th**2)*d%hb*d%fb(:, i)
+    end associate
   end subroutine fast_dense
 
   !> The macro step computed by try_macro_step (zn, wn) checked finite and its state, the

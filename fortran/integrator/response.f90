@@ -127,7 +127,8 @@ contains
     allocate(self%z(2*n, 0:nq), self%wk%zp(2*n, 0:nq), self%wk%z0(2*n, 0:nq), self%zbuf(2*n, 0:nq, self%k))
     allocate(self%hist%hq(n, n_hist), self%hist%hy(2*nf, n_hist), self%hist%g(n, nf), self%hist%kf(nf), self%hist%df(nf))
     allocate(self%hist%qp(n), self%hist%yp(2*nf), self%hist%gp(n, nf))
-    allocate(self%wk%f(2*n), self%wk%fs(2*n), self%wk%x(2*n), self%wk%cor(2*n), self%wk%w(2*n), self%wk%e(2*n), self%wk%yhat(2*nf), &
+    allocate(self%wk%f(2*n), self%wk%fs(2*n), self%wk%x(2*n), self%wk%cor(2*n), self%wk%w(2*n), self%wk%e(2*n), &
+      & self%wk%yhat(2*nf), &
       & self%wk%dforce(nf))
   end subroutine rs_init
 
@@ -324,7 +325,8 @@ contains
     else
       self%hist%nh = self%hist%nh + 1
     end if
-    self%hist%th(self%hist%nh) = self%hist%tp; self%hist%hq(:, self%hist%nh) = self%hist%qp; self%hist%hy(:, self%hist%nh) = self%hist%yp
+    self%hist%th(self%hist%nh) = self%hist%tp; self%hist%hq(:, self%hist%nh) = self%hist%qp
+    self%hist%hy(:, self%hist%nh) = self%hist%yp
     self%hist%g = self%hist%gp
   end subroutine commit_evaluation
 
