@@ -1,6 +1,7 @@
 """Steppers complete in themselves (issue 31 item 3): the projection of closed loops runs
 inside the stepper's advance, so that every caller (the run, pymr.step_history) retraces
-the same steps; a checkpoint of an older layout is refused in one line."""
+the same steps, and a step whose projection fails is redone smaller (adaptive) or stops
+the run naming the time (fixed); a checkpoint of an older layout is refused in one line."""
 from __future__ import annotations
 
 import hashlib
@@ -10,6 +11,7 @@ import numpy as np
 import pytest
 
 import pymr
+from pymr import _testhooks
 from test_loops import fourbar_scene
 
 # the position projection's tolerance (model/loops.f90 closure_tol): |phi| <= 1e-13 max(size, 1 m)
@@ -73,3 +75,39 @@ def test_a_checkpoint_of_the_older_layout_is_refused_in_one_line(tmp_path):
         pymr.run(scene, out, overrides={**over, "scene.t_end": 0.5}, restart=tmp_path / "old.ckpt")
     assert "\n" not in str(exc.value)
     assert "old.ckpt: checkpoint version 5, this pymr reads 6" in str(exc.value)
+
+
+def _oscillator_on_circle(t_end, h, adaptive, order=-1):
+    """pymr_ode_test problem 6: x'' = -x from (1, 0) with |x| = 1 as a constraint, whose
+    projection fails further than 1e-9 from the circle (test_odes.f90)."""
+    x, steps, evals, rejected, *_, stat, message = _testhooks.pymr_ode_test(
+        6, t_end, h, 1 if adaptive else 0, 1e-6, 1e-8, 1, order, 2, 1)
+    message = message.decode().strip() if isinstance(message, bytes) else str(message).strip()
+    return np.array(x, dtype=float), int(steps), int(rejected), int(stat), message
+
+
+def test_fixed_steps_stop_at_a_failed_projection_naming_the_time():
+    """A fixed step of 0.1 leaves the circle by about 1e-7: the first step after the start
+    (two steps to 0.2 s) fails its projection, and the run stops with the time."""
+    *_, stat, message = _oscillator_on_circle(10.0, 0.1, False)
+    assert stat != 0 and message == "at t = 0.3 s: the projection onto |x| = 1 did not converge"
+    x, steps, rejected, stat, _ = _oscillator_on_circle(10.0, 1e-3, False)
+    assert stat == 0 and rejected == 0
+    assert abs(np.linalg.norm(x) - 1.0) <= 2e-16           # projected at every step, t_end one
+
+
+@pytest.mark.parametrize("order", [-1, 0], ids=["abm4", "adams"])
+def test_adaptive_steps_redo_a_step_whose_projection_fails(order):
+    """At rtol 1e-6 the error test lets steps leave the circle by more than the projection
+    reaches (1e-9): the stepper redoes each such step at a quarter of it (CVODE's projection
+    failure) and the run completes, where it would stop otherwise. The redone steps count
+    as rejected: about one per accepted step, as the controller grows the step again after
+    each (measured 1160 of 1163 steps for abm4, 558 of 1122 for adams; problem 1, the same
+    without the constraint, rejects 1 and 0). The end state, interpolated in the last step,
+    is within the projection's reach of the circle and within 1e-7 of cos t, -sin t
+    (measured 1.6e-8 and 2.3e-8)."""
+    x, steps, rejected, stat, message = _oscillator_on_circle(10.0, 0.1, True, order)
+    assert stat == 0, message
+    assert rejected > steps // 3
+    assert abs(np.linalg.norm(x) - 1.0) <= 1e-9
+    assert np.abs(x - [np.cos(10.0), -np.sin(10.0)]).max() < 1e-7
