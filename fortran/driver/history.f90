@@ -1,5 +1,7 @@
 !> The step and order history of a scene's run, for studies and tests: the run's own
 !> stepper from the initial state to t_end, without output, recording each accepted step.
+!> The projection of closed loops runs inside the stepper's advance, so these are the run's
+!> steps on scenes with loops too.
 module pymr_driver_history
   use pymr_env_kinds, only : dp
   use pymr_env_error, only : error_type, fatal_error

@@ -193,16 +193,13 @@ contains
     self%clock%cpu0 = self%clock%cpu0 - prog%cpu_s
   end subroutine resume
 
-  !> One step: advance, the loops closed again, and the step count checked.
+  !> One step: advance (the stepper closes the loops again inside it), and the step count
+  !> checked.
   subroutine simulation_step(self, error)
     class(simulation_t), intent(inout) :: self
     type(error_type), allocatable, intent(out) :: error
     type(step_counts) :: done
     call self%st%advance(self%model, error); if (allocated(error)) return
-    call self%st%project(self%model, error)
-    if (allocated(error)) then
-      call prefix_error(error, 'at t = ' // fmt(self%st%time()) // ' s'); return
-    end if
     done = self%st%counts()
     if (done%steps_fast > self%sc%integrator%max_steps) then
       call fatal_error(error, 'at t = ' // fmt(self%st%time()) // ' s: the run took more than max_steps = ' // &

@@ -22,8 +22,8 @@ module pymr_driver_stepper_setup
 contains
 
   !> Make (not start) the stepper for the scene at the initial state x, and the step h0 its
-  !> start takes (the fast step; adaptive runs may start smaller). Its steps are set, so
-  !> that the pre-flight check can read them before the start.
+  !> start takes (the fast step; adaptive runs may start smaller). Its steps are given to
+  !> its init, so that the pre-flight check can read them before the start.
   subroutine make_stepper(sc, model, x, st, h0, error)
     type(scene_t), intent(in) :: sc
     type(model_t), intent(inout) :: model
@@ -42,17 +42,15 @@ contains
       call make_multirate(sc, model, x, ctl, st, h0, error)
     else if (sc%integrator%formula == 'adams') then
       allocate(adams)
-      call adams%init(size(x), sc%integrator%order, ctl, sc%integrator%corrector == 'newton')
-      call top_vibration(model, x, adams%omega_top, error); if (allocated(error)) return
       h0 = sc%integrator%h_slow
-      adams%h = h0
+      call adams%init(size(x), sc%integrator%order, ctl, sc%integrator%corrector == 'newton', h0)
+      call top_vibration(model, x, adams%omega_top, error); if (allocated(error)) return
       call move_alloc(adams, st)
     else
       allocate(abm)
       call stable_control(sc, ctl, model, x, stable, error); if (allocated(error)) return
-      call abm%init(size(x), sc%integrator%adaptive, stable, sc%integrator%n_corrector)
       h0 = sc%integrator%h_slow
-      abm%h = h0
+      call abm%init(size(x), sc%integrator%adaptive, stable, sc%integrator%n_corrector, h0)
       call move_alloc(abm, st)
     end if
   end subroutine make_stepper
@@ -160,8 +158,7 @@ contains
     if (sc%integrator%coupling == 'response') then
       allocate(rs)
       call rs%init(model%n_slow(), model%n_fast(), k, sc%integrator%adaptive, stable, &
-        & sc%integrator%k_max)
-      rs%h = h0
+        & sc%integrator%k_max, h0)
       call move_alloc(rs, st)
       return
     end if
@@ -176,8 +173,8 @@ contains
       h0 = min(sc%integrator%h_fast, h0, stable%h_max)
     end if
     allocate(mr)
-    call mr%init(model%n_slow(), model%n_fast(), k, sc%integrator%adaptive, ctl, sc%integrator%k_max, stable%h_max)
-    mr%hf = h0; mr%hs = k*h0
+    call mr%init(model%n_slow(), model%n_fast(), k, sc%integrator%adaptive, ctl, sc%integrator%k_max, &
+      & stable%h_max, h0)
     call move_alloc(mr, st)
   end subroutine make_multirate
 end module pymr_driver_stepper_setup

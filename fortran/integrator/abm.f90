@@ -9,19 +9,21 @@ module pymr_integrator_abm
   use pymr_integrator_nordsieck, only : nq, corrector_l, nordsieck_predict, nordsieck_correct, &
     & nordsieck_rescale, nordsieck_value, nordsieck_from_history
   use pymr_integrator_control, only : step_control, error_weights, wrms_norm
-  use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps
+  use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps, state_record, project_step, projection_eta
   use pymr_env_text, only : fmt
   implicit none
   private
-  public :: abm_integrator, rk4_step, check_finite, hinit
+  public :: abm_integrator, rk4_step, check_finite, hinit, pece_step
 
   !> Nordsieck ABM integrator state.
   type, extends(stepper_t) :: abm_integrator
     !> Number of state components.
     integer :: n = 0
-    !> Time of the Nordsieck array (s) and current step (s); the start time (fixed steps
-    !> reach t0 + n h with an integer n, not a sum of steps).
-    real(dp) :: t = 0.0_dp, h = 0.0_dp, t0 = 0.0_dp
+    !> Time of the Nordsieck array (s); the start time (fixed steps reach t0 + n h with an
+    !> integer n, not a sum of steps).
+    real(dp) :: t = 0.0_dp, t0 = 0.0_dp
+    !> Current step (s): set by init, changed by the stepper only.
+    real(dp), private :: h = 0.0_dp
     !> Nordsieck array z(n, 0:3) at time t, scaled with h.
     real(dp), allocatable :: z(:, :)
     !> Number of corrector evaluations per step (1 = PECE).
@@ -37,11 +39,9 @@ module pymr_integrator_abm
     procedure :: init => abm_init
     procedure :: start => abm_start
     procedure :: advance => abm_step
-    procedure :: project => abm_project
     procedure :: time => abm_time
     procedure :: value_at => abm_value_at
-    procedure :: save => abm_save
-    procedure :: load => abm_load
+    procedure :: record => abm_record
     procedure :: counts => abm_counts
     procedure :: name => abm_name
     procedure :: pece => abm_steps
@@ -52,14 +52,17 @@ module pymr_integrator_abm
 
 contains
 
-  !> Allocate the arrays for `n` components and set the options.
-  subroutine abm_init(self, n, adaptive, ctl, n_corr)
+  !> Allocate the arrays for `n` components and set the options and the step h (s) the
+  !> start takes (the pre-flight check reads it before the start).
+  subroutine abm_init(self, n, adaptive, ctl, n_corr, h)
     class(abm_integrator), intent(inout) :: self
     integer, intent(in) :: n
     logical, intent(in) :: adaptive
     type(step_control), intent(in) :: ctl
     integer, intent(in) :: n_corr
+    real(dp), intent(in), optional :: h
     self%n = n
+    if (present(h)) self%h = h
     self%adaptive = adaptive
     self%ctl = ctl
     self%n_corr = max(1, n_corr)
@@ -153,25 +156,35 @@ contains
   !> Advance one accepted step. Fixed step: one predictor, `n_corr` evaluations and
   !> corrections. Adaptive: the corrector-predictor difference is the local error
   !> estimate; a rejected step is retried smaller, an accepted one may change h next time.
+  !> The accepted state is projected onto the system's constraints; a step whose projection
+  !> fails is retried smaller too (project_step).
   subroutine abm_step(self, sys, error)
     class(abm_integrator), intent(inout) :: self
     class(ode_system), intent(inout) :: sys
     type(error_type), allocatable, intent(out) :: error
     real(dp) :: err, eta, tn
+    integer :: projection_fails
+    logical :: retry
+    projection_fails = 0
     do
       tn = self%t + self%h
       if (.not. self%adaptive) tn = self%t0 + (self%steps + 1)*self%h
       call try_step(self, sys, tn, error); if (allocated(error)) return
-      if (.not. self%adaptive) exit
-      call error_weights(self%ctl, self%z(:, 0), self%w)
-      err = wrms_norm(corrector_l(0)*self%g, self%w)
+      err = 0.0_dp
+      if (self%adaptive) then
+        call error_weights(self%ctl, self%z(:, 0), self%w)
+        err = wrms_norm(corrector_l(0)*self%g, self%w)
+      end if
       if (err <= 1.0_dp) then
-        eta = self%ctl%ratio(err, .true.)
-        eta = min(eta, self%ctl%h_max/self%h)
-        exit
+        call check_finite(sys, tn, self%zn(:, 0), 'state', error); if (allocated(error)) return
+        call project_step(sys, tn, self%zn(:, 0), self%adaptive, projection_fails, retry, error)
+        if (allocated(error)) return
+        if (.not. retry) exit
+        eta = projection_eta
+      else
+        eta = self%ctl%ratio(err, .false.)
       end if
       self%rejected = self%rejected + 1
-      eta = self%ctl%ratio(err, .false.)
       if (eta*self%h < self%ctl%h_min) then
         call fatal_error(error, 'step size underflow at t = ' // fmt(self%t) // ' s (step ' // fmt(eta*self%h) // &
           & ' s below h_min)', stat_solver)
@@ -183,8 +196,9 @@ contains
     self%z = self%zn
     self%t = tn
     self%steps = self%steps + 1
-    call check_finite(sys, tn, self%z(:, 0), 'state', error); if (allocated(error)) return
-    if (self%adaptive .and. eta /= 1.0_dp) then
+    if (.not. self%adaptive) return
+    eta = min(self%ctl%ratio(err, .true.), self%ctl%h_max/self%h)
+    if (eta /= 1.0_dp) then
       call nordsieck_rescale(self%z, eta)
       self%h = eta*self%h
     end if
@@ -196,17 +210,33 @@ contains
     class(ode_system), intent(inout) :: sys
     real(dp), intent(in) :: tn
     type(error_type), allocatable, intent(out) :: error
-    integer :: m
-    call nordsieck_predict(self%z, self%zp)
-    self%x = self%zp(:, 0)
-    do m = 1, self%n_corr
-      call sys%eval(tn, self%x, self%f, error); self%evals = self%evals + 1
-      if (allocated(error)) return
-      call check_finite(sys, tn, self%f, 'derivative', error); if (allocated(error)) return
-      call nordsieck_correct(self%zp, self%h*self%f, self%zn, self%g)
-      self%x = self%zn(:, 0)
-    end do
+    call pece_step(sys, tn, self%h, self%n_corr, self%z, self%zp, self%zn, self%x, self%f, self%g, self%evals, error)
   end subroutine try_step
+
+  !> One step of the Nordsieck ABM formula to tn of the array z (scaled with the step h):
+  !> predicted into zp, then n_corr times evaluated (f at x) and corrected into zn, with the
+  !> correction g; evals counts the evaluations. The single-rate stepper's step, and the
+  !> 'full' multirate coupling's fast steps (on the fast equations with the slow motion
+  !> extrapolated).
+  subroutine pece_step(sys, tn, h, n_corr, z, zp, zn, x, f, g, evals, error)
+    class(ode_system), intent(inout) :: sys
+    real(dp), intent(in) :: tn, h
+    integer, intent(in) :: n_corr
+    real(dp), intent(in) :: z(:, 0:)
+    real(dp), intent(out) :: zp(:, 0:), zn(:, 0:), x(:), f(:), g(:)
+    integer, intent(inout) :: evals
+    type(error_type), allocatable, intent(out) :: error
+    integer :: m
+    call nordsieck_predict(z, zp)
+    x = zp(:, 0)
+    do m = 1, n_corr
+      call sys%eval(tn, x, f, error); evals = evals + 1
+      if (allocated(error)) return
+      call check_finite(sys, tn, f, 'derivative', error); if (allocated(error)) return
+      call nordsieck_correct(zp, h*f, zn, g)
+      x = zn(:, 0)
+    end do
+  end subroutine pece_step
 
   !> State at time t from the Nordsieck polynomial of the last step (dense output).
   pure subroutine abm_value_at(self, t, x)
@@ -221,19 +251,13 @@ contains
     abm_time = self%t
   end function abm_time
 
-  subroutine abm_save(self, unit, ios)
-    class(abm_integrator), intent(in) :: self
-    integer, intent(in) :: unit
-    integer, intent(out) :: ios
-    write(unit, iostat=ios) self%t, self%h, self%t0, self%z, self%steps, self%rejected, self%evals
-  end subroutine abm_save
-
-  subroutine abm_load(self, unit, ios)
+  !> What a checkpoint keeps beside the Nordsieck array: times, step, counts.
+  subroutine abm_record(self, rec)
     class(abm_integrator), intent(inout) :: self
-    integer, intent(in) :: unit
-    integer, intent(out) :: ios
-    read(unit, iostat=ios) self%t, self%h, self%t0, self%z, self%steps, self%rejected, self%evals
-  end subroutine abm_load
+    type(state_record), intent(inout) :: rec
+    call rec%item(self%t); call rec%item(self%h); call rec%item(self%t0)
+    call rec%item(self%steps); call rec%item(self%rejected); call rec%item(self%evals)
+  end subroutine abm_record
 
   pure function abm_counts(self) result(c)
     class(abm_integrator), intent(in) :: self
@@ -293,13 +317,5 @@ contains
       end if
     end do
   end subroutine check_finite
-
-  !> Project the value column of the Nordsieck array onto the system's constraints.
-  subroutine abm_project(self, sys, error)
-    class(abm_integrator), intent(inout) :: self
-    class(ode_system), intent(inout) :: sys
-    type(error_type), allocatable, intent(out) :: error
-    call sys%project(self%time(), self%z(:, 0), error)
-  end subroutine abm_project
 
 end module pymr_integrator_abm

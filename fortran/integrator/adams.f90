@@ -15,7 +15,7 @@ module pymr_integrator_adams
   use pymr_env_error, only : error_type, fatal_error, stat_solver
   use pymr_integrator_ode, only : ode_system
   use pymr_integrator_control, only : step_control, error_weights, wrms_norm
-  use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps
+  use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps, state_record, project_step, projection_eta
   use pymr_integrator_abm, only : check_finite
   use pymr_env_text, only : fmt, itoa
   use pymr_env_lapack, only : lu_factor, lu_solve
@@ -66,6 +66,28 @@ module pymr_integrator_adams
   !> Steps at order 3 and up stay below this share of that bound at the highest frequency.
   real(dp), parameter :: stable_margin = 0.9_dp
 
+  !> Newton (chord) iteration of the corrector: the Jacobian J by differences, the LU
+  !> factors of I - gamma J, the gamma they hold, steps since J, J new in this step.
+  type :: adams_newton_t
+    real(dp), allocatable :: jac(:, :), lu(:, :)
+    integer, allocatable :: piv(:)
+    real(dp) :: gamma_lu = 0.0_dp
+    integer :: jac_age = 1000
+    logical :: jac_fresh = .false.
+  end type adams_newton_t
+
+  !> Counts: accepted and rejected steps, evaluations, corrector failures, steps per order.
+  type :: adams_counts_t
+    integer :: steps = 0, rejected = 0, evals = 0, corrector_fails = 0
+    integer :: order_steps(max_order) = 0
+  end type adams_counts_t
+
+  !> Work: predicted array kept for a retry, correction, iterate, derivative, weights, new
+  !> correction.
+  type :: adams_work_t
+    real(dp), allocatable :: z_old(:, :), e(:), y(:), f(:), w(:), e_new(:)
+  end type adams_work_t
+
   !> The stepper's whole state.
   type, extends(stepper_t) :: adams_integrator
     integer :: n = 0
@@ -95,33 +117,25 @@ module pymr_integrator_adams
     !> Highest undamped vibration frequency of the system (rad/s; 0: none known), which
     !> bounds the steps of orders 3 and up (stable_omega_h).
     real(dp) :: omega_top = 0.0_dp
-    !> Newton (chord) iteration of the corrector instead of fixed-point: the Jacobian J by
-    !> differences, the LU factors of I - gamma J, the gamma they hold, steps since J.
+    !> Newton (chord) iteration of the corrector instead of fixed-point, and its matrices.
     logical :: newton = .false.
-    real(dp), allocatable :: jac(:, :), lu(:, :)
-    integer, allocatable :: piv(:)
-    real(dp) :: gamma_lu = 0.0_dp
-    integer :: jac_age = 1000
-    logical :: jac_fresh = .false.
-    !> Counts: accepted and rejected steps, evaluations, corrector failures, steps per order.
-    integer :: steps = 0, rejected = 0, evals = 0, corrector_fails = 0
-    integer :: order_steps(max_order) = 0
+    type(adams_newton_t) :: nt
+    !> Counts.
+    type(adams_counts_t) :: cnt
     !> Work: the step's coefficients, predicted array kept for a retry, correction, iterate,
     !> derivative, weights.
     real(dp) :: l(0:max_order) = 0.0_dp, tq(5) = 0.0_dp
     !> The order and steps (this one, then the earlier ones) l and tq belong to.
     integer :: q_coef = 0
     real(dp) :: s_coef(max_order + 1) = 0.0_dp
-    real(dp), allocatable :: z_old(:, :), e(:), y(:), f(:), w(:), e_new(:)
+    type(adams_work_t) :: wk
   contains
     procedure :: init => adams_init
     procedure :: start => adams_start
     procedure :: advance => adams_advance
-    procedure :: project => adams_project
     procedure :: time => adams_time
     procedure :: value_at => adams_value_at
-    procedure :: save => adams_save
-    procedure :: load => adams_load
+    procedure :: record => adams_record
     procedure :: counts => adams_counts
     procedure :: name => adams_name
     procedure :: pece => adams_steps
@@ -133,25 +147,29 @@ module pymr_integrator_adams
 
 contains
 
-  !> Allocate for n components; order 0 = variable (1 to 12), 1-12 = that order.
-  subroutine adams_init(self, n, order, ctl, newton)
+  !> Allocate for n components; order 0 = variable (1 to 12), 1-12 = that order; h (s): the
+  !> largest first step the start takes (the pre-flight check reads it before the start).
+  subroutine adams_init(self, n, order, ctl, newton, h)
     class(adams_integrator), intent(inout) :: self
     integer, intent(in) :: n, order
     type(step_control), intent(in) :: ctl
     logical, intent(in) :: newton
+    real(dp), intent(in), optional :: h
     self%n = n
+    if (present(h)) self%h = h
     self%fixed = order > 0
     self%q_top = merge(order, max_order, order > 0)
     self%ctl = ctl
-    if (allocated(self%z)) deallocate(self%z, self%z_old, self%e, self%e_saved, self%y, self%f, self%w, self%e_new)
-    allocate(self%z(n, 0:max_order), self%z_old(n, 0:max_order), self%e(n), self%e_saved(n), self%y(n), &
-      & self%f(n), self%w(n), self%e_new(n))
+    if (allocated(self%z)) deallocate(self%z, self%e_saved)
+    self%wk = adams_work_t()
+    allocate(self%z(n, 0:max_order), self%wk%z_old(n, 0:max_order), self%wk%e(n), self%e_saved(n), self%wk%y(n), &
+      & self%wk%f(n), self%wk%w(n), self%wk%e_new(n))
     self%z = 0.0_dp; self%e_saved = 0.0_dp
     self%newton = newton
-    if (allocated(self%jac)) deallocate(self%jac, self%lu, self%piv)
-    if (newton) allocate(self%jac(n, n), self%lu(n, n), self%piv(n))
-    self%jac_age = jac_max_age; self%gamma_lu = 0.0_dp
-    self%steps = 0; self%rejected = 0; self%evals = 0; self%corrector_fails = 0; self%order_steps = 0
+    if (allocated(self%nt%jac)) deallocate(self%nt%jac, self%nt%lu, self%nt%piv)
+    if (newton) allocate(self%nt%jac(n, n), self%nt%lu(n, n), self%nt%piv(n))
+    self%nt%jac_age = jac_max_age; self%nt%gamma_lu = 0.0_dp
+    self%cnt = adams_counts_t()
   end subroutine adams_init
 
   !> Start at (t0, x0) at order 1 with a first step from the tolerances (at most h).
@@ -160,13 +178,13 @@ contains
     class(ode_system), intent(inout) :: sys
     real(dp), intent(in) :: t0, x0(:), h
     type(error_type), allocatable, intent(out) :: error
-    call sys%eval(t0, x0, self%f, error); self%evals = self%evals + 1
+    call sys%eval(t0, x0, self%wk%f, error); self%cnt%evals = self%cnt%evals + 1
     if (allocated(error)) return
-    call check_finite(sys, t0, self%f, 'derivative', error); if (allocated(error)) return
+    call check_finite(sys, t0, self%wk%f, 'derivative', error); if (allocated(error)) return
     call first_step(self, sys, t0, x0, h, error); if (allocated(error)) return
     self%z = 0.0_dp
     self%z(:, 0) = x0
-    self%z(:, 1) = self%h*self%f
+    self%z(:, 1) = self%h*self%wk%f
     self%t = t0; self%q = 1; self%tau = 0.0_dp
     self%wait = 2; self%eta_max = grow_first; self%have_saved = .false.
     self%rate = 1.0_dp; self%gamma_rate = 0.0_dp
@@ -184,9 +202,9 @@ contains
     type(error_type), allocatable, intent(out) :: error
     real(dp) :: hub, hlb, hg, hnew, ydd, move
     integer :: it
-    call error_weights(self%ctl, x0, self%w)
+    call error_weights(self%ctl, x0, self%wk%w)
     hub = min(h_up, self%ctl%h_max)
-    move = maxval(abs(self%f)/(0.1_dp*abs(x0) + 1.0_dp/self%w))
+    move = maxval(abs(self%wk%f)/(0.1_dp*abs(x0) + 1.0_dp/self%wk%w))
     if (move*hub > 1.0_dp) hub = 1.0_dp/move
     hlb = max(self%ctl%h_min, 100*epsilon(1.0_dp)*max(abs(t0), hub))
     if (hub <= hlb) then
@@ -195,10 +213,10 @@ contains
     hg = sqrt(hlb*hub)
     hnew = hg
     do it = 1, 4
-      self%y = x0 + hg*self%f
-      call sys%eval(t0 + hg, self%y, self%e_new, error); self%evals = self%evals + 1
+      self%wk%y = x0 + hg*self%wk%f
+      call sys%eval(t0 + hg, self%wk%y, self%wk%e_new, error); self%cnt%evals = self%cnt%evals + 1
       if (allocated(error)) return
-      ydd = wrms_norm((self%e_new - self%f)/hg, self%w)
+      ydd = wrms_norm((self%wk%e_new - self%wk%f)/hg, self%wk%w)
       if (ydd /= ydd .or. ydd > huge(1.0_dp)) then
         hnew = hg*0.2_dp
       else if (ydd*hub**2 > 2.0_dp) then
@@ -214,31 +232,33 @@ contains
 
   !> One accepted step: predict, correct to convergence, test the local error; on a
   !> failure restore the array and retry smaller (and lower the order after repeated
-  !> failures). After it, choose the next step and order.
+  !> failures). The corrected state is projected onto the system's constraints; a step
+  !> whose projection fails is retried smaller too (project_step). After it, choose the
+  !> next step and order.
   subroutine adams_advance(self, sys, error)
     class(adams_integrator), intent(inout) :: self
     class(ode_system), intent(inout) :: sys
     type(error_type), allocatable, intent(out) :: error
-    integer :: error_fails, corr_fails
+    integer :: error_fails, corr_fails, projection_fails
     real(dp) :: tn, acnrm, dsm
-    logical :: converged
-    error_fails = 0; corr_fails = 0
-    call error_weights(self%ctl, self%z(:, 0), self%w)
+    logical :: converged, retry
+    error_fails = 0; corr_fails = 0; projection_fails = 0
+    call error_weights(self%ctl, self%z(:, 0), self%wk%w)
     do
-      self%z_old(:, 0:self%q) = self%z(:, 0:self%q)
+      self%wk%z_old(:, 0:self%q) = self%z(:, 0:self%q)
       tn = self%t + self%h
       call nordsieck_predict_in_place(self%z(:, 0:self%q))
       call set_coefficients(self)
       call correct(self, sys, tn, converged, acnrm, error); if (allocated(error)) return
-      if (.not. converged .and. self%newton .and. .not. self%jac_fresh) then
+      if (.not. converged .and. self%newton .and. .not. self%nt%jac_fresh) then
         ! retry the same step with a new Jacobian
-        self%z(:, 0:self%q) = self%z_old(:, 0:self%q)
-        self%jac_age = jac_max_age
+        self%z(:, 0:self%q) = self%wk%z_old(:, 0:self%q)
+        self%nt%jac_age = jac_max_age
         cycle
       end if
       if (.not. converged) then
-        self%z(:, 0:self%q) = self%z_old(:, 0:self%q)
-        corr_fails = corr_fails + 1; self%corrector_fails = self%corrector_fails + 1
+        self%z(:, 0:self%q) = self%wk%z_old(:, 0:self%q)
+        corr_fails = corr_fails + 1; self%cnt%corrector_fails = self%cnt%corrector_fails + 1
         if (corr_fails >= max_corrector_fails) then
           call fatal_error(error, 'at t = ' // fmt(self%t) // ' s: the corrector did not converge in ' // &
             & itoa(corr_fails) // ' tries down to the step ' // fmt(self%h) // ' s', stat_solver); return
@@ -247,16 +267,25 @@ contains
         cycle
       end if
       dsm = acnrm*self%tq(2)
-      if (dsm <= 1.0_dp .or. .not. self%adaptive) exit
-      self%z(:, 0:self%q) = self%z_old(:, 0:self%q)
-      error_fails = error_fails + 1; self%rejected = self%rejected + 1
+      if (dsm <= 1.0_dp .or. .not. self%adaptive) then
+        call correct_array(self, sys, tn, error); if (allocated(error)) return
+        call project_step(sys, tn, self%z(:, 0), self%adaptive, projection_fails, retry, error)
+        if (allocated(error)) return
+        if (.not. retry) exit
+        self%z(:, 0:self%q) = self%wk%z_old(:, 0:self%q)
+        self%cnt%rejected = self%cnt%rejected + 1
+        call shrink(self, projection_eta, error); if (allocated(error)) return
+        cycle
+      end if
+      self%z(:, 0:self%q) = self%wk%z_old(:, 0:self%q)
+      error_fails = error_fails + 1; self%cnt%rejected = self%cnt%rejected + 1
       if (error_fails >= max_error_fails) then
         call fatal_error(error, 'at t = ' // fmt(self%t) // ' s: the local error test failed ' // &
           & itoa(error_fails) // ' times in one step, down to the step ' // fmt(self%h) // ' s', stat_solver); return
       end if
       call after_error_failure(self, sys, dsm, error_fails, error); if (allocated(error)) return
     end do
-    call accept(self, sys, tn, error); if (allocated(error)) return
+    call accept(self, tn)
     if (self%adaptive) call choose_next(self, dsm)
   end subroutine adams_advance
 
@@ -278,33 +307,33 @@ contains
     gamma = self%h/self%l(1)
     if (.not. self%newton .and. self%gamma_rate > 0.0_dp) self%rate = min(1.0_dp, self%rate*gamma/self%gamma_rate)
     self%gamma_rate = gamma
-    self%e = 0.0_dp
-    self%y = self%z(:, 0)
-    self%jac_fresh = .false.
+    self%wk%e = 0.0_dp
+    self%wk%y = self%z(:, 0)
+    self%nt%jac_fresh = .false.
     do m = 0, max_iterations - 1
-      call sys%eval(tn, self%y, self%f, error); self%evals = self%evals + 1
+      call sys%eval(tn, self%wk%y, self%wk%f, error); self%cnt%evals = self%cnt%evals + 1
       if (allocated(error)) return
-      call check_finite(sys, tn, self%f, 'derivative', error); if (allocated(error)) return
+      call check_finite(sys, tn, self%wk%f, 'derivative', error); if (allocated(error)) return
       if (m == 0 .and. self%newton) then
         call newton_setup(self, sys, tn, gamma, error); if (allocated(error)) return
       end if
-      self%e_new = (self%h*self%f - self%z(:, 1))/self%l(1)
+      self%wk%e_new = (self%h*self%wk%f - self%z(:, 1))/self%l(1)
       if (self%newton) then
         ! chord step: (I - gamma J) delta = e_new - e
-        self%e_new = self%e_new - self%e
-        call lu_solve(self%lu, self%piv, self%e_new)
-        self%e_new = self%e + self%e_new
+        self%wk%e_new = self%wk%e_new - self%wk%e
+        call lu_solve(self%nt%lu, self%nt%piv, self%wk%e_new)
+        self%wk%e_new = self%wk%e + self%wk%e_new
       end if
-      del = wrms_norm(self%e_new - self%e, self%w)
-      self%e = self%e_new
-      self%y = self%z(:, 0) + self%e
+      del = wrms_norm(self%wk%e_new - self%wk%e, self%wk%w)
+      self%wk%e = self%wk%e_new
+      self%wk%y = self%z(:, 0) + self%wk%e
       if (m > 0) then
         self%rate = max(rate_memory*self%rate, del/delp)
       end if
       dcon = del*min(1.0_dp, self%rate)/(corrector_share/self%tq(2))
       if (dcon <= 1.0_dp) then
         converged = .true.
-        acnrm = merge(del, wrms_norm(self%e, self%w), m == 0)
+        acnrm = merge(del, wrms_norm(self%wk%e, self%wk%w), m == 0)
         return
       end if
       if (m > 0 .and. del > diverge*delp) return
@@ -337,48 +366,54 @@ contains
     type(error_type), allocatable, intent(out) :: error
     integer :: j
     real(dp) :: sigma, yj
-    self%jac_age = self%jac_age + 1
-    if (self%jac_age > jac_max_age) then
+    self%nt%jac_age = self%nt%jac_age + 1
+    if (self%nt%jac_age > jac_max_age) then
       do j = 1, self%n
-        yj = self%y(j)
-        sigma = sqrt(epsilon(1.0_dp))*max(abs(yj), 1.0_dp/self%w(j))
-        self%y(j) = yj + sigma
-        call sys%eval(tn, self%y, self%e_new, error); self%evals = self%evals + 1
-        self%y(j) = yj
+        yj = self%wk%y(j)
+        sigma = sqrt(epsilon(1.0_dp))*max(abs(yj), 1.0_dp/self%wk%w(j))
+        self%wk%y(j) = yj + sigma
+        call sys%eval(tn, self%wk%y, self%wk%e_new, error); self%cnt%evals = self%cnt%evals + 1
+        self%wk%y(j) = yj
         if (allocated(error)) return
-        self%jac(:, j) = (self%e_new - self%f)/sigma
+        self%nt%jac(:, j) = (self%wk%e_new - self%wk%f)/sigma
       end do
-      self%jac_age = 0; self%jac_fresh = .true.; self%gamma_lu = 0.0_dp
+      self%nt%jac_age = 0; self%nt%jac_fresh = .true.; self%nt%gamma_lu = 0.0_dp
     end if
-    if (abs(gamma/max(self%gamma_lu, tiny(1.0_dp)) - 1.0_dp) <= gamma_change) return
-    self%lu = -gamma*self%jac
+    if (abs(gamma/max(self%nt%gamma_lu, tiny(1.0_dp)) - 1.0_dp) <= gamma_change) return
+    self%nt%lu = -gamma*self%nt%jac
     do j = 1, self%n
-      self%lu(j, j) = self%lu(j, j) + 1.0_dp
+      self%nt%lu(j, j) = self%nt%lu(j, j) + 1.0_dp
     end do
-    call lu_factor(self%lu, self%piv, 'I - gamma J of the corrector at t = ' // fmt(tn) // ' s', error)
-    self%gamma_lu = gamma; self%rate = 1.0_dp; self%gamma_rate = gamma
+    call lu_factor(self%nt%lu, self%nt%piv, 'I - gamma J of the corrector at t = ' // fmt(tn) // ' s', error)
+    self%nt%gamma_lu = gamma; self%rate = 1.0_dp; self%gamma_rate = gamma
   end subroutine newton_setup
 
-  !> Take the step: z = z(0) + e l (z holds the prediction), shift the step history, count, and keep the correction
-  !> for the q+1 estimate one step before an order choice.
-  subroutine accept(self, sys, tn, error)
+  !> The corrected array z = z(0) + e l (z holds the prediction), its state checked finite.
+  subroutine correct_array(self, sys, tn, error)
     class(adams_integrator), intent(inout) :: self
     class(ode_system), intent(inout) :: sys
     real(dp), intent(in) :: tn
     type(error_type), allocatable, intent(out) :: error
     integer :: j
     do j = 0, self%q
-      self%z(:, j) = self%z(:, j) + self%l(j)*self%e
+      self%z(:, j) = self%z(:, j) + self%l(j)*self%wk%e
     end do
+    call check_finite(sys, tn, self%z(:, 0), 'state', error)
+  end subroutine correct_array
+
+  !> Take the corrected step to tn: shift the step history, count, and keep the correction
+  !> for the q+1 estimate one step before an order choice.
+  subroutine accept(self, tn)
+    class(adams_integrator), intent(inout) :: self
+    real(dp), intent(in) :: tn
     self%t = tn
-    self%steps = self%steps + 1
-    self%order_steps(self%q) = self%order_steps(self%q) + 1
+    self%cnt%steps = self%cnt%steps + 1
+    self%cnt%order_steps(self%q) = self%cnt%order_steps(self%q) + 1
     self%tau(2:) = self%tau(:max_order)
     self%tau(1) = self%h
-    call check_finite(sys, tn, self%z(:, 0), 'state', error); if (allocated(error)) return
     self%wait = self%wait - 1
     if (self%wait == 1 .and. self%q < self%q_top) then
-      self%e_saved = self%e; self%tq5_saved = self%tq(5); self%have_saved = .true.
+      self%e_saved = self%wk%e; self%tq5_saved = self%tq(5); self%have_saved = .true.
     end if
   end subroutine accept
 
@@ -399,11 +434,11 @@ contains
       self%wait = 2
       eta_dn = 0.0_dp; eta_up = 0.0_dp
       if (self%q > 1 .and. .not. self%fixed) &
-        & eta_dn = min(ratio(bias_down*wrms_norm(self%z(:, self%q), self%w)*self%tq(1), self%q), &
+        & eta_dn = min(ratio(bias_down*wrms_norm(self%z(:, self%q), self%wk%w)*self%tq(1), self%q), &
         & stable_step(self, self%q - 1)/self%h)
       if (self%q < self%q_top .and. self%have_saved) then
         cquot = self%tq(5)/self%tq5_saved*(self%h/self%tau(2))**(self%q + 1)
-        eta_up = min(ratio(bias_up*wrms_norm(self%e - cquot*self%e_saved, self%w)*self%tq(3), self%q + 2), &
+        eta_up = min(ratio(bias_up*wrms_norm(self%wk%e - cquot*self%e_saved, self%wk%w)*self%tq(3), self%q + 2), &
           & stable_step(self, self%q + 1)/self%h)
       end if
       if (self%fixed .and. self%q < self%q_top) then
@@ -447,9 +482,9 @@ contains
       call shrink(self, shrink_min, error); return
     end if
     call shrink(self, shrink_min, error); if (allocated(error)) return
-    call sys%eval(self%t, self%z(:, 0), self%f, error); self%evals = self%evals + 1
+    call sys%eval(self%t, self%z(:, 0), self%wk%f, error); self%cnt%evals = self%cnt%evals + 1
     if (allocated(error)) return
-    self%z(:, 1) = self%h*self%f
+    self%z(:, 1) = self%h*self%wk%f
     self%wait = 10
   end subroutine after_error_failure
 
@@ -588,31 +623,27 @@ contains
     adams_order = self%q
   end function adams_order
 
-  subroutine adams_save(self, unit, ios)
-    class(adams_integrator), intent(in) :: self
-    integer, intent(in) :: unit
-    integer, intent(out) :: ios
-    write(unit, iostat=ios) self%t, self%h, self%q, self%z, self%tau, self%wait, self%eta_max, self%e_saved, &
-      & self%tq5_saved, self%have_saved, self%rate, self%gamma_rate, self%steps, self%rejected, self%evals, &
-      & self%corrector_fails, self%order_steps, self%gamma_lu, self%jac_age
-    if (ios == 0 .and. self%newton) write(unit, iostat=ios) self%jac, self%lu, self%piv
-  end subroutine adams_save
-
-  subroutine adams_load(self, unit, ios)
+  !> What a checkpoint keeps beside the Nordsieck array: times, step and order, the step and
+  !> order choice's memory, the corrector's rate, counts, and Newton's matrices.
+  subroutine adams_record(self, rec)
     class(adams_integrator), intent(inout) :: self
-    integer, intent(in) :: unit
-    integer, intent(out) :: ios
-    read(unit, iostat=ios) self%t, self%h, self%q, self%z, self%tau, self%wait, self%eta_max, self%e_saved, &
-      & self%tq5_saved, self%have_saved, self%rate, self%gamma_rate, self%steps, self%rejected, self%evals, &
-      & self%corrector_fails, self%order_steps, self%gamma_lu, self%jac_age
-    if (ios == 0 .and. self%newton) read(unit, iostat=ios) self%jac, self%lu, self%piv
-  end subroutine adams_load
+    type(state_record), intent(inout) :: rec
+    call rec%item(self%t); call rec%item(self%h); call rec%item(self%q); call rec%item(self%tau)
+    call rec%item(self%wait); call rec%item(self%eta_max); call rec%item(self%e_saved)
+    call rec%item(self%tq5_saved); call rec%item(self%have_saved); call rec%item(self%rate)
+    call rec%item(self%gamma_rate)
+    call rec%item(self%cnt%steps); call rec%item(self%cnt%rejected); call rec%item(self%cnt%evals)
+    call rec%item(self%cnt%corrector_fails); call rec%item(self%cnt%order_steps)
+    call rec%item(self%nt%gamma_lu); call rec%item(self%nt%jac_age)
+    if (.not. self%newton) return
+    call rec%item(self%nt%jac); call rec%item(self%nt%lu); call rec%item(self%nt%piv)
+  end subroutine adams_record
 
   pure function adams_counts(self) result(c)
     class(adams_integrator), intent(in) :: self
     type(step_counts) :: c
-    c%steps_slow = self%steps; c%steps_fast = self%steps
-    c%rejected = self%rejected; c%h_last = self%h; c%ratio = 1
+    c%steps_slow = self%cnt%steps; c%steps_fast = self%cnt%steps
+    c%rejected = self%cnt%rejected; c%h_last = self%h; c%ratio = 1
   end function adams_counts
 
   pure function adams_name(self) result(s)
@@ -645,13 +676,5 @@ contains
     real(dp), intent(in) :: v(:)
     self%z = reshape(v, shape(self%z))
   end subroutine adams_set_state
-
-  !> Project the value column of the Nordsieck array onto the system's constraints.
-  subroutine adams_project(self, sys, error)
-    class(adams_integrator), intent(inout) :: self
-    class(ode_system), intent(inout) :: sys
-    type(error_type), allocatable, intent(out) :: error
-    call sys%project(self%time(), self%z(:, 0), error)
-  end subroutine adams_project
 
 end module pymr_integrator_adams

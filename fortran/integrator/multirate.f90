@@ -12,27 +12,70 @@ module pymr_integrator_multirate
   use pymr_env_kinds, only : dp
   use pymr_env_error, only : error_type, fatal_error, stat_solver
   use pymr_integrator_ode, only : ode_system, partitioned_system
-  use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps
+  use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps, state_record, project_step, projection_eta
   use pymr_env_text, only : fmt
   use pymr_integrator_nordsieck, only : nq, nordsieck_predict, nordsieck_correct, nordsieck_value, &
     & nordsieck_from_history, nordsieck_rescale, corrector_l
-  use pymr_integrator_abm, only : rk4_step, check_finite
+  use pymr_integrator_abm, only : rk4_step, check_finite, pece_step
   use pymr_integrator_control, only : step_control, error_weights, wrms_norm
   implicit none
   private
   public :: multirate_integrator
 
+  !> What a multirate run has done.
+  type :: mr_counts_t
+    !> Macro (slow) steps, fast steps, slow, fast and starting evaluations, rejected macro steps.
+    integer :: steps_slow = 0, steps_fast = 0, evals_slow = 0, evals_fast = 0, evals_start = 0, rejected = 0
+  end type mr_counts_t
+
+  !> Work arrays of a macro step.
+  type :: mr_work_t
+    !> Adaptive: the arrays at the start of the macro step, the error weights, the coupling
+    !> error's fast derivative.
+    real(dp), allocatable :: zs0(:, :), zf0(:, :), ws(:), wf(:), fx(:)
+    !> Predicted and corrected slow (zp, zn) and fast (wp, wn) arrays, derivatives, corrections,
+    !> the extrapolated slow state and accelerations, the fast steps' iterate.
+    real(dp), allocatable :: zp(:, :), zn(:, :), wp(:, :), wn(:, :), fs(:), ff(:), gs(:), gf(:), xs(:), acc(:), &
+      & xf(:)
+  end type mr_work_t
+
+  !> Dense output of the fast state inside the last macro step (or the start): its values
+  !> xb(:, 0:nb) and derivatives fb(:, 0:nb) at the fast steps from tb on, nb steps of hb.
+  !> The fast array's polynomial is its last step's: evaluated back over the macro step it
+  !> would grow like s^3 (at k = 30 it put 13 m/s of error into the tank's muzzle velocity).
+  type :: fast_steps_t
+    real(dp), allocatable :: xb(:, :), fb(:, :)
+    real(dp) :: tb = 0.0_dp, hb = 0.0_dp
+    integer :: nb = 0
+  end type fast_steps_t
+
+  !> The fast equations as a system of their own, for the fast steps inside a macro step:
+  !> the fast state's derivative with the slow state xs and accelerations acc given (their
+  !> extrapolation from the slow array), as MRIStep's inner system is forced by the slow
+  !> one. The fast steps are the single-rate stepper's (pece_step) on it.
+  type, extends(ode_system) :: forced_fast_system
+    class(partitioned_system), pointer :: full => null()
+    real(dp), allocatable :: xs(:), acc(:)
+    !> Positions of the fast state in the full one (for error messages).
+    integer, allocatable :: fast_map(:)
+  contains
+    procedure :: eval => forced_eval
+    procedure :: component_name => forced_name
+  end type forced_fast_system
+
   !> Multirate integrator state.
   type, extends(stepper_t) :: multirate_integrator
     !> Slow and fast coordinates, step ratio k = H/h.
     integer :: ns = 0, nf = 0, k = 1
-    !> Time of the Nordsieck arrays (s), slow step H and fast step h (s), start time (fixed
-    !> steps end at t0 + n H with an integer n, not a sum of steps).
-    real(dp) :: t = 0.0_dp, hs = 0.0_dp, hf = 0.0_dp, t0 = 0.0_dp
+    !> Time of the Nordsieck arrays (s), start time (fixed steps end at t0 + n H with an
+    !> integer n, not a sum of steps).
+    real(dp) :: t = 0.0_dp, t0 = 0.0_dp
+    !> Slow step H and fast step h (s): set by init, changed by the stepper only.
+    real(dp), private :: hs = 0.0_dp, hf = 0.0_dp
     !> Slow Nordsieck array (2ns, 0:3) scaled with H, fast one (2nf, 0:3) scaled with h.
     real(dp), allocatable :: zs(:, :), zf(:, :)
-    !> Counters: macro (slow) steps, fast steps, slow and fast evaluations, rejected macro steps.
-    integer :: steps_slow = 0, steps_fast = 0, evals_slow = 0, evals_fast = 0, evals_start = 0, rejected = 0
+    !> Counters.
+    type(mr_counts_t) :: cnt
     !> Adaptive: local-error control of both steps (weighted RMS norms, as CVODE), the step
     !> ratio k chosen within [1, k_max].
     logical :: adaptive = .false.
@@ -41,28 +84,19 @@ module pymr_integrator_multirate
     !> Adaptive: the largest fast step (s), within the PECE stability limit of the fastest
     !> mode (an error estimate sees an instability only once it has grown).
     real(dp) :: hf_max = huge(1.0_dp)
-    !> Adaptive work: the arrays at the start of the macro step, the error weights.
-    real(dp), allocatable :: zs0(:, :), zf0(:, :), ws(:), wf(:), fx(:)
     !> Work arrays.
-    real(dp), allocatable :: zp(:, :), zn(:, :), wp(:, :), wn(:, :), fs(:), ff(:), gs(:), gf(:), xs(:), acc(:)
+    type(mr_work_t) :: wk
     !> Positions of the slow and fast states in the full state (for error messages).
     integer, allocatable :: slow_map(:), fast_map(:)
-    !> Dense output of the fast state inside the last macro step (or the start): its values
-    !> xb(:, 0:nb) and derivatives fb(:, 0:nb) at the fast steps from tb on, nb steps of hb.
-    !> The fast array's polynomial is its last step's: evaluated back over the macro step it
-    !> would grow like s^3 (at k = 30 it put 13 m/s of error into the tank's muzzle velocity).
-    real(dp), allocatable :: xb(:, :), fb(:, :)
-    real(dp) :: tb = 0.0_dp, hb = 0.0_dp
-    integer :: nb = 0
+    !> Dense output of the fast state.
+    type(fast_steps_t) :: dense
   contains
     procedure :: init => mr_init
     procedure :: start => mr_start
     procedure :: advance => mr_advance
-    procedure :: project => mr_project
     procedure :: time => mr_time
     procedure :: value_at => mr_value_at
-    procedure :: save => mr_save
-    procedure :: load => mr_load
+    procedure :: record => mr_record
     procedure :: counts => mr_counts
     procedure :: name => mr_name
     procedure :: pece => mr_steps
@@ -76,26 +110,32 @@ contains
 
   !> Allocate for ns slow and nf fast coordinates, step ratio k; adaptive runs control
   !> both steps with `ctl`, the fast one at most hf_max, and keep the ratio within [1, k_max].
-  subroutine mr_init(self, ns, nf, k, adaptive, ctl, k_max, hf_max)
+  !> h: the fast step the start takes (its macro step k h), which the pre-flight check reads
+  !> before the start.
+  subroutine mr_init(self, ns, nf, k, adaptive, ctl, k_max, hf_max, h)
     class(multirate_integrator), intent(inout) :: self
     integer, intent(in) :: ns, nf, k
     logical, intent(in), optional :: adaptive
     type(step_control), intent(in), optional :: ctl
     integer, intent(in), optional :: k_max
-    real(dp), intent(in), optional :: hf_max
+    real(dp), intent(in), optional :: hf_max, h
     self%ns = ns; self%nf = nf; self%k = k
+    if (present(h)) then
+      self%hf = h; self%hs = k*h
+    end if
     if (present(hf_max)) self%hf_max = hf_max
     if (present(adaptive)) self%adaptive = adaptive
     if (present(ctl)) self%ctl = ctl
     self%k_max = max(k, 1)
     if (present(k_max)) self%k_max = max(k_max, 1)
-    allocate(self%zs0(2*ns, 0:nq), self%zf0(2*nf, 0:nq), self%ws(2*ns), self%wf(2*nf), self%fx(2*nf))
-    allocate(self%zs(2*ns, 0:nq), self%zf(2*nf, 0:nq), self%zp(2*ns, 0:nq), self%zn(2*ns, 0:nq), &
-      & self%wp(2*nf, 0:nq), self%wn(2*nf, 0:nq), self%fs(2*ns), self%ff(2*nf), self%gs(2*ns), self%gf(2*nf), &
-      & self%xs(2*ns), self%acc(ns))
+    allocate(self%wk%zs0(2*ns, 0:nq), self%wk%zf0(2*nf, 0:nq), self%wk%ws(2*ns), self%wk%wf(2*nf), self%wk%fx(2*nf))
+    allocate(self%zs(2*ns, 0:nq), self%zf(2*nf, 0:nq), self%wk%zp(2*ns, 0:nq), self%wk%zn(2*ns, 0:nq), &
+      & self%wk%wp(2*nf, 0:nq), self%wk%wn(2*nf, 0:nq), self%wk%fs(2*ns), self%wk%ff(2*nf), self%wk%gs(2*ns), &
+      & self%wk%gf(2*nf), &
+      & self%wk%xs(2*ns), self%wk%acc(ns), self%wk%xf(2*nf))
     self%slow_map = slow_index(ns, nf)
     self%fast_map = fast_index(ns, nf)
-    allocate(self%xb(2*nf, 0:2*k), self%fb(2*nf, 0:2*k))
+    allocate(self%dense%xb(2*nf, 0:2*k), self%dense%fb(2*nf, 0:2*k))
   end subroutine mr_init
 
   !> Start at (t0, x0), x0 = [q_s; q_f; qd_s; qd_f]: classical RK4 steps of size h on the
@@ -134,27 +174,21 @@ contains
     mr_time = self%t
   end function mr_time
 
-  subroutine mr_save(self, unit, ios)
-    class(multirate_integrator), intent(in) :: self
-    integer, intent(in) :: unit
-    integer, intent(out) :: ios
-    write(unit, iostat=ios) self%k, self%t, self%hs, self%hf, self%t0, self%zs, self%zf, self%steps_slow, self%steps_fast, &
-      & self%evals_slow, self%evals_fast, self%evals_start, self%rejected
-  end subroutine mr_save
-
-  subroutine mr_load(self, unit, ios)
+  !> What a checkpoint keeps beside the Nordsieck arrays: ratio, times, steps, counts.
+  subroutine mr_record(self, rec)
     class(multirate_integrator), intent(inout) :: self
-    integer, intent(in) :: unit
-    integer, intent(out) :: ios
-    read(unit, iostat=ios) self%k, self%t, self%hs, self%hf, self%t0, self%zs, self%zf, self%steps_slow, self%steps_fast, &
-      & self%evals_slow, self%evals_fast, self%evals_start, self%rejected
-  end subroutine mr_load
+    type(state_record), intent(inout) :: rec
+    call rec%item(self%k); call rec%item(self%t); call rec%item(self%hs); call rec%item(self%hf)
+    call rec%item(self%t0)
+    call rec%item(self%cnt%steps_slow); call rec%item(self%cnt%steps_fast); call rec%item(self%cnt%evals_slow)
+    call rec%item(self%cnt%evals_fast); call rec%item(self%cnt%evals_start); call rec%item(self%cnt%rejected)
+  end subroutine mr_record
 
   pure function mr_counts(self) result(c)
     class(multirate_integrator), intent(in) :: self
     type(step_counts) :: c
-    c%steps_slow = self%steps_slow; c%steps_fast = self%steps_fast
-    c%rejected = self%rejected; c%h_last = self%hs; c%ratio = self%k
+    c%steps_slow = self%cnt%steps_slow; c%steps_fast = self%cnt%steps_fast
+    c%rejected = self%cnt%rejected; c%h_last = self%hs; c%ratio = self%k
   end function mr_counts
 
   pure function mr_name(self) result(s)
@@ -221,22 +255,22 @@ contains
     allocate(x(2*n), f(2*n), fsl(2*ns, 0:2), ffa(2*nf, 0:nsteps))
     x = x0; t = t0
     do i = 0, nsteps
-      call sys%eval(t, x, f, error); self%evals_start = self%evals_start + 1
+      call sys%eval(t, x, f, error); self%cnt%evals_start = self%cnt%evals_start + 1
       if (allocated(error)) return
       call check_finite(sys, t, f, 'derivative', error); if (allocated(error)) return
       if (mod(i, self%k) == 0) fsl(:, i/self%k) = slow_part(f)
       ffa(:, i) = fast_part(f)
       call keep_fast_point(self, i, fast_part(x), ffa(:, i))
       if (i == nsteps) exit
-      call rk4_step(sys, t, self%hf, x, f, self%evals_start, error); if (allocated(error)) return
+      call rk4_step(sys, t, self%hf, x, f, self%cnt%evals_start, error); if (allocated(error)) return
       t = t0 + (i + 1)*self%hf
     end do
     call nordsieck_from_history(slow_part(x), fsl(:, 2), fsl(:, 1), fsl(:, 0), self%hs, self%zs)
     call nordsieck_from_history(fast_part(x), ffa(:, nsteps), ffa(:, nsteps - 1), ffa(:, nsteps - 2), self%hf, self%zf)
     self%t0 = t0
     self%t = t0 + 2*hs
-    self%steps_slow = 2; self%steps_fast = nsteps
-    self%tb = t0; self%hb = self%hf; self%nb = nsteps
+    self%cnt%steps_slow = 2; self%cnt%steps_fast = nsteps
+    self%dense%tb = t0; self%dense%hb = self%hf; self%dense%nb = nsteps
   contains
     pure function slow_part(v) result(r)
       real(dp), intent(in) :: v(:)
@@ -253,39 +287,48 @@ contains
   !> One macro step. Fixed steps: `try_macro_step` once. Adaptive: the slow corrector's
   !> error estimate sets the next macro step H, the largest fast one sets the fast step h,
   !> and k = H/h is rounded into [1, k_max] (H shrinks when k would exceed k_max). A
-  !> rejected macro step is retried from its start with both steps rescaled.
+  !> rejected macro step is retried from its start with both steps rescaled, and so is one
+  !> whose state the system's projection does not bring onto its constraints.
   subroutine mr_step(self, sys, error)
     class(multirate_integrator), intent(inout) :: self
     class(partitioned_system), intent(inout) :: sys
     type(error_type), allocatable, intent(out) :: error
     real(dp) :: err_s, err_f, hs_new, hf_new, hs0, hf0
-    integer :: k_new
+    integer :: k_new, projection_fails
+    logical :: retry
+    projection_fails = 0
     if (.not. self%adaptive) then
       call try_macro_step(self, sys, err_s, err_f, error); if (allocated(error)) return
-      call finish_macro_step(self, sys, error)
+      call close_macro_step(self, sys, projection_fails, retry, error); if (allocated(error)) return
+      call finish_macro_step(self)
       return
     end if
-    self%zs0 = self%zs; self%zf0 = self%zf
+    self%wk%zs0 = self%zs; self%wk%zf0 = self%zf
     hs0 = self%hs; hf0 = self%hf
-    call error_weights(self%ctl, self%zs(:, 0), self%ws)
-    call error_weights(self%ctl, self%zf(:, 0), self%wf)
+    call error_weights(self%ctl, self%zs(:, 0), self%wk%ws)
+    call error_weights(self%ctl, self%zf(:, 0), self%wk%wf)
     do
       call try_macro_step(self, sys, err_s, err_f, error); if (allocated(error)) return
-      if (err_s <= 1.0_dp .and. err_f <= 1.0_dp) exit
-      self%rejected = self%rejected + 1
-      hs_new = self%hs*min(self%ctl%ratio(err_s, err_s <= 1.0_dp), 1.0_dp)
-      hf_new = self%hf*min(self%ctl%ratio(err_f, err_f <= 1.0_dp), 1.0_dp)
+      if (err_s <= 1.0_dp .and. err_f <= 1.0_dp) then
+        call close_macro_step(self, sys, projection_fails, retry, error); if (allocated(error)) return
+        if (.not. retry) exit
+        hs_new = projection_eta*self%hs; hf_new = projection_eta*self%hf
+      else
+        hs_new = self%hs*min(self%ctl%ratio(err_s, err_s <= 1.0_dp), 1.0_dp)
+        hf_new = self%hf*min(self%ctl%ratio(err_f, err_f <= 1.0_dp), 1.0_dp)
+      end if
+      self%cnt%rejected = self%cnt%rejected + 1
       call choose_ratio(self, hs_new, hf_new, k_new)
       if (hf_new < self%ctl%h_min) then
         call fatal_error(error, 'step size underflow at t = ' // fmt(self%t) // ' s (fast step ' // fmt(hf_new) // &
           & ' s below h_min)', stat_solver); return
       end if
       ! back to the start of the macro step, with the arrays' own scaling
-      self%zs = self%zs0; self%zf = self%zf0
+      self%zs = self%wk%zs0; self%zf = self%wk%zf0
       self%hs = hs0; self%hf = hf0
       call rescale_steps(self, hs_new, hf_new, k_new)
     end do
-    call finish_macro_step(self, sys, error); if (allocated(error)) return
+    call finish_macro_step(self)
     hs_new = min(self%hs*self%ctl%ratio(err_s, .true.), self%ctl%h_max)
     hf_new = min(self%hf*self%ctl%ratio(err_f, .true.), self%hf_max)
     call choose_ratio(self, hs_new, hf_new, k_new)
@@ -313,18 +356,14 @@ contains
     self%hs = hs; self%hf = hf; self%k = k
   end subroutine rescale_steps
 
-  !> Accept the macro step computed by try_macro_step.
-  subroutine finish_macro_step(self, sys, error)
+  !> Accept the macro step computed by try_macro_step and closed by close_macro_step.
+  subroutine finish_macro_step(self)
     class(multirate_integrator), intent(inout) :: self
-    class(partitioned_system), intent(inout) :: sys
-    type(error_type), allocatable, intent(out) :: error
-    self%zs = self%zn
-    self%zf = self%wn
-    self%steps_fast = self%steps_fast + 1
+    self%zs = self%wk%zn
+    self%zf = self%wk%wn
+    self%cnt%steps_fast = self%cnt%steps_fast + 1
     self%t = macro_end(self)
-    self%steps_slow = self%steps_slow + 1
-    call check_finite(sys, self%t, self%zs(:, 0), 'state', error, self%slow_map); if (allocated(error)) return
-    call check_finite(sys, self%t, self%zf(:, 0), 'state', error, self%fast_map)
+    self%cnt%steps_slow = self%cnt%steps_slow + 1
   end subroutine finish_macro_step
 
   !> k - 1 fast ABM steps with the extrapolated slow state, then the predicted slow and
@@ -336,52 +375,35 @@ contains
     class(partitioned_system), intent(inout) :: sys
     real(dp), intent(out) :: err_s, err_f
     type(error_type), allocatable, intent(out) :: error
-    integer :: i, ns, nf
-    real(dp) :: s, ti
-    ns = self%ns
-    err_s = 0.0_dp; err_f = 0.0_dp
-    call keep_fast_point(self, 0, self%zf(:, 0), self%zf(:, 1)/self%hf)
-    do i = 1, self%k - 1
-      s = real(i, dp)/self%k
-      ti = self%t + i*self%hf
-      call slow_extrapolation(self, s)
-      call nordsieck_predict(self%zf, self%wp)
-      call sys%fast_rhs(ti, self%xs, self%wp(:, 0), self%acc, self%ff, error)
-      self%evals_fast = self%evals_fast + 1
-      if (allocated(error)) return
-      self%ff = self%hf*self%ff
-      call nordsieck_correct(self%wp, self%ff, self%wn, self%gf)
-      if (self%adaptive) err_f = max(err_f, wrms_norm(corrector_l(0)*self%gf, self%wf))
-      call keep_fast_point(self, i, self%wn(:, 0), self%wn(:, 1)/self%hf)
-      self%zf = self%wn
-      self%steps_fast = self%steps_fast + 1
-    end do
-    call nordsieck_predict(self%zs, self%zp)
-    call nordsieck_predict(self%zf, self%wp)
-    call sys%sync_rhs(macro_end(self), self%zp(:, 0), self%wp(:, 0), self%fs, self%ff, error)
-    self%evals_slow = self%evals_slow + 1
+    integer :: nf
+    err_s = 0.0_dp
+    call fast_steps(self, sys, err_f, error); if (allocated(error)) return
+    call nordsieck_predict(self%zs, self%wk%zp)
+    call nordsieck_predict(self%zf, self%wk%wp)
+    call sys%sync_rhs(macro_end(self), self%wk%zp(:, 0), self%wk%wp(:, 0), self%wk%fs, self%wk%ff, error)
+    self%cnt%evals_slow = self%cnt%evals_slow + 1
     if (allocated(error)) return
-    call nordsieck_correct(self%zp, self%hs*self%fs, self%zn, self%gs)
-    call nordsieck_correct(self%wp, self%hf*self%ff, self%wn, self%gf)
-    call keep_fast_point(self, self%k, self%wn(:, 0), self%wn(:, 1)/self%hf)
-    self%tb = self%t; self%hb = self%hf; self%nb = self%k
+    call nordsieck_correct(self%wk%zp, self%hs*self%wk%fs, self%wk%zn, self%wk%gs)
+    call nordsieck_correct(self%wk%wp, self%hf*self%wk%ff, self%wk%wn, self%wk%gf)
+    call keep_fast_point(self, self%k, self%wk%wn(:, 0), self%wk%wn(:, 1)/self%hf)
+    self%dense%tb = self%t; self%dense%hb = self%hf; self%dense%nb = self%k
     if (.not. self%adaptive) return
-    err_s = wrms_norm(corrector_l(0)*self%gs, self%ws)
-    err_f = max(err_f, wrms_norm(corrector_l(0)*self%gf, self%wf))
+    err_s = wrms_norm(corrector_l(0)*self%wk%gs, self%wk%ws)
+    err_f = max(err_f, wrms_norm(corrector_l(0)*self%wk%gf, self%wk%wf))
     if (self%k == 1) return
     ! Coupling error: the fast substeps used slow accelerations extrapolated from the slow
     ! array. Their error at the end of the macro step shows in the fast accelerations with
     ! the extrapolated and the synchronised slow accelerations, d = ff - f_x. Grown like
     ! the quadratic extrapolation's error s(s+1)(s+2)/6 over the step, it displaces the
     ! fast state by 0.106 H^2 d and its rates by 0.375 H d; this error bounds H.
-    call slow_extrapolation(self, 1.0_dp)
-    call sys%fast_rhs(self%t + self%hs, self%xs, self%wp(:, 0), self%acc, self%fx, error)
-    self%evals_fast = self%evals_fast + 1
+    call slow_extrapolation(self%zs, self%hs, 1.0_dp, self%wk%xs, self%wk%acc)
+    call sys%fast_rhs(self%t + self%hs, self%wk%xs, self%wk%wp(:, 0), self%wk%acc, self%wk%fx, error)
+    self%cnt%evals_fast = self%cnt%evals_fast + 1
     if (allocated(error)) return
     nf = self%nf
-    self%fx(1:nf) = 0.10556_dp*self%hs**2*(self%ff(nf+1:) - self%fx(nf+1:))
-    self%fx(nf+1:) = 0.375_dp*self%hs*(self%ff(nf+1:) - self%fx(nf+1:))
-    err_s = max(err_s, wrms_norm(self%fx, self%wf))
+    self%wk%fx(1:nf) = 0.10556_dp*self%hs**2*(self%wk%ff(nf+1:) - self%wk%fx(nf+1:))
+    self%wk%fx(nf+1:) = 0.375_dp*self%hs*(self%wk%ff(nf+1:) - self%wk%fx(nf+1:))
+    err_s = max(err_s, wrms_norm(self%wk%fx, self%wk%wf))
   end subroutine try_macro_step
 
   !> End of the macro step being taken: t + H, or with fixed steps t0 + n H.
@@ -390,7 +412,7 @@ contains
     if (self%adaptive) then
       macro_end = self%t + self%hs
     else
-      macro_end = self%t0 + (self%steps_slow + 1)*self%hs
+      macro_end = self%t0 + (self%cnt%steps_slow + 1)*self%hs
     end if
   end function macro_end
 
@@ -408,15 +430,60 @@ contains
     idx = [(ns + i, i = 1, nf), (2*ns + nf + i, i = 1, nf)]
   end function fast_index
 
-  !> Slow state xs and accelerations acc at t + s H from the slow Nordsieck polynomial.
-  pure subroutine slow_extrapolation(self, s)
-    class(multirate_integrator), intent(inout) :: self
-    real(dp), intent(in) :: s
+  !> Slow state xs and accelerations acc at t + s H from the slow Nordsieck array zs
+  !> (scaled with H = hs).
+  pure subroutine slow_extrapolation(zs, hs, s, xs, acc)
+    real(dp), intent(in) :: zs(:, 0:), hs, s
+    real(dp), intent(out) :: xs(:), acc(:)
     integer :: ns
-    ns = self%ns
-    call nordsieck_value(self%zs, s, self%xs)
-    self%acc = (self%zs(ns+1:, 1) + s*(2.0_dp*self%zs(ns+1:, 2) + 3.0_dp*s*self%zs(ns+1:, 3)))/self%hs
+    ns = size(acc)
+    call nordsieck_value(zs, s, xs)
+    acc = (zs(ns+1:, 1) + s*(2.0_dp*zs(ns+1:, 2) + 3.0_dp*s*zs(ns+1:, 3)))/hs
   end subroutine slow_extrapolation
+
+  !> The k - 1 fast steps of the macro step from (t, zf): the single-rate ABM step
+  !> (pece_step) on the fast equations forced by the slow motion extrapolated to each step.
+  !> err_f: the largest weighted corrector estimate of them (adaptive runs).
+  subroutine fast_steps(self, sys, err_f, error)
+    class(multirate_integrator), intent(inout) :: self
+    class(partitioned_system), intent(inout), target :: sys
+    real(dp), intent(out) :: err_f
+    type(error_type), allocatable, intent(out) :: error
+    type(forced_fast_system) :: fast
+    integer :: i
+    err_f = 0.0_dp
+    fast%full => sys
+    allocate(fast%xs(2*self%ns), fast%acc(self%ns))
+    fast%fast_map = self%fast_map
+    call keep_fast_point(self, 0, self%zf(:, 0), self%zf(:, 1)/self%hf)
+    do i = 1, self%k - 1
+      call slow_extrapolation(self%zs, self%hs, real(i, dp)/self%k, fast%xs, fast%acc)
+      call pece_step(fast, self%t + i*self%hf, self%hf, 1, self%zf, self%wk%wp, self%wk%wn, self%wk%xf, self%wk%ff, &
+        & self%wk%gf, self%cnt%evals_fast, error); if (allocated(error)) return
+      if (self%adaptive) err_f = max(err_f, wrms_norm(corrector_l(0)*self%wk%gf, self%wk%wf))
+      call keep_fast_point(self, i, self%wk%wn(:, 0), self%wk%wn(:, 1)/self%hf)
+      self%zf = self%wk%wn
+      self%cnt%steps_fast = self%cnt%steps_fast + 1
+    end do
+  end subroutine fast_steps
+
+  !> The fast derivative [qd_f; qdd_f] at (t, x) with the slow state and accelerations held.
+  subroutine forced_eval(self, t, x, f, error)
+    class(forced_fast_system), intent(inout) :: self
+    real(dp), intent(in) :: t
+    real(dp), intent(in), contiguous :: x(:)
+    real(dp), intent(out), contiguous :: f(:)
+    type(error_type), allocatable, intent(out) :: error
+    call self%full%fast_rhs(t, self%xs, x, self%acc, f, error)
+  end subroutine forced_eval
+
+  !> The name of fast state component i: the full system's.
+  function forced_name(self, i) result(name)
+    class(forced_fast_system), intent(in) :: self
+    integer, intent(in) :: i
+    character(len=:), allocatable :: name
+    name = self%full%component_name(self%fast_map(i))
+  end function forced_name
 
   !> Full state [q_s; q_f; qd_s; qd_f] at time t (t within the last macro step).
   pure subroutine mr_value_at(self, t, x)
@@ -427,7 +494,7 @@ contains
     integer :: ns, nf, n
     ns = self%ns; nf = self%nf; n = ns + nf
     call nordsieck_value(self%zs, (t - self%t)/self%hs, xs)
-    if (self%nb > 0) then
+    if (self%dense%nb > 0) then
       call fast_dense(self, t, xf)
     else
       call nordsieck_value(self%zf, (t - self%t)/self%hf, xf)
@@ -442,13 +509,13 @@ contains
     integer, intent(in) :: i
     real(dp), intent(in) :: x(:), f(:)
     real(dp), allocatable :: grown(:, :)
-    if (size(self%xb, 2) <= i) then
+    if (size(self%dense%xb, 2) <= i) then
       allocate(grown(size(x), 0:2*i + 1))
-      grown(:, 0:size(self%xb, 2) - 1) = self%xb; call move_alloc(grown, self%xb)
+      grown(:, 0:size(self%dense%xb, 2) - 1) = self%dense%xb; call move_alloc(grown, self%dense%xb)
       allocate(grown(size(x), 0:2*i + 1))
-      grown(:, 0:size(self%fb, 2) - 1) = self%fb; call move_alloc(grown, self%fb)
+      grown(:, 0:size(self%dense%fb, 2) - 1) = self%dense%fb; call move_alloc(grown, self%dense%fb)
     end if
-    self%xb(:, i) = x; self%fb(:, i) = f
+    self%dense%xb(:, i) = x; self%dense%fb(:, i) = f
   end subroutine keep_fast_point
 
   !> Fast state at t from the cubic Hermite interpolant of the kept fast steps (the order
@@ -459,26 +526,37 @@ contains
     real(dp), intent(out) :: xf(:)
     real(dp) :: th
     integer :: i
-    i = min(max(ceiling((t - self%tb)/self%hb - 1.0e-9_dp), 1), self%nb)
-    th = (t - (self%tb + (i - 1)*self%hb))/self%hb
-    xf = (2*th**3 - 3*th**2 + 1)*self%xb(:, i - 1) + (th**3 - 2*th**2 + th)*self%hb*self%fb(:, i - 1) + &
-      & (3*th**2 - 2*th**3)*self%xb(:, i) + (th**3 - th**2)*self%hb*self%fb(:, i)
+    associate (d => self%dense)
+      i = min(max(ceiling((t - d%tb)/d%hb - 1.0e-9_dp), 1), d%nb)
+      th = (t - (d%tb + (i - 1)*d%hb))/d%hb
+      xf = (2*th**3 - 3*th**2 + 1)*d%xb(:, i - 1) + (th**3 - 2*th**2 + th)*d%hb*d%fb(:, i - 1) + &
+        & (3*th**2 - 2*th**3)*d%xb(:, i) + (th**3 - th**2)*d%hb*d%fb(:, i)
+    end associate
   end subroutine fast_dense
 
-  !> Project the value columns of the slow and fast Nordsieck arrays, joined into the full
-  !> state [q_s; q_f; qd_s; qd_f], onto the system's constraints.
-  subroutine mr_project(self, sys, error)
+  !> The macro step computed by try_macro_step (zn, wn) checked finite and its state, the
+  !> value columns of both arrays joined into [q_s; q_f; qd_s; qd_f], projected onto the
+  !> system's constraints (project_step: retry when an adaptive step is to be redone
+  !> smaller); the dense output's last fast point follows.
+  subroutine close_macro_step(self, sys, fails, retry, error)
     class(multirate_integrator), intent(inout) :: self
-    class(ode_system), intent(inout) :: sys
+    class(partitioned_system), intent(inout) :: sys
+    integer, intent(inout) :: fails
+    logical, intent(out) :: retry
     type(error_type), allocatable, intent(out) :: error
-    real(dp) :: x(2*(self%ns + self%nf))
+    real(dp) :: x(2*(self%ns + self%nf)), t
     integer :: ns, nf
     ns = self%ns; nf = self%nf
-    x = [self%zs(1:ns, 0), self%zf(1:nf, 0), self%zs(ns+1:, 0), self%zf(nf+1:, 0)]
-    call sys%project(self%time(), x, error); if (allocated(error)) return
-    self%zs(:, 0) = [x(1:ns), x(ns+nf+1:2*ns+nf)]
-    self%zf(:, 0) = [x(ns+1:ns+nf), x(2*ns+nf+1:)]
-    if (self%nb > 0) self%xb(:, self%nb) = self%zf(:, 0)
-  end subroutine mr_project
+    retry = .false.
+    t = macro_end(self)
+    call check_finite(sys, t, self%wk%zn(:, 0), 'state', error, self%slow_map); if (allocated(error)) return
+    call check_finite(sys, t, self%wk%wn(:, 0), 'state', error, self%fast_map); if (allocated(error)) return
+    x = [self%wk%zn(1:ns, 0), self%wk%wn(1:nf, 0), self%wk%zn(ns+1:, 0), self%wk%wn(nf+1:, 0)]
+    call project_step(sys, t, x, self%adaptive, fails, retry, error)
+    if (allocated(error) .or. retry) return
+    self%wk%zn(:, 0) = [x(1:ns), x(ns+nf+1:2*ns+nf)]
+    self%wk%wn(:, 0) = [x(ns+1:ns+nf), x(2*ns+nf+1:)]
+    if (self%dense%nb > 0) self%dense%xb(:, self%dense%nb) = self%wk%wn(:, 0)
+  end subroutine close_macro_step
 
 end module pymr_integrator_multirate

@@ -24,7 +24,7 @@ module pymr_integrator_response
   use pymr_env_kinds, only : dp
   use pymr_env_error, only : error_type, fatal_error, stat_solver
   use pymr_integrator_ode, only : ode_system, partitioned_system
-  use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps
+  use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps, state_record, project_step, projection_eta
   use pymr_integrator_nordsieck, only : nq, corrector_l, nordsieck_predict, nordsieck_correct, nordsieck_rescale, &
     & nordsieck_value
   use pymr_integrator_abm, only : abm_integrator, check_finite
@@ -44,42 +44,58 @@ module pymr_integrator_response
   !> non-finite value) and be retried smaller before the run stops.
   integer, parameter :: max_breakdowns = 10
 
+  !> History of full evaluations, oldest first: nh times, accelerations (n, nh), fast
+  !> states [a; ad] (2nf, nh); g of the newest, and the fast force coefficients; the full
+  !> evaluation of the macro step being tried (tp, qp, yp, gp), kept until it is accepted.
+  type :: response_history_t
+    integer :: nh = 0
+    real(dp) :: th(n_hist) = 0.0_dp
+    real(dp), allocatable :: hq(:, :), hy(:, :), g(:, :), kf(:), df(:)
+    real(dp) :: tp = 0.0_dp
+    real(dp), allocatable :: qp(:), yp(:), gp(:, :)
+  end type response_history_t
+
+  !> What a 'response' run has done: macro steps, fast steps, rejected macro steps,
+  !> surrogate evaluations.
+  type :: response_counts_t
+    integer :: steps_slow = 0, steps_fast = 0, rejected = 0, evals_surrogate = 0
+  end type response_counts_t
+
+  !> Work arrays of a macro step.
+  type :: response_work_t
+    real(dp), allocatable :: zp(:, :), z0(:, :), f(:), fs(:), x(:), cor(:), w(:), e(:), yhat(:), dforce(:)
+  end type response_work_t
+
   type, extends(stepper_t) :: response_integrator
     !> Coordinates (n = ns + nf), step ratio k and its adaptive bound; fast steps of the next
     !> macro step (k, but k - 2 after the start's two steps: macro steps end on multiples of
     !> k h in fixed-step runs).
     integer :: n = 0, ns = 0, nf = 0, k = 1, k_max = 1, kn = 1
-    !> Time of the Nordsieck array, fast step (s); start and fast step of the last macro step;
-    !> the run's start (fixed steps reach t0 + n h with an integer n, not a sum of steps).
-    real(dp) :: t = 0.0_dp, h = 0.0_dp, t_macro = 0.0_dp, hb = 0.0_dp, t0 = 0.0_dp
+    !> Time of the Nordsieck array; start and fast step of the last macro step; the run's
+    !> start (fixed steps reach t0 + n h with an integer n, not a sum of steps).
+    real(dp) :: t = 0.0_dp, t_macro = 0.0_dp, hb = 0.0_dp, t0 = 0.0_dp
+    !> Fast step (s): set by init, changed by the stepper only.
+    real(dp), private :: h = 0.0_dp
     !> Nordsieck array (2n, 0:3) scaled with h; the arrays after each fast step of the last
     !> macro step (dense output, scaled with hb), kb of them.
     real(dp), allocatable :: z(:, :), zbuf(:, :, :)
     integer :: kb = 0
-    !> History of full evaluations, oldest first: nh times, accelerations (n, nh), fast
-    !> states [a; ad] (2nf, nh); g of the newest, and the fast force coefficients.
-    integer :: nh = 0
-    real(dp) :: th(n_hist) = 0.0_dp
-    real(dp), allocatable :: hq(:, :), hy(:, :), g(:, :), kf(:), df(:)
-    !> The full evaluation of the macro step being tried, kept until it is accepted.
-    real(dp) :: tp = 0.0_dp
-    real(dp), allocatable :: qp(:), yp(:), gp(:, :)
+    !> History of full evaluations.
+    type(response_history_t) :: hist
     !> Adaptive control of both steps (ctl%h_max bounds the fast step).
     logical :: adaptive = .false.
     type(step_control) :: ctl
-    !> Counters: macro steps, fast steps, rejected macro steps, surrogate evaluations.
-    integer :: steps_slow = 0, steps_fast = 0, rejected = 0, evals_surrogate = 0
+    !> Counters.
+    type(response_counts_t) :: cnt
     !> Work arrays.
-    real(dp), allocatable :: zp(:, :), z0(:, :), f(:), fs(:), x(:), cor(:), w(:), e(:), yhat(:), dforce(:)
+    type(response_work_t) :: wk
   contains
     procedure :: init => rs_init
     procedure :: start => rs_start
     procedure :: advance => rs_advance
-    procedure :: project => rs_project
     procedure :: time => rs_time
     procedure :: value_at => rs_value_at
-    procedure :: save => rs_save
-    procedure :: load => rs_load
+    procedure :: record => rs_record
     procedure :: counts => rs_counts
     procedure :: name => rs_name
     procedure :: pece => rs_steps
@@ -92,24 +108,28 @@ module pymr_integrator_response
 contains
 
   !> Allocate for ns slow (joint) and nf fast (modal) coordinates, step ratio k; adaptive
-  !> runs control both steps with ctl and keep k within [1, k_max].
-  subroutine rs_init(self, ns, nf, k, adaptive, ctl, k_max)
+  !> runs control both steps with ctl and keep k within [1, k_max]; h: the fast step the
+  !> start takes (the pre-flight check reads it before the start).
+  subroutine rs_init(self, ns, nf, k, adaptive, ctl, k_max, h)
     class(response_integrator), intent(inout) :: self
     integer, intent(in) :: ns, nf, k
     logical, intent(in) :: adaptive
     type(step_control), intent(in) :: ctl
     integer, intent(in) :: k_max
+    real(dp), intent(in) :: h
     integer :: n
     n = ns + nf
+    self%h = h
     self%n = n; self%ns = ns; self%nf = nf
     self%adaptive = adaptive; self%ctl = ctl
     self%k_max = max(1, k_max, merge(1, k, adaptive))
     self%k = min(max(1, k), self%k_max)
-    allocate(self%z(2*n, 0:nq), self%zp(2*n, 0:nq), self%z0(2*n, 0:nq), self%zbuf(2*n, 0:nq, self%k))
-    allocate(self%hq(n, n_hist), self%hy(2*nf, n_hist), self%g(n, nf), self%kf(nf), self%df(nf))
-    allocate(self%qp(n), self%yp(2*nf), self%gp(n, nf))
-    allocate(self%f(2*n), self%fs(2*n), self%x(2*n), self%cor(2*n), self%w(2*n), self%e(2*n), self%yhat(2*nf), &
-      & self%dforce(nf))
+    allocate(self%z(2*n, 0:nq), self%wk%zp(2*n, 0:nq), self%wk%z0(2*n, 0:nq), self%zbuf(2*n, 0:nq, self%k))
+    allocate(self%hist%hq(n, n_hist), self%hist%hy(2*nf, n_hist), self%hist%g(n, nf), self%hist%kf(nf), self%hist%df(nf))
+    allocate(self%hist%qp(n), self%hist%yp(2*nf), self%hist%gp(n, nf))
+    allocate(self%wk%f(2*n), self%wk%fs(2*n), self%wk%x(2*n), self%wk%cor(2*n), self%wk%w(2*n), self%wk%e(2*n), &
+      & self%wk%yhat(2*nf), &
+      & self%wk%dforce(nf))
   end subroutine rs_init
 
   !> Start at (t0, x0) with the fast step h (adaptive: bounded by the tolerances): a full
@@ -122,17 +142,19 @@ contains
     real(dp), intent(in) :: t0, x0(:), h
     type(error_type), allocatable, intent(out) :: error
     type(abm_integrator) :: boot
+    type(step_counts) :: booted
     select type (sys)
     class is (partitioned_system)
-      call sys%eval(t0, x0, self%f, error); if (allocated(error)) return
-      call check_finite(sys, t0, self%f, 'derivative', error); if (allocated(error)) return
-      call record_evaluation(self, sys, t0, x0, self%f, error); if (allocated(error)) return
+      call sys%eval(t0, x0, self%wk%f, error); if (allocated(error)) return
+      call check_finite(sys, t0, self%wk%f, 'derivative', error); if (allocated(error)) return
+      call record_evaluation(self, sys, t0, x0, self%wk%f, error); if (allocated(error)) return
       call commit_evaluation(self)
       call boot%init(2*self%n, self%adaptive, self%ctl, 1)
       call boot%start(sys, t0, x0, h, error); if (allocated(error)) return
-      self%z = boot%z; self%t = boot%t; self%h = boot%h; self%t0 = t0
+      booted = boot%counts()
+      self%z = boot%z; self%t = boot%t; self%h = booted%h_last; self%t0 = t0
       self%zbuf(:, :, 1) = self%z; self%kb = 1; self%t_macro = self%t - self%h; self%hb = self%h
-      self%steps_fast = 2; self%steps_slow = 0
+      self%cnt%steps_fast = 2; self%cnt%steps_slow = 0
       self%kn = self%k
       if (self%k > 2 .and. .not. self%adaptive) self%kn = self%k - 2
     class default
@@ -144,20 +166,23 @@ contains
   !> tolerance is retried from its start with the steps the errors ask for; one that broke
   !> down (a step beyond the fast stability limit grows until a factorisation fails) is
   !> retried with both steps at the smallest ratio, up to max_breakdowns times in a row.
+  !> The accepted state is projected onto the system's constraints; a macro step whose
+  !> projection fails is retried with its fast step smaller (project_step).
   subroutine rs_advance(self, sys, error)
     class(response_integrator), intent(inout) :: self
     class(ode_system), intent(inout) :: sys
     type(error_type), allocatable, intent(out) :: error
     real(dp) :: err_f, err_s, t0, h0
-    integer :: breakdowns
+    integer :: breakdowns, projection_fails
+    logical :: retry
     select type (sys)
     class is (partitioned_system)
       t0 = self%t; h0 = self%h
       if (self%adaptive) then
-        self%z0 = self%z
-        call error_weights(self%ctl, self%z(:, 0), self%w)
+        self%wk%z0 = self%z
+        call error_weights(self%ctl, self%z(:, 0), self%wk%w)
       end if
-      breakdowns = 0
+      breakdowns = 0; projection_fails = 0
       do
         call try_macro_step(self, sys, err_f, err_s, error)
         if (allocated(error)) then
@@ -166,20 +191,28 @@ contains
           deallocate(error)
           err_f = huge(1.0_dp); err_s = huge(1.0_dp)
         end if
-        if (.not. self%adaptive) exit
         if (.not. err_f <= huge(1.0_dp)) err_f = huge(1.0_dp)     ! NaN: rejected, steps shrunk most
         if (.not. err_s <= huge(1.0_dp)) err_s = huge(1.0_dp)
-        if (err_f <= 1.0_dp .and. err_s <= 1.0_dp) exit
-        self%rejected = self%rejected + 1
+        retry = .false.
+        if (.not. self%adaptive .or. (err_f <= 1.0_dp .and. err_s <= 1.0_dp)) then
+          call check_finite(sys, self%t, self%z(:, 0), 'state', error); if (allocated(error)) return
+          call project_step(sys, self%t, self%z(:, 0), self%adaptive, projection_fails, retry, error)
+          if (allocated(error)) return
+          if (.not. retry) exit
+        end if
+        self%cnt%rejected = self%cnt%rejected + 1
         ! back to the start of the macro step (the array scaled with the step just tried)
-        self%z = self%z0; self%t = t0
+        self%z = self%wk%z0; self%t = t0
         call nordsieck_rescale(self%z, self%h/h0)
-        call resize_steps(self, err_f, err_s, .false., error); if (allocated(error)) return
+        if (retry) then
+          call shrink_fast_step(self, error); if (allocated(error)) return
+        else
+          call resize_steps(self, err_f, err_s, .false., error); if (allocated(error)) return
+        end if
       end do
       call commit_evaluation(self)
-      self%steps_slow = self%steps_slow + 1
+      self%cnt%steps_slow = self%cnt%steps_slow + 1
       self%kn = self%k
-      call check_finite(sys, self%t, self%z(:, 0), 'state', error); if (allocated(error)) return
       if (self%adaptive) call resize_steps(self, err_f, err_s, .true., error)
     class default
       call fatal_error(error, "the 'response' coupling needs a system partitioned into slow and fast coordinates")
@@ -203,34 +236,34 @@ contains
     call hold_steps(self, self%kn)
     do j = 1, self%kn
       tn = self%t + self%h
-      if (.not. self%adaptive) tn = self%t0 + (self%steps_fast + j)*self%h
-      call nordsieck_predict(self%z, self%zp)
-      self%x = self%zp(:, 0)
-      if (j == self%kn .or. self%nh < n_hist) then
-        call sys%eval(tn, self%x, self%f, error); if (allocated(error)) return
-        call check_finite(sys, tn, self%f, 'derivative', error); if (allocated(error)) return
+      if (.not. self%adaptive) tn = self%t0 + (self%cnt%steps_fast + j)*self%h
+      call nordsieck_predict(self%z, self%wk%zp)
+      self%wk%x = self%wk%zp(:, 0)
+      if (j == self%kn .or. self%hist%nh < n_hist) then
+        call sys%eval(tn, self%wk%x, self%wk%f, error); if (allocated(error)) return
+        call check_finite(sys, tn, self%wk%f, 'derivative', error); if (allocated(error)) return
       else
-        call surrogate(self, tn, self%x, self%f)
+        call surrogate(self, tn, self%wk%x, self%wk%f)
       end if
-      call nordsieck_correct(self%zp, self%h*self%f, self%z, self%cor)
+      call nordsieck_correct(self%wk%zp, self%h*self%wk%f, self%z, self%wk%cor)
       self%t = tn
       self%zbuf(:, :, j) = self%z
       ! the fast steps' own error (the full step's correction also holds the surrogate's
       ! error, which err_s measures)
-      if (self%adaptive .and. (j < self%kn .or. self%kn == 1 .or. self%nh < n_hist)) &
-        & err_f = max(err_f, wrms_norm(corrector_l(0)*self%cor, self%w))
+      if (self%adaptive .and. (j < self%kn .or. self%kn == 1 .or. self%hist%nh < n_hist)) &
+        & err_f = max(err_f, wrms_norm(corrector_l(0)*self%wk%cor, self%wk%w))
     end do
     self%kb = self%kn; self%hb = self%h
-    self%steps_fast = self%steps_fast + self%kn
+    self%cnt%steps_fast = self%cnt%steps_fast + self%kn
     ! the macro step's full evaluation (at the predicted state x) joins the history on acceptance
-    if (self%adaptive .and. self%nh == n_hist .and. self%kn > 1) then
-      call surrogate(self, tn, self%x, self%fs)
+    if (self%adaptive .and. self%hist%nh == n_hist .and. self%kn > 1) then
+      call surrogate(self, tn, self%wk%x, self%wk%fs)
       hm = self%kn*self%h
-      self%e(1:n) = pos_weight*hm**2*(self%f(n+1:) - self%fs(n+1:))
-      self%e(n+1:) = vel_weight*hm*(self%f(n+1:) - self%fs(n+1:))
-      err_s = wrms_norm(self%e, self%w)
+      self%wk%e(1:n) = pos_weight*hm**2*(self%wk%f(n+1:) - self%wk%fs(n+1:))
+      self%wk%e(n+1:) = vel_weight*hm*(self%wk%f(n+1:) - self%wk%fs(n+1:))
+      err_s = wrms_norm(self%wk%e, self%wk%w)
     end if
-    call record_evaluation(self, sys, tn, self%x, self%f, error)
+    call record_evaluation(self, sys, tn, self%wk%x, self%wk%f, error)
   end subroutine try_macro_step
 
   !> Surrogate derivative f = [qd; qdd^ - g (kf (a - a^) + df (ad - ad^))] at (t, x).
@@ -241,19 +274,19 @@ contains
     real(dp) :: wt(n_hist)
     integer :: i, n, ns, nf
     n = self%n; ns = self%ns; nf = self%nf
-    call extrapolation_weights(self%th, t, wt)
-    f(n+1:) = wt(1)*self%hq(:, 1)
-    self%yhat = wt(1)*self%hy(:, 1)
+    call extrapolation_weights(self%hist%th, t, wt)
+    f(n+1:) = wt(1)*self%hist%hq(:, 1)
+    self%wk%yhat = wt(1)*self%hist%hy(:, 1)
     do i = 2, n_hist
-      f(n+1:) = f(n+1:) + wt(i)*self%hq(:, i)
-      self%yhat = self%yhat + wt(i)*self%hy(:, i)
+      f(n+1:) = f(n+1:) + wt(i)*self%hist%hq(:, i)
+      self%wk%yhat = self%wk%yhat + wt(i)*self%hist%hy(:, i)
     end do
-    self%dforce = self%kf*(x(ns+1:n) - self%yhat(1:nf)) + self%df*(x(n+ns+1:) - self%yhat(nf+1:))
+    self%wk%dforce = self%hist%kf*(x(ns+1:n) - self%wk%yhat(1:nf)) + self%hist%df*(x(n+ns+1:) - self%wk%yhat(nf+1:))
     do i = 1, nf
-      f(n+1:) = f(n+1:) - self%g(:, i)*self%dforce(i)
+      f(n+1:) = f(n+1:) - self%hist%g(:, i)*self%wk%dforce(i)
     end do
     f(1:n) = x(n+1:)
-    self%evals_surrogate = self%evals_surrogate + 1
+    self%cnt%evals_surrogate = self%cnt%evals_surrogate + 1
   end subroutine surrogate
 
   !> Lagrange weights w_i(t) of the polynomial through the points th(i).
@@ -277,23 +310,24 @@ contains
     type(error_type), allocatable, intent(out) :: error
     integer :: n, ns
     n = self%n; ns = self%ns
-    self%tp = t
-    self%qp = f(n+1:)
-    self%yp = [x(ns+1:n), x(n+ns+1:)]
-    call sys%force_response(self%gp, self%kf, self%df, error)
+    self%hist%tp = t
+    self%hist%qp = f(n+1:)
+    self%hist%yp = [x(ns+1:n), x(n+ns+1:)]
+    call sys%force_response(self%hist%gp, self%hist%kf, self%hist%df, error)
   end subroutine record_evaluation
 
   !> The pending full evaluation joins the history (the oldest leaves when it is full).
   pure subroutine commit_evaluation(self)
     class(response_integrator), intent(inout) :: self
-    if (self%nh == n_hist) then
-      self%th(1:n_hist-1) = self%th(2:); self%hq(:, 1:n_hist-1) = self%hq(:, 2:)
-      self%hy(:, 1:n_hist-1) = self%hy(:, 2:)
+    if (self%hist%nh == n_hist) then
+      self%hist%th(1:n_hist-1) = self%hist%th(2:); self%hist%hq(:, 1:n_hist-1) = self%hist%hq(:, 2:)
+      self%hist%hy(:, 1:n_hist-1) = self%hist%hy(:, 2:)
     else
-      self%nh = self%nh + 1
+      self%hist%nh = self%hist%nh + 1
     end if
-    self%th(self%nh) = self%tp; self%hq(:, self%nh) = self%qp; self%hy(:, self%nh) = self%yp
-    self%g = self%gp
+    self%hist%th(self%hist%nh) = self%hist%tp; self%hist%hq(:, self%hist%nh) = self%hist%qp
+    self%hist%hy(:, self%hist%nh) = self%hist%yp
+    self%hist%g = self%hist%gp
   end subroutine commit_evaluation
 
   !> New fast step and ratio from the errors of a macro step (accepted or not): the fast
@@ -322,6 +356,19 @@ contains
     end if
   end subroutine resize_steps
 
+  !> The fast step times projection_eta, the ratio kept (a macro step whose projection
+  !> failed); the array is rescaled to it.
+  subroutine shrink_fast_step(self, error)
+    class(response_integrator), intent(inout) :: self
+    type(error_type), allocatable, intent(out) :: error
+    if (projection_eta*self%h < self%ctl%h_min) then
+      call fatal_error(error, 'step size underflow at t = ' // fmt(self%t) // ' s (fast step ' // &
+        & fmt(projection_eta*self%h) // ' s below h_min)', stat_solver); return
+    end if
+    call nordsieck_rescale(self%z, projection_eta)
+    self%h = projection_eta*self%h
+  end subroutine shrink_fast_step
+
   pure real(dp) function rs_time(self)
     class(response_integrator), intent(in) :: self
     rs_time = self%t
@@ -337,36 +384,33 @@ contains
     call nordsieck_value(self%zbuf(:, :, j), (t - (self%t_macro + j*self%hb))/self%hb, x)
   end subroutine rs_value_at
 
-  subroutine rs_save(self, unit, ios)
-    class(response_integrator), intent(in) :: self
-    integer, intent(in) :: unit
-    integer, intent(out) :: ios
-    write(unit, iostat=ios) self%k, self%kn, self%t, self%h, self%t_macro, self%hb, self%t0, self%kb, self%z, &
-      & self%zbuf(:, :, 1:self%kb), self%nh, self%th, self%hq, self%hy, self%g, self%kf, self%df, self%steps_slow, self%steps_fast, &
-      & self%rejected, self%evals_surrogate
-  end subroutine rs_save
-
-  subroutine rs_load(self, unit, ios)
+  !> What a checkpoint keeps beside the Nordsieck array and the history's accelerations and
+  !> fast states: ratios, times, steps, the last macro step's arrays, the rest of the
+  !> history, counts. Loading refuses ratios outside [1, k_max].
+  subroutine rs_record(self, rec)
     class(response_integrator), intent(inout) :: self
-    integer, intent(in) :: unit
-    integer, intent(out) :: ios
-    read(unit, iostat=ios) self%k, self%kn, self%t, self%h, self%t_macro, self%hb, self%t0, self%kb
-    if (ios /= 0) return
-    if (self%kb < 1 .or. self%kb > self%k_max .or. self%k < 1 .or. self%k > self%k_max .or. self%kn < 1 .or. &
-      & self%kn > self%k_max) then
-      ios = 1; return
+    type(state_record), intent(inout) :: rec
+    call rec%item(self%k); call rec%item(self%kn); call rec%item(self%kb)
+    if (rec%loading) then
+      if (min(self%k, self%kn, self%kb) < 1 .or. max(self%k, self%kn, self%kb) > self%k_max) rec%ok = .false.
+      if (.not. rec%ok) return
+      call hold_steps(self, self%kb)
     end if
-    call hold_steps(self, self%kb)
-    read(unit, iostat=ios) self%z, self%zbuf(:, :, 1:self%kb), self%nh, self%th, self%hq, self%hy, self%g, &
-      & self%kf, self%df, self%steps_slow, self%steps_fast, self%rejected, self%evals_surrogate
-  end subroutine rs_load
+    call rec%item(self%t); call rec%item(self%h); call rec%item(self%t_macro); call rec%item(self%hb)
+    call rec%item(self%t0)
+    call rec%item(self%zbuf(:, :, 1:self%kb))
+    call rec%item(self%hist%nh); call rec%item(self%hist%th); call rec%item(self%hist%g)
+    call rec%item(self%hist%kf); call rec%item(self%hist%df)
+    call rec%item(self%cnt%steps_slow); call rec%item(self%cnt%steps_fast); call rec%item(self%cnt%rejected)
+    call rec%item(self%cnt%evals_surrogate)
+  end subroutine rs_record
 
   pure function rs_counts(self) result(c)
     class(response_integrator), intent(in) :: self
     type(step_counts) :: c
-    c%steps_slow = self%steps_slow; c%steps_fast = self%steps_fast
-    c%rejected = self%rejected; c%h_last = self%k*self%h; c%ratio = self%k
-    c%evals_fast = self%evals_surrogate
+    c%steps_slow = self%cnt%steps_slow; c%steps_fast = self%cnt%steps_fast
+    c%rejected = self%cnt%rejected; c%h_last = self%k*self%h; c%ratio = self%k
+    c%evals_fast = self%cnt%evals_surrogate
   end function rs_counts
 
   !> PECE steps of size h on every coordinate (&integrator h_fast).
@@ -379,7 +423,7 @@ contains
 
   pure integer function rs_state_size(self)
     class(response_integrator), intent(in) :: self
-    rs_state_size = size(self%z) + size(self%hq) + size(self%hy)
+    rs_state_size = size(self%z) + size(self%hist%hq) + size(self%hist%hy)
   end function rs_state_size
 
   !> The Nordsieck array (its value column first), then the history's accelerations and
@@ -388,20 +432,20 @@ contains
     class(response_integrator), intent(in) :: self
     real(dp), intent(out) :: v(:)
     integer :: a, b
-    a = size(self%z); b = a + size(self%hq)
+    a = size(self%z); b = a + size(self%hist%hq)
     v(1:a) = reshape(self%z, [a])
-    v(a+1:b) = reshape(self%hq, [size(self%hq)])
-    v(b+1:) = reshape(self%hy, [size(self%hy)])
+    v(a+1:b) = reshape(self%hist%hq, [size(self%hist%hq)])
+    v(b+1:) = reshape(self%hist%hy, [size(self%hist%hy)])
   end subroutine rs_get_state
 
   pure subroutine rs_set_state(self, v)
     class(response_integrator), intent(inout) :: self
     real(dp), intent(in) :: v(:)
     integer :: a, b
-    a = size(self%z); b = a + size(self%hq)
+    a = size(self%z); b = a + size(self%hist%hq)
     self%z = reshape(v(1:a), shape(self%z))
-    self%hq = reshape(v(a+1:b), shape(self%hq))
-    self%hy = reshape(v(b+1:), shape(self%hy))
+    self%hist%hq = reshape(v(a+1:b), shape(self%hist%hq))
+    self%hist%hy = reshape(v(b+1:), shape(self%hist%hy))
   end subroutine rs_set_state
 
   !> Step ratio k.
@@ -428,13 +472,5 @@ contains
     character(len=:), allocatable :: s
     s = 'multirate'
   end function rs_name
-
-  !> Project the value column of the Nordsieck array onto the system's constraints.
-  subroutine rs_project(self, sys, error)
-    class(response_integrator), intent(inout) :: self
-    class(ode_system), intent(inout) :: sys
-    type(error_type), allocatable, intent(out) :: error
-    call sys%project(self%time(), self%z(:, 0), error)
-  end subroutine rs_project
 
 end module pymr_integrator_response

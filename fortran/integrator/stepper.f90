@@ -8,11 +8,19 @@
 !> is made.
 module pymr_integrator_stepper
   use pymr_env_kinds, only : dp
-  use pymr_env_error, only : error_type
+  use pymr_env_error, only : error_type, prefix_error
+  use pymr_env_text, only : fmt, itoa
   use pymr_integrator_ode, only : ode_system
   implicit none
   private
-  public :: stepper_t, step_counts, pece_steps
+  public :: stepper_t, step_counts, pece_steps, state_record, project_step
+
+  !> A step whose projection onto the system's constraints fails is redone with its step
+  !> times projection_eta, at most max_projection_fails times in one step (adaptive steppers;
+  !> fixed steps stop at the first failure): CVODE's defaults (CVodeSetMaxNumProjFails,
+  !> CVodeSetProjFailEta).
+  integer, parameter :: max_projection_fails = 10
+  real(dp), parameter, public :: projection_eta = 0.25_dp
 
   !> What a stepper has done (its system counts the evaluations).
   type :: step_counts
@@ -35,14 +43,34 @@ module pymr_integrator_stepper
     character(len=8) :: item_joint = 'h_slow', item_modal = 'h_slow'
   end type pece_steps
 
+  !> The part of a stepper's state that its state vector (get_state) does not hold: times,
+  !> steps, ratio, counts, histories. A stepper lists these once, in its `record`, for both
+  !> directions: saving appends each item to the reals r or the integers k, loading takes
+  !> them back in the same order (ok false when the record runs short).
+  type :: state_record
+    logical :: loading = .false., ok = .true.
+    real(dp), allocatable :: r(:)
+    integer, allocatable :: k(:)
+    integer :: nr = 0, nk = 0
+  contains
+    procedure, private :: real_0, real_1, real_2, real_3, int_0, int_1, logical_0
+    generic :: item => real_0, real_1, real_2, real_3, int_0, int_1, logical_0
+    procedure, private :: reals, ints
+  end type state_record
+
   type, abstract :: stepper_t
   contains
     procedure(start_iface), deferred :: start
     procedure(advance_iface), deferred :: advance
     procedure(time_iface), deferred :: time
     procedure(value_iface), deferred :: value_at
-    procedure(save_iface), deferred :: save
-    procedure(load_iface), deferred :: load
+    !> Write (read) the whole state to (from) an open unformatted stream unit: the state
+    !> vector and the record, built on get_state and record for every stepper.
+    procedure :: save => save_stepper
+    procedure :: load => load_stepper
+    !> Its record (state_record): the one list of what a checkpoint keeps beside the state
+    !> vector.
+    procedure(record_iface), deferred :: record
     procedure(counts_iface), deferred :: counts
     procedure(name_iface), deferred :: name
     procedure(steps_iface), deferred :: pece
@@ -53,9 +81,6 @@ module pymr_integrator_stepper
     procedure :: set_ratio => no_ratio
     !> Order of the method in the last step (4 for the paper's ABM4).
     procedure :: order => order_four
-    !> Project the state reached (the Nordsieck array's value column) onto the system's
-    !> constraints after an accepted step (sys%project).
-    procedure(project_iface), deferred :: project
   end type stepper_t
 
   abstract interface
@@ -67,7 +92,8 @@ module pymr_integrator_stepper
       real(dp), intent(in) :: t0, x0(:), h
       type(error_type), allocatable, intent(out) :: error
     end subroutine start_iface
-    !> One accepted (macro) step.
+    !> One accepted (macro) step, its state projected onto the system's constraints
+    !> (project_step): every caller retraces the same steps.
     subroutine advance_iface(self, sys, error)
       import :: stepper_t, ode_system, error_type
       class(stepper_t), intent(inout) :: self
@@ -85,19 +111,12 @@ module pymr_integrator_stepper
       real(dp), intent(in) :: t
       real(dp), intent(out) :: x(:)
     end subroutine value_iface
-    !> Write (read) the whole state to (from) an open unformatted stream unit.
-    subroutine save_iface(self, unit, ios)
-      import :: stepper_t
-      class(stepper_t), intent(in) :: self
-      integer, intent(in) :: unit
-      integer, intent(out) :: ios
-    end subroutine save_iface
-    subroutine load_iface(self, unit, ios)
-      import :: stepper_t
+    !> Pass every item of the record through rec (saving or loading).
+    subroutine record_iface(self, rec)
+      import :: stepper_t, state_record
       class(stepper_t), intent(inout) :: self
-      integer, intent(in) :: unit
-      integer, intent(out) :: ios
-    end subroutine load_iface
+      type(state_record), intent(inout) :: rec
+    end subroutine record_iface
     pure function counts_iface(self) result(c)
       import :: stepper_t, step_counts
       class(stepper_t), intent(in) :: self
@@ -115,12 +134,6 @@ module pymr_integrator_stepper
       class(stepper_t), intent(in) :: self
       type(pece_steps) :: s
     end function steps_iface
-    subroutine project_iface(self, sys, error)
-      import :: stepper_t, ode_system, error_type
-      class(stepper_t), intent(inout) :: self
-      class(ode_system), intent(inout) :: sys
-      type(error_type), allocatable, intent(out) :: error
-    end subroutine project_iface
     !> Length of its whole state as a vector.
     pure integer function state_size_iface(self)
       import :: stepper_t
@@ -141,6 +154,161 @@ module pymr_integrator_stepper
   end interface
 
 contains
+
+  !> Project the state x a step reached at t onto the system's constraints (sys%project),
+  !> inside the stepper's advance once the step passed its error test. When that fails, an
+  !> adaptive stepper redoes the step smaller: retry is true, fails counts the failures of
+  !> this step; otherwise (fixed steps, or max_projection_fails reached) the error, which
+  !> names the time.
+  subroutine project_step(sys, t, x, adaptive, fails, retry, error)
+    class(ode_system), intent(inout) :: sys
+    real(dp), intent(in) :: t
+    real(dp), intent(inout) :: x(:)
+    logical, intent(in) :: adaptive
+    integer, intent(inout) :: fails
+    logical, intent(out) :: retry
+    type(error_type), allocatable, intent(out) :: error
+    retry = .false.
+    call sys%project(t, x, error)
+    if (.not. allocated(error)) return
+    if (adaptive .and. fails < max_projection_fails) then
+      fails = fails + 1; retry = .true.
+      deallocate(error); return
+    end if
+    if (fails > 0) error%message = error%message // ' (the step redone ' // itoa(fails) // ' times smaller)'
+    call prefix_error(error, 'at t = ' // fmt(t) // ' s')
+  end subroutine project_step
+
+  !> The state vector's length and values, then the record's sizes and items.
+  subroutine save_stepper(self, unit, ios)
+    class(stepper_t), intent(inout) :: self
+    integer, intent(in) :: unit
+    integer, intent(out) :: ios
+    real(dp) :: v(self%state_size())
+    type(state_record) :: rec
+    call self%get_state(v)
+    allocate(rec%r(0), rec%k(0))
+    call self%record(rec)
+    write(unit, iostat=ios) size(v), v, rec%nr, rec%nk, rec%r(1:rec%nr), rec%k(1:rec%nk)
+  end subroutine save_stepper
+
+  !> Read what save_stepper wrote into a stepper made for the same scene; ios /= 0 when the
+  !> sizes do not match it.
+  subroutine load_stepper(self, unit, ios)
+    class(stepper_t), intent(inout) :: self
+    integer, intent(in) :: unit
+    integer, intent(out) :: ios
+    real(dp) :: v(self%state_size())
+    type(state_record) :: rec
+    integer :: nv, nr, nk
+    read(unit, iostat=ios) nv
+    if (ios /= 0) return
+    if (nv /= size(v)) then
+      ios = 1; return
+    end if
+    read(unit, iostat=ios) v, nr, nk
+    if (ios /= 0) return
+    if (nr < 0 .or. nk < 0) then
+      ios = 1; return
+    end if
+    allocate(rec%r(nr), rec%k(nk), stat=ios)
+    if (ios /= 0) return
+    read(unit, iostat=ios) rec%r, rec%k
+    if (ios /= 0) return
+    rec%loading = .true.
+    call self%record(rec)
+    if (.not. rec%ok .or. rec%nr /= nr .or. rec%nk /= nk) then
+      ios = 1; return
+    end if
+    call self%set_state(v)
+  end subroutine load_stepper
+
+  !> Append x to the reals (saving) or take them back from them (loading).
+  subroutine reals(rec, x)
+    class(state_record), intent(inout) :: rec
+    real(dp), intent(inout) :: x(:)
+    real(dp), allocatable :: grown(:)
+    integer :: m
+    m = size(x)
+    if (rec%loading) then
+      if (rec%nr + m > size(rec%r)) rec%ok = .false.
+      if (rec%ok) x = rec%r(rec%nr+1:rec%nr+m)
+    else
+      if (rec%nr + m > size(rec%r)) then
+        allocate(grown(max(2*size(rec%r), rec%nr + m, 16)))
+        grown(1:rec%nr) = rec%r(1:rec%nr); call move_alloc(grown, rec%r)
+      end if
+      rec%r(rec%nr+1:rec%nr+m) = x
+    end if
+    rec%nr = rec%nr + m
+  end subroutine reals
+
+  !> Append x to the integers (saving) or take them back from them (loading).
+  subroutine ints(rec, x)
+    class(state_record), intent(inout) :: rec
+    integer, intent(inout) :: x(:)
+    integer, allocatable :: grown(:)
+    integer :: m
+    m = size(x)
+    if (rec%loading) then
+      if (rec%nk + m > size(rec%k)) rec%ok = .false.
+      if (rec%ok) x = rec%k(rec%nk+1:rec%nk+m)
+    else
+      if (rec%nk + m > size(rec%k)) then
+        allocate(grown(max(2*size(rec%k), rec%nk + m, 16)))
+        grown(1:rec%nk) = rec%k(1:rec%nk); call move_alloc(grown, rec%k)
+      end if
+      rec%k(rec%nk+1:rec%nk+m) = x
+    end if
+    rec%nk = rec%nk + m
+  end subroutine ints
+
+  subroutine real_0(rec, x)
+    class(state_record), intent(inout) :: rec
+    real(dp), intent(inout) :: x
+    real(dp) :: a(1)
+    a(1) = x; call rec%reals(a); x = a(1)
+  end subroutine real_0
+
+  subroutine real_1(rec, x)
+    class(state_record), intent(inout) :: rec
+    real(dp), intent(inout) :: x(:)
+    call rec%reals(x)
+  end subroutine real_1
+
+  subroutine real_2(rec, x)
+    class(state_record), intent(inout) :: rec
+    real(dp), intent(inout) :: x(:, :)
+    real(dp) :: a(size(x))
+    a = reshape(x, [size(x)]); call rec%reals(a); x = reshape(a, shape(x))
+  end subroutine real_2
+
+  subroutine real_3(rec, x)
+    class(state_record), intent(inout) :: rec
+    real(dp), intent(inout) :: x(:, :, :)
+    real(dp) :: a(size(x))
+    a = reshape(x, [size(x)]); call rec%reals(a); x = reshape(a, shape(x))
+  end subroutine real_3
+
+  subroutine int_0(rec, x)
+    class(state_record), intent(inout) :: rec
+    integer, intent(inout) :: x
+    integer :: a(1)
+    a(1) = x; call rec%ints(a); x = a(1)
+  end subroutine int_0
+
+  subroutine int_1(rec, x)
+    class(state_record), intent(inout) :: rec
+    integer, intent(inout) :: x(:)
+    call rec%ints(x)
+  end subroutine int_1
+
+  subroutine logical_0(rec, x)
+    class(state_record), intent(inout) :: rec
+    logical, intent(inout) :: x
+    integer :: a(1)
+    a(1) = merge(1, 0, x); call rec%ints(a); x = a(1) /= 0
+  end subroutine logical_0
 
   pure integer function order_four(self)
     class(stepper_t), intent(in) :: self

@@ -13,15 +13,21 @@ module pymr_integrator_test_odes
 
   !> Problem 4's angular frequency (rad/s) and damping ratio.
   real(dp), parameter :: w4 = 8*atan(1.0_dp), zeta4 = 0.05_dp
+  !> Problem 6's projection fails on a state further than this from its unit circle (a
+  !> Newton projection that does not converge from far off its manifold).
+  real(dp), parameter :: reach6 = 1.0e-9_dp
 
   !> Problem 1: oscillator; 2: y' = -2 t y^2; 3: Kepler orbit (e = 0.5); 4: a lightly damped
   !> oscillator (1 Hz, damping ratio 0.05) at rest until a constant force turns on at t = 1
-  !> (static deflection 1); 5: y' = -y.
+  !> (static deflection 1); 5: y' = -y; 6: problem 1 with its invariant |x| = 1 as a
+  !> constraint: the projection scales x onto the unit circle, and fails further than reach6
+  !> from it.
   type, extends(ode_system) :: test_ode
     integer :: problem = 1
   contains
     procedure :: eval => test_eval
     procedure :: component_name => test_name
+    procedure :: project => test_project
   end type test_ode
 
 contains
@@ -34,7 +40,7 @@ contains
     type(error_type), allocatable, intent(out) :: error
     real(dp) :: r3
     select case (self%problem)
-    case (1)
+    case (1, 6)
       f = [x(2), -x(1)]
     case (2)
       f(1) = -2.0_dp*t*x(1)**2
@@ -47,6 +53,21 @@ contains
       f = -x
     end select
   end subroutine test_eval
+
+  !> Problem 6: x onto the unit circle, an error when it is further than reach6 from it.
+  subroutine test_project(self, t, x, error)
+    class(test_ode), intent(inout) :: self
+    real(dp), intent(in) :: t
+    real(dp), intent(inout) :: x(:)
+    type(error_type), allocatable, intent(out) :: error
+    real(dp) :: r
+    if (self%problem /= 6) return
+    r = norm2(x)
+    if (abs(r - 1.0_dp) > reach6) then
+      call fatal_error(error, 'the projection onto |x| = 1 did not converge'); return
+    end if
+    x = x/r
+  end subroutine test_project
 
   function test_name(self, i) result(name)
     class(test_ode), intent(in) :: self
@@ -82,12 +103,12 @@ contains
     type(step_counts) :: c
     steps = 0; evals = 0; rejected = 0; x = 0.0_dp; th = 0.0_dp; hh = 0.0_dp; qh = 0
     nx = merge(1, merge(4, 2, problem == 3), problem == 2 .or. problem == 5)
-    if (problem < 1 .or. problem > 5 .or. size(x) /= nx) then
+    if (problem < 1 .or. problem > 6 .or. size(x) /= nx) then
       call fatal_error(error, 'unknown test problem or wrong state size'); return
     end if
     sys%problem = problem
     select case (problem)
-    case (1); x0 = [1.0_dp, 0.0_dp]
+    case (1, 6); x0 = [1.0_dp, 0.0_dp]
     case (2); x0 = [1.0_dp]
     case (3); x0 = [0.5_dp, 0.0_dp, 0.0_dp, sqrt(3.0_dp)]
     case (4); x0 = [0.0_dp, 0.0_dp]
@@ -128,7 +149,7 @@ contains
     type is (abm_integrator)
       steps = integ%steps; evals = integ%evals; rejected = integ%rejected
     type is (adams_integrator)
-      steps = integ%steps; evals = integ%evals; rejected = integ%rejected
+      steps = integ%cnt%steps; evals = integ%cnt%evals; rejected = integ%cnt%rejected
     end select
   end subroutine integrate_test_ode
 

@@ -1,10 +1,11 @@
 !> Checkpoint files: the full state of a run at a step boundary, so that a run stopped
 !> by a wall-time limit continues from its last checkpoint exactly as if uninterrupted.
 !>
-!> Unformatted stream layout: a tag and version, pymr's version, the model's size, the stepper's
-!> name, the time, the integrator settings and the model's fingerprint (what a restart must
-!> match), the run's output bookkeeping (rows written, next output time, CPU time so far), the stepper's
-!> state (its own save), and the model's per-run state (held multirate terms, evaluation and
+!> Unformatted stream layout: a tag and version, pymr's version, the model's size, the
+!> stepper's name, the time, the integrator settings and the model's fingerprint (what a
+!> restart must match), the run's output bookkeeping (rows written, next output time, CPU
+!> time so far), the stepper's state (its state vector and its record, written by
+!> stepper_t's save), and the model's per-run state (held multirate terms, evaluation and
 !> effect counters), and last a sha256 checksum of everything before it. Written to PATH.tmp,
 !> checked, flushed and renamed, so a run killed while writing keeps the previous checkpoint.
 module pymr_io_checkpoint
@@ -22,7 +23,18 @@ module pymr_io_checkpoint
   public :: run_progress, write_checkpoint, read_checkpoint
 
   character(len=8), parameter :: tag = 'PYMRCKPT'
-  integer, parameter :: version = 5
+  !> 6: the stepper's state written as its state vector and its record (state_record).
+  integer, parameter :: version = 6
+
+  !> What a checkpoint's header says: pymr's version, the model's size, the stepper's name,
+  !> the time, the integrator settings and the model's fingerprint.
+  type :: checkpoint_header
+    character(len=16) :: pv = '', name = ''
+    integer :: n = 0, nj = 0
+    real(dp) :: t = 0.0_dp
+    character(len=:), allocatable :: settings
+    character(len=71) :: fp = ''
+  end type checkpoint_header
 
   !> Output bookkeeping of a run at a checkpoint.
   type :: run_progress
@@ -40,7 +52,7 @@ contains
   !> checked; the file is flushed to the disk and renamed over the previous checkpoint.
   subroutine write_checkpoint(path, st, model, prog, settings, fingerprint, error)
     character(len=*), intent(in) :: path, settings, fingerprint
-    class(stepper_t), intent(in) :: st
+    class(stepper_t), intent(inout) :: st
     type(model_t), intent(in) :: model
     type(run_progress), intent(in) :: prog
     type(error_type), allocatable, intent(out) :: error
@@ -90,8 +102,9 @@ contains
   end subroutine write_checkpoint
 
   !> Read a checkpoint into a stepper set up for the same scene (not started) and its model.
-  !> Refused, saying what differs: a damaged file (checksum), another pymr version, another
-  !> stepper or model size, other integrator settings, another model, a t_end not after it.
+  !> Refused, saying what differs: a damaged file (checksum), another checkpoint version or
+  !> pymr version, another stepper or model size, other integrator settings, another model,
+  !> a t_end not after it.
   subroutine read_checkpoint(path, st, model, prog, settings, fingerprint, t_end, error)
     character(len=*), intent(in) :: path, settings, fingerprint
     class(stepper_t), intent(inout) :: st
@@ -99,14 +112,34 @@ contains
     type(run_progress), intent(out) :: prog
     real(dp), intent(in) :: t_end
     type(error_type), allocatable, intent(out) :: error
-    integer :: u, ios, ver, n, nj, ls
-    logical :: exists
-    character(len=8) :: got
-    character(len=16) :: name, pv
-    character(len=71) :: fp
+    type(checkpoint_header) :: hd
+    integer :: u, ios
     character(len=256) :: msg
-    character(len=:), allocatable :: bytes, saved
-    real(dp) :: t
+    call verify_file(path, error); if (allocated(error)) return
+    open(newunit=u, file=path, access='stream', form='unformatted', status='old', action='read', iostat=ios, &
+      & iomsg=msg)
+    if (ios /= 0) then
+      call fatal_error(error, path // ': cannot read the checkpoint: ' // trim(msg)); return
+    end if
+    call read_header(u, path, hd, error)
+    if (.not. allocated(error)) call compare_identity(path, hd, st, model, settings, fingerprint, t_end, error)
+    if (allocated(error)) then
+      close(u); return
+    end if
+    read(u, iostat=ios) prog%rows, prog%k_out, prog%t_next, prog%cpu_s, prog%t_checkpoint, prog%work
+    if (ios == 0) call st%load(u, ios)
+    if (ios == 0) call model%load_run(u, ios)
+    close(u)
+    if (ios /= 0) call fatal_error(error, path // ': the checkpoint is truncated or damaged')
+  end subroutine read_checkpoint
+
+  !> A regular file that begins with the tag and ends with the sha256 of all before it.
+  subroutine verify_file(path, error)
+    character(len=*), intent(in) :: path
+    type(error_type), allocatable, intent(out) :: error
+    character(len=:), allocatable :: bytes
+    logical :: exists
+    integer :: ios
     inquire(file=path, exist=exists)
     if (.not. exists) then
       call fatal_error(error, path // ': checkpoint not found'); return
@@ -125,64 +158,66 @@ contains
       call fatal_error(error, path // ': not a pymr checkpoint'); return
     end if
     if (sha256_hex(bytes(1:len(bytes) - 64)) /= bytes(len(bytes) - 63:)) then
-      call fatal_error(error, path // ': the checkpoint is damaged or truncated (its checksum does not match)'); return
+      call fatal_error(error, path // ': the checkpoint is damaged or truncated (its checksum does not match)')
     end if
-    open(newunit=u, file=path, access='stream', form='unformatted', status='old', action='read', iostat=ios, &
-      & iomsg=msg)
-    if (ios /= 0) then
-      call fatal_error(error, path // ': cannot read the checkpoint: ' // trim(msg)); return
-    end if
+  end subroutine verify_file
+
+  !> The header of the checkpoint open on unit u, up to the model's fingerprint; a file of
+  !> another checkpoint version is refused at once (its layout after the version is not
+  !> this one's).
+  subroutine read_header(u, path, hd, error)
+    integer, intent(in) :: u
+    character(len=*), intent(in) :: path
+    type(checkpoint_header), intent(out) :: hd
+    type(error_type), allocatable, intent(out) :: error
+    character(len=8) :: got
+    integer :: ios, ver, ls
     read(u, iostat=ios) got, ver
     if (ios == 0 .and. ver /= version) then
-      close(u); call fatal_error(error, path // ': checkpoint version ' // itoa(ver) // ', this pymr reads ' // &
-        & itoa(version)); return
+      call fatal_error(error, path // ': checkpoint version ' // itoa(ver) // ', this pymr reads ' // &
+        & itoa(version) // ' (write it again with this pymr: run the scene from the start)'); return
     end if
-    if (ios == 0) read(u, iostat=ios) pv, n, nj, name, t, ls
+    if (ios == 0) read(u, iostat=ios) hd%pv, hd%n, hd%nj, hd%name, hd%t, ls
     if (ios == 0) then
       call check_header_count(path, 'its integrator settings', int(max(ls, 0), int64), 1, 'bytes', error)
-      if (allocated(error)) then
-        close(u); return
-      end if
-      allocate(character(len=ls) :: saved)
-      read(u, iostat=ios) saved, fp
+      if (allocated(error)) return
+      allocate(character(len=ls) :: hd%settings)
+      read(u, iostat=ios) hd%settings, hd%fp
     end if
-    if (ios /= 0) then
-      close(u); call fatal_error(error, path // ': the checkpoint is truncated or damaged'); return
-    end if
-    call compare_identity(error); if (allocated(error)) then
-      close(u); return
-    end if
-    read(u, iostat=ios) prog%rows, prog%k_out, prog%t_next, prog%cpu_s, prog%t_checkpoint, prog%work
-    if (ios == 0) call st%load(u, ios)
-    if (ios == 0) call model%load_run(u, ios)
-    close(u)
     if (ios /= 0) call fatal_error(error, path // ': the checkpoint is truncated or damaged')
-  contains
-    subroutine compare_identity(error)
-      type(error_type), allocatable, intent(out) :: error
-      if (pv /= pymr_version) then
-        call fatal_error(error, path // ': the checkpoint was written by pymr ' // trim(pv) // '; this is pymr ' // &
-          & pymr_version); return
-      end if
-      if (n /= model%d%n .or. nj /= model%d%nj .or. name /= st%name()) then
-        call fatal_error(error, path // ': the checkpoint is of another model (' // itoa(n) // ' coordinates, ' // &
-          & trim(name) // '); the scene has ' // itoa(model%d%n) // ' coordinates, ' // st%name()); return
-      end if
-      if (saved /= settings) then
-        call fatal_error(error, path // ': the checkpoint was written with other integrator settings: ' // &
-          & first_difference(saved, settings)); return
-      end if
-      if (fp /= fingerprint_field(fingerprint)) then
-        call fatal_error(error, path // ': the checkpoint is of another scene (its bodies, joints, loads or ' // &
-          & 'effects differ: model fingerprint ' // fp(8:19) // '..., the scene''s ' // fingerprint(8:19) // '...)')
-        return
-      end if
-      if (.not. (t_end > t)) then
-        call fatal_error(error, path // ': t_end = ' // fmt(t_end) // ' s is not after the checkpoint''s time ' // &
-          & fmt(t) // ' s'); return
-      end if
-    end subroutine compare_identity
-  end subroutine read_checkpoint
+  end subroutine read_header
+
+  !> Refuse a checkpoint whose header does not match the scene: another pymr, model size or
+  !> stepper, other settings, another model, or a t_end not after its time.
+  subroutine compare_identity(path, hd, st, model, settings, fingerprint, t_end, error)
+    character(len=*), intent(in) :: path, settings, fingerprint
+    type(checkpoint_header), intent(in) :: hd
+    class(stepper_t), intent(in) :: st
+    type(model_t), intent(in) :: model
+    real(dp), intent(in) :: t_end
+    type(error_type), allocatable, intent(out) :: error
+    if (hd%pv /= pymr_version) then
+      call fatal_error(error, path // ': the checkpoint was written by pymr ' // trim(hd%pv) // '; this is pymr ' // &
+        & pymr_version); return
+    end if
+    if (hd%n /= model%d%n .or. hd%nj /= model%d%nj .or. hd%name /= st%name()) then
+      call fatal_error(error, path // ': the checkpoint is of another model (' // itoa(hd%n) // ' coordinates, ' // &
+        & trim(hd%name) // '); the scene has ' // itoa(model%d%n) // ' coordinates, ' // st%name()); return
+    end if
+    if (hd%settings /= settings) then
+      call fatal_error(error, path // ': the checkpoint was written with other integrator settings: ' // &
+        & first_difference(hd%settings, settings)); return
+    end if
+    if (hd%fp /= fingerprint_field(fingerprint)) then
+      call fatal_error(error, path // ': the checkpoint is of another scene (its bodies, joints, loads or ' // &
+        & 'effects differ: model fingerprint ' // hd%fp(8:19) // '..., the scene''s ' // fingerprint(8:19) // '...)')
+      return
+    end if
+    if (.not. (t_end > hd%t)) then
+      call fatal_error(error, path // ': t_end = ' // fmt(t_end) // ' s is not after the checkpoint''s time ' // &
+        & fmt(hd%t) // ' s'); return
+    end if
+  end subroutine compare_identity
 
   !> A fingerprint in the fixed width of the checkpoint header.
   pure function fingerprint_field(fp) result(s)
