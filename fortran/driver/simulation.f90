@@ -9,7 +9,7 @@
 !>     call sim%close()                               ! the results file's lock released
 module pymr_driver_simulation
   use pymr_env_kinds, only : dp
-  use pymr_env_error, only : error_type, fatal_error, stat_solver, prefix_error
+  use pymr_env_error, only : error_type, fatal_error, stat_solver
   use pymr_env_text, only : itoa, fmt
   use pymr_env_clock, only : thread_cpu_time
   use pymr_env_text_file, only : acquire_lock, release_lock, commit_staged, remove_file
