@@ -118,7 +118,7 @@ def check_output(path, what: str, *, option: str = "-o", example: str | None = N
         if source is not None and _same(out, Path(source)):
             raise OutputError(f"{option} {text}: would overwrite the input {source}; choose another {what}")
     if scene is not None:
-        from .api import check_not_input
+        from ._args import check_not_input
         try:
             check_not_input(scene, text, what, overrides)
         except SceneError as exc:

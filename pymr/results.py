@@ -142,7 +142,7 @@ def load_results(csv_path: str | os.PathLike) -> Results:
     """Load OUT.csv and, when present, OUT.json beside it. A file that is missing, is no
     pymr results file (header from the column 't', rows of finite numbers) or has no rows,
     and a JSON beside it that is not JSON, raise :class:`ResultsError`."""
-    from .api import _path               # the API's one check of a path argument
+    from ._args import _path             # the one check of a path argument
     if not _path("csv_path", csv_path):
         raise ResultsError("csv_path: an empty path (give a results file, OUT.csv)")
     path = Path(_path("csv_path", csv_path))

@@ -10,10 +10,11 @@ from pathlib import Path
 from typing import Iterable, Mapping
 
 from . import _kernel as _core
-from .api import SceneError, _flag, _name, _path, _raise, _text, format_overrides, nml_value, write_file
+from ._args import SceneSource, _flag, _name, _path, _raise, _text, format_overrides, nml_value, write_file
+from .errors import SceneError
 
 
-class Scene:
+class Scene(SceneSource):
     """A scene file and overrides, addressed as ``--set`` addresses them::
 
         scene = pymr.Scene("input/tank_gun_turret.nml")
@@ -59,6 +60,11 @@ class Scene:
             self._overrides.pop()
             self._check()
             raise
+
+    def kernel_scene(self) -> tuple[str, str]:
+        """The scene file and its overrides, as every function that takes a scene hands them
+        to the kernel."""
+        return str(self.path), self.overrides
 
     @property
     def overrides(self) -> str:

@@ -1,0 +1,202 @@
+"""What pymr's modules share on the way into and out of the kernel: the public functions'
+arguments checked and converted (paths, names, flags, overrides in namelist syntax, arrays),
+a scene given as a path or a :class:`SceneSource` (a :class:`pymr.Scene`), files written
+whole, and the kernel's status turned into pymr's exceptions. ``api`` and ``scene`` both use
+it and neither imports the other."""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Iterable, Mapping
+
+import numpy as np
+
+from . import _kernel as _core
+from .errors import ArgumentTypeError, OutputError, SceneError, SolverError
+
+
+class SceneSource:
+    """A scene held as data (:class:`pymr.Scene` is one): what every function that takes a
+    scene hands the kernel."""
+
+    def kernel_scene(self) -> tuple[str, str]:
+        """The scene file's path and its override text (one GROUP.ITEM=VALUE a line)."""
+        raise NotImplementedError
+
+
+def write_file(path: str | os.PathLike, data: str | bytes, what: str) -> Path:
+    """Write `data` to `path` whole or not at all: a temporary file beside it, flushed to
+    the disk (fsync), then renamed over it, so an earlier complete file survives a failed
+    write. A failure is an :class:`OutputError` naming the file and `what` it was to hold."""
+    path = Path(_path("path", path))
+    if path.is_dir() or not path.name:       # '.', '..', '/': no file name to write (or rename) to
+        raise OutputError(f"{path}: cannot write the {what} (it is a directory)")
+    tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
+    try:
+        with open(tmp, "wb") as fh:
+            fh.write(data.encode() if isinstance(data, str) else data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)
+        raise OutputError(f"{path}: cannot write the {what} ({exc.strerror or exc})") from None
+    return path
+
+
+def check_not_input(scene, path: str | os.PathLike, what: str, overrides=None) -> None:
+    """`path`, an output, is none of the scene's inputs (the scene, its modal and table files:
+    the kernel's rule, which the results and modal files obey too); else a SceneError."""
+    found, stat, msg = _core.pymr_scene_input(*_scene_and_overrides(scene, overrides), _path("output", path))
+    _raise(stat, msg)
+    if _text(found):
+        raise SceneError(f"{path}: would overwrite {_text(found)}; choose another {what}")
+
+
+def _raise(stat: int, message: bytes | str) -> None:
+    if stat == 0:
+        return
+    raise (SceneError if stat == 1 else SolverError)(_text(message))
+
+
+# ------------------------------------------------------------------ arguments
+# The one place where the public functions' arguments are checked and converted for the
+# kernel: a wrong type or shape is an ArgumentTypeError or a SceneError whose one line names
+# the argument, never numpy's or f2py's own exception. The kernel checks what the scene
+# makes of them (addresses, values, lengths); these check only what Python hands over.
+
+def _short(value: object) -> str:
+    """A short repr of `value` on one line, for a message."""
+    text = " ".join(repr(value).split())
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _shown(value: object) -> str:
+    """`value` for a one-line message: its type and a short repr on one line."""
+    return f"{type(value).__name__} {_short(value)}"
+
+
+def _path(name: str, value) -> str:
+    """A file path argument (str or os.PathLike; bytes as the file system names them)."""
+    if isinstance(value, (str, bytes, os.PathLike)):
+        try:
+            return os.fsdecode(os.fspath(value))
+        except TypeError:          # an os.PathLike whose __fspath__ gives no str or bytes
+            pass
+    raise ArgumentTypeError(f"{name}: a file path (str or os.PathLike), got {_shown(value)}")
+
+
+def _name(name: str, value) -> str:
+    """A name argument (a marker's, a body's, an item's address): text, not empty."""
+    if not isinstance(value, str):
+        raise ArgumentTypeError(f"{name}: a name (str), got {_shown(value)}")
+    if not value.strip():
+        raise SceneError(f"{name}: an empty name")
+    return value
+
+
+def _names(name: str, value) -> list[str]:
+    """Names: one str (one name, not its characters) or an iterable of str."""
+    if isinstance(value, str):
+        return [value]
+    if isinstance(value, (bytes, Mapping)) or not isinstance(value, Iterable):
+        raise ArgumentTypeError(f"{name}: a name or a list of names (str), got {_shown(value)}")
+    items = list(value)
+    for k, item in enumerate(items):
+        _name(f"{name}[{k}]", item)
+    return items
+
+
+def _flag(name: str, value, none: bool = False) -> bool | None:
+    """A True/False argument (or None where `none`)."""
+    if value is None and none:
+        return None
+    if not isinstance(value, (bool, np.bool_)):
+        raise ArgumentTypeError(f"{name}: True or False{' (or None)' if none else ''}, got {_shown(value)}")
+    return bool(value)
+
+
+def format_overrides(overrides: Mapping[str, object] | Iterable[str] | None, name: str = "overrides") -> str:
+    """Turn ``{"integrator.h_slow": 5e-4}`` or ``["integrator.h_slow=5e-4"]`` into the
+    kernel's override text (one ``GROUP.ITEM=VALUE`` per line, values in namelist syntax).
+    One str is one override (``"integrator.h_slow=5e-4"``), not a list of its characters.
+    Anything else (a number, bytes, a list of non-text) is an :class:`ArgumentTypeError`
+    naming `name`; the kernel checks each entry's address and value and names the scene."""
+    if overrides is None:
+        return ""
+    if isinstance(overrides, Mapping):
+        items = []
+        for k, v in overrides.items():
+            if not isinstance(k, str):
+                raise ArgumentTypeError(f"{name}: keys are addresses GROUP.ITEM (str), got {_shown(k)}")
+            items.append(f"{k}={nml_value(v, f'{name}[{k!r}]')}")
+    elif isinstance(overrides, str):
+        items = [overrides]        # one override (iterating it gave one per character)
+    elif isinstance(overrides, (bytes, bytearray)) or not isinstance(overrides, Iterable):
+        raise ArgumentTypeError(f"{name}: a mapping {{'GROUP.ITEM': value}} or a list of 'GROUP.ITEM=VALUE' "
+                                f"texts, got {_shown(overrides)}")
+    else:
+        items = list(overrides)
+        for k, item in enumerate(items):
+            if not isinstance(item, str):
+                raise ArgumentTypeError(f"{name}[{k}]: an override 'GROUP.ITEM=VALUE' (str), got {_shown(item)}")
+    for item in items:
+        if "\n" in item or "\r" in item:
+            # the kernel reads one override a line: a line break would make two of one
+            raise SceneError(f"--set {item!r}: a line break in an override (one GROUP.ITEM=VALUE, on one line)")
+    return "\n".join(items)   # the kernel checks each entry and names the scene file
+
+
+def nml_value(v: object, name: str = "value") -> str:
+    """A Python value as namelist text: a bool as .true./.false., a str quoted, a number, or
+    a list (tuple, 1-D array) of them. Anything else (None, bytes, a nested list) is an
+    :class:`ArgumentTypeError` naming `name`: bytes are refused, not decoded or written as
+    their repr ``b'...'`` (the text an item holds is a str; decode bytes first)."""
+    if isinstance(v, (bool, np.bool_)):
+        return ".true." if v else ".false."
+    if isinstance(v, str):
+        return "'" + v.replace("'", "''") + "'"
+    if isinstance(v, (int, np.integer)):
+        return str(int(v))
+    if isinstance(v, (float, np.floating)):
+        return repr(float(v))
+    if isinstance(v, (bytes, bytearray)):
+        raise ArgumentTypeError(f"{name}: bytes {v!r}: give text as a str (bytes are not decoded)")
+    if isinstance(v, (list, tuple, np.ndarray)) and len(v) > 0:
+        for x in v:
+            if isinstance(x, (list, tuple, np.ndarray, bytes, bytearray)) or np.ndim(x) != 0:
+                raise ArgumentTypeError(f"{name}: a list of numbers, .true./.false. or texts, got {_shown(v)}")
+        return ", ".join(nml_value(x, name) for x in v)
+    raise ArgumentTypeError(f"{name}: a number, a bool, a text (str) or a list of them, got {_shown(v)}")
+
+
+def _scene_and_overrides(scene, overrides) -> tuple[str, str]:
+    """The scene file and the override text for the kernel: a :class:`pymr.Scene` brings its
+    own overrides, which the call's overrides follow (and so win)."""
+    text = format_overrides(overrides)
+    if isinstance(scene, SceneSource):
+        path, own = scene.kernel_scene()
+        return path, "\n".join(t for t in (own, text) if t)
+    if isinstance(scene, (str, bytes, os.PathLike)):
+        return _path("scene", scene), text
+    raise ArgumentTypeError(f"scene: a scene file's path (str or os.PathLike) or a pymr.Scene, got {_shown(scene)}")
+
+
+def _array(name: str, value) -> np.ndarray:
+    """An array of real numbers (any shape) from `value`: numbers, not text, bools or
+    complex numbers, and not a ragged list."""
+    try:
+        a = np.asarray(value)
+        if a.dtype.kind == "O":
+            a = a.astype(float)
+    except (TypeError, ValueError, OverflowError):
+        raise ArgumentTypeError(f"{name}: an array of real numbers, got {_shown(value)}") from None
+    if a.dtype.kind not in "iuf":
+        raise ArgumentTypeError(f"{name}: an array of real numbers, got {_shown(value)}")
+    return a.astype(float, copy=False)
+
+
+def _text(value: bytes | str) -> str:
+    """A fixed-length character result of the binding as a stripped str (a path in it as
+    the file system names it: bytes that are not UTF-8 survive, as os.fsdecode keeps them)."""
+    return (os.fsdecode(value) if isinstance(value, bytes) else str(value)).strip()
