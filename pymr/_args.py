@@ -47,16 +47,20 @@ def write_file(path: str | os.PathLike, data: str | bytes, what: str) -> Path:
 def check_not_input(scene, path: str | os.PathLike, what: str, overrides=None) -> None:
     """`path`, an output, is none of the scene's inputs (the scene, its modal and table files:
     the kernel's rule, which the results and modal files obey too); else a SceneError."""
-    found, stat, msg = _core.pymr_scene_input(*_scene_and_overrides(scene, overrides), _path("output", path))
-    _raise(stat, msg)
+    found, stat, msg, detail = _core.pymr_scene_input(*_scene_and_overrides(scene, overrides), _path("output", path))
+    _raise(stat, msg, detail)
     if _text(found):
         raise SceneError(f"{path}: would overwrite {_text(found)}; choose another {what}")
 
 
-def _raise(stat: int, message: bytes | str) -> None:
+def _raise(stat: int, message: bytes | str, detail: bytes | str = "") -> None:
+    """Raise the kernel's error of status `stat` (1 bad input: SceneError, 2 failed run:
+    SolverError; 0: none) with its message and the structured fields of `detail` (the
+    binding's 'name=value' fields, separated by the character 30) as attributes."""
     if stat == 0:
         return
-    raise (SceneError if stat == 1 else SolverError)(_text(message))
+    fields = dict(part.partition("=")[::2] for part in _text(detail).split("\x1e") if part)
+    raise (SceneError if stat == 1 else SolverError).from_kernel(_text(message), fields)
 
 
 # ------------------------------------------------------------------ arguments

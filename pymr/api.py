@@ -51,19 +51,19 @@ def run(scene, output: str | os.PathLike | None = None,
         raise SceneError("a restart continues an existing results file: give output (or '' for the default)")
     if output == "":
         # let the kernel choose: &output file, else SCENE.csv in the working folder
-        stat, msg, summary, written = _run_kernel(scene, text, "", ckpt, progress)
-        _raise(stat, msg)
+        stat, msg, detail, summary, written = _run_kernel(scene, text, "", ckpt, progress)
+        _raise(stat, msg, detail)
         res = load_results(_text(written))
     elif output is None:
         with tempfile.TemporaryDirectory(prefix="pymr-") as tmp:
             out = str(Path(tmp) / "results.csv")
-            stat, msg, summary, _ = _run_kernel(scene, text, out, ckpt, progress)
-            _raise(stat, msg)
+            stat, msg, detail, summary, _ = _run_kernel(scene, text, out, ckpt, progress)
+            _raise(stat, msg, detail)
             res = load_results(out)
     else:
         out = output
-        stat, msg, summary, _ = _run_kernel(scene, text, out, ckpt, progress)
-        _raise(stat, msg)
+        stat, msg, detail, summary, _ = _run_kernel(scene, text, out, ckpt, progress)
+        _raise(stat, msg, detail)
         res = load_results(out)
     res.summary = _text(summary)
     return res
@@ -114,8 +114,8 @@ def _run_kernel(scene: str, text: str, out: str, ckpt: str, progress: bool | Non
 
 def model_size(scene: str | os.PathLike, overrides=None) -> tuple[int, int, int]:
     """(coordinates, bodies including the ground, markers) of a scene's model."""
-    n, nb, nm, stat, msg = _core.pymr_model_size(*_scene_and_overrides(scene, overrides))
-    _raise(stat, msg)
+    n, nb, nm, stat, msg, detail = _core.pymr_model_size(*_scene_and_overrides(scene, overrides))
+    _raise(stat, msg, detail)
     return int(n), int(nb), int(nm)
 
 
@@ -186,8 +186,8 @@ def _one_state(q, qd) -> tuple[np.ndarray, np.ndarray]:
 def model_terms(scene: str | os.PathLike, q, qd, t: float = 0.0, overrides=None):
     """Mass matrix M and right-hand side P of ``M qdd = P`` at (t, q, qd)."""
     q, qd = _one_state(q, qd)
-    mm, p, stat, msg = _core.pymr_model_terms(*_scene_and_overrides(scene, overrides), _time(t), q, qd)
-    _raise(stat, msg)
+    mm, p, stat, msg, detail = _core.pymr_model_terms(*_scene_and_overrides(scene, overrides), _time(t), q, qd)
+    _raise(stat, msg, detail)
     return mm, p
 
 
@@ -195,9 +195,9 @@ def force_response(scene: str | os.PathLike, q, qd, t: float = 0.0, overrides=No
     """The 'response' coupling's terms at (t, q, qd): ``g = M^-1 E`` (shape (n, nf)), the
     response of every acceleration to a unit force on each modal coordinate, and the modal
     stiffness ``kf`` and damping ``df`` (shape (nf,)) of the fast forces ``kf a + df ad``."""
-    nf, g, kf, df, stat, msg = _core.pymr_force_response(*_scene_and_overrides(scene, overrides), _time(t),
+    nf, g, kf, df, stat, msg, detail = _core.pymr_force_response(*_scene_and_overrides(scene, overrides), _time(t),
                                                         *_one_state(q, qd))
-    _raise(stat, msg)
+    _raise(stat, msg, detail)
     nf = int(nf)
     return g[:, :nf].copy(), kf[:nf].copy(), df[:nf].copy()
 
@@ -259,8 +259,8 @@ def modes(scene: str | os.PathLike, q, qd, t: float = 0.0, overrides=None) -> Mo
     where = _scene_and_overrides(scene, overrides)
     t = _time(t)
     q, qd = _one_state(q, qd)
-    nm, kind, freq, zeta, rate, shapes, stat, msg = _core.pymr_modes(*where, t, q, qd)
-    _raise(stat, msg)
+    nm, kind, freq, zeta, rate, shapes, stat, msg, detail = _core.pymr_modes(*where, t, q, qd)
+    _raise(stat, msg, detail)
     nm = int(nm)
     return Modes([_MODE_KINDS[int(k)] for k in kind[:nm]], freq[:nm].copy(), zeta[:nm].copy(), rate[:nm].copy(),
                  shapes[:, :nm].copy())
@@ -300,12 +300,12 @@ def step_history(scene: str | os.PathLike, overrides=None, max_steps: int = 200_
     time reached, the step taken and the method's order at each accepted step (entry 0 is
     the start: its step 0, its order the starting one). More than ``max_steps`` steps is an
     error."""
-    t, h, q, nh, stat, msg = _core.pymr_step_history(*_scene_and_overrides(scene, overrides),
+    t, h, q, nh, stat, msg, detail = _core.pymr_step_history(*_scene_and_overrides(scene, overrides),
                                                      _count("max_steps", max_steps) + 1)
     if stat and int(nh) > max_steps:
         # the kernel's 'the run takes more than N steps' is about this argument: name it
         raise SolverError(f"max_steps: {_text(msg)} (give a larger max_steps)")
-    _raise(stat, msg)
+    _raise(stat, msg, detail)
     nh = int(nh)
     return t[:nh].copy(), h[:nh].copy(), q[:nh].copy()
 
@@ -313,8 +313,8 @@ def step_history(scene: str | os.PathLike, overrides=None, max_steps: int = 200_
 def model_accelerations(scene: str | os.PathLike, t, q, qd, overrides=None) -> np.ndarray:
     """Accelerations for one state (q of shape (n,)) or many (shape (m, n), t of shape (m,))."""
     t1, q2, qd2 = _many_states(t, q, qd)
-    qdd, stat, msg = _core.pymr_model_accelerations(*_scene_and_overrides(scene, overrides), t1, q2, qd2)
-    _raise(stat, msg)
+    qdd, stat, msg, detail = _core.pymr_model_accelerations(*_scene_and_overrides(scene, overrides), t1, q2, qd2)
+    _raise(stat, msg, detail)
     return qdd[:, 0].copy() if np.ndim(q) == 1 else qdd.T.copy()
 
 
@@ -324,11 +324,11 @@ def loop_rows(scene: str | os.PathLike, q, qd, overrides=None) -> tuple[np.ndarr
     (shape (r,)) of every loop-closing joint, redundant rows included."""
     q, qd = _one_state(q, qd)
     where = _scene_and_overrides(scene, overrides)
-    nr, *_, stat, msg = _core.pymr_loop_rows(*where, 0, q, qd)
-    _raise(stat, msg)
+    nr, *_, stat, msg, detail = _core.pymr_loop_rows(*where, 0, q, qd)
+    _raise(stat, msg, detail)
     nr = int(nr)
-    _, phi, g, gam, stat, msg = _core.pymr_loop_rows(*where, max(nr, 1), q, qd)
-    _raise(stat, msg)
+    _, phi, g, gam, stat, msg, detail = _core.pymr_loop_rows(*where, max(nr, 1), q, qd)
+    _raise(stat, msg, detail)
     return phi[:nr].copy(), g[:nr].copy(), gam[:nr].copy()
 
 
@@ -338,17 +338,17 @@ def model_energy(scene: str | os.PathLike, q, qd, overrides=None) -> tuple[np.nd
     plus gravity's and the joint springs' when those effects are on."""
     q, qd = _states(q, qd)
     _, q2, qd2 = _many_states(np.zeros(np.atleast_2d(q).shape[0]), q, qd)
-    ke, pe, stat, msg = _core.pymr_model_energy(*_scene_and_overrides(scene, overrides), q2, qd2)
-    _raise(stat, msg)
+    ke, pe, stat, msg, detail = _core.pymr_model_energy(*_scene_and_overrides(scene, overrides), q2, qd2)
+    _raise(stat, msg, detail)
     return ke, pe
 
 
 def write_modal_file(scene: str | os.PathLike, body: str, path: str | os.PathLike, overrides=None) -> None:
     """Write the modes of beam ``body`` of a scene to a modal data file, which a
     ``kind='modal'`` body can read back (``modal_file=...``)."""
-    stat, msg = _core.pymr_write_modal(*_scene_and_overrides(scene, overrides), _name("body", body),
+    stat, msg, detail = _core.pymr_write_modal(*_scene_and_overrides(scene, overrides), _name("body", body),
                                        _path("path", path))
-    _raise(stat, msg)
+    _raise(stat, msg, detail)
 
 
 class Model:
@@ -359,8 +359,8 @@ class Model:
 
     def __init__(self, scene: str | os.PathLike, overrides=None):
         self.scene, text = _scene_and_overrides(scene, overrides)
-        handle, n, stat, msg = _core.pymr_model_open(self.scene, text)
-        _raise(stat, msg)
+        handle, n, stat, msg, detail = _core.pymr_model_open(self.scene, text)
+        _raise(stat, msg, detail)
         self.handle, self.n, self.evaluations = int(handle), int(n), 0
 
     def rhs(self, t: float, x) -> np.ndarray:
@@ -372,9 +372,9 @@ class Model:
             k = int(np.argmin(np.isfinite(x)))
             part, i = ("q", k) if k < self.n else ("qd", k - self.n)
             _finite(part, x[k:k + 1], f" (x[{k}], entry {i} of {part} in x = [q; qd])")
-        f, evals, stat, msg = _core.pymr_model_rhs(self.handle, _time(t), x)
+        f, evals, stat, msg, detail = _core.pymr_model_rhs(self.handle, _time(t), x)
         if stat:
-            _raise(stat, msg)
+            _raise(stat, msg, detail)
         self.evaluations = int(evals)
         return f
 
@@ -383,16 +383,16 @@ class Model:
         if k == 0:
             raise SceneError(f"{self.scene}: no marker {name!r}")
         t1, q2, qd2 = self._states(t, q, qd)
-        pos, stat, msg = _core.pymr_model_marker(self.handle, k, t1, q2, qd2)
-        _raise(stat, msg)
+        pos, stat, msg, detail = _core.pymr_model_marker(self.handle, k, t1, q2, qd2)
+        _raise(stat, msg, detail)
         return pos.T.copy()
 
     def frames(self, t, q, qd, nb: int):
         """Every body's frame origin (inertial, m) at states of shape (m, n): an array
         (m, nb, 3), and each body's parent (1-based, 0 for the ground), for drawing."""
         t1, q2, qd2 = self._states(t, q, qd)
-        pos, parent, stat, msg = _core.pymr_model_frames(self.handle, _count("nb", nb), t1, q2, qd2)
-        _raise(stat, msg)
+        pos, parent, stat, msg, detail = _core.pymr_model_frames(self.handle, _count("nb", nb), t1, q2, qd2)
+        _raise(stat, msg, detail)
         return np.transpose(pos, (2, 1, 0)).copy(), np.asarray(parent, dtype=int)
 
     def _states(self, t, q, qd):

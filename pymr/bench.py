@@ -3,7 +3,6 @@ process; ratios are formed within the same run. Tests never assert wall time."""
 from __future__ import annotations
 
 import json
-import re
 import statistics
 import tempfile
 import time
@@ -30,8 +29,8 @@ def time_evaluation(scene: str, q: np.ndarray, qd: np.ndarray, repeats: int = 7,
     """Median CPU seconds of one model evaluation (kinematics, body terms, loads, and the
     solve of M qdd = P by the scene's forward-dynamics path)."""
     def per_call(reps: int) -> float:
-        sec, stat, msg = _core.pymr_time_evaluation(scene, overrides, q, qd, reps)
-        _raise(stat, msg)
+        sec, stat, msg, detail = _core.pymr_time_evaluation(scene, overrides, q, qd, reps)
+        _raise(stat, msg, detail)
         return sec
     return _median_seconds(per_call, repeats, min_time)
 
@@ -340,8 +339,8 @@ def bench_effects(repeats: int = 7) -> list[dict]:
     reps = 20000
     for _ in range(repeats):
         for name, over in cases:
-            sec, stat, msg = _core.pymr_time_evaluation(scene, over, q, qd, reps)
-            _raise(stat, msg)
+            sec, stat, msg, detail = _core.pymr_time_evaluation(scene, over, q, qd, reps)
+            _raise(stat, msg, detail)
             samples[name].append(sec)
     for name, _ in cases:
         rows.append({"effect": name, "median_us": statistics.median(samples[name]) * 1e6})
@@ -382,7 +381,7 @@ def bench_table1(ratios=(1, 2, 5, 10, 20, 50), couplings=("full", "response"), r
                 try:
                     res = run(scene, Path(tmp) / f"{coupling}{k}.csv", overrides=over)
                 except PymrError as exc:
-                    errors[case] = str(exc)
+                    errors[case] = exc
                     continue
                 cpu[case].append(res.stats["cpu_time_s"])
                 results[case] = res
@@ -393,7 +392,8 @@ def bench_table1(ratios=(1, 2, 5, 10, 20, 50), couplings=("full", "response"), r
         coupling, k = case
         row = {"coupling": coupling, "ratio": k, "h_fast": h_fast, "h_slow": h_fast * k}
         if case in errors:
-            row.update({"status": "failed", "error": errors[case]})
+            # the largest stable ratio when the pre-flight check refused the ratio, else None
+            row.update({"status": "failed", "error": str(errors[case]), "stable_ratio": errors[case].stable_ratio})
             rows.append(row)
             continue
         res = results[case]
@@ -421,8 +421,9 @@ def print_table1(rows: list[dict]) -> None:
         paper = PAPER_TABLE1.get(r["ratio"]) if r["coupling"] in ("single", "full") else None
         ptxt = f"{paper[0]:>11.2f} {paper[1]:>14.3f}" if paper else f"{'':>11} {'':>14}"
         if r["status"] != "ok":
-            m = re.search(r"largest stable ratio is k = \d+", r["error"])
-            why = f"refused by the pre-flight check ({m.group(0)})" if m else "failed: " + r["error"][-60:]
+            k = r.get("stable_ratio")
+            why = (f"refused by the pre-flight check (largest stable ratio is k = {k})" if k is not None
+                   else "failed: " + r["error"][-60:])
             print(f"{r['coupling']:>8} {r['ratio']:>5} {r['h_slow']:>9.1e}  {why} | {ptxt}")
             continue
         print(f"{r['coupling']:>8} {r['ratio']:>5} {r['h_slow']:>9.1e} {r['median_cpu_s']:>9.4f} {r['speedup']:>8.2f} "

@@ -104,10 +104,10 @@ def _cmd_modes(args: argparse.Namespace) -> int:
         res = run(args.scene, overrides=over + [end, "output.dt=0.0"])
     except SceneError as exc:
         # the run to T is refused for T itself: say so of --at, not of an override never typed
-        if f"--set {end}:" not in str(exc):
+        # (this override comes last, so a refused value of &scene t_end is its value)
+        if (exc.kind, exc.group, exc.item) != ("bad_value", "scene", "t_end"):
             raise
-        reason = str(exc).split(f"--set {end}:", 1)[1].strip().removeprefix("&scene: t_end:").strip()
-        raise SceneError(f"--at {at:g}: the run cannot be taken to this time (as &scene t_end it {reason})") from None
+        raise SceneError(f"--at {at:g}: the run cannot be taken to this time (as &scene t_end it {exc.fault})") from None
     q, qd = res.coordinates()
     names = [c for c in res.columns if re.search(r"\.(q\d*|a\d+)$", c)]
     # the state at T, or the initial state itself (the first row, not the end of the short run)

@@ -1,9 +1,47 @@
 """pymr's exceptions: every error the package raises for bad input or a failed run is one of
 these, with a one-line message."""
+from __future__ import annotations
 
 
 class PymrError(RuntimeError):
-    """Base class of pymr's errors."""
+    """Base class of pymr's errors.
+
+    An error the kernel raised carries its structured fields beside its message (callers act
+    on these, never on the words of the message):
+
+    - ``kind``: a short keyword: ``'unstable_step'`` (a fixed step the pre-flight check
+      refuses), ``'unstable_ratio'`` (a multirate step ratio it refuses), ``'bad_value'`` (an
+      item's value refused), else ``'bad_input'`` or ``'solver'``; ``''`` for an error raised
+      in Python;
+    - ``group``, ``item``: the scene group and item it is about (``''`` when none);
+    - ``fault``: what is wrong without where (for ``'bad_value'``: ``'must be in (0, 1e+9],
+      got 1e+308'``), ``''`` when not kept;
+    - ``stable_step``: for ``'unstable_step'``, the largest stable step (s), else None;
+    - ``stable_ratio``: for ``'unstable_ratio'``, the largest stable step ratio k (0 when
+      none is stable), else None.
+    """
+
+    kind: str = ""
+    group: str = ""
+    item: str = ""
+    fault: str = ""
+    stable_step: float | None = None
+    stable_ratio: int | None = None
+
+    @classmethod
+    def from_kernel(cls, message: str, fields: dict[str, str]) -> "PymrError":
+        """The error of a kernel's message and its fields (``name: text`` as the binding
+        gives them)."""
+        error = cls(message)
+        error.kind = fields.get("kind", "")
+        error.group = fields.get("group", "")
+        error.item = fields.get("item", "")
+        error.fault = fields.get("fault", "")
+        if error.kind == "unstable_step":
+            error.stable_step = float(fields["stable_step"])
+        if error.kind == "unstable_ratio":
+            error.stable_ratio = int(fields["stable_ratio"])
+        return error
 
 
 class SceneError(PymrError, ValueError):

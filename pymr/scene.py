@@ -46,8 +46,8 @@ class Scene(SceneSource):
     # ------------------------------------------------------------------ items
 
     def __getitem__(self, address: str) -> object:
-        value, stat, msg = _core.pymr_scene_item(str(self.path), self.overrides, _name("address", address))
-        _raise(stat, msg)
+        value, stat, msg, detail = _core.pymr_scene_item(str(self.path), self.overrides, _name("address", address))
+        _raise(stat, msg, detail)
         return parse_value(_text(value), _is_list(address))
 
     def __setitem__(self, address: str, value: object) -> None:
@@ -109,8 +109,8 @@ def schema() -> str:
 def _kernel_text(scene: str, overrides: str, what: int) -> str:
     with tempfile.TemporaryDirectory(prefix="pymr-scene-") as tmp:
         out = os.path.join(tmp, "scene.txt")
-        stat, msg = _core.pymr_scene_write(scene, overrides, what, out)
-        _raise(stat, msg)
+        stat, msg, detail = _core.pymr_scene_write(scene, overrides, what, out)
+        _raise(stat, msg, detail)
         return Path(out).read_text()
 
 

@@ -29,7 +29,6 @@ import csv
 import io
 import math
 import os
-import re
 import statistics
 import tempfile
 import textwrap
@@ -102,6 +101,10 @@ class Case:
     equivalents: float = math.nan
     status: str = "ok"
     runs: int = 0          # runs the CPU time is the median of
+    #: For a case the pre-flight check refused: the largest stable step (s) or step ratio it
+    #: named (the error's fields), else None.
+    stable_step: float | None = None
+    stable_ratio: int | None = None
 
     @property
     def family(self) -> str:
@@ -109,12 +112,18 @@ class Case:
         return self.method.split(" k=")[0]
 
 
-def _short_reason(status: str) -> str:
-    """The gist of a refusal or failure, for the figure's note."""
-    m = re.search(r"largest stable (ratio is k = \d+|step is \S+ s)", status)
-    if m:
-        return m.group(0)
-    return status.split(":", 1)[-1].strip()[:100]
+#: The kinds of error (PymrError.kind) of a step or step ratio the pre-flight check refuses.
+REFUSALS = ("unstable_step", "unstable_ratio")
+
+
+def _short_reason(case: Case) -> str:
+    """The gist of a refusal or failure, for the figure's note: the largest stable step or
+    ratio of a refusal, else the start of the status."""
+    if case.stable_ratio is not None:
+        return f"largest stable ratio is k = {case.stable_ratio}"
+    if case.stable_step is not None:
+        return f"largest stable step is {case.stable_step:.2E} s"
+    return case.status.split(":", 1)[-1].strip()[:100]
 
 
 class Study:
@@ -194,9 +203,11 @@ class Study:
         return float(np.linalg.norm(pos[keep] - self.ref[idx[keep]], axis=1).max())
 
     @staticmethod
-    def _refusal(exc: PymrError) -> str:
-        status = "refused" if "not stable" in str(exc) else "failed"
-        return status + ": " + str(exc).split(": ", 1)[-1]
+    def _refusal(case: Case, exc: PymrError) -> None:
+        """Mark `case` refused (the pre-flight check refused its step or ratio, whose
+        largest stable value it keeps) or failed, with the error's message."""
+        case.status = ("refused" if exc.kind in REFUSALS else "failed") + ": " + str(exc).split(": ", 1)[-1]
+        case.stable_step, case.stable_ratio = exc.stable_step, exc.stable_ratio
 
     def _pymr_case(self, method: str, setting: str, over: dict, repeats: int | None = None) -> Case:
         """Run one pymr case `repeats` times (default: the study's) in a row: the error and
@@ -206,7 +217,7 @@ class Study:
         try:
             res = self._pymr(over)
         except PymrError as exc:
-            case.status = self._refusal(exc)
+            self._refusal(case, exc)
             return case
         case.error_m = self._error(res.t, res.marker(self.marker)[0])
         case.rhs_full, case.rhs_fast = int(res.stats["rhs_full"]), int(res.stats["rhs_fast"])
@@ -246,7 +257,7 @@ class Study:
                 self._pymr(single)                           # also the warm-up (caches, first touch)
                 break
             except PymrError as exc:
-                if "not stable" not in str(exc) or h0 < 1e-3 * self.h0:
+                if exc.kind not in REFUSALS or h0 < 1e-3 * self.h0:
                     raise
                 h0 /= 2
         multi = {}
@@ -255,7 +266,7 @@ class Study:
                 try:
                     self._pymr(self._multirate(coupling, k, h0))
                 except PymrError as exc:
-                    if "not stable" not in str(exc):
+                    if exc.kind not in REFUSALS:
                         raise
                     continue
                 multi[coupling] = k
@@ -357,16 +368,16 @@ class Study:
     def _at_stable_step(self, spec: tuple, case: Case, limited: set[str]) -> tuple | None:
         """A fixed-step family whose step the pre-flight check refused for a vibration's
         stability gets one more case, at the largest stable step the refusal names (less
-        0.5 %): the grid would otherwise leave out its fastest stable run."""
-        m = re.search(r"the largest stable step is ([0-9.Ee+-]+) s", case.status)
-        if spec[0] != "pymr" or m is None or case.method in limited:
+        0.5 %): the grid would otherwise leave out its fastest stable run. A multirate case
+        scales both its steps alike, so that its step ratio stays the kernel's of the case."""
+        if spec[0] != "pymr" or case.stable_step is None or case.method in limited:
             return None
         limited.add(case.method)
-        h = 0.995 * float(m.group(1))
+        h = 0.995 * case.stable_step
         over = dict(spec[3])
         if over.get("integrator.method") == "multirate":
-            k = round(float(over["integrator.h_slow"]) / float(over["integrator.h_fast"]))
-            over.update({"integrator.h_fast": h, "integrator.h_slow": k * h})
+            scale = h / float(over["integrator.h_fast"])
+            over.update({"integrator.h_fast": h, "integrator.h_slow": scale * float(over["integrator.h_slow"])})
             return ("pymr", case.method, f"h_fast={h:.3g} (stable limit)", over)
         over.update({"integrator.h_fast": h, "integrator.h_slow": h})
         return ("pymr", case.method, f"h={h:.3g} (stable limit)", over)
@@ -559,7 +570,7 @@ class Study:
         if not ref:
             return "fixed multirate cases refused by the pre-flight check: none"
         return "fixed multirate cases refused by the pre-flight check:\n" + "\n".join(
-            f"  {c.method:<22} {c.setting:<16} {_short_reason(c.status)}" for c in ref)
+            f"  {c.method:<22} {c.setting:<16} {_short_reason(c)}" for c in ref)
 
     def not_plotted(self) -> list[str]:
         """The cases that are not points of the figure (refused, failed, skipped): one entry
@@ -567,7 +578,7 @@ class Study:
         groups: dict[tuple, list[str]] = {}
         for c in self.cases:
             if c.status != "ok":
-                key = (c.method, c.status.split(":", 1)[0], _short_reason(c.status))
+                key = (c.method, c.status.split(":", 1)[0], _short_reason(c))
                 groups.setdefault(key, []).append(c.setting)
         return [f"{method} {', '.join(settings)}: {kind} ({reason})"
                 for (method, kind, reason), settings in groups.items()]
@@ -638,7 +649,7 @@ class Study:
                              f"{c.rhs_fast:10d} {c.equivalents:11.0f}  ok")
             else:
                 lines.append(f"{c.method:<22} {c.setting:<16} {'':>10} {'':>9} {'':>10} {'':>10} {'':>11}  "
-                             f"{c.status.split(':', 1)[0]}: {_short_reason(c.status)}")
+                             f"{c.status.split(':', 1)[0]}: {_short_reason(c)}")
         return "\n".join(lines)
 
 

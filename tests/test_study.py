@@ -88,6 +88,7 @@ def test_refused_cases_are_recorded_not_fatal(study):
     macro step of 8 ms spans two 4 ms output times; measured 8.2e-5 m)."""
     full = study._pymr_case("full fixed k=40", "h_fast=1e-4", study._multirate("full", 40, 1e-4), repeats=1)
     assert full.status.startswith("refused") and "largest stable ratio is k = 33" in full.status
+    assert full.stable_ratio == 33 and full.stable_step is None        # the error's fields, kept
     assert np.isnan(full.error_m) and np.isnan(full.cpu_s)
     resp = study._pymr_case("response fixed k=40", "h_fast=1e-4", study._multirate("response", 40, 1e-4),
                             repeats=1)
@@ -121,7 +122,7 @@ def _front_cases() -> list[Case]:
         ok("response fixed k=20", "h_fast=1e-4", 8.6e-7, 0.0041),
         ok("response adaptive", "rtol=1e-5", 1.7e-6, 0.0060),
         ok("full fixed k=2", "h_fast=1e-4", 9.0e-7, 0.0010),           # fast, but not the 'response' coupling
-        Case("full fixed k=40", "h_fast=1e-4", status="refused: largest stable ratio is k = 33"),
+        Case("full fixed k=40", "h_fast=1e-4", status="refused: largest stable ratio is k = 33", stable_ratio=33),
         Case("response fixed k=80", "h_fast=1e-4", error_m=1e-9, cpu_s=1e-4, status="failed: made up"),
         ok("CVODE BDF", "rtol=1e-5", 4.5e-6, 0.035),
     ]
@@ -229,26 +230,29 @@ def test_a_refused_fixed_step_family_gets_a_case_at_its_largest_stable_step(tmp_
     def refused(method, over):
         with pytest.raises(pymr.SceneError) as exc:
             pymr.run(stiff, tmp_path / "x.csv", overrides={**over, **short})
-        return Case(method, "", status="refused: " + str(exc.value))
+        case = Case(method, "")
+        Study._refusal(case, exc.value)
+        return case
 
     single = ("pymr", "single fixed", f"h={h}", {"integrator.method": "single", "integrator.adaptive": False,
                                                  "integrator.h_slow": h, "integrator.h_fast": h})
     case = refused("single fixed", single[3])
     assert "largest stable step is 6.74E-05 s" in case.status
+    assert case.status.startswith("refused") and case.stable_step == pytest.approx(6.742e-5, rel=1e-4)
     limited: set[str] = set()
     extra = s._at_stable_step(single, case, limited)
-    assert extra[3]["integrator.h_slow"] == pytest.approx(0.995 * 6.74e-5)
+    assert extra[3]["integrator.h_slow"] == pytest.approx(0.995 * case.stable_step)
     assert s._at_stable_step(single, case, limited) is None
     pymr.run(stiff, tmp_path / "ok.csv", overrides={**extra[3], **short})          # passes the check
     multi = ("pymr", "response fixed k=10", "h_fast=7.07e-05", {
         "integrator.method": "multirate", "integrator.coupling": "response", "integrator.adaptive": False,
         "integrator.h_fast": h, "integrator.h_slow": 10 * h})
     extra = s._at_stable_step(multi, refused("response fixed k=10", multi[3]), limited)
-    assert extra[3]["integrator.h_fast"] == pytest.approx(0.995 * 6.74e-5)
+    assert extra[3]["integrator.h_fast"] == pytest.approx(0.995 * case.stable_step)
     assert extra[3]["integrator.h_slow"] == pytest.approx(10 * extra[3]["integrator.h_fast"])
     pymr.run(stiff, tmp_path / "ok.csv", overrides={**extra[3], **short})
-    assert s._at_stable_step(multi, Case("full fixed k=40", "", status="refused: ... largest stable ratio is k = 33"),
-                             limited) is None
+    assert s._at_stable_step(multi, Case("full fixed k=40", "", status="refused: ... largest stable ratio is k = 33",
+                                         stable_ratio=33), limited) is None
 
 
 def test_order_summary_compares_evaluations_and_cpu():

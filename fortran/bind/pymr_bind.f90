@@ -1,10 +1,11 @@
 !> Flat binding layer for f2py: plain external subroutines with explicit-shape
 !> `double precision` arrays and scalars only. Each call reports `stat` (0 ok,
-!> 1 bad input, 2 failed run) and a one-line `message`; Python raises on stat /= 0.
+!> 1 bad input, 2 failed run), a one-line `message` and the error's structured fields in
+!> `detail` (pymr_bind_support%report); Python raises on stat /= 0.
 
 !> Run a scene to result files (see pymr_driver_run%run_scene); `path` returns the CSV written.
 !> A non-empty `restart` continues from that checkpoint file.
-subroutine pymr_run_scene(scene, overrides, out, restart, stat, message, summary, path)
+subroutine pymr_run_scene(scene, overrides, out, restart, stat, message, detail, summary, path)
   use pymr_env_error, only : error_type
   use pymr_bind_support, only : report
   use pymr_driver_run, only : run_scene
@@ -12,13 +13,14 @@ subroutine pymr_run_scene(scene, overrides, out, restart, stat, message, summary
   character(len=*), intent(in) :: scene, overrides, out, restart
   integer, intent(out) :: stat
   character(len=8192), intent(out) :: message
+  character(len=4096), intent(out) :: detail
   character(len=4096), intent(out) :: summary
   character(len=1024), intent(out) :: path
   !f2py threadsafe
   type(error_type), allocatable :: error
   character(len=:), allocatable :: text, written
   call run_scene(scene, overrides, out, text, error, written, restart)
-  call report(error, stat, message)
+  call report(error, stat, message, detail)
   summary = ''; path = ''
   if (stat == 0) then
     summary = text; path = written
@@ -26,7 +28,7 @@ subroutine pymr_run_scene(scene, overrides, out, restart, stat, message, summary
 end subroutine pymr_run_scene
 
 !> Sizes of a scene's model: coordinates, bodies (with ground), markers.
-subroutine pymr_model_size(scene, overrides, n, nb, n_markers, stat, message)
+subroutine pymr_model_size(scene, overrides, n, nb, n_markers, stat, message, detail)
   use pymr_env_error, only : error_type
   use pymr_bind_support, only : report
   use pymr_model_scene, only : scene_t
@@ -36,18 +38,19 @@ subroutine pymr_model_size(scene, overrides, n, nb, n_markers, stat, message)
   character(len=*), intent(in) :: scene, overrides
   integer, intent(out) :: n, nb, n_markers, stat
   character(len=8192), intent(out) :: message
+  character(len=4096), intent(out) :: detail
   type(error_type), allocatable :: error
   type(scene_t) :: sc
   type(model_t) :: model
   n = 0; nb = 0; n_markers = 0
   call load_model(scene, overrides, sc, model, error)
-  call report(error, stat, message)
+  call report(error, stat, message, detail)
   if (stat /= 0) return
   n = model%d%n; nb = model%d%nb; n_markers = model%d%markers%n
 end subroutine pymr_model_size
 
 !> Mass matrix mm(n,n) and right-hand side p(n) of M qdd = P at (t, q, qd).
-subroutine pymr_model_terms(scene, overrides, n, t, q, qd, mm, p, stat, message)
+subroutine pymr_model_terms(scene, overrides, n, t, q, qd, mm, p, stat, message, detail)
   use pymr_env_error, only : error_type, fatal_error
   use pymr_bind_support, only : report
   use pymr_model_scene, only : scene_t
@@ -60,6 +63,7 @@ subroutine pymr_model_terms(scene, overrides, n, t, q, qd, mm, p, stat, message)
   double precision, intent(out) :: mm(n, n), p(n)
   integer, intent(out) :: stat
   character(len=8192), intent(out) :: message
+  character(len=4096), intent(out) :: detail
   !f2py integer intent(hide), depend(q) :: n = len(q)
   type(error_type), allocatable :: error
   type(scene_t) :: sc
@@ -70,7 +74,7 @@ subroutine pymr_model_terms(scene, overrides, n, t, q, qd, mm, p, stat, message)
     call model%terms(t, q, qd)
     call check_terms_finite(model, t, error)
   end if
-  call report(error, stat, message)
+  call report(error, stat, message, detail)
   if (stat /= 0) return
   mm = model%wk%mm; p = model%wk%p
 end subroutine pymr_model_terms
@@ -78,7 +82,7 @@ end subroutine pymr_model_terms
 !> The 'response' coupling's fast-force response at (t, q, qd): after one synchronised
 !> (Schur complement) evaluation, g(:, 1:nf) = M^-1 E and the fast force coefficients
 !> kf(1:nf), df(1:nf) (g, kf and df are n wide; nf columns are used).
-subroutine pymr_force_response(scene, overrides, n, t, q, qd, nf, g, kf, df, stat, message)
+subroutine pymr_force_response(scene, overrides, n, t, q, qd, nf, g, kf, df, stat, message, detail)
   use pymr_env_error, only : error_type, fatal_error
   use pymr_bind_support, only : report
   use pymr_model_scene, only : scene_t
@@ -92,6 +96,7 @@ subroutine pymr_force_response(scene, overrides, n, t, q, qd, nf, g, kf, df, sta
   double precision, intent(out) :: g(n, n), kf(n), df(n)
   integer, intent(out) :: stat
   character(len=8192), intent(out) :: message
+  character(len=4096), intent(out) :: detail
   !f2py integer intent(hide), depend(q) :: n = len(q)
   type(error_type), allocatable :: error
   type(scene_t) :: sc
@@ -109,14 +114,14 @@ subroutine pymr_force_response(scene, overrides, n, t, q, qd, nf, g, kf, df, sta
     call model%eval(t, [q, qd], f, error)
   end if
   if (.not. allocated(error)) call model%force_response(g(:, 1:nf), kf(1:nf), df(1:nf), error)
-  call report(error, stat, message)
+  call report(error, stat, message, detail)
 end subroutine pymr_force_response
 
 !> Natural modes of the model linearised at (t, q, qd) (the pre-flight check's
 !> linearisation; preflight%normal_modes): nm modes (at most 2n), each of a kind (1 vibration,
 !> 2 rigid-body motion, 3 drift), its frequency (Hz), damping ratio, rate Re(lambda) (1/s) and
 !> shape in the coordinates.
-subroutine pymr_modes(scene, overrides, n, t, q, qd, nm, kind, freq, zeta, rate, shapes, stat, message)
+subroutine pymr_modes(scene, overrides, n, t, q, qd, nm, kind, freq, zeta, rate, shapes, stat, message, detail)
   use pymr_env_error, only : error_type
   use pymr_bind_support, only : report
   use pymr_model_scene, only : scene_t
@@ -131,6 +136,7 @@ subroutine pymr_modes(scene, overrides, n, t, q, qd, nm, kind, freq, zeta, rate,
   double precision, intent(out) :: freq(2*n), zeta(2*n), rate(2*n), shapes(n, 2*n)
   integer, intent(out) :: stat
   character(len=8192), intent(out) :: message
+  character(len=4096), intent(out) :: detail
   !f2py integer intent(hide), depend(q) :: n = len(q)
   type(error_type), allocatable :: error
   type(scene_t) :: sc
@@ -138,11 +144,11 @@ subroutine pymr_modes(scene, overrides, n, t, q, qd, nm, kind, freq, zeta, rate,
   freq = 0.0d0; zeta = 0.0d0; rate = 0.0d0; shapes = 0.0d0; kind = 0; nm = 0
   call load_model(scene, overrides, sc, model, error, n)
   if (.not. allocated(error)) call normal_modes(model, t, [q, qd], freq, zeta, rate, shapes, kind, nm, error)
-  call report(error, stat, message)
+  call report(error, stat, message, detail)
 end subroutine pymr_modes
 
 !> Accelerations qdd(n, m) for m states (t(m), q(n,m), qd(n,m)) of one model.
-subroutine pymr_model_accelerations(scene, overrides, n, m, t, q, qd, qdd, stat, message)
+subroutine pymr_model_accelerations(scene, overrides, n, m, t, q, qd, qdd, stat, message, detail)
   use pymr_env_error, only : error_type, fatal_error
   use pymr_bind_support, only : report
   use pymr_model_scene, only : scene_t
@@ -155,6 +161,7 @@ subroutine pymr_model_accelerations(scene, overrides, n, m, t, q, qd, qdd, stat,
   double precision, intent(out) :: qdd(n, m)
   integer, intent(out) :: stat
   character(len=8192), intent(out) :: message
+  character(len=4096), intent(out) :: detail
   !f2py integer intent(hide), depend(q) :: n = shape(q, 0)
   !f2py integer intent(hide), depend(q) :: m = shape(q, 1)
   type(error_type), allocatable :: error
@@ -167,13 +174,13 @@ subroutine pymr_model_accelerations(scene, overrides, n, m, t, q, qd, qdd, stat,
     if (allocated(error)) exit
     call model%accelerations(t(k), q(:, k), qd(:, k), qdd(:, k), error)
   end do
-  call report(error, stat, message)
+  call report(error, stat, message, detail)
 end subroutine pymr_model_accelerations
 
 !> The loops' constraint rows at one state (t = 0; model/loops.f90 loop_rows): residual
 !> phi(nr), Jacobian g(nr, n) and gam(nr) = -Gdot qd of every cut joint, nr of them (the
 !> arrays are nrmax long; call with nrmax = 0 to learn nr).
-subroutine pymr_loop_rows(scene, overrides, n, nrmax, q, qd, nr, phi, g, gam, stat, message)
+subroutine pymr_loop_rows(scene, overrides, n, nrmax, q, qd, nr, phi, g, gam, stat, message, detail)
   use pymr_env_error, only : error_type, fatal_error
   use pymr_bind_support, only : report
   use pymr_model_scene, only : scene_t
@@ -189,13 +196,14 @@ subroutine pymr_loop_rows(scene, overrides, n, nrmax, q, qd, nr, phi, g, gam, st
   double precision, intent(out) :: phi(nrmax), g(nrmax, n), gam(nrmax)
   integer, intent(out) :: stat
   character(len=8192), intent(out) :: message
+  character(len=4096), intent(out) :: detail
   !f2py integer intent(hide), depend(q) :: n = len(q)
   type(error_type), allocatable :: error
   type(scene_t) :: sc
   type(model_t) :: model
   phi = 0.0d0; g = 0.0d0; gam = 0.0d0; nr = 0
   call load_model(scene, overrides, sc, model, error, n)
-  call report(error, stat, message)
+  call report(error, stat, message, detail)
   if (stat /= 0) return
   nr = model%d%cuts%n_rows
   if (nrmax < nr) return
@@ -205,7 +213,7 @@ subroutine pymr_loop_rows(scene, overrides, n, nrmax, q, qd, nr, phi, g, gam, st
 end subroutine pymr_loop_rows
 
 !> Kinetic and potential energy (J) for m states q(n,m), qd(n,m) of one model.
-subroutine pymr_model_energy(scene, overrides, n, m, q, qd, kinetic, potential, stat, message)
+subroutine pymr_model_energy(scene, overrides, n, m, q, qd, kinetic, potential, stat, message, detail)
   use pymr_env_error, only : error_type, fatal_error
   use pymr_bind_support, only : report
   use pymr_model_scene, only : scene_t
@@ -218,6 +226,7 @@ subroutine pymr_model_energy(scene, overrides, n, m, q, qd, kinetic, potential, 
   double precision, intent(out) :: kinetic(m), potential(m)
   integer, intent(out) :: stat
   character(len=8192), intent(out) :: message
+  character(len=4096), intent(out) :: detail
   !f2py integer intent(hide), depend(q) :: n = shape(q, 0)
   !f2py integer intent(hide), depend(q) :: m = shape(q, 1)
   type(error_type), allocatable :: error
@@ -226,7 +235,7 @@ subroutine pymr_model_energy(scene, overrides, n, m, q, qd, kinetic, potential, 
   integer :: k
   kinetic = 0.0d0; potential = 0.0d0
   call load_model(scene, overrides, sc, model, error, n)
-  call report(error, stat, message)
+  call report(error, stat, message, detail)
   if (stat /= 0) return
   do k = 1, m
     call model%energy(q(:, k), qd(:, k), kinetic(k), potential(k))
@@ -235,7 +244,7 @@ end subroutine pymr_model_energy
 
 !> Timing helper: CPU seconds per model evaluation over `reps` evaluations at
 !> the state (q, qd); the model is built once. Python takes medians over several calls.
-subroutine pymr_time_evaluation(scene, overrides, n, q, qd, reps, seconds, stat, message)
+subroutine pymr_time_evaluation(scene, overrides, n, q, qd, reps, seconds, stat, message, detail)
   use pymr_env_error, only : error_type, fatal_error
   use pymr_bind_support, only : report
   use pymr_model_scene, only : scene_t
@@ -249,6 +258,7 @@ subroutine pymr_time_evaluation(scene, overrides, n, q, qd, reps, seconds, stat,
   double precision, intent(out) :: seconds
   integer, intent(out) :: stat
   character(len=8192), intent(out) :: message
+  character(len=4096), intent(out) :: detail
   !f2py integer intent(hide), depend(q) :: n = len(q)
   type(error_type), allocatable :: error
   type(scene_t) :: sc
@@ -268,11 +278,11 @@ subroutine pymr_time_evaluation(scene, overrides, n, q, qd, reps, seconds, stat,
     c1 = thread_cpu_time()
     seconds = (c1 - c0)/max(reps, 1)
   end if
-  call report(error, stat, message)
+  call report(error, stat, message, detail)
 end subroutine pymr_time_evaluation
 
 !> Write the modes of beam `body` of a scene to a modal data file (for kind='modal').
-subroutine pymr_write_modal(scene, overrides, body, path, stat, message)
+subroutine pymr_write_modal(scene, overrides, body, path, stat, message, detail)
   use pymr_env_error, only : error_type, fatal_error
   use pymr_bind_support, only : report
   use pymr_model_scene, only : scene_t
@@ -283,6 +293,7 @@ subroutine pymr_write_modal(scene, overrides, body, path, stat, message)
   character(len=*), intent(in) :: scene, overrides, body, path
   integer, intent(out) :: stat
   character(len=8192), intent(out) :: message
+  character(len=4096), intent(out) :: detail
   type(error_type), allocatable :: error
   type(scene_t) :: sc
   type(model_t) :: model
@@ -307,12 +318,12 @@ subroutine pymr_write_modal(scene, overrides, body, path, stat, message)
         & model%d%bshape(k), error)
     end if
   end if
-  call report(error, stat, message)
+  call report(error, stat, message, detail)
 end subroutine pymr_write_modal
 
 !> Build a scene's model and keep it open: `handle` for pymr_model_rhs and friends, `n`
 !> its number of coordinates.
-subroutine pymr_model_open(scene, overrides, handle, n, stat, message)
+subroutine pymr_model_open(scene, overrides, handle, n, stat, message, detail)
   use pymr_env_error, only : error_type
   use pymr_bind_support, only : report
   use pymr_bind_models, only : open_models, open_flags
@@ -323,6 +334,7 @@ subroutine pymr_model_open(scene, overrides, handle, n, stat, message)
   character(len=*), intent(in) :: scene, overrides
   integer, intent(out) :: handle, n, stat
   character(len=8192), intent(out) :: message
+  character(len=4096), intent(out) :: detail
   type(error_type), allocatable :: error
   type(scene_t) :: sc
   type(model_t), allocatable :: grown(:)
@@ -346,7 +358,7 @@ subroutine pymr_model_open(scene, overrides, handle, n, stat, message)
     call move_alloc(flags, open_flags)
   end if
   call load_model(scene, overrides, sc, open_models(k), error)
-  call report(error, stat, message)
+  call report(error, stat, message, detail)
   if (stat /= 0) return
   open_flags(k) = .true.
   handle = k; n = open_models(k)%d%n
@@ -367,7 +379,7 @@ end subroutine pymr_model_close
 
 !> f(t, x) = [qd; qdd] of an open model for the state x = [q; qd]; `evals` counts the
 !> model's full evaluations so far.
-subroutine pymr_model_rhs(handle, nx, t, x, f, evals, stat, message)
+subroutine pymr_model_rhs(handle, nx, t, x, f, evals, stat, message, detail)
   use pymr_env_error, only : error_type, fatal_error
   use pymr_bind_support, only : report
   use pymr_bind_models, only : open_models, check_handle
@@ -377,6 +389,7 @@ subroutine pymr_model_rhs(handle, nx, t, x, f, evals, stat, message)
   double precision, intent(out) :: f(nx)
   integer, intent(out) :: evals, stat
   character(len=8192), intent(out) :: message
+  character(len=4096), intent(out) :: detail
   !f2py integer intent(hide), depend(x) :: nx = len(x)
   type(error_type), allocatable :: error
   f = 0.0d0; evals = 0
@@ -389,12 +402,12 @@ subroutine pymr_model_rhs(handle, nx, t, x, f, evals, stat, message)
       evals = open_models(handle)%wk%count%evals
     end if
   end if
-  call report(error, stat, message)
+  call report(error, stat, message, detail)
 end subroutine pymr_model_rhs
 
 !> Position (inertial, m) of marker `marker` (1-based) of an open model at m states
 !> (t(m), q(n,m), qd(n,m)); prescribed coordinates take their functions' values.
-subroutine pymr_model_marker(handle, marker, n, m, t, q, qd, pos, stat, message)
+subroutine pymr_model_marker(handle, marker, n, m, t, q, qd, pos, stat, message, detail)
   use pymr_env_error, only : error_type, fatal_error
   use pymr_bind_support, only : report
   use pymr_bind_models, only : open_models, check_handle
@@ -405,6 +418,7 @@ subroutine pymr_model_marker(handle, marker, n, m, t, q, qd, pos, stat, message)
   double precision, intent(out) :: pos(3, m)
   integer, intent(out) :: stat
   character(len=8192), intent(out) :: message
+  character(len=4096), intent(out) :: detail
   !f2py integer intent(hide), depend(q) :: n = shape(q, 0)
   !f2py integer intent(hide), depend(q) :: m = shape(q, 1)
   type(error_type), allocatable :: error
@@ -419,7 +433,7 @@ subroutine pymr_model_marker(handle, marker, n, m, t, q, qd, pos, stat, message)
       call fatal_error(error, 'no marker with this index')
     end if
   end if
-  call report(error, stat, message)
+  call report(error, stat, message, detail)
   if (stat /= 0) return
   associate(model => open_models(handle), d => open_models(handle)%d, wk => open_models(handle)%wk)
     do k = 1, m
@@ -463,7 +477,7 @@ end subroutine pymr_progress
 !> model; every item with a value, then a comment line with its fingerprint; what = 2: the
 !> same with the files it names made absolute, for a copy placed elsewhere) or the schema
 !> of the scene items (what = 1), written to `path`.
-subroutine pymr_scene_write(scene, overrides, what, path, stat, message)
+subroutine pymr_scene_write(scene, overrides, what, path, stat, message, detail)
   use pymr_env_error, only : error_type
   use pymr_bind_support, only : report
   use pymr_model_scene, only : scene_t
@@ -478,6 +492,7 @@ subroutine pymr_scene_write(scene, overrides, what, path, stat, message)
   character(len=:), allocatable :: text
   integer, intent(out) :: stat
   character(len=8192), intent(out) :: message
+  character(len=4096), intent(out) :: detail
   type(error_type), allocatable :: error
   type(scene_t), target :: sc
   type(model_t) :: model
@@ -494,12 +509,12 @@ subroutine pymr_scene_write(scene, overrides, what, path, stat, message)
       end if
     end if
   end if
-  call report(error, stat, message)
+  call report(error, stat, message, detail)
 end subroutine pymr_scene_write
 
 !> The value of one item (address GROUP.ITEM or GROUP[NAME].ITEM) of a scene read with
 !> its overrides, as the resolved scene writes it ('' when it holds no value).
-subroutine pymr_scene_item(scene, overrides, address, value, stat, message)
+subroutine pymr_scene_item(scene, overrides, address, value, stat, message, detail)
   use pymr_env_error, only : error_type
   use pymr_bind_support, only : report
   use pymr_model_scene, only : scene_t
@@ -509,6 +524,7 @@ subroutine pymr_scene_item(scene, overrides, address, value, stat, message)
   character(len=4096), intent(out) :: value
   integer, intent(out) :: stat
   character(len=8192), intent(out) :: message
+  character(len=4096), intent(out) :: detail
   type(error_type), allocatable :: error
   type(scene_t), target :: sc
   character(len=:), allocatable :: text
@@ -516,12 +532,12 @@ subroutine pymr_scene_item(scene, overrides, address, value, stat, message)
   call read_scene(scene, overrides, sc, error)
   if (.not. allocated(error)) call item_value(sc, address, text, error)
   if (.not. allocated(error)) value = text
-  call report(error, stat, message)
+  call report(error, stat, message, detail)
 end subroutine pymr_scene_item
 
 !> Step and order history of a scene's run (no output): time reached, step and order of
 !> each accepted step (entry 1: the start), nh entries, at most nmax.
-subroutine pymr_step_history(scene, overrides, nmax, t, h, q, nh, stat, message)
+subroutine pymr_step_history(scene, overrides, nmax, t, h, q, nh, stat, message, detail)
   use pymr_env_error, only : error_type
   use pymr_bind_support, only : report
   use pymr_driver_history, only : step_history
@@ -531,14 +547,15 @@ subroutine pymr_step_history(scene, overrides, nmax, t, h, q, nh, stat, message)
   double precision, intent(out) :: t(nmax), h(nmax)
   integer, intent(out) :: q(nmax), nh, stat
   character(len=8192), intent(out) :: message
+  character(len=4096), intent(out) :: detail
   type(error_type), allocatable :: error
   call step_history(scene, overrides, t, h, q, nh, error)
-  call report(error, stat, message)
+  call report(error, stat, message, detail)
 end subroutine pymr_step_history
 
 !> Every body's frame (inertial origin pos(3, b, k) and its parent's index parent(b), 0 for
 !> the ground) of an open model at m states (t(m), q(n,m), qd(n,m)), for drawing.
-subroutine pymr_model_frames(handle, n, m, nb, t, q, qd, pos, parent, stat, message)
+subroutine pymr_model_frames(handle, n, m, nb, t, q, qd, pos, parent, stat, message, detail)
   use pymr_env_error, only : error_type, fatal_error
   use pymr_bind_support, only : report
   use pymr_bind_models, only : open_models, check_handle
@@ -549,6 +566,7 @@ subroutine pymr_model_frames(handle, n, m, nb, t, q, qd, pos, parent, stat, mess
   double precision, intent(out) :: pos(3, nb, m)
   integer, intent(out) :: parent(nb), stat
   character(len=8192), intent(out) :: message
+  character(len=4096), intent(out) :: detail
   !f2py integer intent(hide), depend(q) :: n = shape(q, 0)
   !f2py integer intent(hide), depend(q) :: m = shape(q, 1)
   type(error_type), allocatable :: error
@@ -562,7 +580,7 @@ subroutine pymr_model_frames(handle, n, m, nb, t, q, qd, pos, parent, stat, mess
       call fatal_error(error, 'nb is not the number of bodies')
     end if
   end if
-  call report(error, stat, message)
+  call report(error, stat, message, detail)
   if (stat /= 0) return
   associate(model => open_models(handle), d => open_models(handle)%d, wk => open_models(handle)%wk)
     parent = d%parent(1:nb)
@@ -592,7 +610,7 @@ end subroutine pymr_model_marker_body
 
 !> What of a scene's input `path` is ('the scene (FILE)', 'a modal file of the scene (FILE)',
 !> ...), or '' : the kernel's rule for outputs Python writes beside a scene's files.
-subroutine pymr_scene_input(scene, overrides, path, what, stat, message)
+subroutine pymr_scene_input(scene, overrides, path, what, stat, message, detail)
   use pymr_env_error, only : error_type
   use pymr_bind_support, only : report
   use pymr_model_scene, only : scene_t
@@ -603,12 +621,13 @@ subroutine pymr_scene_input(scene, overrides, path, what, stat, message)
   character(len=4096), intent(out) :: what
   integer, intent(out) :: stat
   character(len=8192), intent(out) :: message
+  character(len=4096), intent(out) :: detail
   type(error_type), allocatable :: error
   type(scene_t) :: sc
   what = ''
   call read_scene(scene, overrides, sc, error)
   if (.not. allocated(error)) what = scene_input(sc, path)
-  call report(error, stat, message)
+  call report(error, stat, message, detail)
 end subroutine pymr_scene_input
 
 !> Do `a` and `b` name one file (the kernel's same_file: the same file on the disk when both

@@ -10,7 +10,7 @@
 !> below `run_growth` over the run.
 module pymr_driver_preflight
   use pymr_env_kinds, only : dp, pi
-  use pymr_env_error, only : error_type, fatal_error, stat_input
+  use pymr_env_error, only : error_type, fatal_error, stat_input, set_fault
   use pymr_env_lapack, only : potrf, potrs, geev_real, factor_inverse
   use pymr_model, only : model_t, modal_stiffness_damping, model_counters
   use pymr_model_loops, only : independent_rows, loop_jacobian, constrain_inverse
@@ -127,6 +127,8 @@ contains
       & trim(b2) // ' Hz, omega*h = ' // trim(adjustl(b3)) // '); the largest stable step is ' // trim(adjustl(b4)) // &
       & ' s (the ABM PECE method is stable up to omega*h = 0.430 on an undamped mode): take a smaller step, ' // &
       & 'or adaptive = .true.')
+    call set_fault(error, kind='unstable_step', group='integrator', stable_step=pece_limit(worst_lam), &
+      & item=trim(merge(steps%item_modal, steps%item_joint, worst > model%d%nj)))
   end subroutine check_step_stability
 
   !> Does the eigenvalue lam (a vibration or decay: growing modes are physical, not
@@ -232,6 +234,7 @@ contains
       & 'the motion of ' // coordinate_name(model, dom) // ' by ' // trim(b2) // '; at h_fast = ' // &
       & trim(adjustl(b3)) // ' s the largest stable ratio is k = ' // itoa(ks) // ' (growth below 10 over the ' // &
       & 'run; or use adaptive = .true.)')
+    call set_fault(error, kind='unstable_ratio', group='integrator', item='h_slow', stable_ratio=ks)
   end subroutine check_macro_step
 
   !> The linearised model as a partitioned system (slow = joint coordinates), with its

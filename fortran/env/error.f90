@@ -4,10 +4,17 @@
 !> `intent(out)` error argument with a status and a sentence, then returns;
 !> callers test `allocated(error)`. Only the `mrsim` program and the Python
 !> binding turn an error into an exit status or an exception.
+!>
+!> Beside its sentence an error carries structured fields, for callers that act on the
+!> kind of fault (the Python package reads them, never the sentence): a keyword `kind`,
+!> the scene `group` and `item` it is about, the fault without its place (`fault`) and,
+!> for a step refused as unstable, the largest stable step or step ratio. A raise site
+!> that knows them sets them with `set_fault` after `fatal_error`.
 module pymr_env_error
+  use pymr_env_kinds, only : dp
   implicit none
   private
-  public :: error_type, fatal_error, prefix_error, error_list, max_errors
+  public :: error_type, fatal_error, prefix_error, set_fault, error_kind, error_list, max_errors
   public :: stat_input, stat_solver
 
   !> Status of an error caused by the scene or the command line (bad input).
@@ -21,6 +28,19 @@ module pymr_env_error
     integer :: stat = stat_input
     !> What went wrong, in words.
     character(len=:), allocatable :: message
+    !> A short keyword for the kind of fault: 'unstable_step' (a fixed step the pre-flight
+    !> check refuses), 'unstable_ratio' (a multirate step ratio it refuses), 'bad_value' (an
+    !> item's value refused); unset: 'bad_input' or 'solver' by the status (error_kind).
+    character(len=:), allocatable :: kind
+    !> The scene group and item the fault is about ('' when it is about none).
+    character(len=:), allocatable :: group, item
+    !> What is wrong, without where: the message as first raised, before its place was
+    !> put in front ('' when not kept).
+    character(len=:), allocatable :: fault
+    !> For 'unstable_step': the largest stable step (s); 0 otherwise.
+    real(dp) :: stable_step = 0.0_dp
+    !> For 'unstable_ratio': the largest stable step ratio k (0 when none is); -1 otherwise.
+    integer :: stable_ratio = -1
   end type error_type
 
   !> Most errors one check of a scene reports (it goes on after each, to show them together).
@@ -74,6 +94,32 @@ contains
     error%message = message
     if (present(stat)) error%stat = stat
   end subroutine fatal_error
+
+  !> Set the structured fields of an existing error (those given).
+  pure subroutine set_fault(error, kind, group, item, fault, stable_step, stable_ratio)
+    type(error_type), intent(inout) :: error
+    character(len=*), intent(in), optional :: kind, group, item, fault
+    real(dp), intent(in), optional :: stable_step
+    integer, intent(in), optional :: stable_ratio
+    if (present(kind)) error%kind = kind
+    if (present(group)) error%group = group
+    if (present(item)) error%item = item
+    if (present(fault)) error%fault = fault
+    if (present(stable_step)) error%stable_step = stable_step
+    if (present(stable_ratio)) error%stable_ratio = stable_ratio
+  end subroutine set_fault
+
+  !> The error's kind: the one its raise site set, else 'bad_input' (status 1) or 'solver'.
+  pure function error_kind(error) result(kind)
+    type(error_type), intent(in) :: error
+    character(len=:), allocatable :: kind
+    if (allocated(error%kind)) then
+      kind = error%kind
+    else
+      kind = merge('bad_input', 'solver   ', error%stat == stat_input)
+      kind = trim(kind)
+    end if
+  end function error_kind
 
   !> Put `prefix` (with ': ') in front of an existing error's message.
   pure subroutine prefix_error(error, prefix)

@@ -3,7 +3,7 @@
 !> pymr_model_scene, one generic path for every group and item.
 module pymr_io_namelist_input
   use pymr_env_kinds, only : dp, name_len
-  use pymr_env_error, only : error_type, fatal_error, prefix_error
+  use pymr_env_error, only : error_type, fatal_error, prefix_error, set_fault
   use pymr_model_scene, only : scene_t, unset, group_names, single_groups, repeated_groups, describe_group, &
     & group_origin, &
     & group_count, naming_item, complete_scene, item_applies
@@ -155,6 +155,7 @@ contains
     else
       call set_item(t%items(1), values, error)
     end if
+    if (allocated(error)) call set_fault(error, kind='bad_value', group=name, item=item, fault=error%message)
     if (allocated(error)) call prefix_error(error, where // ': ' // item)
   end subroutine set_record_item
 
