@@ -89,7 +89,6 @@ def _cmd_modes(args: argparse.Namespace) -> int:
     import csv
     import io
     import math
-    import re
     from .api import modes, marker_shapes
     from .outputs import check_output
     over = list(args.set or [])
@@ -109,7 +108,7 @@ def _cmd_modes(args: argparse.Namespace) -> int:
             raise
         raise SceneError(f"--at {at:g}: the run cannot be taken to this time (as &scene t_end it {exc.fault})") from None
     q, qd = res.coordinates()
-    names = [c for c in res.columns if re.search(r"\.(q\d*|a\d+)$", c)]
+    names = res.coordinate_columns()
     # the state at T, or the initial state itself (the first row, not the end of the short run)
     k = -1 if at > 0 else 0
     t = float(res.t[k])

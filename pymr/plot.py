@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import io
 import os
-import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Sequence, Union
@@ -70,7 +69,7 @@ def default_labels(runs: Sequence[Results]) -> list[str]:
     """Each run's method from its CSV comment lines (``single fixed h=1.000E-04``), else the
     file's stem; when two runs would share a label, the stem is put in front of the method."""
     def method(r: Results) -> str:
-        return re.sub(r"=\s+", "=", " ".join(r.method.split()))
+        return " ".join(r.method.split()).replace("= ", "=")
 
     def stem(r: Results, k: int) -> str:
         return Path(r.path).stem if r.path else f"run {k + 1}"

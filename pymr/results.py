@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import json
 import os
-import re
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -12,11 +11,20 @@ import numpy as np
 
 from .errors import ResultsError
 
-_Q = re.compile(r"\.(q\d*|a\d+)$")
-_QD = re.compile(r"\.(qd\d*|ad\d+)$")
-_JOINT_Q = re.compile(r"^(?P<name>.+)\.q(?P<k>\d*)$")
-_MODAL_A = re.compile(r"^(?P<name>.+)\.a(?P<k>\d+)$")
-_MARKER_COMPONENTS = ("x", "y", "z", "vx", "vy", "vz")
+
+
+@dataclass(frozen=True)
+class Column:
+    """What the kernel says of one column of a results file (OUT.json's "columns"): its
+    name, group ('time', 'joint_coordinates', 'joint_rates', 'modal_coordinates',
+    'modal_rates', 'markers', 'marker_accelerations', 'marker_orientations', 'reactions',
+    'energy'), owner (the joint, flexible body or marker; '' for t and the energies),
+    quantity (such as 'angle', 'displacement', 'position', 'force', 'kinetic') and unit."""
+    name: str
+    group: str
+    owner: str
+    quantity: str
+    unit: str
 
 
 @dataclass
@@ -67,75 +75,104 @@ class Results:
         return self.meta.get("scene") or None
 
     @property
+    def column_info(self) -> list[Column]:
+        """Every column's :class:`Column`, in the file's order, from OUT.json's column
+        metadata (a :class:`ResultsError` when the results have none: OUT.json missing, or
+        written before pymr wrote it)."""
+        meta = self.stats.get("columns")
+        cached = self.__dict__.get("_column_cache")
+        if cached is not None and cached[0] is meta and cached[1] == self.columns:
+            return cached[2]
+        if not isinstance(meta, dict) or meta.get("name") != self.columns:
+            where = self.path or "these results"
+            raise ResultsError(f"{where}: no column metadata matching the columns (OUT.json beside the results "
+                               "file gives it: run the scene again to write it)")
+        info = [Column(*fields) for fields in zip(*(meta[k] for k in ("name", "group", "owner", "quantity", "unit")))]
+        self.__dict__["_column_cache"] = (meta, list(self.columns), info)
+        return info
+
+    def unit(self, name: str) -> str:
+        """The unit of column `name` (``'rad'``, ``'m'``, ``'J'`` ...)."""
+        for c in self.column_info:
+            if c.name == name:
+                return c.unit
+        raise KeyError(f"no column {name!r}; columns: {', '.join(self.columns)}")
+
+    def _names(self, group: str, owner: str | None = None, quantity: str | None = None) -> list[str]:
+        """The names of the columns of `group` (of `owner`, of `quantity`), in column order."""
+        return [c.name for c in self.column_info if c.group == group and (owner is None or c.owner == owner)
+                and (quantity is None or c.quantity == quantity)]
+
+    def _owners(self, group: str) -> list[str]:
+        return list(dict.fromkeys(c.owner for c in self.column_info if c.group == group))
+
+    @property
     def markers(self) -> list[str]:
-        """Names of the markers (those with all of x, y, z, vx, vy, vz columns), in column order."""
-        names = [c[:-2] for c in self.columns if c.endswith(".x")]
-        have = set(self.columns)
-        return [n for n in names if all(f"{n}.{c}" in have for c in _MARKER_COMPONENTS)]
+        """Names of the markers with position and velocity columns, in column order."""
+        return self._owners("markers")
 
     @property
     def joints(self) -> list[str]:
         """Names of the joints with coordinates (``j.q`` or ``j.q1`` ...), in column order."""
-        return list(dict.fromkeys(m["name"] for c in self.columns if (m := _JOINT_Q.match(c))))
+        return self._owners("joint_coordinates")
 
     @property
     def flexible_bodies(self) -> list[str]:
         """Names of the bodies with modal coordinates (``body.a1`` ...), in column order."""
-        return list(dict.fromkeys(m["name"] for c in self.columns if (m := _MODAL_A.match(c))))
+        return self._owners("modal_coordinates")
 
     def joint_columns(self, name: str) -> list[str]:
         """Coordinate column names of joint ``name``: ``["j.q"]`` or ``["j.q1", ..., "j.qn"]``."""
-        cols = [c for c in self.columns if (m := _JOINT_Q.match(c)) and m["name"] == name]
+        cols = self._names("joint_coordinates", name)
         if not cols:
             raise KeyError(f"no joint {name!r}; joints: {', '.join(self.joints) or '(none)'}")
         return cols
 
     def modal_columns(self, body: str) -> list[str]:
         """Modal coordinate column names of flexible body ``body``: ``["b.a1", ..., "b.aM"]``."""
-        cols = [c for c in self.columns if (m := _MODAL_A.match(c)) and m["name"] == body]
+        cols = self._names("modal_coordinates", body)
         if not cols:
             raise KeyError(f"no flexible body {body!r}; flexible bodies: "
                            f"{', '.join(self.flexible_bodies) or '(none)'}")
         return cols
 
+    def _stack(self, names: list[str]) -> np.ndarray:
+        """The columns `names` side by side, shape (rows, len(names))."""
+        return np.column_stack([self[c] for c in names]) if names else np.zeros((len(self.t), 0))
+
     def marker(self, name: str) -> tuple[np.ndarray, np.ndarray]:
         """Position (rows, 3) and velocity (rows, 3) of a marker, inertial frame."""
         if name not in self.markers:
             raise KeyError(f"no marker {name!r}; markers: {', '.join(self.markers) or '(none)'}")
-        pos = np.column_stack([self[f"{name}.{c}"] for c in ("x", "y", "z")])
-        vel = np.column_stack([self[f"{name}.{c}"] for c in ("vx", "vy", "vz")])
-        return pos, vel
+        return (self._stack(self._names("markers", name, "position")),
+                self._stack(self._names("markers", name, "velocity")))
 
     def reaction(self, joint: str) -> tuple[np.ndarray, np.ndarray]:
         """Force (rows, 3; N) and moment (rows, 3; N m) that ``joint`` passes to its child, in
         the child's axes, the moment about the joint point (``&output quantities 'reactions'``)."""
-        cols = [f"{joint}.{c}" for c in ("fx", "fy", "fz", "mx", "my", "mz")]
-        if not all(c in self.columns for c in cols):
+        force, moment = self._names("reactions", joint, "force"), self._names("reactions", joint, "moment")
+        if not force:
             raise KeyError(f"no reactions of joint {joint!r} (&output quantities 'reactions')")
-        data = np.column_stack([self[c] for c in cols])
-        return data[:, :3], data[:, 3:]
+        return self._stack(force), self._stack(moment)
 
     def joint(self, name: str) -> tuple[np.ndarray, np.ndarray]:
         """Coordinates (rows, n) and rates (rows, n) of joint ``name`` (n = 1 for a revolute)."""
-        qcols = self.joint_columns(name)
-        qdcols = [f"{name}.qd{c[len(name) + 2:]}" for c in qcols]
-        return (np.column_stack([self[c] for c in qcols]),
-                np.column_stack([self[c] for c in qdcols]))
+        return self._stack(self.joint_columns(name)), self._stack(self._names("joint_rates", name))
 
     def modal(self, body: str) -> tuple[np.ndarray, np.ndarray]:
         """Modal coordinates (rows, M) and their rates (rows, M) of flexible body ``body``."""
-        acols = self.modal_columns(body)
-        adcols = [f"{body}.ad{c[len(body) + 2:]}" for c in acols]
-        return (np.column_stack([self[c] for c in acols]),
-                np.column_stack([self[c] for c in adcols]))
+        return self._stack(self.modal_columns(body)), self._stack(self._names("modal_rates", body))
+
+    def coordinate_columns(self) -> list[str]:
+        """The names of the generalised coordinates' columns in model order: joint
+        coordinates first, then modal ones."""
+        return self._names("joint_coordinates") + self._names("modal_coordinates")
 
     def coordinates(self) -> tuple[np.ndarray, np.ndarray]:
         """All generalised coordinates and rates (rows, n) in model order: joint
         coordinates (``j.q``, ``j.q1`` ...) first, then modal ones (``body.a1`` ...)."""
-        qcols = [c for c in self.columns if _Q.search(c)]
-        qdcols = [c for c in self.columns if _QD.search(c)]
-        return (np.column_stack([self[c] for c in qcols]) if qcols else np.zeros((len(self.t), 0)),
-                np.column_stack([self[c] for c in qdcols]) if qdcols else np.zeros((len(self.t), 0)))
+        return (self._stack(self.coordinate_columns()),
+                self._stack(self._names("joint_rates") + self._names("modal_rates")))
 
 
 def load_results(csv_path: str | os.PathLike) -> Results:

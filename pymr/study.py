@@ -142,7 +142,7 @@ class Study:
         q, qd = probe.coordinates()
         self.n = q.shape[1]
         self.x0 = np.concatenate([q[0], qd[0]])      # the initial state [q; qd]
-        markers = sorted({c.rsplit(".", 1)[0] for c in probe.columns if c.endswith(".x")})
+        markers = sorted(probe.markers)
         if not markers:
             raise SceneError(f"{self.scene.path}: the scene has no &marker to measure the error at")
         if marker is None:

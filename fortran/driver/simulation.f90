@@ -334,7 +334,7 @@ contains
     scene_text = resolved_text(self%sc, absolute_paths=.true.)
     if (.not. allocated(error)) call write_json(json_path(self%path), self%file, self%sc%scene%title, &
       & scene_fingerprint(self%sc), settings_json(self%sc), self%model%d, self%model%wk, self%stats, 'complete', '', &
-      & self%sc%scene%t_end, error, self%overrides, scene_text, staged=.true.)
+      & self%sc%scene%t_end, error, self%overrides, scene_text, self%csv%plan, staged=.true.)
     if (.not. allocated(error)) then
       call self%csv%finish(error)
       if (allocated(error)) call remove_file(json_path(self%path) // '.tmp')
@@ -344,7 +344,7 @@ contains
       error%message = self%file // ': ' // error%message
       call write_json(json_path(self%path) // '.partial', self%file, self%sc%scene%title, scene_fingerprint(self%sc), &
         & settings_json(self%sc), self%model%d, self%model%wk, self%stats, 'failed', error%message, self%st%time(), json_error, &
-        & self%overrides, scene_text)
+        & self%overrides, scene_text, self%csv%plan)
       return
     end if
     call commit_staged(json_path(self%path), error)

@@ -4,7 +4,7 @@ module pymr_io_results_output
   use pymr_env_kinds, only : dp
   use, intrinsic :: iso_fortran_env, only : int64
   use pymr_env_error, only : error_type, fatal_error, stat_solver
-  use pymr_model_types, only : model_data, model_work, cut_free
+  use pymr_model_types, only : model_data, model_work, cut_free, prim_revolute
   use pymr_io_fast_format, only : put_real
   use pymr_env_text, only : itoa, next_text_line
   use pymr_env_text_file, only : write_text_file, stage_text_file, sync_file, rename_file, file_size, check_size
@@ -45,6 +45,50 @@ module pymr_io_results_output
     logical :: reactions = .false., energy = .false.
     integer :: extra = 0
   end type output_plan
+
+  !> What receives the columns of a plan, in the file's order (walk_columns): each column's
+  !> name, group ('time', 'joint_coordinates', 'joint_rates', 'modal_coordinates',
+  !> 'modal_rates', 'markers', 'marker_accelerations', 'marker_orientations', 'reactions',
+  !> 'energy'), owner (the joint, flexible body or marker it belongs to; '' for t and the
+  !> energies), quantity and unit. The one place that states the columns: the CSV header
+  !> and the JSON's column metadata both follow from it.
+  type, abstract :: column_sink
+  contains
+    procedure(column_add), deferred :: add
+  end type column_sink
+
+  abstract interface
+    subroutine column_add(self, name, group, owner, quantity, unit)
+      import :: column_sink
+      class(column_sink), intent(inout) :: self
+      character(len=*), intent(in) :: name, group, owner, quantity, unit
+    end subroutine column_add
+  end interface
+
+  !> A text grown by appending, its buffer doubled when full (a scene may have 10^5 markers).
+  type :: text_buffer
+    character(len=:), allocatable :: s
+    integer :: n = 0
+  contains
+    procedure :: add => buffer_add
+  end type text_buffer
+
+  !> The header row: the columns' names, comma-separated.
+  type, extends(column_sink) :: header_sink
+    type(text_buffer) :: line
+  contains
+    procedure :: add => header_add
+  end type header_sink
+
+  !> The column metadata of OUT.json: one JSON array (its items so far) per field.
+  type, extends(column_sink) :: metadata_sink
+    type(text_buffer) :: field(5)
+  contains
+    procedure :: add => metadata_add
+  end type metadata_sink
+
+  !> The fields of the column metadata, in metadata_sink%field's order.
+  character(len=*), parameter :: metadata_fields(5) = [character(len=8) :: 'name', 'group', 'owner', 'quantity', 'unit']
 
   !> A CSV result file being written: rows stream to PATH.partial, which replaces PATH only
   !> when the run ends well (finish); a failed run leaves it as it is, a refused one removes
@@ -124,53 +168,162 @@ contains
     row_width = 1 + merge(2*d%n, 0, plan%coordinates) + plan%extra
   end function row_width
 
-  !> The header row of the plan's columns (built in one buffer: a scene may have 10^5 markers).
+  !> The header row of the plan's columns.
   function header_line(plan, d) result(line)
     type(output_plan), intent(in) :: plan
     type(model_data), intent(in) :: d
     character(len=:), allocatable :: line
-    character(len=:), allocatable :: buf, m
-    integer :: pos, i, j
-    allocate(character(len=(len(d%qname) + 8)*(2*d%n + 13*d%markers%n + 6*d%nb) + 16*n_energy + 8) :: buf)
-    pos = 0
-    call add('t')
-    do i = 1, d%n
-      if (.not. plan%coordinates) exit
-      call add(',' // trim(d%qname(i)))
-      if (i == d%n .or. d%cgrp(min(i + 1, d%n)) /= d%cgrp(i)) then
-        ! the rates of the joint's (or body's) coordinates after them
-        do j = 1, i
-          if (d%cgrp(j) == d%cgrp(i)) call add(',' // trim(d%qdname(j)))
-        end do
-      end if
-    end do
+    type(header_sink) :: names
+    call walk_columns(plan, d, names)
+    line = names%line%s(1:names%line%n)
+  end function header_line
+
+  !> Hand every column of the plan, in the file's order, to `sink`: t, the coordinates and
+  !> rates, the markers' values, the reactions, the energies.
+  subroutine walk_columns(plan, d, sink)
+    type(output_plan), intent(in) :: plan
+    type(model_data), intent(in) :: d
+    class(column_sink), intent(inout) :: sink
+    integer :: i
+    call sink%add('t', 'time', '', 'time', 's')
+    if (plan%coordinates) call walk_coordinates(d, sink)
     do i = 1, d%markers%n
-      m = trim(d%markers%name(i))
-      if (plan%markers) call add(',' // m // '.x,' // m // '.y,' // m // '.z,' // m // '.vx,' // m // '.vy,' // m // '.vz')
-      if (plan%accelerations) call add(',' // m // '.ax,' // m // '.ay,' // m // '.az')
-      if (plan%orientations) call add(',' // m // '.qw,' // m // '.qx,' // m // '.qy,' // m // '.qz')
+      call walk_marker(plan, trim(d%markers%name(i)), sink)
     end do
     ! the tree joints', then the loop-closing joints' reactions
     do i = 2, d%nb + d%cuts%n
       if (.not. plan%reactions) exit
       if (i <= d%nb) then
-        m = trim(d%joint_name(i))
+        call add_vector(sink, trim(d%joint_name(i)), 'f', 'reactions', 'force', 'N')
+        call add_vector(sink, trim(d%joint_name(i)), 'm', 'reactions', 'moment', 'N m')
       else
-        m = trim(d%cuts%name(i - d%nb))
+        call add_vector(sink, trim(d%cuts%name(i - d%nb)), 'f', 'reactions', 'force', 'N')
+        call add_vector(sink, trim(d%cuts%name(i - d%nb)), 'm', 'reactions', 'moment', 'N m')
       end if
-      call add(',' // m // '.fx,' // m // '.fy,' // m // '.fz,' // m // '.mx,' // m // '.my,' // m // '.mz')
     end do
     do i = 1, n_energy
-      if (plan%energy) call add(',energy.' // trim(energy_columns(i)))
+      if (plan%energy) call sink%add('energy.' // trim(energy_columns(i)), 'energy', '', trim(energy_columns(i)), 'J')
     end do
-    line = buf(1:pos)
+  end subroutine walk_columns
+
+  !> The coordinates in model order, the rates of a joint's (or body's) coordinates after
+  !> them.
+  subroutine walk_coordinates(d, sink)
+    type(model_data), intent(in) :: d
+    class(column_sink), intent(inout) :: sink
+    integer :: i, j
+    do i = 1, d%n
+      call add_coordinate(d, i, .false., sink)
+      if (i == d%n .or. d%cgrp(min(i + 1, d%n)) /= d%cgrp(i)) then
+        do j = 1, i
+          if (d%cgrp(j) == d%cgrp(i)) call add_coordinate(d, j, .true., sink)
+        end do
+      end if
+    end do
+  end subroutine walk_coordinates
+
+  !> Coordinate i's column (its rate's with `rate`): a joint's angle (rad) or displacement
+  !> (m), or a flexible body's mass-normalised modal coordinate (m kg^0.5).
+  subroutine add_coordinate(d, i, rate, sink)
+    type(model_data), intent(in) :: d
+    integer, intent(in) :: i
+    logical, intent(in) :: rate
+    class(column_sink), intent(inout) :: sink
+    character(len=:), allocatable :: name, owner
+    name = trim(merge(d%qdname(i), d%qname(i), rate))
+    owner = trim(d%body_name(d%cbody(i)))
+    if (i > d%nj) then
+      if (rate) call sink%add(name, 'modal_rates', owner, 'modal_rate', 'm kg^0.5/s')
+      if (.not. rate) call sink%add(name, 'modal_coordinates', owner, 'modal_coordinate', 'm kg^0.5')
+      return
+    end if
+    owner = trim(d%joint_name(d%cbody(i)))
+    if (d%prim(i) == prim_revolute) then
+      if (rate) call sink%add(name, 'joint_rates', owner, 'angular_velocity', 'rad/s')
+      if (.not. rate) call sink%add(name, 'joint_coordinates', owner, 'angle', 'rad')
+    else
+      if (rate) call sink%add(name, 'joint_rates', owner, 'velocity', 'm/s')
+      if (.not. rate) call sink%add(name, 'joint_coordinates', owner, 'displacement', 'm')
+    end if
+  end subroutine add_coordinate
+
+  !> A marker's columns of the plan: position and velocity, acceleration, orientation.
+  subroutine walk_marker(plan, m, sink)
+    type(output_plan), intent(in) :: plan
+    character(len=*), intent(in) :: m
+    class(column_sink), intent(inout) :: sink
+    integer :: k
+    character(len=*), parameter :: wxyz = 'wxyz'
+    if (plan%markers) then
+      call add_vector(sink, m, '', 'markers', 'position', 'm')
+      call add_vector(sink, m, 'v', 'markers', 'velocity', 'm/s')
+    end if
+    if (plan%accelerations) call add_vector(sink, m, 'a', 'marker_accelerations', 'acceleration', 'm/s^2')
+    do k = 1, 4
+      if (plan%orientations) call sink%add(m // '.q' // wxyz(k:k), 'marker_orientations', m, 'orientation', '1')
+    end do
+  end subroutine walk_marker
+
+  !> The x, y and z columns OWNER.PREFIXx ... of a vector quantity.
+  subroutine add_vector(sink, owner, prefix, group, quantity, unit)
+    class(column_sink), intent(inout) :: sink
+    character(len=*), intent(in) :: owner, prefix, group, quantity, unit
+    call sink%add(owner // '.' // prefix // 'x', group, owner, quantity, unit)
+    call sink%add(owner // '.' // prefix // 'y', group, owner, quantity, unit)
+    call sink%add(owner // '.' // prefix // 'z', group, owner, quantity, unit)
+  end subroutine add_vector
+
+  subroutine buffer_add(self, text)
+    class(text_buffer), intent(inout) :: self
+    character(len=*), intent(in) :: text
+    character(len=:), allocatable :: grown
+    if (.not. allocated(self%s)) allocate(character(len=max(256, 2*len(text))) :: self%s)
+    if (self%n + len(text) > len(self%s)) then
+      allocate(character(len=2*(self%n + len(text))) :: grown)
+      grown(1:self%n) = self%s(1:self%n)
+      call move_alloc(grown, self%s)
+    end if
+    self%s(self%n+1:self%n+len(text)) = text
+    self%n = self%n + len(text)
+  end subroutine buffer_add
+
+  subroutine header_add(self, name, group, owner, quantity, unit)
+    class(header_sink), intent(inout) :: self
+    character(len=*), intent(in) :: name, group, owner, quantity, unit
+    if (self%line%n > 0) call self%line%add(',')
+    call self%line%add(name)
+  end subroutine header_add
+
+  subroutine metadata_add(self, name, group, owner, quantity, unit)
+    class(metadata_sink), intent(inout) :: self
+    character(len=*), intent(in) :: name, group, owner, quantity, unit
+    call item(self%field(1), name); call item(self%field(2), group); call item(self%field(3), owner)
+    call item(self%field(4), quantity); call item(self%field(5), unit)
   contains
-    subroutine add(text)
+    subroutine item(buffer, text)
+      type(text_buffer), intent(inout) :: buffer
       character(len=*), intent(in) :: text
-      buf(pos+1:pos+len(text)) = text
-      pos = pos + len(text)
-    end subroutine add
-  end function header_line
+      if (buffer%n > 0) call buffer%add(', ')
+      call buffer%add('"' // escape(text) // '"')
+    end subroutine item
+  end subroutine metadata_add
+
+  !> The JSON member "columns": for every column of the plan, in the file's order, its
+  !> name, group, owner, quantity and unit (one array per field).
+  function columns_json(plan, d) result(text)
+    type(output_plan), intent(in) :: plan
+    type(model_data), intent(in) :: d
+    character(len=:), allocatable :: text
+    type(metadata_sink) :: meta
+    integer :: k
+    call walk_columns(plan, d, meta)
+    text = '  "columns": {'
+    do k = 1, size(metadata_fields)
+      if (k > 1) text = text // ','
+      text = text // new_line('a') // '    "' // trim(metadata_fields(k)) // '": [' // meta%field(k)%s(1:meta%field(k)%n) // ']'
+    end do
+    text = text // '},'
+  end function columns_json
 
   !> Open the CSV file and write the comment lines and the header row (self%plan's columns).
   subroutine csv_open(self, path, d, title, method, error)
@@ -365,14 +518,16 @@ contains
 
   !> Write the run statistics and settings as JSON (through path.tmp, checked, flushed,
   !> renamed): `status` 'complete' or 'failed', with the failure's message and the time
-  !> reached.
+  !> reached, and the metadata of the columns of `plan`.
   subroutine write_json(path, scene_file, title, fingerprint, settings, d, wk, st, status, failure, t_reached, error, &
-    & overrides, scene_text, staged)
+    & overrides, scene_text, plan, staged)
     !> fingerprint: 'sha256:...' of the resolved scene (pymr scene prints it).
     character(len=*), intent(in) :: path, scene_file, title, fingerprint, status, failure
     !> The run's --set overrides (one a line) and its resolved scene (every item, files
     !> absolute): what reproduces the run without the scene file as it was.
     character(len=*), intent(in) :: overrides, scene_text
+    !> The columns of the results file.
+    type(output_plan), intent(in) :: plan
     !> Leave the file complete in PATH.tmp for the caller's commit_staged (default: in place).
     logical, intent(in), optional :: staged
     !> Integrator settings, already as JSON members ("\"method\": \"single\", ...").
@@ -382,8 +537,6 @@ contains
     type(run_stats), intent(in) :: st
     real(dp), intent(in) :: t_reached
     type(error_type), allocatable, intent(out) :: error
-    integer :: i
-    real(dp) :: cpu
     character(len=:), allocatable :: text
     character(len=128) :: buf
     text = '{' // new_line('a')
@@ -396,6 +549,52 @@ contains
     call put('  "scene_fingerprint": "' // fingerprint // '",')
     call put('  "overrides": [' // json_lines(overrides) // '],')
     call put('  "resolved_scene": "' // escape(scene_text) // '",')
+    text = text // counts_json(st, d, wk) // effects_json(wk)
+    if (st%static_settled >= 0) then
+      write(buf, '(a,i0,a,i0,a,es12.5,a)') '  "static_start": {"coordinates_settled": ', st%static_settled, &
+        & ', "newton_iterations": ', st%static_iterations, ', "last_change": ', st%static_change, '},'
+      call put(trim(buf))
+    end if
+    if (allocated(st%warnings)) then
+      call put('  "warnings": [' // json_lines(st%warnings) // '],')
+    else
+      call put('  "warnings": [],')
+    end if
+    call put(columns_json(plan, d))
+    call put('  "integrator": {' // settings // '}')
+    call put('}')
+    call write_staged(path, text, error, staged)
+    if (allocated(error)) error%message = error%message // ' (the statistics)'
+  contains
+    subroutine put(line)
+      character(len=*), intent(in) :: line
+      text = text // line // new_line('a')
+    end subroutine put
+  end subroutine write_json
+
+  !> Write `text` to `path` in place, or with `staged` complete in PATH.tmp for the
+  !> caller's commit_staged.
+  subroutine write_staged(path, text, error, staged)
+    character(len=*), intent(in) :: path, text
+    type(error_type), allocatable, intent(out) :: error
+    logical, intent(in), optional :: staged
+    if (present(staged)) then
+      if (staged) then
+        call stage_text_file(path, text, error); return
+      end if
+    end if
+    call write_text_file(path, text, error)
+  end subroutine write_staged
+
+  !> The JSON members of the run's times, steps, evaluations and sizes, and its loops'
+  !> closure (one line each, with their commas).
+  function counts_json(st, d, wk) result(text)
+    type(run_stats), intent(in) :: st
+    type(model_data), intent(in) :: d
+    type(model_work), intent(in) :: wk
+    character(len=:), allocatable :: text
+    character(len=160) :: buf
+    text = ''
     write(buf, '(a,g0.10,a)') '  "cpu_time_s": ', st%cpu_time_s, ','; call put(trim(buf))
     write(buf, '(a,g0.10,a)') '  "wall_time_s": ', st%wall_time_s, ','; call put(trim(buf))
     write(buf, '(a,g0.10,a)') '  "preflight_cpu_s": ', st%preflight_cpu_s, ','; call put(trim(buf))
@@ -416,7 +615,21 @@ contains
         & ', "assembly_change_qd": ', wk%loops%assembly_dqd, ', "closure_drift": ', wk%loops%closure_drift, '},'
       call put(trim(buf))
     end if
-    text = text // '  "effects": {'
+  contains
+    subroutine put(line)
+      character(len=*), intent(in) :: line
+      text = text // line // new_line('a')
+    end subroutine put
+  end function counts_json
+
+  !> The JSON member "effects": each effect of the model, its evaluations and CPU time.
+  function effects_json(wk) result(text)
+    type(model_work), intent(in) :: wk
+    character(len=:), allocatable :: text
+    character(len=128) :: buf
+    integer :: i
+    real(dp) :: cpu
+    text = '  "effects": {'
     do i = 1, size(wk%count%effect_evals)
       if (text(len(text):len(text)) /= '{') text = text // ', '
       cpu = 0.0_dp
@@ -424,47 +637,22 @@ contains
       write(buf, '(a,i0,a,es12.5,a)') '": {"evaluations": ', wk%count%effect_evals(i), ', "cpu_time_s": ', cpu, '}'
       text = text // '"' // trim(wk%count%effect_name(i)) // trim(buf)
     end do
-    call put('},')
-    if (st%static_settled >= 0) then
-      write(buf, '(a,i0,a,i0,a,es12.5,a)') '  "static_start": {"coordinates_settled": ', st%static_settled, &
-        & ', "newton_iterations": ', st%static_iterations, ', "last_change": ', st%static_change, '},'
-      call put(trim(buf))
-    end if
-    if (allocated(st%warnings)) then
-      call put('  "warnings": [' // json_lines(st%warnings) // '],')
-    else
-      call put('  "warnings": [],')
-    end if
-    call put('  "integrator": {' // settings // '}')
-    call put('}')
-    if (present(staged)) then
-      if (staged) then
-        call stage_text_file(path, text, error)
-        if (allocated(error)) error%message = error%message // ' (the statistics)'
-        return
-      end if
-    end if
-    call write_text_file(path, text, error)
-    if (allocated(error)) error%message = error%message // ' (the statistics)'
-  contains
-    !> Lines of text as JSON strings, comma-separated ('' for no line).
-    function json_lines(lines) result(s)
-      character(len=*), intent(in) :: lines
-      character(len=:), allocatable :: s, one
-      integer :: pos
-      s = ''
-      pos = 1
-      do while (next_text_line(lines, pos, one))
-        if (len(one) == 0) cycle
-        if (len(s) > 0) s = s // ', '
-        s = s // '"' // escape(one) // '"'
-      end do
-    end function json_lines
-    subroutine put(line)
-      character(len=*), intent(in) :: line
-      text = text // line // new_line('a')
-    end subroutine put
-  end subroutine write_json
+    text = text // '},' // new_line('a')
+  end function effects_json
+
+  !> Lines of text as JSON strings, comma-separated ('' for no line).
+  function json_lines(lines) result(s)
+    character(len=*), intent(in) :: lines
+    character(len=:), allocatable :: s, one
+    integer :: pos
+    s = ''
+    pos = 1
+    do while (next_text_line(lines, pos, one))
+      if (len(one) == 0) cycle
+      if (len(s) > 0) s = s // ', '
+      s = s // '"' // escape(one) // '"'
+    end do
+  end function json_lines
 
   !> A JSON string's content: backslashes and quotes escaped, control characters as \uXXXX.
   function escape(s) result(r)
