@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from . import _kernel as _core
-from .api import SceneError, _raise, model_size, write_file
+from .api import SceneError, _raise, format_overrides, model_size, write_file
 from .scenes import ROD_LENGTH, ROD_MASS, ROD_RADIUS, serial_chain, spatial_chain
 
 
@@ -319,8 +319,9 @@ EFFECTS = ["gravity", "joint_drives", "modal_damping", "joint_springs", "geometr
            "firing_load", "deformation_inertia"]
 
 
-def _effect_on(effect: str) -> str:
-    return "effects.deformation_inertia='full'" if effect == "deformation_inertia" else f"effects.{effect}=.true."
+def _effect_on(effect: str) -> dict:
+    """The override that turns `effect` on."""
+    return {"effects.deformation_inertia": "full"} if effect == "deformation_inertia" else {f"effects.{effect}": True}
 
 
 def bench_effects(repeats: int = 7) -> list[dict]:
@@ -329,7 +330,9 @@ def bench_effects(repeats: int = 7) -> list[dict]:
     rng = np.random.default_rng(1)
     rows = []
     scene = str(_scene_path("tank_effects.nml"))
-    cases = [("none", "")] + [(e, _effect_on(e)) for e in EFFECTS] + [("all", "\n".join(map(_effect_on, EFFECTS)))]
+    every = {k: v for e in EFFECTS for k, v in _effect_on(e).items()}
+    cases = ([("none", "")] + [(e, format_overrides(_effect_on(e))) for e in EFFECTS]
+             + [("all", format_overrides(every))])
     n, _, _ = model_size(scene)
     q = 0.05 * rng.standard_normal(n)
     qd = 0.5 * rng.standard_normal(n)

@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._args import nml_value
+
 
 def spatial_chain(n_bodies: int, *, free_base: bool = True, gravity: bool = True, t_end: float = 1.0,
                   h: float = 1e-3, adaptive: bool = False, rtol: float = 1e-8, seed: int = 1) -> str:
@@ -15,8 +17,8 @@ def spatial_chain(n_bodies: int, *, free_base: bool = True, gravity: bool = True
 
     lines = ["&scene title='spatial chain of %d bodies', t_end=%r, gravity=0.0, -9.81, 0.0 /" % (n_bodies, t_end),
              "&integrator method='single', h_slow=%g, adaptive=%s, rtol=%g, atol=%g /"
-             % (h, ".true." if adaptive else ".false.", rtol, rtol * 1e-2),
-             "&effects gravity=%s /" % (".true." if gravity else ".false."),
+             % (h, nml_value(adaptive), rtol, rtol * 1e-2),
+             "&effects gravity=%s /" % nml_value(gravity),
              "&body name='ground', kind='ground' /"]
     for i in range(n_bodies):
         m = 1.0 + 0.5 * rng.random()
