@@ -205,6 +205,21 @@ def build_parser() -> argparse.ArgumentParser:
     from . import __version__
     p.add_argument("--version", action="version", version=f"pymr {__version__}")
     sub = p.add_subparsers(dest="command", required=True)
+    _add_run(sub)
+    _add_scene(sub)
+    _add_modal_file(sub)
+    _add_modal_import(sub)
+    _add_bench(sub)
+    _add_modes(sub)
+    _add_animate(sub)
+    _add_study(sub)
+    _add_sweep(sub)
+    _add_plot(sub)
+    return p
+
+
+def _add_run(sub) -> None:
+    """The `pymr run` subcommand and its options."""
     r = sub.add_parser("run", help="run a scene (namelist file) and write OUT.csv and OUT.json")
     r.add_argument("scene", help="scene namelist file")
     r.add_argument("-o", "--output", help="CSV result file (default: &output file, else SCENE.csv)")
@@ -217,6 +232,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="progress bar (simulated time, percent, ETA) on stderr; default: when stderr is a terminal")
     r.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
     r.set_defaults(func=_cmd_run)
+
+
+def _add_scene(sub) -> None:
+    """The `pymr scene` subcommand and its options."""
     sc = sub.add_parser("scene", help="print the resolved scene (every default filled in, every --set applied, "
                         "checked) and its fingerprint; --schema: every group and item")
     sc.add_argument("scene", nargs="?", help="scene namelist file")
@@ -226,6 +245,10 @@ def build_parser() -> argparse.ArgumentParser:
     sc.add_argument("--absolute-paths", action="store_true",
                     help="write the files the scene names (modal_file, file) as absolute paths")
     sc.set_defaults(func=_cmd_scene)
+
+
+def _add_modal_file(sub) -> None:
+    """The `pymr modal-file` subcommand and its options."""
     m = sub.add_parser("modal-file", help="write a beam's modes to a modal data file (for kind='modal')")
     m.add_argument("scene", help="scene namelist file")
     m.add_argument("body", help="name of a kind='beam' body")
@@ -233,6 +256,10 @@ def build_parser() -> argparse.ArgumentParser:
     m.add_argument("--set", action="append", metavar="GROUP.ITEM=VALUE", help="namelist override (repeatable)")
     m.add_argument("-q", "--quiet", action="store_true")
     m.set_defaults(func=_cmd_modal_file)
+
+
+def _add_modal_import(sub) -> None:
+    """The `pymr modal-import` subcommand and its options."""
     mi = sub.add_parser("modal-import", help="a kind='modal' body from finite-element mass and stiffness matrices "
                         "(Craig-Bampton reduction)")
     mi.add_argument("--mass", required=True, help="mass matrix (Matrix Market)")
@@ -253,6 +280,10 @@ def build_parser() -> argparse.ArgumentParser:
     mi.add_argument("-o", "--output", required=True, help="modal data file to write (format 2)")
     mi.add_argument("-q", "--quiet", action="store_true")
     mi.set_defaults(func=_cmd_modal_import)
+
+
+def _add_bench(sub) -> None:
+    """The `pymr bench` subcommand and its options."""
     b = sub.add_parser("bench", help="benchmarks that print figures")
     b.add_argument("what", choices=["rhs", "chain", "lapack", "table1", "effects", "spacecraft"],
                    help="rhs: cost of one model evaluation vs chain length; chain: the serial chain of N "
@@ -268,6 +299,10 @@ def build_parser() -> argparse.ArgumentParser:
                         "and spacecraft, 21 for table1, which takes at least 5)")
     b.add_argument("--json", help="also write the figures to this JSON file")
     b.set_defaults(func=_cmd_bench)
+
+
+def _add_modes(sub) -> None:
+    """The `pymr modes` subcommand and its options."""
     md = sub.add_parser("modes", help="natural frequencies, damping ratios and mode shapes of the model "
                         "linearised at the initial state (or at time T of the run); rigid-body motions and drifts "
                         "labelled as such")
@@ -277,6 +312,10 @@ def build_parser() -> argparse.ArgumentParser:
     md.add_argument("-o", "--output", help="write the modes to this CSV file (mode, kind, frequency, damping, rate, "
                     "shape)")
     md.set_defaults(func=_cmd_modes)
+
+
+def _add_animate(sub) -> None:
+    """The `pymr animate` subcommand and its options."""
     an = sub.add_parser("animate", help="animation of the moving mechanism from a run's results (GIF)")
     an.add_argument("csv", help="results CSV (its JSON beside it names the scene)")
     an.add_argument("-o", "--output", help="the animation file (default: the CSV's name with .gif)")
@@ -287,6 +326,10 @@ def build_parser() -> argparse.ArgumentParser:
     an.add_argument("--fps", type=_count_of("frames per second"), default=25, help="frames per second")
     an.add_argument("--frames", type=_count_of("frames"), default=200, help="most frames (evenly spaced output rows)")
     an.set_defaults(func=_cmd_animate)
+
+
+def _add_study(sub) -> None:
+    """The `pymr study` subcommand and its options."""
     s = sub.add_parser("study", help="work-precision study: error against CPU time and evaluations for every "
                        "method (fixed, multirate, adaptive, scipy DOP853/LSODA, CVODE)")
     s.add_argument("scene", help="scene namelist file (with at least one &marker)")
@@ -296,6 +339,10 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--quick", action="store_true", help="fewer steps and tolerances (a smoke run)")
     s.add_argument("--repeats", type=_count_of("runs per case"), default=5, help="runs per case; the CPU time is their median (default 5)")
     s.set_defaults(func=_cmd_study)
+
+
+def _add_sweep(sub) -> None:
+    """The `pymr sweep` subcommand and its options."""
     w = sub.add_parser("sweep", help="run a parameter sweep (SWEEP.toml) on Dask, or emit SLURM job-array files")
     w.add_argument("sweep", help="sweep file (TOML: scene, output, metric, [grid], [fixed], [reference]); its "
                    "output folder is relative to the working folder (default: the sweep file's stem)")
@@ -307,9 +354,14 @@ def build_parser() -> argparse.ArgumentParser:
     w.add_argument("--collect", metavar="DIR", help="after the SLURM job array ran: the summary (DIR/summary.csv) "
                    "of the cases' results in DIR")
     w.set_defaults(func=_cmd_sweep)
+
+
+def _add_plot(sub) -> None:
+    """The `pymr plot` subcommand and its options."""
     pl = sub.add_parser("plot", help="plot result files, overlaid (the tank: muzzle position, velocity and "
                         "modal coordinates, the paper's Figs. 5-7; other scenes: markers and joints)")
-    pl.add_argument("csv", nargs="+", help="result files (OUT.csv; OUT.json beside it is not needed)")
+    pl.add_argument("csv", nargs="+", help="result files (OUT.csv, with OUT.json beside it: its column metadata "
+                    "names the markers, joints and bodies)")
     pl.add_argument("-o", "--output", help="figure to write (default: the first CSV's stem + .png, here)")
     pl.add_argument("--marker", action="append", metavar="NAME",
                     help="plot this marker's position and velocity (repeatable; default: the tank's "
@@ -321,7 +373,6 @@ def build_parser() -> argparse.ArgumentParser:
     pl.add_argument("--title", help="figure title (default: the first run's scene title)")
     pl.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
     pl.set_defaults(func=_cmd_plot)
-    return p
 
 
 def main(argv: list[str] | None = None) -> int:
