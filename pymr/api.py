@@ -119,6 +119,19 @@ def model_size(scene: str | os.PathLike, overrides=None) -> tuple[int, int, int]
     return int(n), int(nb), int(nm)
 
 
+def initial_state(scene: str | os.PathLike, overrides=None) -> tuple[np.ndarray, np.ndarray]:
+    """The state ``(q, qd)`` (each of shape (n,), model order) a run of the scene starts
+    from, as its first row has it (the initial values, the loops assembled, a static start
+    settled), without running."""
+    where = _scene_and_overrides(scene, overrides)
+    n, _, _, stat, msg, detail = _core.pymr_model_size(*where)
+    _raise(stat, msg, detail)
+    n = int(n)
+    x, stat, msg, detail = _core.pymr_initial_state(*where, n)
+    _raise(stat, msg, detail)
+    return x[:n].copy(), x[n:].copy()
+
+
 def _states(q, qd) -> tuple[np.ndarray, np.ndarray]:
     """q and qd as finite float arrays of one shape (a SceneError naming q or qd otherwise:
     a NaN state would come back as NaN, or be blamed on the mass matrix or on LAPACK)."""
@@ -401,6 +414,17 @@ class Model:
         if q2.shape[0] != self.n:
             raise SceneError(f"q: states of {self.n} coordinates expected, got {q2.shape[0]}")
         return t1, q2, qd2
+
+    def marker_names(self) -> list[str]:
+        """The model's markers' names, in the scene's order."""
+        names = []
+        while name := _text(_core.pymr_model_marker_name(self.handle, len(names) + 1)):
+            names.append(name)
+        return names
+
+    def coordinate_names(self) -> list[str]:
+        """The coordinates' column names (``joint.q``, ``body.a1`` ...), in model order."""
+        return [_text(_core.pymr_model_coordinate_name(self.handle, k + 1)) for k in range(self.n)]
 
     def marker_body(self, name: str) -> int:
         """The index (0-based, as in :meth:`frames`) of the body marker `name` is on."""

@@ -82,6 +82,20 @@ def _count(name: str, text: str) -> int:
         raise SceneError(f"{name} {text}: a count of modes, or 'all'") from None
 
 
+def _state_at(scene: str, over: list[str], at: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """(q, qd, t) at the end of the scene's run to time `at` (> 0)."""
+    try:
+        res = run(scene, overrides=over + [f"scene.t_end={at!r}", "output.dt=0.0"])
+    except SceneError as exc:
+        # the run to T is refused for T itself: say so of --at, not of an override never typed
+        # (this override comes last, so a refused value of &scene t_end is its value)
+        if (exc.kind, exc.group, exc.item) != ("bad_value", "scene", "t_end"):
+            raise
+        raise SceneError(f"--at {at:g}: the run cannot be taken to this time (as &scene t_end it {exc.fault})") from None
+    q, qd = res.coordinates()
+    return q[-1], qd[-1], float(res.t[-1])
+
+
 def _cmd_modes(args: argparse.Namespace) -> int:
     """Natural modes at the initial state, or at time T of the run (--at T): every motion of
     the linearised model, labelled rigid (nothing holds it), drift (grows or decays without
@@ -89,7 +103,7 @@ def _cmd_modes(args: argparse.Namespace) -> int:
     import csv
     import io
     import math
-    from .api import modes, marker_shapes
+    from .api import Model, initial_state, modes, marker_shapes
     from .outputs import check_output
     over = list(args.set or [])
     at = 0.0 if args.at is None else args.at
@@ -98,23 +112,15 @@ def _cmd_modes(args: argparse.Namespace) -> int:
     if args.output is not None:
         check_output(args.output, "modes file", example="modes.csv", scene=args.scene, overrides=over,
                      if_left_out="no file")
-    end = f"scene.t_end={at if at > 0 else 1e-9!r}"
-    try:
-        res = run(args.scene, overrides=over + [end, "output.dt=0.0"])
-    except SceneError as exc:
-        # the run to T is refused for T itself: say so of --at, not of an override never typed
-        # (this override comes last, so a refused value of &scene t_end is its value)
-        if (exc.kind, exc.group, exc.item) != ("bad_value", "scene", "t_end"):
-            raise
-        raise SceneError(f"--at {at:g}: the run cannot be taken to this time (as &scene t_end it {exc.fault})") from None
-    q, qd = res.coordinates()
-    names = res.coordinate_columns()
-    # the state at T, or the initial state itself (the first row, not the end of the short run)
-    k = -1 if at > 0 else 0
-    t = float(res.t[k])
-    found = modes(args.scene, q[k], qd[k], t=t, overrides=over)
+    if at > 0:
+        q, qd, t = _state_at(args.scene, over, at)
+    else:
+        (q, qd), t = initial_state(args.scene, over), 0.0      # the initial state, without a run
+    with Model(args.scene, over) as model:
+        names, markers = model.coordinate_names(), model.marker_names()
+    found = modes(args.scene, q, qd, t=t, overrides=over)
     shapes = found.all_shapes
-    moves = marker_shapes(args.scene, res.markers, q[k], qd[k], shapes, t=t, overrides=over)
+    moves = marker_shapes(args.scene, markers, q, qd, shapes, t=t, overrides=over)
     counts = {kind: found.kind.count(kind) for kind in ("vibration", "rigid", "drift")}
     print(f"natural modes of {args.scene} linearised at t = {t:g} s ({counts['vibration']} vibrations, "
           f"{counts['rigid']} rigid-body motions, {counts['drift']} drifts)")

@@ -38,7 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .api import Model, PymrError, SceneError, SolverError, run, write_file
+from .api import Model, PymrError, SceneError, SolverError, initial_state, run, write_file
 from .outputs import check_output
 from .scene import Scene
 
@@ -138,11 +138,11 @@ class Study:
             raise SceneError(f"repeats: a whole number of runs per case, at least 1, got {repeats!r}")
         self.repeats = int(repeats)
         self.say = progress or (lambda *a, **k: None)
-        probe = run(self.scene, overrides={"output.dt": 0.0, "scene.t_end": 1e-6})
-        q, qd = probe.coordinates()
-        self.n = q.shape[1]
-        self.x0 = np.concatenate([q[0], qd[0]])      # the initial state [q; qd]
-        markers = sorted(probe.markers)
+        q, qd = initial_state(self.scene)
+        self.n = q.size
+        self.x0 = np.concatenate([q, qd])      # the initial state [q; qd]
+        with Model(self.scene) as model:
+            markers = sorted(model.marker_names())
         if not markers:
             raise SceneError(f"{self.scene.path}: the scene has no &marker to measure the error at")
         if marker is None:
@@ -150,7 +150,7 @@ class Study:
         if marker not in markers:
             raise SceneError(f"{self.scene.path}: no marker {marker!r} (markers: {', '.join(markers)})")
         self.marker = marker
-        self.h0 = float(probe.stats["integrator"]["h_slow"])
+        self.h0 = float(self.scene["integrator.h_slow"])
         self.t_end = self._t_end()
         # common output times for every run (dense output between steps): every 40 h0, at
         # most about 2000 of them

@@ -85,3 +85,21 @@ def test_results_without_metadata_are_a_clear_error(cylinder, tmp_path):
     bare.with_suffix(".json").write_text(json.dumps(stats))
     with pytest.raises(pymr.ResultsError, match="run the scene again"):
         pymr.load_results(bare).joint("elevation")
+
+
+@pytest.mark.parametrize("scene, over", [("tank_elevation_cylinder.nml", {}), ("tank_hold.nml", {"scene.start": "static"}),
+                                         ("spatial_chain.nml", {}), ("flexible_chain.nml", {})])
+def test_the_initial_state_and_names_come_without_a_run(scene, over, tmp_path):
+    """pymr.api.initial_state gives the run's first row (loops assembled, a static start
+    settled) bit for bit, and Model the coordinates' and markers' names of its columns."""
+    from pymr.api import initial_state
+    path = ROOT / "input" / scene
+    res = pymr.run(path, tmp_path / "r.csv", overrides={**over, "scene.t_end": 1e-9, "output.dt": 0.0})
+    q, qd = initial_state(path, over)
+    q0, qd0 = res.coordinates()
+    assert np.array_equal(q, q0[0]) and np.array_equal(qd, qd0[0])
+    if over:
+        assert res.stats["static_start"]["newton_iterations"] > 0
+    with pymr.Model(path) as model:
+        assert model.coordinate_names() == res.coordinate_columns()
+        assert model.marker_names() == res.markers

@@ -640,3 +640,56 @@ subroutine pymr_same_file(a, b, same)
   integer, intent(out) :: same
   same = merge(1, 0, same_file(a, b))
 end subroutine pymr_same_file
+
+!> The state a run of the scene starts from, x = [q; qd] (n coordinates), as the run's first
+!> row has it (the initial values, the loops assembled, a static start settled), without
+!> running.
+subroutine pymr_initial_state(scene, overrides, n, x, stat, message, detail)
+  use pymr_env_error, only : error_type
+  use pymr_bind_support, only : report
+  use pymr_model_scene, only : scene_t
+  use pymr_model, only : model_t
+  use pymr_driver_run, only : load_model, starting_state
+  implicit none
+  character(len=*), intent(in) :: scene, overrides
+  integer, intent(in) :: n
+  double precision, intent(out) :: x(2*n)
+  integer, intent(out) :: stat
+  character(len=8192), intent(out) :: message
+  character(len=4096), intent(out) :: detail
+  type(error_type), allocatable :: error
+  type(scene_t) :: sc
+  type(model_t) :: model
+  x = 0.0d0
+  call load_model(scene, overrides, sc, model, error, n)
+  if (.not. allocated(error)) call starting_state(sc, model, x, error)
+  call report(error, stat, message, detail)
+end subroutine pymr_initial_state
+
+!> The name of an open model's marker k (1-based; '' beyond the markers).
+subroutine pymr_model_marker_name(handle, k, name)
+  use pymr_env_error, only : error_type
+  use pymr_bind_models, only : open_models, check_handle
+  implicit none
+  integer, intent(in) :: handle, k
+  character(len=64), intent(out) :: name
+  type(error_type), allocatable :: error
+  name = ''
+  call check_handle(handle, error)
+  if (allocated(error)) return
+  if (k >= 1 .and. k <= open_models(handle)%d%markers%n) name = open_models(handle)%d%markers%name(k)
+end subroutine pymr_model_marker_name
+
+!> The column name of an open model's coordinate k (1-based, model order; '' beyond them).
+subroutine pymr_model_coordinate_name(handle, k, name)
+  use pymr_env_error, only : error_type
+  use pymr_bind_models, only : open_models, check_handle
+  implicit none
+  integer, intent(in) :: handle, k
+  character(len=68), intent(out) :: name
+  type(error_type), allocatable :: error
+  name = ''
+  call check_handle(handle, error)
+  if (allocated(error)) return
+  if (k >= 1 .and. k <= open_models(handle)%d%n) name = open_models(handle)%d%qname(k)
+end subroutine pymr_model_coordinate_name
