@@ -40,3 +40,22 @@ def test_api_and_scene_do_not_import_each_other():
     # what both use lies below both
     assert "_args" in imported_modules(PACKAGE / "api.py") and "_args" in imported_modules(PACKAGE / "scene.py")
     assert not {"api", "scene"} & imported_modules(PACKAGE / "_args.py")
+
+
+def test_no_module_reads_kernel_text_with_regexes():
+    """Python reads the kernel's errors and columns from structured fields (PymrError.kind,
+    .stable_step ...; Results.column_info), never by a regex over its words: only sweep.py
+    imports re, to check a sweep file's metric (user input)."""
+    users = {path.name for path in PACKAGE.glob("*.py") if "re" in imported_stdlib(path)}
+    assert users <= {"sweep.py"}
+
+
+def imported_stdlib(path: Path) -> set[str]:
+    """The top-level names of the absolute imports of `path` (anywhere in it)."""
+    found: set[str] = set()
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Import):
+            found.update(alias.name.split(".")[0] for alias in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            found.add(node.module.split(".")[0])
+    return found
