@@ -44,13 +44,20 @@ def write_file(path: str | os.PathLike, data: str | bytes, what: str) -> Path:
     return path
 
 
-def check_not_input(scene, path: str | os.PathLike, what: str, overrides=None) -> None:
-    """`path`, an output, is none of the scene's inputs (the scene, its modal and table files:
-    the kernel's rule, which the results and modal files obey too); else a SceneError."""
+def overwritten_input(scene, path: str | os.PathLike, overrides=None) -> str:
+    """The scene's input (the scene, a modal or table file) that `path`, an output, would
+    overwrite, by the kernel's rule (which the results and modal files obey too); '' for
+    none. A scene that cannot be read raises its SceneError."""
     found, stat, msg, detail = _core.pymr_scene_input(*_scene_and_overrides(scene, overrides), _path("output", path))
     _raise(stat, msg, detail)
-    if _text(found):
-        raise SceneError(f"{path}: would overwrite {_text(found)}; choose another {what}")
+    return _text(found)
+
+
+def check_not_input(scene, path: str | os.PathLike, what: str, overrides=None) -> None:
+    """`path`, an output, is none of the scene's inputs; else a SceneError."""
+    found = overwritten_input(scene, path, overrides)
+    if found:
+        raise SceneError(f"{path}: would overwrite {found}; choose another {what}")
 
 
 def _raise(stat: int, message: bytes | str, detail: bytes | str = "") -> None:

@@ -27,7 +27,7 @@ import os
 from pathlib import Path
 from typing import Iterable, Sequence
 
-from .errors import OutputError, SceneError
+from .errors import OutputError
 
 
 def _text(path, option: str, what: str, if_left_out: str | None) -> str:
@@ -118,12 +118,9 @@ def check_output(path, what: str, *, option: str = "-o", example: str | None = N
         if source is not None and _same(out, Path(source)):
             raise OutputError(f"{option} {text}: would overwrite the input {source}; choose another {what}")
     if scene is not None:
-        from ._args import check_not_input
-        try:
-            check_not_input(scene, text, what, overrides)
-        except SceneError as exc:
-            if str(exc).startswith(f"{text}: would overwrite"):
-                raise OutputError(f"{option} {exc}") from None
-            raise
+        from ._args import overwritten_input
+        found = overwritten_input(scene, text, overrides)
+        if found:
+            raise OutputError(f"{option} {text}: would overwrite {found}; choose another {what}")
     return out
 

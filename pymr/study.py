@@ -205,8 +205,9 @@ class Study:
     @staticmethod
     def _refusal(case: Case, exc: PymrError) -> None:
         """Mark `case` refused (the pre-flight check refused its step or ratio, whose
-        largest stable value it keeps) or failed, with the error's message."""
-        case.status = ("refused" if exc.kind in REFUSALS else "failed") + ": " + str(exc).split(": ", 1)[-1]
+        largest stable value it keeps) or failed, with the error's fault (its message when
+        the kernel gave no fault apart)."""
+        case.status = ("refused" if exc.kind in REFUSALS else "failed") + ": " + (exc.fault or str(exc))
         case.stable_step, case.stable_ratio = exc.stable_step, exc.stable_ratio
 
     def _pymr_case(self, method: str, setting: str, over: dict, repeats: int | None = None) -> Case:

@@ -3,7 +3,7 @@
 module pymr_driver_settings_json
   use pymr_env_kinds, only : dp
   use pymr_env_item_table, only : item_table, item_t, t_real, t_integer, t_logical, t_string, is_unset
-  use pymr_env_text, only : itoa
+  use pymr_env_text, only : itoa, json_escape
   use pymr_model_scene, only : scene_t, describe_group
   implicit none
   private
@@ -48,7 +48,7 @@ contains
     case (t_logical)
       s = trim(merge('true ', 'false', it%l))
     case default
-      s = '"' // json_text(trim(it%s)) // '"'
+      s = '"' // json_escape(trim(it%s)) // '"'
     end select
   end function json_value
 
@@ -64,23 +64,4 @@ contains
     s = trim(buf)
   end function json_real
 
-  !> A JSON string's content: backslashes and quotes escaped, control characters as \u00XX.
-  function json_text(text) result(s)
-    character(len=*), intent(in) :: text
-    character(len=:), allocatable :: s
-    character(len=6) :: u
-    integer :: k
-    s = ''
-    do k = 1, len(text)
-      select case (text(k:k))
-      case ('\', '"')
-        s = s // '\' // text(k:k)
-      case (achar(0):achar(31))
-        write(u, '(a,z4.4)') '\u', iachar(text(k:k))
-        s = s // u
-      case default
-        s = s // text(k:k)
-      end select
-    end do
-  end function json_text
 end module pymr_driver_settings_json

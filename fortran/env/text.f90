@@ -6,6 +6,7 @@ module pymr_env_text
   private
   public :: itoa, lower, fmt, decimal_text, exact_text, char_length, printable
   public :: number_text, count_text, split_words, next_text_line
+  public :: json_escape
 
   !> Integer (default or 64-bit) to text without blanks.
   interface itoa
@@ -316,4 +317,23 @@ contains
       end if
     end do
   end subroutine split_words
+  !> A JSON string's content: backslashes and quotes escaped, control characters as \uXXXX.
+  function json_escape(s) result(r)
+    character(len=*), intent(in) :: s
+    character(len=:), allocatable :: r
+    character(len=6) :: u
+    integer :: i
+    r = ''
+    do i = 1, len(s)
+      select case (s(i:i))
+      case ('\', '"')
+        r = r // '\' // s(i:i)
+      case (achar(0):achar(31), achar(127))
+        write(u, '(a,z4.4)') '\u', iachar(s(i:i))
+        r = r // u
+      case default
+        r = r // s(i:i)
+      end select
+    end do
+  end function json_escape
 end module pymr_env_text

@@ -6,7 +6,7 @@ module pymr_io_results_output
   use pymr_env_error, only : error_type, fatal_error, stat_solver
   use pymr_model_types, only : model_data, model_work, cut_free, prim_revolute
   use pymr_io_fast_format, only : put_real
-  use pymr_env_text, only : itoa, next_text_line
+  use pymr_env_text, only : json_escape, itoa, next_text_line
   use pymr_env_text_file, only : write_text_file, stage_text_file, sync_file, rename_file, file_size, check_size
   implicit none
   private
@@ -304,7 +304,7 @@ contains
       type(text_buffer), intent(inout) :: buffer
       character(len=*), intent(in) :: text
       if (buffer%n > 0) call buffer%add(', ')
-      call buffer%add('"' // escape(text) // '"')
+      call buffer%add('"' // json_escape(text) // '"')
     end subroutine item
   end subroutine metadata_add
 
@@ -542,13 +542,13 @@ contains
     text = '{' // new_line('a')
     call put('  "version": "' // pymr_version // '",')
     call put('  "status": "' // status // '",')
-    if (len(failure) > 0) call put('  "error": "' // escape(failure) // '",')
+    if (len(failure) > 0) call put('  "error": "' // json_escape(failure) // '",')
     write(buf, '(a,g0.17,a)') '  "t_reached": ', t_reached, ','; call put(trim(buf))
-    call put('  "scene": "' // escape(scene_file) // '",')
-    call put('  "title": "' // escape(trim(title)) // '",')
+    call put('  "scene": "' // json_escape(scene_file) // '",')
+    call put('  "title": "' // json_escape(trim(title)) // '",')
     call put('  "scene_fingerprint": "' // fingerprint // '",')
     call put('  "overrides": [' // json_lines(overrides) // '],')
-    call put('  "resolved_scene": "' // escape(scene_text) // '",')
+    call put('  "resolved_scene": "' // json_escape(scene_text) // '",')
     text = text // counts_json(st, d, wk) // effects_json(wk)
     if (st%static_settled >= 0) then
       write(buf, '(a,i0,a,i0,a,es12.5,a)') '  "static_start": {"coordinates_settled": ', st%static_settled, &
@@ -650,27 +650,8 @@ contains
     do while (next_text_line(lines, pos, one))
       if (len(one) == 0) cycle
       if (len(s) > 0) s = s // ', '
-      s = s // '"' // escape(one) // '"'
+      s = s // '"' // json_escape(one) // '"'
     end do
   end function json_lines
 
-  !> A JSON string's content: backslashes and quotes escaped, control characters as \uXXXX.
-  function escape(s) result(r)
-    character(len=*), intent(in) :: s
-    character(len=:), allocatable :: r
-    character(len=6) :: u
-    integer :: i
-    r = ''
-    do i = 1, len(s)
-      select case (s(i:i))
-      case ('\', '"')
-        r = r // '\' // s(i:i)
-      case (achar(0):achar(31), achar(127))
-        write(u, '(a,z4.4)') '\u', iachar(s(i:i))
-        r = r // u
-      case default
-        r = r // s(i:i)
-      end select
-    end do
-  end function escape
 end module pymr_io_results_output
