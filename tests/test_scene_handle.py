@@ -141,3 +141,28 @@ def test_the_binding_model_functions_are_pure_functions_of_their_inputs():
         _core.pymr_model_close(handle)
     mm, p, stat, msg, detail = _core.pymr_model_terms(handle, 0.3, q, qd)
     assert stat == 1 and _text(msg) == "the model of this handle is closed"
+
+
+def test_many_open_models_keep_their_handles():
+    """More open models than the kernel's first table holds (4): the table grows and every
+    model stays under its handle, each with its own mass."""
+    scenes = [pymr.Scene(TANK, {"body[turret].mass": 9000.0 + 100.0 * k}) for k in range(10)]
+    n = pymr.model_size(scenes[0])[0]
+    q, qd = np.zeros(n), np.zeros(n)
+    first = [pymr.model_terms(s, q, qd)[0][0, 0] for s in scenes]
+    assert len({s.model_handle() for s in scenes}) == 10
+    again = [pymr.model_terms(s, q, qd)[0][0, 0] for s in scenes]
+    assert first == again
+    assert np.diff(first) == pytest.approx(np.full(9, 100.0 * 0.3**2), rel=1e-9)
+
+
+def test_a_failed_build_leaves_no_open_model():
+    from pymr._args import open_model
+    from pymr import _core
+    handle = open_model(TANK, "")
+    _core.pymr_model_close(handle)
+    with pytest.raises(pymr.SceneError):
+        open_model(TANK, "body[gun].n_elements=0")
+    again = open_model(TANK, "")
+    assert again == handle
+    _core.pymr_model_close(again)

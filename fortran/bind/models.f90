@@ -17,11 +17,11 @@ module pymr_bind_models
   private
   public :: open_model_t, open_models, open_flags, check_handle, open_slot, close_slot, scratch, live_model
 
-  !> One open model: its scene, the model as built, and the copy Python's evaluations drive.
+  !> One open model: its scene, the model as built, and the copy Python's evaluations drive
+  !> (all unallocated in a free slot).
   type :: open_model_t
-    type(scene_t) :: sc
-    type(model_t) :: built
-    type(model_t), allocatable :: live
+    type(scene_t), allocatable :: sc
+    type(model_t), allocatable :: built, live
   end type open_model_t
 
   type(open_model_t), allocatable, target :: open_models(:)
@@ -74,7 +74,8 @@ contains
     model => open_models(handle)%live
   end function live_model
 
-  !> A free slot of the table (grown when every slot is taken: each open model keeps its handle).
+  !> A free slot of the table, its scene and model allocated for the build (the table grown
+  !> when every slot is taken: each open model keeps its handle).
   integer function open_slot() result(k)
     type(open_model_t), allocatable :: grown(:)
     logical, allocatable :: flags(:)
@@ -83,23 +84,28 @@ contains
       open_flags = .false.
     end if
     do k = 1, size(open_flags)
-      if (.not. open_flags(k)) return
+      if (.not. open_flags(k)) exit
     end do
-    allocate(grown(2*size(open_models)), flags(2*size(open_flags)))
-    flags = .false.
-    grown(1:size(open_models)) = open_models
-    flags(1:size(open_flags)) = open_flags
-    call move_alloc(grown, open_models)
-    call move_alloc(flags, open_flags)
+    if (k > size(open_flags)) then
+      allocate(grown(2*size(open_models)), flags(2*size(open_flags)))
+      flags = .false.
+      grown(1:size(open_models)) = open_models
+      flags(1:size(open_flags)) = open_flags
+      call move_alloc(grown, open_models)
+      call move_alloc(flags, open_flags)
+    end if
+    call close_slot(k)
+    allocate(open_models(k)%sc, open_models(k)%built)
   end function open_slot
 
   !> Release the open model of `handle` (nothing when it names none).
   subroutine close_slot(handle)
     integer, intent(in) :: handle
-    type(open_model_t) :: empty
     if (.not. allocated(open_flags)) return
     if (handle < 1 .or. handle > size(open_flags)) return
-    open_models(handle) = empty
+    if (allocated(open_models(handle)%sc)) deallocate(open_models(handle)%sc)
+    if (allocated(open_models(handle)%built)) deallocate(open_models(handle)%built)
+    if (allocated(open_models(handle)%live)) deallocate(open_models(handle)%live)
     open_flags(handle) = .false.
   end subroutine close_slot
 end module pymr_bind_models

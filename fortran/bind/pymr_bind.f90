@@ -303,7 +303,7 @@ end subroutine pymr_write_modal
 subroutine pymr_model_open(scene, overrides, handle, n, stat, message, detail)
   use pymr_env_error, only : error_type
   use pymr_bind_support, only : report
-  use pymr_bind_models, only : open_models, open_flags, open_slot
+  use pymr_bind_models, only : open_models, open_flags, open_slot, close_slot
   use pymr_driver_run, only : load_model
   implicit none
   character(len=*), intent(in) :: scene, overrides
@@ -316,7 +316,10 @@ subroutine pymr_model_open(scene, overrides, handle, n, stat, message, detail)
   k = open_slot()
   call load_model(scene, overrides, open_models(k)%sc, open_models(k)%built, error)
   call report(error, stat, message, detail)
-  if (stat /= 0) return
+  if (stat /= 0) then
+    call close_slot(k)
+    return
+  end if
   open_flags(k) = .true.
   handle = k; n = open_models(k)%built%d%n
 end subroutine pymr_model_open
