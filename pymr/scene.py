@@ -35,9 +35,9 @@ class Scene(SceneSource):
     stored as their repr ``"b'abc'"``: text is a str.
 
     The model functions (:func:`pymr.model_terms`, :func:`pymr.modes` ...) called with a
-    Scene share one model the kernel builds at the first of them and keeps open; setting an
-    item closes it (the next call builds the scene as it now is), and so does the Scene's
-    garbage collection.
+    Scene share one model the kernel builds at the first of them (from the file as it is
+    then) and keeps open; setting an item closes it (the next call builds the scene as it
+    now is), and so does the Scene's garbage collection.
     """
 
     def __init__(self, path: str | os.PathLike,
@@ -45,7 +45,7 @@ class Scene(SceneSource):
         self.path = Path(_path("path", path))
         self._overrides: list[str] = []
         self._resolved: str | None = None      # the kernel's text for the current overrides
-        self._model: tuple | None = None       # the open model: (handle, its closer, the text it was built from)
+        self._model: tuple | None = None       # the open model: (handle, its closer, what it was built from)
         text = format_overrides(overrides)
         if text:
             self._overrides = text.split("\n")
@@ -76,13 +76,15 @@ class Scene(SceneSource):
 
     def model_handle(self) -> int:
         """The handle of the kernel's model of this scene as it now is, opened at the first
-        call and kept until the scene is set or collected (or its path changed)."""
+        call and kept until the scene is set or collected (or its path, or the working folder
+        a relative path is read from, changed)."""
         where = self.kernel_scene()
-        if self._model is not None and (not self._model[1].alive or self._model[2] != where):
+        key = (where, None if self.path.is_absolute() else os.getcwd())
+        if self._model is not None and (not self._model[1].alive or self._model[2] != key):
             self._close_model()
         if self._model is None:
             handle = open_model(*where)
-            self._model = (handle, weakref.finalize(self, _core.pymr_model_close, handle), where)
+            self._model = (handle, weakref.finalize(self, _core.pymr_model_close, handle), key)
         return self._model[0]
 
     def _close_model(self) -> None:

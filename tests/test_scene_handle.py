@@ -166,3 +166,20 @@ def test_a_failed_build_leaves_no_open_model():
     again = open_model(TANK, "")
     assert again == handle
     _core.pymr_model_close(again)
+
+
+def test_a_relative_scene_follows_the_working_folder(tmp_path, monkeypatch):
+    """A Scene of a relative path reads it from the working folder of each call, as a
+    path does: another folder's file of that name is another model."""
+    for folder, mass in (("a", 9000.0), ("b", 10000.0)):
+        (tmp_path / folder).mkdir()
+        text = open(TANK).read().replace("mass = 9000.0", f"mass = {mass}")
+        (tmp_path / folder / "tank.nml").write_text(text)
+    monkeypatch.chdir(tmp_path / "a")
+    scene = pymr.Scene("tank.nml")
+    n = pymr.model_size(scene)[0]
+    q, qd = np.zeros(n), np.zeros(n)
+    m_a = pymr.model_terms(scene, q, qd)[0][0, 0]
+    monkeypatch.chdir(tmp_path / "b")
+    m_b = pymr.model_terms(scene, q, qd)[0][0, 0]
+    assert m_b - m_a == pytest.approx(1000.0 * 0.3**2, rel=1e-12)
