@@ -5,6 +5,7 @@ whole, and the kernel's status turned into pymr's exceptions. ``api`` and ``scen
 it and neither imports the other."""
 from __future__ import annotations
 
+import contextlib
 import os
 from pathlib import Path
 from typing import Iterable, Mapping
@@ -22,6 +23,37 @@ class SceneSource:
     def kernel_scene(self) -> tuple[str, str]:
         """The scene file's path and its override text (one GROUP.ITEM=VALUE a line)."""
         raise NotImplementedError
+
+    def model_handle(self) -> int:
+        """The handle of the kernel's model of :meth:`kernel_scene`, kept open for every
+        model function called with this scene; 0: none kept (each call opens its own)."""
+        return 0
+
+
+def open_model(path: str, overrides: str) -> int:
+    """Build the model of a scene file and overrides in the kernel and keep it open: its
+    handle (pymr_model_open, the binding's one entry point that builds a model), for every
+    entry point that works on a built model; the caller closes it (pymr_model_close)."""
+    handle, _, stat, msg, detail = _core.pymr_model_open(path, overrides)
+    _raise(stat, msg, detail)
+    return int(handle)
+
+
+@contextlib.contextmanager
+def model_of(scene, where: tuple[str, str]):
+    """The handle of the model of `where`, the kernel's scene and overrides of `scene` (as
+    :func:`_scene_and_overrides` gives them): a :class:`SceneSource`'s own open model when
+    the call adds no override, else a model opened for the call and closed after it."""
+    if isinstance(scene, SceneSource) and where == scene.kernel_scene():
+        handle = scene.model_handle()
+        if handle:
+            yield handle
+            return
+    handle = open_model(*where)
+    try:
+        yield handle
+    finally:
+        _core.pymr_model_close(handle)
 
 
 def write_file(path: str | os.PathLike, data: str | bytes, what: str) -> Path:

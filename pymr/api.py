@@ -19,7 +19,7 @@ except ImportError:
 from .errors import ArgumentTypeError, OutputError, PymrError, ResultsError, SceneError, SolverError  # noqa: F401
 from .results import Results, load_results
 from ._args import (_array, _flag, _name, _names, _path, _raise, _scene_and_overrides, _short, _text,  # noqa: F401
-                    check_not_input, format_overrides, nml_value, write_file)
+                    check_not_input, format_overrides, model_of, nml_value, write_file)
 
 
 def run(scene, output: str | os.PathLike | None = None,
@@ -114,7 +114,8 @@ def _run_kernel(scene: str, text: str, out: str, ckpt: str, progress: bool | Non
 
 def model_size(scene: str | os.PathLike, overrides=None) -> tuple[int, int, int]:
     """(coordinates, bodies including the ground, markers) of a scene's model."""
-    n, nb, nm, stat, msg, detail = _core.pymr_model_size(*_scene_and_overrides(scene, overrides))
+    with model_of(scene, _scene_and_overrides(scene, overrides)) as handle:
+        n, nb, nm, stat, msg, detail = _core.pymr_model_size(handle)
     _raise(stat, msg, detail)
     return int(n), int(nb), int(nm)
 
@@ -123,11 +124,11 @@ def initial_state(scene: str | os.PathLike, overrides=None) -> tuple[np.ndarray,
     """The state ``(q, qd)`` (each of shape (n,), model order) a run of the scene starts
     from, as its first row has it (the initial values, the loops assembled, a static start
     settled), without running."""
-    where = _scene_and_overrides(scene, overrides)
-    n, _, _, stat, msg, detail = _core.pymr_model_size(*where)
-    _raise(stat, msg, detail)
-    n = int(n)
-    x, stat, msg, detail = _core.pymr_initial_state(*where, n)
+    with model_of(scene, _scene_and_overrides(scene, overrides)) as handle:
+        n, _, _, stat, msg, detail = _core.pymr_model_size(handle)
+        _raise(stat, msg, detail)
+        n = int(n)
+        x, stat, msg, detail = _core.pymr_initial_state(handle, n)
     _raise(stat, msg, detail)
     return x[:n].copy(), x[n:].copy()
 
@@ -199,7 +200,10 @@ def _one_state(q, qd) -> tuple[np.ndarray, np.ndarray]:
 def model_terms(scene: str | os.PathLike, q, qd, t: float = 0.0, overrides=None):
     """Mass matrix M and right-hand side P of ``M qdd = P`` at (t, q, qd)."""
     q, qd = _one_state(q, qd)
-    mm, p, stat, msg, detail = _core.pymr_model_terms(*_scene_and_overrides(scene, overrides), _time(t), q, qd)
+    where = _scene_and_overrides(scene, overrides)
+    t = _time(t)
+    with model_of(scene, where) as handle:
+        mm, p, stat, msg, detail = _core.pymr_model_terms(handle, t, q, qd)
     _raise(stat, msg, detail)
     return mm, p
 
@@ -208,8 +212,11 @@ def force_response(scene: str | os.PathLike, q, qd, t: float = 0.0, overrides=No
     """The 'response' coupling's terms at (t, q, qd): ``g = M^-1 E`` (shape (n, nf)), the
     response of every acceleration to a unit force on each modal coordinate, and the modal
     stiffness ``kf`` and damping ``df`` (shape (nf,)) of the fast forces ``kf a + df ad``."""
-    nf, g, kf, df, stat, msg, detail = _core.pymr_force_response(*_scene_and_overrides(scene, overrides), _time(t),
-                                                        *_one_state(q, qd))
+    where = _scene_and_overrides(scene, overrides)
+    t = _time(t)
+    q, qd = _one_state(q, qd)
+    with model_of(scene, where) as handle:
+        nf, g, kf, df, stat, msg, detail = _core.pymr_force_response(handle, t, q, qd)
     _raise(stat, msg, detail)
     nf = int(nf)
     return g[:, :nf].copy(), kf[:nf].copy(), df[:nf].copy()
@@ -272,7 +279,8 @@ def modes(scene: str | os.PathLike, q, qd, t: float = 0.0, overrides=None) -> Mo
     where = _scene_and_overrides(scene, overrides)
     t = _time(t)
     q, qd = _one_state(q, qd)
-    nm, kind, freq, zeta, rate, shapes, stat, msg, detail = _core.pymr_modes(*where, t, q, qd)
+    with model_of(scene, where) as handle:
+        nm, kind, freq, zeta, rate, shapes, stat, msg, detail = _core.pymr_modes(handle, t, q, qd)
     _raise(stat, msg, detail)
     nm = int(nm)
     return Modes([_MODE_KINDS[int(k)] for k in kind[:nm]], freq[:nm].copy(), zeta[:nm].copy(), rate[:nm].copy(),
@@ -313,8 +321,10 @@ def step_history(scene: str | os.PathLike, overrides=None, max_steps: int = 200_
     time reached, the step taken and the method's order at each accepted step (entry 0 is
     the start: its step 0, its order the starting one). More than ``max_steps`` steps is an
     error."""
-    t, h, q, nh, stat, msg, detail = _core.pymr_step_history(*_scene_and_overrides(scene, overrides),
-                                                     _count("max_steps", max_steps) + 1)
+    where = _scene_and_overrides(scene, overrides)
+    nmax = _count("max_steps", max_steps) + 1
+    with model_of(scene, where) as handle:
+        t, h, q, nh, stat, msg, detail = _core.pymr_step_history(handle, nmax)
     if stat and int(nh) > max_steps:
         # the kernel's 'the run takes more than N steps' is about this argument: name it
         raise SolverError(f"max_steps: {_text(msg)} (give a larger max_steps)")
@@ -326,7 +336,8 @@ def step_history(scene: str | os.PathLike, overrides=None, max_steps: int = 200_
 def model_accelerations(scene: str | os.PathLike, t, q, qd, overrides=None) -> np.ndarray:
     """Accelerations for one state (q of shape (n,)) or many (shape (m, n), t of shape (m,))."""
     t1, q2, qd2 = _many_states(t, q, qd)
-    qdd, stat, msg, detail = _core.pymr_model_accelerations(*_scene_and_overrides(scene, overrides), t1, q2, qd2)
+    with model_of(scene, _scene_and_overrides(scene, overrides)) as handle:
+        qdd, stat, msg, detail = _core.pymr_model_accelerations(handle, t1, q2, qd2)
     _raise(stat, msg, detail)
     return qdd[:, 0].copy() if np.ndim(q) == 1 else qdd.T.copy()
 
@@ -337,10 +348,11 @@ def loop_rows(scene: str | os.PathLike, q, qd, overrides=None) -> tuple[np.ndarr
     (shape (r,)) of every loop-closing joint, redundant rows included."""
     q, qd = _one_state(q, qd)
     where = _scene_and_overrides(scene, overrides)
-    nr, *_, stat, msg, detail = _core.pymr_loop_rows(*where, 0, q, qd)
-    _raise(stat, msg, detail)
-    nr = int(nr)
-    _, phi, g, gam, stat, msg, detail = _core.pymr_loop_rows(*where, max(nr, 1), q, qd)
+    with model_of(scene, where) as handle:
+        nr, *_, stat, msg, detail = _core.pymr_loop_rows(handle, 0, q, qd)
+        _raise(stat, msg, detail)
+        nr = int(nr)
+        _, phi, g, gam, stat, msg, detail = _core.pymr_loop_rows(handle, max(nr, 1), q, qd)
     _raise(stat, msg, detail)
     return phi[:nr].copy(), g[:nr].copy(), gam[:nr].copy()
 
@@ -351,7 +363,8 @@ def model_energy(scene: str | os.PathLike, q, qd, overrides=None) -> tuple[np.nd
     plus gravity's and the joint springs' when those effects are on."""
     q, qd = _states(q, qd)
     _, q2, qd2 = _many_states(np.zeros(np.atleast_2d(q).shape[0]), q, qd)
-    ke, pe, stat, msg, detail = _core.pymr_model_energy(*_scene_and_overrides(scene, overrides), q2, qd2)
+    with model_of(scene, _scene_and_overrides(scene, overrides)) as handle:
+        ke, pe, stat, msg, detail = _core.pymr_model_energy(handle, q2, qd2)
     _raise(stat, msg, detail)
     return ke, pe
 
@@ -359,8 +372,10 @@ def model_energy(scene: str | os.PathLike, q, qd, overrides=None) -> tuple[np.nd
 def write_modal_file(scene: str | os.PathLike, body: str, path: str | os.PathLike, overrides=None) -> None:
     """Write the modes of beam ``body`` of a scene to a modal data file, which a
     ``kind='modal'`` body can read back (``modal_file=...``)."""
-    stat, msg, detail = _core.pymr_write_modal(*_scene_and_overrides(scene, overrides), _name("body", body),
-                                       _path("path", path))
+    where = _scene_and_overrides(scene, overrides)
+    body, path = _name("body", body), _path("path", path)
+    with model_of(scene, where) as handle:
+        stat, msg, detail = _core.pymr_write_modal(handle, body, path)
     _raise(stat, msg, detail)
 
 

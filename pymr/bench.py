@@ -12,6 +12,7 @@ import numpy as np
 
 from . import _kernel as _core
 from .api import SceneError, _raise, format_overrides, model_size, write_file
+from ._args import model_of
 from .scenes import ROD_LENGTH, ROD_MASS, ROD_RADIUS, serial_chain, spatial_chain
 
 
@@ -28,11 +29,12 @@ def time_evaluation(scene: str, q: np.ndarray, qd: np.ndarray, repeats: int = 7,
                     min_time: float = 0.05, overrides: str = "") -> float:
     """Median CPU seconds of one model evaluation (kinematics, body terms, loads, and the
     solve of M qdd = P by the scene's forward-dynamics path)."""
-    def per_call(reps: int) -> float:
-        sec, stat, msg, detail = _core.pymr_time_evaluation(scene, overrides, q, qd, reps)
-        _raise(stat, msg, detail)
-        return sec
-    return _median_seconds(per_call, repeats, min_time)
+    with model_of(scene, (scene, overrides)) as handle:
+        def per_call(reps: int) -> float:
+            sec, stat, msg, detail = _core.pymr_time_evaluation(handle, q, qd, reps)
+            _raise(stat, msg, detail)
+            return sec
+        return _median_seconds(per_call, repeats, min_time)
 
 
 def _chains(scene_text, sizes):
@@ -342,7 +344,8 @@ def bench_effects(repeats: int = 7) -> list[dict]:
     reps = 20000
     for _ in range(repeats):
         for name, over in cases:
-            sec, stat, msg, detail = _core.pymr_time_evaluation(scene, over, q, qd, reps)
+            with model_of(scene, (scene, over)) as handle:
+                sec, stat, msg, detail = _core.pymr_time_evaluation(handle, q, qd, reps)
             _raise(stat, msg, detail)
             samples[name].append(sec)
     for name, _ in cases:

@@ -6,11 +6,13 @@ from __future__ import annotations
 import functools
 import os
 import tempfile
+import weakref
 from pathlib import Path
 from typing import Iterable, Mapping
 
 from . import _kernel as _core
-from ._args import SceneSource, _flag, _name, _path, _raise, _text, format_overrides, nml_value, write_file
+from ._args import (SceneSource, _flag, _name, _path, _raise, _text, format_overrides, nml_value, open_model,
+                    write_file)
 from .errors import SceneError
 
 
@@ -31,6 +33,11 @@ class Scene(SceneSource):
     ``scene["output.quantities"]`` -> ``['coordinates', 'markers']``, and that list (or one
     str) sets it. Bytes are refused (:class:`pymr.ArgumentTypeError` naming the item), not
     stored as their repr ``"b'abc'"``: text is a str.
+
+    The model functions (:func:`pymr.model_terms`, :func:`pymr.modes` ...) called with a
+    Scene share one model the kernel builds at the first of them (from the file as it is
+    then) and keeps open; setting an item closes it (the next call builds the scene as it
+    now is), and so does the Scene's garbage collection.
     """
 
     def __init__(self, path: str | os.PathLike,
@@ -38,6 +45,7 @@ class Scene(SceneSource):
         self.path = Path(_path("path", path))
         self._overrides: list[str] = []
         self._resolved: str | None = None      # the kernel's text for the current overrides
+        self._model: tuple | None = None       # the open model: (handle, its closer, what it was built from)
         text = format_overrides(overrides)
         if text:
             self._overrides = text.split("\n")
@@ -66,6 +74,29 @@ class Scene(SceneSource):
         to the kernel."""
         return str(self.path), self.overrides
 
+    def model_handle(self) -> int:
+        """The handle of the kernel's model of this scene as it now is, opened at the first
+        call and kept until the scene is set or collected (or its path, or the working folder
+        a relative path is read from, changed)."""
+        where = self.kernel_scene()
+        key = (where, None if self.path.is_absolute() else os.getcwd())
+        if self._model is not None and (not self._model[1].alive or self._model[2] != key):
+            self._close_model()
+        if self._model is None:
+            handle = open_model(*where)
+            self._model = (handle, weakref.finalize(self, _core.pymr_model_close, handle), key)
+        return self._model[0]
+
+    def _close_model(self) -> None:
+        """Close the open model (if any): the scene has changed."""
+        if self._model is not None:
+            self._model[1]()                   # a finalizer closes its handle once
+            self._model = None
+
+    def __getstate__(self) -> dict:
+        # a copy (or pickle) opens its own model: the handle is this object's
+        return {**self.__dict__, "_model": None}
+
     @property
     def overrides(self) -> str:
         """The overrides as the kernel reads them (one GROUP.ITEM=VALUE a line)."""
@@ -92,6 +123,7 @@ class Scene(SceneSource):
         return write_file(path, self.resolved(absolute_paths), "resolved scene")
 
     def _check(self) -> None:
+        self._close_model()
         self._resolved = None
         self._resolved = _kernel_text(str(self.path), self.overrides, 0)
 

@@ -27,38 +27,34 @@ subroutine pymr_run_scene(scene, overrides, out, restart, stat, message, detail,
   end if
 end subroutine pymr_run_scene
 
-!> Sizes of a scene's model: coordinates, bodies (with ground), markers.
-subroutine pymr_model_size(scene, overrides, n, nb, n_markers, stat, message, detail)
+!> Sizes of an open model: coordinates, bodies (with ground), markers.
+subroutine pymr_model_size(handle, n, nb, n_markers, stat, message, detail)
   use pymr_env_error, only : error_type
   use pymr_bind_support, only : report
-  use pymr_model_scene, only : scene_t
-  use pymr_model, only : model_t
-  use pymr_driver_run, only : load_model
+  use pymr_bind_models, only : open_models, check_handle
   implicit none
-  character(len=*), intent(in) :: scene, overrides
+  integer, intent(in) :: handle
   integer, intent(out) :: n, nb, n_markers, stat
   character(len=8192), intent(out) :: message
   character(len=4096), intent(out) :: detail
   type(error_type), allocatable :: error
-  type(scene_t) :: sc
-  type(model_t) :: model
   n = 0; nb = 0; n_markers = 0
-  call load_model(scene, overrides, sc, model, error)
+  call check_handle(handle, error)
   call report(error, stat, message, detail)
   if (stat /= 0) return
-  n = model%d%n; nb = model%d%nb; n_markers = model%d%markers%n
+  associate(d => open_models(handle)%built%d)
+    n = d%n; nb = d%nb; n_markers = d%markers%n
+  end associate
 end subroutine pymr_model_size
 
-!> Mass matrix mm(n,n) and right-hand side p(n) of M qdd = P at (t, q, qd).
-subroutine pymr_model_terms(scene, overrides, n, t, q, qd, mm, p, stat, message, detail)
-  use pymr_env_error, only : error_type, fatal_error
+!> Mass matrix mm(n,n) and right-hand side p(n) of M qdd = P at (t, q, qd) of an open model.
+subroutine pymr_model_terms(handle, n, t, q, qd, mm, p, stat, message, detail)
+  use pymr_env_error, only : error_type
   use pymr_bind_support, only : report
-  use pymr_model_scene, only : scene_t
+  use pymr_bind_models, only : scratch
   use pymr_model, only : model_t, check_terms_finite
-  use pymr_driver_run, only : load_model
   implicit none
-  character(len=*), intent(in) :: scene, overrides
-  integer, intent(in) :: n
+  integer, intent(in) :: handle, n
   double precision, intent(in) :: t, q(n), qd(n)
   double precision, intent(out) :: mm(n, n), p(n)
   integer, intent(out) :: stat
@@ -66,10 +62,9 @@ subroutine pymr_model_terms(scene, overrides, n, t, q, qd, mm, p, stat, message,
   character(len=4096), intent(out) :: detail
   !f2py integer intent(hide), depend(q) :: n = len(q)
   type(error_type), allocatable :: error
-  type(scene_t) :: sc
   type(model_t) :: model
   mm = 0.0d0; p = 0.0d0
-  call load_model(scene, overrides, sc, model, error, n)
+  call scratch(handle, model, error, n)
   if (.not. allocated(error)) then
     call model%terms(t, q, qd)
     call check_terms_finite(model, t, error)
@@ -79,18 +74,16 @@ subroutine pymr_model_terms(scene, overrides, n, t, q, qd, mm, p, stat, message,
   mm = model%wk%mm; p = model%wk%p
 end subroutine pymr_model_terms
 
-!> The 'response' coupling's fast-force response at (t, q, qd): after one synchronised
-!> (Schur complement) evaluation, g(:, 1:nf) = M^-1 E and the fast force coefficients
-!> kf(1:nf), df(1:nf) (g, kf and df are n wide; nf columns are used).
-subroutine pymr_force_response(scene, overrides, n, t, q, qd, nf, g, kf, df, stat, message, detail)
+!> The 'response' coupling's fast-force response at (t, q, qd) of an open model: after one
+!> synchronised (Schur complement) evaluation, g(:, 1:nf) = M^-1 E and the fast force
+!> coefficients kf(1:nf), df(1:nf) (g, kf and df are n wide; nf columns are used).
+subroutine pymr_force_response(handle, n, t, q, qd, nf, g, kf, df, stat, message, detail)
   use pymr_env_error, only : error_type, fatal_error
   use pymr_bind_support, only : report
-  use pymr_model_scene, only : scene_t
+  use pymr_bind_models, only : scratch
   use pymr_model, only : model_t
-  use pymr_driver_run, only : load_model
   implicit none
-  character(len=*), intent(in) :: scene, overrides
-  integer, intent(in) :: n
+  integer, intent(in) :: handle, n
   double precision, intent(in) :: t, q(n), qd(n)
   integer, intent(out) :: nf
   double precision, intent(out) :: g(n, n), kf(n), df(n)
@@ -99,11 +92,10 @@ subroutine pymr_force_response(scene, overrides, n, t, q, qd, nf, g, kf, df, sta
   character(len=4096), intent(out) :: detail
   !f2py integer intent(hide), depend(q) :: n = len(q)
   type(error_type), allocatable :: error
-  type(scene_t) :: sc
   type(model_t) :: model
   double precision, allocatable :: f(:)
   g = 0.0d0; kf = 0.0d0; df = 0.0d0; nf = 0
-  call load_model(scene, overrides, sc, model, error, n)
+  call scratch(handle, model, error, n)
   if (.not. allocated(error)) then
     nf = model%n_fast()
     if (nf == 0 .or. model%n_slow() == 0) call fatal_error(error, 'the scene has no slow or no fast coordinates')
@@ -117,20 +109,18 @@ subroutine pymr_force_response(scene, overrides, n, t, q, qd, nf, g, kf, df, sta
   call report(error, stat, message, detail)
 end subroutine pymr_force_response
 
-!> Natural modes of the model linearised at (t, q, qd) (the pre-flight check's
+!> Natural modes of an open model linearised at (t, q, qd) (the pre-flight check's
 !> linearisation; preflight%normal_modes): nm modes (at most 2n), each of a kind (1 vibration,
 !> 2 rigid-body motion, 3 drift), its frequency (Hz), damping ratio, rate Re(lambda) (1/s) and
 !> shape in the coordinates.
-subroutine pymr_modes(scene, overrides, n, t, q, qd, nm, kind, freq, zeta, rate, shapes, stat, message, detail)
+subroutine pymr_modes(handle, n, t, q, qd, nm, kind, freq, zeta, rate, shapes, stat, message, detail)
   use pymr_env_error, only : error_type
   use pymr_bind_support, only : report
-  use pymr_model_scene, only : scene_t
+  use pymr_bind_models, only : scratch
   use pymr_model, only : model_t
-  use pymr_driver_run, only : load_model
   use pymr_driver_preflight, only : normal_modes
   implicit none
-  character(len=*), intent(in) :: scene, overrides
-  integer, intent(in) :: n
+  integer, intent(in) :: handle, n
   double precision, intent(in) :: t, q(n), qd(n)
   integer, intent(out) :: nm, kind(2*n)
   double precision, intent(out) :: freq(2*n), zeta(2*n), rate(2*n), shapes(n, 2*n)
@@ -139,24 +129,21 @@ subroutine pymr_modes(scene, overrides, n, t, q, qd, nm, kind, freq, zeta, rate,
   character(len=4096), intent(out) :: detail
   !f2py integer intent(hide), depend(q) :: n = len(q)
   type(error_type), allocatable :: error
-  type(scene_t) :: sc
   type(model_t) :: model
   freq = 0.0d0; zeta = 0.0d0; rate = 0.0d0; shapes = 0.0d0; kind = 0; nm = 0
-  call load_model(scene, overrides, sc, model, error, n)
+  call scratch(handle, model, error, n)
   if (.not. allocated(error)) call normal_modes(model, t, [q, qd], freq, zeta, rate, shapes, kind, nm, error)
   call report(error, stat, message, detail)
 end subroutine pymr_modes
 
-!> Accelerations qdd(n, m) for m states (t(m), q(n,m), qd(n,m)) of one model.
-subroutine pymr_model_accelerations(scene, overrides, n, m, t, q, qd, qdd, stat, message, detail)
-  use pymr_env_error, only : error_type, fatal_error
+!> Accelerations qdd(n, m) for m states (t(m), q(n,m), qd(n,m)) of an open model.
+subroutine pymr_model_accelerations(handle, n, m, t, q, qd, qdd, stat, message, detail)
+  use pymr_env_error, only : error_type
   use pymr_bind_support, only : report
-  use pymr_model_scene, only : scene_t
+  use pymr_bind_models, only : scratch
   use pymr_model, only : model_t
-  use pymr_driver_run, only : load_model
   implicit none
-  character(len=*), intent(in) :: scene, overrides
-  integer, intent(in) :: n, m
+  integer, intent(in) :: handle, n, m
   double precision, intent(in) :: t(m), q(n, m), qd(n, m)
   double precision, intent(out) :: qdd(n, m)
   integer, intent(out) :: stat
@@ -165,11 +152,10 @@ subroutine pymr_model_accelerations(scene, overrides, n, m, t, q, qd, qdd, stat,
   !f2py integer intent(hide), depend(q) :: n = shape(q, 0)
   !f2py integer intent(hide), depend(q) :: m = shape(q, 1)
   type(error_type), allocatable :: error
-  type(scene_t) :: sc
   type(model_t) :: model
   integer :: k
   qdd = 0.0d0
-  call load_model(scene, overrides, sc, model, error, n)
+  call scratch(handle, model, error, n)
   do k = 1, m
     if (allocated(error)) exit
     call model%accelerations(t(k), q(:, k), qd(:, k), qdd(:, k), error)
@@ -177,20 +163,18 @@ subroutine pymr_model_accelerations(scene, overrides, n, m, t, q, qd, qdd, stat,
   call report(error, stat, message, detail)
 end subroutine pymr_model_accelerations
 
-!> The loops' constraint rows at one state (t = 0; model/loops.f90 loop_rows): residual
-!> phi(nr), Jacobian g(nr, n) and gam(nr) = -Gdot qd of every cut joint, nr of them (the
-!> arrays are nrmax long; call with nrmax = 0 to learn nr).
-subroutine pymr_loop_rows(scene, overrides, n, nrmax, q, qd, nr, phi, g, gam, stat, message, detail)
-  use pymr_env_error, only : error_type, fatal_error
+!> The loops' constraint rows of an open model at one state (t = 0; model/loops.f90
+!> loop_rows): residual phi(nr), Jacobian g(nr, n) and gam(nr) = -Gdot qd of every cut
+!> joint, nr of them (the arrays are nrmax long; call with nrmax = 0 to learn nr).
+subroutine pymr_loop_rows(handle, n, nrmax, q, qd, nr, phi, g, gam, stat, message, detail)
+  use pymr_env_error, only : error_type
   use pymr_bind_support, only : report
-  use pymr_model_scene, only : scene_t
+  use pymr_bind_models, only : scratch
   use pymr_model, only : model_t
   use pymr_model_kinematics, only : forward_kinematics
   use pymr_model_loops, only : loop_rows
-  use pymr_driver_run, only : load_model
   implicit none
-  character(len=*), intent(in) :: scene, overrides
-  integer, intent(in) :: n, nrmax
+  integer, intent(in) :: handle, n, nrmax
   double precision, intent(in) :: q(n), qd(n)
   integer, intent(out) :: nr
   double precision, intent(out) :: phi(nrmax), g(nrmax, n), gam(nrmax)
@@ -199,10 +183,9 @@ subroutine pymr_loop_rows(scene, overrides, n, nrmax, q, qd, nr, phi, g, gam, st
   character(len=4096), intent(out) :: detail
   !f2py integer intent(hide), depend(q) :: n = len(q)
   type(error_type), allocatable :: error
-  type(scene_t) :: sc
   type(model_t) :: model
   phi = 0.0d0; g = 0.0d0; gam = 0.0d0; nr = 0
-  call load_model(scene, overrides, sc, model, error, n)
+  call scratch(handle, model, error, n)
   call report(error, stat, message, detail)
   if (stat /= 0) return
   nr = model%d%cuts%n_rows
@@ -212,16 +195,14 @@ subroutine pymr_loop_rows(scene, overrides, n, nrmax, q, qd, nr, phi, g, gam, st
   phi(1:nr) = model%wk%loops%residual; g(1:nr, :) = model%wk%loops%jac; gam(1:nr) = model%wk%loops%gamma
 end subroutine pymr_loop_rows
 
-!> Kinetic and potential energy (J) for m states q(n,m), qd(n,m) of one model.
-subroutine pymr_model_energy(scene, overrides, n, m, q, qd, kinetic, potential, stat, message, detail)
-  use pymr_env_error, only : error_type, fatal_error
+!> Kinetic and potential energy (J) for m states q(n,m), qd(n,m) of an open model.
+subroutine pymr_model_energy(handle, n, m, q, qd, kinetic, potential, stat, message, detail)
+  use pymr_env_error, only : error_type
   use pymr_bind_support, only : report
-  use pymr_model_scene, only : scene_t
+  use pymr_bind_models, only : scratch
   use pymr_model, only : model_t
-  use pymr_driver_run, only : load_model
   implicit none
-  character(len=*), intent(in) :: scene, overrides
-  integer, intent(in) :: n, m
+  integer, intent(in) :: handle, n, m
   double precision, intent(in) :: q(n, m), qd(n, m)
   double precision, intent(out) :: kinetic(m), potential(m)
   integer, intent(out) :: stat
@@ -230,11 +211,10 @@ subroutine pymr_model_energy(scene, overrides, n, m, q, qd, kinetic, potential, 
   !f2py integer intent(hide), depend(q) :: n = shape(q, 0)
   !f2py integer intent(hide), depend(q) :: m = shape(q, 1)
   type(error_type), allocatable :: error
-  type(scene_t) :: sc
   type(model_t) :: model
   integer :: k
   kinetic = 0.0d0; potential = 0.0d0
-  call load_model(scene, overrides, sc, model, error, n)
+  call scratch(handle, model, error, n)
   call report(error, stat, message, detail)
   if (stat /= 0) return
   do k = 1, m
@@ -242,18 +222,16 @@ subroutine pymr_model_energy(scene, overrides, n, m, q, qd, kinetic, potential, 
   end do
 end subroutine pymr_model_energy
 
-!> Timing helper: CPU seconds per model evaluation over `reps` evaluations at
-!> the state (q, qd); the model is built once. Python takes medians over several calls.
-subroutine pymr_time_evaluation(scene, overrides, n, q, qd, reps, seconds, stat, message, detail)
-  use pymr_env_error, only : error_type, fatal_error
+!> Timing helper: CPU seconds per model evaluation of an open model over `reps` evaluations
+!> at the state (q, qd). Python takes medians over several calls.
+subroutine pymr_time_evaluation(handle, n, q, qd, reps, seconds, stat, message, detail)
+  use pymr_env_error, only : error_type
   use pymr_bind_support, only : report
-  use pymr_model_scene, only : scene_t
+  use pymr_bind_models, only : scratch
   use pymr_model, only : model_t
-  use pymr_driver_run, only : load_model
   use pymr_env_clock, only : thread_cpu_time
   implicit none
-  character(len=*), intent(in) :: scene, overrides
-  integer, intent(in) :: n, reps
+  integer, intent(in) :: handle, n, reps
   double precision, intent(in) :: q(n), qd(n)
   double precision, intent(out) :: seconds
   integer, intent(out) :: stat
@@ -261,13 +239,12 @@ subroutine pymr_time_evaluation(scene, overrides, n, q, qd, reps, seconds, stat,
   character(len=4096), intent(out) :: detail
   !f2py integer intent(hide), depend(q) :: n = len(q)
   type(error_type), allocatable :: error
-  type(scene_t) :: sc
   type(model_t) :: model
   double precision, allocatable :: qdd(:)
   double precision :: c0, c1
   integer :: k
   seconds = 0.0d0
-  call load_model(scene, overrides, sc, model, error, n)
+  call scratch(handle, model, error, n)
   if (.not. allocated(error)) then
     allocate(qdd(n))
     c0 = thread_cpu_time()
@@ -281,54 +258,52 @@ subroutine pymr_time_evaluation(scene, overrides, n, q, qd, reps, seconds, stat,
   call report(error, stat, message, detail)
 end subroutine pymr_time_evaluation
 
-!> Write the modes of beam `body` of a scene to a modal data file (for kind='modal').
-subroutine pymr_write_modal(scene, overrides, body, path, stat, message, detail)
+!> Write the modes of beam `body` of an open model to a modal data file (for kind='modal').
+subroutine pymr_write_modal(handle, body, path, stat, message, detail)
   use pymr_env_error, only : error_type, fatal_error
   use pymr_bind_support, only : report
-  use pymr_model_scene, only : scene_t
-  use pymr_model, only : model_t
-  use pymr_driver_run, only : load_model, scene_input
+  use pymr_bind_models, only : open_models, check_handle
+  use pymr_driver_run, only : scene_input
   use pymr_io_modal_file, only : write_modal_file
   implicit none
-  character(len=*), intent(in) :: scene, overrides, body, path
+  integer, intent(in) :: handle
+  character(len=*), intent(in) :: body, path
   integer, intent(out) :: stat
   character(len=8192), intent(out) :: message
   character(len=4096), intent(out) :: detail
   type(error_type), allocatable :: error
-  type(scene_t) :: sc
-  type(model_t) :: model
   integer :: b, k
-  call load_model(scene, overrides, sc, model, error)
+  call check_handle(handle, error)
   if (.not. allocated(error)) then
-    k = 0
-    do b = 1, model%d%nb
-      if (model%d%body_name(b) == body) k = b
-    end do
-    if (k == 0) then
-      call fatal_error(error, scene // ": no body named '" // body // "'")
-    else if (k == 1) then
-      call fatal_error(error, scene // ": body '" // body // "' is the ground, not a beam (kind='beam')")
-    else if (model%d%bshape(k)%ne == 0) then
-      call fatal_error(error, scene // ": body '" // body // "' is not a beam (kind='beam')")
-    else if (len(scene_input(sc, path)) > 0) then
-      call fatal_error(error, scene // ': ' // path // ': would overwrite ' // scene_input(sc, path) // &
-        & '; choose another modal file')
-    else
-      call write_modal_file(path, 'modes of beam ' // body // ' from ' // scene, model%d%flex(k), &
-        & model%d%bshape(k), error)
-    end if
+    associate(sc => open_models(handle)%sc, d => open_models(handle)%built%d)
+      k = 0
+      do b = 1, d%nb
+        if (d%body_name(b) == body) k = b
+      end do
+      if (k == 0) then
+        call fatal_error(error, sc%file // ": no body named '" // body // "'")
+      else if (k == 1) then
+        call fatal_error(error, sc%file // ": body '" // body // "' is the ground, not a beam (kind='beam')")
+      else if (d%bshape(k)%ne == 0) then
+        call fatal_error(error, sc%file // ": body '" // body // "' is not a beam (kind='beam')")
+      else if (len(scene_input(sc, path)) > 0) then
+        call fatal_error(error, sc%file // ': ' // path // ': would overwrite ' // scene_input(sc, path) // &
+          & '; choose another modal file')
+      else
+        call write_modal_file(path, 'modes of beam ' // body // ' from ' // sc%file, d%flex(k), d%bshape(k), error)
+      end if
+    end associate
   end if
   call report(error, stat, message, detail)
 end subroutine pymr_write_modal
 
-!> Build a scene's model and keep it open: `handle` for pymr_model_rhs and friends, `n`
-!> its number of coordinates.
+!> Build a scene's model and keep it open: `handle` for every entry point that works on a
+!> built model (pymr_model_terms, pymr_model_rhs and the others), `n` its number of
+!> coordinates. The one entry point that builds a model from a scene's text.
 subroutine pymr_model_open(scene, overrides, handle, n, stat, message, detail)
   use pymr_env_error, only : error_type
   use pymr_bind_support, only : report
-  use pymr_bind_models, only : open_models, open_flags
-  use pymr_model_scene, only : scene_t
-  use pymr_model, only : model_t
+  use pymr_bind_models, only : open_models, open_flags, open_slot, close_slot
   use pymr_driver_run, only : load_model
   implicit none
   character(len=*), intent(in) :: scene, overrides
@@ -336,53 +311,34 @@ subroutine pymr_model_open(scene, overrides, handle, n, stat, message, detail)
   character(len=8192), intent(out) :: message
   character(len=4096), intent(out) :: detail
   type(error_type), allocatable :: error
-  type(scene_t) :: sc
-  type(model_t), allocatable :: grown(:)
-  logical, allocatable :: flags(:)
   integer :: k
   handle = 0; n = 0
-  if (.not. allocated(open_models)) then
-    allocate(open_models(4), open_flags(4))
-    open_flags = .false.
-  end if
-  do k = 1, size(open_flags)
-    if (.not. open_flags(k)) exit
-  end do
-  if (k > size(open_flags)) then
-    ! a larger table keeps every open model under its handle
-    allocate(grown(2*size(open_models)), flags(2*size(open_flags)))
-    flags = .false.
-    grown(1:size(open_models)) = open_models
-    flags(1:size(open_flags)) = open_flags
-    call move_alloc(grown, open_models)
-    call move_alloc(flags, open_flags)
-  end if
-  call load_model(scene, overrides, sc, open_models(k), error)
+  k = open_slot()
+  call load_model(scene, overrides, open_models(k)%sc, open_models(k)%built, error)
   call report(error, stat, message, detail)
-  if (stat /= 0) return
+  if (stat /= 0) then
+    call close_slot(k)
+    return
+  end if
   open_flags(k) = .true.
-  handle = k; n = open_models(k)%d%n
+  handle = k; n = open_models(k)%built%d%n
 end subroutine pymr_model_open
 
 !> Release an open model.
 subroutine pymr_model_close(handle)
-  use pymr_bind_models, only : open_models, open_flags
-  use pymr_model, only : model_t
+  use pymr_bind_models, only : close_slot
   implicit none
   integer, intent(in) :: handle
-  type(model_t) :: empty
-  if (.not. allocated(open_flags)) return
-  if (handle < 1 .or. handle > size(open_flags)) return
-  open_models(handle) = empty
-  open_flags(handle) = .false.
+  call close_slot(handle)
 end subroutine pymr_model_close
 
 !> f(t, x) = [qd; qdd] of an open model for the state x = [q; qd]; `evals` counts the
-!> model's full evaluations so far.
+!> full evaluations of this handle's pymr_model_rhs calls so far.
 subroutine pymr_model_rhs(handle, nx, t, x, f, evals, stat, message, detail)
   use pymr_env_error, only : error_type, fatal_error
   use pymr_bind_support, only : report
-  use pymr_bind_models, only : open_models, check_handle
+  use pymr_bind_models, only : open_models, check_handle, live_model
+  use pymr_model, only : model_t
   implicit none
   integer, intent(in) :: handle, nx
   double precision, intent(in) :: t, x(nx)
@@ -392,14 +348,16 @@ subroutine pymr_model_rhs(handle, nx, t, x, f, evals, stat, message, detail)
   character(len=4096), intent(out) :: detail
   !f2py integer intent(hide), depend(x) :: nx = len(x)
   type(error_type), allocatable :: error
+  type(model_t), pointer :: model
   f = 0.0d0; evals = 0
   call check_handle(handle, error)
   if (.not. allocated(error)) then
-    if (2*open_models(handle)%d%n /= nx) then
+    if (2*open_models(handle)%built%d%n /= nx) then
       call fatal_error(error, 'x has the wrong length')
     else
-      call open_models(handle)%eval(t, x, f, error)
-      evals = open_models(handle)%wk%count%evals
+      model => live_model(handle)
+      call model%eval(t, x, f, error)
+      evals = model%wk%count%evals
     end if
   end if
   call report(error, stat, message, detail)
@@ -410,7 +368,8 @@ end subroutine pymr_model_rhs
 subroutine pymr_model_marker(handle, marker, n, m, t, q, qd, pos, stat, message, detail)
   use pymr_env_error, only : error_type, fatal_error
   use pymr_bind_support, only : report
-  use pymr_bind_models, only : open_models, check_handle
+  use pymr_bind_models, only : open_models, check_handle, live_model
+  use pymr_model, only : model_t
   use pymr_model_kinematics, only : forward_kinematics, marker_motion
   implicit none
   integer, intent(in) :: handle, marker, n, m
@@ -422,26 +381,26 @@ subroutine pymr_model_marker(handle, marker, n, m, t, q, qd, pos, stat, message,
   !f2py integer intent(hide), depend(q) :: n = shape(q, 0)
   !f2py integer intent(hide), depend(q) :: m = shape(q, 1)
   type(error_type), allocatable :: error
+  type(model_t), pointer :: model
   double precision :: v(3)
   integer :: k
   pos = 0.0d0
   call check_handle(handle, error)
   if (.not. allocated(error)) then
-    if (open_models(handle)%d%n /= n) then
+    if (open_models(handle)%built%d%n /= n) then
       call fatal_error(error, 'q has the wrong length')
-    else if (marker < 1 .or. marker > open_models(handle)%d%markers%n) then
+    else if (marker < 1 .or. marker > open_models(handle)%built%d%markers%n) then
       call fatal_error(error, 'no marker with this index')
     end if
   end if
   call report(error, stat, message, detail)
   if (stat /= 0) return
-  associate(model => open_models(handle), d => open_models(handle)%d, wk => open_models(handle)%wk)
-    do k = 1, m
-      call model%impose(t(k), q(:, k), qd(:, k))
-      call forward_kinematics(d, wk, wk%qx, wk%qdx)
-      call marker_motion(d, wk, marker, wk%qx, wk%qdx, pos(:, k), v)
-    end do
-  end associate
+  model => live_model(handle)
+  do k = 1, m
+    call model%impose(t(k), q(:, k), qd(:, k))
+    call forward_kinematics(model%d, model%wk, model%wk%qx, model%wk%qdx)
+    call marker_motion(model%d, model%wk, marker, model%wk%qx, model%wk%qdx, pos(:, k), v)
+  end do
 end subroutine pymr_model_marker
 
 !> Index (1-based; 0 when absent) of the marker called `name` in an open model.
@@ -457,8 +416,8 @@ subroutine pymr_model_marker_index(handle, name, k)
   k = 0
   call check_handle(handle, error)
   if (allocated(error)) return
-  do i = 1, open_models(handle)%d%markers%n
-    if (trim(open_models(handle)%d%markers%name(i)) == trim(name)) k = i
+  do i = 1, open_models(handle)%built%d%markers%n
+    if (trim(open_models(handle)%built%d%markers%name(i)) == trim(name)) k = i
   end do
 end subroutine pymr_model_marker_index
 
@@ -535,21 +494,25 @@ subroutine pymr_scene_item(scene, overrides, address, value, stat, message, deta
   call report(error, stat, message, detail)
 end subroutine pymr_scene_item
 
-!> Step and order history of a scene's run (no output): time reached, step and order of
-!> each accepted step (entry 1: the start), nh entries, at most nmax.
-subroutine pymr_step_history(scene, overrides, nmax, t, h, q, nh, stat, message, detail)
+!> Step and order history of an open model's run (no output): time reached, step and order
+!> of each accepted step (entry 1: the start), nh entries, at most nmax.
+subroutine pymr_step_history(handle, nmax, t, h, q, nh, stat, message, detail)
   use pymr_env_error, only : error_type
   use pymr_bind_support, only : report
+  use pymr_bind_models, only : open_models, scratch
+  use pymr_model, only : model_t
   use pymr_driver_history, only : step_history
   implicit none
-  character(len=*), intent(in) :: scene, overrides
-  integer, intent(in) :: nmax
+  integer, intent(in) :: handle, nmax
   double precision, intent(out) :: t(nmax), h(nmax)
   integer, intent(out) :: q(nmax), nh, stat
   character(len=8192), intent(out) :: message
   character(len=4096), intent(out) :: detail
   type(error_type), allocatable :: error
-  call step_history(scene, overrides, t, h, q, nh, error)
+  type(model_t) :: model
+  t = 0.0d0; h = 0.0d0; q = 0; nh = 0
+  call scratch(handle, model, error)
+  if (.not. allocated(error)) call step_history(open_models(handle)%sc, model, t, h, q, nh, error)
   call report(error, stat, message, detail)
 end subroutine pymr_step_history
 
@@ -558,7 +521,8 @@ end subroutine pymr_step_history
 subroutine pymr_model_frames(handle, n, m, nb, t, q, qd, pos, parent, stat, message, detail)
   use pymr_env_error, only : error_type, fatal_error
   use pymr_bind_support, only : report
-  use pymr_bind_models, only : open_models, check_handle
+  use pymr_bind_models, only : open_models, check_handle, live_model
+  use pymr_model, only : model_t
   use pymr_model_kinematics, only : forward_kinematics
   implicit none
   integer, intent(in) :: handle, n, m, nb
@@ -570,26 +534,26 @@ subroutine pymr_model_frames(handle, n, m, nb, t, q, qd, pos, parent, stat, mess
   !f2py integer intent(hide), depend(q) :: n = shape(q, 0)
   !f2py integer intent(hide), depend(q) :: m = shape(q, 1)
   type(error_type), allocatable :: error
+  type(model_t), pointer :: model
   integer :: k
   pos = 0.0d0; parent = 0
   call check_handle(handle, error)
   if (.not. allocated(error)) then
-    if (open_models(handle)%d%n /= n) then
+    if (open_models(handle)%built%d%n /= n) then
       call fatal_error(error, 'q has the wrong length')
-    else if (open_models(handle)%d%nb /= nb) then
+    else if (open_models(handle)%built%d%nb /= nb) then
       call fatal_error(error, 'nb is not the number of bodies')
     end if
   end if
   call report(error, stat, message, detail)
   if (stat /= 0) return
-  associate(model => open_models(handle), d => open_models(handle)%d, wk => open_models(handle)%wk)
-    parent = d%parent(1:nb)
-    do k = 1, m
-      call model%impose(t(k), q(:, k), qd(:, k))
-      call forward_kinematics(d, wk, wk%qx, wk%qdx)
-      pos(:, :, k) = wk%pos(:, 1:nb)
-    end do
-  end associate
+  model => live_model(handle)
+  parent = model%d%parent(1:nb)
+  do k = 1, m
+    call model%impose(t(k), q(:, k), qd(:, k))
+    call forward_kinematics(model%d, model%wk, model%wk%qx, model%wk%qdx)
+    pos(:, :, k) = model%wk%pos(:, 1:nb)
+  end do
 end subroutine pymr_model_frames
 
 !> The body (1-based, in the model's order) marker `marker` (1-based) of an open model is on;
@@ -604,8 +568,8 @@ subroutine pymr_model_marker_body(handle, marker, body)
   body = 0
   call check_handle(handle, error)
   if (allocated(error)) return
-  if (marker < 1 .or. marker > open_models(handle)%d%markers%n) return
-  body = open_models(handle)%d%markers%body(marker)
+  if (marker < 1 .or. marker > open_models(handle)%built%d%markers%n) return
+  body = open_models(handle)%built%d%markers%body(marker)
 end subroutine pymr_model_marker_body
 
 !> What of a scene's input `path` is ('the scene (FILE)', 'a modal file of the scene (FILE)',
@@ -641,28 +605,26 @@ subroutine pymr_same_file(a, b, same)
   same = merge(1, 0, same_file(a, b))
 end subroutine pymr_same_file
 
-!> The state a run of the scene starts from, x = [q; qd] (n coordinates), as the run's first
-!> row has it (the initial values, the loops assembled, a static start settled), without
-!> running.
-subroutine pymr_initial_state(scene, overrides, n, x, stat, message, detail)
+!> The state an open model's run starts from, x = [q; qd] (n coordinates), as the run's
+!> first row has it (the initial values, the loops assembled, a static start settled),
+!> without running.
+subroutine pymr_initial_state(handle, n, x, stat, message, detail)
   use pymr_env_error, only : error_type
   use pymr_bind_support, only : report
-  use pymr_model_scene, only : scene_t
+  use pymr_bind_models, only : open_models, scratch
   use pymr_model, only : model_t
-  use pymr_driver_run, only : load_model, starting_state
+  use pymr_driver_run, only : starting_state
   implicit none
-  character(len=*), intent(in) :: scene, overrides
-  integer, intent(in) :: n
+  integer, intent(in) :: handle, n
   double precision, intent(out) :: x(2*n)
   integer, intent(out) :: stat
   character(len=8192), intent(out) :: message
   character(len=4096), intent(out) :: detail
   type(error_type), allocatable :: error
-  type(scene_t) :: sc
   type(model_t) :: model
   x = 0.0d0
-  call load_model(scene, overrides, sc, model, error, n)
-  if (.not. allocated(error)) call starting_state(sc, model, x, error)
+  call scratch(handle, model, error, n)
+  if (.not. allocated(error)) call starting_state(open_models(handle)%sc, model, x, error)
   call report(error, stat, message, detail)
 end subroutine pymr_initial_state
 
@@ -677,7 +639,7 @@ subroutine pymr_model_marker_name(handle, k, name)
   name = ''
   call check_handle(handle, error)
   if (allocated(error)) return
-  if (k >= 1 .and. k <= open_models(handle)%d%markers%n) name = open_models(handle)%d%markers%name(k)
+  if (k >= 1 .and. k <= open_models(handle)%built%d%markers%n) name = open_models(handle)%built%d%markers%name(k)
 end subroutine pymr_model_marker_name
 
 !> The column name of an open model's coordinate k (1-based, model order; '' beyond them).
@@ -691,5 +653,5 @@ subroutine pymr_model_coordinate_name(handle, k, name)
   name = ''
   call check_handle(handle, error)
   if (allocated(error)) return
-  if (k >= 1 .and. k <= open_models(handle)%d%n) name = open_models(handle)%d%qname(k)
+  if (k >= 1 .and. k <= open_models(handle)%built%d%n) name = open_models(handle)%built%d%qname(k)
 end subroutine pymr_model_coordinate_name

@@ -9,7 +9,7 @@ module pymr_driver_history
   use pymr_model, only : model_t
   use pymr_integrator_stepper, only : stepper_t
   use pymr_driver_stepper_setup, only : make_stepper
-  use pymr_driver_run, only : load_model, starting_state
+  use pymr_driver_run, only : starting_state
   use pymr_env_text, only : itoa
   implicit none
   private
@@ -18,19 +18,18 @@ module pymr_driver_history
 contains
 
   !> Time reached, step taken and order of every accepted step (t(1) the start, h(1) and
-  !> q(1) the first step's), nh of them; more than size(t) is an error.
-  subroutine step_history(file, overrides, t, h, q, nh, error)
-    character(len=*), intent(in) :: file, overrides
+  !> q(1) the first step's), nh of them, of the run of scene `sc` on `model` (built from it
+  !> and not yet evaluated); more than size(t) is an error.
+  subroutine step_history(sc, model, t, h, q, nh, error)
+    type(scene_t), intent(in) :: sc
+    type(model_t), intent(inout) :: model
     real(dp), intent(out) :: t(:), h(:)
     integer, intent(out) :: q(:), nh
     type(error_type), allocatable, intent(out) :: error
-    type(scene_t) :: sc
-    type(model_t) :: model
     class(stepper_t), allocatable :: st
     real(dp), allocatable :: x(:)
     real(dp) :: h0, t_prev
     nh = 0; t = 0.0_dp; h = 0.0_dp; q = 0
-    call load_model(file, overrides, sc, model, error); if (allocated(error)) return
     allocate(x(2*model%d%n))
     call starting_state(sc, model, x, error); if (allocated(error)) return
     call make_stepper(sc, model, x, st, h0, error); if (allocated(error)) return
