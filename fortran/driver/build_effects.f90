@@ -5,7 +5,7 @@
 module pymr_driver_build_effects
   use pymr_env_kinds, only : dp
   use pymr_env_error, only : error_type
-  use pymr_model_scene, only : scene_t
+  use pymr_model_scene, only : scene_t, unset
   use pymr_model_scene_rules, only : body_index
   use pymr_model_types, only : model_data, model_work
   use pymr_model_time_table, only : spline_setup
@@ -22,6 +22,7 @@ module pymr_driver_build_effects
   use pymr_model_effect_base_motion, only : prescribed_motion, base_motion_effect_of, motion_sine, &
     & motion_spinup, motion_table
   use pymr_model_effect_deformation_inertia, only : deformation_effect_of
+  use pymr_model_effect_force_elements, only : force_element, force_elements_effect_of, spring_damper, bushing
   implicit none
   private
   public :: build_effects
@@ -49,6 +50,8 @@ contains
     if (sc%effects%joint_springs .and. size(sc%springs) > 0) call append(list, joint_springs_effect_of(springs_of(sc, pos_in, d)))
     if (sc%effects%geometric_stiffening) call append(list, stiffening_of(sc, d))
     if (sc%effects%firing_load .and. size(sc%loads) > 0) call append(list, firing_load_effect_of(loads_of(sc, d)))
+    if (sc%effects%force_elements .and. size(sc%forces) > 0) &
+      & call append(list, force_elements_effect_of(force_elements_of(sc, d)))
     if (sc%effects%base_motion .and. size(sc%motions) > 0) then
       call append(list, base_motion_effect_of(motions_of(sc, pos_in, d, error))); if (allocated(error)) return
     end if
@@ -144,6 +147,36 @@ contains
       loads(i)%duration = sc%loads(i)%duration
     end do
   end function loads_of
+
+  !> The force elements: kind, marker indices, stiffnesses and dampings (those not given 0)
+  !> and free length.
+  function force_elements_of(sc, d) result(elements)
+    type(scene_t), intent(in) :: sc
+    type(model_data), intent(in) :: d
+    type(force_element) :: elements(size(sc%forces))
+    integer :: i
+    do i = 1, size(sc%forces)
+      associate(fs => sc%forces(i), el => elements(i))
+        el%kind = merge(spring_damper, bushing, fs%kind == 'spring_damper')
+        el%mi = marker_index(d, fs%marker_i)
+        el%mj = marker_index(d, fs%marker_j)
+        el%k = merge(fs%stiffness, 0.0_dp, fs%stiffness /= unset)
+        el%c = merge(fs%damping, 0.0_dp, fs%damping /= unset)
+        if (fs%free_length /= unset) el%free_length = fs%free_length
+      end associate
+    end do
+  end function force_elements_of
+
+  !> Index of the marker called `name` (0 if none).
+  pure integer function marker_index(d, name)
+    type(model_data), intent(in) :: d
+    character(len=*), intent(in) :: name
+    integer :: j
+    marker_index = 0
+    do j = 1, d%markers%n
+      if (d%markers%name(j) == name) marker_index = j
+    end do
+  end function marker_index
 
   !> The prescribed coordinates (marked in d), each with its table read and splined when
   !> tabulated.

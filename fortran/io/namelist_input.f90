@@ -101,7 +101,7 @@ contains
     allocate(sc%bodies(count(groups%name == 'body')), sc%joints(count(groups%name == 'joint')))
     allocate(sc%drives(count(groups%name == 'drive')), sc%springs(count(groups%name == 'spring')))
     allocate(sc%motions(count(groups%name == 'motion')), sc%loads(count(groups%name == 'load')))
-    allocate(sc%markers(count(groups%name == 'marker')))
+    allocate(sc%markers(count(groups%name == 'marker')), sc%forces(count(groups%name == 'force')))
   end subroutine allocate_records
 
   !> Set the record of one group occurrence from its items, through its table.
@@ -446,7 +446,7 @@ contains
     t_end = sc%scene%t_end
     sc%scene%t_end = unset
     model_fingerprint = 'sha256:' // sha256_hex(resolved_text(sc, groups='scene effects body joint drive spring ' // &
-      & 'motion load marker'))
+      & 'motion load marker force'))
     sc%scene%t_end = t_end
   end subroutine checkpoint_identity
 
@@ -465,7 +465,7 @@ contains
     type(item_table) :: t
     character(len=16) :: name
     integer :: i, j, m
-    allocate(sc%bodies(1), sc%joints(1), sc%drives(1), sc%springs(1), sc%motions(1), sc%loads(1), sc%markers(1))
+    allocate(sc%bodies(1), sc%joints(1), sc%drives(1), sc%springs(1), sc%motions(1), sc%loads(1), sc%markers(1), sc%forces(1))
     text = ''
     i = 1
     do while (i <= len(group_names))

@@ -11,7 +11,7 @@ module pymr_model_scene
   implicit none
   private
   public :: scene_t, body_spec, joint_spec, drive_spec, marker_spec, integrator_spec, effects_spec
-  public :: spring_spec, motion_spec, load_spec, output_spec, scene_spec, max_modes_input
+  public :: spring_spec, motion_spec, load_spec, force_spec, output_spec, scene_spec, max_modes_input
   public :: joint_ndof, unset, group_names, single_groups, repeated_groups, describe_group, group_origin, group_count
   public :: naming_item, complete_scene, body_items, item_applies, output_quantities, beam_mode_count
   public :: closes_loop, flexible_loop, k_max_flexible_loop, body_index
@@ -27,10 +27,10 @@ module pymr_model_scene
 
   !> The groups of a scene file, in the order the resolved scene is written.
   character(len=*), parameter :: group_names = &
-    & 'scene integrator effects output body joint drive spring motion load marker'
+    & 'scene integrator effects output body joint drive spring motion load marker force'
   !> The groups that may appear at most once, and those that may repeat.
   character(len=*), parameter :: single_groups = 'scene integrator effects output'
-  character(len=*), parameter :: repeated_groups = 'body joint drive spring motion load marker'
+  character(len=*), parameter :: repeated_groups = 'body joint drive spring motion load marker force'
   !> The groups of output columns (&output quantities).
   character(len=*), parameter :: output_quantities = &
     & 'coordinates markers marker_accelerations marker_orientations reactions energy'
@@ -122,6 +122,7 @@ module pymr_model_scene
     logical :: geometric_stiffening = .false.
     logical :: base_motion = .false.
     logical :: firing_load = .false.
+    logical :: force_elements = .false.
     !> Fidelity of the deformation-dependent inertia of flexible bodies: 'full' or 'linear'.
     character(len=16) :: deformation_inertia = 'full'
     type(origin_t) :: origin
@@ -228,6 +229,17 @@ module pymr_model_scene
     type(origin_t) :: origin
   end type marker_spec
 
+  !> One &force group: a force element between two markers. 'spring_damper': one
+  !> stiffness and damping along the line between the markers, relaxed at free_length;
+  !> 'bushing': six of each (translations x, y, z, rotations about x, y, z) in marker i's
+  !> axes on the displacement and rotation of marker j from marker i.
+  type :: force_spec
+    character(len=name_len) :: name = '', marker_i = '', marker_j = ''
+    character(len=16) :: kind = ''
+    real(dp) :: stiffness(6) = unset, damping(6) = unset, free_length = unset
+    type(origin_t) :: origin
+  end type force_spec
+
   !> The whole scene.
   type :: scene_t
     !> File the scene came from (for messages).
@@ -242,6 +254,7 @@ module pymr_model_scene
     type(motion_spec), allocatable :: motions(:)
     type(load_spec), allocatable :: loads(:)
     type(marker_spec), allocatable :: markers(:)
+    type(force_spec), allocatable :: forces(:)
     type(output_spec) :: output
   end type scene_t
 
@@ -316,6 +329,7 @@ contains
     call t%add('geometric_stiffening', g%geometric_stiffening, 'geometric stiffness of beams from their axial load')
     call t%add('base_motion', g%base_motion, 'the &motion prescribed joint coordinates')
     call t%add('firing_load', g%firing_load, 'the &load pulses')
+    call t%add('force_elements', g%force_elements, 'the &force elements between markers')
     call t%add('deformation_inertia', g%deformation_inertia, "inertia of deformed flexible bodies: 'full' or " // &
       & "'linear' (without the second-order deformation terms)", choices='full linear')
   end subroutine describe_effects
@@ -477,6 +491,26 @@ contains
     call t%add('at', g%at, 'm', "the point in the body's frame", ge=-big_length, le=big_length)
   end subroutine describe_marker
 
+  subroutine describe_force(g, t)
+    type(force_spec), target, intent(inout) :: g
+    type(item_table), intent(inout) :: t
+    call t%add('name', g%name, 'name of the force element, unique among them (required)')
+    call t%add('kind', g%kind, "'spring_damper' (a force along the line from marker i to marker j: " // &
+      & "stiffness (length - free_length) + damping d(length)/dt, pulling them together when positive) or " // &
+      & "'bushing' (forces and moments on the displacement of marker j from marker i in marker i's axes and " // &
+      & "on the rotation vector of j's frame from i's, and on their rates) (required)", &
+      & choices='spring_damper bushing')
+    call t%add('marker_i', g%marker_i, 'the first marker (a bushing acts in its axes) (required)')
+    call t%add('marker_j', g%marker_j, 'the second marker, another than marker_i (required)')
+    call t%add('stiffness', g%stiffness, 'N/m, N m/rad', "'spring_damper': one value (N/m); 'bushing': six, " // &
+      & 'translations x, y, z (N/m) then rotations about x, y, z (N m/rad) (required)', &
+      & ge=0.0_dp, le=big_force, variable=.true.)
+    call t%add('damping', g%damping, 'N s/m, N m s/rad', "as many values as stiffness, on the rates " // &
+      & '(default 0)', ge=0.0_dp, le=big_force, variable=.true.)
+    call t%add('free_length', g%free_length, 'm', "length at which a 'spring_damper' is relaxed (required " // &
+      & 'for it)', ge=0.0_dp, le=big_length)
+  end subroutine describe_force
+
   !> Defaults that depend on other items, set once the scene is read: a joint's q0 and qd0
   !> default to 0 for each of its coordinates; one step serves both rates, and at one rate a
   !> --set of h_slow alone sets the step.
@@ -623,6 +657,7 @@ contains
     case ('motion'); call describe_motion(sc%motions(k), t)
     case ('load'); call describe_load(sc%loads(k), t)
     case ('marker'); call describe_marker(sc%markers(k), t)
+    case ('force'); call describe_force(sc%forces(k), t)
     end select
   end subroutine describe_group
 
@@ -645,6 +680,7 @@ contains
     case ('motion'); o => sc%motions(k)%origin
     case ('load'); o => sc%loads(k)%origin
     case ('marker'); o => sc%markers(k)%origin
+    case ('force'); o => sc%forces(k)%origin
     end select
   end function group_origin
 
@@ -660,6 +696,7 @@ contains
     case ('motion'); n = size(sc%motions)
     case ('load'); n = size(sc%loads)
     case ('marker'); n = size(sc%markers)
+    case ('force'); n = size(sc%forces)
     case default; n = 1
     end select
   end function group_count
@@ -672,7 +709,7 @@ contains
     select case (name)
     case ('drive', 'spring', 'motion'); item = 'joint'
     case ('load'); item = 'marker'
-    case ('body', 'joint', 'marker'); item = 'name'
+    case ('body', 'joint', 'marker', 'force'); item = 'name'
     case default; item = ''
     end select
   end function naming_item

@@ -6,7 +6,7 @@
 module pymr_model_scene_rules
   use pymr_env_kinds, only : dp, name_len
   use pymr_env_error, only : error_type, fatal_error, error_list
-  use pymr_model_scene, only : scene_t, body_spec, joint_spec, joint_ndof, unset, body_items, beam_mode_count, &
+  use pymr_model_scene, only : scene_t, body_spec, joint_spec, force_spec, joint_ndof, unset, body_items, beam_mode_count, &
     & closes_loop, body_index
   use pymr_env_item_table, only : origin_t
   use pymr_model_names, only : name_index
@@ -81,6 +81,11 @@ contains
     if (j > 0) then
       call errs%add(sc%markers(j)%origin%where('name') // ': used by another &marker too (line ' // &
         & itoa(sc%markers(i)%origin%line) // ')')
+    end if
+    call first_repeat(sc%forces%name, i, j)
+    if (j > 0) then
+      call errs%add(sc%forces(j)%origin%where('name') // ': used by another &force too (line ' // &
+        & itoa(sc%forces(i)%origin%line) // ')')
     end if
   end subroutine check_unique_names
 
@@ -492,6 +497,7 @@ contains
     call check_loads(sc, errs)
     call check_stiffening(sc, errs)
     call check_markers(sc, errs)
+    call check_forces(sc, errs)
   end subroutine check_loads_markers
 
   !> &drive: a joint coordinate, its form, and &effects joint_drives on.
@@ -613,6 +619,96 @@ contains
         & call errs%add(sc%markers(i)%origin%where('body') // ": no &body named '" // trim(sc%markers(i)%body) // "'")
     end do
   end subroutine check_markers
+
+  !> &force: a name and kind, two different existing markers, the kind's count of stiffnesses
+  !> (and of dampings when given), a spring-damper's free length, and &effects force_elements on.
+  subroutine check_forces(sc, errs)
+    type(scene_t), intent(in) :: sc
+    type(error_list), intent(inout) :: errs
+    integer :: i
+    do i = 1, size(sc%forces)
+      associate(fe => sc%forces(i), o => sc%forces(i)%origin)
+        if (len_trim(fe%name) == 0) then
+          call errs%add(o%where('name') // ': missing'); cycle
+        end if
+        if (len_trim(fe%kind) == 0) then
+          call errs%add(o%where('kind') // ": missing ('spring_damper' or 'bushing')"); cycle
+        end if
+        if (.not. force_markers(sc, errs, fe%origin, fe%marker_i, fe%marker_j)) cycle
+        if (.not. force_values(errs, fe)) cycle
+        if (forgotten(sc, sc%effects%force_elements, 'force_elements')) &
+          & call errs%add(o%where() // effect_not_on('the scene gives force elements', 'force_elements'))
+      end associate
+    end do
+  end subroutine check_forces
+
+  !> A force element's two markers exist and differ (else the error is added).
+  logical function force_markers(sc, errs, o, marker_i, marker_j) result(ok)
+    type(scene_t), intent(in) :: sc
+    type(error_list), intent(inout) :: errs
+    type(origin_t), intent(in) :: o
+    character(len=*), intent(in) :: marker_i, marker_j
+    ok = .false.
+    if (.not. named_marker(sc, errs, o, 'marker_i', marker_i)) return
+    if (.not. named_marker(sc, errs, o, 'marker_j', marker_j)) return
+    if (marker_i == marker_j) then
+      call errs%add(o%where('marker_j') // ": the same marker as marker_i ('" // trim(marker_i) // &
+        & "'): a force element joins two markers"); return
+    end if
+    ok = .true.
+  end function force_markers
+
+  !> Marker item `item` names an existing marker (else the error is added).
+  logical function named_marker(sc, errs, o, item, marker) result(ok)
+    type(scene_t), intent(in) :: sc
+    type(error_list), intent(inout) :: errs
+    type(origin_t), intent(in) :: o
+    character(len=*), intent(in) :: item, marker
+    ok = .false.
+    if (len_trim(marker) == 0) then
+      call errs%add(o%where(item) // ': missing (a marker name)'); return
+    end if
+    if (.not. any(sc%markers%name == marker)) then
+      call errs%add(o%where(item) // ": no &marker named '" // trim(marker) // "'"); return
+    end if
+    ok = .true.
+  end function named_marker
+
+  !> A force element gives its kind's count of stiffnesses (1 or 6), as many dampings or
+  !> none, and a spring-damper its free length, a bushing none (else the error is added).
+  !> The values given are those set (a repeat such as 6*10.0 counts as its six).
+  logical function force_values(errs, fe) result(ok)
+    type(error_list), intent(inout) :: errs
+    type(force_spec), intent(in) :: fe
+    integer :: n, nk, nc
+    character(len=:), allocatable :: what
+    ok = .false.
+    nk = count(fe%stiffness /= unset); nc = count(fe%damping /= unset)
+    associate(o => fe%origin, kind => fe%kind, free_length => fe%free_length)
+      if (kind == 'spring_damper') then
+        n = 1; what = "a 'spring_damper' takes 1 value"
+      else
+        n = 6; what = "a 'bushing' takes 6 (translations x, y, z, rotations about x, y, z)"
+      end if
+      if (nk == 0) then
+        call errs%add(o%where('stiffness') // ': missing (' // what // ')'); return
+      end if
+      if (nk /= n) then
+        call errs%add(o%where('stiffness') // ': ' // what // ', got ' // itoa(nk)); return
+      end if
+      if (nc /= 0 .and. nc /= n) then
+        call errs%add(o%where('damping') // ': ' // what // ' (as stiffness), got ' // itoa(nc)); return
+      end if
+      if (kind == 'spring_damper' .and. free_length == unset) then
+        call errs%add(o%where('free_length') // ": missing (the length at which the spring is relaxed, m)"); return
+      end if
+      if (kind == 'bushing' .and. free_length /= unset) then
+        call errs%add(o%where('free_length') // ": a 'bushing' has none (it is relaxed where marker j's frame " // &
+          & "meets marker i's)"); return
+      end if
+    end associate
+    ok = .true.
+  end function force_values
 
   !> An effect whose data the scene gives is off without being turned off on purpose.
   logical function forgotten(sc, on, effect)
