@@ -200,9 +200,10 @@ BAD = [
     ("kind = 'universal', axis2 = 0.0, 0.0, 0.0", "axis2: zero length; give a direction normal to axis"),
     ("kind = 'cylindrical', axis = 0.0, 0.0, 0.0", "axis: zero length; give a direction in the parent frame"),
     ("kind = 'planar', axis = 0.0, 0.0, 0.0", "axis: zero length; give a direction in the parent frame"),
-    ("kind = 'revolute', axis2 = 1.0, 0.0, 0.0", r"axis2: only a 'universal' joint takes axis2 \(this joint is 'revolute'\)"),
-    ("kind = 'planar', q0 = 1.0, 2.0", "q0"),
-    ("kind = 'cylindrical', qd0 = 1.0, 2.0, 3.0", "qd0"),
+    ("kind = 'revolute', axis2 = 1.0, 0.0, 0.0",
+     r"axis2: only a 'universal' joint takes axis2 \(this joint is 'revolute'\)"),
+    ("kind = 'planar', q0 = 1.0, 2.0", "q0: a planar joint has 3 coordinates, got 2 values$"),
+    ("kind = 'cylindrical', qd0 = 1.0, 2.0, 3.0", "qd0: a cylindrical joint has 2 coordinates, got 3 values$"),
 ]
 
 
