@@ -7,7 +7,7 @@ module pymr_driver_build
   use pymr_model_scene, only : scene_t, body_spec, joint_spec, joint_ndof, unset, beam_mode_count
   use pymr_model_scene_rules, only : check_scene, body_index, inertia_matrix, closes_loop
   use pymr_model_types, only : model_data, model_work, prim_revolute, prim_prismatic, &
-    & cut_fixed, cut_revolute, cut_spherical, cut_prismatic, cut_free
+    & cut_fixed, cut_revolute, cut_spherical, cut_prismatic, cut_free, cut_cylindrical, cut_universal, cut_planar
   use pymr_model_beam_modes, only : build_beam, beam_section, beam_point_shapes
   use pymr_model_effect, only : start_effect_counters
   use pymr_driver_build_effects, only : build_effects
@@ -286,6 +286,15 @@ contains
         case ('revolute'); d%cuts%kind(c) = cut_revolute; d%cuts%nrow(c) = 5
         case ('prismatic'); d%cuts%kind(c) = cut_prismatic; d%cuts%nrow(c) = 5
         case ('free'); d%cuts%kind(c) = cut_free; d%cuts%nrow(c) = 0
+        case ('cylindrical'); d%cuts%kind(c) = cut_cylindrical; d%cuts%nrow(c) = 4
+        case ('planar'); d%cuts%kind(c) = cut_planar; d%cuts%nrow(c) = 3
+        case ('universal')
+          d%cuts%kind(c) = cut_universal; d%cuts%nrow(c) = 4
+          ! the child's second axis: normal(:, 1), as the tree joint's axis2
+          if (any(jt%axis2 /= unset)) then
+            d%cuts%normal(:, 1, c) = jt%axis2/norm2(jt%axis2)
+            d%cuts%normal(:, 2, c) = cross3(d%cuts%axis(:, c), d%cuts%normal(:, 1, c))
+          end if
         case default; d%cuts%kind(c) = cut_spherical; d%cuts%nrow(c) = 3
         end select
         if (d%cuts%kind(c) /= cut_free .and. d%nm(d%cuts%parent(c)) > 0) then
@@ -357,6 +366,12 @@ contains
       d%axis(:, k + i) = axis; d%prim(k + i) = prim
     end subroutine put
   end subroutine add_joint
+
+  pure function cross3(a, b) result(c)
+    real(dp), intent(in) :: a(3), b(3)
+    real(dp) :: c(3)
+    c = [a(2)*b(3) - a(3)*b(2), a(3)*b(1) - a(1)*b(3), a(1)*b(2) - a(2)*b(1)]
+  end function cross3
 
   !> Two unit normals of an axis, the one rule for a joint's in-plane directions: the
   !> coordinate axis least aligned with it (the first on a tie) made normal to it, then the

@@ -421,7 +421,8 @@ contains
     call t%add('axis', g%axis, '-', "axis of a revolute, prismatic, cylindrical, universal or planar joint " // &
       & "in the parent's frame", ge=-big_length, le=big_length)
     call t%add('axis2', g%axis2, '-', "a universal joint's second axis, normal to axis, in the parent's " // &
-      & "frame at zero first angle (it turns with the first rotation); default: the coordinate axis least " // &
+      & "frame at zero first angle (it turns with the first rotation; a loop-closing joint's: in the " // &
+      & "child's frame); default: the coordinate axis least " // &
       & "aligned with axis (the first on a tie) made normal to it, x for axis z", ge=-big_length, le=big_length)
     call t%add('q0', g%q0, 'rad or m', 'initial coordinates, one per coordinate of the joint', &
       & ge=-big_length, le=big_length, variable=.true.)

@@ -406,11 +406,6 @@ contains
             & trim(first_parent(jt%child)) // "'); a second joint to it closes a loop, which it says by giving " // &
             & "child_at (its point on the child; 0, 0, 0 for the child's origin)"); cycle
         end if
-        if (jt%kind == 'cylindrical' .or. jt%kind == 'universal' .or. jt%kind == 'planar') then
-          call errs%add(o%where('kind') // ": a '" // trim(jt%kind) // "' joint cannot close a loop yet (as a " // &
-            & "tree joint it can): close the loop with a 'fixed', 'revolute', 'prismatic', 'spherical' or " // &
-            & "'free' joint"); cycle
-        end if
         if (nonzero(jt%q0) .or. nonzero(jt%qd0) .or. jt%settle .or. jt%hold) then
           call errs%add(o%where(trim(first_given([character(len=6) :: 'q0', 'qd0', 'settle', 'hold'], &
             & [nonzero(jt%q0), nonzero(jt%qd0), jt%settle, jt%hold]))) // &
