@@ -168,7 +168,8 @@ SET_FAULTS = [
     SetFault("method_singel", "integrator.method=singel", "integrator.method", "singel",
              r": &integrator: method: 'singel' is not one of: single, multirate; did you mean 'single'\?$"),
     SetFault("joint_kind_hinge", "joint[pivot].kind=hinge", "joint[pivot].kind", "hinge",
-             r": &joint 'pivot': kind: 'hinge' is not one of: revolute, prismatic, fixed, spherical, free$"),
+             r": &joint 'pivot': kind: 'hinge' is not one of: revolute, prismatic, fixed, spherical, free, "
+             r"cylindrical, universal, planar$"),
     SetFault("axis_two_values", "joint[pivot].axis=0,1", "joint[pivot].axis", [0.0, 1.0],
              r": &joint 'pivot': axis: takes 3 values, got 2$"),
     SetFault("q0_two_values", "joint[pivot].q0=1,2", "joint[pivot].q0", [1.0, 2.0],

@@ -7,7 +7,7 @@ module pymr_driver_build
   use pymr_model_scene, only : scene_t, body_spec, joint_spec, joint_ndof, unset, beam_mode_count
   use pymr_model_scene_rules, only : check_scene, body_index, inertia_matrix, closes_loop
   use pymr_model_types, only : model_data, model_work, prim_revolute, prim_prismatic, &
-    & cut_fixed, cut_revolute, cut_spherical, cut_prismatic, cut_free
+    & cut_fixed, cut_revolute, cut_spherical, cut_prismatic, cut_free, cut_cylindrical, cut_universal, cut_planar
   use pymr_model_beam_modes, only : build_beam, beam_section, beam_point_shapes
   use pymr_model_effect, only : start_effect_counters
   use pymr_driver_build_effects, only : build_effects
@@ -264,7 +264,6 @@ contains
     type(model_work), intent(inout) :: wk
     type(error_type), allocatable, intent(out) :: error
     integer :: j, c, mx
-    real(dp) :: u(3), e(3)
     d%cuts%n = count([(closes_loop(sc, j), j = 1, size(sc%joints))])
     mx = d%mmax
     allocate(d%cuts%name(d%cuts%n), d%cuts%parent(d%cuts%n), d%cuts%child(d%cuts%n), d%cuts%kind(d%cuts%n), &
@@ -281,17 +280,21 @@ contains
         d%cuts%name(c) = jt%name
         d%cuts%parent(c) = pos_in(body_index(sc, jt%parent)); d%cuts%child(c) = pos_in(body_index(sc, jt%child))
         d%cuts%at(:, c) = jt%at; d%cuts%child_at(:, c) = jt%child_at
-        u = jt%axis/norm2(jt%axis)
-        ! two unit normals of the axis: the unit axis least aligned with it, made normal
-        e = unit_axes(:, minloc(abs(u), dim=1))
-        e = e - dot_product(e, u)*u; e = e/norm2(e)
-        d%cuts%axis(:, c) = u; d%cuts%normal(:, 1, c) = e
-        d%cuts%normal(:, 2, c) = [u(2)*e(3) - u(3)*e(2), u(3)*e(1) - u(1)*e(3), u(1)*e(2) - u(2)*e(1)]
+        d%cuts%axis(:, c) = jt%axis/norm2(jt%axis); d%cuts%normal(:, :, c) = axis_normals(jt%axis)
         select case (trim(jt%kind))
         case ('fixed'); d%cuts%kind(c) = cut_fixed; d%cuts%nrow(c) = 6
         case ('revolute'); d%cuts%kind(c) = cut_revolute; d%cuts%nrow(c) = 5
         case ('prismatic'); d%cuts%kind(c) = cut_prismatic; d%cuts%nrow(c) = 5
         case ('free'); d%cuts%kind(c) = cut_free; d%cuts%nrow(c) = 0
+        case ('cylindrical'); d%cuts%kind(c) = cut_cylindrical; d%cuts%nrow(c) = 4
+        case ('planar'); d%cuts%kind(c) = cut_planar; d%cuts%nrow(c) = 3
+        case ('universal')
+          d%cuts%kind(c) = cut_universal; d%cuts%nrow(c) = 4
+          ! the child's second axis: normal(:, 1), as the tree joint's axis2
+          if (any(jt%axis2 /= unset)) then
+            d%cuts%normal(:, 1, c) = jt%axis2/norm2(jt%axis2)
+            d%cuts%normal(:, 2, c) = cross3(d%cuts%axis(:, c), d%cuts%normal(:, 1, c))
+          end if
         case default; d%cuts%kind(c) = cut_spherical; d%cuts%nrow(c) = 3
         end select
         if (d%cuts%kind(c) /= cut_free .and. d%nm(d%cuts%parent(c)) > 0) then
@@ -310,27 +313,39 @@ contains
     wk%loops%lambda = 0.0_dp
   end subroutine fill_cuts
 
-  !> Expand joint jt of body b into primitives, coordinates k+1 ... (k is advanced).
+  !> Expand joint jt of body b into primitives, coordinates k+1 ... (k is advanced). Axes
+  !> are in the frame before each primitive: a universal joint's axis2 turns with its first
+  !> rotation; a planar joint translates along axis_normals(axis) and then turns about axis.
   subroutine add_joint(jt, b, k, d)
     type(joint_spec), intent(in) :: jt
     integer, intent(in) :: b
     integer, intent(inout) :: k
     type(model_data), intent(inout) :: d
     integer :: m
+    real(dp) :: u(3), e(3, 2)
     d%c0(b) = k + 1
     d%nc(b) = joint_ndof(jt%kind)
+    u = jt%axis/norm2(jt%axis); e = axis_normals(jt%axis)
     select case (trim(jt%kind))
-    case ('revolute', 'prismatic')
-      d%axis(:, k + 1) = jt%axis/norm2(jt%axis)
-      d%prim(k + 1) = merge(prim_revolute, prim_prismatic, jt%kind == 'revolute')
+    case ('revolute'); call put(1, prim_revolute, u)
+    case ('prismatic'); call put(1, prim_prismatic, u)
+    case ('cylindrical'); call put(1, prim_prismatic, u); call put(2, prim_revolute, u)
+    case ('universal')
+      call put(1, prim_revolute, u)
+      if (any(jt%axis2 /= unset)) then
+        call put(2, prim_revolute, jt%axis2/norm2(jt%axis2))
+      else
+        call put(2, prim_revolute, e(:, 1))
+      end if
+    case ('planar')
+      call put(1, prim_prismatic, e(:, 1)); call put(2, prim_prismatic, e(:, 2)); call put(3, prim_revolute, u)
     case ('spherical')
       do m = 1, 3
-        d%axis(:, k + m) = unit_axes(:, m); d%prim(k + m) = prim_revolute
+        call put(m, prim_revolute, unit_axes(:, m))
       end do
     case ('free')
       do m = 1, 3
-        d%axis(:, k + m) = unit_axes(:, m); d%prim(k + m) = prim_prismatic
-        d%axis(:, k + 3 + m) = unit_axes(:, m); d%prim(k + 3 + m) = prim_revolute
+        call put(m, prim_prismatic, unit_axes(:, m)); call put(3 + m, prim_revolute, unit_axes(:, m))
       end do
     end select
     do m = 1, d%nc(b)
@@ -344,7 +359,31 @@ contains
       end if
     end do
     k = k + d%nc(b)
+  contains
+    subroutine put(i, prim, axis)
+      integer, intent(in) :: i, prim
+      real(dp), intent(in) :: axis(3)
+      d%axis(:, k + i) = axis; d%prim(k + i) = prim
+    end subroutine put
   end subroutine add_joint
+
+  pure function cross3(a, b) result(c)
+    real(dp), intent(in) :: a(3), b(3)
+    real(dp) :: c(3)
+    c = [a(2)*b(3) - a(3)*b(2), a(3)*b(1) - a(1)*b(3), a(1)*b(2) - a(2)*b(1)]
+  end function cross3
+
+  !> Two unit normals of an axis, the one rule for a joint's in-plane directions: the
+  !> coordinate axis least aligned with it (the first on a tie) made normal to it, then the
+  !> unit axis crossed with that (axis z: x, then y).
+  pure function axis_normals(axis) result(e)
+    real(dp), intent(in) :: axis(3)
+    real(dp) :: e(3, 2), u(3)
+    u = axis/norm2(axis)
+    e(:, 1) = unit_axes(:, minloc(abs(u), dim=1))
+    e(:, 1) = e(:, 1) - dot_product(e(:, 1), u)*u; e(:, 1) = e(:, 1)/norm2(e(:, 1))
+    e(:, 2) = [u(2)*e(3, 1) - u(3)*e(2, 1), u(3)*e(1, 1) - u(1)*e(3, 1), u(1)*e(2, 1) - u(2)*e(1, 1)]
+  end function axis_normals
 
   !> Build beam i of the scene as model body b; its modal coordinates follow index m.
   subroutine add_beam(sc, i, b, m, d, wk, error)

@@ -33,7 +33,8 @@ module pymr_model_loops
   use pymr_env_kinds, only : dp
   use pymr_env_error, only : error_type, fatal_error, stat_solver, stat_input
   use pymr_env_lapack, only : potrf, potrs
-  use pymr_model_types, only : model_data, model_work, cut_fixed, cut_revolute, cut_prismatic, cut_spherical, cut_free
+  use pymr_model_types, only : model_data, model_work, cut_fixed, cut_revolute, cut_prismatic, cut_spherical, cut_free, &
+    & cut_cylindrical, cut_universal, cut_planar
   use pymr_model_kinematics, only : forward_kinematics
   use pymr_model_spatial, only : cross, unit_axes
   use pymr_env_text, only : itoa, fmt
@@ -103,7 +104,7 @@ contains
     type(model_data), intent(in) :: d
     type(model_work), intent(inout) :: wk
     integer :: c, r, rr, i, j
-    real(dp) :: pp(3), pc(3), vp(3), vc(3), ap(3), ac(3), wp(3), wc(3), alp(3), alc(3), uc(3), ci(3), ni(3), nd(3)
+    real(dp) :: pp(3), pc(3), vp(3), vc(3), ap(3), ac(3), wp(3), wc(3), alp(3), alc(3), uc(3), ci(3)
     wk%loops%jac = 0.0_dp
     do c = 1, d%cuts%n
       if (d%cuts%kind(c) == cut_free) cycle
@@ -114,8 +115,10 @@ contains
       vp = wk%loops%vel(1:3, 1, c) + cross(wp, pp); vc = wk%loops%vel(1:3, 2, c) + cross(wc, pc)
       ap = wk%loops%acc(1:3, 1, c) + cross(alp, pp) + cross(wp, vp)
       ac = wk%loops%acc(1:3, 2, c) + cross(alc, pc) + cross(wc, vc)
-      if (d%cuts%kind(c) == cut_prismatic) then
-        call sliding_rows(d, wk, c, r, pp, pc, vp, vc, ap, ac, wp, alp)
+      if (d%cuts%kind(c) == cut_prismatic .or. d%cuts%kind(c) == cut_cylindrical) then
+        call sliding_rows(d, wk, c, r, d%cuts%normal(:, :, c), pp, pc, vp, vc, ap, ac, wp, alp)
+      else if (d%cuts%kind(c) == cut_planar) then
+        call sliding_rows(d, wk, c, r, d%cuts%axis(:, c:c), pp, pc, vp, vc, ap, ac, wp, alp)
       else
         wk%loops%residual(r:r + 2) = pc - pp
         wk%loops%gamma(r:r + 2) = ap - ac
@@ -139,20 +142,50 @@ contains
           call add_turn_columns(d, wk, c, parent, unit_axes(:, i), -1.0_dp, rr + i - 1)
         end do
         call to_parent_axes(d, wk, rr, wk%loops%rot(:, :, parent, c))
-      case (cut_revolute)
+      case (cut_revolute, cut_cylindrical, cut_planar)
+        ! the axes stay aligned: two rows after the 3 point rows, 2 or 1 sliding rows
+        rr = r + axis_row0(d%cuts%kind(c))
         uc = matmul(wk%loops%rot(:, :, child, c), d%cuts%axis(:, c))
         do i = 1, 2
           ci = matmul(wk%loops%rot(:, :, parent, c), d%cuts%normal(:, i, c))
-          ni = cross(uc, ci)
-          nd = cross(cross(wc, uc), ci) + cross(uc, cross(wp, ci))
-          wk%loops%residual(r + 2 + i) = dot_product(ci, uc)
-          wk%loops%gamma(r + 2 + i) = -dot_product(alc - alp, ni) - dot_product(wc - wp, nd)
-          call add_turn_columns(d, wk, c, child, ni, 1.0_dp, r + 2 + i)
-          call add_turn_columns(d, wk, c, parent, ni, -1.0_dp, r + 2 + i)
+          call normal_row(d, wk, c, rr + i - 1, ci, uc, wp, wc, alp, alc)
         end do
+      case (cut_universal)
+        ! the child's second axis stays normal to the parent's axis: one row after the point rows
+        ci = matmul(wk%loops%rot(:, :, parent, c), d%cuts%axis(:, c))
+        uc = matmul(wk%loops%rot(:, :, child, c), d%cuts%normal(:, 1, c))
+        call normal_row(d, wk, c, r + 3, ci, uc, wp, wc, alp, alc)
       end select
     end do
   end subroutine loop_rows
+
+  !> The first axis row of a revolute (after 3 point rows), cylindrical (2 sliding rows) or
+  !> planar cut (1 sliding row), as an offset from its first row.
+  pure integer function axis_row0(kind)
+    integer, intent(in) :: kind
+    select case (kind)
+    case (cut_cylindrical); axis_row0 = 2
+    case (cut_planar); axis_row0 = 1
+    case default; axis_row0 = 3
+    end select
+  end function axis_row0
+
+  !> Row `row`: the parent's vector ci (inertial, turning with the parent's frame) stays
+  !> normal to the child's vector uc (turning with the child's), ci . uc = 0. Its rate is
+  !> (wc - wp) . n with n = uc x ci; gamma = -(alpha_c - alpha_p) . n - (wc - wp) . dn/dt.
+  pure subroutine normal_row(d, wk, c, row, ci, uc, wp, wc, alp, alc)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
+    integer, intent(in) :: c, row
+    real(dp), intent(in) :: ci(3), uc(3), wp(3), wc(3), alp(3), alc(3)
+    real(dp) :: ni(3), nd(3)
+    ni = cross(uc, ci)
+    nd = cross(cross(wc, uc), ci) + cross(uc, cross(wp, ci))
+    wk%loops%residual(row) = dot_product(ci, uc)
+    wk%loops%gamma(row) = -dot_product(alc - alp, ni) - dot_product(wc - wp, nd)
+    call add_turn_columns(d, wk, c, child, ni, 1.0_dp, row)
+    call add_turn_columns(d, wk, c, parent, ni, -1.0_dp, row)
+  end subroutine normal_row
 
   !> Turn rows r .. r + 2 (inertial components of a vector constraint: residual, Jacobian,
   !> gamma) into the components along the axes rp of the parent's frame at the cut point. The
@@ -171,21 +204,24 @@ contains
     wk%loops%jac(r:r + 2, :) = matmul(rt, wk%loops%jac(r:r + 2, :))
   end subroutine to_parent_axes
 
-  !> A prismatic cut's two sliding rows r, r + 1: the child point stays on the line through
-  !> the parent point along the axis, n_i . (pc - pp) = 0 for the axis' normals n_i, which
+  !> A prismatic (or cylindrical) cut's two sliding rows r, r + 1: the child point stays on the line
+  !> through the parent point along the axis, n_i . (pc - pp) = 0 for the axis' normals n_i, which
   !> turn with the parent's frame at its point. Their rate is n_i . (vc - vp) + wp . (n_i x (pc - pp)), and
   !> gamma = -[n_i . (ac - ap) + 2 (wp x n_i) . (vc - vp) + (alpha_p x n_i + wp x (wp x n_i)) . (pc - pp)]
   !> with the bias (qdd = 0) point accelerations ap, ac and angular acceleration alpha_p.
-  pure subroutine sliding_rows(d, wk, c, r, pp, pc, vp, vc, ap, ac, wp, alp)
+  pure subroutine sliding_rows(d, wk, c, r, dirs, pp, pc, vp, vc, ap, ac, wp, alp)
     type(model_data), intent(in) :: d
     type(model_work), intent(inout) :: wk
     integer, intent(in) :: c, r
+    !> The rows' directions n_i in the parent's frame (a prismatic or cylindrical cut: the
+    !> axis' two normals; a planar one: the axis, the child point staying in the plane).
+    real(dp), intent(in) :: dirs(:, :)
     real(dp), intent(in) :: pp(3), pc(3), vp(3), vc(3), ap(3), ac(3), wp(3), alp(3)
     integer :: i
     real(dp) :: n(3), dl(3)
     dl = pc - pp
-    do i = 1, 2
-      n = matmul(wk%loops%rot(:, :, parent, c), d%cuts%normal(:, i, c))
+    do i = 1, size(dirs, 2)
+      n = matmul(wk%loops%rot(:, :, parent, c), dirs(:, i))
       wk%loops%residual(r + i - 1) = dot_product(n, dl)
       wk%loops%gamma(r + i - 1) = -(dot_product(n, ac - ap) + 2.0_dp*dot_product(cross(wp, n), vc - vp) + &
         & dot_product(cross(alp, n) + cross(wp, cross(wp, n)), dl))
@@ -450,19 +486,28 @@ contains
       case (cut_fixed)
         f = matmul(rp, wk%loops%lambda(r:r + 2))
         torque = matmul(rp, wk%loops%lambda(r + 3:r + 5))
-      case (cut_prismatic)
-        ! the sliding rows push along the normals, the frame rows turn
+      case (cut_prismatic, cut_cylindrical)
+        ! the sliding rows push along the normals, the frame rows or the axis rows turn
         do i = 1, 2
           f = f + wk%loops%lambda(r + i - 1)*matmul(rp, d%cuts%normal(:, i, c))
         end do
-        torque = matmul(rp, wk%loops%lambda(r + 2:r + 4))
-      case (cut_revolute)
+        if (d%cuts%kind(c) == cut_prismatic) torque = matmul(rp, wk%loops%lambda(r + 2:r + 4))
+      case (cut_revolute, cut_universal)
         f = matmul(rp, wk%loops%lambda(r:r + 2))
-      uc = matmul(wk%loops%rot(:, :, child, c), d%cuts%axis(:, c))
-      do i = 1, 2
-        ci = matmul(wk%loops%rot(:, :, parent, c), d%cuts%normal(:, i, c))
-        torque = torque + wk%loops%lambda(r + 2 + i)*cross(uc, ci)
-      end do
+      case (cut_planar)
+        f = wk%loops%lambda(r)*matmul(rp, d%cuts%axis(:, c))
+      end select
+      select case (d%cuts%kind(c))
+      case (cut_revolute, cut_cylindrical, cut_planar)
+        uc = matmul(wk%loops%rot(:, :, child, c), d%cuts%axis(:, c))
+        do i = 1, 2
+          ci = matmul(wk%loops%rot(:, :, parent, c), d%cuts%normal(:, i, c))
+          torque = torque + wk%loops%lambda(r + axis_row0(d%cuts%kind(c)) + i - 1)*cross(uc, ci)
+        end do
+      case (cut_universal)
+        ci = matmul(rp, d%cuts%axis(:, c))
+        uc = matmul(wk%loops%rot(:, :, child, c), d%cuts%normal(:, 1, c))
+        torque = wk%loops%lambda(r + 3)*cross(uc, ci)
       end select
     end associate
   end subroutine cut_force

@@ -158,10 +158,12 @@ module pymr_model_scene
   !> One &joint group.
   type :: joint_spec
     character(len=name_len) :: name = '', parent = '', child = ''
-    !> 'revolute', 'prismatic', 'fixed', 'spherical', 'free'.
+    !> 'revolute', 'prismatic', 'fixed', 'spherical', 'free', 'cylindrical', 'universal', 'planar'.
     character(len=16) :: kind = ''
     !> Joint point in the parent frame (m) and axis in the parent frame.
     real(dp) :: at(3) = 0.0_dp, axis(3) = [0.0_dp, 0.0_dp, 1.0_dp]
+    !> A universal joint's second axis, normal to axis (unset: joint_axis2 chooses one).
+    real(dp) :: axis2(3) = unset
     !> A loop-closing joint's point in the child's frame (m).
     real(dp) :: child_at(3) = 0.0_dp
     !> Initial coordinates and rates, one per coordinate of the joint (0 when not given:
@@ -410,16 +412,22 @@ contains
     type(item_table), intent(inout) :: t
     call t%add('name', g%name, 'name of the joint, unique among the joints (required)')
     call t%add('kind', g%kind, "'revolute', 'prismatic' (one coordinate about or along axis), 'fixed', " // &
-      & "'spherical' (rotations x, y, z) or 'free' (translations x, y, z, then rotations) (required)", &
-      & choices='revolute prismatic fixed spherical free')
+      & "'spherical' (rotations x, y, z), 'free' (translations x, y, z, then rotations), 'cylindrical' " // &
+      & "(translation along axis, then rotation about it), 'universal' (rotation about axis, then about axis2) " // &
+      & "or 'planar' (translations along two normals of axis, then rotation about it) (required)", &
+      & choices='revolute prismatic fixed spherical free cylindrical universal planar')
     call t%add('parent', g%parent, 'the body the joint hangs from (required)')
     call t%add('child', g%child, 'the body the joint moves (required)')
     call t%add('at', g%at, 'm', "joint point in the parent's frame", ge=-big_length, le=big_length)
     call t%add('child_at', g%child_at, 'm', "joint point in the child's frame, for a joint that closes a loop " // &
       & "(its child already has a parent joint), which must give it (0, 0, 0: the child's origin)", &
       & ge=-big_length, le=big_length)
-    call t%add('axis', g%axis, '-', "axis of a revolute or prismatic joint in the parent's frame", &
-      & ge=-big_length, le=big_length)
+    call t%add('axis', g%axis, '-', "axis of a revolute, prismatic, cylindrical, universal or planar joint " // &
+      & "in the parent's frame", ge=-big_length, le=big_length)
+    call t%add('axis2', g%axis2, '-', "a universal joint's second axis, normal to axis, in the parent's " // &
+      & "frame at zero first angle (it turns with the first rotation; a loop-closing joint's: in the " // &
+      & "child's frame); default: the coordinate axis least " // &
+      & "aligned with axis (the first on a tie) made normal to it, x for axis z", ge=-big_length, le=big_length)
     call t%add('q0', g%q0, 'rad or m', 'initial coordinates, one per coordinate of the joint', &
       & ge=-big_length, le=big_length, variable=.true.)
     call t%add('qd0', g%qd0, 'rad/s or m/s', 'initial rates, one per coordinate of the joint', &
@@ -737,7 +745,8 @@ contains
     select case (trim(kind))
     case ('revolute', 'prismatic'); n = 1
     case ('fixed'); n = 0
-    case ('spherical'); n = 3
+    case ('cylindrical', 'universal'); n = 2
+    case ('spherical', 'planar'); n = 3
     case ('free'); n = 6
     case default; n = -1
     end select

@@ -300,7 +300,7 @@ contains
         end if
         if (joint_ndof(jt%kind) < 0) then
           call errs%add(jt%origin%where('kind') // ": missing ('revolute', 'prismatic', 'fixed', " // &
-            & "'spherical' or 'free')"); cycle each_joints
+            & "'spherical', 'free', 'cylindrical', 'universal' or 'planar')"); cycle each_joints
         end if
         call check_coordinate_count(jt, 'q0', error)
         if (allocated(error)) then
@@ -345,16 +345,39 @@ contains
           call errs%add(sc%joints(i)%origin%where('child') // ": '" // trim(jt%child) // &
             & "' is the ground; the ground can only be a parent"); cycle each_joints
         end if
-        if (jt%kind == 'revolute' .or. jt%kind == 'prismatic') then
-          if (norm2(jt%axis) < 1.0e-12_dp) then
-            call errs%add(sc%joints(i)%origin%where('axis') // ': zero length; give a direction in the parent frame')
-            cycle each_joints
-          end if
-        end if
+        call check_joint_axes(jt, error)
+        if (allocated(error)) call errs%add(error%message)
       end associate
     end do each_joints
     call check_loops(sc, errs)
   end subroutine check_joints
+
+  !> A joint's axes: axis of nonzero length for the kinds that use it; axis2 only on a
+  !> universal joint, of nonzero length and normal to axis (cosine below 1e-9).
+  subroutine check_joint_axes(jt, error)
+    type(joint_spec), intent(in) :: jt
+    type(error_type), allocatable, intent(out) :: error
+    real(dp) :: cosine
+    select case (trim(jt%kind))
+    case ('revolute', 'prismatic', 'cylindrical', 'universal', 'planar')
+      if (norm2(jt%axis) < 1.0e-12_dp) then
+        call fatal_error(error, jt%origin%where('axis') // ': zero length; give a direction in the parent frame')
+        return
+      end if
+    end select
+    if (jt%kind /= 'universal') then
+      if (jt%origin%given('axis2')) call fatal_error(error, jt%origin%where('axis2') // ": only a 'universal' " // &
+        & "joint takes axis2 (this joint is '" // trim(jt%kind) // "')")
+      return
+    end if
+    if (all(jt%axis2 == unset)) return
+    if (norm2(jt%axis2) < 1.0e-12_dp) then
+      call fatal_error(error, jt%origin%where('axis2') // ': zero length; give a direction normal to axis'); return
+    end if
+    cosine = dot_product(jt%axis, jt%axis2)/(norm2(jt%axis)*norm2(jt%axis2))
+    if (abs(cosine) > 1.0e-9_dp) call fatal_error(error, jt%origin%where('axis2') // ': not normal to axis ' // &
+      & '(the cosine of the angle between them is ' // fmt(cosine) // '); give a direction normal to axis')
+  end subroutine check_joint_axes
 
   !> Loop-closing joints (closes_loop): any kind ('free' closes no constraint), at rigid
   !> bodies or at points of flexible ones (the points a flexible body allows are checked,

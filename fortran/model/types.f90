@@ -9,13 +9,14 @@ module pymr_model_types
   private
   public :: model_data, model_work, model_counters, marker_set, cut_set, articulated_work, loop_work
   public :: prim_revolute, prim_prismatic
-  public :: cut_fixed, cut_revolute, cut_spherical, cut_prismatic, cut_free
+  public :: cut_fixed, cut_revolute, cut_spherical, cut_prismatic, cut_free, cut_cylindrical, cut_universal, cut_planar
 
   !> Kinds of one-coordinate joint primitives: every joint is a chain of them.
   integer, parameter :: prim_revolute = 1, prim_prismatic = 2
 
   !> Kinds of loop-closing joints ('free' closes no constraint: no rows).
-  integer, parameter :: cut_fixed = 1, cut_revolute = 2, cut_spherical = 3, cut_prismatic = 4, cut_free = 5
+  integer, parameter :: cut_fixed = 1, cut_revolute = 2, cut_spherical = 3, cut_prismatic = 4, cut_free = 5, &
+    & cut_cylindrical = 6, cut_universal = 7, cut_planar = 8
 
   !> Markers: body and point (body frame), and on flexible bodies the mode shapes there:
   !> translation and small rotation (3, mmax, n).
@@ -27,10 +28,12 @@ module pymr_model_types
   end type marker_set
 
   !> Loop-closing (cut) joints (model/loops.f90): name, parent and child body, kind
-  !> (cut_fixed, cut_revolute, cut_spherical, cut_prismatic, cut_free), joint point in the
-  !> parent's and in the child's frame, and a revolute joint's axis and two unit normals of
-  !> it (parent frame); their first constraint row and number of rows (3 for the point, + 3
-  !> fixed, + 2 revolute; prismatic 2 + 3; free none). Mode shapes at the points on flexible
+  !> (cut_fixed, cut_revolute, cut_spherical, cut_prismatic, cut_free, cut_cylindrical,
+  !> cut_universal, cut_planar), joint point in the parent's and in the child's frame, and
+  !> the joint's axis and two unit normals of it (parent frame; a universal cut's first
+  !> normal is its axis2, child frame); their first constraint row and number of rows (3 for
+  !> the point, + 3 fixed, + 2 revolute, + 1 universal; prismatic 2 + 3; cylindrical 2 + 2;
+  !> planar 1 + 2; free none). Mode shapes at the points on flexible
   !> bodies (side 1 the parent's point, 2 the child's): translation and small rotation
   !> (3, mmax, 2, n). The loops' size (m): the farthest body origin or cut joint point from
   !> the origin.
