@@ -9,7 +9,7 @@ module pymr_driver_build
   use pymr_model_types, only : model_data, model_work, prim_revolute, prim_prismatic, &
     & cut_fixed, cut_revolute, cut_spherical, cut_prismatic, cut_free, cut_cylindrical, cut_universal, cut_planar
   use pymr_model_beam_modes, only : build_beam, beam_section, beam_point_shapes
-  use pymr_model_effect, only : start_effect_counters
+  use pymr_model_effect, only : effect_slot, start_effect_counters
   use pymr_driver_build_effects, only : build_effects
   use pymr_io_modal_file, only : read_modal_file
   use pymr_model_flexbody, only : flex_data, modal_nodes, undeformed_modal_moments
@@ -29,10 +29,12 @@ contains
     type(model_t), intent(out) :: model
     type(error_type), allocatable, intent(out) :: error
     integer, allocatable :: order(:), inboard(:)
+    type(effect_slot), allocatable :: effects(:)
     call check_scene(sc, error); if (allocated(error)) return
     call tree_order(sc, order, inboard, error); if (allocated(error)) return
     call fill_model(sc, order, inboard, model%d, model%wk, error); if (allocated(error)) return
-    call build_effects(sc, order, model%d, model%effects, error); if (allocated(error)) return
+    call build_effects(sc, order, model%d, effects, error); if (allocated(error)) return
+    call model%set_effects(effects)
     call start_effect_counters(model%effects, model%wk)
   end subroutine build_model
 

@@ -24,6 +24,8 @@ module pymr_model
     type(model_data) :: d
     type(model_work) :: wk
     type(effect_slot), allocatable :: effects(:)
+    !> Some effect acts after the composite terms (set with the list, by set_effects).
+    logical :: carried_loads = .false.
     !> Single-rate evaluations solve by the articulated-body algorithm (else through M).
     logical :: articulated = .false.
     !> Multirate work: Cholesky factors of M_ff and M_e, M_fs, M_ff^-1 M_fs, M_ff^-1 Q_f and
@@ -58,6 +60,7 @@ module pymr_model
     procedure :: load_run => model_load_run
     procedure :: use_articulated => model_use_articulated
     procedure :: impose => model_impose
+    procedure :: set_effects => model_set_effects
     procedure :: counters => model_get_counters
     procedure :: set_counters => model_set_counters
   end type model_t
@@ -144,7 +147,7 @@ contains
     real(dp), intent(out) :: qdd(:)
     type(error_type), allocatable, intent(out) :: error
     integer :: k
-    if (any(carries(self))) then
+    if (self%carried_loads) then
       call composite_loads(self, t, q, qd)
     else
       call body_loads(self, t, q, qd)
@@ -162,15 +165,18 @@ contains
     end do
   end subroutine articulated_at
 
-  !> Per effect of the list: it acts after the composite terms.
-  pure function carries(self) result(c)
-    class(model_t), intent(in) :: self
-    logical :: c(size(self%effects))
+  !> Take the list of effects (moved in), and note whether one acts after the composite
+  !> terms (the articulated path then assembles them).
+  subroutine model_set_effects(self, list)
+    class(model_t), intent(inout) :: self
+    type(effect_slot), allocatable, intent(inout) :: list(:)
     integer :: i
+    call move_alloc(list, self%effects)
+    self%carried_loads = .false.
     do i = 1, size(self%effects)
-      c(i) = self%effects(i)%e%acts(stage_carried)
+      self%carried_loads = self%carried_loads .or. self%effects(i)%e%acts(stage_carried)
     end do
-  end function carries
+  end subroutine model_set_effects
 
   !> The generalised forces P at (t, q, qd) without assembling M (O(n); the pre-flight
   !> linearisation's differences), the same P as terms gives; through terms when coordinates
