@@ -8,6 +8,7 @@ through the drive's work), the integral carried through a restart and a multirat
 the energy balance, and bad input refused in one line. Scenes are written inline."""
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -351,12 +352,7 @@ def test_bad_controls_are_refused_in_one_line(tmp_path, mrsim, items, item, says
     text = BAD_BASE.replace("&control name = 'servo', joint = 'shaft', kp = 50.0 /",
                             f"&control name = 'servo', {items} /")
     scene = write(tmp_path, "bad.nml", text)
-    check_refused_in_one_line(mrsim, scene, rf":{CONTROL_LINE}: &control.*{item}.*{re_escape(says)}")
-
-
-def re_escape(s: str) -> str:
-    import re
-    return re.escape(s)
+    check_refused_in_one_line(mrsim, scene, rf":{CONTROL_LINE}: &control.*{item}.*{re.escape(says)}")
 
 
 def test_controls_forgotten_or_prescribed_or_twice_are_refused(tmp_path, mrsim):
