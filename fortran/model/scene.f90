@@ -11,10 +11,10 @@ module pymr_model_scene
   implicit none
   private
   public :: scene_t, body_spec, joint_spec, drive_spec, marker_spec, integrator_spec, effects_spec
-  public :: spring_spec, motion_spec, load_spec, force_spec, output_spec, scene_spec, max_modes_input
+  public :: spring_spec, motion_spec, load_spec, force_spec, control_spec, output_spec, scene_spec, max_modes_input
   public :: joint_ndof, unset, group_names, single_groups, repeated_groups, describe_group, group_origin, group_count
   public :: naming_item, complete_scene, body_items, item_applies, output_quantities, beam_mode_count
-  public :: closes_loop, flexible_loop, k_max_flexible_loop, body_index
+  public :: closes_loop, flexible_loop, k_max_flexible_loop, body_index, control_count
 
   !> Default k_max of adaptive 'response' runs whose closed loops pass through a flexible
   !> body. The loop's fast modes move its joints (the flexible four-bar's 115 and 677 Hz
@@ -27,10 +27,10 @@ module pymr_model_scene
 
   !> The groups of a scene file, in the order the resolved scene is written.
   character(len=*), parameter :: group_names = &
-    & 'scene integrator effects output body joint drive spring motion load marker force'
+    & 'scene integrator effects output body joint drive spring motion load marker force control'
   !> The groups that may appear at most once, and those that may repeat.
   character(len=*), parameter :: single_groups = 'scene integrator effects output'
-  character(len=*), parameter :: repeated_groups = 'body joint drive spring motion load marker force'
+  character(len=*), parameter :: repeated_groups = 'body joint drive spring motion load marker force control'
   !> The groups of output columns (&output quantities).
   character(len=*), parameter :: output_quantities = &
     & 'coordinates markers marker_accelerations marker_orientations reactions energy'
@@ -123,6 +123,7 @@ module pymr_model_scene
     logical :: base_motion = .false.
     logical :: firing_load = .false.
     logical :: force_elements = .false.
+    logical :: controls = .false.
     !> Fidelity of the deformation-dependent inertia of flexible bodies: 'full' or 'linear'.
     character(len=16) :: deformation_inertia = 'full'
     type(origin_t) :: origin
@@ -246,6 +247,21 @@ module pymr_model_scene
     type(origin_t) :: origin
   end type force_spec
 
+  !> One &control group: a feedback drive on a joint coordinate. The effort
+  !> kp e + ki (integral of e) + kd edot, limited to |effort| <= max_effort, acts on the
+  !> joint coordinate; e = setpoint - measured, edot = -(measured rate). The sensor measures
+  !> the coordinate itself ('coordinate') or the inertial rotation of a marker's frame about
+  !> `axis` ('orientation').
+  type :: control_spec
+    character(len=name_len) :: name = '', joint = '', marker = ''
+    integer :: coordinate = 1
+    character(len=16) :: sensor = 'coordinate'
+    real(dp) :: axis(3) = 0.0_dp
+    real(dp) :: kp = 0.0_dp, ki = 0.0_dp, kd = 0.0_dp, setpoint = 0.0_dp, max_effort = unset
+    character(len=512) :: file = ''
+    type(origin_t) :: origin
+  end type control_spec
+
   !> The whole scene.
   type :: scene_t
     !> File the scene came from (for messages).
@@ -261,6 +277,7 @@ module pymr_model_scene
     type(load_spec), allocatable :: loads(:)
     type(marker_spec), allocatable :: markers(:)
     type(force_spec), allocatable :: forces(:)
+    type(control_spec), allocatable :: controls(:)
     type(output_spec) :: output
   end type scene_t
 
@@ -336,6 +353,7 @@ contains
     call t%add('base_motion', g%base_motion, 'the &motion prescribed joint coordinates')
     call t%add('firing_load', g%firing_load, 'the &load pulses')
     call t%add('force_elements', g%force_elements, 'the &force elements between markers')
+    call t%add('controls', g%controls, 'the &control feedback drives')
     call t%add('deformation_inertia', g%deformation_inertia, "inertia of deformed flexible bodies: 'full' or " // &
       & "'linear' (without the second-order deformation terms)", choices='full linear')
   end subroutine describe_effects
@@ -535,6 +553,29 @@ contains
       & 'for it)', ge=0.0_dp, le=big_length)
   end subroutine describe_force
 
+  subroutine describe_control(g, t)
+    type(control_spec), target, intent(inout) :: g
+    type(item_table), intent(inout) :: t
+    call t%add('name', g%name, 'name of the controller, unique among them (required)')
+    call t%add('joint', g%joint, 'the joint whose coordinate the controller drives (required)')
+    call t%add('coordinate', g%coordinate, '-', 'which coordinate of the joint', ge=1, le=6)
+    call t%add('sensor', g%sensor, "'coordinate': the driven coordinate and its rate; 'orientation': the " // &
+      & "inertial rotation of marker's frame about axis and its rate (a rate gyro)", choices='coordinate orientation')
+    call t%add('marker', g%marker, "the marker whose frame sensor 'orientation' measures")
+    call t%add('axis', g%axis, '-', "inertial axis of sensor 'orientation' (made unit)", ge=-big_length, le=big_length)
+    call t%add('kp', g%kp, 'N/m or N m/rad', 'proportional gain (effort per unit error)', ge=0.0_dp, le=big_force)
+    call t%add('ki', g%ki, 'N/(m s) or N m/(rad s)', 'integral gain (effort per unit integral of the error)', &
+      & ge=0.0_dp, le=big_force)
+    call t%add('kd', g%kd, 'N s/m or N m s/rad', 'derivative gain (effort per unit rate, on the measured rate)', &
+      & ge=0.0_dp, le=big_force)
+    call t%add('setpoint', g%setpoint, 'm or rad', 'the setpoint (with file: added to the history)', &
+      & ge=-big_length, le=big_length)
+    call t%add('file', g%file, "file of 'time value' lines: the setpoint's history, interpolated linearly " // &
+      & "(relative to the scene's folder)", scene_file=.true.)
+    call t%add('max_effort', g%max_effort, 'N or N m', 'the largest |effort| (default: no limit)', &
+      & gt=0.0_dp, le=big_force)
+  end subroutine describe_control
+
   !> Defaults that depend on other items, set once the scene is read: a joint's q0 and qd0
   !> default to 0 for each of its coordinates; one step serves both rates, and at one rate a
   !> --set of h_slow alone sets the step.
@@ -682,6 +723,7 @@ contains
     case ('load'); call describe_load(sc%loads(k), t)
     case ('marker'); call describe_marker(sc%markers(k), t)
     case ('force'); call describe_force(sc%forces(k), t)
+    case ('control'); call describe_control(sc%controls(k), t)
     end select
   end subroutine describe_group
 
@@ -705,6 +747,7 @@ contains
     case ('load'); o => sc%loads(k)%origin
     case ('marker'); o => sc%markers(k)%origin
     case ('force'); o => sc%forces(k)%origin
+    case ('control'); o => sc%controls(k)%origin
     end select
   end function group_origin
 
@@ -721,6 +764,7 @@ contains
     case ('load'); n = size(sc%loads)
     case ('marker'); n = size(sc%markers)
     case ('force'); n = size(sc%forces)
+    case ('control'); n = size(sc%controls)
     case default; n = 1
     end select
   end function group_count
@@ -733,10 +777,18 @@ contains
     select case (name)
     case ('drive', 'spring', 'motion'); item = 'joint'
     case ('load'); item = 'marker'
-    case ('body', 'joint', 'marker', 'force'); item = 'name'
+    case ('body', 'joint', 'marker', 'force', 'control'); item = 'name'
     case default; item = ''
     end select
   end function naming_item
+
+  !> The controllers the model builds: each &control when &effects controls is on (each
+  !> owns a state coordinate, after the joint coordinates).
+  pure integer function control_count(sc)
+    type(scene_t), intent(in) :: sc
+    control_count = 0
+    if (sc%effects%controls) control_count = size(sc%controls)
+  end function control_count
 
   !> Number of coordinates of a joint kind (-1 for an unknown kind).
   pure function joint_ndof(kind) result(n)
