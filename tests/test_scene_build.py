@@ -246,3 +246,41 @@ def test_a_refused_edit_names_the_group_and_item_and_changes_nothing(source, edi
     assert scene.fingerprint == before and scene.resolved() == text
     assert Path(scene.path).read_text() == path_text
     assert pymr.model_size(scene) == (1, 2, 1)
+
+
+def test_relative_files_of_a_built_scene(tmp_path, monkeypatch):
+    """A nonlinear spring's table named relative: in a new scene to the working folder at
+    the edit, in an edited file scene to the file's folder; both run as the file does, from
+    any working folder after."""
+    folder = tmp_path / "scenes"
+    folder.mkdir()
+    (folder / "spring.txt").write_text("-1.0 -50.0\n1.0 50.0\n")
+    text = """&scene t_end = 0.5, gravity = 0.0, 0.0, 0.0 /
+&integrator h_slow = 1.0e-3 /
+&effects force_elements = .true. /
+&body name = 'ground', kind = 'ground' /
+&body name = 'slider', kind = 'rigid', mass = 2.0, inertia = 1.0, 1.0, 1.0, 0.0, 0.0, 0.0 /
+&joint name = 'rail', kind = 'prismatic', parent = 'ground', child = 'slider', axis = 1.0, 0.0, 0.0, q0 = 0.1 /
+&marker name = 'anchor', body = 'ground', at = -1.0, 0.0, 0.0 /
+&marker name = 'hook', body = 'slider' /
+&force name = 'spring', kind = 'spring_damper', marker_i = 'anchor', marker_j = 'hook', file = 'spring.txt',
+       free_length = 1.0 /
+"""
+    (folder / "slider.nml").write_text(text)
+    reference = pymr.run(folder / "slider.nml")
+    x = reference["rail.q"]
+    assert np.abs(x - 0.1 * np.cos(5.0 * reference.t)).max() < 1e-9     # k = 50 N/m, m = 2 kg
+    edited = pymr.Scene(folder / "slider.nml").add("marker", name="extra", body="slider")
+    monkeypatch.chdir(folder)
+    built = pymr.Scene()
+    built.add("scene", t_end=0.5, gravity=[0.0, 0.0, 0.0]).add("integrator", h_slow=1.0e-3)
+    built.add("effects", force_elements=True).add("body", name="ground", kind="ground")
+    built.add("body", name="slider", kind="rigid", mass=2.0, inertia=[1.0, 1.0, 1.0, 0.0, 0.0, 0.0])
+    built.add("joint", name="rail", kind="prismatic", parent="ground", child="slider", axis=[1.0, 0.0, 0.0], q0=0.1)
+    built.add("marker", name="anchor", body="ground", at=[-1.0, 0.0, 0.0]).add("marker", name="hook", body="slider")
+    built.add("force", name="spring", kind="spring_damper", marker_i="anchor", marker_j="hook", file="spring.txt",
+              free_length=1.0)
+    monkeypatch.chdir(tmp_path)
+    assert built["force[spring].file"] == str(folder / "spring.txt")
+    assert np.array_equal(pymr.run(built)["rail.q"], x)
+    assert np.array_equal(pymr.run(edited)["rail.q"], x)
