@@ -243,6 +243,8 @@ def test_a_refused_edit_names_the_group_and_item_and_changes_nothing(source, edi
             scene.remove(edit[1], edit[2])
     for w in words:
         assert w in str(err.value), str(err.value)
+    if edit[1:] == ("marker", "nowhere"):                      # the fields code acts on
+        assert (err.value.group, err.value.item, err.value.fault) == ("marker", "name", "no such group")
     assert scene.fingerprint == before and scene.resolved() == text
     assert Path(scene.path).read_text() == path_text
     assert pymr.model_size(scene) == (1, 2, 1)

@@ -512,8 +512,10 @@ contains
     if (len_trim(sel) > 0) then
       call fatal_error(error, what // ': ' // naming_item(trim(group)) // ': no &' // trim(group) // &
         & ' group with ' // naming_item(trim(group)) // ' ''' // trim(sel) // '''')
+      call set_fault(error, group=trim(group), item=naming_item(trim(group)), fault='no such group')
     else
       call fatal_error(error, what // ': the scene has no &' // trim(group) // ' group')
+      call set_fault(error, group=trim(group), fault='no such group')
     end if
   end subroutine check_removal
 
