@@ -245,6 +245,8 @@ class Scene(SceneSource):
         ``absolute_paths`` the files it names are written absolute (for a copy elsewhere).
         The text is the kernel's reading of the file when the Scene was made or last set."""
         if _flag("absolute_paths", absolute_paths) or self._resolved is None:
+            if self._text is not None and not self._whole:   # a draft: the kernel's reason, by the scene's name
+                _edited_text(self._text, self._home, "", "", whole=True)
             return _kernel_text(str(self.path), self.overrides, 2 if absolute_paths else 0)
         return self._resolved
 
@@ -265,7 +267,8 @@ class Scene(SceneSource):
 
     def __repr__(self) -> str:
         if self._text is not None:
-            return f"<Scene built in Python: {self._text.count('&')} groups{'' if self._whole else ', a draft'}>"
+            groups = sum(line.startswith("&") for line in self._text.splitlines())
+            return f"<Scene built in Python: {groups} groups{'' if self._whole else ', a draft'}>"
         return f"Scene({str(self.path)!r}, overrides={self._overrides!r})"
 
 

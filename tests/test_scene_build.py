@@ -205,8 +205,9 @@ def test_a_draft_is_refused_whole_until_it_is_a_scene():
     a body and its joint: until then resolved() and run raise the kernel's reason."""
     scene = pymr.Scene()
     scene.add("scene", t_end=1.0).add("integrator", h_slow=1.0e-3).add("body", name="ground", kind="ground")
-    with pytest.raises(pymr.SceneError, match="only the ground"):
+    with pytest.raises(pymr.SceneError, match="<scene built in Python>: &body: .*only the ground"):
         scene.resolved()
+    assert repr(scene) == "<Scene built in Python: 3 groups, a draft>"
     with pytest.raises(pymr.SceneError, match="mass: must be in"):
         scene.add("body", name="arm", kind="rigid", mass=-1.0)
     scene.add("body", name="arm", kind="rigid", mass=2.0, inertia=[1.0, 1.0, 1.0, 0.0, 0.0, 0.0])
