@@ -96,6 +96,21 @@ def test_beyond_the_table_the_end_segments_continue(tmp_path):
     assert res["rail.q"].min() < -0.25
 
 
+def test_the_force_is_minus_the_gradient_of_the_energy(tmp_path):
+    """Off the table's points, inside and beyond it, in tension and compression: the
+    generalised force P of M qdd = P is minus the central difference of the spring energy
+    (the table's integral), to 1e-7."""
+    path = scene(tmp_path, table(tmp_path, HARDENING))
+    xs = np.array([-0.27, -0.13, -0.07, -0.02, 0.01, 0.04, 0.08, 0.17, 0.31])
+    eps = 1e-6
+    for x in xs:
+        _, p = pymr.model_terms(path, np.array([x]), np.zeros(1))
+        _, pe = pymr.model_energy(path, np.array([[x + eps], [x - eps]]), np.zeros((2, 1)))
+        grad = (pe[0] - pe[1]) / (2 * eps)
+        assert abs(p[0]) > 0.5                               # a real force
+        assert abs(p[0] + grad) < 1e-7 * abs(p[0]), (x, p[0], grad)
+
+
 @pytest.mark.parametrize("how", ["damped run", "static start"])
 def test_static_deflection_is_the_tables_inverse(tmp_path, how):
     """Gravity 9.81 m/s^2 along the rail pulls the 2 kg slider: it settles where the
