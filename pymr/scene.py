@@ -1,14 +1,16 @@
-"""A scene as data: a namelist file with overrides, read, checked, resolved and
-fingerprinted by the kernel's own reader through the binding. Python states no scene rule:
-every address, value and check is the kernel's (``pymr scene --schema`` lists them)."""
+"""A scene as data: a namelist file with overrides, or a scene built in Python (groups added
+and removed), read, checked, resolved and fingerprinted by the kernel's own reader through
+the binding. Python states no scene rule: every address, value and check is the kernel's
+(``pymr scene --schema`` lists them)."""
 from __future__ import annotations
 
+import contextlib
 import functools
 import os
 import tempfile
 import weakref
 from pathlib import Path
-from typing import Iterable, Mapping
+from typing import Iterable, Iterator, Mapping
 
 from . import _kernel as _core
 from ._args import (SceneSource, _flag, _name, _path, _raise, _text, format_overrides, nml_value, open_model,
@@ -38,18 +40,142 @@ class Scene(SceneSource):
     Scene share one model the kernel builds at the first of them (from the file as it is
     then) and keeps open; setting an item closes it (the next call builds the scene as it
     now is), and so does the Scene's garbage collection.
+
+    **Building a scene.** ``add(group, **items)`` adds one group, ``remove(group, name)``
+    takes the groups of that name away (``remove(group)`` a single group such as
+    ``'output'``); both return the scene, so calls chain. ``Scene()`` (no path) is a new,
+    empty scene, its relative file names relative to the working folder::
+
+        scene = pymr.Scene()
+        scene.add("scene", title="pendulum", t_end=2.0, gravity=[0.0, -9.81, 0.0])
+        scene.add("integrator", method="single", h_slow=1e-3)
+        scene.add("effects", gravity=True)
+        scene.add("body", name="ground", kind="ground")
+        scene.add("body", name="bob", kind="rigid", mass=1.0, com=[0.0, -1.0, 0.0], inertia=[1e-4] * 3 + [0.0] * 3)
+        scene.add("joint", name="pivot", kind="revolute", parent="ground", child="bob", axis=[0, 0, 1], q0=0.1)
+        pymr.run(scene)
+        scene.remove("joint", "pivot")         # SceneError: &body 'bob': not connected to the ground ...
+
+    The values are converted as for setting an item, and the kernel judges the result: an
+    add or remove is the kernel reading the scene's text with that group appended, or
+    without it. Once the kernel accepts the scene whole (as it accepts a file scene at
+    once), every add and remove is checked on the whole scene (its rules, its model built)
+    and a refused one raises :class:`SceneError` with the kernel's line, the scene
+    unchanged. A new scene is a draft until then: each add is checked on its groups and
+    items alone (unknown groups and items, values out of range or choice) and the rest
+    waits until the scene is whole (:meth:`resolved` raises the kernel's reason meanwhile).
+    Edits that only make a scene together (a body and its joint) go in one
+    ``with scene.editing():`` block, checked whole at its end.
+    An edited scene holds its text (the kernel's resolved text, files named absolute) in a
+    private file, ``path``; :meth:`write` saves it as a scene file, and one read back runs
+    the same, with the same fingerprint.
     """
 
-    def __init__(self, path: str | os.PathLike,
+    def __init__(self, path: str | os.PathLike | None = None,
                  overrides: Mapping[str, object] | Iterable[str] | None = None) -> None:
-        self.path = Path(_path("path", path))
         self._overrides: list[str] = []
         self._resolved: str | None = None      # the kernel's text for the current overrides
         self._model: tuple | None = None       # the open model: (handle, its closer, what it was built from)
+        self._text: str | None = None          # the scene's text once built or edited in Python
+        self._tmp = None                       # the private folder of that text's file
+        self._whole = True                     # whether the kernel accepts the scene whole
+        self._batch = False                    # inside editing(): edits checked as a draft's
         text = format_overrides(overrides)
+        if path is None:
+            if text:
+                raise SceneError("overrides: a new scene has no items yet: add its groups")
+            self._home = os.path.join(os.getcwd(), "<scene built in Python>")
+            self._whole = False
+            self._set_text("")
+            return
+        self.path = Path(_path("path", path))
+        self._home = str(self.path)            # the kernel's name of the scene: messages, relative files
         if text:
             self._overrides = text.split("\n")
         self._check()
+
+    # ------------------------------------------------------------- building
+
+    def add(self, group: str, **items: object) -> "Scene":
+        """Add one `group` (``'body'``, ``'joint'``, ``'marker'``, ``'output'`` ...) with
+        its `items`, converted as :meth:`__setitem__` converts a value."""
+        group = _name("group", group)
+        lines = "".join(f"  {k} = {nml_value(v, f'{group}.{k}')}\n" for k, v in items.items())
+        return self._edit(f"&{group}\n{lines}/\n")
+
+    def remove(self, group: str, name: str | None = None) -> "Scene":
+        """Remove the `group` groups whose naming item is `name` (a body's, joint's,
+        marker's, force's name; a drive's, spring's or motion's joint; a load's marker), or
+        the single `group` (``'output'``, ``'effects'`` ...) when `name` is None."""
+        address = _name("group", group) + ("" if name is None else f"[{_name('name', name)}]")
+        return self._edit("", omit=address)
+
+    @contextlib.contextmanager
+    def editing(self) -> Iterator["Scene"]:
+        """Edits that only make a scene together (a body and the joint that holds it, added
+        or removed): inside the ``with`` block they are checked as a draft's, and the scene
+        whole at its end, where a refusal undoes them all::
+
+            with scene.editing():
+                scene.add("body", name="arm2", ...)
+                scene.add("joint", name="elbow", parent="arm", child="arm2", ...)
+        """
+        saved = (self._text, list(self._overrides), self._whole, self.path, self._batch)
+        self._batch = True
+        try:
+            yield self
+            self._batch = saved[4]
+            if self._text is not None and not self._batch:
+                self._settle(saved[2])
+        except BaseException:
+            self._text, self._overrides, self._whole, self.path, self._batch = saved
+            if self._text is not None:
+                self._set_text(self._text)
+            self._check()
+            raise
+
+    def _settle(self, was_whole: bool) -> None:
+        """After edits: the scene checked whole; refused (a SceneError) if it was whole
+        before, else a draft still."""
+        try:
+            _edited_text(self._text, self._home, "", "", whole=True)
+            self._whole = True
+        except SceneError:
+            if was_whole:
+                raise
+            self._whole = False
+        self._check()
+
+    def _edit(self, appended: str = "", overrides: str = "", omit: str = "") -> "Scene":
+        """The scene's text with `appended`, `overrides` and without `omit`, read by the
+        kernel (a draft: its groups and items), then whole: refused, nothing changes."""
+        if self._text is None:                 # the file's text and its overrides, as given
+            base = _edited_text(os.fsdecode(self.path.read_bytes()), self._home, self.overrides, "", whole=False)
+        else:
+            base = self._text
+        text = _edited_text(base + appended, self._home, overrides, omit, whole=False)
+        whole = self._whole
+        if not self._batch:
+            try:
+                text = _edited_text(text, self._home, "", "", whole=True)
+                whole = True
+            except SceneError:
+                if self._whole:
+                    raise
+        else:
+            whole = False
+        self._set_text(text)
+        self._overrides, self._whole = [], whole
+        self._check()
+        return self
+
+    def _set_text(self, text: str) -> None:
+        """Hold `text` as the scene, in the file the kernel reads (`path`)."""
+        if self._tmp is None:
+            self._tmp = tempfile.TemporaryDirectory(prefix="pymr-scene-")
+        self._text = text
+        self.path = Path(self._tmp.name) / "scene.nml"
+        self.path.write_text(text)
 
     # ------------------------------------------------------------------ items
 
@@ -61,7 +187,11 @@ class Scene(SceneSource):
     def __setitem__(self, address: str, value: object) -> None:
         # one override, its value checked and written by the API's one conversion
         address = _name("address", address)
-        self._overrides.append(format_overrides([f"{address}={nml_value(value, address)}"]))
+        entry = format_overrides([f"{address}={nml_value(value, address)}"])
+        if self._text is not None:             # a built scene takes it into its text
+            self._edit(overrides=entry)
+            return
+        self._overrides.append(entry)
         try:
             self._check()
         except SceneError:
@@ -94,8 +224,13 @@ class Scene(SceneSource):
             self._model = None
 
     def __getstate__(self) -> dict:
-        # a copy (or pickle) opens its own model: the handle is this object's
-        return {**self.__dict__, "_model": None}
+        # a copy (or pickle) opens its own model and keeps its text in its own file
+        return {**self.__dict__, "_model": None, "_tmp": None}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        if self._text is not None:
+            self._set_text(self._text)
 
     @property
     def overrides(self) -> str:
@@ -109,8 +244,10 @@ class Scene(SceneSource):
         building its model, and a last comment line with its fingerprint. With
         ``absolute_paths`` the files it names are written absolute (for a copy elsewhere).
         The text is the kernel's reading of the file when the Scene was made or last set."""
-        if _flag("absolute_paths", absolute_paths):
-            return _kernel_text(str(self.path), self.overrides, 2)
+        if _flag("absolute_paths", absolute_paths) or self._resolved is None:
+            if self._text is not None and not self._whole:   # a draft: the kernel's reason, by the scene's name
+                _edited_text(self._text, self._home, "", "", whole=True)
+            return _kernel_text(str(self.path), self.overrides, 2 if absolute_paths else 0)
         return self._resolved
 
     @property
@@ -125,9 +262,13 @@ class Scene(SceneSource):
     def _check(self) -> None:
         self._close_model()
         self._resolved = None
-        self._resolved = _kernel_text(str(self.path), self.overrides, 0)
+        if self._whole:                        # a draft is not a scene yet
+            self._resolved = _kernel_text(str(self.path), self.overrides, 0)
 
     def __repr__(self) -> str:
+        if self._text is not None:
+            groups = sum(line.startswith("&") for line in self._text.splitlines())
+            return f"<Scene built in Python: {groups} groups{'' if self._whole else ', a draft'}>"
         return f"Scene({str(self.path)!r}, overrides={self._overrides!r})"
 
 
@@ -142,6 +283,17 @@ def _kernel_text(scene: str, overrides: str, what: int) -> str:
     with tempfile.TemporaryDirectory(prefix="pymr-scene-") as tmp:
         out = os.path.join(tmp, "scene.txt")
         stat, msg, detail = _core.pymr_scene_write(scene, overrides, what, out)
+        _raise(stat, msg, detail)
+        return Path(out).read_text()
+
+
+def _edited_text(text: str, home: str, overrides: str, omit: str, whole: bool) -> str:
+    """The kernel's resolved text (files absolute, no fingerprint) of scene `text` named
+    `home` with `overrides`, without the groups `omit` names; `whole`: checked as a scene,
+    else as a draft."""
+    with tempfile.TemporaryDirectory(prefix="pymr-scene-") as tmp:
+        out = os.path.join(tmp, "scene.txt")
+        stat, msg, detail = _core.pymr_scene_edit(text, home, overrides, omit, int(whole), out)
         _raise(stat, msg, detail)
         return Path(out).read_text()
 

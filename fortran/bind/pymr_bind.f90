@@ -494,6 +494,42 @@ subroutine pymr_scene_item(scene, overrides, address, value, stat, message, deta
   call report(error, stat, message, detail)
 end subroutine pymr_scene_item
 
+!> A scene edited in Python (pymr.Scene.add, remove): the scene in `text`, named `file` in
+!> messages and the base of its relative paths, read with `overrides` and written to `path`
+!> resolved (the single groups it gives only), with its files' paths absolute and no
+!> fingerprint line, without the groups the
+!> address `omit` names (GROUP or GROUP[NAME]; '' none). `whole` = 1: checked as a scene
+!> (read, its rules, its model built); 0: a draft, its groups and items read alone.
+subroutine pymr_scene_edit(text, file, overrides, omit, whole, path, stat, message, detail)
+  use pymr_env_error, only : error_type
+  use pymr_bind_support, only : report
+  use pymr_model_scene, only : scene_t
+  use pymr_model, only : model_t
+  use pymr_driver_build, only : build_model
+  use pymr_io_namelist_input, only : read_scene_text, resolved_text, check_removal
+  use pymr_env_text_file, only : write_text_file
+  implicit none
+  character(len=*), intent(in) :: text, file, overrides, omit, path
+  integer, intent(in) :: whole
+  integer, intent(out) :: stat
+  character(len=8192), intent(out) :: message
+  character(len=4096), intent(out) :: detail
+  type(error_type), allocatable :: error
+  type(scene_t), target :: sc
+  type(model_t) :: model
+  call read_scene_text(text, file, overrides, sc, error, draft=whole == 0)
+  if (.not. allocated(error) .and. whole == 1) call build_model(sc, model, error)
+  if (.not. allocated(error) .and. len_trim(omit) > 0) call check_removal(sc, trim(omit), error)
+  if (.not. allocated(error)) then
+    if (len_trim(omit) > 0) then
+      call write_text_file(path, resolved_text(sc, .true., omit=trim(omit), given=.true.), error)
+    else
+      call write_text_file(path, resolved_text(sc, .true., given=.true.), error)
+    end if
+  end if
+  call report(error, stat, message, detail)
+end subroutine pymr_scene_edit
+
 !> Step and order history of an open model's run (no output): time reached, step and order
 !> of each accepted step (entry 1: the start), nh entries, at most nmax.
 subroutine pymr_step_history(handle, nmax, t, h, q, nh, stat, message, detail)

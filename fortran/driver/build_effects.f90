@@ -54,8 +54,9 @@ contains
     if (sc%effects%firing_load .and. size(sc%loads) > 0) then
       call append(list, firing_load_effect_of(loads_of(sc, d, error))); if (allocated(error)) return
     end if
-    if (sc%effects%force_elements .and. size(sc%forces) > 0) &
-      & call append(list, force_elements_effect_of(force_elements_of(sc, d)))
+    if (sc%effects%force_elements .and. size(sc%forces) > 0) then
+      call append(list, force_elements_effect_of(force_elements_of(sc, d, error))); if (allocated(error)) return
+    end if
     if (control_count(sc) > 0) then
       call append(list, controls_effect_of(controls_of(sc, pos_in, d, error))); if (allocated(error)) return
     end if
@@ -172,10 +173,11 @@ contains
   end function loads_of
 
   !> The force elements: kind, marker indices, stiffnesses and dampings (those not given 0)
-  !> and free length.
-  function force_elements_of(sc, d) result(elements)
+  !> and free length; a spring-damper's force-deflection table read when it gives one.
+  function force_elements_of(sc, d, error) result(elements)
     type(scene_t), intent(in) :: sc
     type(model_data), intent(in) :: d
+    type(error_type), allocatable, intent(out) :: error
     type(force_element) :: elements(size(sc%forces))
     integer :: i
     do i = 1, size(sc%forces)
@@ -186,6 +188,11 @@ contains
         el%k = merge(fs%stiffness, 0.0_dp, fs%stiffness /= unset)
         el%c = merge(fs%damping, 0.0_dp, fs%damping /= unset)
         if (fs%free_length /= unset) el%free_length = fs%free_length
+        el%tabulated = len_trim(fs%file) > 0
+        if (.not. el%tabulated) cycle
+        call read_time_table(scene_relative(sc%file, trim(fs%file)), fs%origin%where('file'), &
+          & el%table%t, el%table%y, error, 'deflection, force')
+        if (allocated(error)) return
       end associate
     end do
   end function force_elements_of

@@ -16,6 +16,7 @@ module pymr_io_namelist_input
   implicit none
   private
   public :: read_scene, read_scene_text, resolved_text, schema_text, scene_fingerprint, item_value
+  public :: check_removal
   public :: checkpoint_identity
 
   !> One --set entry: group[sel].item=values.
@@ -39,11 +40,13 @@ contains
   end subroutine read_scene
 
   !> Read a scene from `text`; `file` names it in messages (and is the base of its
-  !> relative paths).
-  subroutine read_scene_text(text, file, overrides, sc, error)
+  !> relative paths). A `draft` (a scene being built, pymr.Scene.add) may lack the groups
+  !> every scene needs; its groups and items are checked as in a scene.
+  subroutine read_scene_text(text, file, overrides, sc, error, draft)
     character(len=*), intent(in) :: text, file, overrides
     type(scene_t), target, intent(out) :: sc
     type(error_type), allocatable, intent(out) :: error
+    logical, intent(in), optional :: draft
     type(group_text), allocatable :: groups(:)
     type(override_t), allocatable :: ovs(:)
     integer :: ng, i
@@ -53,7 +56,7 @@ contains
       error%message = file // ': ' // error%message; return
     end if
     call parse_namelist(text, file, repeated_groups, groups, ng, error); if (allocated(error)) return
-    call check_groups(file, groups(1:ng), error); if (allocated(error)) return
+    call check_groups(file, groups(1:ng), error, draft); if (allocated(error)) return
     call allocate_records(sc, groups(1:ng))
     do i = 1, ng
       call fill_group(sc, groups(i), error); if (allocated(error)) return
@@ -66,11 +69,12 @@ contains
   end subroutine read_scene_text
 
   !> Unknown groups (with the nearest known name), single groups given twice, required
-  !> groups missing.
-  subroutine check_groups(file, groups, error)
+  !> groups missing (but in a draft).
+  subroutine check_groups(file, groups, error, draft)
     character(len=*), intent(in) :: file
     type(group_text), intent(in) :: groups(:)
     type(error_type), allocatable, intent(out) :: error
+    logical, intent(in), optional :: draft
     integer :: i
     do i = 1, size(groups)
       associate(g => groups(i))
@@ -84,6 +88,9 @@ contains
         end if
       end associate
     end do
+    if (present(draft)) then
+      if (draft) return
+    end if
     if (.not. any(groups%name == 'scene')) then
       call fatal_error(error, file // ': &scene: missing group (it holds title, t_end, gravity)'); return
     end if
@@ -387,12 +394,18 @@ contains
   !> overrides applied), reals in the fewest digits that read back exactly.
   !> With `absolute_paths`, files given relative to the scene's folder are written absolute
   !> (for a copy of the scene placed elsewhere).
-  function resolved_text(sc, absolute_paths, groups) result(text)
+  function resolved_text(sc, absolute_paths, groups, omit, given) result(text)
     type(scene_t), target, intent(inout) :: sc
     logical, intent(in), optional :: absolute_paths
     !> Only these groups (blank-separated; default all).
     character(len=*), intent(in), optional :: groups
+    !> Without the occurrences this address names: GROUP or GROUP[NAME] (check_removal).
+    character(len=*), intent(in), optional :: omit
+    !> Only the single groups the text or an override gives (a scene being built: a group
+    !> not given yet can still be added).
+    logical, intent(in), optional :: given
     character(len=:), allocatable :: text
+    type(origin_t), pointer :: o
     type(item_table) :: t
     character(len=:), allocatable :: v
     character(len=16) :: name
@@ -408,6 +421,13 @@ contains
         if (index(' ' // groups // ' ', ' ' // trim(name) // ' ') == 0) cycle
       end if
       do k = 1, group_count(sc, trim(name))
+        if (present(omit)) then
+          if (removed(sc, omit, trim(name), k)) cycle
+        end if
+        if (present(given)) then
+          o => group_origin(sc, trim(name), k)
+          if (given .and. o%line == 0 .and. o%n == 0) cycle
+        end if
         call append('&' // trim(name) // new_line('a'))
         call describe_group(sc, trim(name), k, t)
         do m = 1, t%n
@@ -435,6 +455,69 @@ contains
       n = n + len(s)
     end subroutine append
   end function resolved_text
+
+  !> Group and name of a removal's address: GROUP (a single group) or GROUP[NAME] (the
+  !> occurrences of a repeated group its naming item names, as --set selects them).
+  subroutine removal_address(address, group, sel)
+    character(len=*), intent(in) :: address
+    character(len=*), intent(out) :: group, sel
+    integer :: lb, rb
+    lb = index(address, '['); rb = index(address, ']', back=.true.)
+    sel = ''
+    if (lb > 0 .and. rb > lb) then
+      group = lower(trim(adjustl(address(1:lb-1)))); sel = unquoted(trim(adjustl(address(lb+1:rb-1))))
+    else
+      group = lower(trim(adjustl(address)))
+    end if
+  end subroutine removal_address
+
+  !> Whether occurrence k of group `name` is one that removal address `omit` names.
+  logical function removed(sc, omit, name, k)
+    type(scene_t), target, intent(inout) :: sc
+    character(len=*), intent(in) :: omit, name
+    integer, intent(in) :: k
+    character(len=name_len) :: group, sel
+    call removal_address(omit, group, sel)
+    removed = trim(group) == name
+    if (removed .and. len_trim(sel) > 0) removed = selected(sc, name, k, sel)
+  end function removed
+
+  !> A removal's address names a known group, with a name when it is repeated (and none
+  !> when single), and at least one occurrence of it in the scene.
+  subroutine check_removal(sc, address, error)
+    type(scene_t), target, intent(inout) :: sc
+    character(len=*), intent(in) :: address
+    type(error_type), allocatable, intent(out) :: error
+    character(len=name_len) :: group, sel
+    character(len=:), allocatable :: what
+    integer :: k
+    call removal_address(address, group, sel)
+    what = sc%file // ': remove &' // trim(group)
+    if (len_trim(sel) > 0) what = what // ' ''' // trim(sel) // ''''
+    if (index(' ' // group_names // ' ', ' ' // trim(group) // ' ') == 0 .or. len_trim(group) == 0) then
+      call fatal_error(error, what // ': unknown group (known: ' // comma_list(group_names) // ')' // &
+        & suggestion(trim(group), group_names, group=.true.)); return
+    end if
+    if (index(' ' // single_groups // ' ', ' ' // trim(group) // ' ') > 0) then
+      if (len_trim(sel) > 0) then
+        call fatal_error(error, what // ': &' // trim(group) // ' is not repeated: give no name'); return
+      end if
+    else if (len_trim(sel) == 0) then
+      call fatal_error(error, what // ': a repeated group: give the ' // naming_item(trim(group)) // &
+        & ' of the one to remove'); return
+    end if
+    do k = 1, group_count(sc, trim(group))
+      if (removed(sc, address, trim(group), k)) return
+    end do
+    if (len_trim(sel) > 0) then
+      call fatal_error(error, what // ': ' // naming_item(trim(group)) // ': no &' // trim(group) // &
+        & ' group with ' // naming_item(trim(group)) // ' ''' // trim(sel) // '''')
+      call set_fault(error, group=trim(group), item=naming_item(trim(group)), fault='no such group')
+    else
+      call fatal_error(error, what // ': the scene has no &' // trim(group) // ' group')
+      call set_fault(error, group=trim(group), fault='no such group')
+    end if
+  end subroutine check_removal
 
   !> What a checkpoint must share with the scene that continues it: the integrator's
   !> settings (its resolved group), and the fingerprint of the model (every group but

@@ -1,7 +1,8 @@
 !> Time-history files for tabulated drives and motions: two numbers per line, the time (s)
 !> and the value, separated by blanks or a comma; lines starting with '#' and blank lines
 !> are skipped. Times must increase strictly. A line of any other count of numbers (a
-!> third column: a file written for something else) is refused, not cut to two.
+!> third column: a file written for something else) is refused, not cut to two. A spring's
+!> force-deflection table is read the same way, its first column the deflection.
 module pymr_io_table_file
   use pymr_env_kinds, only : dp
   use pymr_env_error, only : error_type, fatal_error
@@ -14,9 +15,11 @@ module pymr_io_table_file
 contains
 
   !> Read the table at `path` into t and y. `what` starts every error message (the scene
-  !> file, group and item that named the file).
-  subroutine read_time_table(path, what, t, y, error)
+  !> file, group and item that named the file). `columns` names the two columns in the
+  !> messages (default 'time, value'), the first of them the one that must increase.
+  subroutine read_time_table(path, what, t, y, error, columns)
     character(len=*), intent(in) :: path, what
+    character(len=*), intent(in), optional :: columns
     real(dp), allocatable, intent(out) :: t(:), y(:)
     type(error_type), allocatable, intent(out) :: error
     integer :: pos, line, n, nw, k
@@ -25,6 +28,12 @@ contains
     real(dp) :: row(2)
     real(dp), allocatable :: tt(:), yy(:)
     logical :: exists, ok
+    character(len=:), allocatable :: cols, first, first_symbol
+    cols = 'time, value'
+    if (present(columns)) cols = columns
+    first = cols(1:index(cols, ',') - 1)
+    first_symbol = first
+    if (first == 'time') first_symbol = 't'
     inquire(file=path, exist=exists)
     if (.not. exists) then
       call fatal_error(error, what // ": '" // path // "' not found"); return
@@ -45,17 +54,18 @@ contains
       if (ln(wa(1):wa(1)) == '#') cycle
       ln = ln(wa(1):wb(nw))
       if (nw /= 2) then
-        call fail('expected two finite numbers (time, value), got ' // itoa(nw) // ': ' // ln); return
+        call fail('expected two finite numbers (' // cols // '), got ' // itoa(nw) // ': ' // ln); return
       end if
       do k = 1, 2
         call number_text(ln(wa(k) - wa(1) + 1:wb(k) - wa(1) + 1), row(k), ok)
         if (.not. ok .or. row(k) /= row(k) .or. abs(row(k)) > huge(1.0_dp)) then
-          call fail('expected two finite numbers (time, value), got: ' // ln); return
+          call fail('expected two finite numbers (' // cols // '), got: ' // ln); return
         end if
       end do
       if (n > 0) then
         if (.not. (row(1) > tt(n))) then
-          call fail('times must increase, but t = ' // fmt(row(1)) // ' follows t = ' // fmt(tt(n))); return
+          call fail(first // 's must increase, but ' // first_symbol // ' = ' // fmt(row(1)) // ' follows ' // &
+            & first_symbol // ' = ' // fmt(tt(n))); return
         end if
       end if
       if (n == size(tt)) then

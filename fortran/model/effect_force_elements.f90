@@ -1,6 +1,8 @@
 !> Force elements between two markers on any two bodies (&force):
 !> - a spring-damper along the line from marker i to marker j, of tension
-!>   k (L - L0) + c dL/dt, pulling the markers together when positive;
+!>   k (L - L0) + c dL/dt, pulling the markers together when positive; with a
+!>   force-deflection table, F(L - L0) + c dL/dt, F interpolated linearly in the table and
+!>   continued by its end segments' lines, of energy the integral of F from 0 to L - L0;
 !> - a bushing: in marker i's axes, forces Kt x + Ct xd on the displacement x = Ri^T (rj - ri)
 !>   of marker j from marker i and its rate, and moments on the rotation vector theta of
 !>   j's frame from i's (Ri^T Rj = exp(theta~)) and the relative angular velocity.
@@ -15,6 +17,7 @@ module pymr_model_effect_force_elements
   use pymr_model_kinematics, only : forward_kinematics, marker_motion, marker_rotation
   use pymr_model_flexbody, only : small_rotation
   use pymr_model_effect, only : effect_t, stage_load, energy_springs, power_damping
+  use pymr_model_time_table, only : time_table, table_extended, table_extended_integral
   implicit none
   private
   public :: force_element, force_elements_effect, force_elements_effect_of, spring_damper, bushing
@@ -23,10 +26,13 @@ module pymr_model_effect_force_elements
 
   !> One element: its kind, markers i and j, stiffnesses and dampings (1 used by a
   !> spring-damper; 6 by a bushing: translations x, y, z, rotations about x, y, z) and a
-  !> spring-damper's free length (m).
+  !> spring-damper's free length (m); a nonlinear spring-damper's force-deflection table
+  !> (deflection L - L0 in m, tension in N), in place of k(1).
   type :: force_element
     integer :: kind = spring_damper, mi = 0, mj = 0
     real(dp) :: k(6) = 0.0_dp, c(6) = 0.0_dp, free_length = 0.0_dp
+    logical :: tabulated = .false.
+    type(time_table) :: table
   end type force_element
 
   !> A marker's state: inertial point and its velocity, frame, angular velocity, and the
@@ -117,6 +123,29 @@ contains
     m = y + 0.5_dp*ty + beta*cross(th, ty)
   end function inverse_jacobian_transpose
 
+  !> A spring-damper's spring tension (N) at deflection x = L - L0 (m): k x, or its table's.
+  pure real(dp) function spring_tension(el, x) result(f)
+    type(force_element), intent(in) :: el
+    real(dp), intent(in) :: x
+    if (el%tabulated) then
+      f = table_extended(el%table, x)
+    else
+      f = el%k(1)*x
+    end if
+  end function spring_tension
+
+  !> A spring-damper's spring energy (J) at deflection x: 1/2 k x^2, or the integral of
+  !> its table from 0 to x (exact: the table is piecewise linear).
+  pure real(dp) function spring_energy(el, x) result(e)
+    type(force_element), intent(in) :: el
+    real(dp), intent(in) :: x
+    if (el%tabulated) then
+      e = table_extended_integral(el%table, 0.0_dp, x)
+    else
+      e = 0.5_dp*el%k(1)*x**2
+    end if
+  end function spring_energy
+
   !> Element el's loads at marker states si, sj.
   pure function element_load_of(el, si, sj) result(ld)
     type(force_element), intent(in) :: el
@@ -128,7 +157,7 @@ contains
       len = norm2(dr)
       if (len == 0.0_dp) return
       u = dr/len
-      ld%f = -(el%k(1)*(len - el%free_length) + el%c(1)*dot_product(u, sj%v - si%v))*u
+      ld%f = -(spring_tension(el, len - el%free_length) + el%c(1)*dot_product(u, sj%v - si%v))*u
       return
     end if
     x = matmul(transpose(si%rot), dr)
@@ -193,7 +222,8 @@ contains
     end do
   end subroutine apply_at_marker
 
-  !> Potential energy of the elements (J): 1/2 k (L - L0)^2 of a spring-damper,
+  !> Potential energy of the elements (J): 1/2 k (L - L0)^2 of a spring-damper (its
+  !> table's integral when tabulated),
   !> 1/2 (x^T Kt x + theta^T Kr theta) of a bushing (after the kinematics).
   subroutine elements_energy(self, d, wk, q, e)
     class(force_elements_effect), intent(in) :: self
@@ -209,7 +239,7 @@ contains
         call marker_motion(d, wk, el%mi, q, zero, ri, v)
         call marker_motion(d, wk, el%mj, q, zero, rj, v)
         if (el%kind == spring_damper) then
-          e(energy_springs) = e(energy_springs) + 0.5_dp*el%k(1)*(norm2(rj - ri) - el%free_length)**2
+          e(energy_springs) = e(energy_springs) + spring_energy(el, norm2(rj - ri) - el%free_length)
           cycle
         end if
         call marker_rotation(d, wk, el%mi, q, roti)

@@ -239,11 +239,13 @@ module pymr_model_scene
   !> One &force group: a force element between two markers. 'spring_damper': one
   !> stiffness and damping along the line between the markers, relaxed at free_length;
   !> 'bushing': six of each (translations x, y, z, rotations about x, y, z) in marker i's
-  !> axes on the displacement and rotation of marker j from marker i.
+  !> axes on the displacement and rotation of marker j from marker i. A 'spring_damper'
+  !> may give a force-deflection table `file` in place of its stiffness.
   type :: force_spec
     character(len=name_len) :: name = '', marker_i = '', marker_j = ''
     character(len=16) :: kind = ''
     real(dp) :: stiffness(6) = unset, damping(6) = unset, free_length = unset
+    character(len=512) :: file = ''
     type(origin_t) :: origin
   end type force_spec
 
@@ -545,12 +547,15 @@ contains
     call t%add('marker_i', g%marker_i, 'the first marker (a bushing acts in its axes) (required)')
     call t%add('marker_j', g%marker_j, 'the second marker, another than marker_i (required)')
     call t%add('stiffness', g%stiffness, 'N/m, N m/rad', "'spring_damper': one value (N/m); 'bushing': six, " // &
-      & 'translations x, y, z (N/m) then rotations about x, y, z (N m/rad) (required)', &
-      & ge=0.0_dp, le=big_force, variable=.true.)
+      & "translations x, y, z (N/m) then rotations about x, y, z (N m/rad) (required, but for a 'spring_damper' " // &
+      & 'with a file)', ge=0.0_dp, le=big_force, variable=.true.)
     call t%add('damping', g%damping, 'N s/m, N m s/rad', "as many values as stiffness, on the rates " // &
       & '(default 0)', ge=0.0_dp, le=big_force, variable=.true.)
     call t%add('free_length', g%free_length, 'm', "length at which a 'spring_damper' is relaxed (required " // &
       & 'for it)', ge=0.0_dp, le=big_length)
+    call t%add('file', g%file, "a nonlinear 'spring_damper': file of 'deflection force' lines (m, length - " // &
+      & 'free_length, negative in compression; N, positive in tension), interpolated linearly and continued by ' // &
+      & "its end segments' lines; in place of stiffness (relative to the scene's folder)", scene_file=.true.)
   end subroutine describe_force
 
   subroutine describe_control(g, t)

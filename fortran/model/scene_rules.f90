@@ -825,6 +825,8 @@ contains
     ok = .false.
     nk = count(fe%stiffness /= unset); nc = count(fe%damping /= unset)
     associate(o => fe%origin, kind => fe%kind, free_length => fe%free_length)
+      if (.not. table_spring(errs, fe, nk)) return
+      if (len_trim(fe%file) > 0) nk = 1
       if (kind == 'spring_damper') then
         n = 1; what = "a 'spring_damper' takes 1 value"
       else
@@ -849,6 +851,23 @@ contains
     end associate
     ok = .true.
   end function force_values
+
+  !> A force element's table `file`: only a 'spring_damper' has one, and then no stiffness
+  !> (the table gives the spring's force; else the error is added).
+  logical function table_spring(errs, fe, nk) result(ok)
+    type(error_list), intent(inout) :: errs
+    type(force_spec), intent(in) :: fe
+    integer, intent(in) :: nk
+    ok = .false.
+    if (len_trim(fe%file) > 0 .and. fe%kind /= 'spring_damper') then
+      call errs%add(fe%origin%where('file') // ": only a 'spring_damper' takes a force-deflection table"); return
+    end if
+    if (len_trim(fe%file) > 0 .and. nk > 0) then
+      call errs%add(fe%origin%where('stiffness') // ': not with a file (the force-deflection table gives ' // &
+        & "the spring's force; give one or the other)"); return
+    end if
+    ok = .true.
+  end function table_spring
 
   !> An effect whose data the scene gives is off without being turned off on purpose.
   logical function forgotten(sc, on, effect)
