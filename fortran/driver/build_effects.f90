@@ -24,6 +24,9 @@ module pymr_driver_build_effects
     & motion_spinup, motion_table
   use pymr_model_effect_deformation_inertia, only : deformation_effect_of
   use pymr_model_effect_force_elements, only : force_element, force_elements_effect_of, spring_damper, bushing
+  use pymr_model_effect_moving_load, only : moving_load, moving_load_effect_of
+  use pymr_env_error, only : fatal_error
+  use pymr_env_text, only : fmt
   implicit none
   private
   public :: build_effects
@@ -55,6 +58,10 @@ contains
     end if
     if (sc%effects%force_elements .and. size(sc%forces) > 0) &
       & call append(list, force_elements_effect_of(force_elements_of(sc, d)))
+    if (sc%effects%moving_loads .and. size(sc%moving_loads) > 0) then
+      call append(list, moving_load_effect_of(moving_loads_of(sc, d, error), gravity_of(sc), d))
+      if (allocated(error)) return
+    end if
     if (sc%effects%base_motion .and. size(sc%motions) > 0) then
       call append(list, base_motion_effect_of(motions_of(sc, pos_in, d, error))); if (allocated(error)) return
     end if
@@ -185,6 +192,42 @@ contains
       end associate
     end do
   end function force_elements_of
+
+  !> Gravity when its effect is on, else zero.
+  pure function gravity_of(sc) result(g)
+    type(scene_t), intent(in) :: sc
+    real(dp) :: g(3)
+    g = 0.0_dp
+    if (sc%effects%gravity) g = sc%scene%gravity
+  end function gravity_of
+
+  !> The moving loads: body, its length, mass, force and travel, the table read when
+  !> tabulated (its first position on the beam, else an error naming the file).
+  function moving_loads_of(sc, d, error) result(loads)
+    type(scene_t), intent(in) :: sc
+    type(model_data), intent(in) :: d
+    type(error_type), allocatable, intent(out) :: error
+    type(moving_load) :: loads(size(sc%moving_loads))
+    integer :: i
+    do i = 1, size(sc%moving_loads)
+      associate(ml => sc%moving_loads(i), ld => loads(i))
+        ld%name = ml%name
+        ld%body = findloc(d%body_name, ml%body, 1)
+        ld%length = d%bshape(ld%body)%length
+        ld%mass = ml%mass; ld%force = ml%force
+        ld%start = ml%start; ld%s0 = ml%s0; ld%speed = ml%speed
+        ld%tabulated = ml%form == 'table'
+        if (.not. ld%tabulated) cycle
+        call read_time_table(scene_relative(sc%file, trim(ml%file)), ml%origin%where('file'), &
+          & ld%table%t, ld%table%y, error)
+        if (allocated(error)) return
+        if (ld%table%y(1) < 0.0_dp .or. ld%table%y(1) > ld%length) then
+          call fatal_error(error, ml%origin%where('file') // ': the first position, ' // fmt(ld%table%y(1)) // &
+            & " m, is off the beam '" // trim(ml%body) // "' (0 to its length, " // fmt(ld%length) // ' m)'); return
+        end if
+      end associate
+    end do
+  end function moving_loads_of
 
   !> Index of the marker called `name` (0 if none).
   pure integer function marker_index(d, name)

@@ -7,7 +7,7 @@ module pymr_model_time_table
   use pymr_env_lapack, only : ptsv
   implicit none
   private
-  public :: time_table, table_linear, spline_setup, table_spline
+  public :: time_table, table_linear, table_linear_rate, spline_setup, table_spline
 
   !> Strictly increasing times t (s), values y and, for a spline, the second derivatives y2.
   type :: time_table
@@ -47,6 +47,18 @@ contains
       f = tb%y(i) + (tb%y(i + 1) - tb%y(i))*(x - tb%t(i))/(tb%t(i + 1) - tb%t(i))
     end if
   end function table_linear
+
+  !> Rate of the linear interpolation at x: its interval's slope (0 before and after the table).
+  pure real(dp) function table_linear_rate(tb, x) result(f)
+    type(time_table), intent(in) :: tb
+    real(dp), intent(in) :: x
+    integer :: i, n
+    n = size(tb%t)
+    f = 0.0_dp
+    if (x <= tb%t(1) .or. x >= tb%t(n)) return
+    i = interval(tb%t, x)
+    f = (tb%y(i + 1) - tb%y(i))/(tb%t(i + 1) - tb%t(i))
+  end function table_linear_rate
 
   !> Second derivatives of the natural cubic spline through the table (y2 = 0 at both
   !> ends): the tridiagonal system h(i-1) y2(i-1) + 2 (h(i-1) + h(i)) y2(i) + h(i) y2(i+1)
