@@ -14,11 +14,11 @@ module pymr_driver_moving_load_exits
 
 contains
 
-  !> The exits in (t0, t1], the stepper's last step.
-  subroutine note_exits(model, st, t0, t1)
+  !> The exits in (t0, min(t1, t_end)], the stepper's last step up to the run's end.
+  subroutine note_exits(model, st, t0, t1, t_end)
     type(model_t), intent(inout) :: model
     class(stepper_t), intent(in) :: st
-    real(dp), intent(in) :: t0, t1
+    real(dp), intent(in) :: t0, t1, t_end
     integer :: i, k, n
     real(dp) :: te, x(2*model%d%n)
     n = model%d%n
@@ -28,7 +28,7 @@ contains
         do k = 1, size(e%loads)
           if (e%exits(k)%exited) cycle
           te = exit_time(e%loads(k))
-          if (.not. (te > t0 .and. te <= t1)) cycle
+          if (.not. (te > t0 .and. te <= min(t1, t_end))) cycle
           call st%value_at(te, x)
           if (model%d%n_prescribed > 0) then
             call model%impose(te, x(1:n), x(n+1:))

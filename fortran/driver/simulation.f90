@@ -203,7 +203,7 @@ contains
     real(dp) :: t0
     t0 = self%st%time()
     call self%st%advance(self%model, error); if (allocated(error)) return
-    call note_exits(self%model, self%st, t0, self%st%time())
+    call note_exits(self%model, self%st, t0, self%st%time(), self%sc%scene%t_end)
     done = self%st%counts()
     if (done%steps_fast > self%sc%integrator%max_steps) then
       call fatal_error(error, 'at t = ' // fmt(self%st%time()) // ' s: the run took more than max_steps = ' // &
