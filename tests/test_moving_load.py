@@ -334,3 +334,19 @@ def test_a_modal_file_body_is_refused_in_one_line(tmp_path):
                   + text[end:])
     check_refused_in_one_line(shutil.which("mrsim"), scene, r":\d+: &moving_load 'shot': body: 'beam' is a "
                               "modal-file body, whose shapes between its nodes are not known")
+
+
+def test_off_or_at_zero_mass_and_force_the_load_changes_nothing(tmp_path):
+    """moving_loads off: the scene runs as without its &moving_load, bit for bit, and the
+    effect is not evaluated; on with mass 0 and force 0: the same results to 1e-12."""
+    integ = "method = 'single', h_slow = 1.0e-4, adaptive = .true., rtol = 1.0e-9, atol = 1.0e-12"
+    text = HUB.format(integrator=integ, t_end=0.01, output="")
+    bare = pymr.run(write(tmp_path, "bare.nml", text[:text.index("&moving_load")] + text[text.index("&output"):]
+                          .replace("moving_loads = .true., ", "")))
+    off = hub(tmp_path, "off.nml", integ, t_end=0.01, **{"effects.moving_loads": False})
+    assert np.array_equal(off.data, bare.data)
+    assert "moving_loads" not in off.stats["effects"] and "moving_loads" not in off.stats
+    zero = hub(tmp_path, "zero.nml", integ, t_end=0.01,
+               **{"moving_load[shot].mass": 0.0, "moving_load[shot].force": [0.0, 0.0, 0.0]})
+    assert zero.stats["effects"]["moving_loads"]["evaluations"] == zero.stats["rhs_full"]
+    assert np.abs(zero.data - bare.data).max() <= 1e-12 * np.abs(bare.data).max()
