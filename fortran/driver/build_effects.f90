@@ -4,7 +4,7 @@
 !> in the list, which is the order of evaluation and of the JSON's effect statistics.
 module pymr_driver_build_effects
   use pymr_env_kinds, only : dp
-  use pymr_env_error, only : error_type
+  use pymr_env_error, only : error_type, fatal_error
   use pymr_model_scene, only : scene_t, unset
   use pymr_model_scene_rules, only : body_index
   use pymr_model_types, only : model_data, model_work
@@ -25,7 +25,6 @@ module pymr_driver_build_effects
   use pymr_model_effect_deformation_inertia, only : deformation_effect_of
   use pymr_model_effect_force_elements, only : force_element, force_elements_effect_of, spring_damper, bushing
   use pymr_model_effect_moving_load, only : moving_load, moving_load_effect_of
-  use pymr_env_error, only : fatal_error
   use pymr_env_text, only : fmt
   implicit none
   private
