@@ -16,7 +16,7 @@ from .errors import ResultsError
 @dataclass(frozen=True)
 class Column:
     """What the kernel says of one column of a results file (OUT.json's "columns"): its
-    name, group ('time', 'joint_coordinates', 'joint_rates', 'modal_coordinates',
+    name, group ('time', 'joint_coordinates', 'joint_rates', 'controls', 'modal_coordinates',
     'modal_rates', 'markers', 'marker_accelerations', 'marker_orientations', 'reactions',
     'energy'), owner (the joint, flexible body or marker; '' for t and the energies),
     quantity (such as 'angle', 'displacement', 'position', 'force', 'kinetic') and unit."""
@@ -165,14 +165,17 @@ class Results:
 
     def coordinate_columns(self) -> list[str]:
         """The names of the generalised coordinates' columns in model order: joint
-        coordinates first, then modal ones."""
-        return self._names("joint_coordinates") + self._names("modal_coordinates")
+        coordinates first, then the controllers' states, then modal ones."""
+        return (self._names("joint_coordinates") + self._names("controls", quantity="double_integral")
+                + self._names("modal_coordinates"))
 
     def coordinates(self) -> tuple[np.ndarray, np.ndarray]:
         """All generalised coordinates and rates (rows, n) in model order: joint
-        coordinates (``j.q``, ``j.q1`` ...) first, then modal ones (``body.a1`` ...)."""
+        coordinates (``j.q``, ``j.q1`` ...) first, then the controllers' states
+        (``c.double_integral``; rates ``c.integral``), then modal ones (``body.a1`` ...)."""
         return (self._stack(self.coordinate_columns()),
-                self._stack(self._names("joint_rates") + self._names("modal_rates")))
+                self._stack(self._names("joint_rates") + self._names("controls", quantity="integral")
+                            + self._names("modal_rates")))
 
 
 def load_results(csv_path: str | os.PathLike) -> Results:

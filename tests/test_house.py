@@ -120,7 +120,7 @@ def registry_effects() -> list[str]:
 
 def test_every_registered_effect_is_a_record_extending_effect_t():
     names = registry_effects()
-    assert len(names) == 10
+    assert len(names) == 11
     types = {}
     for p in (ROOT / "fortran/model").glob("effect_*.f90"):
         for m in re.finditer(r"type, extends\(effect_t\) :: (\w+)", p.read_text()):

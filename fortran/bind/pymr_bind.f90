@@ -648,7 +648,7 @@ subroutine pymr_model_coordinate_name(handle, k, name)
   use pymr_bind_models, only : open_models, check_handle
   implicit none
   integer, intent(in) :: handle, k
-  character(len=68), intent(out) :: name
+  character(len=80), intent(out) :: name
   type(error_type), allocatable :: error
   name = ''
   call check_handle(handle, error)

@@ -4,7 +4,7 @@
 module pymr_driver_build
   use pymr_env_kinds, only : dp, name_len, pi
   use pymr_env_error, only : error_type, fatal_error
-  use pymr_model_scene, only : scene_t, body_spec, joint_spec, joint_ndof, unset, beam_mode_count
+  use pymr_model_scene, only : scene_t, body_spec, joint_spec, joint_ndof, unset, beam_mode_count, control_count
   use pymr_model_scene_rules, only : check_scene, body_index, inertia_matrix, closes_loop
   use pymr_model_types, only : model_data, model_work, prim_revolute, prim_prismatic, &
     & cut_fixed, cut_revolute, cut_spherical, cut_prismatic, cut_free, cut_cylindrical, cut_universal, cut_planar
@@ -171,6 +171,7 @@ contains
         call check_modal_state(sc, i, d%flex(b)%m, error); if (allocated(error)) return
       end if
     end do
+    call add_control_states(sc, pos_in, k, d)
     call fill_children(d)
     call fill_joint_shapes(sc, order, inboard, d, error); if (allocated(error)) return
     call fill_markers_moments(sc, pos_in, d, wk, error); if (allocated(error)) return
@@ -207,8 +208,31 @@ contains
         d%mmax = max(d%mmax, nmb)
       end associate
     end do
+    d%nj = d%nj + control_count(sc)
     d%n = d%nj + nmod
   end subroutine count_coordinates
+
+  !> The controllers' state coordinates, after the k joint coordinates (model/effect_controls.f90):
+  !> of no body, each its own output group; position control.double_integral, rate
+  !> control.integral (the integral of the error), of the driven coordinate's kind.
+  subroutine add_control_states(sc, pos_in, k, d)
+    type(scene_t), intent(in) :: sc
+    integer, intent(in) :: pos_in(:), k
+    type(model_data), intent(inout) :: d
+    integer :: i, j, c
+    do i = 1, control_count(sc)
+      associate(ct => sc%controls(i))
+        c = k + i
+        d%cbody(c) = 0; d%cgrp(c) = 2*d%nb + i; d%axis(:, c) = 0.0_dp
+        do j = 1, size(sc%joints)
+          if (sc%joints(j)%name == ct%joint .and. .not. closes_loop(sc, j)) &
+            & d%prim(c) = d%prim(d%c0(pos_in(body_index(sc, sc%joints(j)%child))) + ct%coordinate - 1)
+        end do
+        d%qname(c) = trim(ct%name) // '.double_integral'
+        d%qdname(c) = trim(ct%name) // '.integral'
+      end associate
+    end do
+  end subroutine add_control_states
 
   !> The tree's arrays, sized and cleared.
   subroutine allocate_tree(d, wk)

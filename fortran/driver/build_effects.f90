@@ -5,7 +5,7 @@
 module pymr_driver_build_effects
   use pymr_env_kinds, only : dp
   use pymr_env_error, only : error_type, fatal_error
-  use pymr_model_scene, only : scene_t, unset
+  use pymr_model_scene, only : scene_t, unset, control_count
   use pymr_model_scene_rules, only : body_index
   use pymr_model_types, only : model_data, model_work
   use pymr_model_time_table, only : spline_setup
@@ -24,6 +24,7 @@ module pymr_driver_build_effects
     & motion_spinup, motion_table
   use pymr_model_effect_deformation_inertia, only : deformation_effect_of
   use pymr_model_effect_force_elements, only : force_element, force_elements_effect_of, spring_damper, bushing
+  use pymr_model_effect_controls, only : controller, controls_effect_of
   use pymr_model_effect_moving_load, only : moving_load, moving_load_effect_of
   use pymr_env_text, only : fmt
   implicit none
@@ -57,6 +58,9 @@ contains
     end if
     if (sc%effects%force_elements .and. size(sc%forces) > 0) &
       & call append(list, force_elements_effect_of(force_elements_of(sc, d)))
+    if (control_count(sc) > 0) then
+      call append(list, controls_effect_of(controls_of(sc, pos_in, d, error))); if (allocated(error)) return
+    end if
     if (sc%effects%moving_loads .and. size(sc%moving_loads) > 0) then
       call append(list, moving_load_effect_of(moving_loads_of(sc, d, error), gravity_of(sc), d))
       if (allocated(error)) return
@@ -192,6 +196,41 @@ contains
     end do
   end function force_elements_of
 
+  !> The controllers: driven coordinate, state coordinate (after the joint coordinates, in
+  !> scene order), sensor (a gyro's unit axis and a unit reference normal to it, the rule of
+  !> the joints' in-plane directions: the inertial axis least aligned with it), gains, effort
+  !> limit and the setpoint's table when given.
+  function controls_of(sc, pos_in, d, error) result(controls)
+    type(scene_t), intent(in) :: sc
+    integer, intent(in) :: pos_in(:)
+    type(model_data), intent(in) :: d
+    type(error_type), allocatable, intent(out) :: error
+    type(controller) :: controls(control_count(sc))
+    integer :: i
+    real(dp) :: u(3)
+    do i = 1, size(controls)
+      associate(ct => sc%controls(i), c => controls(i))
+        c = controller()
+        c%coord = coordinate_index(sc, pos_in, d, ct%joint, ct%coordinate)
+        c%state = d%nj - size(controls) + i
+        c%gyro = ct%sensor == 'orientation'
+        if (c%gyro) then
+          c%marker = marker_index(d, ct%marker)
+          c%axis = ct%axis/norm2(ct%axis)
+          u = 0.0_dp; u(minloc(abs(c%axis), dim=1)) = 1.0_dp
+          u = u - dot_product(u, c%axis)*c%axis
+          c%ref = u/norm2(u)
+        end if
+        c%kp = ct%kp; c%ki = ct%ki; c%kd = ct%kd; c%setpoint = ct%setpoint
+        if (ct%max_effort /= unset) c%max_effort = ct%max_effort
+        c%tabulated = len_trim(ct%file) > 0
+        if (.not. c%tabulated) cycle
+        call read_time_table(scene_relative(sc%file, trim(ct%file)), ct%origin%where('file'), &
+          & c%table%t, c%table%y, error)
+        if (allocated(error)) return
+      end associate
+    end do
+  end function controls_of
   !> Gravity when its effect is on, else zero.
   pure function gravity_of(sc) result(g)
     type(scene_t), intent(in) :: sc

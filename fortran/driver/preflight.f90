@@ -368,7 +368,9 @@ contains
     character(len=:), allocatable :: s
     integer :: b
     b = model%d%cbody(ic)
-    if (ic > model%d%nj) then
+    if (b == 0) then
+      s = "controller state '" // trim(model%d%qdname(ic)) // "'"
+    else if (ic > model%d%nj) then
       s = "body '" // trim(model%d%body_name(b)) // "', mode " // itoa(ic - model%d%a0(b) + 1)
     else
       s = "joint coordinate '" // trim(model%d%qname(ic)) // "'"

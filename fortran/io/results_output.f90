@@ -233,6 +233,9 @@ contains
     class(column_sink), intent(inout) :: sink
     character(len=:), allocatable :: name, owner
     name = trim(merge(d%qdname(i), d%qname(i), rate))
+    if (d%cbody(i) == 0) then
+      call add_control_state(d, i, rate, name, sink); return
+    end if
     owner = trim(d%body_name(d%cbody(i)))
     if (i > d%nj) then
       if (rate) call sink%add(name, 'modal_rates', owner, 'modal_rate', 'm kg^0.5/s')
@@ -248,6 +251,21 @@ contains
       if (.not. rate) call sink%add(name, 'joint_coordinates', owner, 'displacement', 'm')
     end if
   end subroutine add_coordinate
+
+  !> A controller's state coordinate i (model/effect_controls.f90): the integral of its error
+  !> (the rate) and its double integral (the position), owned by the controller.
+  subroutine add_control_state(d, i, rate, name, sink)
+    type(model_data), intent(in) :: d
+    integer, intent(in) :: i
+    logical, intent(in) :: rate
+    character(len=*), intent(in) :: name
+    class(column_sink), intent(inout) :: sink
+    character(len=:), allocatable :: owner, unit
+    owner = d%qdname(i)(1:index(d%qdname(i), '.integral', back=.true.) - 1)
+    unit = merge('rad', 'm  ', d%prim(i) == prim_revolute)
+    if (rate) call sink%add(name, 'controls', owner, 'integral', trim(unit) // ' s')
+    if (.not. rate) call sink%add(name, 'controls', owner, 'double_integral', trim(unit) // ' s^2')
+  end subroutine add_control_state
 
   !> A marker's columns of the plan: position and velocity, acceleration, orientation.
   subroutine walk_marker(plan, m, sink)

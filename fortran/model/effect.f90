@@ -103,8 +103,9 @@ contains
     real(dp), intent(in) :: t
   end subroutine no_rows
 
-  subroutine no_accelerate(self, t, qdd)
+  subroutine no_accelerate(self, wk, t, qdd)
     class(effect_t), intent(in) :: self
+    type(model_work), intent(in) :: wk
     real(dp), intent(in) :: t
     real(dp), intent(inout) :: qdd(:)
   end subroutine no_accelerate
@@ -291,7 +292,8 @@ contains
     end do
   end subroutine rows_effects
 
-  !> The accelerate stage: known accelerations put in qdd (the articulated-body path).
+  !> The accelerate stage: known accelerations put in qdd (the articulated-body path; after
+  !> the load stage, whose results in wk they may use).
   subroutine accelerate_effects(list, wk, t, qdd)
     type(effect_slot), intent(in) :: list(:)
     type(model_work), intent(inout) :: wk
@@ -302,7 +304,7 @@ contains
     do i = 1, size(list)
       if (.not. list(i)%e%acts(stage_accelerate)) cycle
       c0 = clock_start(wk)
-      call list(i)%e%accelerate(t, qdd)
+      call list(i)%e%accelerate(wk, t, qdd)
       call clock_stop(wk, i, c0, .true.)
     end do
   end subroutine accelerate_effects

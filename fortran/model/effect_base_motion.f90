@@ -117,8 +117,9 @@ contains
   end subroutine motion_rows
 
   !> The prescribed coordinates' accelerations (their functions' second derivatives).
-  subroutine motion_accelerate(self, t, qdd)
+  subroutine motion_accelerate(self, wk, t, qdd)
     class(base_motion_effect), intent(in) :: self
+    type(model_work), intent(in) :: wk
     real(dp), intent(in) :: t
     real(dp), intent(inout) :: qdd(:)
     integer :: i

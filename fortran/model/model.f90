@@ -180,8 +180,8 @@ contains
   end subroutine model_set_effects
 
   !> The generalised forces P at (t, q, qd) without assembling M (O(n); the pre-flight
-  !> linearisation's differences), the same P as terms gives; through terms when coordinates
-  !> are prescribed (their effect on P needs M).
+  !> linearisation's differences), the same P as terms gives (with the rows effects replace);
+  !> through terms when coordinates are prescribed (their effect on P needs M).
   subroutine model_forces(self, t, q, qd, p)
     class(model_t), intent(inout) :: self
     real(dp), intent(in) :: t, q(:), qd(:)
@@ -191,6 +191,8 @@ contains
     else
       call composite_loads(self, t, q, qd)
       call assemble_rhs(self%d, self%wk)
+      ! rows that other equations replace (a controller's state: no M needed)
+      call rows_effects(self%effects, self%wk, t)
       self%wk%count%evals = self%wk%count%evals + 1
     end if
     p = self%wk%p

@@ -11,10 +11,11 @@ module pymr_model_scene
   implicit none
   private
   public :: scene_t, body_spec, joint_spec, drive_spec, marker_spec, integrator_spec, effects_spec
-  public :: spring_spec, motion_spec, load_spec, force_spec, moving_load_spec, output_spec, scene_spec, max_modes_input
+  public :: spring_spec, motion_spec, load_spec, force_spec, control_spec, moving_load_spec, output_spec, scene_spec
+  public :: max_modes_input
   public :: joint_ndof, unset, group_names, single_groups, repeated_groups, describe_group, group_origin, group_count
   public :: naming_item, complete_scene, body_items, item_applies, output_quantities, beam_mode_count
-  public :: closes_loop, flexible_loop, k_max_flexible_loop, body_index
+  public :: closes_loop, flexible_loop, k_max_flexible_loop, body_index, control_count
 
   !> Default k_max of adaptive 'response' runs whose closed loops pass through a flexible
   !> body. The loop's fast modes move its joints (the flexible four-bar's 115 and 677 Hz
@@ -27,10 +28,10 @@ module pymr_model_scene
 
   !> The groups of a scene file, in the order the resolved scene is written.
   character(len=*), parameter :: group_names = &
-    & 'scene integrator effects output body joint drive spring motion load marker force moving_load'
+    & 'scene integrator effects output body joint drive spring motion load marker force control moving_load'
   !> The groups that may appear at most once, and those that may repeat.
   character(len=*), parameter :: single_groups = 'scene integrator effects output'
-  character(len=*), parameter :: repeated_groups = 'body joint drive spring motion load marker force moving_load'
+  character(len=*), parameter :: repeated_groups = 'body joint drive spring motion load marker force control moving_load'
   !> The groups of output columns (&output quantities).
   character(len=*), parameter :: output_quantities = &
     & 'coordinates markers marker_accelerations marker_orientations reactions energy'
@@ -123,6 +124,7 @@ module pymr_model_scene
     logical :: base_motion = .false.
     logical :: firing_load = .false.
     logical :: force_elements = .false.
+    logical :: controls = .false.
     logical :: moving_loads = .false.
     !> Fidelity of the deformation-dependent inertia of flexible bodies: 'full' or 'linear'.
     character(len=16) :: deformation_inertia = 'full'
@@ -247,6 +249,20 @@ module pymr_model_scene
     type(origin_t) :: origin
   end type force_spec
 
+  !> One &control group: a feedback drive on a joint coordinate. The effort
+  !> kp e + ki (integral of e) + kd edot, limited to |effort| <= max_effort, acts on the
+  !> joint coordinate; e = setpoint - measured, edot = -(measured rate). The sensor measures
+  !> the coordinate itself ('coordinate') or the inertial rotation of a marker's frame about
+  !> `axis` ('orientation').
+  type :: control_spec
+    character(len=name_len) :: name = '', joint = '', marker = ''
+    integer :: coordinate = 1
+    character(len=16) :: sensor = 'coordinate'
+    real(dp) :: axis(3) = 0.0_dp
+    real(dp) :: kp = 0.0_dp, ki = 0.0_dp, kd = 0.0_dp, setpoint = 0.0_dp, max_effort = unset
+    character(len=512) :: file = ''
+    type(origin_t) :: origin
+  end type control_spec
   !> One &moving_load group: a point mass and a force (body axes) travelling along the x
   !> axis of a beam: 'constant_speed' (at s0 until start, then s0 + speed (t - start)) or
   !> 'table' (the positions in `file`, interpolated linearly).
@@ -274,6 +290,7 @@ module pymr_model_scene
     type(load_spec), allocatable :: loads(:)
     type(marker_spec), allocatable :: markers(:)
     type(force_spec), allocatable :: forces(:)
+    type(control_spec), allocatable :: controls(:)
     type(moving_load_spec), allocatable :: moving_loads(:)
     type(output_spec) :: output
   end type scene_t
@@ -350,6 +367,7 @@ contains
     call t%add('base_motion', g%base_motion, 'the &motion prescribed joint coordinates')
     call t%add('firing_load', g%firing_load, 'the &load pulses')
     call t%add('force_elements', g%force_elements, 'the &force elements between markers')
+    call t%add('controls', g%controls, 'the &control feedback drives')
     call t%add('moving_loads', g%moving_loads, 'the &moving_load masses and forces travelling along beams')
     call t%add('deformation_inertia', g%deformation_inertia, "inertia of deformed flexible bodies: 'full' or " // &
       & "'linear' (without the second-order deformation terms)", choices='full linear')
@@ -550,6 +568,29 @@ contains
       & 'for it)', ge=0.0_dp, le=big_length)
   end subroutine describe_force
 
+  subroutine describe_control(g, t)
+    type(control_spec), target, intent(inout) :: g
+    type(item_table), intent(inout) :: t
+    call t%add('name', g%name, 'name of the controller, unique among them (required)')
+    call t%add('joint', g%joint, 'the joint whose coordinate the controller drives (required)')
+    call t%add('coordinate', g%coordinate, '-', 'which coordinate of the joint', ge=1, le=6)
+    call t%add('sensor', g%sensor, "'coordinate': the driven coordinate and its rate; 'orientation': the " // &
+      & "inertial rotation of marker's frame about axis and its rate (a rate gyro)", choices='coordinate orientation')
+    call t%add('marker', g%marker, "the marker whose frame sensor 'orientation' measures")
+    call t%add('axis', g%axis, '-', "inertial axis of sensor 'orientation' (made unit)", ge=-big_length, le=big_length)
+    call t%add('kp', g%kp, 'N/m or N m/rad', 'proportional gain (effort per unit error)', ge=0.0_dp, le=big_force)
+    call t%add('ki', g%ki, 'N/(m s) or N m/(rad s)', 'integral gain (effort per unit integral of the error)', &
+      & ge=0.0_dp, le=big_force)
+    call t%add('kd', g%kd, 'N s/m or N m s/rad', 'derivative gain (effort per unit rate, on the measured rate)', &
+      & ge=0.0_dp, le=big_force)
+    call t%add('setpoint', g%setpoint, 'm or rad', 'the setpoint (with file: added to the history)', &
+      & ge=-big_length, le=big_length)
+    call t%add('file', g%file, "file of 'time value' lines: the setpoint's history, interpolated linearly " // &
+      & "(relative to the scene's folder)", scene_file=.true.)
+    call t%add('max_effort', g%max_effort, 'N or N m', 'the largest |effort| (default: no limit)', &
+      & gt=0.0_dp, le=big_force)
+  end subroutine describe_control
+
   subroutine describe_moving_load(g, t)
     type(moving_load_spec), target, intent(inout) :: g
     type(item_table), intent(inout) :: t
@@ -718,6 +759,7 @@ contains
     case ('load'); call describe_load(sc%loads(k), t)
     case ('marker'); call describe_marker(sc%markers(k), t)
     case ('force'); call describe_force(sc%forces(k), t)
+    case ('control'); call describe_control(sc%controls(k), t)
     case ('moving_load'); call describe_moving_load(sc%moving_loads(k), t)
     end select
   end subroutine describe_group
@@ -742,6 +784,7 @@ contains
     case ('load'); o => sc%loads(k)%origin
     case ('marker'); o => sc%markers(k)%origin
     case ('force'); o => sc%forces(k)%origin
+    case ('control'); o => sc%controls(k)%origin
     case ('moving_load'); o => sc%moving_loads(k)%origin
     end select
   end function group_origin
@@ -759,6 +802,7 @@ contains
     case ('load'); n = size(sc%loads)
     case ('marker'); n = size(sc%markers)
     case ('force'); n = size(sc%forces)
+    case ('control'); n = size(sc%controls)
     case ('moving_load'); n = size(sc%moving_loads)
     case default; n = 1
     end select
@@ -772,10 +816,18 @@ contains
     select case (name)
     case ('drive', 'spring', 'motion'); item = 'joint'
     case ('load'); item = 'marker'
-    case ('body', 'joint', 'marker', 'force', 'moving_load'); item = 'name'
+    case ('body', 'joint', 'marker', 'force', 'control', 'moving_load'); item = 'name'
     case default; item = ''
     end select
   end function naming_item
+
+  !> The controllers the model builds: each &control when &effects controls is on (each
+  !> owns a state coordinate, after the joint coordinates).
+  pure integer function control_count(sc)
+    type(scene_t), intent(in) :: sc
+    control_count = 0
+    if (sc%effects%controls) control_count = size(sc%controls)
+  end function control_count
 
   !> Number of coordinates of a joint kind (-1 for an unknown kind).
   pure function joint_ndof(kind) result(n)

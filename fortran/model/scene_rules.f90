@@ -6,7 +6,8 @@
 module pymr_model_scene_rules
   use pymr_env_kinds, only : dp, name_len
   use pymr_env_error, only : error_type, fatal_error, error_list
-  use pymr_model_scene, only : scene_t, body_spec, joint_spec, force_spec, load_spec, moving_load_spec, joint_ndof, unset, body_items, beam_mode_count, &
+  use pymr_model_scene, only : scene_t, body_spec, joint_spec, force_spec, load_spec, control_spec, moving_load_spec, &
+    & joint_ndof, unset, body_items, beam_mode_count, &
     & closes_loop, body_index
   use pymr_env_item_table, only : origin_t
   use pymr_model_names, only : name_index
@@ -86,6 +87,11 @@ contains
     if (j > 0) then
       call errs%add(sc%forces(j)%origin%where('name') // ': used by another &force too (line ' // &
         & itoa(sc%forces(i)%origin%line) // ')')
+    end if
+    call first_repeat(sc%controls%name, i, j)
+    if (j > 0) then
+      call errs%add(sc%controls(j)%origin%where('name') // ': used by another &control too (line ' // &
+        & itoa(sc%controls(i)%origin%line) // ')')
     end if
     call first_repeat(sc%moving_loads%name, i, j)
     if (j > 0) then
@@ -526,6 +532,7 @@ contains
     call check_stiffening(sc, errs)
     call check_markers(sc, errs)
     call check_forces(sc, errs)
+    call check_controls(sc, errs)
     call check_moving_loads(sc, errs)
   end subroutine check_loads_markers
 
@@ -785,6 +792,81 @@ contains
       end associate
     end do
   end subroutine check_forces
+
+  !> &control: a name, a tree joint's coordinate that no &motion prescribes, its sensor's
+  !> items, some gain, and &effects controls on.
+  subroutine check_controls(sc, errs)
+    type(scene_t), intent(in) :: sc
+    type(error_list), intent(inout) :: errs
+    integer :: i
+    do i = 1, size(sc%controls)
+      associate(ct => sc%controls(i), o => sc%controls(i)%origin)
+        if (len_trim(ct%name) == 0) then
+          call errs%add(o%where('name') // ': missing'); cycle
+        end if
+        if (.not. joint_coordinate(sc, errs, o, ct%joint, ct%coordinate)) cycle
+        if (.not. free_tree_coordinate(sc, errs, o, ct%joint, ct%coordinate)) cycle
+        if (.not. control_sensor(sc, errs, ct)) cycle
+        if (ct%kp == 0.0_dp .and. ct%ki == 0.0_dp .and. ct%kd == 0.0_dp) then
+          call errs%add(o%where('kp') // ': kp, ki and kd are all 0 (give the gains of the controller)'); cycle
+        end if
+        if (forgotten(sc, sc%effects%controls, 'controls')) &
+          & call errs%add(o%where() // effect_not_on('the scene gives controllers', 'controls'))
+      end associate
+    end do
+  end subroutine check_controls
+
+  !> The joint is a tree joint and no &motion prescribes the coordinate (else the error is
+  !> added): a controller drives a coordinate of the tree that moves freely.
+  logical function free_tree_coordinate(sc, errs, o, joint, coordinate) result(ok)
+    type(scene_t), intent(in) :: sc
+    type(error_list), intent(inout) :: errs
+    type(origin_t), intent(in) :: o
+    character(len=*), intent(in) :: joint
+    integer, intent(in) :: coordinate
+    integer :: j
+    ok = .false.
+    do j = 1, size(sc%joints)
+      if (sc%joints(j)%name /= joint .or. .not. closes_loop(sc, j)) cycle
+      call errs%add(o%where('joint') // ": '" // trim(joint) // "' closes a loop: it has no coordinate of its " // &
+        & 'own to drive (drive a joint of the tree)'); return
+    end do
+    do j = 1, size(sc%motions)
+      if (sc%motions(j)%joint /= joint .or. sc%motions(j)%coordinate /= coordinate) cycle
+      call errs%add(o%where('coordinate') // ': ' // itoa(coordinate) // " of joint '" // trim(joint) // &
+        & "' is prescribed by the &motion on line " // itoa(sc%motions(j)%origin%line) // &
+        & ': a controller drives a coordinate that is free to move'); return
+    end do
+    ok = .true.
+  end function free_tree_coordinate
+
+  !> A controller's sensor items: 'orientation' needs a marker and a nonzero axis,
+  !> 'coordinate' takes neither (else the error is added).
+  logical function control_sensor(sc, errs, ct) result(ok)
+    type(scene_t), intent(in) :: sc
+    type(error_list), intent(inout) :: errs
+    type(control_spec), intent(in) :: ct
+    ok = .false.
+    associate(o => ct%origin)
+      if (ct%sensor == 'orientation') then
+        if (.not. named_marker(sc, errs, o, 'marker', ct%marker)) return
+        if (norm2(ct%axis) < 1.0e-12_dp) then
+          call errs%add(o%where('axis') // ": missing or zero (sensor 'orientation' measures the rotation " // &
+            & 'about this inertial axis)'); return
+        end if
+      else
+        if (len_trim(ct%marker) > 0) then
+          call errs%add(o%where('marker') // ": only sensor 'orientation' reads a marker (sensor is 'coordinate')")
+          return
+        end if
+        if (any(ct%axis /= 0.0_dp)) then
+          call errs%add(o%where('axis') // ": only sensor 'orientation' takes an axis (sensor is 'coordinate')")
+          return
+        end if
+      end if
+    end associate
+    ok = .true.
+  end function control_sensor
 
   !> A force element's two markers exist and differ (else the error is added).
   logical function force_markers(sc, errs, o, marker_i, marker_j) result(ok)

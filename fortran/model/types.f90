@@ -75,8 +75,9 @@ module pymr_model_types
     !> Per coordinate: primitive kind, axis in the frame before the primitive, owning body.
     integer, allocatable :: prim(:), cbody(:)
     real(dp), allocatable :: axis(:, :)
-    !> Coordinate names for output (joint.q, joint.q1, ...).
-    character(len=name_len+4), allocatable :: qname(:), qdname(:)
+    !> Coordinate names for output (joint.q, joint.q1, ..., a controller's
+    !> control.double_integral and control.integral).
+    character(len=name_len+16), allocatable :: qname(:), qdname(:)
     type(marker_set) :: markers
     type(cut_set) :: cuts
     !> Every body (the mask of a full evaluation); bodies on or below a flexible body
