@@ -239,8 +239,8 @@ contains
     if (sc%effects%gravity) g = sc%scene%gravity
   end function gravity_of
 
-  !> The moving loads: body, its length, mass, force and travel, the table read when
-  !> tabulated (its first position on the beam, else an error naming the file).
+  !> The moving loads: body, its length, mass, force and travel, the table read and splined
+  !> when tabulated (its first position on the beam, else an error naming the file).
   function moving_loads_of(sc, d, error) result(loads)
     type(scene_t), intent(in) :: sc
     type(model_data), intent(in) :: d
@@ -259,6 +259,7 @@ contains
         call read_time_table(scene_relative(sc%file, trim(ml%file)), ml%origin%where('file'), &
           & ld%table%t, ld%table%y, error)
         if (allocated(error)) return
+        call spline_setup(ld%table, ml%origin%where('file'), error); if (allocated(error)) return
         if (ld%table%y(1) < 0.0_dp .or. ld%table%y(1) > ld%length) then
           call fatal_error(error, ml%origin%where('file') // ': the first position, ' // fmt(ld%table%y(1)) // &
             & " m, is off the beam '" // trim(ml%body) // "' (0 to its length, " // fmt(ld%length) // ' m)'); return

@@ -1,7 +1,9 @@
 !> Moving loads (&moving_load): a point mass m and a force F (body axes) travelling along
 !> the x axis of a built-in beam, at s(t) by a travel law ('constant_speed': s0 until start,
-!> then s0 + speed (t - start); 'table': a history of positions interpolated linearly, its
-!> first position before its first time and its last after its last). The load acts while
+!> then s0 + speed (t - start); 'table': the natural cubic spline through a history of
+!> positions, so that its acceleration, which the mass's inertia along the path needs, is
+!> continuous; at its first position before its first time, continued at its last rate
+!> after its last). The load acts while
 !> 0 <= s <= L (L the beam's length); it leaves the body when s passes L (shot exit).
 !>
 !> The point in the body frame is c = s e_x + Psi(s) a (Psi the 3 x m translational shapes
@@ -21,7 +23,7 @@ module pymr_model_effect_moving_load
   use pymr_model_beam_modes, only : axis_shapes
   use pymr_model_kinematics, only : forward_kinematics, marker_motion, marker_rotation
   use pymr_model_reactions, only : body_accelerations
-  use pymr_model_time_table, only : time_table, table_linear, table_linear_rate
+  use pymr_model_time_table, only : time_table, table_spline
   use pymr_model_effect, only : effect_t, stage_load, energy_kinetic, energy_gravity, power_loads, power_motion
   implicit none
   private
@@ -90,15 +92,18 @@ contains
     end do
   end function moving_load_effect_of
 
-  !> Position s (m), rate sd and acceleration sdd of a load's travel at time t (linear
-  !> pieces: sdd is 0 between their joints).
+  !> Position s (m), rate sd and acceleration sdd of a load's travel at time t.
   pure subroutine travel(ld, t, s, sd, sdd)
     type(moving_load), intent(in) :: ld
     real(dp), intent(in) :: t
     real(dp), intent(out) :: s, sd, sdd
     sdd = 0.0_dp
     if (ld%tabulated) then
-      s = table_linear(ld%table, t); sd = table_linear_rate(ld%table, t)
+      if (t <= ld%table%t(1)) then
+        s = ld%table%y(1); sd = 0.0_dp
+      else
+        call table_spline(ld%table, t, s, sd, sdd)
+      end if
     else if (t < ld%start) then
       s = ld%s0; sd = 0.0_dp
     else
@@ -107,23 +112,49 @@ contains
   end subroutine travel
 
   !> The time (s) a load passes the body's end s = L (huge when it never does): for a
-  !> constant speed start + (L - s0)/speed, for a table the first crossing of its pieces.
+  !> constant speed start + (L - s0)/speed; for a table, in the first interval whose end
+  !> position passes L, where its spline does (bisection to rounding), else on the line
+  !> that continues it.
   pure real(dp) function exit_time(ld) result(te)
     type(moving_load), intent(in) :: ld
-    integer :: i
+    integer :: i, n
+    real(dp) :: sd, sdd, s_end
     te = huge(1.0_dp)
     if (.not. ld%tabulated) then
       if (ld%speed > 0.0_dp) te = ld%start + (ld%length - ld%s0)/ld%speed
       return
     end if
+    n = size(ld%table%t)
     associate(t => ld%table%t, y => ld%table%y)
-      do i = 1, size(t) - 1
+      do i = 1, n - 1
         if (y(i) <= ld%length .and. y(i + 1) > ld%length) then
-          te = t(i) + (ld%length - y(i))/(y(i + 1) - y(i))*(t(i + 1) - t(i)); return
+          te = spline_crossing(ld, t(i), t(i + 1)); return
         end if
       end do
+      call table_spline(ld%table, t(n), s_end, sd, sdd)
+      if (y(n) <= ld%length .and. sd > 0.0_dp) te = t(n) + (ld%length - y(n))/sd
     end associate
   end function exit_time
+
+  !> The time in [ta, tb] where a table's spline, at most L at ta and above it at tb, is L.
+  pure real(dp) function spline_crossing(ld, ta, tb) result(tc)
+    type(moving_load), intent(in) :: ld
+    real(dp), intent(in) :: ta, tb
+    real(dp) :: lo, hi, s, sd, sdd
+    integer :: k
+    lo = ta; hi = tb
+    do k = 1, 200
+      tc = 0.5_dp*(lo + hi)
+      if (tc <= lo .or. tc >= hi) exit
+      call table_spline(ld%table, tc, s, sd, sdd)
+      if (s > ld%length) then
+        hi = tc
+      else
+        lo = tc
+      end if
+    end do
+    tc = hi
+  end function spline_crossing
 
   !> The load's point on its body at time t: shapes psi (3 x m) at s, the body-frame place
   !> c, the tangent tg = e_x + Psi' a, the relative velocity cv = Psi ad + sd tg and the

@@ -265,7 +265,7 @@ module pymr_model_scene
   end type control_spec
   !> One &moving_load group: a point mass and a force (body axes) travelling along the x
   !> axis of a beam: 'constant_speed' (at s0 until start, then s0 + speed (t - start)) or
-  !> 'table' (the positions in `file`, interpolated linearly).
+  !> 'table' (the natural cubic spline through the positions in `file`).
   type :: moving_load_spec
     character(len=name_len) :: name = '', body = ''
     real(dp) :: mass = 0.0_dp, force(3) = 0.0_dp
@@ -601,8 +601,8 @@ contains
     call t%add('force', g%force, 'N', "a force at the travelling point, in the beam's body axes", &
       & ge=-big_force, le=big_force)
     call t%add('form', g%form, "the travel: 'constant_speed' (at s0 until start, then s0 + speed (t - start)) " // &
-      & "or 'table' (the positions in file, interpolated linearly; the first before its first time)", &
-      & choices='constant_speed table')
+      & "or 'table' (the natural cubic spline through the positions in file; the first before its first time, " // &
+      & 'the last rate after its last)', choices='constant_speed table')
     call t%add('start', g%start, 's', "time the travel starts (form 'constant_speed')", ge=-1.0e9_dp, le=1.0e9_dp)
     call t%add('s0', g%s0, 'm', "position on the axis before and at start (form 'constant_speed'; " // &
       & '0 <= s0 <= the length)', ge=-big_length, le=big_length)

@@ -1,13 +1,15 @@
 !> Time histories given as tables (t_i, y_i): drives interpolate them linearly; prescribed
 !> motions through a natural cubic spline, whose value, rate and acceleration are
-!> continuous (a prescribed coordinate needs all three).
+!> continuous (a prescribed coordinate needs all three). A spring's force-deflection table
+!> (&force file) is a table too, its first column the deflection: interpolated linearly and
+!> continued by its end segments' lines, with the exact integral of that line for its energy.
 module pymr_model_time_table
   use pymr_env_kinds, only : dp
   use pymr_env_error, only : error_type
   use pymr_env_lapack, only : ptsv
   implicit none
   private
-  public :: time_table, table_linear, table_linear_rate, spline_setup, table_spline
+  public :: time_table, table_linear, spline_setup, table_spline, table_extended, table_extended_integral
 
   !> Strictly increasing times t (s), values y and, for a spline, the second derivatives y2.
   type :: time_table
@@ -48,17 +50,35 @@ contains
     end if
   end function table_linear
 
-  !> Rate of the linear interpolation at x: its interval's slope (0 before and after the table).
-  pure real(dp) function table_linear_rate(tb, x) result(f)
+  !> Linear interpolation at x, continued outside the table by the lines of its first and
+  !> last segments.
+  pure real(dp) function table_extended(tb, x) result(f)
     type(time_table), intent(in) :: tb
     real(dp), intent(in) :: x
-    integer :: i, n
-    n = size(tb%t)
-    f = 0.0_dp
-    if (x <= tb%t(1) .or. x >= tb%t(n)) return
+    integer :: i
     i = interval(tb%t, x)
-    f = (tb%y(i + 1) - tb%y(i))/(tb%t(i + 1) - tb%t(i))
-  end function table_linear_rate
+    f = tb%y(i) + (tb%y(i + 1) - tb%y(i))*(x - tb%t(i))/(tb%t(i + 1) - tb%t(i))
+  end function table_extended
+
+  !> The integral of table_extended from a to b: exact (trapezoids over the segments, the
+  !> function being linear on each).
+  pure real(dp) function table_extended_integral(tb, a, b) result(s)
+    type(time_table), intent(in) :: tb
+    real(dp), intent(in) :: a, b
+    s = from_start(b) - from_start(a)
+  contains
+    !> The integral from the table's first abscissa to x.
+    pure real(dp) function from_start(x) result(v)
+      real(dp), intent(in) :: x
+      integer :: i, k
+      i = interval(tb%t, x)
+      v = 0.0_dp
+      do k = 1, i - 1
+        v = v + 0.5_dp*(tb%t(k + 1) - tb%t(k))*(tb%y(k) + tb%y(k + 1))
+      end do
+      v = v + 0.5_dp*(x - tb%t(i))*(tb%y(i) + table_extended(tb, x))
+    end function from_start
+  end function table_extended_integral
 
   !> Second derivatives of the natural cubic spline through the table (y2 = 0 at both
   !> ends): the tridiagonal system h(i-1) y2(i-1) + 2 (h(i-1) + h(i)) y2(i) + h(i) y2(i+1)
