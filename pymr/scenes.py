@@ -119,9 +119,10 @@ def tank_on_the_move_tables(folder, *, blowdown: float = 3.0e-3, t_end: float = 
     front and rear wheel stations (terrain_front.txt, terrain_rear.txt: time, height), the
     shot's travel down the barrel (ballistics.txt: time, travel) and the force on the breech
     (breech_force.txt: time, force). The breech force is the gas force on the breech, decaying
-    as exp(-t/blowdown) after shot exit, plus the projectile's drive force m_p a: the moving
-    load's travel is driven through the barrel (its prescribed travel pulls the barrel
-    forward by m_p a), so the recoiling parts feel the breech's gas force alone. Returns the
+    as exp(-t/blowdown) after shot exit, less the projectile's drive force m_p a: the moving
+    load's travel is driven through the barrel (the barrel carries the force along the path
+    that keeps the shot on its travel, so it is pushed back by m_p a), so the recoiling parts
+    feel the breech's gas force alone. Returns the
     shot exit time (s, after firing) and the muzzle velocity (m/s)."""
     from pathlib import Path
     folder = Path(folder)
@@ -137,9 +138,9 @@ def tank_on_the_move_tables(folder, *, blowdown: float = 3.0e-3, t_end: float = 
                  "the shot's travel (m) along the barrel's x axis from firing to shot exit")
     after = np.linspace(0.0, 8.0 * blowdown, 33)[1:]
     tf = np.r_[sh["t"][pick], t_exit + after]
-    ff = np.r_[sh["f"][pick] + sh["projectile"] * sh["a"][pick], sh["f"][-1] * np.exp(-after / blowdown)]
+    ff = np.r_[sh["f"][pick] - sh["projectile"] * sh["a"][pick], sh["f"][-1] * np.exp(-after / blowdown)]
     _write_table(folder / "breech_force.txt", np.r_[0.0, TANK_FIRE_TIME + tf], np.r_[0.0, ff],
-                 "force (N) on the breech, backwards: gas force + the projectile's drive force")
+                 "force (N) on the breech, backwards: gas force - the projectile's drive force")
     return {"exit_after_firing": t_exit, "muzzle_velocity": float(sh["v"][-1])}
 
 

@@ -120,7 +120,7 @@ def registry_effects() -> list[str]:
 
 def test_every_registered_effect_is_a_record_extending_effect_t():
     names = registry_effects()
-    assert len(names) == 10
+    assert len(names) == 11
     types = {}
     for p in (ROOT / "fortran/model").glob("effect_*.f90"):
         for m in re.finditer(r"type, extends\(effect_t\) :: (\w+)", p.read_text()):
@@ -137,5 +137,5 @@ def test_the_model_dispatches_no_effect():
     text = "\n".join(code(line) for line in (ROOT / "fortran/model/model.f90").read_text().lower().splitlines())
     assert "select case" not in text
     for effect in ("gravity", "joint_drives", "modal_damping", "joint_springs", "geometric_stiffening",
-                   "firing_load", "base_motion", "deformation_inertia", "force_elements"):
+                   "firing_load", "base_motion", "deformation_inertia", "force_elements", "moving_load"):
         assert effect not in text, effect

@@ -4,7 +4,7 @@
 !> in the list, which is the order of evaluation and of the JSON's effect statistics.
 module pymr_driver_build_effects
   use pymr_env_kinds, only : dp
-  use pymr_env_error, only : error_type
+  use pymr_env_error, only : error_type, fatal_error
   use pymr_model_scene, only : scene_t, unset, control_count
   use pymr_model_scene_rules, only : body_index
   use pymr_model_types, only : model_data, model_work
@@ -25,6 +25,8 @@ module pymr_driver_build_effects
   use pymr_model_effect_deformation_inertia, only : deformation_effect_of
   use pymr_model_effect_force_elements, only : force_element, force_elements_effect_of, spring_damper, bushing
   use pymr_model_effect_controls, only : controller, controls_effect_of
+  use pymr_model_effect_moving_load, only : moving_load, moving_load_effect_of
+  use pymr_env_text, only : fmt
   implicit none
   private
   public :: build_effects
@@ -59,6 +61,10 @@ contains
     end if
     if (control_count(sc) > 0) then
       call append(list, controls_effect_of(controls_of(sc, pos_in, d, error))); if (allocated(error)) return
+    end if
+    if (sc%effects%moving_loads .and. size(sc%moving_loads) > 0) then
+      call append(list, moving_load_effect_of(moving_loads_of(sc, d, error), gravity_of(sc), d))
+      if (allocated(error)) return
     end if
     if (sc%effects%base_motion .and. size(sc%motions) > 0) then
       call append(list, base_motion_effect_of(motions_of(sc, pos_in, d, error))); if (allocated(error)) return
@@ -232,6 +238,42 @@ contains
       end associate
     end do
   end function controls_of
+  !> Gravity when its effect is on, else zero.
+  pure function gravity_of(sc) result(g)
+    type(scene_t), intent(in) :: sc
+    real(dp) :: g(3)
+    g = 0.0_dp
+    if (sc%effects%gravity) g = sc%scene%gravity
+  end function gravity_of
+
+  !> The moving loads: body, its length, mass, force and travel, the table read and splined
+  !> when tabulated (its first position on the beam, else an error naming the file).
+  function moving_loads_of(sc, d, error) result(loads)
+    type(scene_t), intent(in) :: sc
+    type(model_data), intent(in) :: d
+    type(error_type), allocatable, intent(out) :: error
+    type(moving_load) :: loads(size(sc%moving_loads))
+    integer :: i
+    do i = 1, size(sc%moving_loads)
+      associate(ml => sc%moving_loads(i), ld => loads(i))
+        ld%name = ml%name
+        ld%body = findloc(d%body_name, ml%body, 1)
+        ld%length = d%bshape(ld%body)%length
+        ld%mass = ml%mass; ld%force = ml%force
+        ld%start = ml%start; ld%s0 = ml%s0; ld%speed = ml%speed
+        ld%tabulated = ml%form == 'table'
+        if (.not. ld%tabulated) cycle
+        call read_time_table(scene_relative(sc%file, trim(ml%file)), ml%origin%where('file'), &
+          & ld%table%t, ld%table%y, error)
+        if (allocated(error)) return
+        call spline_setup(ld%table, ml%origin%where('file'), error); if (allocated(error)) return
+        if (ld%table%y(1) < 0.0_dp .or. ld%table%y(1) > ld%length) then
+          call fatal_error(error, ml%origin%where('file') // ': the first position, ' // fmt(ld%table%y(1)) // &
+            & " m, is off the beam '" // trim(ml%body) // "' (0 to its length, " // fmt(ld%length) // ' m)'); return
+        end if
+      end associate
+    end do
+  end function moving_loads_of
 
   !> Index of the marker called `name` (0 if none).
   pure integer function marker_index(d, name)

@@ -9,7 +9,7 @@ module pymr_driver_output_quantities
   use pymr_model_kinematics, only : forward_kinematics, marker_motion, marker_acceleration, marker_rotation
   use pymr_model_reactions, only : body_accelerations, joint_wrenches, child_frame_wrench
   use pymr_model_loops, only : cut_wrench, cut_body_wrenches
-  use pymr_model_effect, only : effect_powers
+  use pymr_model_effect, only : effect_powers, effect_powers_qdd, effects_need_qdd, power_motion
   use pymr_model_spatial, only : quaternion
   use pymr_integrator_stepper, only : stepper_t
   use pymr_io_results_output, only : csv_writer, output_plan, n_energy, n_work
@@ -92,7 +92,7 @@ contains
       end do
     end associate
     if (plan%energy) then
-      call model%energy_parts(q, qd, e)
+      call model%energy_parts(q, qd, e, t)
       call put([e, sum(e), work])
     end if
   contains
@@ -154,19 +154,23 @@ contains
     end do
   end subroutine work_at
 
-  !> Powers at (t, q, qd) (W): of the drives, of the loads, of the prescribed motions, and
-  !> the damping's loss (joint dampers and modal damping).
+  !> Powers at (t, q, qd) (W): of the drives, of the loads, of the prescribed motions (and
+  !> the travel of moving loads), and the damping's loss (joint dampers and modal damping).
   subroutine powers(model, t, q, qd, p, error)
     type(model_t), intent(inout) :: model
     real(dp), intent(in) :: t, q(:), qd(:)
     real(dp), intent(out) :: p(n_work)
     type(error_type), allocatable, intent(out) :: error
-    real(dp) :: qe(size(q)), qde(size(qd))
+    real(dp) :: qe(size(q)), qde(size(qd)), qdd(size(q))
     call imposed_state(model, t, q, qd, qe, qde)
     p = 0.0_dp
     call effect_powers(model%effects, model%d, model%wk, t, qe, qde, p)
     if (model%d%n_prescribed > 0) then
-      p(3) = motion_power(model, t, qe, qde, error); if (allocated(error)) return
+      p(power_motion) = p(power_motion) + motion_power(model, t, qe, qde, error); if (allocated(error)) return
+    end if
+    if (effects_need_qdd(model%effects)) then
+      call output_accelerations(model, t, qe, qde, qdd, error); if (allocated(error)) return
+      call effect_powers_qdd(model%effects, model%d, model%wk, t, qe, qde, qdd, p)
     end if
   end subroutine powers
 

@@ -30,6 +30,7 @@ module pymr_driver_simulation
   use pymr_driver_progress, only : run_clock
   use pymr_driver_settings_json, only : settings_json
   use pymr_driver_summary, only : summary_text
+  use pymr_driver_moving_load_exits, only : note_exits, exits_json
   implicit none
   private
   public :: simulation_t
@@ -199,7 +200,10 @@ contains
     class(simulation_t), intent(inout) :: self
     type(error_type), allocatable, intent(out) :: error
     type(step_counts) :: done
+    real(dp) :: t0
+    t0 = self%st%time()
     call self%st%advance(self%model, error); if (allocated(error)) return
+    call note_exits(self%model, self%st, t0, self%st%time(), self%sc%scene%t_end)
     done = self%st%counts()
     if (done%steps_fast > self%sc%integrator%max_steps) then
       call fatal_error(error, 'at t = ' // fmt(self%st%time()) // ' s: the run took more than max_steps = ' // &
@@ -305,6 +309,7 @@ contains
     if (.not. allocated(error)) call self%put_last_row(error)
     call self%clock%stop(self%stats%cpu_time_s, self%stats%wall_time_s)
     call fill_stats(self%st, self%model, self%stats)
+    self%stats%effects_report = exits_json(self%model)
     call self%write_results(error)
   end subroutine simulation_finish
 

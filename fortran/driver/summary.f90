@@ -10,6 +10,7 @@ module pymr_driver_summary
   use pymr_model_kinematics, only : forward_kinematics, marker_motion
   use pymr_io_results_output, only : run_stats, json_path
   use pymr_driver_stepper_setup, only : method_label
+  use pymr_driver_moving_load_exits, only : exits_text
   implicit none
   private
   public :: summary_text
@@ -55,7 +56,7 @@ contains
         if (len(warning) > 0) s = s // new_line('a') // 'warning: ' // warning
       end do
     end if
-    s = s // new_line('a') // markers_text(model, x)
+    s = s // new_line('a') // exits_text(model, sc%scene%t_end) // markers_text(model, x)
     s = s // 'results: ' // path // ', ' // json_path(path)
   end function summary_text
 

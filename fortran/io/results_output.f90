@@ -30,6 +30,8 @@ module pymr_io_results_output
     real(dp) :: static_change = 0.0_dp
     !> Warnings of the run, one a line (a flexible body deflecting beyond its limit).
     character(len=:), allocatable :: warnings
+    !> JSON members the effects report (moving loads' exits), with their commas and lines.
+    character(len=:), allocatable :: effects_report
   end type run_stats
 
   !> The energy columns (energy.NAME): the four energies, their total, then the four works
@@ -573,6 +575,7 @@ contains
         & ', "newton_iterations": ', st%static_iterations, ', "last_change": ', st%static_change, '},'
       call put(trim(buf))
     end if
+    if (allocated(st%effects_report)) text = text // st%effects_report
     if (allocated(st%warnings)) then
       call put('  "warnings": [' // json_lines(st%warnings) // '],')
     else

@@ -86,6 +86,7 @@ contains
     associate(kaa => wk%ab%kaa(1:m, 1:m, b), kam => wk%ab%kam(:, 1:m, b), ba => wk%ab%ba(1:m, b))
       kam = wk%mva(:, 1:m, b)
       kaa = d%flex(b)%mmm
+      if (allocated(wk%maa)) kaa = kaa + wk%maa(1:m, 1:m, b)
       ba = wk%wam(1:m, b) - wk%tau(d%a0(b):d%a0(b) + m - 1)
       do i = d%child_ptr(b), d%child_ptr(b + 1) - 1
         c = d%child_idx(i)

@@ -133,6 +133,12 @@ contains
       do l = 1, m
         wk%mm(d%a0(b) + l - 1, ck) = d%flex(b)%mmm(l, k)
       end do
+      ! the modal mass of loads travelling on the body
+      if (allocated(wk%maa)) then
+        do l = 1, m
+          wk%mm(d%a0(b) + l - 1, ck) = wk%mm(d%a0(b) + l - 1, ck) + wk%maa(l, k, b)
+        end do
+      end if
       do i = d%child_ptr(b), d%child_ptr(b + 1) - 1
         c = d%child_idx(i)
         g = matmul(wk%ic(:, :, c), wk%cm(:, k, c))

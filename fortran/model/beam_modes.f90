@@ -17,7 +17,7 @@ module pymr_model_beam_modes
   use pymr_model_flexbody, only : flex_data, flex_invariants, point_shapes
   implicit none
   private
-  public :: beam_point_load_stiffness, beam_shape, beam_section, build_beam, beam_point_shapes, gauss4
+  public :: beam_point_load_stiffness, beam_shape, beam_section, build_beam, beam_point_shapes, gauss4, axis_shapes
 
   !> Beams with more elements take the banded eigensolver (the dense one is kept below it,
   !> so the results of smaller beams stay as they were).
@@ -416,4 +416,27 @@ contains
     call section_shapes(bs, el, xi, psi_axis, phi)
     call point_shapes(psi_axis, phi, [0.0_dp, r(2), r(3)], psi)
   end subroutine beam_point_shapes
+  !> Translational shapes of the axis point at x (0 <= x <= length) and their first and
+  !> second derivatives along x (3 x m each), by the Hermite interpolation that
+  !> section_shapes uses (the second derivative is the element's: it jumps at the nodes).
+  pure subroutine axis_shapes(bs, x, psi, dpsi, ddpsi)
+    type(beam_shape), intent(in) :: bs
+    real(dp), intent(in) :: x
+    real(dp), intent(out) :: psi(:, :), dpsi(:, :), ddpsi(:, :)
+    real(dp) :: le, xc, xi, nn(4), dn(4), d2(4)
+    integer :: el, ky, kz, kx
+    le = bs%length/bs%ne
+    xc = min(max(x, 0.0_dp), bs%length)
+    el = min(int(xc/le) + 1, bs%ne)
+    xi = xc/le - (el - 1)
+    call hermite(xi, le, nn, dn)
+    d2 = [(-6.0_dp + 12.0_dp*xi)/le**2, (-4.0_dp + 6.0_dp*xi)/le, (6.0_dp - 12.0_dp*xi)/le**2, (-2.0_dp + 6.0_dp*xi)/le]
+    ky = bs%my; kz = ky + bs%mz; kx = kz + bs%mx
+    psi = 0.0_dp; dpsi = 0.0_dp; ddpsi = 0.0_dp
+    associate(vy => bs%vy(2*el-1:2*el+2, :), vz => bs%vz(2*el-1:2*el+2, :), vx => bs%vx(2*el-1:2*el+2, :))
+      psi(2, 1:ky) = matmul(nn, vy); dpsi(2, 1:ky) = matmul(dn, vy); ddpsi(2, 1:ky) = matmul(d2, vy)
+      psi(3, ky+1:kz) = matmul(nn, vz); dpsi(3, ky+1:kz) = matmul(dn, vz); ddpsi(3, ky+1:kz) = matmul(d2, vz)
+      psi(1, kz+1:kx) = matmul(nn, vx); dpsi(1, kz+1:kx) = matmul(dn, vx); ddpsi(1, kz+1:kx) = matmul(d2, vx)
+    end associate
+  end subroutine axis_shapes
 end module pymr_model_beam_modes

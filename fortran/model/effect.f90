@@ -20,14 +20,16 @@ module pymr_model_effect
   public :: stage_impose, stage_deform, stage_load, stage_carried, stage_rows, stage_accelerate, n_stages
   public :: impose_effects, deform_effects, load_effects, carried_effects, rows_effects, accelerate_effects
   public :: effect_energies, effect_powers, effect_fast_damping, start_effect_counters
-  public :: energy_gravity, energy_springs, power_drives, power_loads, power_damping
+  public :: effect_motion_energies, effect_powers_qdd, effects_need_qdd, effects_vary_modal_mass
+  public :: save_effect_states, load_effect_states
+  public :: energy_kinetic, energy_gravity, energy_springs, power_drives, power_loads, power_motion, power_damping
 
   integer, parameter :: stage_impose = 1, stage_deform = 2, stage_load = 3, stage_carried = 4, &
     & stage_rows = 5, stage_accelerate = 6, n_stages = 6
   !> Energy parts (kinetic 1, gravity 2, strain 3, springs 4) and powers (drives 1, loads 2,
   !> prescribed motion 3, damping loss 4) an effect adds to.
-  integer, parameter :: energy_gravity = 2, energy_springs = 4
-  integer, parameter :: power_drives = 1, power_loads = 2, power_damping = 4
+  integer, parameter :: energy_kinetic = 1, energy_gravity = 2, energy_springs = 4
+  integer, parameter :: power_drives = 1, power_loads = 2, power_motion = 3, power_damping = 4
   !> One evaluation in this many times its effects.
   integer, parameter :: timing_interval = 32
 
@@ -38,6 +40,10 @@ module pymr_model_effect
     logical :: acts(n_stages) = .false.
     !> It acts on joint rows only: skipped in fast-row evaluations.
     logical :: joint_rows_only = .false.
+    !> It adds to the modal mass (wk%maa): the modal block of M is not constant.
+    logical :: modal_mass_varies = .false.
+    !> Its add_power_qdd needs the accelerations (the output computes them for it).
+    logical :: power_needs_accelerations = .false.
   contains
     procedure :: impose => no_impose
     procedure :: deform => no_deform
@@ -48,6 +54,10 @@ module pymr_model_effect
     procedure :: add_energy => no_energy
     procedure :: add_power => no_power
     procedure :: fast_damping => no_fast_damping
+    procedure :: add_motion_energy => no_motion_energy
+    procedure :: add_power_qdd => no_power_qdd
+    procedure :: save_state => no_save_state
+    procedure :: load_state => no_load_state
   end type effect_t
 
   !> One entry of the model's list.
@@ -123,6 +133,40 @@ contains
     type(model_data), intent(in) :: d
     real(dp), intent(inout) :: df(:)
   end subroutine no_fast_damping
+
+  !> Energies that depend on time and rates beyond the body terms (a moving mass's).
+  subroutine no_motion_energy(self, d, wk, t, q, qd, e)
+    class(effect_t), intent(in) :: self
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
+    real(dp), intent(in) :: t, q(:), qd(:)
+    real(dp), intent(inout) :: e(:)
+  end subroutine no_motion_energy
+
+  !> Powers that need the accelerations qdd at (t, q, qd) (after an evaluation there).
+  subroutine no_power_qdd(self, d, wk, t, q, qd, qdd, p)
+    class(effect_t), intent(in) :: self
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
+    real(dp), intent(in) :: t, q(:), qd(:), qdd(:)
+    real(dp), intent(inout) :: p(:)
+  end subroutine no_power_qdd
+
+  !> Write (save_state) or read (load_state) the effect's run state on an open unformatted
+  !> stream unit (checkpoints); nothing for effects without one.
+  subroutine no_save_state(self, unit, ios)
+    class(effect_t), intent(in) :: self
+    integer, intent(in) :: unit
+    integer, intent(out) :: ios
+    ios = 0
+  end subroutine no_save_state
+
+  subroutine no_load_state(self, unit, ios)
+    class(effect_t), intent(inout) :: self
+    integer, intent(in) :: unit
+    integer, intent(out) :: ios
+    ios = 0
+  end subroutine no_load_state
 
   !> Counters for the list's effects, named and zero.
   subroutine start_effect_counters(list, wk)
@@ -290,6 +334,75 @@ contains
       call list(i)%e%add_power(d, wk, t, q, qd, p)
     end do
   end subroutine effect_powers
+
+  !> The effects' time- and rate-dependent energies added to e (after the kinematics).
+  subroutine effect_motion_energies(list, d, wk, t, q, qd, e)
+    type(effect_slot), intent(in) :: list(:)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
+    real(dp), intent(in) :: t, q(:), qd(:)
+    real(dp), intent(inout) :: e(:)
+    integer :: i
+    do i = 1, size(list)
+      call list(i)%e%add_motion_energy(d, wk, t, q, qd, e)
+    end do
+  end subroutine effect_motion_energies
+
+  !> The effects' powers that need the accelerations qdd, added to p (W).
+  subroutine effect_powers_qdd(list, d, wk, t, q, qd, qdd, p)
+    type(effect_slot), intent(in) :: list(:)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(inout) :: wk
+    real(dp), intent(in) :: t, q(:), qd(:), qdd(:)
+    real(dp), intent(inout) :: p(:)
+    integer :: i
+    do i = 1, size(list)
+      if (list(i)%e%power_needs_accelerations) call list(i)%e%add_power_qdd(d, wk, t, q, qd, qdd, p)
+    end do
+  end subroutine effect_powers_qdd
+
+  !> Some effect's power needs the accelerations.
+  pure logical function effects_need_qdd(list)
+    type(effect_slot), intent(in) :: list(:)
+    integer :: i
+    effects_need_qdd = .false.
+    do i = 1, size(list)
+      effects_need_qdd = effects_need_qdd .or. list(i)%e%power_needs_accelerations
+    end do
+  end function effects_need_qdd
+
+  !> Some effect adds to the modal mass (the modal block of M then varies).
+  pure logical function effects_vary_modal_mass(list)
+    type(effect_slot), intent(in) :: list(:)
+    integer :: i
+    effects_vary_modal_mass = .false.
+    do i = 1, size(list)
+      effects_vary_modal_mass = effects_vary_modal_mass .or. list(i)%e%modal_mass_varies
+    end do
+  end function effects_vary_modal_mass
+
+  !> The effects' run states written to (save) or read from (load) a checkpoint's unit.
+  subroutine save_effect_states(list, unit, ios)
+    type(effect_slot), intent(in) :: list(:)
+    integer, intent(in) :: unit
+    integer, intent(out) :: ios
+    integer :: i
+    ios = 0
+    do i = 1, size(list)
+      if (ios == 0) call list(i)%e%save_state(unit, ios)
+    end do
+  end subroutine save_effect_states
+
+  subroutine load_effect_states(list, unit, ios)
+    type(effect_slot), intent(inout) :: list(:)
+    integer, intent(in) :: unit
+    integer, intent(out) :: ios
+    integer :: i
+    ios = 0
+    do i = 1, size(list)
+      if (ios == 0) call list(i)%e%load_state(unit, ios)
+    end do
+  end subroutine load_effect_states
 
   !> Damping per fast coordinate, linear in the modal rates, of all the effects.
   subroutine effect_fast_damping(list, d, df)

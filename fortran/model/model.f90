@@ -12,7 +12,8 @@ module pymr_model
   use pymr_model_loops, only : constrained_accelerations, project_positions, project_velocities, &
     & constrain_fast_accelerations, constrain_response
   use pymr_model_effect, only : effect_slot, stage_carried, impose_effects, deform_effects, load_effects, carried_effects, &
-    & rows_effects, accelerate_effects, effect_energies, effect_fast_damping
+    & rows_effects, accelerate_effects, effect_energies, effect_fast_damping, effect_motion_energies, &
+    & effects_vary_modal_mass, save_effect_states, load_effect_states
   implicit none
   private
   public :: model_t, modal_stiffness_damping, model_counters, check_terms_finite
@@ -310,17 +311,19 @@ contains
     real(dp), intent(in) :: q(:), qd(:)
     real(dp), intent(out) :: kinetic, potential
     real(dp) :: e(4)
-    call self%energy_parts(q, qd, e)
+    call self%energy_parts(q, qd, e, 0.0_dp)
     kinetic = e(1)
     potential = sum(e(2:4))
   end subroutine model_energy
 
   !> Energies (J) at (q, qd): kinetic, gravity (0 when off), strain of the flexible bodies
-  !> and the joint springs' (0 when off).
-  subroutine model_energy_parts(self, q, qd, e)
+  !> and the joint springs' (0 when off); with the time t, the effects' energies that
+  !> depend on it and on the rates too (a moving mass's).
+  subroutine model_energy_parts(self, q, qd, e, t)
     class(model_t), intent(inout) :: self
     real(dp), intent(in) :: q(:), qd(:)
     real(dp), intent(out) :: e(4)
+    real(dp), intent(in), optional :: t
     call forward_kinematics(self%d, self%wk, q, qd)
     call deform_effects(self%effects, self%d, self%wk, q, self%d%every)
     call body_terms(self%d, self%wk, q, qd)
@@ -328,6 +331,7 @@ contains
     e(1) = kinetic_energy(self%d, self%wk, qd)
     e(3) = elastic_potential(self%d, q)
     call effect_energies(self%effects, self%d, self%wk, q, e)
+    if (present(t)) call effect_motion_energies(self%effects, self%d, self%wk, t, q, qd, e)
   end subroutine model_energy_parts
 
   !> Elastic energy 1/2 sum omega^2 a^2 of the flexible bodies (J).
@@ -365,7 +369,8 @@ contains
       & self%kf(nf), self%df(nf), self%qw(ns + nf), self%qdw(ns + nf), self%mffinv(nf, nf), &
       & self%xsw(2*ns), self%xfw(2*nf), self%fsw(2*ns), self%ffw(2*nf))
     self%partitioned = .true.
-    self%mff_fixed = .true.
+    ! a moving mass changes the modal block as it travels
+    self%mff_fixed = .not. effects_vary_modal_mass(self%effects)
     self%mff_factored = .false.
     do b = 2, self%d%nb
       if (self%d%flexible(b) .and. self%d%child_ptr(b + 1) > self%d%child_ptr(b)) self%mff_fixed = .false.
@@ -584,6 +589,7 @@ contains
       & self%yf, self%mffinv, self%mff_factored
     if (ios == 0) write(unit, iostat=ios) self%wk%count%evals, self%wk%count%evals_fast_rows, self%wk%count%effect_evals, &
       & self%wk%count%effect_timed, self%wk%count%effect_cpu, self%wk%loops%closure_drift
+    if (ios == 0) call save_effect_states(self%effects, unit, ios)
   end subroutine model_save_run
 
   !> Read what model_save_run wrote into a model built from the same scene (partitioned
@@ -602,5 +608,6 @@ contains
       & self%mffinv, self%mff_factored
     if (ios == 0) read(unit, iostat=ios) self%wk%count%evals, self%wk%count%evals_fast_rows, self%wk%count%effect_evals, &
       & self%wk%count%effect_timed, self%wk%count%effect_cpu, self%wk%loops%closure_drift
+    if (ios == 0) call load_effect_states(self%effects, unit, ios)
   end subroutine model_load_run
 end module pymr_model

@@ -11,7 +11,8 @@ module pymr_model_scene
   implicit none
   private
   public :: scene_t, body_spec, joint_spec, drive_spec, marker_spec, integrator_spec, effects_spec
-  public :: spring_spec, motion_spec, load_spec, force_spec, control_spec, output_spec, scene_spec, max_modes_input
+  public :: spring_spec, motion_spec, load_spec, force_spec, control_spec, moving_load_spec, output_spec, scene_spec
+  public :: max_modes_input
   public :: joint_ndof, unset, group_names, single_groups, repeated_groups, describe_group, group_origin, group_count
   public :: naming_item, complete_scene, body_items, item_applies, output_quantities, beam_mode_count
   public :: closes_loop, flexible_loop, k_max_flexible_loop, body_index, control_count
@@ -27,10 +28,10 @@ module pymr_model_scene
 
   !> The groups of a scene file, in the order the resolved scene is written.
   character(len=*), parameter :: group_names = &
-    & 'scene integrator effects output body joint drive spring motion load marker force control'
+    & 'scene integrator effects output body joint drive spring motion load marker force control moving_load'
   !> The groups that may appear at most once, and those that may repeat.
   character(len=*), parameter :: single_groups = 'scene integrator effects output'
-  character(len=*), parameter :: repeated_groups = 'body joint drive spring motion load marker force control'
+  character(len=*), parameter :: repeated_groups = 'body joint drive spring motion load marker force control moving_load'
   !> The groups of output columns (&output quantities).
   character(len=*), parameter :: output_quantities = &
     & 'coordinates markers marker_accelerations marker_orientations reactions energy'
@@ -124,6 +125,7 @@ module pymr_model_scene
     logical :: firing_load = .false.
     logical :: force_elements = .false.
     logical :: controls = .false.
+    logical :: moving_loads = .false.
     !> Fidelity of the deformation-dependent inertia of flexible bodies: 'full' or 'linear'.
     character(len=16) :: deformation_inertia = 'full'
     type(origin_t) :: origin
@@ -263,6 +265,17 @@ module pymr_model_scene
     character(len=512) :: file = ''
     type(origin_t) :: origin
   end type control_spec
+  !> One &moving_load group: a point mass and a force (body axes) travelling along the x
+  !> axis of a beam: 'constant_speed' (at s0 until start, then s0 + speed (t - start)) or
+  !> 'table' (the natural cubic spline through the positions in `file`).
+  type :: moving_load_spec
+    character(len=name_len) :: name = '', body = ''
+    real(dp) :: mass = 0.0_dp, force(3) = 0.0_dp
+    character(len=16) :: form = 'constant_speed'
+    real(dp) :: start = 0.0_dp, s0 = 0.0_dp, speed = 0.0_dp
+    character(len=512) :: file = ''
+    type(origin_t) :: origin
+  end type moving_load_spec
 
   !> The whole scene.
   type :: scene_t
@@ -280,6 +293,7 @@ module pymr_model_scene
     type(marker_spec), allocatable :: markers(:)
     type(force_spec), allocatable :: forces(:)
     type(control_spec), allocatable :: controls(:)
+    type(moving_load_spec), allocatable :: moving_loads(:)
     type(output_spec) :: output
   end type scene_t
 
@@ -356,6 +370,7 @@ contains
     call t%add('firing_load', g%firing_load, 'the &load pulses')
     call t%add('force_elements', g%force_elements, 'the &force elements between markers')
     call t%add('controls', g%controls, 'the &control feedback drives')
+    call t%add('moving_loads', g%moving_loads, 'the &moving_load masses and forces travelling along beams')
     call t%add('deformation_inertia', g%deformation_inertia, "inertia of deformed flexible bodies: 'full' or " // &
       & "'linear' (without the second-order deformation terms)", choices='full linear')
   end subroutine describe_effects
@@ -581,6 +596,27 @@ contains
       & gt=0.0_dp, le=big_force)
   end subroutine describe_control
 
+  subroutine describe_moving_load(g, t)
+    type(moving_load_spec), target, intent(inout) :: g
+    type(item_table), intent(inout) :: t
+    call t%add('name', g%name, 'name of the moving load, unique among them (required)')
+    call t%add('body', g%body, "the beam it travels along, on its x axis (a body of kind 'beam') (required)")
+    call t%add('mass', g%mass, 'kg', 'the travelling point mass (its inertia, Coriolis and centripetal terms ' // &
+      & 'and its weight under gravity)', ge=0.0_dp, le=big_mass)
+    call t%add('force', g%force, 'N', "a force at the travelling point, in the beam's body axes", &
+      & ge=-big_force, le=big_force)
+    call t%add('form', g%form, "the travel: 'constant_speed' (at s0 until start, then s0 + speed (t - start)) " // &
+      & "or 'table' (the natural cubic spline through the positions in file; the first before its first time, " // &
+      & 'the last rate after its last)', choices='constant_speed table')
+    call t%add('start', g%start, 's', "time the travel starts (form 'constant_speed')", ge=-1.0e9_dp, le=1.0e9_dp)
+    call t%add('s0', g%s0, 'm', "position on the axis before and at start (form 'constant_speed'; " // &
+      & '0 <= s0 <= the length)', ge=-big_length, le=big_length)
+    call t%add('speed', g%speed, 'm/s', "speed along the axis after start (form 'constant_speed'; not 0)", &
+      & ge=-1.0e6_dp, le=1.0e6_dp)
+    call t%add('file', g%file, "file of 'time position' lines (form 'table'; relative to the scene's folder)", &
+      & scene_file=.true.)
+  end subroutine describe_moving_load
+
   !> Defaults that depend on other items, set once the scene is read: a joint's q0 and qd0
   !> default to 0 for each of its coordinates; one step serves both rates, and at one rate a
   !> --set of h_slow alone sets the step.
@@ -729,6 +765,7 @@ contains
     case ('marker'); call describe_marker(sc%markers(k), t)
     case ('force'); call describe_force(sc%forces(k), t)
     case ('control'); call describe_control(sc%controls(k), t)
+    case ('moving_load'); call describe_moving_load(sc%moving_loads(k), t)
     end select
   end subroutine describe_group
 
@@ -753,6 +790,7 @@ contains
     case ('marker'); o => sc%markers(k)%origin
     case ('force'); o => sc%forces(k)%origin
     case ('control'); o => sc%controls(k)%origin
+    case ('moving_load'); o => sc%moving_loads(k)%origin
     end select
   end function group_origin
 
@@ -770,6 +808,7 @@ contains
     case ('marker'); n = size(sc%markers)
     case ('force'); n = size(sc%forces)
     case ('control'); n = size(sc%controls)
+    case ('moving_load'); n = size(sc%moving_loads)
     case default; n = 1
     end select
   end function group_count
@@ -782,7 +821,7 @@ contains
     select case (name)
     case ('drive', 'spring', 'motion'); item = 'joint'
     case ('load'); item = 'marker'
-    case ('body', 'joint', 'marker', 'force', 'control'); item = 'name'
+    case ('body', 'joint', 'marker', 'force', 'control', 'moving_load'); item = 'name'
     case default; item = ''
     end select
   end function naming_item

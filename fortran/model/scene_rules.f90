@@ -6,7 +6,8 @@
 module pymr_model_scene_rules
   use pymr_env_kinds, only : dp, name_len
   use pymr_env_error, only : error_type, fatal_error, error_list
-  use pymr_model_scene, only : scene_t, body_spec, joint_spec, force_spec, load_spec, control_spec, joint_ndof, unset, body_items, beam_mode_count, &
+  use pymr_model_scene, only : scene_t, body_spec, joint_spec, force_spec, load_spec, control_spec, moving_load_spec, &
+    & joint_ndof, unset, body_items, beam_mode_count, &
     & closes_loop, body_index
   use pymr_env_item_table, only : origin_t
   use pymr_model_names, only : name_index
@@ -91,6 +92,11 @@ contains
     if (j > 0) then
       call errs%add(sc%controls(j)%origin%where('name') // ': used by another &control too (line ' // &
         & itoa(sc%controls(i)%origin%line) // ')')
+    end if
+    call first_repeat(sc%moving_loads%name, i, j)
+    if (j > 0) then
+      call errs%add(sc%moving_loads(j)%origin%where('name') // ': used by another &moving_load too (line ' // &
+        & itoa(sc%moving_loads(i)%origin%line) // ')')
     end if
   end subroutine check_unique_names
 
@@ -527,7 +533,87 @@ contains
     call check_markers(sc, errs)
     call check_forces(sc, errs)
     call check_controls(sc, errs)
+    call check_moving_loads(sc, errs)
   end subroutine check_loads_markers
+
+  !> &moving_load: a name, a beam to travel on, the items of its travel, and &effects
+  !> moving_loads on.
+  subroutine check_moving_loads(sc, errs)
+    type(scene_t), intent(in) :: sc
+    type(error_list), intent(inout) :: errs
+    integer :: i
+    do i = 1, size(sc%moving_loads)
+      associate(ml => sc%moving_loads(i), o => sc%moving_loads(i)%origin)
+        if (len_trim(ml%name) == 0) then
+          call errs%add(o%where('name') // ': missing'); cycle
+        end if
+        if (.not. travel_body(sc, errs, ml)) cycle
+        if (.not. travel_items(sc, errs, ml)) cycle
+        if (forgotten(sc, sc%effects%moving_loads, 'moving_loads')) &
+          & call errs%add(o%where() // effect_not_on('the scene gives moving loads', 'moving_loads'))
+      end associate
+    end do
+  end subroutine check_moving_loads
+
+  !> A moving load's body exists and is a built-in beam (else the error is added). A
+  !> modal-file body is refused: its shapes between its nodes are not known.
+  logical function travel_body(sc, errs, ml) result(ok)
+    type(scene_t), intent(in) :: sc
+    type(error_list), intent(inout) :: errs
+    type(moving_load_spec), intent(in) :: ml
+    integer :: b
+    ok = .false.
+    associate(o => ml%origin)
+      if (len_trim(ml%body) == 0) then
+        call errs%add(o%where('body') // ': missing (the beam the load travels along)'); return
+      end if
+      b = body_index(sc, ml%body)
+      if (b == 0) then
+        call errs%add(o%where('body') // ": no &body named '" // trim(ml%body) // "'"); return
+      end if
+      if (sc%bodies(b)%kind == 'modal') then
+        call errs%add(o%where('body') // ": '" // trim(ml%body) // "' is a modal-file body, whose shapes " // &
+          & "between its nodes are not known: a moving load travels along a body of kind 'beam'"); return
+      end if
+      if (sc%bodies(b)%kind /= 'beam') then
+        call errs%add(o%where('body') // ": '" // trim(ml%body) // "' is not a flexible body (kind '" // &
+          & trim(sc%bodies(b)%kind) // "'): a moving load travels along a body of kind 'beam'"); return
+      end if
+    end associate
+    ok = .true.
+  end function travel_body
+
+  !> A moving load's travel items agree with its form: 'constant_speed' a speed not 0 and
+  !> s0 on the beam (0 to its length), no file; 'table' a file and none of start, s0,
+  !> speed (else the error is added).
+  logical function travel_items(sc, errs, ml) result(ok)
+    type(scene_t), intent(in) :: sc
+    type(error_list), intent(inout) :: errs
+    type(moving_load_spec), intent(in) :: ml
+    character(len=*), parameter :: names(3) = [character(len=5) :: 'start', 's0', 'speed']
+    real(dp) :: length
+    integer :: k
+    ok = .false.
+    length = sc%bodies(body_index(sc, ml%body))%length
+    associate(o => ml%origin)
+      if (ml%form == 'table') then
+        k = findloc([ml%start /= 0.0_dp, ml%s0 /= 0.0_dp, ml%speed /= 0.0_dp], .true., 1)
+        if (k > 0) then
+          call errs%add(o%where(trim(names(k))) // ": only form 'constant_speed' uses it (form 'table' reads " // &
+            & 'the travel from file)'); return
+        end if
+      else
+        if (ml%speed == 0.0_dp) then
+          call errs%add(o%where('speed') // ": missing or 0 (form 'constant_speed' travels at speed, m/s)"); return
+        end if
+        if (length /= unset .and. (ml%s0 < 0.0_dp .or. ml%s0 > length)) then
+          call errs%add(o%where('s0') // ': ' // fmt(ml%s0) // " m is off the beam '" // trim(ml%body) // &
+            & "' (0 to its length, " // fmt(length) // ' m)'); return
+        end if
+      end if
+    end associate
+    ok = table_form(errs, ml%origin, ml%form, ml%file, [0.0_dp, 0.0_dp, 0.0_dp])
+  end function travel_items
 
   !> &drive: a joint coordinate, its form, and &effects joint_drives on.
   subroutine check_drives(sc, errs)

@@ -145,6 +145,9 @@ module pymr_model_types
     real(dp), allocatable :: cm(:, :, :)
     !> Flexible bodies' coupling columns (6, mmax, nb) and modal bias forces (mmax, nb).
     real(dp), allocatable :: mva(:, :, :), wam(:, :)
+    !> Modal mass that loads travelling on flexible bodies add to their constant modal mass
+    !> (mmax, mmax, nb; set in the load stage; unallocated when no effect adds any).
+    real(dp), allocatable :: maa(:, :, :)
     type(articulated_work) :: ab
     type(loop_work) :: loops
     type(model_counters) :: count

@@ -1,0 +1,130 @@
+!> Shot exit of moving loads: after each step, a load whose travel passes its beam's end
+!> within the step has the state there taken from the stepper's dense output (value_at at
+!> the exit time the travel law gives), and its body's markers' states noted (model/
+!> effect_moving_load.f90 record_exit). The summary and the JSON report them.
+module pymr_driver_moving_load_exits
+  use pymr_env_kinds, only : dp
+  use pymr_env_text, only : fmt, json_escape
+  use pymr_model, only : model_t
+  use pymr_model_effect_moving_load, only : moving_load_effect, exit_time, record_exit
+  use pymr_integrator_stepper, only : stepper_t
+  implicit none
+  private
+  public :: note_exits, exits_text, exits_json
+
+contains
+
+  !> The exits in (t0, min(t1, t_end)], the stepper's last step up to the run's end.
+  subroutine note_exits(model, st, t0, t1, t_end)
+    type(model_t), intent(inout) :: model
+    class(stepper_t), intent(in) :: st
+    real(dp), intent(in) :: t0, t1, t_end
+    integer :: i, k, n
+    real(dp) :: te, x(2*model%d%n)
+    n = model%d%n
+    do i = 1, size(model%effects)
+      select type (e => model%effects(i)%e)
+      type is (moving_load_effect)
+        do k = 1, size(e%loads)
+          if (e%exits(k)%exited) cycle
+          te = exit_time(e%loads(k))
+          if (.not. (te > t0 .and. te <= min(t1, t_end))) cycle
+          call st%value_at(te, x)
+          if (model%d%n_prescribed > 0) then
+            call model%impose(te, x(1:n), x(n+1:))
+            x(1:n) = model%wk%qx; x(n+1:) = model%wk%qdx
+          end if
+          call record_exit(e, k, model%d, model%wk, te, x(1:n), x(n+1:))
+        end do
+      end select
+    end do
+  end subroutine note_exits
+
+  !> Summary lines: per moving load its exit time and its body's markers' states there, or
+  !> that it did not leave the body by t_end.
+  function exits_text(model, t_end) result(s)
+    type(model_t), intent(in) :: model
+    real(dp), intent(in) :: t_end
+    character(len=:), allocatable :: s
+    integer :: i, k, j
+    s = ''
+    do i = 1, size(model%effects)
+      select type (e => model%effects(i)%e)
+      type is (moving_load_effect)
+        do k = 1, size(e%loads)
+          associate(x => e%exits(k))
+            if (.not. x%exited) then
+              s = s // "moving load '" // trim(e%loads(k)%name) // "': did not leave its body by t = " // &
+                & fmt(t_end) // ' s' // new_line('a'); cycle
+            end if
+            s = s // "moving load '" // trim(e%loads(k)%name) // "': shot exit at t = " // fmt(x%t) // ' s' // &
+              & new_line('a')
+            do j = 1, size(x%markers)
+              s = s // "  marker '" // trim(model%d%markers%name(x%markers(j))) // "' at exit: position " // &
+                & vec(x%r(:, j)) // ' m, velocity ' // vec(x%v(:, j)) // ' m/s, angle ' // vec(x%angle(:, j)) // &
+                & ' rad, angular rate ' // vec(x%rate(:, j)) // ' rad/s' // new_line('a')
+            end do
+          end associate
+        end do
+      end select
+    end do
+  end function exits_text
+
+  !> The JSON member "moving_loads" (with its comma; empty without moving loads): per load
+  !> its name, "exited", "t_exit" (null when it did not leave) and "markers_at_exit".
+  function exits_json(model) result(s)
+    type(model_t), intent(in) :: model
+    character(len=:), allocatable :: s, items
+    integer :: i, k, j
+    s = ''; items = ''
+    do i = 1, size(model%effects)
+      select type (e => model%effects(i)%e)
+      type is (moving_load_effect)
+        do k = 1, size(e%loads)
+          associate(x => e%exits(k))
+            if (len(items) > 0) items = items // ', '
+            items = items // '{"name": "' // json_escape(trim(e%loads(k)%name)) // '", "exited": ' // &
+              & merge('true ', 'false', x%exited)
+            if (.not. x%exited) then
+              items = items // ', "t_exit": null, "markers_at_exit": {}}'; cycle
+            end if
+            items = trim(items) // ', "t_exit": ' // num(x%t) // ', "markers_at_exit": {'
+            do j = 1, size(x%markers)
+              if (j > 1) items = items // ', '
+              items = items // '"' // json_escape(trim(model%d%markers%name(x%markers(j)))) // '": {"position": ' // &
+                & arr(x%r(:, j)) // ', "velocity": ' // arr(x%v(:, j)) // ', "angle": ' // arr(x%angle(:, j)) // &
+                & ', "angular_rate": ' // arr(x%rate(:, j)) // '}'
+            end do
+            items = items // '}}'
+          end associate
+        end do
+      end select
+    end do
+    if (len(items) > 0) s = '  "moving_loads": [' // items // '],' // new_line('a')
+  end function exits_json
+
+  !> A number as JSON (17 significant digits).
+  function num(v) result(s)
+    real(dp), intent(in) :: v
+    character(len=:), allocatable :: s
+    character(len=32) :: buf
+    write(buf, '(es25.17)') v
+    s = trim(adjustl(buf))
+  end function num
+
+  !> A 3-vector as a JSON array.
+  function arr(v) result(s)
+    real(dp), intent(in) :: v(3)
+    character(len=:), allocatable :: s
+    s = '[' // num(v(1)) // ', ' // num(v(2)) // ', ' // num(v(3)) // ']'
+  end function arr
+
+  !> A 3-vector for the summary.
+  function vec(v) result(s)
+    real(dp), intent(in) :: v(3)
+    character(len=:), allocatable :: s
+    character(len=48) :: buf
+    write(buf, '(3es13.5)') v
+    s = '(' // trim(adjustl(buf)) // ')'
+  end function vec
+end module pymr_driver_moving_load_exits
