@@ -12,7 +12,7 @@ import numpy as np
 
 from . import _kernel as _core
 from .api import SceneError, _raise, format_overrides, model_size, write_file
-from ._args import model_of
+from ._args import _text, model_of
 from .scenes import ROD_LENGTH, ROD_MASS, ROD_RADIUS, serial_chain, spatial_chain
 
 
@@ -318,7 +318,7 @@ def main(what: str, repeats: int | None = None, json_path: str | None = None,
 #: every effect's data with every effect off) and all together; deformation_inertia's case is
 #: 'full' against the baseline 'linear'.
 EFFECTS = ["gravity", "joint_drives", "modal_damping", "joint_springs", "geometric_stiffening", "base_motion",
-           "firing_load", "deformation_inertia"]
+           "firing_load", "force_elements", "controls", "moving_loads", "deformation_inertia"]
 
 
 def _effect_on(effect: str) -> dict:
@@ -339,13 +339,17 @@ def bench_effects(repeats: int = 7) -> list[dict]:
     q = 0.05 * rng.standard_normal(n)
     qd = 0.5 * rng.standard_normal(n)
     q[2:] *= 1e-3
+    # the state by coordinate name: a controller adds its own state coordinates (at 0)
+    with model_of(scene, (scene, "")) as handle:
+        state = {_coordinate_name(handle, k): (q[k], qd[k]) for k in range(n)}
     # interleaved: every repeat times each case once, so that machine drift hits all alike
     samples: dict[str, list] = {name: [] for name, _ in cases}
     reps = 20000
     for _ in range(repeats):
         for name, over in cases:
             with model_of(scene, (scene, over)) as handle:
-                sec, stat, msg, detail = _core.pymr_time_evaluation(handle, q, qd, reps)
+                qc, qdc = _state_of(handle, state)
+                sec, stat, msg, detail = _core.pymr_time_evaluation(handle, qc, qdc, reps)
             _raise(stat, msg, detail)
             samples[name].append(sec)
     for name, _ in cases:
@@ -354,6 +358,18 @@ def bench_effects(repeats: int = 7) -> list[dict]:
     for r in rows:
         r["extra_us"] = r["median_us"] - base
     return rows
+
+
+def _coordinate_name(handle: int, k: int) -> str:
+    return _text(_core.pymr_model_coordinate_name(handle, k + 1))
+
+
+def _state_of(handle: int, state: dict) -> tuple[np.ndarray, np.ndarray]:
+    """(q, qd) of an open model from values by coordinate name (0 for a coordinate not named)."""
+    n, _, _, stat, msg, detail = _core.pymr_model_size(handle)
+    _raise(stat, msg, detail)
+    pairs = [state.get(_coordinate_name(handle, k), (0.0, 0.0)) for k in range(int(n))]
+    return np.array([a for a, _ in pairs]), np.array([b for _, b in pairs])
 
 
 #: The paper's Table 1 (Kim and Kim 2000): step ratio -> (CPU s on its machine, speed-up).

@@ -9,6 +9,7 @@ from __future__ import annotations
 import hashlib
 import json
 import re
+import shutil
 import subprocess
 from pathlib import Path
 
@@ -94,13 +95,22 @@ def test_stored_results_check_sees_a_change_beyond_the_last_bits(tmp_path, mrsim
 @pytest.mark.parametrize("scene", INPUT_SCENES, ids=lambda p: p.name)
 def test_resolved_scene_reads_back_to_itself(scene, tmp_path):
     """Reading the printed resolved scene gives the same scene: the same text, so the same
-    fingerprint, which is the sha256 of the text without its fingerprint line."""
-    text = pymr.Scene(scene).resolved(absolute_paths=True)
-    body, last = text.rstrip("\n").rsplit("\n", 1)
+    fingerprint, which is the sha256 of the text without its fingerprint line, with the
+    files it names relative to the scene's folder (so that a scene moved with its files
+    keeps its fingerprint): also the fingerprint of the text with absolute paths."""
+    relative = pymr.Scene(scene).resolved()
+    body, last = relative.rstrip("\n").rsplit("\n", 1)
     assert last == "! fingerprint sha256:" + hashlib.sha256((body + "\n").encode()).hexdigest()
-    again = tmp_path / "again.nml"
-    again.write_text(text)
-    assert pymr.Scene(again).resolved(absolute_paths=True) == text
+    text = pymr.Scene(scene).resolved(absolute_paths=True)
+    assert text.rstrip("\n").rsplit("\n", 1)[1] == last
+    shutil.copytree(scene.parent, tmp_path / "copy")         # the scene's folder, with its files
+    again = tmp_path / "copy" / "again.nml"
+    again.write_text(relative)
+    assert pymr.Scene(again).resolved() == relative
+    elsewhere = tmp_path / "elsewhere.nml"                   # absolute names: read from anywhere
+    elsewhere.write_text(text)
+    assert pymr.Scene(elsewhere).resolved(absolute_paths=True).rsplit("\n! fingerprint", 1)[0] == \
+        text.rsplit("\n! fingerprint", 1)[0]
 
 
 ITEMS = [  # (address, lower, upper) of real items of the tank scene, drawn at random
