@@ -134,8 +134,11 @@ def tank_on_the_move_tables(folder, *, blowdown: float = 3.0e-3, t_end: float = 
     sh = interior_ballistics()
     pick = np.unique(np.r_[np.arange(0, sh["t"].size, 50), sh["t"].size - 1])
     t_exit = float(sh["t"][-1])
-    _write_table(folder / "ballistics.txt", TANK_FIRE_TIME + sh["t"][pick], sh["s"][pick],
-                 "the shot's travel (m) along the barrel's x axis from firing to shot exit")
+    # the travel table runs on past the muzzle (the same law, 1 m further), so that the
+    # spline through it has no end condition near shot exit
+    on = interior_ballistics(bore_end=6.3)
+    _write_table(folder / "ballistics.txt", TANK_FIRE_TIME + on["t"][::50], on["s"][::50],
+                 "the shot's travel (m) along the barrel's x axis from firing to 1 m past the muzzle")
     after = np.linspace(0.0, 8.0 * blowdown, 33)[1:]
     tf = np.r_[sh["t"][pick], t_exit + after]
     ff = np.r_[sh["f"][pick] - sh["projectile"] * sh["a"][pick], sh["f"][-1] * np.exp(-after / blowdown)]
