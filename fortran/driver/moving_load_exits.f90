@@ -10,7 +10,7 @@ module pymr_driver_moving_load_exits
   use pymr_integrator_stepper, only : stepper_t
   implicit none
   private
-  public :: note_exits, exits_text, exits_json
+  public :: note_exits, next_exit, exits_text, exits_json
 
 contains
 
@@ -39,6 +39,22 @@ contains
       end select
     end do
   end subroutine note_exits
+
+  !> The first exit time after t of a load still on its body (huge: none).
+  real(dp) function next_exit(model, t) result(te)
+    type(model_t), intent(in) :: model
+    real(dp), intent(in) :: t
+    integer :: i, k
+    te = huge(1.0_dp)
+    do i = 1, size(model%effects)
+      select type (e => model%effects(i)%e)
+      type is (moving_load_effect)
+        do k = 1, size(e%loads)
+          if (.not. e%exits(k)%exited .and. e%loads(k)%t_exit > t) te = min(te, e%loads(k)%t_exit)
+        end do
+      end select
+    end do
+  end function next_exit
 
   !> Summary lines: per moving load its exit time and its body's markers' states there, or
   !> that it did not leave the body by t_end.

@@ -30,7 +30,7 @@ module pymr_driver_simulation
   use pymr_driver_progress, only : run_clock
   use pymr_driver_settings_json, only : settings_json
   use pymr_driver_summary, only : summary_text
-  use pymr_driver_moving_load_exits, only : note_exits, exits_json
+  use pymr_driver_moving_load_exits, only : note_exits, next_exit, exits_json
   implicit none
   private
   public :: simulation_t
@@ -72,7 +72,7 @@ module pymr_driver_simulation
     procedure :: finish => simulation_finish
     procedure :: summary => simulation_summary
     procedure :: close => simulation_close
-    procedure, private :: begin_new, resume, put_row, put_rows_reached, put_last_row, checkpoint_if_due
+    procedure, private :: begin_new, resume, put_row, put_rows_reached, put_last_row, checkpoint_if_due, start_again
     procedure, private :: write_results, name_file
   end type simulation_t
 
@@ -195,22 +195,39 @@ contains
   end subroutine resume
 
   !> One step: advance (the stepper closes the loops again inside it), and the step count
-  !> checked.
+  !> checked. A moving load's exit is a discontinuity: a stepper that lands() ends a step
+  !> on it and is started again there, past it.
   subroutine simulation_step(self, error)
     class(simulation_t), intent(inout) :: self
     type(error_type), allocatable, intent(out) :: error
     type(step_counts) :: done
-    real(dp) :: t0
-    t0 = self%st%time()
+    real(dp) :: t_stop
+    t_stop = next_exit(self%model, self%st%time())
+    call self%st%stop_at(t_stop)
     call self%st%advance(self%model, error); if (allocated(error)) return
-    call note_exits(self%model, self%st, t0, self%st%time(), self%sc%scene%t_end)
     done = self%st%counts()
     if (done%steps_fast > self%sc%integrator%max_steps) then
       call fatal_error(error, 'at t = ' // fmt(self%st%time()) // ' s: the run took more than max_steps = ' // &
         & itoa(self%sc%integrator%max_steps) // ' steps (&integrator max_steps lifts the limit)', stat_solver)
+      return
     end if
     self%reached_written = .false.
+    if (self%st%lands() .and. self%st%time() == t_stop .and. t_stop < self%sc%scene%t_end) &
+      & call self%start_again(error)
   end subroutine simulation_step
+
+  !> Start the stepper again where it stands (after the rows up to there are written from
+  !> its steps so far): its history is of the motion before a discontinuity.
+  subroutine start_again(self, error)
+    class(simulation_t), intent(inout) :: self
+    type(error_type), allocatable, intent(out) :: error
+    real(dp) :: t
+    call self%put_rows_reached(error); if (allocated(error)) return
+    self%reached_written = .true.
+    t = self%st%time()
+    call self%st%value_at(t, self%x)
+    call self%st%start(self%model, t, self%x, self%h0, error)
+  end subroutine start_again
 
   !> Integrate until the stepper has reached t: the rows of every output time passed, the
   !> checkpoints due, and the steps.
@@ -236,11 +253,12 @@ contains
 
   !> The rows of the output times up to the time the stepper has reached (every step's
   !> row with dt = 0, but not again the row of the state the integration starts from, nor
-  !> the last, written at the end), and the works there.
+  !> the last, written at the end), and the works there; then the moving loads' exits in
+  !> the step (their rows and works taken with the loads still on).
   subroutine put_rows_reached(self, error)
     class(simulation_t), intent(inout) :: self
     type(error_type), allocatable, intent(out) :: error
-    real(dp) :: work(n_work), t_end, t
+    real(dp) :: work(n_work), t_end, t, t0
     t_end = self%sc%scene%t_end
     if (self%dt_out > 0.0_dp) then
       do while (self%t_next <= min(self%st%time(), t_end) + self%eps)
@@ -256,12 +274,14 @@ contains
     t = self%st%time()
     call work_at(self%csv%plan, self%st, self%model, self%t_step, self%work_step, t, work, error)
     if (allocated(error)) return
+    t0 = self%t_step
     self%work_step = work; self%t_step = t
     if (self%dt_out <= 0.0_dp .and. t > self%t_first_row + self%eps .and. t < t_end - self%eps) then
       call self%st%value_at(t, self%x)
-      call self%put_row(t, self%work_step, error)
+      call self%put_row(t, self%work_step, error); if (allocated(error)) return
       self%stats%rows = self%stats%rows + 1
     end if
+    call note_exits(self%model, self%st, t0, t, t_end)
   end subroutine put_rows_reached
 
   !> Write the row of the state x at time t, and watch the flexible bodies' deflection there.

@@ -9,7 +9,8 @@ module pymr_integrator_abm
   use pymr_integrator_nordsieck, only : nq, corrector_l, nordsieck_predict, nordsieck_correct, &
     & nordsieck_rescale, nordsieck_value, nordsieck_from_history
   use pymr_integrator_control, only : step_control, error_weights, wrms_norm
-  use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps, state_record, project_step, projection_eta
+  use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps, state_record, project_step, projection_eta, &
+    & landing_ratio
   use pymr_env_text, only : fmt
   implicit none
   private
@@ -48,6 +49,7 @@ module pymr_integrator_abm
     procedure :: state_size => abm_state_size
     procedure :: get_state => abm_get_state
     procedure :: set_state => abm_set_state
+    procedure :: lands => abm_lands
   end type abm_integrator
 
 contains
@@ -102,7 +104,9 @@ contains
     self%t0 = t0
     self%t = t0 + 2*hs
     self%h = hs
-    self%steps = 2
+    ! a fixed-step run counts its time in steps from t0; an adaptive one started again (past
+    ! a discontinuity) keeps counting
+    self%steps = merge(self%steps + 2, 2, self%adaptive)
   end subroutine abm_start
 
   !> Starting step from the tolerances (Hairer, Norsett and Wanner, order 4), capped by h_max.
@@ -169,6 +173,7 @@ contains
     do
       tn = self%t + self%h
       if (.not. self%adaptive) tn = self%t0 + (self%steps + 1)*self%h
+      if (self%adaptive) call land(self, tn)
       call try_step(self, sys, tn, error); if (allocated(error)) return
       err = 0.0_dp
       if (self%adaptive) then
@@ -203,6 +208,24 @@ contains
       self%h = eta*self%h
     end if
   end subroutine abm_step
+
+  !> An adaptive step that would pass t_stop shortened to end on it (tn then t_stop).
+  pure subroutine land(self, tn)
+    class(abm_integrator), intent(inout) :: self
+    real(dp), intent(inout) :: tn
+    real(dp) :: eta
+    eta = landing_ratio(self%t, self%h, self%t_stop)
+    if (eta == 1.0_dp) return
+    call nordsieck_rescale(self%z, eta)
+    self%h = eta*self%h
+    tn = self%t_stop
+  end subroutine land
+
+  !> An adaptive run's steps land on t_stop.
+  pure logical function abm_lands(self)
+    class(abm_integrator), intent(in) :: self
+    abm_lands = self%adaptive
+  end function abm_lands
 
   !> Predict from z, evaluate and correct n_corr times; result in zn and g.
   subroutine try_step(self, sys, tn, error)

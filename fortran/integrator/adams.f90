@@ -15,7 +15,8 @@ module pymr_integrator_adams
   use pymr_env_error, only : error_type, fatal_error, stat_solver
   use pymr_integrator_ode, only : ode_system
   use pymr_integrator_control, only : step_control, error_weights, wrms_norm
-  use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps, state_record, project_step, projection_eta
+  use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps, state_record, project_step, projection_eta, &
+    & landing_ratio
   use pymr_integrator_abm, only : check_finite
   use pymr_env_text, only : fmt, itoa
   use pymr_env_lapack, only : lu_factor, lu_solve
@@ -143,6 +144,7 @@ module pymr_integrator_adams
     procedure :: get_state => adams_get_state
     procedure :: set_state => adams_set_state
     procedure :: order => adams_order
+    procedure :: lands => adams_lands
   end type adams_integrator
 
 contains
@@ -245,8 +247,10 @@ contains
     error_fails = 0; corr_fails = 0; projection_fails = 0
     call error_weights(self%ctl, self%z(:, 0), self%wk%w)
     do
+      if (self%adaptive .and. self%t + self%h > self%t_stop) call rescale(self, landing_ratio(self%t, self%h, self%t_stop))
       self%wk%z_old(:, 0:self%q) = self%z(:, 0:self%q)
       tn = self%t + self%h
+      if (self%t < self%t_stop .and. tn >= self%t_stop) tn = self%t_stop
       call nordsieck_predict_in_place(self%z(:, 0:self%q))
       call set_coefficients(self)
       call correct(self, sys, tn, converged, acnrm, error); if (allocated(error)) return
@@ -288,6 +292,12 @@ contains
     call accept(self, tn)
     if (self%adaptive) call choose_next(self, dsm)
   end subroutine adams_advance
+
+  !> An adaptive run's steps land on t_stop.
+  pure logical function adams_lands(self)
+    class(adams_integrator), intent(in) :: self
+    adams_lands = self%adaptive
+  end function adams_lands
 
   !> Fixed-point iteration for the correction e of the predicted array z (not changed):
   !> e <- (h f(t_n, z_0 + e) - z_1)/l_1. Converged when the iteration error, estimated from

@@ -13,7 +13,7 @@ module pymr_integrator_stepper
   use pymr_integrator_ode, only : ode_system
   implicit none
   private
-  public :: stepper_t, step_counts, pece_steps, state_record, project_step
+  public :: stepper_t, landing_ratio, step_counts, pece_steps, state_record, project_step
 
   !> A step whose projection onto the system's constraints fails is redone with its step
   !> times projection_eta, at most max_projection_fails times in one step (adaptive steppers;
@@ -59,7 +59,13 @@ module pymr_integrator_stepper
   end type state_record
 
   type, abstract :: stepper_t
+    !> A time the next steps must not step over (stop_at): a stepper that lands() ends a
+    !> step exactly there, so that its caller can start it again past a discontinuity.
+    real(dp) :: t_stop = huge(1.0_dp)
   contains
+    procedure, non_overridable :: stop_at
+    !> Whether its steps land on t_stop (adaptive single-rate); the others step over it.
+    procedure :: lands => no_landing
     procedure(start_iface), deferred :: start
     procedure(advance_iface), deferred :: advance
     procedure(time_iface), deferred :: time
@@ -309,6 +315,26 @@ contains
     integer :: a(1)
     a(1) = merge(1, 0, x); call rec%ints(a); x = a(1) /= 0
   end subroutine logical_0
+
+  !> The next steps end at t_stop when they would pass it (huge: no stop).
+  pure subroutine stop_at(self, t_stop)
+    class(stepper_t), intent(inout) :: self
+    real(dp), intent(in) :: t_stop
+    self%t_stop = t_stop
+  end subroutine stop_at
+
+  pure logical function no_landing(self)
+    class(stepper_t), intent(in) :: self
+    no_landing = .false.
+  end function no_landing
+
+  !> The step h from t shortened to end on t_stop when it would pass it: the factor to
+  !> rescale the step by (1: no change).
+  pure real(dp) function landing_ratio(t, h, t_stop) result(eta)
+    real(dp), intent(in) :: t, h, t_stop
+    eta = 1.0_dp
+    if (t < t_stop .and. t + h > t_stop) eta = (t_stop - t)/h
+  end function landing_ratio
 
   pure integer function order_four(self)
     class(stepper_t), intent(in) :: self

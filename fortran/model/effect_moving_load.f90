@@ -39,6 +39,8 @@ module pymr_model_effect_moving_load
     real(dp) :: start = 0.0_dp, s0 = 0.0_dp, speed = 0.0_dp
     logical :: tabulated = .false.
     type(time_table) :: table
+    !> Its exit time (exit_time): it acts up to it, and leaves when the run passes it.
+    real(dp) :: t_exit = huge(1.0_dp)
   end type moving_load
 
   !> A load's exit: whether it has left the body in the run, when (s), and the states then
@@ -81,6 +83,9 @@ contains
     e%power_needs_accelerations = .true.
     e%loads = loads
     e%g = g
+    do i = 1, size(loads)
+      e%loads(i)%t_exit = exit_time(loads(i))
+    end do
     allocate(e%exits(size(loads)))
     do i = 1, size(loads)
       associate(x => e%exits(i))
@@ -124,7 +129,9 @@ contains
       if (ld%speed > 0.0_dp) te = ld%start + (ld%length - ld%s0)/ld%speed
       return
     end if
+    if (.not. allocated(ld%table%t)) return
     n = size(ld%table%t)
+    if (n < 2) return
     associate(t => ld%table%t, y => ld%table%y)
       do i = 1, n - 1
         if (y(i) <= ld%length .and. y(i + 1) > ld%length) then
@@ -158,9 +165,12 @@ contains
 
   !> The load's point on its body at time t: shapes psi (3 x m) at s, the body-frame place
   !> c, the tangent tg = e_x + Psi' a, the relative velocity cv = Psi ad + sd tg and the
-  !> relative acceleration at zero modal accelerations cb; `on` when 0 <= s <= L.
-  pure subroutine point_on_body(ld, d, t, q, qd, psi, c, tg, cv, cb, sd, on)
+  !> relative acceleration at zero modal accelerations cb; `on` when s >= 0, up to its exit
+  !> time and until the run has noted its exit (`gone`): a step that ends on the exit time
+  !> sees the load throughout, and the run started again there sees none.
+  pure subroutine point_on_body(ld, gone, d, t, q, qd, psi, c, tg, cv, cb, sd, on)
     type(moving_load), intent(in) :: ld
+    logical, intent(in) :: gone
     type(model_data), intent(in) :: d
     real(dp), intent(in) :: t, q(:), qd(:)
     real(dp), intent(out) :: psi(:, :), c(3), tg(3), cv(3), cb(3), sd
@@ -169,7 +179,7 @@ contains
     integer :: b, m
     b = ld%body; m = d%nm(b)
     call travel(ld, t, s, sd, sdd)
-    on = s >= 0.0_dp .and. s <= ld%length
+    on = s >= 0.0_dp .and. t <= ld%t_exit .and. .not. gone
     if (.not. on) return
     call axis_shapes(d%bshape(b), s, psi, dpsi, ddpsi)
     associate(a => q(d%a0(b):d%a0(b) + m - 1), ad => qd(d%a0(b):d%a0(b) + m - 1))
@@ -203,7 +213,7 @@ contains
       associate(ld => self%loads(i))
         b = ld%body; m = d%nm(b)
         if (.not. mask(b)) cycle
-        call point_on_body(ld, d, t, q, qd, psi(:, 1:m), c, tg, cv, cb, sd, on)
+        call point_on_body(ld, self%exits(i)%exited, d, t, q, qd, psi(:, 1:m), c, tg, cv, cb, sd, on)
         if (.not. on) cycle
         associate(rot => wk%rot(:, :, b), w => wk%vel(4:6, b), acc => wk%acc(:, b))
           r = wk%pos(:, b) + matmul(rot, c)
@@ -230,8 +240,9 @@ contains
 
   !> Inertial place r and velocity v of a load's point (after forward_kinematics), with its
   !> tangent tg (body frame) and travel rate sd; `on` as point_on_body.
-  subroutine point_motion(ld, d, wk, t, q, qd, r, v, tg, sd, on, cb, psi)
+  subroutine point_motion(ld, gone, d, wk, t, q, qd, r, v, tg, sd, on, cb, psi)
     type(moving_load), intent(in) :: ld
+    logical, intent(in) :: gone
     type(model_data), intent(in) :: d
     type(model_work), intent(in) :: wk
     real(dp), intent(in) :: t, q(:), qd(:)
@@ -240,7 +251,7 @@ contains
     real(dp) :: c(3), cv(3)
     integer :: b
     b = ld%body
-    call point_on_body(ld, d, t, q, qd, psi, c, tg, cv, cb, sd, on)
+    call point_on_body(ld, gone, d, t, q, qd, psi, c, tg, cv, cb, sd, on)
     if (.not. on) return
     r = wk%pos(:, b) + matmul(wk%rot(:, :, b), c)
     v = wk%vel(1:3, b) + cross(wk%vel(4:6, b), r) + matmul(wk%rot(:, :, b), cv)
@@ -259,7 +270,7 @@ contains
     real(dp) :: r(3), v(3), tg(3), sd, cb(3), psi(3, d%mmax)
     do i = 1, size(self%loads)
       associate(ld => self%loads(i))
-        call point_motion(ld, d, wk, t, q, qd, r, v, tg, sd, on, cb, psi(:, 1:d%nm(ld%body)))
+        call point_motion(ld, self%exits(i)%exited, d, wk, t, q, qd, r, v, tg, sd, on, cb, psi(:, 1:d%nm(ld%body)))
         if (.not. on) cycle
         e(energy_kinetic) = e(energy_kinetic) + 0.5_dp*ld%mass*dot_product(v, v)
         e(energy_gravity) = e(energy_gravity) - ld%mass*dot_product(self%g, r)
@@ -283,7 +294,7 @@ contains
     do i = 1, size(self%loads)
       associate(ld => self%loads(i))
         b = ld%body; m = d%nm(b)
-        call point_motion(ld, d, wk, t, q, qd, r, v, tg, sd, on, cb, psi(:, 1:m))
+        call point_motion(ld, self%exits(i)%exited, d, wk, t, q, qd, r, v, tg, sd, on, cb, psi(:, 1:m))
         if (.not. on) cycle
         associate(rot => wk%rot(:, :, b), w => wk%vel(4:6, b))
           ab = wk%acc(:, b) + lin(:, b)
