@@ -77,6 +77,8 @@ ADJUST = {
         (["--quick", "--repeats", "1"], "the full study takes 7 min; --quick runs every family with fewer settings"),
     "pymr study input/hard/stiff_barrel.nml --marker muzzle -o docs/stiff_barrel_study":
         (["--quick", "--repeats", "1"], "the full study takes longer still"),
+    "pymr study input/tank_on_the_move.nml --marker muzzle --repeats 3":
+        (["--quick", "--repeats", "1"], "the full study takes 6 min"),
 }
 
 #: Scene copies run over a shorter time for the studies of ADJUST (a study has no --set).
@@ -84,6 +86,7 @@ SHORTER = {
     "pymr study input/tank_gun_turret.nml --marker muzzle -o docs/tank_study": ("input/tank_gun_turret.nml", 0.1),
     "pymr study input/hard/stiff_barrel.nml --marker muzzle -o docs/stiff_barrel_study":
         ("input/hard/stiff_barrel.nml", 0.02),
+    "pymr study input/tank_on_the_move.nml --marker muzzle --repeats 3": ("input/tank_on_the_move.nml", 0.3),
 }
 
 
