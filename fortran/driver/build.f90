@@ -13,7 +13,7 @@ module pymr_driver_build
   use pymr_driver_build_effects, only : build_effects
   use pymr_io_modal_file, only : read_modal_file
   use pymr_model_flexbody, only : flex_data, modal_nodes, undeformed_modal_moments
-  use pymr_model_spatial, only : unit_axes
+  use pymr_model_spatial, only : unit_axes, cross
   use pymr_env_text_file, only : scene_relative
   use pymr_model, only : model_t
   use pymr_env_text, only : itoa, fmt
@@ -319,7 +319,7 @@ contains
           ! the child's second axis: normal(:, 1), as the tree joint's axis2
           if (any(jt%axis2 /= unset)) then
             d%cuts%normal(:, 1, c) = jt%axis2/norm2(jt%axis2)
-            d%cuts%normal(:, 2, c) = cross3(d%cuts%axis(:, c), d%cuts%normal(:, 1, c))
+            d%cuts%normal(:, 2, c) = cross(d%cuts%axis(:, c), d%cuts%normal(:, 1, c))
           end if
         case default; d%cuts%kind(c) = cut_spherical; d%cuts%nrow(c) = 3
         end select
@@ -393,12 +393,6 @@ contains
     end subroutine put
   end subroutine add_joint
 
-  pure function cross3(a, b) result(c)
-    real(dp), intent(in) :: a(3), b(3)
-    real(dp) :: c(3)
-    c = [a(2)*b(3) - a(3)*b(2), a(3)*b(1) - a(1)*b(3), a(1)*b(2) - a(2)*b(1)]
-  end function cross3
-
   !> Two unit normals of an axis, the one rule for a joint's in-plane directions: the
   !> coordinate axis least aligned with it (the first on a tie) made normal to it, then the
   !> unit axis crossed with that (axis z: x, then y).
@@ -408,7 +402,7 @@ contains
     u = axis/norm2(axis)
     e(:, 1) = unit_axes(:, minloc(abs(u), dim=1))
     e(:, 1) = e(:, 1) - dot_product(e(:, 1), u)*u; e(:, 1) = e(:, 1)/norm2(e(:, 1))
-    e(:, 2) = [u(2)*e(3, 1) - u(3)*e(2, 1), u(3)*e(1, 1) - u(1)*e(3, 1), u(1)*e(2, 1) - u(2)*e(1, 1)]
+    e(:, 2) = cross(u, e(:, 1))
   end function axis_normals
 
   !> Build beam i of the scene as model body b; its modal coordinates follow index m.

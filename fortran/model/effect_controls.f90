@@ -23,6 +23,7 @@ module pymr_model_effect_controls
   use pymr_model_effect, only : effect_t, stage_load, stage_rows, stage_accelerate, power_drives
   use pymr_model_kinematics, only : forward_kinematics, marker_rotation
   use pymr_model_flexbody, only : small_rotation
+  use pymr_model_spatial, only : cross
   use pymr_model_time_table, only : time_table, table_linear
   implicit none
   private
@@ -185,10 +186,4 @@ contains
       p(power_drives) = p(power_drives) + effort*qd(self%controls(i)%coord)
     end do
   end subroutine controls_power
-
-  pure function cross(a, b) result(c)
-    real(dp), intent(in) :: a(3), b(3)
-    real(dp) :: c(3)
-    c = [a(2)*b(3) - a(3)*b(2), a(3)*b(1) - a(1)*b(3), a(1)*b(2) - a(2)*b(1)]
-  end function cross
 end module pymr_model_effect_controls
