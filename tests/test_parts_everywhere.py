@@ -14,6 +14,7 @@ import pytest
 
 import pymr
 from test_loops import L0, flexible_coupler_scene
+from test_outputs import balance
 
 ROOT = Path(__file__).resolve().parent.parent
 TANK_ON_THE_MOVE = ROOT / "input" / "tank_on_the_move.nml"
@@ -48,10 +49,6 @@ def over(**items):
     return {f"integrator.{k}": v for k, v in items.items()}
 
 
-def balance(res) -> np.ndarray:
-    """Energy minus the work done on the system plus what damping took out: constant."""
-    return (res["energy.total"] - res["energy.drive_work"] - res["energy.load_work"] - res["energy.motion_work"]
-            + res["energy.damping_loss"])
 
 
 @pytest.fixture(scope="module")

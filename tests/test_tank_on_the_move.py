@@ -11,6 +11,7 @@ from scipy.interpolate import CubicSpline
 
 import pymr
 from pymr import scenes
+from test_outputs import balance
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENE = ROOT / "input" / "tank_on_the_move.nml"
@@ -66,9 +67,6 @@ def runs(tmp_path_factory):
             "locked": pymr.run(SCENE, d / "locked.csv", overrides={**q, **LOCKED})}
 
 
-def balance(r) -> np.ndarray:
-    return (r["energy.total"] - r["energy.drive_work"] - r["energy.load_work"] - r["energy.motion_work"]
-            + r["energy.damping_loss"])
 
 
 @pytest.mark.parametrize("case", ["stabilised", "locked"])
