@@ -18,7 +18,8 @@ class Column:
     """What the kernel says of one column of a results file (OUT.json's "columns"): its
     name, group ('time', 'joint_coordinates', 'joint_rates', 'controls', 'modal_coordinates',
     'modal_rates', 'markers', 'marker_accelerations', 'marker_orientations', 'reactions',
-    'energy'), owner (the joint, flexible body or marker; '' for t and the energies),
+    'energy', 'sensors'), owner (the joint, flexible body, marker or sensor; '' for t and the
+    energies),
     quantity (such as 'angle', 'displacement', 'position', 'force', 'kinetic') and unit."""
     name: str
     group: str
