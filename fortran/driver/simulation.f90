@@ -15,6 +15,7 @@ module pymr_driver_simulation
   use pymr_env_text_file, only : acquire_lock, release_lock, commit_staged, remove_file
   use pymr_model_scene, only : scene_t
   use pymr_model, only : model_t
+  use pymr_model_sensors, only : sensors_of
   use pymr_integrator_stepper, only : stepper_t, step_counts
   use pymr_io_namelist_input, only : scene_fingerprint, checkpoint_identity, resolved_text
   use pymr_io_results_output, only : json_path, write_json, run_stats, output_plan_of, n_work
@@ -141,7 +142,7 @@ contains
       allocate(csv_writer :: self%out)
     end if
     self%out%digits = self%sc%output%precision
-    self%out%plan = output_plan_of(self%sc%output%quantities, self%model%d)
+    self%out%plan = output_plan_of(self%sc%output%quantities, self%model%d, sensors_of(self%sc, self%model%d))
     call self%out%describe(self%sc%scene%title, method_label(self%sc), scene_fingerprint(self%sc), &
       & resolved_text(self%sc, absolute_paths=.true.), settings_json(self%sc))
   end subroutine choose_format
