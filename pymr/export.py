@@ -207,6 +207,11 @@ def export_vtk(results: Results | str | os.PathLike, folder, scene=None, every: 
     return the path of its .pvd."""
     res = results if isinstance(results, Results) else load_results(results)
     out = check_export_folder(folder, option)
+    try:
+        import meshio  # noqa: F401
+    except ImportError:
+        raise OutputError(f"{option} {out}: the VTK export needs meshio, which is not installed here "
+                          "(pip install meshio)") from None
     mo = motion(res, scene, exaggerate=exaggerate, every=every, frames=frames)
     name = Path(res.path).stem if res.path else "motion"
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-", dir=out.parent))
