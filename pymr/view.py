@@ -373,6 +373,10 @@ def view(results: Results | str | os.PathLike, output: str | os.PathLike, scene=
     page's path. The output is checked before anything is computed (`option` names it in
     messages), and written whole or not at all."""
     from .animate import scene_of
+    try:
+        import plotly  # noqa: F401  (the page's library: an optional dependency)
+    except ImportError:
+        raise PlotError("pymr view needs plotly, which is not installed (pip install plotly)") from None
     res = results if isinstance(results, Results) else load_results(results)
     check_options(every, frames, exaggerate)
     out = check_output(output, "view", option=option, suffixes=[".html", ".htm"],
