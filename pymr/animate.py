@@ -19,7 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .api import Model, PymrError, model_size
+from .api import Model, model_size
+from .geometry import GeometryError, check_geometry, scene_of
 from .outputs import check_output
 from .results import Results, load_results
 
@@ -29,53 +30,9 @@ VIEWS = {"xy": (0, 1), "xz": (0, 2), "zy": (2, 1)}
 FORMATS = [".gif", ".mp4", ".mkv", ".mov", ".avi", ".webm"]
 
 
-class AnimateError(PymrError):
-    """Results that cannot be animated: no scene, another scene, an unknown view."""
-
-
-def scene_of(res: Results, scene: str | os.PathLike | None = None) -> Path:
-    """The scene of the results: the one given; else the resolved scene their statistics
-    hold (the scene as the run read it, --set overrides applied), written to a temporary
-    file; else the scene file their statistics name."""
-    if scene:
-        path = Path(scene)
-    elif res.stats.get("resolved_scene"):
-        return _resolved_scene_file(res.stats["resolved_scene"])
-    elif res.stats.get("scene"):
-        path = Path(res.stats["scene"])
-    else:
-        raise AnimateError(f"{res.path}: the results name no scene (no statistics file beside them): give --scene")
-    if not path.exists():
-        raise AnimateError(f"{res.path}: the scene {path} is not there: give --scene")
-    return path
-
-
-_RESOLVED: dict[str, Path] = {}
-
-
-def _resolved_scene_file(text: str) -> Path:
-    """A temporary file holding a resolved scene (one per text, removed at exit)."""
-    if text not in _RESOLVED:
-        import atexit
-        import shutil
-        import tempfile
-        folder = tempfile.mkdtemp(prefix="pymr-scene-")
-        atexit.register(shutil.rmtree, folder, ignore_errors=True)
-        _RESOLVED[text] = Path(folder) / "resolved.nml"
-        _RESOLVED[text].write_text(text)
-    return _RESOLVED[text]
-
-
-def check_geometry(res: Results, model: Model, path: Path, q: np.ndarray, qd: np.ndarray) -> None:
-    """The model's markers at (up to 20 of) the results' states equal the run's marker columns."""
-    rows = np.unique(np.linspace(0, len(res.t) - 1, min(20, len(res.t))).round().astype(int))
-    for m in res.markers:
-        written = res.marker(m)[0][rows]
-        again = model.marker(m, res.t[rows], q[rows], qd[rows])
-        if np.abs(again - written).max() > 1e-9 * max(1.0, np.abs(written).max()):
-            raise AnimateError(f"{res.path}: {path} is not the scene of this run (its marker {m!r} is elsewhere at "
-                               "the run's coordinates: the run may have had --set overrides); give the resolved "
-                               "scene with --scene (pymr scene SCENE --set ... > resolved.nml)")
+class AnimateError(GeometryError):
+    """Results that cannot be animated: an unknown view, a bad count (no scene, another scene:
+    :class:`pymr.geometry.GeometryError`, of which this is one)."""
 
 
 def motion(res: Results, scene: str | os.PathLike | None = None, exaggerate: float = 1.0,
@@ -93,7 +50,7 @@ def motion(res: Results, scene: str | os.PathLike | None = None, exaggerate: flo
     q[:, n_joint:] *= exaggerate
     n, nb, _ = model_size(path)
     if q.shape[1] != n:
-        raise AnimateError(f"{res.path}: the results hold {q.shape[1]} of the scene's {n} coordinates: animating "
+        raise GeometryError(f"{res.path}: the results hold {q.shape[1]} of the scene's {n} coordinates: animating "
                            "needs them all (run with &output quantities 'coordinates')")
     with Model(path) as model:
         check_geometry(res, model, path, q_all, qd_all)

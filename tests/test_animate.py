@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 import pymr
-from pymr.animate import AnimateError, animate, motion
+from pymr.animate import animate, motion
+from pymr.geometry import GeometryError
 
 ROOT = Path(__file__).resolve().parents[1]
 TANK = ROOT / "input" / "tank_gun_turret.nml"
@@ -71,7 +72,7 @@ def test_a_run_with_overrides_is_drawn_from_the_scene_its_statistics_hold(tmp_pa
     resolved = pymr.Scene(TANK, over).write(tmp_path / "resolved.nml", absolute_paths=True)
     animate(out, tmp_path / "ok.gif", scene=resolved, frames=3)
     (tmp_path / "o.json").unlink()
-    with pytest.raises(AnimateError, match="the results name no scene"):
+    with pytest.raises(GeometryError, match="the results name no scene"):
         animate(out, tmp_path / "x.gif")
 
 

@@ -691,3 +691,247 @@ subroutine pymr_model_coordinate_name(handle, k, name)
   if (allocated(error)) return
   if (k >= 1 .and. k <= open_models(handle)%built%d%n) name = open_models(handle)%built%d%qname(k)
 end subroutine pymr_model_coordinate_name
+
+!> Every body's pose (inertial origin pos(3, b, k) and body-to-inertial rotation rot(3, 3, b, k))
+!> of an open model at m states (t(m), q(n,m), qd(n,m)), the flexible bodies' modal
+!> coordinates scaled by `exaggerate` (1: as they are), for drawing.
+subroutine pymr_model_poses(handle, n, m, nb, t, q, qd, exaggerate, pos, rot, stat, message, detail)
+  use pymr_env_error, only : error_type, fatal_error
+  use pymr_bind_support, only : report
+  use pymr_bind_models, only : open_models, check_handle, live_model
+  use pymr_bind_drawing, only : scaled_kinematics
+  use pymr_model, only : model_t
+  implicit none
+  integer, intent(in) :: handle, n, m, nb
+  double precision, intent(in) :: t(m), q(n, m), qd(n, m), exaggerate
+  double precision, intent(out) :: pos(3, nb, m), rot(3, 3, nb, m)
+  integer, intent(out) :: stat
+  character(len=8192), intent(out) :: message
+  character(len=4096), intent(out) :: detail
+  !f2py integer intent(hide), depend(q) :: n = shape(q, 0)
+  !f2py integer intent(hide), depend(q) :: m = shape(q, 1)
+  type(error_type), allocatable :: error
+  type(model_t), pointer :: model
+  integer :: k
+  pos = 0.0d0; rot = 0.0d0
+  call check_handle(handle, error)
+  if (.not. allocated(error)) then
+    if (open_models(handle)%built%d%n /= n) then
+      call fatal_error(error, 'q has the wrong length')
+    else if (open_models(handle)%built%d%nb /= nb) then
+      call fatal_error(error, 'nb is not the number of bodies')
+    end if
+  end if
+  call report(error, stat, message, detail)
+  if (stat /= 0) return
+  model => live_model(handle)
+  do k = 1, m
+    call scaled_kinematics(model, t(k), q(:, k), qd(:, k), exaggerate)
+    pos(:, :, k) = model%wk%pos(:, 1:nb)
+    rot(:, :, :, k) = model%wk%rot(:, :, 1:nb)
+  end do
+end subroutine pymr_model_poses
+
+!> Body `body` (1-based, model order) of an open model, for drawing: its name, kind (0 the
+!> ground, 1 rigid, 2 beam, 3 modal file), the number of a modal-file body's nodes, its mass
+!> (kg), centre of mass (body frame, m) and inertia about it (body axes, kg m^2; a rigid
+!> body's), and a beam's length and outer radius (r_outer, else that of a full circle of its
+!> area; m). kind = -1 for no such body.
+subroutine pymr_model_body_info(handle, body, name, kind, nodes, mass, com, inertia, length, radius)
+  use pymr_env_error, only : error_type
+  use pymr_bind_models, only : open_models, check_handle
+  use pymr_model_scene, only : unset
+  implicit none
+  integer, intent(in) :: handle, body
+  character(len=64), intent(out) :: name
+  integer, intent(out) :: kind, nodes
+  double precision, intent(out) :: mass, com(3), inertia(3, 3), length, radius
+  type(error_type), allocatable :: error
+  integer :: i
+  name = ''; kind = -1; nodes = 0; mass = 0.0d0; com = 0.0d0; inertia = 0.0d0; length = 0.0d0; radius = 0.0d0
+  call check_handle(handle, error)
+  if (allocated(error)) return
+  associate(d => open_models(handle)%built%d, sc => open_models(handle)%sc)
+    if (body < 1 .or. body > d%nb) return
+    name = d%body_name(body)
+    mass = d%mass(body); com = d%com(:, body); inertia = d%inertia(:, :, body)
+    kind = merge(0, 1, body == 1)
+    if (d%bshape(body)%ne > 0) then
+      kind = 2; length = d%bshape(body)%length
+      do i = 1, size(sc%bodies)
+        if (sc%bodies(i)%name /= d%body_name(body)) cycle
+        if (sc%bodies(i)%r_outer /= unset) then
+          radius = sc%bodies(i)%r_outer
+        else if (sc%bodies(i)%area /= unset) then
+          radius = sqrt(sc%bodies(i)%area/acos(-1.0d0))
+        end if
+      end do
+    else if (d%flexible(body)) then
+      kind = 3; nodes = d%mnodes(body)%np
+    end if
+  end associate
+end subroutine pymr_model_body_info
+
+!> Flexible body `body`'s centre line at np points (a beam: evenly along its length, np >= 2;
+!> a modal-file body: its nodes, np their number) at m states of an open model: line(3, p, k)
+!> the inertial place with the modal coordinates scaled by `exaggerate`, disp(3, p, k) the
+!> elastic displacement at the unscaled coordinates (inertial axes of the drawn pose).
+subroutine pymr_model_body_line(handle, body, n, m, np, t, q, qd, exaggerate, line, disp, stat, message, detail)
+  use pymr_env_error, only : error_type, fatal_error
+  use pymr_bind_support, only : report
+  use pymr_bind_models, only : open_models, check_handle, live_model
+  use pymr_bind_drawing, only : scaled_kinematics, line_points, n_line_points
+  use pymr_model, only : model_t
+  implicit none
+  integer, intent(in) :: handle, body, n, m, np
+  double precision, intent(in) :: t(m), q(n, m), qd(n, m), exaggerate
+  double precision, intent(out) :: line(3, np, m), disp(3, np, m)
+  integer, intent(out) :: stat
+  character(len=8192), intent(out) :: message
+  character(len=4096), intent(out) :: detail
+  !f2py integer intent(hide), depend(q) :: n = shape(q, 0)
+  !f2py integer intent(hide), depend(q) :: m = shape(q, 1)
+  type(error_type), allocatable :: error
+  type(model_t), pointer :: model
+  double precision, allocatable :: psi(:, :)
+  double precision :: x0(3), u(3)
+  integer :: k, p, nm, a0
+  line = 0.0d0; disp = 0.0d0
+  call check_handle(handle, error)
+  if (.not. allocated(error)) then
+    if (open_models(handle)%built%d%n /= n) then
+      call fatal_error(error, 'q has the wrong length')
+    else if (body < 2 .or. body > open_models(handle)%built%d%nb) then
+      call fatal_error(error, 'no body with this index')
+    else if (n_line_points(open_models(handle)%built%d, body, np) /= np .or. np < 2) then
+      call fatal_error(error, 'np is not the number of points of this flexible body''s line')
+    end if
+  end if
+  call report(error, stat, message, detail)
+  if (stat /= 0) return
+  model => live_model(handle)
+  nm = model%d%nm(body); a0 = model%d%a0(body)
+  allocate(psi(3, nm))
+  do k = 1, m
+    call scaled_kinematics(model, t(k), q(:, k), qd(:, k), exaggerate)
+    do p = 1, np
+      call line_points(model%d, body, p, np, x0, psi)
+      u = matmul(psi, q(a0:a0 + nm - 1, k))
+      line(:, p, k) = model%wk%pos(:, body) + matmul(model%wk%rot(:, :, body), x0 + exaggerate*u)
+      disp(:, p, k) = matmul(model%wk%rot(:, :, body), u)
+    end do
+  end do
+end subroutine pymr_model_body_line
+
+!> Joint j (1-based: the tree joints, body 2 .. nb's inboard one, then the loops' cut
+!> joints) of an open model: its name, kind (as the scene says), and its parent and child
+!> bodies (1-based, model order); name '' beyond the joints.
+subroutine pymr_model_joint_info(handle, j, name, kind, parent, child)
+  use pymr_env_error, only : error_type
+  use pymr_bind_models, only : open_models, check_handle
+  implicit none
+  integer, intent(in) :: handle, j
+  character(len=64), intent(out) :: name
+  character(len=16), intent(out) :: kind
+  integer, intent(out) :: parent, child
+  type(error_type), allocatable :: error
+  integer :: i
+  name = ''; kind = ''; parent = 0; child = 0
+  call check_handle(handle, error)
+  if (allocated(error)) return
+  associate(d => open_models(handle)%built%d, sc => open_models(handle)%sc)
+    if (j >= 1 .and. j <= d%nb - 1) then
+      name = d%joint_name(j + 1); parent = d%parent(j + 1); child = j + 1
+    else if (j > d%nb - 1 .and. j <= d%nb - 1 + d%cuts%n) then
+      name = d%cuts%name(j - d%nb + 1); parent = d%cuts%parent(j - d%nb + 1); child = d%cuts%child(j - d%nb + 1)
+    else
+      return
+    end if
+    do i = 1, size(sc%joints)
+      if (sc%joints(i)%name == name) kind = sc%joints(i)%kind
+    end do
+  end associate
+end subroutine pymr_model_joint_info
+
+!> Every joint's inertial place pos(3, j, k) and unit axis axis(3, j, k) (zero for a joint
+!> with none; pymr_model_joint_info's order, nj of them) of an open model at m states, the
+!> modal coordinates scaled by `exaggerate`.
+subroutine pymr_model_joints(handle, n, m, nj, t, q, qd, exaggerate, pos, axis, stat, message, detail)
+  use pymr_env_error, only : error_type, fatal_error
+  use pymr_bind_support, only : report
+  use pymr_bind_models, only : open_models, check_handle, live_model
+  use pymr_bind_drawing, only : scaled_kinematics, joint_place
+  use pymr_model, only : model_t
+  implicit none
+  integer, intent(in) :: handle, n, m, nj
+  double precision, intent(in) :: t(m), q(n, m), qd(n, m), exaggerate
+  double precision, intent(out) :: pos(3, nj, m), axis(3, nj, m)
+  integer, intent(out) :: stat
+  character(len=8192), intent(out) :: message
+  character(len=4096), intent(out) :: detail
+  !f2py integer intent(hide), depend(q) :: n = shape(q, 0)
+  !f2py integer intent(hide), depend(q) :: m = shape(q, 1)
+  type(error_type), allocatable :: error
+  type(model_t), pointer :: model
+  integer :: k, j
+  pos = 0.0d0; axis = 0.0d0
+  call check_handle(handle, error)
+  if (.not. allocated(error)) then
+    if (open_models(handle)%built%d%n /= n) then
+      call fatal_error(error, 'q has the wrong length')
+    else if (open_models(handle)%built%d%nb - 1 + open_models(handle)%built%d%cuts%n /= nj) then
+      call fatal_error(error, 'nj is not the number of joints')
+    end if
+  end if
+  call report(error, stat, message, detail)
+  if (stat /= 0) return
+  model => live_model(handle)
+  do k = 1, m
+    call scaled_kinematics(model, t(k), q(:, k), qd(:, k), exaggerate)
+    do j = 1, nj
+      call joint_place(model, j, pos(:, j, k), axis(:, j, k))
+    end do
+  end do
+end subroutine pymr_model_joints
+
+!> Every marker's inertial place pos(3, k, i) (nmk markers, the scene's order) of an open
+!> model at m states, the modal coordinates scaled by `exaggerate`.
+subroutine pymr_model_markers(handle, n, m, nmk, t, q, qd, exaggerate, pos, stat, message, detail)
+  use pymr_env_error, only : error_type, fatal_error
+  use pymr_bind_support, only : report
+  use pymr_bind_models, only : open_models, check_handle, live_model
+  use pymr_bind_drawing, only : scaled_kinematics
+  use pymr_model, only : model_t
+  use pymr_model_kinematics, only : marker_motion
+  implicit none
+  integer, intent(in) :: handle, n, m, nmk
+  double precision, intent(in) :: t(m), q(n, m), qd(n, m), exaggerate
+  double precision, intent(out) :: pos(3, nmk, m)
+  integer, intent(out) :: stat
+  character(len=8192), intent(out) :: message
+  character(len=4096), intent(out) :: detail
+  !f2py integer intent(hide), depend(q) :: n = shape(q, 0)
+  !f2py integer intent(hide), depend(q) :: m = shape(q, 1)
+  type(error_type), allocatable :: error
+  type(model_t), pointer :: model
+  double precision :: v(3)
+  integer :: k, i
+  pos = 0.0d0
+  call check_handle(handle, error)
+  if (.not. allocated(error)) then
+    if (open_models(handle)%built%d%n /= n) then
+      call fatal_error(error, 'q has the wrong length')
+    else if (open_models(handle)%built%d%markers%n /= nmk) then
+      call fatal_error(error, 'nmk is not the number of markers')
+    end if
+  end if
+  call report(error, stat, message, detail)
+  if (stat /= 0) return
+  model => live_model(handle)
+  do k = 1, m
+    call scaled_kinematics(model, t(k), q(:, k), qd(:, k), exaggerate)
+    do i = 1, nmk
+      call marker_motion(model%d, model%wk, i, model%wk%qx, model%wk%qdx, pos(:, i, k), v)
+    end do
+  end do
+end subroutine pymr_model_markers
