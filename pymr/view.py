@@ -33,7 +33,13 @@ MOST_PANELS = 4
 #: Sides of the polygons that stand for round sections (cylinders, tubes).
 SIDES = 12
 
-#: Colours of the solids, body by body (plotly's qualitative "Plotly" palette, muted).
+#: Colours of the plotted columns, one each in turn (plotly's, without the red of the time line).
+LINES = ["#1f77b4", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22", "#17becf"]
+
+#: The moving 3-D traces, the figure's first: solids, links, joints, joint axes, markers, nodes.
+MOVING = 6
+
+#: Colours of the solids, body by body (muted, so that the markers and joint axes stand out).
 COLOURS = ["#8c9bb5", "#c9a26b", "#7fb39a", "#b58cae", "#b5b58c", "#8cb5b5", "#c98b7a", "#9a9a9a"]
 
 
@@ -129,8 +135,9 @@ def tube_points(line: np.ndarray, radius: float) -> np.ndarray:
 
 def body_solid(body) -> tuple[np.ndarray, np.ndarray] | None:
     """One body's solid over the frames: points (nt, nv, 3, inertial) and triangles; a
-    flexible body's is a tube along its deformed centre line; None for no solid."""
-    if body.line is not None and len(body.line[0]) > 1:
+    beam's is a tube along its deformed centre line (a modal-file body's nodes are drawn as
+    points: :func:`nodes`); None for no solid."""
+    if body.kind == "beam" and body.line is not None and len(body.line[0]) > 1:
         span = np.linalg.norm(body.line[0, -1] - body.line[0, 0])
         radius = body.size[1] if body.shape == "cylinder" and body.size[1] > 0 else 0.02 * span
         return tube_points(body.line, radius), ring_faces(body.line.shape[1])
@@ -186,6 +193,13 @@ def links(motion) -> np.ndarray:
     return polylines(pieces)
 
 
+def nodes(motion) -> np.ndarray:
+    """The deformed nodes of the modal-file bodies (points, not a line: their order is the
+    file's), (nt, m, 3)."""
+    pieces = [b.line for b in motion.bodies if b.kind != "beam" and b.line is not None]
+    return np.concatenate(pieces, axis=1) if pieces else np.zeros((len(motion.t), 0, 3))
+
+
 def joint_axes(motion, length: float) -> np.ndarray:
     """A segment of `length` along each joint's axis, centred on the joint (nt, m, 3)."""
     pieces = [np.stack([j.position - 0.5 * length * j.axis, j.position + 0.5 * length * j.axis], axis=1)
@@ -194,8 +208,8 @@ def joint_axes(motion, length: float) -> np.ndarray:
 
 
 def frame_traces(motion, mesh, k: int, size: float) -> list[dict]:
-    """The moving 3-D traces at frame k: solids, links, joints, joint axes, markers (the
-    figure's first five traces, in this order)."""
+    """The moving 3-D traces at frame k: solids, links, joints, joint axes, markers, the
+    modal-file bodies' nodes (the figure's first six traces, in this order)."""
     import plotly.graph_objects as go
     points = mesh[0][k]
     tree, axes = links(motion), joint_axes(motion, 0.15 * size)
@@ -210,7 +224,8 @@ def frame_traces(motion, mesh, k: int, size: float) -> list[dict]:
             go.Scatter3d(**xyz(tree[k] if tree.size else [])),
             go.Scatter3d(**xyz(joints)),
             go.Scatter3d(**xyz(axes[k] if axes.size else [])),
-            go.Scatter3d(**xyz(marks))]
+            go.Scatter3d(**xyz(marks)),
+            go.Scatter3d(**xyz(nodes(motion)[k]))]
 
 
 def mechanism(fig, motion, mesh, size: float) -> None:
@@ -219,13 +234,16 @@ def mechanism(fig, motion, mesh, size: float) -> None:
     first = frame_traces(motion, mesh, 0, size)
     faces = mesh[1]
     first[0].update(i=faces[:, 0], j=faces[:, 1], k=faces[:, 2], facecolor=mesh[2], flatshading=True,
-                    name="bodies", hoverinfo="skip", lighting={"ambient": 0.55, "diffuse": 0.7})
+                    name="bodies", hoverinfo="skip", lighting={"ambient": 0.55, "diffuse": 0.7},
+                    opacity=0.7)     # the joints and links inside the solids show through
     first[1].update(mode="lines", line={"color": "#444444", "width": 5}, name="joints' links", hoverinfo="skip")
     first[2].update(mode="markers", marker={"size": 4, "color": "#222222", "symbol": "diamond"}, name="joints",
                     text=[j.name for j in motion.joints], hoverinfo="text")
     first[3].update(mode="lines", line={"color": "#d62728", "width": 3}, name="joint axes", hoverinfo="skip")
     first[4].update(mode="markers+text", marker={"size": 5, "color": "#1f77b4"}, name="markers",
                     text=list(motion.markers), textposition="top center", hoverinfo="text")
+    first[5].update(mode="markers", marker={"size": 3, "color": "#7f7f7f"}, name="flexible bodies' nodes",
+                    hoverinfo="skip")
     for trace in first:
         fig.add_trace(trace.update(showlegend=False), row=1, col=1)
     for name, p in motion.markers.items():
@@ -236,11 +254,12 @@ def mechanism(fig, motion, mesh, size: float) -> None:
 
 # ------------------------------------------------------------------ the column panels
 
-def y_range(values: np.ndarray) -> list[float]:
+def y_range(values: np.ndarray, scale: float = 0.0) -> list[float]:
     """A panel's y range: the values' with 5 % either side; a still quantity gets a range of
-    1e-6 of its size (at least 1e-12), so its round-off does not fill the panel."""
+    1e-6 of its size or of `scale` (the largest of the columns of its unit), at least 1e-12,
+    so its round-off does not fill the panel."""
     lo, hi = float(np.min(values)), float(np.max(values))
-    pad = max(0.05 * (hi - lo), 1e-6 * max(abs(lo), abs(hi)), 1e-12)
+    pad = max(0.05 * (hi - lo), 1e-6 * max(abs(lo), abs(hi), scale), 1e-12)
     return [lo - pad, hi + pad]
 
 
@@ -250,13 +269,20 @@ def column_panels(fig, res: Results, chosen: list[tuple[str, list[str]]], rows: 
     y ranges and the indices of their vertical lines among the figure's traces."""
     import plotly.graph_objects as go
     ranges, follow = [], []
+    units = {c.name: c.unit for c in res.column_info}
+    scale: dict[str, float] = {}
+    for _, names in chosen:
+        for n in names:
+            scale[units[n]] = max(scale.get(units[n], 0.0), float(np.abs(res[n][rows]).max()))
     for p, (title, names) in enumerate(chosen, start=1):
         data = np.column_stack([res[n][rows] for n in names])
         for n, y in zip(names, data.T):
-            fig.add_trace(go.Scatter(x=res.t[rows], y=y, mode="lines", name=n, legendgroup="columns"), row=p, col=2)
-        ranges.append(y_range(data))
+            colour = LINES[len(fig.data) % len(LINES)]
+            fig.add_trace(go.Scatter(x=res.t[rows], y=y, mode="lines", name=n, line={"color": colour}), row=p, col=2)
+        ranges.append(y_range(data, scale[units[names[0]]]))
         fig.add_trace(go.Scatter(x=[t0, t0], y=ranges[-1], mode="lines", line={"color": "#d62728", "width": 1.5},
-                                 name="time shown", showlegend=p == 1, hoverinfo="skip"), row=p, col=2)
+                                 name="time shown", showlegend=p == 1, legendrank=2000, hoverinfo="skip"),
+                      row=p, col=2)
         follow.append(len(fig.data) - 1)
         fig.update_yaxes(title_text=title, range=ranges[-1], row=p, col=2)
         fig.update_xaxes(range=[float(res.t[0]), float(res.t[-1])], row=p, col=2,
@@ -266,11 +292,12 @@ def column_panels(fig, res: Results, chosen: list[tuple[str, list[str]]], rows: 
 
 def up_axis(res: Results, scene=None) -> np.ndarray:
     """The view's up direction: against the scene's gravity; z where there is none."""
-    from .animate import scene_of
     from .api import PymrError
+    from .geometry import scene_of
     from .scene import Scene
     try:
-        g = np.asarray(Scene(scene_of(res, scene))["scene.gravity"], dtype=float)
+        source = scene_of(res, scene)
+        g = np.asarray((source if isinstance(source, Scene) else Scene(source))["scene.gravity"], dtype=float)
     except (PymrError, KeyError, TypeError, ValueError):
         g = np.zeros(3)
     return -g / np.linalg.norm(g) if np.linalg.norm(g) > 0 else np.array([0.0, 0.0, 1.0])
@@ -296,13 +323,13 @@ def scene_layout(motion, up: np.ndarray) -> dict:
 
 def animation_frames(motion, mesh, size: float, follow: list[int], ranges: list[list[float]]) -> list:
     """One plotly frame per time of the motion, named by its index: the moving 3-D traces
-    (the figure's first five) and each panel's vertical line (traces `follow`)."""
+    (the figure's first MOVING) and each panel's vertical line (traces `follow`)."""
     import plotly.graph_objects as go
     frames = []
     for k, t in enumerate(motion.t):
         lines = [go.Scatter(x=[float(t), float(t)], y=r) for r in ranges]
         frames.append(go.Frame(name=str(k), data=frame_traces(motion, mesh, k, size) + lines,
-                               traces=[0, 1, 2, 3, 4] + follow))
+                               traces=list(range(MOVING)) + follow))
     return frames
 
 
@@ -372,7 +399,7 @@ def view(results: Results | str | os.PathLike, output: str | os.PathLike, scene=
     (.html), its geometry from the scene the results' JSON holds (or `scene`); return the
     page's path. The output is checked before anything is computed (`option` names it in
     messages), and written whole or not at all."""
-    from .animate import scene_of
+    from .geometry import scene_of
     try:
         import plotly  # noqa: F401  (the page's library: an optional dependency)
     except ImportError:

@@ -79,9 +79,10 @@ def test_solids_enclose_the_volumes_of_their_shapes():
     2 and radius 0.1 the 12-gon prism's 6 r^2 sin(30 deg) L = 0.06 m^3; a straight tube of
     the same length and radius the same; every ring point of a bent tube lies at the radius
     from its centre point, across the line."""
+    from pymr.geometry import BodyTrack
     rot = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
-    body = type("Body", (), dict(line=None, shape="box", size=np.array([0.3, 0.5, 0.7]), centre=np.array([1.0, 0, 0]),
-                                 origin=np.array([[5.0, 1.0, 2.0]]), rotation=rot[None]))
+    body = BodyTrack(name="b", kind="rigid", origin=np.array([[5.0, 1.0, 2.0]]), rotation=rot[None], shape="box",
+                     size=np.array([0.3, 0.5, 0.7]), centre=np.array([1.0, 0, 0]), line=None, displacement=None)
     points, faces = view.body_solid(body)
     assert abs(signed_volume(points[0], faces)) == pytest.approx(0.105, rel=1e-12)
     assert points[0].mean(axis=0) == pytest.approx([5.0, 2.0, 2.0], abs=1e-12)      # origin + R centre
@@ -89,7 +90,7 @@ def test_solids_enclose_the_volumes_of_their_shapes():
     points, faces = view.body_solid(body)
     prism = 6 * 0.1 ** 2 * np.sin(np.pi / 6) * 2.0
     assert abs(signed_volume(points[0], faces)) == pytest.approx(prism, rel=1e-12)
-    body.line = np.stack([np.linspace(0, 2.0, 9), np.zeros(9), np.zeros(9)], axis=1)[None]
+    body.kind, body.line = "beam", np.stack([np.linspace(0, 2.0, 9), np.zeros(9), np.zeros(9)], axis=1)[None]
     points, faces = view.body_solid(body)
     assert abs(signed_volume(points[0], faces)) == pytest.approx(prism, rel=1e-12)
     s = np.linspace(0, 1.5, 30)
