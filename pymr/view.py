@@ -45,19 +45,20 @@ COLOURS = ["#8c9bb5", "#c9a26b", "#7fb39a", "#b58cae", "#b5b58c", "#8cb5b5", "#c
 
 def select_columns(res: Results, patterns: Sequence[str] | None = None) -> list[str]:
     """The columns to plot: those named by `patterns` (exact names or fnmatch patterns such
-    as ``energy.*``), in the file's column order; none given: :func:`default_columns`. A
-    pattern that matches nothing is a PlotError naming it."""
+    as ``energy.*``), in the patterns' order (a pattern's columns in the file's order, each
+    column once); none given: :func:`default_columns`. A pattern that matches nothing is a
+    PlotError naming it."""
     if not patterns:
         return default_columns(res)
     names = [c for c in res.columns if c != "t"]
-    chosen: set[str] = set()
+    chosen: dict[str, None] = {}
     for p in patterns:
         hits = [c for c in names if c == p or fnmatch.fnmatchcase(c, p)]
         if not hits:
             shown = ", ".join(names[:12]) + (", ..." if len(names) > 12 else "")
             raise PlotError(f"--column {p!r}: no column of {res.path or 'the results'} matches it (columns: {shown})")
-        chosen.update(hits)
-    return [c for c in names if c in chosen]
+        chosen.update(dict.fromkeys(hits))
+    return list(chosen)
 
 
 def default_columns(res: Results) -> list[str]:

@@ -104,14 +104,14 @@ def test_solids_enclose_the_volumes_of_their_shapes():
 
 def test_columns_are_chosen_by_the_results_metadata(tank):
     """Default: the muzzle's position; 'energy.*' gives the JSON's energy group, in one panel
-    per unit (J); an exact name and a pattern together; units on the axes from the JSON."""
+    per unit (J); patterns and names in the order given; units on the axes from the JSON."""
     info = tank.column_info
     assert view.select_columns(tank) == [c.name for c in info if c.owner == "muzzle" and c.quantity == "position"]
     energy = [c.name for c in info if c.group == "energy"]
     assert len(energy) >= 5 and view.select_columns(tank, ["energy.*"]) == energy
     assert view.panels(tank, energy) == [("J", energy)]
-    both = view.select_columns(tank, ["elevation.q", "gun.a[12]"])
-    assert both == ["elevation.q", "gun.a1", "gun.a2"]
+    both = view.select_columns(tank, ["gun.a[12]", "elevation.q", "gun.a1"])
+    assert both == ["gun.a1", "gun.a2", "elevation.q"]                   # as asked, each once
     units = {c.name: c.unit for c in info}
     assert [t for t, _ in view.panels(tank, both)] == [f"{n} ({units[n]})" for n in both]
     with pytest.raises(PlotError, match="--column 'nothing.\\*': no column"):
@@ -206,7 +206,7 @@ def chromium():
     options = webdriver.ChromeOptions()
     options.binary_location = BROWSER
     for flag in ("--headless=new", "--no-sandbox", "--disable-gpu", "--use-angle=swiftshader",
-                 "--enable-unsafe-swiftshader", "--window-size=1400,900", "--force-device-scale-factor=1",
+                 "--enable-unsafe-swiftshader", "--window-size=1400,1000", "--force-device-scale-factor=1",
                  "--disable-dev-shm-usage"):
         options.add_argument(flag)
     return webdriver.Chrome(options=options, service=Service(DRIVER))
@@ -335,3 +335,32 @@ def test_view_in_headless_chromium(tank, tmp_path):
         play_to_the_end(driver, step, frames, times[-1])
     finally:
         driver.quit()
+
+
+def docs_picture(path: Path, columns=("muzzle.y", "gun.a1", "gun.a2", "energy.drive_work"), at: float = 0.68) -> None:
+    """docs/view.png by the browser test's code path: the tank's whole run (1 s), its page
+    (deflections x50, the default 100 frames), the slider clicked at `at` of its length.
+    ``python tests/test_view.py docs/view.png`` (from the checkout, the package installed)."""
+    import tempfile
+    with tempfile.TemporaryDirectory() as folder:
+        out = Path(folder) / "tank.csv"
+        pymr.run(TANK, out, overrides={"output.quantities": ["coordinates", "markers", "energy"]})
+        page = view.view(out, Path(folder) / "tank.html", exaggerate=50.0, columns=list(columns))
+        print(f"{page.stat().st_size / 1e6:.2f} MB page")
+        driver = chromium()
+        try:
+            open_page(driver, page, 100)
+            click_slider(driver, at)
+            time.sleep(1.0)
+            shot = Path(folder) / "view.png"
+            driver.save_screenshot(str(shot))
+            os.replace(shot, path) if Path(folder).stat().st_dev == Path(path).resolve().parent.stat().st_dev \
+                else shutil.move(shot, path)
+        finally:
+            driver.quit()
+
+
+if __name__ == "__main__":
+    import sys
+    pytest.fail = lambda message: sys.exit(f"test_view: {message}")       # outside pytest: one line
+    docs_picture(Path(sys.argv[1]))
