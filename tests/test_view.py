@@ -308,7 +308,7 @@ def test_view_in_headless_chromium(tank, tmp_path):
     scene, the mechanism covers part of the canvas; a click at 3/4 of the slider makes a
     later step active, moves the mechanism (the canvas changes) and each column panel's
     time line to that frame's time; the screenshot is kept; play goes on to the end."""
-    frames = 40
+    frames = 20
     page = view.view(tank, tmp_path / "tank.html", frames=frames, exaggerate=50.0,
                      columns=["muzzle.y", "energy.kinetic", "energy.drive_work"])
     times = motion_of(tank, frames=frames).t
