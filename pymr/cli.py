@@ -170,7 +170,7 @@ def _cmd_view(args: argparse.Namespace) -> int:
 def _cmd_plot(args: argparse.Namespace) -> int:
     from . import plot
     return plot.main(args.csv, output=args.output, markers=args.marker, joints=args.joint,
-                     labels=args.labels, title=args.title, quiet=args.quiet)
+                     labels=args.labels, title=args.title, quiet=args.quiet, columns=args.column)
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
@@ -381,6 +381,9 @@ def _add_plot(sub) -> None:
                          "muzzle, else every marker)")
     pl.add_argument("--joint", action="extend", nargs="+", metavar="NAME",
                     help="plot these joints' coordinates (default: none for the tank, else every joint)")
+    pl.add_argument("--column", action="extend", nargs="+", metavar="PATTERN",
+                    help="plot these columns instead: names or shell-style patterns, quoted "
+                         "('energy.*', 'elevation.fz'); columns of one unit share a panel")
     pl.add_argument("--labels", nargs="+", metavar="LABEL",
                     help="legend labels, one per CSV (default: each run's method, else the file's stem)")
     pl.add_argument("--title", help="figure title (default: the first run's scene title)")

@@ -18,7 +18,8 @@ class Column:
     """What the kernel says of one column of a results file (OUT.json's "columns"): its
     name, group ('time', 'joint_coordinates', 'joint_rates', 'controls', 'modal_coordinates',
     'modal_rates', 'markers', 'marker_accelerations', 'marker_orientations', 'reactions',
-    'energy'), owner (the joint, flexible body or marker; '' for t and the energies),
+    'energy', 'sensors'), owner (the joint, flexible body, marker or sensor; '' for t and the
+    energies),
     quantity (such as 'angle', 'displacement', 'position', 'force', 'kinetic') and unit."""
     name: str
     group: str
@@ -176,6 +177,77 @@ class Results:
         return (self._stack(self.coordinate_columns()),
                 self._stack(self._names("joint_rates") + self._names("controls", quantity="integral")
                             + self._names("modal_rates")))
+
+
+    def _column_table(self) -> list[Column]:
+        """Every column's :class:`Column`; with no column metadata (a CSV without its OUT.json),
+        the names with group, owner, quantity and unit all ``''`` (unknown)."""
+        meta = self.stats.get("columns")
+        if isinstance(meta, dict) and meta.get("name") == self.columns:
+            return self.column_info
+        return [Column(name, "", "", "", "") for name in self.columns]
+
+    def _description(self) -> dict:
+        """The run's title, method, scene fingerprint and scene file ('' when unknown)."""
+        return {"title": self.title, "method": self.method,
+                "fingerprint": str(self.stats.get("scene_fingerprint", "")),
+                "scene": str(self.stats.get("scene") or self.scene or "")}
+
+    def to_pandas(self):
+        """The results as a :class:`pandas.DataFrame`: time as the index (named ``'t'``), one
+        column per other result column, its values this object's arrays unchanged.
+
+        ``df.attrs`` describes them, from OUT.json's column metadata:
+
+        - ``"columns"``: ``{name: {"group", "owner", "quantity", "unit"}}`` for every column,
+          ``'t'`` included;
+        - ``"units"``: ``{name: unit}`` (``'t'``: ``'s'``), the same units, for quick use;
+        - ``"title"``, ``"method"``, ``"fingerprint"``, ``"scene"``: the run's.
+
+        Without column metadata (a CSV read without its OUT.json) the values are the same and
+        every group, owner, quantity and unit is ``''``: unknown, not guessed from the names.
+        pandas is imported here; without it, a :class:`ResultsError`.
+        """
+        pd = _optional("pandas", "to_pandas")
+        info = self._column_table()
+        df = pd.DataFrame(self.data[:, 1:], index=pd.Index(self.data[:, 0], name="t"), columns=self.columns[1:])
+        df.attrs["columns"] = {c.name: {"group": c.group, "owner": c.owner, "quantity": c.quantity, "unit": c.unit}
+                               for c in info}
+        df.attrs["units"] = {c.name: c.unit for c in info}
+        df.attrs.update(self._description())
+        return df
+
+    def to_xarray(self):
+        """The results as an :class:`xarray.Dataset`: coordinate ``'t'`` and one data variable
+        per other column along it, the values this object's arrays unchanged.
+
+        Each variable's (and ``t``'s) attrs: ``unit`` and ``units`` (the same text: ``units`` is
+        the CF convention's name, which xarray's plots and netCDF readers use), ``group``,
+        ``owner``, ``quantity`` (OUT.json's column metadata) and ``long_name`` (the column's
+        name). The dataset's attrs: ``title``, ``method``, ``fingerprint`` and ``scene``.
+        Without column metadata the unit and the rest are ``''`` (see :meth:`to_pandas`).
+        xarray is imported here; without it, a :class:`ResultsError`.
+        """
+        xr = _optional("xarray", "to_xarray")
+
+        def attrs(c: Column) -> dict:
+            return {"unit": c.unit, "units": c.unit, "group": c.group, "owner": c.owner,
+                    "quantity": c.quantity, "long_name": c.name}
+
+        info = self._column_table()
+        coords = {"t": ("t", self.data[:, 0], attrs(info[0]))}
+        variables = {c.name: ("t", self.data[:, k], attrs(c)) for k, c in enumerate(info) if k > 0}
+        return xr.Dataset(variables, coords=coords, attrs=self._description())
+
+
+def _optional(package: str, method: str):
+    """The module `package`, imported when a method needs it (a ResultsError without it)."""
+    import importlib
+    try:
+        return importlib.import_module(package)
+    except ImportError:
+        raise ResultsError(f"Results.{method}() needs the Python package {package}, which is not installed "
+                           f"(pip install {package})") from None
 
 
 def load_results(csv_path: str | os.PathLike) -> Results:

@@ -333,6 +333,7 @@ def test_the_examples_are_found():
     assert [(e.where.split(":")[0], e.script.splitlines()[1]) for e in EXAMPLES if e.lang == "python"] == [
         ("README.md", 'res = pymr.run("input/pendulum.nml")             # runs in a temporary folder, leaves no files'),
         ("docs/results.md", 'pymr.run("input/tank_gun_turret.nml", "tank.csv",     # writes tank.csv and tank.json'),
+        ("docs/results.md", 'res = pymr.run("input/tank_gun_turret.nml", "tank.csv", overrides={'),
         ("docs/scenes.md", 'scene = pymr.Scene("input/tank_gun_turret.nml")'),
         ("docs/scenes.md", 'scene.add("scene", title="pendulum", t_end=10.0, gravity=[0.0, -9.81, 0.0])')]
     for command in ("pymr run input/tank_gun_turret.nml", "pymr scene --schema", "pymr bench table1", "mrsim --version",

@@ -273,7 +273,8 @@ def test_readme_scene_reference_has_every_group_and_item_once():
         else:
             expect[group].append(line.split("\t"))
     assert groups == list(expect) == ["scene", "integrator", "effects", "output", "body", "joint", "drive",
-                                      "spring", "motion", "load", "marker", "force", "control", "moving_load"]
+                                      "spring", "motion", "load", "marker", "force", "control", "moving_load",
+                                      "sensor"]
     got = {}
     for group, table in zip(groups, re.split(r"^\*\*&\w+\*\*$", ref, flags=re.M)[1:]):
         rows = [r for r in table.splitlines() if r.startswith("| `")]

@@ -7,6 +7,7 @@ module pymr_driver_output_quantities
   use pymr_model, only : model_t, model_counters
   use pymr_model_types, only : model_data, model_work
   use pymr_model_kinematics, only : forward_kinematics, marker_motion, marker_acceleration, marker_rotation
+  use pymr_model_sensors, only : sensor_values, sensor_width
   use pymr_model_reactions, only : body_accelerations, joint_wrenches, child_frame_wrench
   use pymr_model_loops, only : cut_wrench, cut_body_wrenches
   use pymr_model_effect, only : effect_powers, effect_powers_qdd, effects_need_qdd, power_motion
@@ -94,6 +95,10 @@ contains
     if (plan%energy) then
       call model%energy_parts(q, qd, e, t)
       call put([e, sum(e), work])
+    end if
+    if (plan%sensors%n > 0) then
+      call forward_kinematics(model%d, model%wk, q, qd)
+      call sensor_values(plan%sensors, model%d, model%wk, q, qd, v(k+1:k+sensor_width(plan%sensors)))
     end if
   contains
     subroutine put(x)

@@ -15,6 +15,7 @@ module pymr_driver_simulation
   use pymr_env_text_file, only : acquire_lock, release_lock, commit_staged, remove_file
   use pymr_model_scene, only : scene_t
   use pymr_model, only : model_t
+  use pymr_model_sensors, only : sensors_of
   use pymr_integrator_stepper, only : stepper_t, step_counts
   use pymr_io_namelist_input, only : scene_fingerprint, checkpoint_identity, resolved_text
   use pymr_io_results_output, only : csv_writer, json_path, write_json, run_stats, output_plan_of, n_work
@@ -118,7 +119,7 @@ contains
     self%k_out = 1
     self%t_next = self%dt_out
     self%csv%digits = self%sc%output%precision
-    self%csv%plan = output_plan_of(self%sc%output%quantities, self%model%d)
+    self%csv%plan = output_plan_of(self%sc%output%quantities, self%model%d, sensors_of(self%sc, self%model%d))
     self%work_step = 0.0_dp; self%t_step = 0.0_dp
     call make_stepper(self%sc, self%model, self%x, self%st, self%h0, error)
     if (allocated(error)) call self%name_file(error)

@@ -110,7 +110,7 @@ contains
     allocate(sc%motions(count(groups%name == 'motion')), sc%loads(count(groups%name == 'load')))
     allocate(sc%markers(count(groups%name == 'marker')), sc%forces(count(groups%name == 'force')))
     allocate(sc%controls(count(groups%name == 'control')))
-    allocate(sc%moving_loads(count(groups%name == 'moving_load')))
+    allocate(sc%moving_loads(count(groups%name == 'moving_load')), sc%sensors(count(groups%name == 'sensor')))
   end subroutine allocate_records
 
   !> Set the record of one group occurrence from its items, through its table.
@@ -552,7 +552,7 @@ contains
     integer :: i, j, m
     allocate(sc%bodies(1), sc%joints(1), sc%drives(1), sc%springs(1), sc%motions(1), sc%loads(1), sc%markers(1), sc%forces(1))
     allocate(sc%controls(1))
-    allocate(sc%moving_loads(1))
+    allocate(sc%moving_loads(1), sc%sensors(1))
     text = ''
     i = 1
     do while (i <= len(group_names))

@@ -6,6 +6,7 @@ module pymr_io_results_output
   use pymr_env_error, only : error_type, fatal_error, stat_solver
   use pymr_model_types, only : model_data, model_work, cut_free, prim_revolute
   use pymr_io_fast_format, only : put_real
+  use pymr_model_sensors, only : sensor_set, sensor_width, sensor_distance
   use pymr_env_text, only : json_escape, itoa, next_text_line
   use pymr_env_text_file, only : write_text_file, stage_text_file, sync_file, rename_file, file_size, check_size
   implicit none
@@ -46,13 +47,15 @@ module pymr_io_results_output
     logical :: coordinates = .true., markers = .true., accelerations = .false., orientations = .false.
     logical :: reactions = .false., energy = .false.
     integer :: extra = 0
+    !> The scene's sensors (&sensor): their columns come last.
+    type(sensor_set) :: sensors
   end type output_plan
 
   !> What receives the columns of a plan, in the file's order (walk_columns): each column's
   !> name, group ('time', 'joint_coordinates', 'joint_rates', 'modal_coordinates',
   !> 'modal_rates', 'markers', 'marker_accelerations', 'marker_orientations', 'reactions',
-  !> 'energy'), owner (the joint, flexible body or marker it belongs to; '' for t and the
-  !> energies), quantity and unit. The one place that states the columns: the CSV header
+  !> 'energy', 'sensors'), owner (the joint, flexible body, marker or sensor it belongs to;
+  !> '' for t and the energies), quantity and unit. The one place that states the columns: the CSV header
   !> and the JSON's column metadata both follow from it.
   type, abstract :: column_sink
   contains
@@ -144,9 +147,11 @@ contains
   end function json_path
 
   !> The plan of &output quantities (blank-separated words) for model d.
-  function output_plan_of(words, d) result(plan)
+  function output_plan_of(words, d, sensors) result(plan)
     character(len=*), intent(in) :: words
     type(model_data), intent(in) :: d
+    !> The scene's sensors (none when absent).
+    type(sensor_set), intent(in), optional :: sensors
     type(output_plan) :: plan
     plan%coordinates = has('coordinates')
     plan%markers = has('markers')
@@ -156,6 +161,8 @@ contains
     plan%energy = has('energy')
     plan%extra = d%markers%n*(merge(6, 0, plan%markers) + merge(3, 0, plan%accelerations) + &
       & merge(4, 0, plan%orientations)) + merge(6*(d%nb - 1 + d%cuts%n), 0, plan%reactions) + merge(n_energy, 0, plan%energy)
+    if (present(sensors)) plan%sensors = sensors
+    plan%extra = plan%extra + sensor_width(plan%sensors)
   contains
     logical function has(word)
       character(len=*), intent(in) :: word
@@ -206,7 +213,27 @@ contains
     do i = 1, n_energy
       if (plan%energy) call sink%add('energy.' // trim(energy_columns(i)), 'energy', '', trim(energy_columns(i)), 'J')
     end do
+    call walk_sensors(plan%sensors, sink)
   end subroutine walk_columns
+
+  !> The sensors' columns (group 'sensors', owned by the sensor): a 'distance' NAME.d (m) and
+  !> NAME.d_dot (m/s); a 'position' NAME.x, .y, .z (m) and NAME.vx, .vy, .vz (m/s).
+  subroutine walk_sensors(sensors, sink)
+    type(sensor_set), intent(in) :: sensors
+    class(column_sink), intent(inout) :: sink
+    integer :: i
+    character(len=:), allocatable :: s
+    do i = 1, sensors%n
+      s = trim(sensors%name(i))
+      if (sensors%kind(i) == sensor_distance) then
+        call sink%add(s // '.d', 'sensors', s, 'distance', 'm')
+        call sink%add(s // '.d_dot', 'sensors', s, 'distance_rate', 'm/s')
+      else
+        call add_vector(sink, s, '', 'sensors', 'position', 'm')
+        call add_vector(sink, s, 'v', 'sensors', 'velocity', 'm/s')
+      end if
+    end do
+  end subroutine walk_sensors
 
   !> The coordinates in model order, the rates of a joint's (or body's) coordinates after
   !> them.

@@ -12,6 +12,7 @@ module pymr_model_scene
   private
   public :: scene_t, body_spec, joint_spec, drive_spec, marker_spec, integrator_spec, effects_spec
   public :: spring_spec, motion_spec, load_spec, force_spec, control_spec, moving_load_spec, output_spec, scene_spec
+  public :: sensor_spec, sensor_items
   public :: max_modes_input
   public :: joint_ndof, unset, group_names, single_groups, repeated_groups, describe_group, group_origin, group_count
   public :: naming_item, complete_scene, body_items, item_applies, output_quantities, beam_mode_count
@@ -28,10 +29,11 @@ module pymr_model_scene
 
   !> The groups of a scene file, in the order the resolved scene is written.
   character(len=*), parameter :: group_names = &
-    & 'scene integrator effects output body joint drive spring motion load marker force control moving_load'
+    & 'scene integrator effects output body joint drive spring motion load marker force control moving_load sensor'
   !> The groups that may appear at most once, and those that may repeat.
   character(len=*), parameter :: single_groups = 'scene integrator effects output'
-  character(len=*), parameter :: repeated_groups = 'body joint drive spring motion load marker force control moving_load'
+  character(len=*), parameter :: repeated_groups = &
+    & 'body joint drive spring motion load marker force control moving_load sensor'
   !> The groups of output columns (&output quantities).
   character(len=*), parameter :: output_quantities = &
     & 'coordinates markers marker_accelerations marker_orientations reactions energy'
@@ -238,6 +240,15 @@ module pymr_model_scene
     type(origin_t) :: origin
   end type marker_spec
 
+  !> One &sensor group: output columns measured on markers. 'distance': the distance between
+  !> marker and marker `to` and its rate; 'position': marker's position and velocity in the
+  !> frame of body `frame` (its axes, relative to it).
+  type :: sensor_spec
+    character(len=name_len) :: name = '', marker = '', to = '', frame = ''
+    character(len=16) :: kind = ''
+    type(origin_t) :: origin
+  end type sensor_spec
+
   !> One &force group: a force element between two markers. 'spring_damper': one
   !> stiffness and damping along the line between the markers, relaxed at free_length;
   !> 'bushing': six of each (translations x, y, z, rotations about x, y, z) in marker i's
@@ -294,6 +305,7 @@ module pymr_model_scene
     type(force_spec), allocatable :: forces(:)
     type(control_spec), allocatable :: controls(:)
     type(moving_load_spec), allocatable :: moving_loads(:)
+    type(sensor_spec), allocatable :: sensors(:)
     type(output_spec) :: output
   end type scene_t
 
@@ -550,6 +562,20 @@ contains
     call t%add('at', g%at, 'm', "the point in the body's frame", ge=-big_length, le=big_length)
   end subroutine describe_marker
 
+  subroutine describe_sensor(g, t)
+    type(sensor_spec), target, intent(inout) :: g
+    type(item_table), intent(inout) :: t
+    call t%add('name', g%name, "name of the sensor, unique among the sensors and the markers: its columns are " // &
+      & "NAME.d, NAME.d_dot ('distance') or NAME.x, .y, .z, .vx, .vy, .vz ('position') (required)")
+    call t%add('kind', g%kind, "'distance': the distance from marker to marker to (m) and its rate (m/s); " // &
+      & "'position': marker's position from the origin of body frame and its velocity relative to that body, " // &
+      & "both in the body's axes (m, m/s) (required)", choices='distance position')
+    call t%add('marker', g%marker, 'the marker measured (required)')
+    call t%add('to', g%to, "kind 'distance': the other marker, another than marker (required for it)")
+    call t%add('frame', g%frame, "kind 'position': the body in whose frame the marker is measured (its " // &
+      & 'reference frame, for a flexible body) (required for it)')
+  end subroutine describe_sensor
+
   subroutine describe_force(g, t)
     type(force_spec), target, intent(inout) :: g
     type(item_table), intent(inout) :: t
@@ -728,15 +754,32 @@ contains
     m = b%modes_y + b%modes_z + b%modes_x + b%modes_t
   end function beam_mode_count
 
-  !> Does `item` apply to occurrence k of group `name`? (A body takes its kind's items.)
+  !> The items a sensor of each kind takes ('' for an unknown kind: no rule).
+  pure function sensor_items(kind) result(s)
+    character(len=*), intent(in) :: kind
+    character(len=:), allocatable :: s
+    select case (trim(kind))
+    case ('distance'); s = 'name kind marker to'
+    case ('position'); s = 'name kind marker frame'
+    case default; s = ''
+    end select
+  end function sensor_items
+
+  !> Does `item` apply to occurrence k of group `name`? (A body takes its kind's items, and
+  !> so does a sensor.)
   logical function item_applies(sc, name, k, item)
     type(scene_t), intent(in) :: sc
     character(len=*), intent(in) :: name, item
     integer, intent(in) :: k
     character(len=:), allocatable :: takes
     item_applies = .true.
-    if (name /= 'body') return
-    takes = body_items(sc%bodies(k)%kind)
+    if (name == 'sensor') then
+      takes = sensor_items(sc%sensors(k)%kind)
+    else if (name == 'body') then
+      takes = body_items(sc%bodies(k)%kind)
+    else
+      return
+    end if
     if (len(takes) > 0) item_applies = index(' ' // takes // ' ', ' ' // trim(item) // ' ') > 0
   end function item_applies
 
@@ -766,6 +809,7 @@ contains
     case ('force'); call describe_force(sc%forces(k), t)
     case ('control'); call describe_control(sc%controls(k), t)
     case ('moving_load'); call describe_moving_load(sc%moving_loads(k), t)
+    case ('sensor'); call describe_sensor(sc%sensors(k), t)
     end select
   end subroutine describe_group
 
@@ -791,6 +835,7 @@ contains
     case ('force'); o => sc%forces(k)%origin
     case ('control'); o => sc%controls(k)%origin
     case ('moving_load'); o => sc%moving_loads(k)%origin
+    case ('sensor'); o => sc%sensors(k)%origin
     end select
   end function group_origin
 
@@ -809,6 +854,7 @@ contains
     case ('force'); n = size(sc%forces)
     case ('control'); n = size(sc%controls)
     case ('moving_load'); n = size(sc%moving_loads)
+    case ('sensor'); n = size(sc%sensors)
     case default; n = 1
     end select
   end function group_count
@@ -821,7 +867,7 @@ contains
     select case (name)
     case ('drive', 'spring', 'motion'); item = 'joint'
     case ('load'); item = 'marker'
-    case ('body', 'joint', 'marker', 'force', 'control', 'moving_load'); item = 'name'
+    case ('body', 'joint', 'marker', 'force', 'control', 'moving_load', 'sensor'); item = 'name'
     case default; item = ''
     end select
   end function naming_item

@@ -7,7 +7,7 @@ module pymr_model_scene_rules
   use pymr_env_kinds, only : dp, name_len
   use pymr_env_error, only : error_type, fatal_error, error_list
   use pymr_model_scene, only : scene_t, body_spec, joint_spec, force_spec, load_spec, control_spec, moving_load_spec, &
-    & joint_ndof, unset, body_items, beam_mode_count, &
+    & sensor_spec, sensor_items, joint_ndof, unset, body_items, beam_mode_count, &
     & closes_loop, body_index
   use pymr_env_item_table, only : origin_t
   use pymr_model_names, only : name_index
@@ -97,6 +97,11 @@ contains
     if (j > 0) then
       call errs%add(sc%moving_loads(j)%origin%where('name') // ': used by another &moving_load too (line ' // &
         & itoa(sc%moving_loads(i)%origin%line) // ')')
+    end if
+    call first_repeat(sc%sensors%name, i, j)
+    if (j > 0) then
+      call errs%add(sc%sensors(j)%origin%where('name') // ': used by another &sensor too (line ' // &
+        & itoa(sc%sensors(i)%origin%line) // ')')
     end if
   end subroutine check_unique_names
 
@@ -534,7 +539,57 @@ contains
     call check_forces(sc, errs)
     call check_controls(sc, errs)
     call check_moving_loads(sc, errs)
+    call check_sensors(sc, errs)
   end subroutine check_loads_markers
+
+  !> &sensor: a name of its own (its columns are named after it), a kind, the items of its
+  !> kind only, an existing marker, and another marker ('distance') or a body ('position').
+  subroutine check_sensors(sc, errs)
+    type(scene_t), intent(in) :: sc
+    type(error_list), intent(inout) :: errs
+    integer :: i
+    do i = 1, size(sc%sensors)
+      associate(se => sc%sensors(i), o => sc%sensors(i)%origin)
+        if (len_trim(se%name) == 0) then
+          call errs%add(o%where('name') // ': missing'); cycle
+        end if
+        if (any(sc%markers%name == se%name)) then
+          call errs%add(o%where('name') // ": a &marker's name too (the sensor's columns would take its " // &
+            & "column names: give the sensor a name of its own)"); cycle
+        end if
+        if (len_trim(se%kind) == 0) then
+          call errs%add(o%where('kind') // ": missing ('distance' or 'position')"); cycle
+        end if
+        if (.not. sensor_kind_items(errs, se)) cycle
+        if (.not. named_marker(sc, errs, o, 'marker', se%marker)) cycle
+        if (se%kind == 'distance') then
+          if (.not. named_marker(sc, errs, o, 'to', se%to)) cycle
+          if (se%to == se%marker) call errs%add(o%where('to') // ": the same marker as marker ('" // &
+            & trim(se%marker) // "'): a distance is measured between two markers")
+        else if (len_trim(se%frame) == 0) then
+          call errs%add(o%where('frame') // ": missing (the body in whose frame 'position' measures)")
+        else if (body_index(sc, se%frame) == 0) then
+          call errs%add(o%where('frame') // ": no &body named '" // trim(se%frame) // "'")
+        end if
+      end associate
+    end do
+  end subroutine check_sensors
+
+  !> A sensor takes the items of its kind only (else the error is added).
+  logical function sensor_kind_items(errs, se) result(ok)
+    type(error_list), intent(inout) :: errs
+    type(sensor_spec), intent(in) :: se
+    character(len=:), allocatable :: takes
+    integer :: k
+    takes = sensor_items(se%kind)
+    ok = .true.
+    do k = 1, se%origin%n
+      if (index(' ' // takes // ' ', ' ' // trim(se%origin%items(k)) // ' ') > 0) cycle
+      call errs%add(se%origin%where(trim(se%origin%items(k))) // ": not an item of a '" // trim(se%kind) // &
+        & "' sensor (it takes " // takes // ')')
+      ok = .false.; return
+    end do
+  end function sensor_kind_items
 
   !> &moving_load: a name, a beam to travel on, the items of its travel, and &effects
   !> moving_loads on.
