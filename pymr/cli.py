@@ -1,5 +1,5 @@
 """The ``pymr`` command line: ``pymr run``, ``pymr scene``, ``pymr modal-file``,
-``pymr modal-import``, ``pymr bench``, ``pymr modes``, ``pymr animate``, ``pymr study``,
+``pymr modal-import``, ``pymr bench``, ``pymr modes``, ``pymr animate``, ``pymr export``, ``pymr study``,
 ``pymr sweep``, ``pymr plot``, ``pymr view``."""
 from __future__ import annotations
 
@@ -158,7 +158,13 @@ def _cmd_study(args: argparse.Namespace) -> int:
 def _cmd_animate(args: argparse.Namespace) -> int:
     from . import animate
     return animate.main(args.csv, output=args.output, scene=args.scene, view=args.view, exaggerate=args.exaggerate,
-                        fps=args.fps, frames=args.frames)
+                        fps=args.fps, frames=args.frames, orbit=args.orbit, at=args.at)
+
+
+def _cmd_export(args: argparse.Namespace) -> int:
+    from . import export
+    return export.main(args.csv, args.vtk, scene=args.scene, every=args.every, frames=args.frames,
+                       exaggerate=args.exaggerate)
 
 
 def _cmd_view(args: argparse.Namespace) -> int:
@@ -224,6 +230,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_bench(sub)
     _add_modes(sub)
     _add_animate(sub)
+    _add_export(sub)
     _add_study(sub)
     _add_sweep(sub)
     _add_plot(sub)
@@ -329,16 +336,36 @@ def _add_modes(sub) -> None:
 
 def _add_animate(sub) -> None:
     """The `pymr animate` subcommand and its options."""
-    an = sub.add_parser("animate", help="animation of the moving mechanism from a run's results (GIF)")
+    an = sub.add_parser("animate", help="3-D animation of the moving mechanism from a run's results (GIF, video, "
+                        "or a .png still)")
     an.add_argument("csv", help="results CSV (its JSON beside it names the scene)")
-    an.add_argument("-o", "--output", help="the animation file (default: the CSV's name with .gif)")
+    an.add_argument("-o", "--output", help="the animation file (default: the CSV's name with .gif; .png: a still)")
     an.add_argument("--scene", help="the scene of the run, when the results' JSON does not name it or the run had "
                     "--set overrides (give the resolved scene)")
-    an.add_argument("--view", default="xy", choices=["xy", "xz", "zy"], help="inertial axes across and up")
-    an.add_argument("--exaggerate", type=float, default=1.0, help="scale of the modal coordinates (deflections)")
+    an.add_argument("--view", default="iso", help="iso (default), front, side, top, ELEV,AZIM in degrees (such as "
+                    "30,-60), or the plane xy, xz or zy seen face-on (first axis across)")
+    an.add_argument("--orbit", action="store_true", help="turn the camera once round the vertical axis over the run")
+    an.add_argument("--exaggerate", type=float, default=None, help="scale of the deflections drawn (default: the "
+                    "largest shows as 5%% of the mechanism's size, at least 1)")
+    an.add_argument("--at", type=_seconds, default=None, help="a .png still's time (s; default: the last frame)")
     an.add_argument("--fps", type=_count_of("frames per second"), default=25, help="frames per second")
     an.add_argument("--frames", type=_count_of("frames"), default=200, help="most frames (evenly spaced output rows)")
     an.set_defaults(func=_cmd_animate)
+
+
+def _add_export(sub) -> None:
+    """The `pymr export` subcommand and its options."""
+    ex = sub.add_parser("export", help="the moving mechanism as a ParaView collection (.pvd of .vtu files)")
+    ex.add_argument("csv", help="results CSV (its JSON beside it names the scene)")
+    ex.add_argument("--vtk", required=True, metavar="DIR", help="folder of the collection: DIR/OUT.pvd and one "
+                    ".vtu per output time (new, empty, or an earlier export, which is replaced)")
+    ex.add_argument("--scene", help="the scene of the run, when the results' JSON does not name it or the run had "
+                    "--set overrides (give the resolved scene)")
+    ex.add_argument("--every", type=_count_of("output rows"), default=1, help="every K-th output row (default 1)")
+    ex.add_argument("--frames", type=_count_of("frames"), default=None, help="at most N output times, evenly "
+                    "spaced (default: all)")
+    ex.add_argument("--exaggerate", type=float, default=1.0, help="scale of the deflections drawn (default 1)")
+    ex.set_defaults(func=_cmd_export)
 
 
 def _add_study(sub) -> None:

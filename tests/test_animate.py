@@ -1,8 +1,9 @@
-"""pymr animate (issue 17, item 7): the moving mechanism drawn from a run's results.
+"""pymr animate (issues 17 and 33): the moving mechanism drawn in 3-D from a run's results.
 
-Independent expectations: the markers recomputed from the result's coordinates equal the
-marker columns the run wrote; the tree's rigid geometry (the traverse joint point, the
-turret's lever to the trunnion) holds in every frame; one GIF frame per chosen row."""
+Independent expectations: the drawn markers and the barrel's drawn end equal the marker
+columns the run wrote; the default magnification draws the largest deflection as 5 % of the
+mechanism's size; the drawn points fill the frame and stay inside it; a free joint gets no
+link from the ground; the views put the axes where they are named; one GIF frame per row."""
 from __future__ import annotations
 
 import subprocess
@@ -12,11 +13,12 @@ import numpy as np
 import pytest
 
 import pymr
-from pymr.animate import animate, motion
-from pymr.geometry import GeometryError
+from pymr.animate import AnimateError, animate, drawing
+from pymr.geometry import GeometryError, motion
 
 ROOT = Path(__file__).resolve().parents[1]
 TANK = ROOT / "input" / "tank_gun_turret.nml"
+CHAIN = ROOT / "input" / "spatial_chain.nml"
 
 
 @pytest.fixture(scope="module")
@@ -26,31 +28,100 @@ def tank_results(tmp_path_factory):
     return pymr.load_results(out)
 
 
+def drawn(artist) -> np.ndarray:
+    """The 3-D points a line artist holds, (k, 3)."""
+    return np.column_stack(artist.get_data_3d())
+
+
 def test_drawn_points_are_the_run_s_kinematics(tank_results):
-    """Frames from the CSV's coordinates: the muzzle equals the run's own muzzle columns to
-    1e-9 m; the turret's origin stays on the traverse joint point (0, 1.2, 0) and the mount's
-    1.3 m from it (the trunnion at (1.2, 0.5, 0) in the turret's frame), every frame; with
-    the deflections scaled 50x the muzzle moves off its place by the scaled deflection."""
-    t, pos, parent, markers, on = motion(tank_results)
-    assert np.abs(markers["muzzle"] - tank_results.marker("muzzle")[0]).max() < 1e-9
-    assert list(parent) == [-1, 0, 1, 2] and on["muzzle"] == 3
-    assert np.abs(pos[:, 1] - [0.0, 1.2, 0.0]).max() < 1e-12
-    assert np.linalg.norm(pos[:, 2] - pos[:, 1], axis=1) == pytest.approx(1.3, abs=1e-12)
-    _, _, _, big, _ = motion(tank_results, exaggerate=50.0)
-    rigid = motion(tank_results, exaggerate=0.0)[3]["muzzle"]
-    assert np.abs((big["muzzle"] - rigid) - 50.0 * (markers["muzzle"] - rigid)).max() < 1e-3 * np.abs(
-        big["muzzle"] - rigid).max()
+    """At true scale the muzzle dot and the barrel's drawn end are the run's muzzle column
+    (to 1e-9 m) at every frame; the default scale draws the largest deflection as 5 % of the
+    mechanism's size (two digits), and the muzzle then sits off its undeformed place by that
+    factor times its deflection."""
+    d = drawing(tank_results, exaggerate=1.0, frames=31)
+    muzzle = tank_results.marker("muzzle")[0]
+    for i in range(0, 31, 5):
+        d.draw(i)
+        assert np.abs(drawn(d.dots["muzzle"])[0] - muzzle[i]).max() < 1e-9
+        assert np.abs(drawn(d.lines["gun"])[-1] - muzzle[i]).max() < 1e-9
+        assert np.abs(drawn(d.trails["muzzle"]) - muzzle[:i + 1]).max() < 1e-9
+    auto = drawing(tank_results, frames=31)
+    x = auto.mo.exaggerate
+    true = motion(tank_results)
+    lo, hi = true.bounds()
+    deflection = max(np.linalg.norm(b.displacement, axis=-1).max() for b in true.bodies if b.displacement is not None)
+    assert x * deflection / (hi - lo).max() == pytest.approx(0.05, rel=0.05) and x > 5
+    rigid = motion(tank_results, exaggerate=0.0).markers["muzzle"]
+    auto.draw(30)
+    assert np.abs(drawn(auto.dots["muzzle"])[0] - (rigid[30] + x * (muzzle[30] - rigid[30]))).max() < 1e-3 * deflection
+
+
+def test_the_mechanism_fills_the_frame(tank_results):
+    """Every drawn point (solids' corners, lines, markers, joints, over the run) lands inside
+    the figure, and they span at least 90 % of its width or of its height below the title;
+    orbiting, inside at every angle of the turn and so at the tightest one."""
+    for view, orbit in (("iso", False), ("top", False), ("front", True)):
+        d = drawing(tank_results, view=view, frames=10, orbit=orbit)
+        d.fig.canvas.draw()
+        w, h = d.fig.get_size_inches() * d.fig.dpi
+        cloud, fill = d._cloud(), []
+        for azim in d._angles():
+            px = d._screen(cloud, azim)
+            assert px.min() >= 0 and px[:, 0].max() <= w and px[:, 1].max() <= 0.94 * h
+            fill.append(max(np.ptp(px[:, 0]) / w, np.ptp(px[:, 1]) / (0.94 * h)))
+        assert max(fill) > 0.9
+
+
+def test_a_free_joint_is_not_a_rod_from_the_ground(tmp_path):
+    """The spatial chain's base body floats on a free joint: no link is drawn for it; every
+    other joint's link runs from its parent's origin to the joint."""
+    out = tmp_path / "chain.csv"
+    pymr.run(CHAIN, out, overrides={"scene.t_end": 0.2})
+    d = drawing(pymr.load_results(out), frames=5)
+    kinds = {j.name: j for j in d.mo.joints}
+    assert kinds["j1"].kind == "free" and "j1" not in d.links and d.links
+    origin = {b.name: b.origin for b in d.mo.bodies}
+    d.draw(4)
+    for name, link in d.links.items():
+        j = kinds[name]
+        assert np.abs(drawn(link) - [origin[j.parent][4], j.position[4]]).max() < 1e-15
+
+
+def test_views_put_the_axes_where_they_are_named(tank_results):
+    """Screen directions (right, up) of the inertial axes: 'xy' has x across and y up; 'xz' x
+    across and z up; 'zy' z across; the tank's vertical is y (its gravity), up in every named view
+    but 'top'; 'ELEV,AZIM' is taken as given; a bad view is one line."""
+    def screen(view):
+        d = drawing(tank_results, view=view, frames=3)
+        d.fig.canvas.draw()
+        c = (d.lo + d.hi) / 2
+        return (d._screen(c + np.eye(3), d.azim) - d._screen(c[None, :], d.azim)), d
+    for view, right, up in (("xy", 0, 1), ("xz", 0, 2), ("zy", 2, 1), ("front", 0, 1), ("iso", None, 1)):
+        j, d = screen(view)
+        assert j[up, 1] > 0.9 * np.linalg.norm(j[up]) and abs(j[up, 0]) < 1e-9 * np.linalg.norm(j[up])
+        if right is not None:
+            assert j[right, 0] > 0.99 * np.linalg.norm(j[right])
+    _, d = screen("10,-20")
+    assert (d.elev, d.azim, d.up) == (10.0, -20.0, "y")
+    with pytest.raises(AnimateError, match="view 'sideways': one of iso, front, side, top, ELEV,AZIM"):
+        drawing(tank_results, view="sideways")
 
 
 def test_animation_is_written_frame_by_frame(tank_results, tmp_path):
     from PIL import Image
-    out = animate(tank_results, tmp_path / "a.gif", exaggerate=20.0, frames=12)
+    out = animate(tank_results, tmp_path / "a.gif", exaggerate=20.0, frames=6)
     with Image.open(out) as im:
-        assert im.n_frames == 12
+        assert im.n_frames == 6
     r = subprocess.run(["pymr", "animate", tank_results.path, "-o", str(tmp_path / "b.gif"), "--frames", "5",
-                        "--view", "xz"], capture_output=True, text=True, timeout=120)
+                        "--view", "xz", "--orbit"], capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr
-    assert (tmp_path / "b.gif").stat().st_size > 1000
+    with Image.open(tmp_path / "b.gif") as im:
+        assert im.n_frames == 5
+    r = subprocess.run(["pymr", "animate", tank_results.path, "-o", str(tmp_path / "s.png"), "--at", "0.2"],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    with Image.open(tmp_path / "s.png") as im:
+        assert im.format == "PNG" and im.size[0] > 600
 
 
 def test_a_run_with_overrides_is_drawn_from_the_scene_its_statistics_hold(tmp_path):

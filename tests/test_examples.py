@@ -126,6 +126,8 @@ SETUP = {
     # the README's first scene: the plot overlays the run printed just before
     'pymr run input/pendulum.nml --set "joint[pivot].q0=0.5" -o pendulum_half.csv': ["pymr run input/pendulum.nml"],
     "pymr animate tank_gun_turret.csv --exaggerate 50": ["pymr run input/tank_gun_turret.nml"],
+    "pymr export tank_gun_turret.csv --vtk tank_vtk": ["pymr run input/tank_gun_turret.nml"],
+    "pymr animate tank_gun_turret.csv -o docs/tank_animation_3d.png --at 0.68": ["pymr run input/tank_gun_turret.nml"],
     "pymr sweep input/tank_sweep.toml --collect runs/": ["pymr sweep input/tank_sweep.toml --emit-slurm runs/",
                                                          lambda work: _slurm_tasks(work, "runs")],
     "pymr modal-import --mass M.mtx --stiffness K.mtx --nodes nodes.csv --dofs-per-node 6 --interface 1 21 "
