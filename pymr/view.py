@@ -4,9 +4,9 @@ The page (plotly, its plotly.js embedded: no network) shows, on the left, the me
 3-D: the bodies' solids (a box or a cylinder, from :mod:`pymr.geometry`), the flexible
 bodies as tubes along their deformed centre lines (deflections magnified by
 ``exaggerate``), the joints joining each parent's frame origin to its child's, and the
-markers with their paths; on the right, the chosen result columns against time, one panel
-per column (or per unit when more than four are chosen), each with a vertical line at the
-time shown. A slider (one step per frame) and play/pause buttons move both.
+markers with their paths; on the right, the chosen result columns against time, in
+panels as ``pymr plot --column`` makes them (one per unit, its rules in :mod:`pymr.plot`),
+each with a vertical line at the time shown. A slider (one step per frame) and play/pause buttons move both.
 
 The frames are output rows: every ``every``-th row, then at most ``frames`` of them, evenly
 spread (:func:`pymr.geometry.motion`). The column panels hold every ``every``-th row. The
@@ -15,7 +15,6 @@ they are. The page is written whole or not at all (a temporary file, then rename
 """
 from __future__ import annotations
 
-import fnmatch
 import os
 from pathlib import Path
 from typing import Sequence
@@ -24,11 +23,8 @@ import numpy as np
 
 from .api import write_file
 from .outputs import check_output
-from .plot import PlotError
+from .plot import STILL, PlotError, column_panels, match_columns, unit_scale
 from .results import Results, load_results
-
-#: Panels of columns at most before the columns are grouped by unit.
-MOST_PANELS = 4
 
 #: Sides of the polygons that stand for round sections (cylinders, tubes).
 SIDES = 12
@@ -44,21 +40,13 @@ COLOURS = ["#8c9bb5", "#c9a26b", "#7fb39a", "#b58cae", "#b5b58c", "#8cb5b5", "#c
 
 
 def select_columns(res: Results, patterns: Sequence[str] | None = None) -> list[str]:
-    """The columns to plot: those named by `patterns` (exact names or fnmatch patterns such
-    as ``energy.*``), in the patterns' order (a pattern's columns in the file's order, each
-    column once); none given: :func:`default_columns`. A pattern that matches nothing is a
-    PlotError naming it."""
+    """The columns to plot: those the names or shell-style patterns match (``energy.*``),
+    by ``pymr plot --column``'s rule (:func:`pymr.plot.match_columns`: in the patterns'
+    order, each column once; a pattern that matches nothing is a PlotError naming it); none
+    given: :func:`default_columns`."""
     if not patterns:
         return default_columns(res)
-    names = [c for c in res.columns if c != "t"]
-    chosen: dict[str, None] = {}
-    for p in patterns:
-        hits = [c for c in names if c == p or fnmatch.fnmatchcase(c, p)]
-        if not hits:
-            shown = ", ".join(names[:12]) + (", ..." if len(names) > 12 else "")
-            raise PlotError(f"--column {p!r}: no column of {res.path or 'the results'} matches it (columns: {shown})")
-        chosen.update(dict.fromkeys(hits))
-    return list(chosen)
+    return match_columns([res], patterns)
 
 
 def default_columns(res: Results) -> list[str]:
@@ -74,16 +62,16 @@ def default_columns(res: Results) -> list[str]:
 
 
 def panels(res: Results, names: list[str]) -> list[tuple[str, list[str]]]:
-    """The right-hand panels: (axis title, columns) each; one per column up to
-    MOST_PANELS columns, else one per unit (titled by the unit, or by its column when it
-    is alone). The units come from the results' column metadata (OUT.json)."""
-    units = {c.name: c.unit for c in res.column_info}
-    if len(names) <= MOST_PANELS:
-        return [(f"{n} ({units[n] or '-'})", [n]) for n in names]
-    by_unit: dict[str, list[str]] = {}
-    for n in names:
-        by_unit.setdefault(units[n], []).append(n)
-    return [(f"{cols[0]} ({unit or '-'})" if len(cols) == 1 else unit or "-", cols) for unit, cols in by_unit.items()]
+    """The right-hand panels, (y axis title, columns) each, as ``pymr plot --column`` makes
+    them (:func:`pymr.plot.column_panels`): the columns grouped by their unit (the results'
+    column metadata), the axis titled with what they are and the unit (``position (m)``)."""
+    return [(p.ylabel, p.columns) for p in column_panels([res], [glob_escape(n) for n in names])]
+
+
+def glob_escape(name: str) -> str:
+    """A column's name as a pattern that matches it alone ('[' '*' '?' taken literally)."""
+    import glob
+    return glob.escape(name)
 
 
 # ------------------------------------------------------------------ solids
@@ -255,32 +243,31 @@ def mechanism(fig, motion, mesh, size: float) -> None:
 
 # ------------------------------------------------------------------ the column panels
 
-def y_range(values: np.ndarray, scale: float = 0.0) -> list[float]:
-    """A panel's y range: the values' with 5 % either side; a still quantity gets a range of
-    1e-6 of its size or of `scale` (the largest of the columns of its unit), at least 1e-12,
-    so its round-off does not fill the panel."""
+def y_range(values: np.ndarray, scale: float) -> list[float]:
+    """A panel's y range: the values' with 5 % either side; a still quantity's, whose range
+    is below ``pymr plot``'s smallest (STILL times `scale`, the largest magnitude of its
+    unit in the run: :func:`pymr.plot.smallest_range`), that smallest range about its middle,
+    so that its round-off does not fill the panel."""
     lo, hi = float(np.min(values)), float(np.max(values))
-    pad = max(0.05 * (hi - lo), 1e-6 * max(abs(lo), abs(hi), scale), 1e-12)
+    half = STILL * scale
+    if hi - lo < 2 * half:
+        return [0.5 * (lo + hi) - half, 0.5 * (lo + hi) + half]
+    pad = 0.05 * (hi - lo) if hi > lo else max(0.05 * abs(lo), 1.0)
     return [lo - pad, hi + pad]
 
 
-def column_panels(fig, res: Results, chosen: list[tuple[str, list[str]]], rows: np.ndarray,
+def add_panels(fig, res: Results, chosen: list[tuple[str, list[str]]], rows: np.ndarray,
                   t0: float) -> tuple[list[list[float]], list[int]]:
     """Each panel's columns against t at `rows`, and its vertical line at t0; the panels'
     y ranges and the indices of their vertical lines among the figure's traces."""
     import plotly.graph_objects as go
     ranges, follow = [], []
-    units = {c.name: c.unit for c in res.column_info}
-    scale: dict[str, float] = {}
-    for _, names in chosen:
-        for n in names:
-            scale[units[n]] = max(scale.get(units[n], 0.0), float(np.abs(res[n][rows]).max()))
     for p, (title, names) in enumerate(chosen, start=1):
         data = np.column_stack([res[n][rows] for n in names])
         for n, y in zip(names, data.T):
             colour = LINES[len(fig.data) % len(LINES)]
             fig.add_trace(go.Scatter(x=res.t[rows], y=y, mode="lines", name=n, line={"color": colour}), row=p, col=2)
-        ranges.append(y_range(data, scale[units[names[0]]]))
+        ranges.append(y_range(data, unit_scale(res, res.unit(names[0]))))
         fig.add_trace(go.Scatter(x=[t0, t0], y=ranges[-1], mode="lines", line={"color": "#d62728", "width": 1.5},
                                  name="time shown", showlegend=p == 1, legendrank=2000, hoverinfo="skip"),
                       row=p, col=2)
@@ -364,7 +351,7 @@ def figure(motion, res: Results, columns: list[str], up: np.ndarray, every: int 
     mesh = solids(motion)
     mechanism(fig, motion, mesh, size)
     rows = np.arange(0, len(res.t), every)
-    ranges, follow = column_panels(fig, res, chosen, rows, float(motion.t[0]))
+    ranges, follow = add_panels(fig, res, chosen, rows, float(motion.t[0]))
     fig.frames = animation_frames(motion, mesh, size, follow, ranges)
     note = f"deflections x{motion.exaggerate:g}" if motion.exaggerate != 1 else "deflections to scale"
     fig.update_layout(**controls(motion.t), scene=scene_layout(motion, up), height=760, uirevision="view",
