@@ -257,7 +257,7 @@ def y_range(values: np.ndarray, scale: float) -> list[float]:
 
 
 def add_panels(fig, res: Results, chosen: list[tuple[str, list[str]]], rows: np.ndarray,
-                  t0: float) -> tuple[list[list[float]], list[int]]:
+               t0: float) -> tuple[list[list[float]], list[int]]:
     """Each panel's columns against t at `rows`, and its vertical line at t0; the panels'
     y ranges and the indices of their vertical lines among the figure's traces."""
     import plotly.graph_objects as go
@@ -303,8 +303,9 @@ def scene_layout(motion, up: np.ndarray) -> dict:
             for i, a in enumerate("xyz")}
     ratio = dict(zip("xyz", map(float, half / half.max())))
     side = np.array([1.0, 1.0, 1.0]) - up * 0.4
+    eye = 1.45 * side / np.linalg.norm(side)
     return {**axes, "aspectmode": "manual", "aspectratio": ratio,
-            "camera": {"up": dict(zip("xyz", map(float, up))), "eye": dict(zip("xyz", map(float, 1.45 * side / np.linalg.norm(side))))}}
+            "camera": {"up": dict(zip("xyz", map(float, up))), "eye": dict(zip("xyz", map(float, eye)))}}
 
 
 # ------------------------------------------------------------------ frames, slider, page
@@ -331,7 +332,8 @@ def controls(times: np.ndarray) -> dict:
               "currentvalue": {"prefix": "t = ", "suffix": " s", "xanchor": "right", "font": {"color": "#222222"}}}
     play = {"label": "play", "method": "animate",
             "args": [None, {**still, "frame": {"duration": 60, "redraw": True}, "fromcurrent": True}]}
-    pause = {"label": "pause", "method": "animate", "args": [[None], {**still, "frame": {"duration": 0, "redraw": False}}]}
+    pause = {"label": "pause", "method": "animate",
+             "args": [[None], {**still, "frame": {"duration": 0, "redraw": False}}]}
     buttons = {"type": "buttons", "direction": "left", "x": 0.0, "y": 0.0, "xanchor": "left", "yanchor": "top",
                "pad": {"t": 48, "r": 8}, "showactive": False, "buttons": [play, pause]}
     return {"sliders": [slider], "updatemenus": [buttons]}
@@ -363,16 +365,17 @@ def figure(motion, res: Results, columns: list[str], up: np.ndarray, every: int 
 
 def page(motion, res: Results, columns: Sequence[str] | None = None, every: int = 1,
          up: np.ndarray | None = None) -> str:
-    """The HTML page of a motion (:class:`pymr.geometry.Motion`) and its results: one file,
-    plotly.js in it, nothing fetched from the network."""
+    """The HTML page of a motion (:class:`pymr.geometry.Motion`) and its results, the
+    `columns` (names or patterns; None: the default ones) beside it: one file, plotly.js in
+    it, nothing fetched from the network."""
     fig = figure(motion, res, select_columns(res, columns), np.array([0.0, 0.0, 1.0]) if up is None else up, every)
     return fig.to_html(include_plotlyjs=True, full_html=True, div_id="pymr-view", auto_play=False,
                        config={"displaylogo": False, "responsive": True})
 
 
 def check_options(every: int, frames: int, exaggerate: float) -> None:
-    """--every and --frames whole numbers of at least 1,
-    --exaggerate a finite number above 0; else a PlotError naming the option."""
+    """--every and --frames whole numbers of at least 1, --exaggerate a finite number above
+    0; else a PlotError naming the option."""
     for option, value, least in (("--every", every, 1), ("--frames", frames, 1)):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < least:
             raise PlotError(f"{option} {value!r}: a whole number, at least {least}")
@@ -399,10 +402,10 @@ def view(results: Results | str | os.PathLike, output: str | os.PathLike, scene=
                        inputs=([res.path, Path(res.path).with_suffix(".json")] if res.path else [])
                        + ([res.stats["scene"]] if res.stats.get("scene") else []),
                        scene=scene_of(res, scene))
-    chosen = select_columns(res, columns)            # an unknown column is refused before the work
+    select_columns(res, columns)                     # an unknown column is refused before the work
     from .geometry import motion as motion_of
     motion = motion_of(res, scene, exaggerate=exaggerate, every=every, frames=frames)
-    write_file(out, page(motion, res, chosen, every, up_axis(res, scene)), "view")
+    write_file(out, page(motion, res, columns, every, up_axis(res, scene)), "view")
     return out
 
 

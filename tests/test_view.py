@@ -133,7 +133,8 @@ def test_page_is_offline_and_draws_the_geometry(tank, tmp_path):
     assert not list(tmp_path.glob("*.tmp"))
     data, layout, frames = figure_json(page)
     motion = motion_of(tank, frames=7)
-    assert len(frames) == 7 and len(layout["sliders"][0]["steps"]) == 7 and motion.t[0] == tank.t[0] and motion.t[-1] == tank.t[-1]
+    assert len(frames) == 7 and len(layout["sliders"][0]["steps"]) == 7
+    assert motion.t[0] == tank.t[0] and motion.t[-1] == tank.t[-1]
     gun = next(b for b in motion.bodies if b.line is not None)
     sides, n = view.SIDES, gun.line.shape[1]
     muzzle = tank.marker("muzzle")[0][np.searchsorted(tank.t, motion.t)]
@@ -206,7 +207,8 @@ def chromium():
         from selenium import webdriver
         from selenium.webdriver.chrome.service import Service
     except ImportError:
-        pytest.fail("selenium is not installed: the view's browser test needs it (pip install selenium, as .ci/setup does)")
+        pytest.fail("selenium is not installed: the view's browser test needs it (pip install selenium, as "
+                    ".ci/setup does)")
     options = webdriver.ChromeOptions()
     options.binary_location = BROWSER
     for flag in ("--headless=new", "--no-sandbox", "--disable-gpu", "--use-angle=swiftshader",
