@@ -28,9 +28,10 @@ def run(scene, output: str | os.PathLike | None = None,
     """Run a scene (a namelist file's path or a :class:`pymr.Scene`) in the Fortran kernel and
     return its results as numpy arrays.
 
-    ``output`` is the CSV path (the JSON statistics go beside it); ``""`` lets the kernel
-    choose (``&output file``, else SCENE.csv); ``None`` writes to a temporary folder,
-    loads the results and removes the files.
+    ``output`` is the results path, OUT.csv (or OUT.h5 with ``&output format = 'hdf5'``;
+    the JSON statistics go beside it); ``""`` lets the kernel choose (``&output file``,
+    else SCENE.csv or SCENE.h5); ``None`` writes to a temporary folder, loads the results
+    and removes the files.
     ``overrides`` changes namelist values for this run, as ``pymr run --set`` does.
     ``restart`` continues a run from its checkpoint file (``&output checkpoint_dt``): the
     results file keeps the rows written up to the checkpoint and the run goes on from there.
@@ -56,7 +57,7 @@ def run(scene, output: str | os.PathLike | None = None,
         res = load_results(_text(written))
     elif output is None:
         with tempfile.TemporaryDirectory(prefix="pymr-") as tmp:
-            out = str(Path(tmp) / "results.csv")
+            out = str(Path(tmp) / ("results" + _results_suffix(scene, text)))
             stat, msg, detail, summary, _ = _run_kernel(scene, text, out, ckpt, progress)
             _raise(stat, msg, detail)
             res = load_results(out)
@@ -67,6 +68,13 @@ def run(scene, output: str | os.PathLike | None = None,
         res = load_results(out)
     res.summary = _text(summary)
     return res
+
+
+def _results_suffix(scene: str, text: str) -> str:
+    """The results file's suffix for the scene's &output format (.csv, or .h5 for 'hdf5');
+    .csv when the scene cannot be read (the run then says why)."""
+    value, stat, _, _ = _core.pymr_scene_item(scene, text, "output.format")
+    return ".h5" if stat == 0 and "hdf5" in _text(value) else ".csv"
 
 
 def _run_kernel(scene: str, text: str, out: str, ckpt: str, progress: bool | None):

@@ -303,6 +303,12 @@ def main(what: str, repeats: int | None = None, json_path: str | None = None,
         if json_path:
             write_file(json_path, json.dumps(rows, indent=2), "figures")
         return 0
+    if what == "output":
+        rows = bench_output(repeats=repeats or 5)
+        print_output(rows)
+        if json_path:
+            write_file(json_path, json.dumps(rows, indent=2), "figures")
+        return 0
     if what == "table1":
         # runs of 5-30 ms are noisy on a shared machine: 21 interleaved repeats by default
         rows = bench_table1(repeats=max(repeats or 21, 5))
@@ -511,3 +517,66 @@ def print_spacecraft(rows: list[dict]) -> None:
     for r in rows:
         print(f"{r['case']:<52} {r['tip_error_m']:>11.1e} {r['median_cpu_s']:>8.3f} {r['preflight_cpu_s']:>12.3f} "
               f"{r['speed_vs_fastest_single']:>16.1f}")
+
+
+#: ``bench output``: the spacecraft over 2 s writing a row at every step, in each format, and
+#: the same run writing only its first and last rows (output.dt = t_end).
+OUTPUT_CASES = {
+    "first and last rows only": {"output.dt": 2.0},
+    "csv, every step": {"output.dt": 0.0},
+    "hdf5, every step (compression 1)": {"output.dt": 0.0, "output.format": "hdf5", "output.compression": 1},
+    "hdf5, every step (uncompressed)": {"output.dt": 0.0, "output.format": "hdf5", "output.compression": 0},
+}
+
+
+def _mrsim_cpu(args: list[str], cwd: str) -> float:
+    """CPU time (user + system) of one mrsim process, from its start to its exit."""
+    import resource
+    import subprocess
+    from ._locate import mrsim_path
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    done = subprocess.run([mrsim_path(), *args], cwd=cwd, capture_output=True, text=True)
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    if done.returncode != 0:
+        raise SceneError(done.stderr.strip() or f"mrsim exited with {done.returncode}")
+    return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+
+
+def bench_output(repeats: int = 5) -> list[dict]:
+    """What writing the results costs: the spacecraft (48 modal coordinates) over 2 s with a
+    row at every step, as CSV and as HDF5, against the same run writing two rows. CPU of the
+    whole mrsim process (the files' last flush and rename included), median of `repeats`
+    runs interleaved over the cases."""
+    scene = str(_scene_path("spacecraft.nml"))
+    cpu: dict[str, list] = {name: [] for name in OUTPUT_CASES}
+    info: dict[str, dict] = {}
+    with tempfile.TemporaryDirectory(prefix="pymr-output-") as tmp:
+        for _ in range(repeats):
+            for name, over in OUTPUT_CASES.items():
+                out = "out.h5" if over.get("output.format") == "hdf5" else "out.csv"
+                sets = [a for k, v in over.items() for a in ("--set", f"{k}={v}")]
+                cpu[name].append(_mrsim_cpu([scene, "-o", out, "--quiet", *sets], tmp))
+                stats = json.loads((Path(tmp) / "out.json").read_text())
+                info[name] = {"rows": stats["rows"], "bytes": (Path(tmp) / out).stat().st_size,
+                              "columns": len(stats["columns"]["name"])}
+    base = statistics.median(cpu["first and last rows only"])
+    rows = []
+    for name in OUTPUT_CASES:
+        med = statistics.median(cpu[name])
+        extra_rows = max(info[name]["rows"] - 2, 1)
+        rows.append({"case": name, **info[name], "median_cpu_s": med, "added_cpu_fraction": med / base - 1.0,
+                     "us_per_row": (med - base) / extra_rows * 1e6})
+    return rows
+
+
+def print_output(rows: list[dict]) -> None:
+    print(f"pymr bench output: the spacecraft, 0-2 s, {rows[1]['columns']} columns; CPU of the whole mrsim process, "
+          "median of interleaved repeats; added CPU against the same run writing its first and last rows only")
+    print(f"{'case':<34} {'rows':>6} {'file MB':>8} {'CPU s':>7} {'added':>7} {'us/row':>7}")
+    for r in rows:
+        print(f"{r['case']:<34} {r['rows']:>6} {r['bytes'] / 1e6:>8.2f} {r['median_cpu_s']:>7.3f} "
+              f"{100 * r['added_cpu_fraction']:>+6.1f}% {r['us_per_row'] if r['rows'] > 2 else 0.0:>7.2f}")
+    by = {r["case"]: r for r in rows}
+    csv = by["csv, every step"]["us_per_row"]
+    for name in ("hdf5, every step (compression 1)", "hdf5, every step (uncompressed)"):
+        print(f"cost per row, {name.split(', every step ')[1][1:-1]} HDF5 against CSV: {by[name]['us_per_row'] / csv:.2f}")

@@ -242,7 +242,8 @@ def _add_run(sub) -> None:
     """The `pymr run` subcommand and its options."""
     r = sub.add_parser("run", help="run a scene (namelist file) and write OUT.csv and OUT.json")
     r.add_argument("scene", help="scene namelist file")
-    r.add_argument("-o", "--output", help="CSV result file (default: &output file, else SCENE.csv)")
+    r.add_argument("-o", "--output", help="results file: OUT.csv, or OUT.h5 with &output format = 'hdf5' "
+                   "(default: &output file, else SCENE.csv or SCENE.h5)")
     r.add_argument("--set", action="append", metavar="GROUP.ITEM=VALUE",
                    help="override a namelist value for this run, e.g. integrator.h_slow=5e-4 or "
                         "body[turret].mass=1000 (repeatable)")
@@ -305,18 +306,19 @@ def _add_modal_import(sub) -> None:
 def _add_bench(sub) -> None:
     """The `pymr bench` subcommand and its options."""
     b = sub.add_parser("bench", help="benchmarks that print figures")
-    b.add_argument("what", choices=["rhs", "chain", "lapack", "table1", "effects", "spacecraft"],
+    b.add_argument("what", choices=["rhs", "chain", "lapack", "table1", "effects", "spacecraft", "output"],
                    help="rhs: cost of one model evaluation vs chain length; chain: the serial chain of N "
                         "rods, N = 5 to 200, by both forward-dynamics paths and (when installed) Pinocchio; lapack: the "
                         "work pymr hands LAPACK, timed with the LAPACK loaded; "
                         "table1: the paper's Table 1 (tank, step ratios 1-50, both couplings); effects: cost "
                         "of one tank evaluation with each effect on and off; spacecraft: the flexible spacecraft, "
-                        "single-rate against multirate")
+                        "single-rate against multirate; output: what writing a row at every step costs, as CSV "
+                        "and as HDF5")
     b.add_argument("--pinocchio-cpp", metavar="EXE",
                    help="chain: also time Pinocchio compiled, by this build of docs/pinocchio_chain.cpp")
     b.add_argument("--repeats", type=_count_of("repeats"), default=None,
-                   help="timing repeats, median reported (default 7 for rhs, chain and effects, 5 for lapack "
-                        "and spacecraft, 21 for table1, which takes at least 5)")
+                   help="timing repeats, median reported (default 7 for rhs, chain and effects, 5 for lapack, "
+                        "spacecraft and output, 21 for table1, which takes at least 5)")
     b.add_argument("--json", help="also write the figures to this JSON file")
     b.set_defaults(func=_cmd_bench)
 

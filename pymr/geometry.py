@@ -196,8 +196,7 @@ def motion(res: Results | str | os.PathLike, scene=None, exaggerate: float = 1.0
         t, q, qd = res.t[rows], q_all[rows], qd_all[rows]
         bodies = _bodies(model, t, q, qd, float(exaggerate))
         joints = _joints(model, t, q, qd, float(exaggerate), [b.name for b in bodies])
-        everywhere = _markers(model, t, q, qd, float(exaggerate))
-        markers = {m: everywhere[m] for m in res.markers}
+        markers = _markers(model, t, q, qd, float(exaggerate))      # every marker of the scene
     return Motion(t=t, bodies=bodies, joints=joints, markers=markers, exaggerate=float(exaggerate))
 
 

@@ -22,10 +22,10 @@ run's columns, ``t`` left out). The matched columns are grouped into panels by t
 with what they are and the unit (``force (N)``, ``energy (J)``), each line labelled with its
 column's name (and its run's label when there are several runs) in the panel's legend.
 
-In every panel, a still quantity's round-off does not fill the panel: when the values'
-range is below :data:`STILL` times the largest magnitude of the run's columns of that unit
-(the scale of that unit in the run), the y range is centred on the middle of the values' range with that
-half-width instead (:func:`smallest_range`).
+In every panel, a still quantity's round-off does not fill the panel: with ``scale`` the
+largest magnitude of the runs' columns of the panel's unit (that unit's scale in the runs),
+a range of values below 2 :data:`STILL` ``scale`` is drawn as their middle +- :data:`STILL`
+``scale`` (:func:`smallest_range`).
 """
 from __future__ import annotations
 

@@ -251,7 +251,8 @@ def _optional(package: str, method: str):
 
 
 def load_results(csv_path: str | os.PathLike) -> Results:
-    """Load OUT.csv and, when present, OUT.json beside it. A file that is missing, is no
+    """Load OUT.csv and, when present, OUT.json beside it; or an HDF5 results file (OUT.h5,
+    :mod:`pymr.results_hdf5`), to the same Results. A file that is missing, is no
     pymr results file (header from the column 't', rows of finite numbers) or has no rows,
     and a JSON beside it that is not JSON, raise :class:`ResultsError`."""
     from ._args import _path             # the one check of a path argument
@@ -260,6 +261,9 @@ def load_results(csv_path: str | os.PathLike) -> Results:
     path = Path(_path("csv_path", csv_path))
     if not path.is_file():
         raise ResultsError(f"{path}: no such result file")
+    from .results_hdf5 import is_hdf5, read_hdf5
+    if is_hdf5(path):
+        return read_hdf5(path)
     try:
         meta, header, skip = _read_head(path)
         with warnings.catch_warnings():

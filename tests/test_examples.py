@@ -337,6 +337,7 @@ def test_the_examples_are_found():
     assert any(s.startswith("mrsim input/hard/tank_long.nml --set output.checkpoint_dt=10") for s in scripts)
     assert [(e.where.split(":")[0], e.script.splitlines()[1]) for e in EXAMPLES if e.lang == "python"] == [
         ("README.md", 'res = pymr.run("input/pendulum.nml")             # runs in a temporary folder, leaves no files'),
+        ("docs/results.md", 'pymr.run("input/tank_gun_turret.nml", "tank.h5", overrides={"output.format": "hdf5"})'),
         ("docs/results.md", 'pymr.run("input/tank_gun_turret.nml", "tank.csv",     # writes tank.csv and tank.json'),
         ("docs/results.md", 'res = pymr.run("input/tank_gun_turret.nml", "tank.csv", overrides={'),
         ("docs/scenes.md", 'scene = pymr.Scene("input/tank_gun_turret.nml")'),

@@ -165,3 +165,13 @@ def test_bad_requests_are_refused_in_one_line(tank, tmp_path):
     with pytest.raises(GeometryError, match="exaggerate"):
         motion(tank, exaggerate=-1.0)
     assert list(rows_of(10, 3)) == [0, 3, 6, 9] and list(rows_of(101, 1, 5)) == [0, 25, 50, 75, 100]
+
+
+def test_markers_the_run_did_not_write_are_drawn_too(tank, tmp_path):
+    """A run that wrote its coordinates only still has the scene's muzzle drawn: at the run's
+    own muzzle column of the full run (the same motion) to 1e-9 of the barrel's length."""
+    res = pymr.run(TANK, tmp_path / "c.csv", overrides={"scene.t_end": 0.3, "output.dt": 0.01,
+                                                        "output.quantities": ["coordinates"]})
+    assert res.markers == []
+    mo = motion(res)
+    assert np.abs(mo.markers["muzzle"] - tank.marker("muzzle")[0]).max() < 1e-9 * 5.3

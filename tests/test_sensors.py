@@ -184,3 +184,18 @@ def test_sensors_in_the_schema_and_the_python_scene(tmp_path):
     assert "&sensor" in scene.resolved() and "frame" not in scene.resolved().split("&sensor")[1]
     with pytest.raises(pymr.SceneError, match="&sensor.*to: no &marker named 'tail'"):
         scene.add("sensor", name="far", kind="distance", marker="muzzle", to="tail")
+
+
+def test_a_restarted_run_writes_the_same_sensor_columns(tmp_path):
+    """Checkpoint at 10 ms, 'killed' at 15 ms, restarted: the rows, sensors included, are
+    the uninterrupted run's (the sensors are recomputed from the state, none in the checkpoint)."""
+    scene = write(tmp_path, "tank_s.nml", TANK + MARKERS + SENSORS)
+    over = {**RUN, "scene.t_end": 0.02, "output.dt": 1.0e-3}
+    full = pymr.run(scene, tmp_path / "full.csv", overrides=over)
+    out = tmp_path / "job.csv"
+    pymr.run(scene, out, overrides={**over, "scene.t_end": 0.015, "output.checkpoint_dt": 0.01})
+    res = pymr.run(scene, out, overrides={**over, "output.checkpoint_dt": 0.01}, restart=tmp_path / "job.ckpt")
+    assert res.columns == full.columns and np.array_equal(res.t, full.t)
+    sensors = [c.name for c in full.column_info if c.group == "sensors"]
+    for name in sensors:
+        assert np.abs(res[name] - full[name]).max() <= 1e-10 * np.abs(full[name]).max(), name

@@ -30,7 +30,9 @@ contains
       if (model%d%nm(b) == 0) cycle
       ! a body is warned about once: not measured again after that
       if (index(stats%warnings, "body '" // trim(model%d%body_name(b)) // "' deflects") > 0) cycle
-      call point_deflection(model%d%flex(b), q(model%d%a0(b):model%d%a0(b) + model%d%nm(b) - 1), deflection, size_m)
+      size_m = model%d%flex(b)%size_m
+      deflection = point_deflection(model%d%flex(b), q(model%d%a0(b):model%d%a0(b) + model%d%nm(b) - 1), &
+        & sc%scene%deflection_limit*size_m)
       if (deflection <= sc%scene%deflection_limit*size_m) cycle
       said = "body '" // trim(model%d%body_name(b)) // "' deflects " // fmt(deflection) // ' m, ' // &
         & fmt(deflection/size_m) // ' of its size ' // fmt(size_m) // ' m (&scene deflection_limit = ' // &

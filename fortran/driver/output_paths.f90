@@ -13,7 +13,8 @@ module pymr_driver_output_paths
 
 contains
 
-  !> Output path: the command line's, else &output file, else the scene's name with .csv.
+  !> Output path: the command line's, else &output file, else the scene's name with .csv
+  !> (.h5 for &output format 'hdf5').
   function default_output(sc, out) result(path)
     type(scene_t), intent(in) :: sc
     character(len=*), intent(in) :: out
@@ -27,7 +28,8 @@ contains
       s = index(sc%file, '/', back=.true.)
       k = index(sc%file, '.', back=.true.)
       if (k <= s) k = len(sc%file) + 1
-      path = sc%file(s+1:k-1) // '.csv'
+      path = sc%file(s+1:k-1) // merge('.h5 ', '.csv', sc%output%format == 'hdf5')
+      path = trim(path)
     end if
   end function default_output
 
@@ -38,6 +40,7 @@ contains
     character(len=*), intent(in) :: path
     type(error_type), allocatable, intent(out) :: error
     character(len=:), allocatable :: what
+    if (wrong_extension(sc, path, error)) return
     if (absolute_path(json_path(path)) == absolute_path(path)) then
       call fatal_error(error, sc%file // ': output ' // path // ': the results and their statistics would both ' // &
         & 'be ' // json_path(path) // ' (give a .csv file)'); return
@@ -86,6 +89,28 @@ contains
         & "' does not exist (make it, or choose a checkpoint_file in a folder that does)")
     end function no_folder
   end subroutine check_output_path
+
+  !> Does the results file's extension contradict &output format (a .h5 or .hdf5 file is
+  !> HDF5, any other text)? Then the error says what to change.
+  logical function wrong_extension(sc, path, error)
+    type(scene_t), intent(in) :: sc
+    character(len=*), intent(in) :: path
+    type(error_type), allocatable, intent(inout) :: error
+    logical :: h5
+    integer :: k
+    k = index(path, '.', back=.true.)
+    h5 = .false.
+    if (k > index(path, '/', back=.true.)) h5 = path(k:) == '.h5' .or. path(k:) == '.hdf5'
+    wrong_extension = h5 .neqv. sc%output%format == 'hdf5'
+    if (.not. wrong_extension) return
+    if (h5) then
+      call fatal_error(error, sc%file // ': output ' // path // ': an HDF5 file, but &output format is ''' // &
+        & trim(sc%output%format) // ''' (set format = ''hdf5'', or give a .csv file)')
+    else
+      call fatal_error(error, sc%output%origin%where('format') // ': ''hdf5'' writes a .h5 or .hdf5 file, not ' // &
+        & path // ' (give a .h5 file, or format = ''csv'')')
+    end if
+  end function wrong_extension
 
   !> What of the scene's input `path` is: 'the scene (FILE)', 'a modal file of the scene
   !> (FILE)', 'a table file of the scene (FILE)', or '' when the run reads no such file. An

@@ -13,7 +13,8 @@ module pymr_driver_output_quantities
   use pymr_model_effect, only : effect_powers, effect_powers_qdd, effects_need_qdd, power_motion
   use pymr_model_spatial, only : quaternion
   use pymr_integrator_stepper, only : stepper_t
-  use pymr_io_results_output, only : csv_writer, output_plan, n_energy, n_work
+  use pymr_io_results_output, only : output_plan, n_energy, n_work
+  use pymr_io_results_file, only : results_file
   implicit none
   private
   public :: write_output_row, work_at
@@ -27,16 +28,16 @@ contains
 
   !> Write the row of time t and state (q, qd): prescribed coordinates are written (and
   !> move the bodies) exactly as their functions; `work` holds the works of the energy columns.
-  subroutine write_output_row(csv, model, t, q, qd, work, error)
-    type(csv_writer), intent(inout) :: csv
+  subroutine write_output_row(out, model, t, q, qd, work, error)
+    class(results_file), intent(inout) :: out
     type(model_t), intent(inout) :: model
     real(dp), intent(in) :: t, q(:), qd(:), work(n_work)
     type(error_type), allocatable, intent(out) :: error
-    real(dp) :: qe(size(q)), qde(size(qd)), extra(csv%plan%extra)
+    real(dp) :: qe(size(q)), qde(size(qd)), extra(out%plan%extra)
     call imposed_state(model, t, q, qd, qe, qde)
-    call output_values(csv%plan, model, t, qe, qde, work, extra, error)
+    call output_values(out%plan, model, t, qe, qde, work, extra, error)
     if (allocated(error)) return
-    call csv%write_row(model%d, t, qe, qde, extra)
+    call out%write_row(model%d, t, qe, qde, extra)
   end subroutine write_output_row
 
   !> The state with the prescribed coordinates on their functions.

@@ -18,7 +18,10 @@ module pymr_driver_simulation
   use pymr_model_sensors, only : sensors_of
   use pymr_integrator_stepper, only : stepper_t, step_counts
   use pymr_io_namelist_input, only : scene_fingerprint, checkpoint_identity, resolved_text
-  use pymr_io_results_output, only : csv_writer, json_path, write_json, run_stats, output_plan_of, n_work
+  use pymr_io_results_output, only : json_path, write_json, run_stats, output_plan_of, n_work
+  use pymr_io_results_file, only : results_file
+  use pymr_io_results_csv, only : csv_writer
+  use pymr_io_results_hdf5, only : hdf5_writer
   use pymr_io_checkpoint, only : run_progress, write_checkpoint, read_checkpoint
   use pymr_driver_stepper_setup, only : make_stepper, stepper_label, method_label
   use pymr_driver_output_quantities, only : write_output_row, work_at
@@ -43,7 +46,7 @@ module pymr_driver_simulation
     type(scene_t) :: sc
     type(model_t) :: model
     class(stepper_t), allocatable :: st
-    type(csv_writer) :: csv
+    class(results_file), allocatable :: out
     type(run_stats) :: stats
     type(run_clock) :: clock
     !> The results file, and the lock on it once held.
@@ -73,6 +76,7 @@ module pymr_driver_simulation
     procedure :: finish => simulation_finish
     procedure :: summary => simulation_summary
     procedure :: close => simulation_close
+    procedure, private :: choose_format
     procedure, private :: begin_new, resume, put_row, put_rows_reached, put_last_row, checkpoint_if_due, start_again
     procedure, private :: write_results, name_file
   end type simulation_t
@@ -118,12 +122,30 @@ contains
     self%eps = 1.0e-9_dp*h
     self%k_out = 1
     self%t_next = self%dt_out
-    self%csv%digits = self%sc%output%precision
-    self%csv%plan = output_plan_of(self%sc%output%quantities, self%model%d, sensors_of(self%sc, self%model%d))
+    call self%choose_format()
     self%work_step = 0.0_dp; self%t_step = 0.0_dp
     call make_stepper(self%sc, self%model, self%x, self%st, self%h0, error)
     if (allocated(error)) call self%name_file(error)
   end subroutine simulation_initial_state
+
+  !> The results file of &output format, what it writes (the plan of &output quantities)
+  !> and what the run is.
+  subroutine choose_format(self)
+    class(simulation_t), intent(inout) :: self
+    if (self%sc%output%format == 'hdf5') then
+      allocate(hdf5_writer :: self%out)
+      select type (out => self%out)
+      type is (hdf5_writer)
+        out%compression = self%sc%output%compression
+      end select
+    else
+      allocate(csv_writer :: self%out)
+    end if
+    self%out%digits = self%sc%output%precision
+    self%out%plan = output_plan_of(self%sc%output%quantities, self%model%d, sensors_of(self%sc, self%model%d))
+    call self%out%describe(self%sc%scene%title, method_label(self%sc), scene_fingerprint(self%sc), &
+      & resolved_text(self%sc, absolute_paths=.true.), settings_json(self%sc))
+  end subroutine choose_format
 
   !> Start the integration: from the checkpoint file `restart` (its results file keeps the
   !> rows written up to it), or ('') a new run from the initial state.
@@ -149,28 +171,28 @@ contains
   subroutine begin_new(self, error)
     class(simulation_t), intent(inout) :: self
     type(error_type), allocatable, intent(out) :: error
-    call check_output_size(self%sc, self%model, self%csv, self%dt_out, error); if (allocated(error)) return
-    call self%csv%open(self%path, self%model%d, self%sc%scene%title, method_label(self%sc), error)
+    call check_output_size(self%sc, self%model, self%out, self%dt_out, error); if (allocated(error)) return
+    call self%out%open(self%path, self%model%d, error)
     if (allocated(error)) return
     call check_mass_matrix(self%model, self%x, self%file // ': ', error)
     if (.not. allocated(error)) call self%put_row(0.0_dp, self%work_step, error)
     self%stats%rows = 1
     if (allocated(error)) then
-      call self%csv%discard(); return
+      call self%out%discard(); return
     end if
     if (.not. self%sc%integrator%adaptive .and. self%sc%integrator%stability_check) then
       self%stats%preflight_cpu_s = thread_cpu_time()
       call check_step_stability(self%model, self%x, self%st, stepper_label(self%sc), self%sc%scene%t_end, &
         & self%file // ': &integrator: ', error)
       if (allocated(error)) then
-        call self%csv%discard(); return
+        call self%out%discard(); return
       end if
       self%stats%preflight_cpu_s = thread_cpu_time() - self%stats%preflight_cpu_s
       self%clock%cpu0 = self%clock%cpu0 + self%stats%preflight_cpu_s
     end if
     call self%st%start(self%model, 0.0_dp, self%x, self%h0, error)
     if (allocated(error)) then
-      call self%csv%discard()
+      call self%out%discard()
       call self%name_file(error)
     end if
   end subroutine begin_new
@@ -184,9 +206,9 @@ contains
     type(run_progress) :: prog
     call read_checkpoint(restart, self%st, self%model, prog, self%settings, self%fingerprint, &
       & self%sc%scene%t_end, error)
-    if (.not. allocated(error)) call self%csv%reopen(self%path, self%model%d, prog%rows, error)
+    if (.not. allocated(error)) call self%out%reopen(self%path, self%model%d, prog%rows, error)
     if (allocated(error)) then
-      call self%csv%close()
+      call self%out%close()
       call self%name_file(error)
       return
     end if
@@ -243,9 +265,9 @@ contains
       end if
       if (self%st%time() >= t - self%eps) return
       call self%checkpoint_if_due(error); if (allocated(error)) return
-      if (self%csv%ios /= 0) then
-        call fatal_error(error, 'at t = ' // fmt(self%st%time()) // ' s: ' // self%csv%partial // ': cannot ' // &
-          & 'write the results: ' // trim(self%csv%io_message), stat_solver); return
+      if (self%out%ios /= 0) then
+        call fatal_error(error, 'at t = ' // fmt(self%st%time()) // ' s: ' // self%out%partial // ': cannot ' // &
+          & 'write the results: ' // trim(self%out%io_message), stat_solver); return
       end if
       call self%step(error); if (allocated(error)) return
       call self%clock%reached(self%st%time())
@@ -264,7 +286,7 @@ contains
     if (self%dt_out > 0.0_dp) then
       do while (self%t_next <= min(self%st%time(), t_end) + self%eps)
         call self%st%value_at(self%t_next, self%x)
-        call work_at(self%csv%plan, self%st, self%model, self%t_step, self%work_step, self%t_next, work, error)
+        call work_at(self%out%plan, self%st, self%model, self%t_step, self%work_step, self%t_next, work, error)
         if (allocated(error)) return
         call self%put_row(self%t_next, work, error); if (allocated(error)) return
         self%stats%rows = self%stats%rows + 1
@@ -273,7 +295,7 @@ contains
     end if
     ! the works at the time reached (for its row, the checkpoint, and the start of the next step)
     t = self%st%time()
-    call work_at(self%csv%plan, self%st, self%model, self%t_step, self%work_step, t, work, error)
+    call work_at(self%out%plan, self%st, self%model, self%t_step, self%work_step, t, work, error)
     if (allocated(error)) return
     t0 = self%t_step
     self%work_step = work; self%t_step = t
@@ -292,7 +314,7 @@ contains
     type(error_type), allocatable, intent(out) :: error
     integer :: n
     n = self%model%d%n
-    call write_output_row(self%csv, self%model, t, self%x(1:n), self%x(n+1:), row_work, error)
+    call write_output_row(self%out, self%model, t, self%x(1:n), self%x(n+1:), row_work, error)
     if (allocated(error)) return
     call watch_deflection(self%sc, self%model, t, self%x(1:n), self%stats, error)
   end subroutine put_row
@@ -304,8 +326,8 @@ contains
     type(error_type), allocatable, intent(out) :: error
     type(run_progress) :: prog
     if (self%st%time() < self%t_ckpt - self%eps) return
-    call self%csv%flush_rows()
-    if (self%csv%ios /= 0) return
+    call self%out%flush_rows()
+    if (self%out%ios /= 0) return
     prog = run_progress(rows=self%stats%rows, k_out=self%k_out, t_next=self%t_next, cpu_s=self%clock%cpu_s(), &
       & t_checkpoint=self%st%time(), work=self%work_step)
     call write_checkpoint(self%ckpt_path, self%st, self%model, prog, self%settings, self%fingerprint, error)
@@ -342,7 +364,7 @@ contains
     t_end = self%sc%scene%t_end
     call self%st%value_at(t_end, self%x)
     if (self%dt_out <= 0.0_dp .or. abs(self%t_next - self%dt_out - t_end) > self%eps) then
-      call work_at(self%csv%plan, self%st, self%model, self%t_step, self%work_step, t_end, work, error)
+      call work_at(self%out%plan, self%st, self%model, self%t_step, self%work_step, t_end, work, error)
       if (.not. allocated(error)) call self%put_row(t_end, work, error)
       self%stats%rows = self%stats%rows + 1
     end if
@@ -356,21 +378,21 @@ contains
     class(simulation_t), intent(inout) :: self
     type(error_type), allocatable, intent(inout) :: error
     type(error_type), allocatable :: json_error
-    character(len=:), allocatable :: scene_text
+    character(len=:), allocatable :: scene_text, statistics
     scene_text = resolved_text(self%sc, absolute_paths=.true.)
     if (.not. allocated(error)) call write_json(json_path(self%path), self%file, self%sc%scene%title, &
       & scene_fingerprint(self%sc), settings_json(self%sc), self%model%d, self%model%wk, self%stats, 'complete', '', &
-      & self%sc%scene%t_end, error, self%overrides, scene_text, self%csv%plan, staged=.true.)
+      & self%sc%scene%t_end, error, self%overrides, scene_text, self%out%plan, staged=.true., text=statistics)
     if (.not. allocated(error)) then
-      call self%csv%finish(error)
+      call self%out%finish(statistics, error)
       if (allocated(error)) call remove_file(json_path(self%path) // '.tmp')
     end if
     if (allocated(error)) then
-      call self%csv%close()
+      call self%out%close()
       error%message = self%file // ': ' // error%message
       call write_json(json_path(self%path) // '.partial', self%file, self%sc%scene%title, scene_fingerprint(self%sc), &
         & settings_json(self%sc), self%model%d, self%model%wk, self%stats, 'failed', error%message, self%st%time(), json_error, &
-        & self%overrides, scene_text, self%csv%plan)
+        & self%overrides, scene_text, self%out%plan)
       return
     end if
     call commit_staged(json_path(self%path), error)

@@ -1,18 +1,18 @@
-!> Result files: OUT.csv (comment lines, header, one row per output time) and OUT.json
-!> (run statistics), as fixed in ARCHITECTURE.md.
+!> What a result row holds and what describes it: the columns of &output quantities (one
+!> walk states them for every format), a row's values in their order, and OUT.json (run
+!> statistics and column metadata). The files of rows are results_csv and results_hdf5.
 module pymr_io_results_output
   use pymr_env_kinds, only : dp
   use, intrinsic :: iso_fortran_env, only : int64
-  use pymr_env_error, only : error_type, fatal_error, stat_solver
+  use pymr_env_error, only : error_type
   use pymr_model_types, only : model_data, model_work, cut_free, prim_revolute
-  use pymr_io_fast_format, only : put_real
   use pymr_model_sensors, only : sensor_set, sensor_width, sensor_distance
   use pymr_env_text, only : json_escape, itoa, next_text_line
-  use pymr_env_text_file, only : write_text_file, stage_text_file, sync_file, rename_file, file_size, check_size
+  use pymr_env_text_file, only : write_text_file, stage_text_file
   implicit none
   private
-  public :: csv_writer, json_path, write_json, run_stats, pymr_version, output_plan, output_plan_of
-  public :: energy_columns, n_energy, n_work
+  public :: json_path, write_json, run_stats, pymr_version, output_plan, output_plan_of
+  public :: energy_columns, n_energy, n_work, column_sink, walk_columns, header_line, row_width, row_values
 
   character(len=*), parameter :: pymr_version = '0.1.0'
 
@@ -95,42 +95,6 @@ module pymr_io_results_output
   !> The fields of the column metadata, in metadata_sink%field's order.
   character(len=*), parameter :: metadata_fields(5) = [character(len=8) :: 'name', 'group', 'owner', 'quantity', 'unit']
 
-  !> A CSV result file being written: rows stream to PATH.partial, which replaces PATH only
-  !> when the run ends well (finish); a failed run leaves it as it is, a refused one removes
-  !> it (discard), so an earlier complete PATH is never lost.
-  type :: csv_writer
-    integer :: unit = 0
-    logical :: opened = .false.
-    !> The results file, and the partial file written until the run is complete.
-    character(len=:), allocatable :: path, partial
-    !> The status and message of the first write that failed (0: none).
-    integer :: ios = 0
-    character(len=256) :: io_message = ''
-    !> Bytes written to the file so far, and rows since the file's size was last checked
-    !> against them: the Fortran runtime does not report a write that the disk refused
-    !> (gfortran 12 drops the data of a full disk or a file-size limit with status 0), so the
-    !> size on disk is compared with what was written, every `check_rows` rows and at the end.
-    integer(int64) :: written = 0
-    integer :: unchecked = 0
-    real(dp), allocatable :: row(:)
-    character(len=:), allocatable :: line
-    !> Significant digits per value (&output precision).
-    integer :: digits = 17
-    !> The groups of columns written.
-    type(output_plan) :: plan
-  contains
-    procedure :: open => csv_open
-    procedure :: reopen => csv_reopen
-    procedure :: write_row => csv_write_row
-    procedure :: close => csv_close
-    procedure :: finish => csv_finish
-    procedure :: discard => csv_discard
-    procedure :: flush_rows => csv_flush_rows
-  end type csv_writer
-
-  !> Rows between checks of the file's size against the bytes written.
-  integer, parameter :: check_rows = 256
-
 contains
 
   !> OUT.json beside OUT.csv (extension replaced, or appended).
@@ -186,6 +150,26 @@ contains
     call walk_columns(plan, d, names)
     line = names%line%s(1:names%line%n)
   end function header_line
+
+  !> The row for time t in the columns' order: t, the coordinates q and rates qd (grouped by
+  !> joint and body, when the plan writes them), then the plan's other values `extra`.
+  pure subroutine row_values(plan, d, t, q, qd, extra, row)
+    type(output_plan), intent(in) :: plan
+    type(model_data), intent(in) :: d
+    real(dp), intent(in) :: t, q(:), qd(:), extra(:)
+    real(dp), intent(out) :: row(:)
+    integer :: i, k, b0
+    row(1) = t
+    k = 1; b0 = 1
+    do i = 1, d%n
+      if (.not. plan%coordinates) exit
+      k = k + 1; row(k) = q(i)
+      if (i == d%n .or. d%cgrp(min(i + 1, d%n)) /= d%cgrp(i)) then
+        row(k+1:k+i-b0+1) = qd(b0:i); k = k + i - b0 + 1; b0 = i + 1
+      end if
+    end do
+    row(k+1:) = extra
+  end subroutine row_values
 
   !> Hand every column of the plan, in the file's order, to `sink`: t, the coordinates and
   !> rates, the markers' values, the reactions, the energies.
@@ -372,202 +356,11 @@ contains
     text = text // '},'
   end function columns_json
 
-  !> Open the CSV file and write the comment lines and the header row (self%plan's columns).
-  subroutine csv_open(self, path, d, title, method, error)
-    class(csv_writer), intent(inout) :: self
-    character(len=*), intent(in) :: path, title, method
-    type(model_data), intent(in) :: d
-    type(error_type), allocatable, intent(out) :: error
-    integer :: ios
-    character(len=256) :: msg
-    self%path = path
-    self%partial = path // '.partial'
-    open(newunit=self%unit, file=self%partial, status='replace', action='write', iostat=ios, iomsg=msg)
-    if (ios /= 0) then
-      call fatal_error(error, self%partial // ': cannot write the results: ' // trim(msg)); return
-    end if
-    self%opened = .true.
-    call put('# pymr ' // pymr_version // ' results')
-    call put('# title: ' // trim(title))
-    call put('# method: ' // trim(method))
-    call put(header_line(self%plan, d))
-    if (self%ios /= 0) then
-      call fatal_error(error, self%partial // ': cannot write the results: ' // trim(self%io_message)); return
-    end if
-    allocate(self%row(row_width(self%plan, d)))
-    allocate(character(len=25*size(self%row)) :: self%line)
-  contains
-    !> One line, its bytes counted.
-    subroutine put(text)
-      character(len=*), intent(in) :: text
-      if (self%ios /= 0) return
-      write(self%unit, '(a)', iostat=self%ios, iomsg=self%io_message) text
-      self%written = self%written + len(text) + 1
-    end subroutine put
-  end subroutine csv_open
-
-  !> Restart: the comment lines, the header and the first `rows` rows of the results the
-  !> checkpointed run wrote (its partial file if it was stopped, else its complete file),
-  !> written whole to a new partial file that then replaces the old one, and append. The
-  !> source stays intact until its replacement is complete.
-  subroutine csv_reopen(self, path, d, rows, error)
-    class(csv_writer), intent(inout) :: self
-    character(len=*), intent(in) :: path
-    type(model_data), intent(in) :: d
-    integer, intent(in) :: rows
-    type(error_type), allocatable, intent(out) :: error
-    integer :: u, ios, k, keep
-    character(len=256) :: msg
-    character(len=:), allocatable :: buf, source
-    type :: line_t
-      character(len=:), allocatable :: s
-    end type line_t
-    type(line_t), allocatable :: lines(:)
-    logical :: exists
-    keep = rows + 4
-    self%path = path
-    self%partial = path // '.partial'
-    source = self%partial
-    inquire(file=source, exist=exists)
-    if (.not. exists) then
-      source = path
-      inquire(file=source, exist=exists)
-    end if
-    if (.not. exists) then
-      call fatal_error(error, path // ': the results of the checkpointed run are missing (restart needs them)')
-      return
-    end if
-    allocate(character(len=max(25*row_width(self%plan, d), len(header_line(self%plan, d))) + 1024) :: buf)
-    allocate(lines(keep))
-    open(newunit=u, file=source, status='old', action='read', iostat=ios, iomsg=msg)
-    if (ios /= 0) then
-      call fatal_error(error, source // ': cannot read the results: ' // trim(msg)); return
-    end if
-    do k = 1, keep
-      read(u, '(a)', iostat=ios) buf
-      if (ios /= 0) exit
-      lines(k)%s = trim(buf)
-    end do
-    close(u)
-    if (k <= keep) then
-      call fatal_error(error, source // ': has ' // itoa(max(k - 5, 0)) // ' result rows, the checkpoint expects ' // &
-        & itoa(rows) // ': the file belongs to another run'); return
-    end if
-    if (lines(4)%s /= header_line(self%plan, d)) then
-      call fatal_error(error, source // ': its columns are not the ones this run writes (&output quantities, or ' // &
-        & 'the markers, differ from the checkpointed run''s): restart with the same ones'); return
-    end if
-    open(newunit=u, file=self%partial // '.tmp', status='replace', action='write', iostat=ios, iomsg=msg)
-    do k = 1, keep
-      if (ios == 0) write(u, '(a)', iostat=ios, iomsg=msg) lines(k)%s
-    end do
-    if (ios == 0) close(u, iostat=ios, iomsg=msg)
-    if (ios /= 0) then
-      call fatal_error(error, self%partial // ': cannot write the results: ' // trim(msg)); return
-    end if
-    call check_size(self%partial // '.tmp', sum([(int(len(lines(k)%s) + 1, int64), k = 1, keep)]), error)
-    if (allocated(error)) return
-    call sync_file(self%partial // '.tmp', error); if (allocated(error)) return
-    call rename_file(self%partial // '.tmp', self%partial, error); if (allocated(error)) return
-    open(newunit=self%unit, file=self%partial, status='old', action='write', position='append', iostat=ios, &
-      & iomsg=msg)
-    if (ios /= 0) then
-      call fatal_error(error, self%partial // ': cannot write the results: ' // trim(msg)); return
-    end if
-    self%opened = .true.
-    self%written = file_size(self%partial)
-    allocate(self%row(row_width(self%plan, d)))
-    allocate(character(len=25*size(self%row)) :: self%line)
-  end subroutine csv_reopen
-
-  !> Write the row for time t: the coordinates q and rates qd (grouped by joint and body,
-  !> when the plan writes them), then the plan's other values `extra`.
-  subroutine csv_write_row(self, d, t, q, qd, extra)
-    class(csv_writer), intent(inout) :: self
-    type(model_data), intent(in) :: d
-    real(dp), intent(in) :: t, q(:), qd(:), extra(:)
-    integer :: i, k, b0, pos
-    self%row(1) = t
-    k = 1; b0 = 1
-    do i = 1, d%n
-      if (.not. self%plan%coordinates) exit
-      k = k + 1; self%row(k) = q(i)
-      if (i == d%n .or. d%cgrp(min(i + 1, d%n)) /= d%cgrp(i)) then
-        self%row(k+1:k+i-b0+1) = qd(b0:i); k = k + i - b0 + 1; b0 = i + 1
-      end if
-    end do
-    self%row(k+1:) = extra
-    pos = 1
-    do i = 1, size(self%row)
-      if (i > 1) then
-        self%line(pos:pos) = ','; pos = pos + 1
-      end if
-      call put_real(self%row(i), self%line, pos, self%digits)
-    end do
-    if (self%ios /= 0) return
-    write(self%unit, '(a)', iostat=self%ios, iomsg=self%io_message) self%line(1:pos-1)
-    self%written = self%written + pos
-    self%unchecked = self%unchecked + 1
-    if (self%unchecked >= check_rows) call self%flush_rows()
-  end subroutine csv_write_row
-
-  !> Hand the rows written so far to the system and check that the file holds them all
-  !> (a refused write sets ios and io_message, which the run reports with its time).
-  subroutine csv_flush_rows(self)
-    class(csv_writer), intent(inout) :: self
-    integer(int64) :: size_now
-    self%unchecked = 0
-    if (self%ios /= 0 .or. .not. self%opened) return
-    flush(self%unit, iostat=self%ios, iomsg=self%io_message)
-    if (self%ios /= 0) return
-    size_now = file_size(self%partial)
-    if (size_now /= self%written) then
-      self%ios = -1
-      self%io_message = 'the disk took ' // itoa(size_now) // ' of ' // itoa(self%written) // &
-        & ' bytes (the file system is full, or a file-size limit is reached)'
-    end if
-  end subroutine csv_flush_rows
-
-  !> Close the partial file, leaving it in place (a failed run's rows).
-  subroutine csv_close(self)
-    class(csv_writer), intent(inout) :: self
-    if (self%opened) close(self%unit, iostat=self%ios)
-    self%opened = .false.
-  end subroutine csv_close
-
-  !> Close, remove the partial file (a run refused before its first step).
-  subroutine csv_discard(self)
-    class(csv_writer), intent(inout) :: self
-    integer :: ios
-    if (self%opened) close(self%unit, status='delete', iostat=ios)
-    self%opened = .false.
-  end subroutine csv_discard
-
-  !> The run ended well: close (checked), flush to the disk, and put the complete file in place.
-  subroutine csv_finish(self, error)
-    class(csv_writer), intent(inout) :: self
-    type(error_type), allocatable, intent(out) :: error
-    integer :: ios
-    character(len=256) :: msg
-    call self%flush_rows()
-    if (self%ios /= 0) then
-      call fatal_error(error, self%partial // ': cannot write the results: ' // trim(self%io_message), stat_solver)
-      return
-    end if
-    close(self%unit, iostat=ios, iomsg=msg)
-    self%opened = .false.
-    if (ios /= 0) then
-      call fatal_error(error, self%partial // ': cannot write the results: ' // trim(msg), stat_solver); return
-    end if
-    call sync_file(self%partial, error); if (allocated(error)) return
-    call rename_file(self%partial, self%path, error)
-  end subroutine csv_finish
-
   !> Write the run statistics and settings as JSON (through path.tmp, checked, flushed,
   !> renamed): `status` 'complete' or 'failed', with the failure's message and the time
   !> reached, and the metadata of the columns of `plan`.
   subroutine write_json(path, scene_file, title, fingerprint, settings, d, wk, st, status, failure, t_reached, error, &
-    & overrides, scene_text, plan, staged)
+    & overrides, scene_text, plan, staged, text)
     !> fingerprint: 'sha256:...' of the resolved scene (pymr scene prints it).
     character(len=*), intent(in) :: path, scene_file, title, fingerprint, status, failure
     !> The run's --set overrides (one a line) and its resolved scene (every item, files
@@ -577,6 +370,8 @@ contains
     type(output_plan), intent(in) :: plan
     !> Leave the file complete in PATH.tmp for the caller's commit_staged (default: in place).
     logical, intent(in), optional :: staged
+    !> The JSON text written, for a results format that keeps it with the rows.
+    character(len=:), allocatable, intent(out), optional :: text
     !> Integrator settings, already as JSON members ("\"method\": \"single\", ...").
     character(len=*), intent(in) :: settings
     type(model_data), intent(in) :: d
@@ -584,9 +379,9 @@ contains
     type(run_stats), intent(in) :: st
     real(dp), intent(in) :: t_reached
     type(error_type), allocatable, intent(out) :: error
-    character(len=:), allocatable :: text
+    character(len=:), allocatable :: json
     character(len=128) :: buf
-    text = '{' // new_line('a')
+    json = '{' // new_line('a')
     call put('  "version": "' // pymr_version // '",')
     call put('  "status": "' // status // '",')
     if (len(failure) > 0) call put('  "error": "' // json_escape(failure) // '",')
@@ -596,13 +391,13 @@ contains
     call put('  "scene_fingerprint": "' // fingerprint // '",')
     call put('  "overrides": [' // json_lines(overrides) // '],')
     call put('  "resolved_scene": "' // json_escape(scene_text) // '",')
-    text = text // counts_json(st, d, wk) // effects_json(wk)
+    json = json // counts_json(st, d, wk) // effects_json(wk)
     if (st%static_settled >= 0) then
       write(buf, '(a,i0,a,i0,a,es12.5,a)') '  "static_start": {"coordinates_settled": ', st%static_settled, &
         & ', "newton_iterations": ', st%static_iterations, ', "last_change": ', st%static_change, '},'
       call put(trim(buf))
     end if
-    if (allocated(st%effects_report)) text = text // st%effects_report
+    if (allocated(st%effects_report)) json = json // st%effects_report
     if (allocated(st%warnings)) then
       call put('  "warnings": [' // json_lines(st%warnings) // '],')
     else
@@ -611,12 +406,13 @@ contains
     call put(columns_json(plan, d))
     call put('  "integrator": {' // settings // '}')
     call put('}')
-    call write_staged(path, text, error, staged)
+    call write_staged(path, json, error, staged)
+    if (present(text)) text = json
     if (allocated(error)) error%message = error%message // ' (the statistics)'
   contains
     subroutine put(line)
       character(len=*), intent(in) :: line
-      text = text // line // new_line('a')
+      json = json // line // new_line('a')
     end subroutine put
   end subroutine write_json
 

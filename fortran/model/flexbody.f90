@@ -38,6 +38,9 @@ module pymr_model_flexbody
     real(dp), allocatable :: kg1(:, :), kg2(:, :)
     !> Mode data at the mass points (kept for the modal file writer): s(3,np), mp(np), psi(3,m,np)
     real(dp), allocatable :: ps(:, :), pm(:), ppsi(:, :, :)
+    !> The body's size (its farthest mass point from its origin, m) and the largest
+    !> Frobenius norm of a mass point's shapes psi(:,:,p): |psi_p a| <= shape_bound |a|.
+    real(dp) :: size_m = 0.0_dp, shape_bound = 0.0_dp
   end type flex_data
 
   !> Points of a modal-file body with their shapes, where joints and markers attach.
@@ -57,21 +60,20 @@ module pymr_model_flexbody
 
 contains
 
-  !> The largest displacement (m) of a flexible body's mass points at modal coordinates a,
-  !> and the body's size: its farthest mass point from its origin (m). Both 0 for a body
-  !> that keeps no mass points.
-  pure subroutine point_deflection(fd, a, deflection, size_m)
+  !> The largest displacement (m) of a flexible body's mass points at modal coordinates a
+  !> (0 for a body that keeps no mass points), when it may exceed `limit` (m): below
+  !> fd%shape_bound |a| <= limit it is not sought point by point, and 0 is returned.
+  pure real(dp) function point_deflection(fd, a, limit) result(deflection)
     type(flex_data), intent(in) :: fd
-    real(dp), intent(in) :: a(:)
-    real(dp), intent(out) :: deflection, size_m
+    real(dp), intent(in) :: a(:), limit
     integer :: p
-    deflection = 0.0_dp; size_m = 0.0_dp
+    deflection = 0.0_dp
     if (.not. allocated(fd%ppsi)) return
+    if (fd%shape_bound*norm2(a) <= limit) return
     do p = 1, size(fd%pm)
-      size_m = max(size_m, norm2(fd%ps(:, p)))
       deflection = max(deflection, norm2(matmul(fd%ppsi(:, :, p), a)))
     end do
-  end subroutine point_deflection
+  end function point_deflection
 
   include 'vector_products.inc'
 
@@ -101,6 +103,11 @@ contains
     end do
     call flex_from_moments(sum(mp), first, w, fd)
     fd%ps = s; fd%pm = mp; fd%ppsi = psi
+    fd%size_m = 0.0_dp; fd%shape_bound = 0.0_dp
+    do p = 1, size(mp)
+      fd%size_m = max(fd%size_m, norm2(s(:, p)))
+      fd%shape_bound = max(fd%shape_bound, norm2(psi(:, :, p)))
+    end do
   end subroutine flex_invariants
 
   !> Invariants from the body's moments: mass, first moments F(3, 0:m) and second moments

@@ -111,6 +111,9 @@ module pymr_model_scene
     real(dp) :: max_bytes = 1.0e10_dp
     !> The groups of columns written (blank-separated words of output_quantities).
     character(len=128) :: quantities = 'coordinates markers'
+    !> The results file's format: 'csv' or 'hdf5', and HDF5's deflate level (0: none).
+    character(len=8) :: format = 'csv'
+    integer :: compression = 1
     type(origin_t) :: origin
   end type output_spec
 
@@ -390,13 +393,19 @@ contains
   subroutine describe_output(g, t)
     type(output_spec), target, intent(inout) :: g
     type(item_table), intent(inout) :: t
-    call t%add('file', g%file, 'CSV result file (relative to the working folder; default: the scene file ' // &
-      & 'with .csv)')
+    call t%add('file', g%file, 'results file (relative to the working folder; default: the scene file ' // &
+      & 'with .csv, or .h5 for format = ''hdf5'')')
+    call t%add('format', g%format, "results file format: 'csv' (text, one row a line) or 'hdf5' (binary, " // &
+      & "compressed, one dataset per group of columns, with units and the run's description; a .h5 or " // &
+      & ".hdf5 file)", choices='csv hdf5')
+    call t%add('compression', g%compression, '-', "hdf5 only: deflate level of the datasets (after the " // &
+      & "shuffle filter); 1 costs the least CPU, 9 writes the smallest file, 0 writes them uncompressed", ge=0, le=9)
     call t%add('dt', g%dt, 's', 'output interval; 0 = every step', ge=0.0_dp, le=1.0e9_dp)
     call t%add('checkpoint_dt', g%checkpoint_dt, 's', 'checkpoint interval of simulated time; 0 = none', &
       & ge=0.0_dp, le=1.0e9_dp)
     call t%add('checkpoint_file', g%checkpoint_file, 'checkpoint file (default: the CSV file with .ckpt)')
-    call t%add('precision', g%precision, '-', 'significant digits written per value (17 read back exactly)', &
+    call t%add('precision', g%precision, '-', 'significant digits written per value (17 read back exactly; ' // &
+      & 'csv only: hdf5 keeps every bit)', &
       & ge=6, le=17)
     call t%add('max_bytes', g%max_bytes, 'bytes', 'largest results file a run may write: a run whose output ' // &
       & 'would exceed it is refused', ge=1.0e3_dp, le=1.0e15_dp)

@@ -1,0 +1,227 @@
+!> Results as CSV: comment lines (pymr's version, the title, the method), the header row of
+!> the columns' names, then one row per output time at &output precision digits.
+module pymr_io_results_csv
+  use pymr_env_kinds, only : dp
+  use, intrinsic :: iso_fortran_env, only : int64
+  use pymr_env_error, only : error_type, fatal_error, stat_solver
+  use pymr_model_types, only : model_data
+  use pymr_io_fast_format, only : put_real
+  use pymr_env_text, only : itoa
+  use pymr_env_text_file, only : sync_file, rename_file, file_size, check_size
+  use pymr_io_results_output, only : pymr_version, header_line, row_width, row_values
+  use pymr_io_results_file, only : results_file
+  implicit none
+  private
+  public :: csv_writer
+
+  !> A CSV results file being written (comment lines, the header row, one row per output
+  !> time), its rows streamed to PATH.partial.
+  type, extends(results_file) :: csv_writer
+    integer :: unit = 0
+    !> Bytes written to the file so far, and rows since the file's size was last checked
+    !> against them: the Fortran runtime does not report a write that the disk refused
+    !> (gfortran 12 drops the data of a full disk or a file-size limit with status 0), so the
+    !> size on disk is compared with what was written, every `check_rows` rows and at the end.
+    integer(int64) :: written = 0
+    integer :: unchecked = 0
+    real(dp), allocatable :: row(:)
+    character(len=:), allocatable :: line
+  contains
+    procedure :: open => csv_open
+    procedure :: reopen => csv_reopen
+    procedure :: write_row => csv_write_row
+    procedure :: close => csv_close
+    procedure :: finish => csv_finish
+    procedure :: discard => csv_discard
+    procedure :: flush_rows => csv_flush_rows
+  end type csv_writer
+
+  !> Rows between checks of the file's size against the bytes written.
+  integer, parameter :: check_rows = 256
+
+contains
+
+  !> Open the CSV file and write the comment lines and the header row (self%plan's columns).
+  subroutine csv_open(self, path, d, error)
+    class(csv_writer), intent(inout) :: self
+    character(len=*), intent(in) :: path
+    type(model_data), intent(in) :: d
+    type(error_type), allocatable, intent(out) :: error
+    integer :: ios
+    character(len=256) :: msg
+    self%path = path
+    self%partial = path // '.partial'
+    open(newunit=self%unit, file=self%partial, status='replace', action='write', iostat=ios, iomsg=msg)
+    if (ios /= 0) then
+      call fatal_error(error, self%partial // ': cannot write the results: ' // trim(msg)); return
+    end if
+    self%opened = .true.
+    call put('# pymr ' // pymr_version // ' results')
+    call put('# title: ' // self%title)
+    call put('# method: ' // self%method)
+    call put(header_line(self%plan, d))
+    if (self%ios /= 0) then
+      call fatal_error(error, self%partial // ': cannot write the results: ' // trim(self%io_message)); return
+    end if
+    allocate(self%row(row_width(self%plan, d)))
+    allocate(character(len=25*size(self%row)) :: self%line)
+  contains
+    !> One line, its bytes counted.
+    subroutine put(text)
+      character(len=*), intent(in) :: text
+      if (self%ios /= 0) return
+      write(self%unit, '(a)', iostat=self%ios, iomsg=self%io_message) text
+      self%written = self%written + len(text) + 1
+    end subroutine put
+  end subroutine csv_open
+
+  !> Restart: the comment lines, the header and the first `rows` rows of the results the
+  !> checkpointed run wrote (its partial file if it was stopped, else its complete file),
+  !> written whole to a new partial file that then replaces the old one, and append. The
+  !> source stays intact until its replacement is complete.
+  subroutine csv_reopen(self, path, d, rows, error)
+    class(csv_writer), intent(inout) :: self
+    character(len=*), intent(in) :: path
+    type(model_data), intent(in) :: d
+    integer, intent(in) :: rows
+    type(error_type), allocatable, intent(out) :: error
+    integer :: u, ios, k, keep
+    character(len=256) :: msg
+    character(len=:), allocatable :: buf, source
+    type :: line_t
+      character(len=:), allocatable :: s
+    end type line_t
+    type(line_t), allocatable :: lines(:)
+    logical :: exists
+    keep = rows + 4
+    self%path = path
+    self%partial = path // '.partial'
+    source = self%partial
+    inquire(file=source, exist=exists)
+    if (.not. exists) then
+      source = path
+      inquire(file=source, exist=exists)
+    end if
+    if (.not. exists) then
+      call fatal_error(error, path // ': the results of the checkpointed run are missing (restart needs them)')
+      return
+    end if
+    allocate(character(len=max(25*row_width(self%plan, d), len(header_line(self%plan, d))) + 1024) :: buf)
+    allocate(lines(keep))
+    open(newunit=u, file=source, status='old', action='read', iostat=ios, iomsg=msg)
+    if (ios /= 0) then
+      call fatal_error(error, source // ': cannot read the results: ' // trim(msg)); return
+    end if
+    do k = 1, keep
+      read(u, '(a)', iostat=ios) buf
+      if (ios /= 0) exit
+      lines(k)%s = trim(buf)
+    end do
+    close(u)
+    if (k <= keep) then
+      call fatal_error(error, source // ': has ' // itoa(max(k - 5, 0)) // ' result rows, the checkpoint expects ' // &
+        & itoa(rows) // ': the file belongs to another run'); return
+    end if
+    if (lines(4)%s /= header_line(self%plan, d)) then
+      call fatal_error(error, source // ': its columns are not the ones this run writes (&output quantities, or ' // &
+        & 'the markers, differ from the checkpointed run''s): restart with the same ones'); return
+    end if
+    open(newunit=u, file=self%partial // '.tmp', status='replace', action='write', iostat=ios, iomsg=msg)
+    do k = 1, keep
+      if (ios == 0) write(u, '(a)', iostat=ios, iomsg=msg) lines(k)%s
+    end do
+    if (ios == 0) close(u, iostat=ios, iomsg=msg)
+    if (ios /= 0) then
+      call fatal_error(error, self%partial // ': cannot write the results: ' // trim(msg)); return
+    end if
+    call check_size(self%partial // '.tmp', sum([(int(len(lines(k)%s) + 1, int64), k = 1, keep)]), error)
+    if (allocated(error)) return
+    call sync_file(self%partial // '.tmp', error); if (allocated(error)) return
+    call rename_file(self%partial // '.tmp', self%partial, error); if (allocated(error)) return
+    open(newunit=self%unit, file=self%partial, status='old', action='write', position='append', iostat=ios, &
+      & iomsg=msg)
+    if (ios /= 0) then
+      call fatal_error(error, self%partial // ': cannot write the results: ' // trim(msg)); return
+    end if
+    self%opened = .true.
+    self%written = file_size(self%partial)
+    allocate(self%row(row_width(self%plan, d)))
+    allocate(character(len=25*size(self%row)) :: self%line)
+  end subroutine csv_reopen
+
+  !> Write the row for time t: the coordinates q and rates qd (grouped by joint and body,
+  !> when the plan writes them), then the plan's other values `extra`.
+  subroutine csv_write_row(self, d, t, q, qd, extra)
+    class(csv_writer), intent(inout) :: self
+    type(model_data), intent(in) :: d
+    real(dp), intent(in) :: t, q(:), qd(:), extra(:)
+    integer :: i, pos
+    call row_values(self%plan, d, t, q, qd, extra, self%row)
+    pos = 1
+    do i = 1, size(self%row)
+      if (i > 1) then
+        self%line(pos:pos) = ','; pos = pos + 1
+      end if
+      call put_real(self%row(i), self%line, pos, self%digits)
+    end do
+    if (self%ios /= 0) return
+    write(self%unit, '(a)', iostat=self%ios, iomsg=self%io_message) self%line(1:pos-1)
+    self%written = self%written + pos
+    self%unchecked = self%unchecked + 1
+    if (self%unchecked >= check_rows) call self%flush_rows()
+  end subroutine csv_write_row
+
+  !> Hand the rows written so far to the system and check that the file holds them all
+  !> (a refused write sets ios and io_message, which the run reports with its time).
+  subroutine csv_flush_rows(self)
+    class(csv_writer), intent(inout) :: self
+    integer(int64) :: size_now
+    self%unchecked = 0
+    if (self%ios /= 0 .or. .not. self%opened) return
+    flush(self%unit, iostat=self%ios, iomsg=self%io_message)
+    if (self%ios /= 0) return
+    size_now = file_size(self%partial)
+    if (size_now /= self%written) then
+      self%ios = -1
+      self%io_message = 'the disk took ' // itoa(size_now) // ' of ' // itoa(self%written) // &
+        & ' bytes (the file system is full, or a file-size limit is reached)'
+    end if
+  end subroutine csv_flush_rows
+
+  !> Close the partial file, leaving it in place (a failed run's rows).
+  subroutine csv_close(self)
+    class(csv_writer), intent(inout) :: self
+    if (self%opened) close(self%unit, iostat=self%ios)
+    self%opened = .false.
+  end subroutine csv_close
+
+  !> Close, remove the partial file (a run refused before its first step).
+  subroutine csv_discard(self)
+    class(csv_writer), intent(inout) :: self
+    integer :: ios
+    if (self%opened) close(self%unit, status='delete', iostat=ios)
+    self%opened = .false.
+  end subroutine csv_discard
+
+  !> The run ended well: close (checked), flush to the disk, and put the complete file in place.
+  subroutine csv_finish(self, statistics, error)
+    class(csv_writer), intent(inout) :: self
+    character(len=*), intent(in) :: statistics
+    type(error_type), allocatable, intent(out) :: error
+    integer :: ios
+    character(len=256) :: msg
+    call self%flush_rows()
+    if (self%ios /= 0) then
+      call fatal_error(error, self%partial // ': cannot write the results: ' // trim(self%io_message), stat_solver)
+      return
+    end if
+    close(self%unit, iostat=ios, iomsg=msg)
+    self%opened = .false.
+    if (ios /= 0) then
+      call fatal_error(error, self%partial // ': cannot write the results: ' // trim(msg), stat_solver); return
+    end if
+    call sync_file(self%partial, error); if (allocated(error)) return
+    call rename_file(self%partial, self%path, error)
+  end subroutine csv_finish
+
+end module pymr_io_results_csv

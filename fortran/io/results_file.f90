@@ -1,0 +1,96 @@
+!> A file of result rows being written, whatever its format (results_csv, results_hdf5):
+!> rows go to PATH.partial, which replaces PATH only when the run ends well (finish); a
+!> failed run leaves it as it is (close), a refused one removes it (discard), so an earlier
+!> complete PATH is never lost. A restart (reopen) keeps the rows a checkpoint counts.
+module pymr_io_results_file
+  use pymr_env_kinds, only : dp
+  use pymr_env_error, only : error_type
+  use pymr_model_types, only : model_data
+  use pymr_io_results_output, only : output_plan
+  implicit none
+  private
+  public :: results_file
+
+  type, abstract :: results_file
+    !> The results file, and the partial file written until the run is complete.
+    character(len=:), allocatable :: path, partial
+    logical :: opened = .false.
+    !> The status and message of the first write that failed (0: none): the run reports it
+    !> with its time.
+    integer :: ios = 0
+    character(len=256) :: io_message = ''
+    !> The groups of columns written.
+    type(output_plan) :: plan
+    !> Significant digits per value (&output precision; a text format's).
+    integer :: digits = 17
+    !> What the run is: its title and method, the scene's fingerprint, the resolved scene
+    !> and the integrator settings as JSON members (a format that holds them writes them).
+    character(len=:), allocatable :: title, method, fingerprint, scene_text, settings
+  contains
+    procedure :: describe => file_describe
+    procedure(file_open), deferred :: open
+    procedure(file_reopen), deferred :: reopen
+    procedure(file_write_row), deferred :: write_row
+    procedure(file_action), deferred :: flush_rows
+    procedure(file_action), deferred :: close
+    procedure(file_action), deferred :: discard
+    procedure(file_finish), deferred :: finish
+  end type results_file
+
+  abstract interface
+    !> Open PATH.partial and write what precedes the rows.
+    subroutine file_open(self, path, d, error)
+      import :: results_file, model_data, error_type
+      class(results_file), intent(inout) :: self
+      character(len=*), intent(in) :: path
+      type(model_data), intent(in) :: d
+      type(error_type), allocatable, intent(out) :: error
+    end subroutine file_open
+
+    !> Restart: a new PATH.partial holding the first `rows` rows of the checkpointed run's
+    !> (its partial file if it was stopped, else its complete file), then append.
+    subroutine file_reopen(self, path, d, rows, error)
+      import :: results_file, model_data, error_type
+      class(results_file), intent(inout) :: self
+      character(len=*), intent(in) :: path
+      type(model_data), intent(in) :: d
+      integer, intent(in) :: rows
+      type(error_type), allocatable, intent(out) :: error
+    end subroutine file_reopen
+
+    !> The row for time t of the coordinates q, rates qd and the plan's other values.
+    subroutine file_write_row(self, d, t, q, qd, extra)
+      import :: results_file, model_data, dp
+      class(results_file), intent(inout) :: self
+      type(model_data), intent(in) :: d
+      real(dp), intent(in) :: t, q(:), qd(:), extra(:)
+    end subroutine file_write_row
+
+    !> flush_rows: the rows so far handed to the system and checked; close: the partial
+    !> file closed and left (a failed run's rows); discard: closed and removed.
+    subroutine file_action(self)
+      import :: results_file
+      class(results_file), intent(inout) :: self
+    end subroutine file_action
+
+    !> The run ended well: `statistics` (OUT.json's text) kept with the rows where the format
+    !> can, the file closed (checked), flushed to the disk and put in place.
+    subroutine file_finish(self, statistics, error)
+      import :: results_file, error_type
+      class(results_file), intent(inout) :: self
+      character(len=*), intent(in) :: statistics
+      type(error_type), allocatable, intent(out) :: error
+    end subroutine file_finish
+  end interface
+
+contains
+
+  !> Record what the run is, before open.
+  subroutine file_describe(self, title, method, fingerprint, scene_text, settings)
+    class(results_file), intent(inout) :: self
+    character(len=*), intent(in) :: title, method, fingerprint, scene_text, settings
+    self%title = trim(title); self%method = trim(method); self%fingerprint = fingerprint
+    self%scene_text = scene_text; self%settings = settings
+  end subroutine file_describe
+
+end module pymr_io_results_file

@@ -1,0 +1,86 @@
+"""Reading HDF5 results (``&output format = 'hdf5'``) into :class:`pymr.Results`.
+
+The kernel writes one dataset per group of columns (``time``, ``joint_coordinates``,
+``markers``, ``energy`` ...), rows by columns, each with the attributes ``columns``,
+``owners``, ``quantities`` and ``units``; the file's attributes hold ``title``, ``method``,
+``scene_fingerprint``, ``resolved_scene``, ``integrator`` (JSON), ``column_order`` (the
+columns' names in the CSV's order, comma-separated), ``status`` ('partial' while the run
+writes, 'complete' at its end) and, when complete, ``statistics`` (the text of OUT.json).
+Any HDF5 reader can read it; this module puts the columns back in the CSV's order, so that
+both formats give the same :class:`Results`.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from .errors import ResultsError
+
+#: The first bytes of every HDF5 file.
+SIGNATURE = b"\x89HDF\r\n\x1a\n"
+
+
+def is_hdf5(path: Path) -> bool:
+    """Does the file at `path` start with HDF5's signature?"""
+    try:
+        with open(path, "rb") as fh:
+            return fh.read(8) == SIGNATURE
+    except OSError:
+        return False
+
+
+def _text(value) -> str:
+    return value.decode() if isinstance(value, (bytes, np.bytes_)) else str(value)
+
+
+def read_hdf5(path: Path):
+    """The Results of the HDF5 results file at `path` (statistics from the file, else from
+    OUT.json beside it)."""
+    from .results import Results, _read_stats
+    try:
+        import h5py
+    except ImportError:
+        raise ResultsError(f"{path}: an HDF5 results file needs the Python package h5py "
+                           "(pip install h5py)") from None
+    try:
+        with _open(h5py, path) as f:
+            order = _text(f.attrs["column_order"]).split(",")
+            data = _columns_in_order(f, order)
+            attrs = {k: _text(v) for k, v in f.attrs.items()}
+    except (OSError, KeyError, ValueError) as exc:
+        raise ResultsError(f"{path}: not a pymr HDF5 results file ({' '.join(str(exc).split())})") from None
+    if data.shape[0] == 0:
+        raise ResultsError(f"{path}: has no result rows")
+    stats = json.loads(attrs["statistics"]) if "statistics" in attrs else _read_stats(path.with_suffix(".json"))
+    meta = {"title": attrs.get("title", ""), "method": attrs.get("method", "")}
+    return Results(columns=order, data=data, stats=stats, meta=meta, path=str(path))
+
+
+def _open(h5py, path: Path):
+    """The file open for reading; a run's partial file that was killed as it wrote is still
+    marked open for writing, and opens in single-writer/multiple-reader mode."""
+    try:
+        return h5py.File(path, "r")
+    except OSError:
+        return h5py.File(path, "r", swmr=True)
+
+
+def _columns_in_order(f, order: list[str]) -> np.ndarray:
+    """The datasets' columns side by side in `order` (rows, columns)."""
+    place: dict[str, tuple[str, int]] = {}
+    for name, dataset in f.items():
+        for k, column in enumerate(dataset.attrs["columns"]):
+            place[_text(column)] = (name, k)
+    arrays = {name: np.asarray(dataset[()]) for name, dataset in f.items()}
+    missing = [c for c in order if c not in place]
+    if missing:
+        raise KeyError(f"no dataset holds the columns {', '.join(missing[:5])}")
+    rows = len(arrays["time"])
+    data = np.empty((rows, len(order)))
+    for j, column in enumerate(order):
+        name, k = place[column]
+        values = arrays[name]
+        data[:, j] = values if values.ndim == 1 else values[:, k]
+    return data
