@@ -1,6 +1,6 @@
 """The ``pymr`` command line: ``pymr run``, ``pymr scene``, ``pymr modal-file``,
 ``pymr modal-import``, ``pymr bench``, ``pymr modes``, ``pymr animate``, ``pymr export``, ``pymr study``,
-``pymr sweep``, ``pymr plot``."""
+``pymr sweep``, ``pymr plot``, ``pymr view``."""
 from __future__ import annotations
 
 import argparse
@@ -167,6 +167,12 @@ def _cmd_export(args: argparse.Namespace) -> int:
                        exaggerate=args.exaggerate)
 
 
+def _cmd_view(args: argparse.Namespace) -> int:
+    from . import view
+    return view.main(args.csv, output=args.output, scene=args.scene, columns=args.column, every=args.every,
+                     frames=args.frames, exaggerate=args.exaggerate)
+
+
 def _cmd_plot(args: argparse.Namespace) -> int:
     from . import plot
     return plot.main(args.csv, output=args.output, markers=args.marker, joints=args.joint,
@@ -228,6 +234,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_study(sub)
     _add_sweep(sub)
     _add_plot(sub)
+    _add_view(sub)
     return p
 
 
@@ -411,6 +418,23 @@ def _add_plot(sub) -> None:
     pl.add_argument("--title", help="figure title (default: the first run's scene title)")
     pl.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
     pl.set_defaults(func=_cmd_plot)
+
+
+def _add_view(sub) -> None:
+    """The `pymr view` subcommand and its options."""
+    v = sub.add_parser("view", help="one HTML page of a run, offline: the mechanism in 3-D with a time slider and "
+                       "play/pause, and chosen columns against time")
+    v.add_argument("csv", help="results file (its JSON beside it holds the scene and the columns' units)")
+    v.add_argument("-o", "--output", help="the page (.html; default: the results' name with .html)")
+    v.add_argument("--scene", help="the scene of the run, when the results' JSON does not hold it")
+    v.add_argument("--column", action="extend", nargs="+", metavar="NAME",
+                   help="columns to plot beside the mechanism: names or patterns such as 'energy.*' (default: the "
+                        "first marker's position, else the first joint's coordinates)")
+    v.add_argument("--every", type=_count_of("rows"), default=1, help="take every K-th output row (default 1)")
+    v.add_argument("--frames", type=_count_of("frames"), default=100,
+                   help="most frames of the 3-D view, evenly spread (default 100)")
+    v.add_argument("--exaggerate", type=float, default=1.0, help="scale of the deflections (default 1)")
+    v.set_defaults(func=_cmd_view)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -127,6 +127,9 @@ SETUP = {
     'pymr run input/pendulum.nml --set "joint[pivot].q0=0.5" -o pendulum_half.csv': ["pymr run input/pendulum.nml"],
     "pymr animate tank_gun_turret.csv --exaggerate 50": ["pymr run input/tank_gun_turret.nml"],
     "pymr export tank_gun_turret.csv --vtk tank_vtk": ["pymr run input/tank_gun_turret.nml"],
+    "pymr view tank_view.csv --exaggerate 50 --column muzzle.y gun.a1 gun.a2 energy.drive_work":
+        ["pymr run input/tank_gun_turret.nml -o tank_view.csv --set "
+         "\"output.quantities='coordinates','markers','energy'\""],
     "pymr animate tank_gun_turret.csv -o docs/tank_animation_3d.png --at 0.68": ["pymr run input/tank_gun_turret.nml"],
     "pymr sweep input/tank_sweep.toml --collect runs/": ["pymr sweep input/tank_sweep.toml --emit-slurm runs/",
                                                          lambda work: _slurm_tasks(work, "runs")],

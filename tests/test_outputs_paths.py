@@ -47,6 +47,7 @@ BASE = {
     "animate": (["out.csv"], "out.csv"),
     "study": (["base.nml", "--quick", "--repeats", "1"], None),     # -o is a prefix of .csv, .png, _history.csv
     "plot": (["out.csv", "-q"], "out.csv"),
+    "view": (["out.csv"], "out.csv"),
     "bench": (["rhs", "--repeats", "1"], None),
 }
 
