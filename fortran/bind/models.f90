@@ -15,7 +15,7 @@ module pymr_bind_models
   use pymr_model, only : model_t
   implicit none
   private
-  public :: open_model_t, open_models, open_flags, check_handle, open_slot, close_slot, scratch, live_model
+  public :: open_model_t, open_models, open_flags, check_handle, check_handle_n, open_slot, close_slot, scratch, live_model
 
   !> One open model: its scene, the model as built, and the copy Python's evaluations drive
   !> (all unallocated in a free slot).

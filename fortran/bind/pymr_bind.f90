@@ -368,7 +368,7 @@ end subroutine pymr_model_rhs
 subroutine pymr_model_marker(handle, marker, n, m, t, q, qd, pos, stat, message, detail)
   use pymr_env_error, only : error_type, fatal_error
   use pymr_bind_support, only : report
-  use pymr_bind_models, only : open_models, check_handle, live_model
+  use pymr_bind_models, only : open_models, check_handle_n, live_model
   use pymr_model, only : model_t
   use pymr_model_kinematics, only : forward_kinematics, marker_motion
   implicit none
@@ -385,11 +385,9 @@ subroutine pymr_model_marker(handle, marker, n, m, t, q, qd, pos, stat, message,
   double precision :: v(3)
   integer :: k
   pos = 0.0d0
-  call check_handle(handle, error)
+  call check_handle_n(handle, n, error)
   if (.not. allocated(error)) then
-    if (open_models(handle)%built%d%n /= n) then
-      call fatal_error(error, 'q has the wrong length')
-    else if (marker < 1 .or. marker > open_models(handle)%built%d%markers%n) then
+    if (marker < 1 .or. marker > open_models(handle)%built%d%markers%n) then
       call fatal_error(error, 'no marker with this index')
     end if
   end if
@@ -557,7 +555,7 @@ end subroutine pymr_step_history
 subroutine pymr_model_frames(handle, n, m, nb, t, q, qd, pos, parent, stat, message, detail)
   use pymr_env_error, only : error_type, fatal_error
   use pymr_bind_support, only : report
-  use pymr_bind_models, only : open_models, check_handle, live_model
+  use pymr_bind_models, only : open_models, check_handle_n, live_model
   use pymr_model, only : model_t
   use pymr_model_kinematics, only : forward_kinematics
   implicit none
@@ -573,11 +571,9 @@ subroutine pymr_model_frames(handle, n, m, nb, t, q, qd, pos, parent, stat, mess
   type(model_t), pointer :: model
   integer :: k
   pos = 0.0d0; parent = 0
-  call check_handle(handle, error)
+  call check_handle_n(handle, n, error)
   if (.not. allocated(error)) then
-    if (open_models(handle)%built%d%n /= n) then
-      call fatal_error(error, 'q has the wrong length')
-    else if (open_models(handle)%built%d%nb /= nb) then
+    if (open_models(handle)%built%d%nb /= nb) then
       call fatal_error(error, 'nb is not the number of bodies')
     end if
   end if
@@ -698,7 +694,7 @@ end subroutine pymr_model_coordinate_name
 subroutine pymr_model_poses(handle, n, m, nb, t, q, qd, exaggerate, pos, rot, stat, message, detail)
   use pymr_env_error, only : error_type, fatal_error
   use pymr_bind_support, only : report
-  use pymr_bind_models, only : open_models, check_handle, live_model
+  use pymr_bind_models, only : open_models, check_handle_n, live_model
   use pymr_bind_drawing, only : scaled_kinematics
   use pymr_model, only : model_t
   implicit none
@@ -714,11 +710,9 @@ subroutine pymr_model_poses(handle, n, m, nb, t, q, qd, exaggerate, pos, rot, st
   type(model_t), pointer :: model
   integer :: k
   pos = 0.0d0; rot = 0.0d0
-  call check_handle(handle, error)
+  call check_handle_n(handle, n, error)
   if (.not. allocated(error)) then
-    if (open_models(handle)%built%d%n /= n) then
-      call fatal_error(error, 'q has the wrong length')
-    else if (open_models(handle)%built%d%nb /= nb) then
+    if (open_models(handle)%built%d%nb /= nb) then
       call fatal_error(error, 'nb is not the number of bodies')
     end if
   end if
@@ -779,7 +773,7 @@ end subroutine pymr_model_body_info
 subroutine pymr_model_body_line(handle, body, n, m, np, t, q, qd, exaggerate, line, disp, stat, message, detail)
   use pymr_env_error, only : error_type, fatal_error
   use pymr_bind_support, only : report
-  use pymr_bind_models, only : open_models, check_handle, live_model
+  use pymr_bind_models, only : open_models, check_handle_n, live_model
   use pymr_bind_drawing, only : scaled_kinematics, line_points, n_line_points
   use pymr_model, only : model_t
   implicit none
@@ -797,11 +791,9 @@ subroutine pymr_model_body_line(handle, body, n, m, np, t, q, qd, exaggerate, li
   double precision :: x0(3), u(3)
   integer :: k, p, nm, a0
   line = 0.0d0; disp = 0.0d0
-  call check_handle(handle, error)
+  call check_handle_n(handle, n, error)
   if (.not. allocated(error)) then
-    if (open_models(handle)%built%d%n /= n) then
-      call fatal_error(error, 'q has the wrong length')
-    else if (body < 2 .or. body > open_models(handle)%built%d%nb) then
+    if (body < 2 .or. body > open_models(handle)%built%d%nb) then
       call fatal_error(error, 'no body with this index')
     else if (n_line_points(open_models(handle)%built%d, body, np) /= np .or. np < 2) then
       call fatal_error(error, 'np is not the number of points of this flexible body''s line')
@@ -859,7 +851,7 @@ end subroutine pymr_model_joint_info
 subroutine pymr_model_joints(handle, n, m, nj, t, q, qd, exaggerate, pos, axis, stat, message, detail)
   use pymr_env_error, only : error_type, fatal_error
   use pymr_bind_support, only : report
-  use pymr_bind_models, only : open_models, check_handle, live_model
+  use pymr_bind_models, only : open_models, check_handle_n, live_model
   use pymr_bind_drawing, only : scaled_kinematics, joint_place
   use pymr_model, only : model_t
   implicit none
@@ -875,11 +867,9 @@ subroutine pymr_model_joints(handle, n, m, nj, t, q, qd, exaggerate, pos, axis, 
   type(model_t), pointer :: model
   integer :: k, j
   pos = 0.0d0; axis = 0.0d0
-  call check_handle(handle, error)
+  call check_handle_n(handle, n, error)
   if (.not. allocated(error)) then
-    if (open_models(handle)%built%d%n /= n) then
-      call fatal_error(error, 'q has the wrong length')
-    else if (open_models(handle)%built%d%nb - 1 + open_models(handle)%built%d%cuts%n /= nj) then
+    if (open_models(handle)%built%d%nb - 1 + open_models(handle)%built%d%cuts%n /= nj) then
       call fatal_error(error, 'nj is not the number of joints')
     end if
   end if
@@ -899,7 +889,7 @@ end subroutine pymr_model_joints
 subroutine pymr_model_markers(handle, n, m, nmk, t, q, qd, exaggerate, pos, stat, message, detail)
   use pymr_env_error, only : error_type, fatal_error
   use pymr_bind_support, only : report
-  use pymr_bind_models, only : open_models, check_handle, live_model
+  use pymr_bind_models, only : open_models, check_handle_n, live_model
   use pymr_bind_drawing, only : scaled_kinematics
   use pymr_model, only : model_t
   use pymr_model_kinematics, only : marker_motion
@@ -917,11 +907,9 @@ subroutine pymr_model_markers(handle, n, m, nmk, t, q, qd, exaggerate, pos, stat
   double precision :: v(3)
   integer :: k, i
   pos = 0.0d0
-  call check_handle(handle, error)
+  call check_handle_n(handle, n, error)
   if (.not. allocated(error)) then
-    if (open_models(handle)%built%d%n /= n) then
-      call fatal_error(error, 'q has the wrong length')
-    else if (open_models(handle)%built%d%markers%n /= nmk) then
+    if (open_models(handle)%built%d%markers%n /= nmk) then
       call fatal_error(error, 'nmk is not the number of markers')
     end if
   end if
