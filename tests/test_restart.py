@@ -26,6 +26,10 @@ METHODS = {
     "adaptive multirate": {"integrator.method": "multirate", "integrator.adaptive": True, "integrator.rtol": 1e-6},
     "adaptive multirate full": {"integrator.method": "multirate", "integrator.coupling": "full",
                                 "integrator.adaptive": True, "integrator.rtol": 1e-6},
+    "multirate exponential": {"integrator.method": "multirate", "integrator.coupling": "exponential",
+                              "integrator.h_slow": 1e-3, "integrator.h_fast": 1e-3},
+    "adaptive multirate exponential": {"integrator.method": "multirate", "integrator.coupling": "exponential",
+                                       "integrator.adaptive": True, "integrator.rtol": 1e-6},
 }
 
 

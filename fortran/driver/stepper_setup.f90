@@ -10,6 +10,7 @@ module pymr_driver_stepper_setup
   use pymr_integrator_adams, only : adams_integrator
   use pymr_integrator_multirate, only : multirate_integrator
   use pymr_integrator_response, only : response_integrator
+  use pymr_integrator_exponential, only : exponential_integrator
   use pymr_integrator_control, only : step_control
   use pymr_integrator_stability, only : pece_limit
   use pymr_model, only : modal_stiffness_damping
@@ -142,6 +143,7 @@ contains
     type(error_type), allocatable, intent(out) :: error
     type(multirate_integrator), allocatable :: mr
     type(response_integrator), allocatable :: rs
+    type(exponential_integrator), allocatable :: ex
     type(abm_integrator) :: probe
     real(dp), allocatable :: f0(:)
     type(step_control) :: stable
@@ -155,6 +157,13 @@ contains
     h0 = sc%integrator%h_fast
     call model%init_partition()
     call stable_control(sc, ctl, model, x, stable, error); if (allocated(error)) return
+    if (sc%integrator%coupling == 'exponential') then
+      allocate(ex)
+      h0 = sc%integrator%h_slow
+      call ex%init(model%n_slow(), model%n_fast(), sc%integrator%adaptive, ctl, h0)
+      call move_alloc(ex, st)
+      return
+    end if
     if (sc%integrator%coupling == 'response') then
       allocate(rs)
       call rs%init(model%n_slow(), model%n_fast(), k, sc%integrator%adaptive, stable, &

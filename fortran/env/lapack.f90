@@ -12,7 +12,7 @@ module pymr_env_lapack
   implicit none
   private
   public :: potrf, potrs, sygvd, ptsv, geev_complex, geev_real, factor_inverse, band_solve
-  public :: lu_factor, lu_solve, general_solve
+  public :: lu_factor, lu_solve, general_solve, complex_inverse
   public :: illegal_argument_probe
 
   !> The last fault LAPACK reported to XERBLA: routine and argument number.
@@ -84,6 +84,12 @@ module pymr_env_lapack
       real(dp), intent(out) :: wr(*), wi(*), vl(ldvl, *), vr(ldvr, *), work(*)
       integer, intent(out) :: info
     end subroutine dgeev
+    subroutine zgesv(n, nrhs, a, lda, ipiv, b, ldb, info)
+      import :: dp
+      integer, intent(in) :: n, nrhs, lda, ldb
+      complex(dp), intent(inout) :: a(lda, *), b(ldb, *)
+      integer, intent(out) :: ipiv(*), info
+    end subroutine zgesv
     subroutine dptsv(n, nrhs, d, e, b, ldb, info)
       import :: dp
       integer, intent(in) :: n, nrhs, ldb
@@ -256,6 +262,32 @@ contains
     end do
     call potrs(l, ainv, what, error)
   end subroutine factor_inverse
+
+  !> The inverse of the complex square matrix a (overwritten by its LU factors): LAPACK
+  !> zgesv on the identity.
+  subroutine complex_inverse(a, ainv, what, error)
+    complex(dp), intent(inout) :: a(:, :)
+    complex(dp), intent(out) :: ainv(:, :)
+    character(len=*), intent(in) :: what
+    type(error_type), allocatable, intent(out) :: error
+    integer :: i, n, info
+    integer, allocatable :: piv(:)
+    n = size(a, 1)
+    if (n == 0) return
+    call check_matrix(real(a), 'zgesv', what, error)
+    if (.not. allocated(error)) call check_matrix(aimag(a), 'zgesv', what, error); if (allocated(error)) return
+    allocate(piv(n))
+    ainv = (0.0_dp, 0.0_dp)
+    do i = 1, n
+      ainv(i, i) = (1.0_dp, 0.0_dp)
+    end do
+    call zgesv(n, n, a, n, piv, ainv, n, info)
+    if (info > 0) then
+      call fatal_error(error, what // ' is singular (LU zgesv: zero pivot ' // itoa(info) // ')', stat_solver)
+    else if (info < 0) then
+      call fatal_error(error, 'zgesv: argument ' // itoa(-info) // ' had an illegal value for ' // what, stat_solver)
+    end if
+  end subroutine complex_inverse
 
   !> Generalised symmetric-definite eigenproblem A v = lambda B v, B positive definite
   !> (all eigenpairs, ascending). On return `k` (A) holds the B-normalised eigenvectors

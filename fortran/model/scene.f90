@@ -350,8 +350,9 @@ contains
     call t%add('h_max', g%h_max, 's', 'largest adaptive step; 0 = no limit', ge=0.0_dp, le=1.0e9_dp)
     call t%add('n_corrector', g%n_corrector, '-', 'corrector evaluations per step (1 = PECE)', ge=1, le=10)
     call t%add('coupling', g%coupling, "multirate coupling of the fast steps: 'response' moves every " // &
-      & "coordinate by its linear response to the fast forces, 'full' re-evaluates the modal rows (the paper's)", &
-      & choices='response full')
+      & "coordinate by its linear response to the fast forces, 'full' re-evaluates the modal rows (the paper's), " // &
+      & "'exponential' moves the fast coordinates by the exact flow of their linear part (no fast step: h_slow " // &
+      & "is the step)", choices='response full exponential')
     call t%add('formula', g%formula, "the Adams formula: 'adams' (variable step and order 1-12, corrector " // &
       & "iterated to convergence; the default of adaptive single-rate runs) or 'abm4' (the paper's order-4 " // &
       & "predictor-corrector; the default, and the formula, of fixed-step and multirate runs)", choices='adams abm4')

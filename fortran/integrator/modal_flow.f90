@@ -1,0 +1,373 @@
+!> The exact flow of the fast (modal) subsystem, linear with frozen coefficients, under a
+!> polynomial forcing: the fast side of the 'exponential' coupling (docs/method.md, section
+!> "The exponential coupling").
+!>
+!> With the accelerations written as qdd = rho(t) - g0 (kf0 a + df0 ad), where g0 = M^-1 E
+!> (n x nf) and the modal stiffness and damping kf0, df0 are frozen at one state and rho(t)
+!> is a polynomial in time (the rest of the accelerations, extrapolated from full
+!> evaluations), the fast state z = [a; ad] obeys z' = F z + [0; rho_f(t)] with
+!> F = [0 I; -G K  -G D] (G = g0's fast rows, K = diag(kf0), D = diag(df0)), and the slow
+!> rates qd_s' = rho_s(t) - C z. F is diagonalised once per freeze:
+!> - G = L L^T (Cholesky), and L^T K L = Psi Omega^2 Psi^T (symmetric eigenproblem), so that
+!>   a = Phi u with Phi = L Psi turns the undamped part into u'' = -Omega^2 u;
+!> - the damping Psi^T L^T D L Psi couples the u; in the scaled coordinates [Omega u; u'] the
+!>   first-order matrix is skew-symmetric plus the damping, nearly normal, and LAPACK dgeev
+!>   gives its eigenvalues lambda and well-conditioned eigenvectors;
+!> - eta = W z (W = V^-1) are then independent: eta' = lambda eta + W [0; rho_f], solved in
+!>   closed form with the phi functions phi_k(lambda tau), and the slow coordinates by
+!>   integrating the same closed form once and twice.
+!> Of each complex conjugate pair of eigenvalues one is kept (weight 2): z = Re(V (wgt eta)).
+module pymr_integrator_modal_flow
+  use pymr_env_kinds, only : dp
+  use pymr_env_error, only : error_type, fatal_error, stat_solver
+  use pymr_env_lapack, only : potrf, sygvd, geev_real, complex_inverse
+  implicit none
+  private
+  public :: modal_flow_t, taylor_weights, phi_functions, n_coef, n_phi
+
+  !> Taylor coefficients of the forcing polynomial (degree 3).
+  integer, parameter :: n_coef = 4
+  !> phi_0 .. phi_kmax are needed: the forcing's degree plus the two integrations.
+  integer, parameter :: kmax = n_coef + 2
+  !> Columns of flow_phis' tp: phi_0 .. phi_kmax.
+  integer, parameter :: n_phi = kmax + 1
+
+  type :: modal_flow_t
+    integer :: ns = 0, nf = 0, nm = 0
+    !> The frozen response g0 (n x nf) and modal stiffness and damping (nf).
+    real(dp), allocatable :: g0(:, :), kf0(:), df0(:)
+    !> Eigenvalues kept (nm), their weights (2 for a complex pair, 1 for a real one),
+    !> right vectors V (2nf x nm), rows of V^-1 (nm x 2nf), and C V (ns x nm).
+    complex(dp), allocatable :: lam(:), v(:, :), w(:, :), cv(:, :)
+    real(dp), allocatable :: wgt(:)
+    !> Real and imaginary parts of V and of C V.
+    real(dp), allocatable :: vre(:, :), vim(:, :), cre(:, :), cim(:, :)
+  contains
+    procedure :: build => flow_build
+    procedure :: remainder => flow_remainder
+    procedure :: project => flow_project
+    procedure :: modal_state => flow_modal_state
+    procedure :: phis => flow_phis
+    procedure :: state_at => flow_state_at
+    procedure :: drift => flow_drift
+  end type modal_flow_t
+
+contains
+
+  !> Freeze the flow at g (n x nf, rows in the order of q: ns slow rows first), kf, df.
+  !> Fast coordinates that do not act on each other (G_ij = 0 between the groups, as the
+  !> two bending planes of a beam that no joint couples) are diagonalised group by group:
+  !> a vibration that nothing excites then stays exactly zero, as in the other steppers.
+  !> An error when a fast coordinate has no stiffness (its flow is not diagonalisable).
+  subroutine flow_build(self, ns, g, kf, df, error)
+    class(modal_flow_t), intent(inout) :: self
+    integer, intent(in) :: ns
+    real(dp), intent(in) :: g(:, :), kf(:), df(:)
+    type(error_type), allocatable, intent(out) :: error
+    integer, allocatable :: group(:), idx(:)
+    integer :: nf, c, m
+    nf = size(kf)
+    self%ns = ns; self%nf = nf
+    self%g0 = g; self%kf0 = kf; self%df0 = df
+    group = coupled_groups(g(ns+1:, :))
+    if (allocated(self%lam)) deallocate(self%lam, self%v, self%w, self%cv, self%wgt)
+    allocate(self%lam(2*nf), self%v(2*nf, 2*nf), self%w(2*nf, 2*nf), self%wgt(2*nf))
+    self%v = (0.0_dp, 0.0_dp); self%w = (0.0_dp, 0.0_dp)
+    m = 0
+    do c = 1, maxval([0, group])
+      idx = pack([(c, c = 1, nf)], group == c)
+      call build_group(self, idx, g(ns+idx, idx), kf(idx), df(idx), m, error); if (allocated(error)) return
+    end do
+    self%nm = m
+    self%lam = self%lam(1:m); self%v = self%v(:, 1:m); self%w = self%w(1:m, :); self%wgt = self%wgt(1:m)
+    ! C V: the slow accelerations' response to the fast state, g_s [K | D] V
+    self%cv = matmul(cmplx(g(1:ns, :)*spread(kf, 1, ns), 0.0_dp, dp), self%v(1:nf, :)) + &
+      & matmul(cmplx(g(1:ns, :)*spread(df, 1, ns), 0.0_dp, dp), self%v(nf+1:, :))
+    self%vre = real(self%v); self%vim = aimag(self%v); self%cre = real(self%cv); self%cim = aimag(self%cv)
+  end subroutine flow_build
+
+  !> Group number of each fast coordinate: the connected parts of the graph G_ij /= 0.
+  pure function coupled_groups(gf) result(group)
+    real(dp), intent(in) :: gf(:, :)
+    integer :: group(size(gf, 1))
+    integer :: i, j, n, ng
+    logical :: grew
+    n = size(gf, 1)
+    group = 0; ng = 0
+    do i = 1, n
+      if (group(i) /= 0) cycle
+      ng = ng + 1; group(i) = ng
+      grew = .true.
+      do while (grew)
+        grew = .false.
+        do j = 1, n
+          if (group(j) /= 0) cycle
+          if (any(group == ng .and. (gf(:, j) /= 0.0_dp .or. gf(j, :) /= 0.0_dp))) then
+            group(j) = ng; grew = .true.
+          end if
+        end do
+      end do
+    end do
+  end function coupled_groups
+
+  !> The flow of one group of fast coordinates idx (its G, kf, df): its eigenvalues kept
+  !> from position m + 1 on (m advanced past them), their vectors in V's rows and W's
+  !> columns of the group.
+  subroutine build_group(self, idx, gf, kf, df, m, error)
+    class(modal_flow_t), intent(inout) :: self
+    integer, intent(in) :: idx(:)
+    real(dp), intent(in) :: gf(:, :), kf(:), df(:)
+    integer, intent(inout) :: m
+    type(error_type), allocatable, intent(out) :: error
+    real(dp), allocatable :: l(:, :), b(:, :), eye(:, :), om2(:), om(:), phi(:, :), cu(:, :), a(:, :), wr(:), wi(:), &
+      & vr(:, :), pinv(:, :)
+    complex(dp), allocatable :: vy(:, :), wy(:, :), tmp(:, :)
+    integer :: nf, ng, i, j
+    nf = self%nf; ng = size(idx)
+    ! G = L L^T; L^T K L = Psi Omega^2 Psi^T
+    l = gf
+    call potrf(l, "the fast coordinates' response G", error); if (allocated(error)) return
+    do j = 2, ng
+      l(1:j-1, j) = 0.0_dp
+    end do
+    b = matmul(transpose(l), spread(kf, 2, ng)*l)
+    allocate(eye(ng, ng), om2(ng)); eye = 0.0_dp
+    do i = 1, ng
+      eye(i, i) = 1.0_dp
+    end do
+    call sygvd(b, eye, om2, "the fast coordinates' stiffness", error); if (allocated(error)) return
+    if (any(.not. om2 > 0.0_dp)) then
+      call fatal_error(error, "coupling 'exponential': a fast (modal) coordinate has no stiffness, so its flow " // &
+        & "cannot be diagonalised: use coupling = 'response'", stat_solver); return
+    end if
+    om = sqrt(om2)
+    phi = matmul(l, b)                                     ! a = Phi u
+    cu = matmul(transpose(phi), spread(df, 2, ng)*phi)     ! damping in u
+    ! scaled first-order matrix in [Omega u; u']
+    allocate(a(2*ng, 2*ng)); a = 0.0_dp
+    do i = 1, ng
+      a(i, ng+i) = om(i); a(ng+i, i) = -om(i)
+    end do
+    a(ng+1:, ng+1:) = -cu
+    allocate(wr(2*ng), wi(2*ng), vr(2*ng, 2*ng))
+    call geev_real(a, wr, wi, "the fast coordinates' flow", error, vr); if (allocated(error)) return
+    allocate(vy(2*ng, 2*ng))
+    j = 1
+    do while (j <= 2*ng)
+      if (wi(j) /= 0.0_dp .and. j < 2*ng) then
+        vy(:, j) = cmplx(vr(:, j), vr(:, j+1), dp); vy(:, j+1) = conjg(vy(:, j))
+        j = j + 2
+      else
+        vy(:, j) = cmplx(vr(:, j), 0.0_dp, dp); j = j + 1
+      end if
+    end do
+    allocate(wy(2*ng, 2*ng))
+    tmp = vy
+    call complex_inverse(tmp, wy, "the fast coordinates' eigenvectors", error); if (allocated(error)) return
+    pinv = phi_inverse(l, b)
+    ! the kept eigenvalues: one of each pair (positive imaginary part), every real one
+    do j = 1, 2*ng
+      if (wi(j) < 0.0_dp) cycle
+      m = m + 1
+      self%lam(m) = cmplx(wr(j), wi(j), dp)
+      self%wgt(m) = merge(2.0_dp, 1.0_dp, wi(j) > 0.0_dp)
+      ! z = [a; ad] = [Phi Omega^-1 Y1; Phi Y2]
+      self%v(idx, m) = matmul(phi, vy(1:ng, j)/om)
+      self%v(nf+idx, m) = matmul(phi, vy(ng+1:, j))
+      ! eta = W_y [Omega Phi^-1 a; Phi^-1 ad], Phi^-1 = Psi^T L^-1
+      self%w(m, idx) = matmul(wy(j, 1:ng)*om, pinv)
+      self%w(m, nf+idx) = matmul(wy(j, ng+1:), pinv)
+    end do
+  end subroutine build_group
+
+  !> Phi^-1 = Psi^T L^-1 (L lower triangular, Psi orthogonal).
+  pure function phi_inverse(l, psi) result(p)
+    real(dp), intent(in) :: l(:, :), psi(:, :)
+    real(dp) :: p(size(l, 1), size(l, 1))
+    real(dp) :: linv(size(l, 1), size(l, 1))
+    integer :: i, j, n
+    n = size(l, 1)
+    linv = 0.0_dp
+    do j = 1, n
+      linv(j, j) = 1.0_dp/l(j, j)
+      do i = j + 1, n
+        linv(i, j) = -dot_product(l(i, j:i-1), linv(j:i-1, j))/l(i, i)
+      end do
+    end do
+    p = matmul(transpose(psi), linv)
+  end function phi_inverse
+
+  !> The rest of the accelerations at a full evaluation: rho = qdd + g0 (kf0 a + df0 ad),
+  !> y = [a; ad].
+  pure function flow_remainder(self, qdd, y) result(r)
+    class(modal_flow_t), intent(in) :: self
+    real(dp), intent(in) :: qdd(:), y(:)
+    real(dp) :: r(size(qdd))
+    integer :: j
+    r = qdd
+    do j = 1, self%nf
+      r = r + self%g0(:, j)*(self%kf0(j)*y(j) + self%df0(j)*y(self%nf+j))
+    end do
+  end function flow_remainder
+
+  !> The modal forcing of a remainder: W [0; rho_f].
+  pure function flow_project(self, r) result(p)
+    class(modal_flow_t), intent(in) :: self
+    real(dp), intent(in) :: r(:)
+    complex(dp) :: p(self%nm)
+    integer :: j
+    p = (0.0_dp, 0.0_dp)
+    do j = 1, self%nf
+      p = p + self%w(:, self%nf+j)*r(self%ns+j)
+    end do
+  end function flow_project
+
+  !> Modal state eta = W z of the fast state of x = [q_s; a; qd_s; ad].
+  pure function flow_modal_state(self, x) result(eta)
+    class(modal_flow_t), intent(in) :: self
+    real(dp), intent(in) :: x(:)
+    complex(dp) :: eta(self%nm)
+    integer :: n, j
+    n = self%ns + self%nf
+    eta = (0.0_dp, 0.0_dp)
+    do j = 1, self%nf
+      eta = eta + self%w(:, j)*x(self%ns+j) + self%w(:, self%nf+j)*x(n+self%ns+j)
+    end do
+  end function flow_modal_state
+
+  !> tau^k phi_k(lambda tau), k = 0 .. n_coef + 2, of every kept eigenvalue (the flow's
+  !> coefficients for a step of tau; pass them to state_at).
+  pure subroutine flow_phis(self, tau, tp)
+    class(modal_flow_t), intent(in) :: self
+    real(dp), intent(in) :: tau
+    complex(dp), intent(out) :: tp(0:, :)
+    real(dp) :: tr(0:kmax)
+    integer :: i, j
+    tr(0) = 1.0_dp
+    do j = 1, kmax
+      tr(j) = tr(j-1)*tau
+    end do
+    do i = 1, self%nm
+      call phi_functions(self%lam(i)*tau, tp(:, i))
+      tp(:, i) = tr*tp(:, i)
+    end do
+  end subroutine flow_phis
+
+  !> The state at tau after x0 (modal state eta0) under the forcing whose Taylor
+  !> coefficients at the start are beta (modal, nm x n_coef) and cs (slow rows, ns x n_coef);
+  !> tp from flow_phis for the same tau.
+  pure subroutine flow_state_at(self, x0, eta0, beta, cs, tau, tp, x)
+    class(modal_flow_t), intent(in) :: self
+    real(dp), intent(in) :: x0(:), cs(:, :), tau
+    complex(dp), intent(in) :: eta0(:), beta(:, :), tp(0:, :)
+    real(dp), intent(out) :: x(:)
+    real(dp) :: e0r(self%nm), e0i(self%nm), e1r(self%nm), e1i(self%nm), e2r(self%nm), e2i(self%nm), fact, tr
+    complex(dp) :: e0, e1, e2
+    integer :: i, j, n, ns, nf
+    n = self%ns + self%nf; ns = self%ns; nf = self%nf
+    do i = 1, self%nm
+      e0 = tp(0, i)*eta0(i); e1 = tp(1, i)*eta0(i); e2 = tp(2, i)*eta0(i)
+      do j = 1, n_coef
+        e0 = e0 + tp(j, i)*beta(i, j); e1 = e1 + tp(j+1, i)*beta(i, j); e2 = e2 + tp(j+2, i)*beta(i, j)
+      end do
+      e0r(i) = self%wgt(i)*real(e0); e0i(i) = self%wgt(i)*aimag(e0)
+      e1r(i) = self%wgt(i)*real(e1); e1i(i) = self%wgt(i)*aimag(e1)
+      e2r(i) = self%wgt(i)*real(e2); e2i(i) = self%wgt(i)*aimag(e2)
+    end do
+    ! the real parts of V e and C V e, by the real and imaginary parts of both
+    x(ns+1:n) = 0.0_dp; x(n+ns+1:) = 0.0_dp
+    x(n+1:n+ns) = x0(n+1:n+ns); x(1:ns) = x0(1:ns) + tau*x0(n+1:n+ns)
+    do i = 1, self%nm
+      x(ns+1:n) = x(ns+1:n) + self%vre(1:nf, i)*e0r(i) - self%vim(1:nf, i)*e0i(i)
+      x(n+ns+1:) = x(n+ns+1:) + self%vre(nf+1:, i)*e0r(i) - self%vim(nf+1:, i)*e0i(i)
+      x(n+1:n+ns) = x(n+1:n+ns) - self%cre(:, i)*e1r(i) + self%cim(:, i)*e1i(i)
+      x(1:ns) = x(1:ns) - self%cre(:, i)*e2r(i) + self%cim(:, i)*e2i(i)
+    end do
+    fact = 1.0_dp; tr = 1.0_dp
+    do j = 1, n_coef
+      fact = fact*j; tr = tr*tau                            ! j!, tau^j
+      x(n+1:n+ns) = x(n+1:n+ns) + tr/fact*cs(:, j)
+      x(1:ns) = x(1:ns) + tr*tau/(fact*(j+1))*cs(:, j)
+    end do
+  end subroutine flow_state_at
+
+  !> How far the response g with coefficients kf, df has moved from the frozen one, as the
+  !> explicit step's stability sees it: h^2 |Delta(g K)| + h |Delta(g D)| (row sums, largest).
+  pure real(dp) function flow_drift(self, g, kf, df, h) result(d)
+    class(modal_flow_t), intent(in) :: self
+    real(dp), intent(in) :: g(:, :), kf(:), df(:), h
+    integer :: i
+    d = 0.0_dp
+    do i = 1, size(g, 1)
+      d = max(d, h**2*sum(abs(g(i, :)*kf - self%g0(i, :)*self%kf0)) + h*sum(abs(g(i, :)*df - self%g0(i, :)*self%df0)))
+    end do
+  end function flow_drift
+
+  !> phi_0(z) = e^z and phi_{k+1}(z) = (phi_k(z) - 1/k!)/z, k = 0 .. size - 1: by that
+  !> recurrence where |z| >= 2, and below it by the Taylor series of the last one and the
+  !> recurrence run backwards (phi_k = 1/k! + z phi_{k+1}), each stable where it is used.
+  pure subroutine phi_functions(z, p)
+    complex(dp), intent(in) :: z
+    complex(dp), intent(out) :: p(0:)
+    integer :: k, m, kt
+    real(dp) :: fk
+    complex(dp) :: term, zi
+    kt = ubound(p, 1)
+    if (abs(z) >= 2.0_dp) then
+      p(0) = exp(z)
+      zi = 1.0_dp/z
+      fk = 1.0_dp
+      do k = 0, kt - 1
+        if (k > 0) fk = fk*k
+        p(k+1) = (p(k) - 1.0_dp/fk)*zi
+      end do
+      return
+    end if
+    ! phi_kt by its series sum z^m/(m + kt)!
+    fk = 1.0_dp
+    do k = 2, kt
+      fk = fk*k
+    end do
+    term = cmplx(1.0_dp/fk, 0.0_dp, dp); p(kt) = term
+    do m = 1, 30
+      term = term*z/(m + kt)
+      p(kt) = p(kt) + term
+      if (abs(real(term)) + abs(aimag(term)) <= 1.0e-18_dp*abs(p(kt))) exit
+    end do
+    do k = kt - 1, 0, -1
+      fk = fk/max(k + 1, 1)
+      p(k) = 1.0_dp/fk + z*p(k+1)
+    end do
+  end subroutine phi_functions
+
+  !> Weights tw(i, j) of the Taylor coefficients at t0 (the j-th derivative, j = 0 ..
+  !> n_coef - 1) of the polynomial through the values at the times th(i): c_j = sum_i
+  !> tw(i, j + 1) v_i. Through m < n_coef points the polynomial is of degree m - 1.
+  pure subroutine taylor_weights(th, t0, tw)
+    real(dp), intent(in) :: th(:), t0
+    real(dp), intent(out) :: tw(:, :)
+    real(dp) :: c(n_coef), den, r, fact
+    integer :: i, k, j, deg
+    tw = 0.0_dp
+    do i = 1, size(th)
+      ! l_i(t0 + tau) = prod_{k /= i} (tau - (th_k - t0)) / (th_i - th_k), coefficients in tau
+      c = 0.0_dp; c(1) = 1.0_dp; deg = 0; den = 1.0_dp
+      do k = 1, size(th)
+        if (k == i) cycle
+        r = th(k) - t0
+        deg = deg + 1
+        do j = deg + 1, 2, -1
+          c(j) = c(j-1) - r*c(j)
+        end do
+        c(1) = -r*c(1)
+        den = den*(th(i) - th(k))
+      end do
+      fact = 1.0_dp
+      do j = 1, n_coef
+        if (j > 1) fact = fact*(j - 1)
+        tw(i, j) = fact*c(j)/den
+      end do
+    end do
+  end subroutine taylor_weights
+
+end module pymr_integrator_modal_flow
