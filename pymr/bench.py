@@ -477,6 +477,15 @@ SPACECRAFT_CASES = {
         "integrator.method": "multirate", "integrator.rtol": 1e-4, "integrator.atol": 1e-7, "integrator.k_max": 1000},
     "multirate 'response' adaptive rtol 1e-6, k_max 1000": {
         "integrator.method": "multirate", "integrator.rtol": 1e-6, "integrator.atol": 1e-9, "integrator.k_max": 1000},
+    "multirate 'exponential' h = 1.6e-2": {
+        "integrator.method": "multirate", "integrator.coupling": "exponential", "integrator.adaptive": False,
+        "integrator.h_slow": 1.6e-2, "integrator.h_fast": 1.6e-2},
+    "multirate 'exponential' h = 3.2e-2": {
+        "integrator.method": "multirate", "integrator.coupling": "exponential", "integrator.adaptive": False,
+        "integrator.h_slow": 3.2e-2, "integrator.h_fast": 3.2e-2},
+    "multirate 'exponential' adaptive rtol 1e-6": {
+        "integrator.method": "multirate", "integrator.coupling": "exponential", "integrator.rtol": 1e-6,
+        "integrator.atol": 1e-9},
 }
 
 

@@ -77,8 +77,8 @@ QUICK_TOLERANCES = (1e-3, 1e-6, 1e-9)
 #: smaller ones are tried when the pre-flight check refuses it).
 WEIGHT_RATIOS = (10, 5, 2)
 #: Error levels (m) of the front summary.
-FRONT_ERRORS = (1e-4, 1e-5, 1e-6)
-#: Single-rate and 'response' multirate families: the two sides of the front summary's ratio.
+FRONT_ERRORS = (1e-4, 1e-5, 1e-6, 1e-7)
+#: Single-rate and multirate families: the two sides of the front summary's ratio.
 SINGLE_FAMILIES = ("single fixed", "abm4 adaptive", "adams adaptive")
 #: pymr's fixed-order families (the paper's formula), against which variable order is compared.
 FIXED_ORDER_FAMILIES = ("single fixed", "abm4 adaptive")
@@ -86,7 +86,11 @@ FIXED_ORDER_FAMILIES = ("single fixed", "abm4 adaptive")
 ORDER_ERRORS = (1e-5, 1e-6, 1e-7, 1e-8)
 #: Tolerances of the step and order histories of formula 'adams'.
 HISTORY_RTOLS = (1e-4, 1e-8)
-MULTIRATE_FAMILIES = ("response fixed", "response adaptive")
+MULTIRATE_FAMILIES = ("response fixed", "response adaptive", "exponential fixed", "exponential adaptive")
+#: Steps of the 'exponential' coupling (times the scene's h_slow): it has no fast step, and
+#: its step is bound by the accuracy of the cubic through the full evaluations alone.
+EXPONENTIAL_FACTORS = _steps(128.0, 2.0)
+QUICK_EXPONENTIAL_FACTORS = (32.0, 8.0)
 
 
 @dataclass
@@ -325,6 +329,16 @@ class Study:
                     "integrator.method": "multirate", "integrator.coupling": coupling, "integrator.adaptive": True,
                     "integrator.rtol": rtol, "integrator.atol": rtol * 1e-2, "integrator.h_fast": h0,
                     "integrator.h_slow": h0}))
+        for f in (QUICK_EXPONENTIAL_FACTORS if quick else EXPONENTIAL_FACTORS):
+            h = f * h0
+            out.append(("pymr", "exponential fixed", f"h={h:.3g}", {
+                "integrator.method": "multirate", "integrator.coupling": "exponential", "integrator.adaptive": False,
+                "integrator.h_slow": h, "integrator.h_fast": h}))
+        for rtol in (QUICK_TOLERANCES if quick else MULTIRATE_RTOLS):
+            out.append(("pymr", "exponential adaptive", f"rtol={rtol:.1e}", {
+                "integrator.method": "multirate", "integrator.coupling": "exponential", "integrator.adaptive": True,
+                "integrator.rtol": rtol, "integrator.atol": rtol * 1e-2, "integrator.h_fast": h0,
+                "integrator.h_slow": h0}))
         for name in PEERS:
             for rtol in (QUICK_TOLERANCES if quick else ORDER_RTOLS if name == "CVODE Adams" else PEER_RTOLS):
                 out.append(("peer", name, rtol))
@@ -464,8 +478,8 @@ class Study:
 
     def front_summary(self, errors=FRONT_ERRORS) -> list[dict]:
         """Per error level: the fastest case of each family with error <= level ("best"),
-        the fastest single-rate case (fixed or adaptive, "single"), the fastest 'response'
-        multirate case (fixed or adaptive, "multirate"), and "ratio" = multirate CPU /
+        the fastest single-rate case (fixed or adaptive, "single"), the fastest multirate case
+        ('response' or 'exponential', fixed or adaptive, "multirate"), and "ratio" = multirate CPU /
         single-rate CPU (nan when either has no case that accurate)."""
         out = []
         for level in errors:
@@ -492,11 +506,11 @@ class Study:
                                  f"error {c.error_m:8.2e} m  CPU {c.cpu_s:8.4f} s  equivalents {c.equivalents:9.0f}")
             s, m = row["single"], row["multirate"]
             if s and m:
-                lines.append(f"    fastest 'response' multirate / fastest single-rate: {m.cpu_s:.4f} s "
+                lines.append(f"    fastest multirate / fastest single-rate: {m.cpu_s:.4f} s "
                              f"({m.method} {m.setting}) / {s.cpu_s:.4f} s ({s.method} {s.setting}) "
                              f"= {row['ratio']:.2f}")
             else:
-                lines.append("    fastest 'response' multirate / fastest single-rate: n/a (a side has no case "
+                lines.append("    fastest multirate / fastest single-rate: n/a (a side has no case "
                              "this accurate)")
         return "\n".join(lines)
 
@@ -598,7 +612,7 @@ class Study:
         fig, axes = plt.subplots(1, 2, figsize=(16, 6.2 + extra), sharey=True)
         methods = list(dict.fromkeys(c.method for c in self.cases))
         colours = {"single": plt.cm.Greys, "abm4": plt.cm.Purples, "adams": plt.cm.Reds, "response": plt.cm.Blues,
-                   "full": plt.cm.Oranges}
+                   "full": plt.cm.Oranges, "exponential": plt.cm.Greens}
         counts = {fam: 0 for fam in colours}
         shades = {fam: sum(1 for m in methods if m.split()[0] == fam) for fam in colours}
         peer_colours = iter(["tab:green", "tab:purple", "tab:olive", "tab:brown", "tab:pink"])

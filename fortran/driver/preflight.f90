@@ -80,6 +80,7 @@ contains
     steps = st%pece(); counts = st%counts()
     allocate(wgt(n))
     call linear_state(model, 0.0_dp, x, m, minv, k, c, a, error); if (allocated(error)) return
+    if (steps%exact_modal) call remove_modal_flow(model, minv, a)
     allocate(wr(2*n), wi(2*n), vr(2*n, 2*n))
     if (steps%h_modal == steps%h_joint .and. counts%ratio == 1) then
       ! one step for every coordinate: the eigenvalues alone decide; the vectors are needed
@@ -141,6 +142,23 @@ contains
     if (abs(lam) == 0.0_dp .or. real(lam) > 1.0e-9_dp*abs(lam) .or. h <= 0.0_dp) return
     grows = log(pece_growth(lam*h))*t_end/h > log(run_growth)
   end function grows
+
+  !> The state matrix a without the modal coordinates' own stiffness and damping, which a
+  !> stepper with steps%exact_modal moves by their exact flow: their accelerations'
+  !> response M^-1 E times kf (df) added back on the modal columns.
+  subroutine remove_modal_flow(model, minv, a)
+    type(model_t), intent(in) :: model
+    real(dp), intent(in) :: minv(:, :)
+    real(dp), intent(inout) :: a(:, :)
+    real(dp) :: kf(model%d%n - model%d%nj), df(model%d%n - model%d%nj)
+    integer :: n, ns, j
+    n = model%d%n; ns = model%d%nj
+    call modal_stiffness_damping(model%d, model%effects, kf, df)
+    do j = 1, n - ns
+      a(n+1:, ns+j) = a(n+1:, ns+j) + minv(:, ns+j)*kf(j)
+      a(n+1:, n+ns+j) = a(n+1:, n+ns+j) + minv(:, ns+j)*df(j)
+    end do
+  end subroutine remove_modal_flow
 
   !> No eigenvalue wr + i wi grows in fixed steps h over the run.
   logical function all_stable(wr, wi, h, t_end)

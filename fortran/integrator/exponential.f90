@@ -418,13 +418,15 @@ contains
     c%rejected = self%rejected; c%h_last = self%last%h; c%ratio = 1
   end function ex_counts
 
-  !> The joints' vibrations see the explicit polynomial's step H; the modal ones move by
-  !> their exact flow (no PECE step: 0).
+  !> The modal stiffness and damping move by their exact flow; the rest of the model (its
+  !> joints' vibrations, the stiffness the motion adds) is carried by the polynomial over
+  !> the step H, whose stability the pre-flight check judges by the ABM formula's.
   pure function ex_steps(self) result(s)
     class(exponential_integrator), intent(in) :: self
     type(pece_steps) :: s
-    s%h_joint = self%h; s%h_modal = 0.0_dp
+    s%h_joint = self%h; s%h_modal = self%h
     s%item_joint = 'h_slow'; s%item_modal = 'h_slow'
+    s%exact_modal = .true.
   end function ex_steps
 
   pure integer function ex_state_size(self)

@@ -313,7 +313,7 @@ contains
     real(dp) :: fk
     complex(dp) :: term, zi
     kt = ubound(p, 1)
-    if (abs(z) >= 2.0_dp) then
+    if (real(z)**2 + aimag(z)**2 >= 4.0_dp) then
       p(0) = exp(z)
       zi = 1.0_dp/z
       fk = 1.0_dp
@@ -332,7 +332,7 @@ contains
     do m = 1, 30
       term = term*z/(m + kt)
       p(kt) = p(kt) + term
-      if (abs(real(term)) + abs(aimag(term)) <= 1.0e-18_dp*abs(p(kt))) exit
+      if (abs(real(term)) + abs(aimag(term)) <= 1.0e-18_dp*(abs(real(p(kt))) + abs(aimag(p(kt))))) exit
     end do
     do k = kt - 1, 0, -1
       fk = fk/max(k + 1, 1)

@@ -41,6 +41,9 @@ module pymr_integrator_stepper
   type :: pece_steps
     real(dp) :: h_joint = 0.0_dp, h_modal = 0.0_dp
     character(len=8) :: item_joint = 'h_slow', item_modal = 'h_slow'
+    !> The modal stiffness and damping move by their exact flow (the 'exponential'
+    !> coupling): only the rest of the linearised model is judged against the steps.
+    logical :: exact_modal = .false.
   end type pece_steps
 
   !> The part of a stepper's state that its state vector (get_state) does not hold: times,

@@ -140,6 +140,10 @@ contains
         call errs%add(w(step_item) // ": method 'single' takes one step for all coordinates: set h_fast = " &
           & // "h_slow, or method = 'multirate'"); return
       end if
+      if (trim(s%method) == 'multirate' .and. s%coupling == 'exponential' .and. nint(r) /= 1) then
+        call errs%add(w(step_item) // ": coupling 'exponential' takes no fast step (the fast coordinates move by " // &
+          & "their exact flow): h_slow is its step; set h_fast = h_slow or leave it out"); return
+      end if
       if (trim(s%method) == 'multirate') then
         if (s%n_corrector /= 1) then
           call errs%add(w('n_corrector') // ": multirate uses PECE (n_corrector = 1)"); return
