@@ -98,3 +98,14 @@ def test_adaptive_steps_meet_their_tolerance_on_the_tank(tank_reference):
         errs.append(muzzle_error(res, tank_reference))
         assert errs[-1] < 10 * rtol
     assert errs[1] < errs[0]
+
+
+def test_a_fast_step_is_refused_with_the_exponential_coupling(tmp_path):
+    """The coupling has no fast step: an h_fast other than h_slow is bad input naming the
+    item, before any work."""
+    with pytest.raises(pymr.SceneError) as exc:
+        pymr.run(TANK, tmp_path / "x.csv", overrides={**EXPONENTIAL, "integrator.h_fast": 1e-4,
+                                                      "integrator.h_slow": 1e-3})
+    msg = str(exc.value)
+    assert "&integrator: h_slow:" in msg and "coupling 'exponential' takes no fast step" in msg
+    assert exc.value.kind == "bad_input"

@@ -16,21 +16,26 @@ contains
   !> The model linearised at (t, x = [q; qd]): M (symmetrised), K = -dP/dq and C = -dP/dqd
   !> by central differences with increments 1e-6 max(1, |x_j|). Its evaluations do not count
   !> as the run's.
-  subroutine linearise(model, t, x, m, k, c)
+  subroutine linearise(model, t, x, m, k, c, n_columns)
     type(model_t), intent(inout) :: model
     real(dp), intent(in) :: t, x(:)
     real(dp), allocatable, intent(out) :: m(:, :), k(:, :), c(:, :)
+    !> Differentiate by the first n_columns coordinates only (the others' columns are zero).
+    integer, intent(in), optional :: n_columns
     type(model_counters) :: counters
     real(dp), allocatable :: q(:), qd(:), pp(:), pm(:)
     real(dp) :: del
-    integer :: n, j
+    integer :: n, j, nc
     n = model%d%n
+    nc = n
+    if (present(n_columns)) nc = n_columns
     counters = model%counters()
     q = x(1:n); qd = x(n+1:2*n)
     allocate(k(n, n), c(n, n), pp(n), pm(n))
+    k = 0.0_dp; c = 0.0_dp
     call model%terms(t, q, qd)
     m = 0.5_dp*(model%wk%mm + transpose(model%wk%mm))
-    do j = 1, n
+    do j = 1, nc
       del = 1.0e-6_dp*max(1.0_dp, abs(q(j)))
       q(j) = x(j) + del; call model%forces(t, q, qd, pp)
       q(j) = x(j) - del; call model%forces(t, q, qd, pm)
@@ -47,12 +52,14 @@ contains
 
   !> The model linearised at (t, x): M, its (with loops, constrained) inverse, K, C, and the
   !> state matrix a built from them.
-  subroutine linear_state(model, t, x, m, minv, k, c, a, error)
+  subroutine linear_state(model, t, x, m, minv, k, c, a, error, n_columns)
     type(model_t), intent(inout) :: model
     real(dp), intent(in) :: t, x(:)
     real(dp), allocatable, intent(out) :: m(:, :), minv(:, :), k(:, :), c(:, :), a(:, :)
     type(error_type), allocatable, intent(out) :: error
-    call linearise(model, t, x, m, k, c)
+    !> As for linearise.
+    integer, intent(in), optional :: n_columns
+    call linearise(model, t, x, m, k, c, n_columns)
     call mass_inverse(model, x, m, minv, error); if (allocated(error)) return
     call state_matrix(minv, k, c, a)
   end subroutine linear_state

@@ -79,8 +79,16 @@ contains
     if (n == 0) return
     steps = st%pece(); counts = st%counts()
     allocate(wgt(n))
-    call linear_state(model, 0.0_dp, x, m, minv, k, c, a, error); if (allocated(error)) return
-    if (steps%exact_modal) call remove_modal_flow(model, minv, a)
+    if (steps%exact_modal) then
+      ! the modal columns hold the stiffness and damping the flow carries exactly: the joint
+      ! columns alone are linearised, and the state matrix is then block triangular, its
+      ! joints' block deciding
+      call linear_state(model, 0.0_dp, x, m, minv, k, c, a, error, model%d%nj); if (allocated(error)) return
+      if (joints_stable(a, model%d%nj, steps%h_joint, t_end, error)) return
+      if (allocated(error)) return
+    else
+      call linear_state(model, 0.0_dp, x, m, minv, k, c, a, error); if (allocated(error)) return
+    end if
     allocate(wr(2*n), wi(2*n), vr(2*n, 2*n))
     if (steps%h_modal == steps%h_joint .and. counts%ratio == 1) then
       ! one step for every coordinate: the eigenvalues alone decide; the vectors are needed
@@ -143,22 +151,30 @@ contains
     grows = log(pece_growth(lam*h))*t_end/h > log(run_growth)
   end function grows
 
-  !> The state matrix a without the modal coordinates' own stiffness and damping, which a
-  !> stepper with steps%exact_modal moves by their exact flow: their accelerations'
-  !> response M^-1 E times kf (df) added back on the modal columns.
-  subroutine remove_modal_flow(model, minv, a)
-    type(model_t), intent(in) :: model
-    real(dp), intent(in) :: minv(:, :)
-    real(dp), intent(inout) :: a(:, :)
-    real(dp) :: kf(model%d%n - model%d%nj), df(model%d%n - model%d%nj)
-    integer :: n, ns, j
-    n = model%d%n; ns = model%d%nj
-    call modal_stiffness_damping(model%d, model%effects, kf, df)
-    do j = 1, n - ns
-      a(n+1:, ns+j) = a(n+1:, ns+j) + minv(:, ns+j)*kf(j)
-      a(n+1:, n+ns+j) = a(n+1:, n+ns+j) + minv(:, ns+j)*df(j)
-    end do
-  end subroutine remove_modal_flow
+  !> No vibration of the joints' block of the state matrix a (its rows and columns of the
+  !> nj joint coordinates and rates) grows in fixed steps h over the run.
+  logical function joints_stable(a, nj, h, t_end, error)
+    real(dp), intent(in) :: a(:, :), h, t_end
+    integer, intent(in) :: nj
+    type(error_type), allocatable, intent(out) :: error
+    real(dp), allocatable :: b(:, :), wr(:), wi(:)
+    integer :: n
+    integer, allocatable :: idx(:)
+    n = size(a, 1)/2
+    joints_stable = .true.
+    if (nj == 0) return
+    idx = [joint_rows(nj), n + joint_rows(nj)]
+    b = a(idx, idx)
+    allocate(wr(2*nj), wi(2*nj))
+    call geev_real(b, wr, wi, "the joints' block of the linearised model", error); if (allocated(error)) return
+    joints_stable = all_stable(wr, wi, h, t_end)
+  end function joints_stable
+
+  pure function joint_rows(nj) result(r)
+    integer, intent(in) :: nj
+    integer :: r(nj), i
+    r = [(i, i = 1, nj)]
+  end function joint_rows
 
   !> No eigenvalue wr + i wi grows in fixed steps h over the run.
   logical function all_stable(wr, wi, h, t_end)

@@ -32,8 +32,9 @@ module pymr_integrator_exponential
   !> Full evaluations the predictor's polynomial passes through.
   integer, parameter :: n_hist = n_coef
   !> Local error of the corrected step, from the difference of corrector and predictor
-  !> (Milne's estimate for the order-4 Adams pair: 19/270).
-  real(dp), parameter :: milne = 19.0_dp/270.0_dp
+  !> (Milne's estimate for the Adams pair through n_hist points: |C_AM|/(C_AB - C_AM), 19/270 for
+  !> the cubic, 863/19950 for the quintic).
+  real(dp), parameter :: milne = merge(19.0_dp/270.0_dp, 863.0_dp/19950.0_dp, n_hist == 4)
   !> The response is frozen again when h^2 |Delta(g K)| + h |Delta(g D)| exceeds this.
   real(dp), parameter :: drift_limit = 0.05_dp
   !> Adaptive runs: steps in a row that may break down and be retried smaller.
@@ -187,16 +188,15 @@ contains
     end associate
   end subroutine refresh_history
 
-  !> The length of the next fixed step: H/8, H/8, H/4, H/2, then H, so that the run is
-  !> back on the multiples of H after four steps.
+  !> The end of fixed step m: the start takes H/2^(n_hist-1), the same again, then steps
+  !> doubling up to H/2, so that the run is back on the multiples of H after n_hist steps.
   pure real(dp) function fixed_end(self, m) result(t)
     class(exponential_integrator), intent(in) :: self
     integer, intent(in) :: m
-    real(dp), parameter :: starts(4) = [0.125_dp, 0.25_dp, 0.5_dp, 1.0_dp]
-    if (m <= 4) then
-      t = self%t0 + starts(m)*self%h
+    if (m <= n_hist) then
+      t = self%t0 + self%h/2.0_dp**(n_hist - m)
     else
-      t = self%t0 + (m - 3)*self%h
+      t = self%t0 + (m - n_hist + 1)*self%h
     end if
   end function fixed_end
 
@@ -204,9 +204,8 @@ contains
   pure real(dp) function fixed_length(self, m) result(h)
     class(exponential_integrator), intent(in) :: self
     integer, intent(in) :: m
-    real(dp), parameter :: starts(4) = [0.125_dp, 0.125_dp, 0.25_dp, 0.5_dp]
     h = self%h
-    if (m <= 4) h = starts(m)*self%h
+    if (m <= n_hist) h = self%h/2.0_dp**(n_hist - max(m, 2) + 1)
   end function fixed_length
 
   !> One accepted step: predict, evaluate, correct; adaptive steps retried smaller when the
@@ -227,7 +226,7 @@ contains
       do
         if (self%adaptive) then
           hs = self%h
-          if (self%hist%nh < n_hist) hs = min(hs, 2.0_dp*max(self%last%h, self%h/8.0_dp))
+          if (self%hist%nh < n_hist) hs = min(hs, 2.0_dp*max(self%last%h, self%h/2.0_dp**(n_hist - 1)))
           tn = t0 + hs
         else
           tn = fixed_end(self, self%steps + 1); hs = fixed_length(self, self%steps + 1)
@@ -376,7 +375,8 @@ contains
     if (t >= self%t) then
       x = self%x
     else
-      call self%flow%phis(t - self%last%t, tp)
+      call self%flow%phis(t - self%last%t, tp, self%last%eta /= (0.0_dp, 0.0_dp) .or. &
+        & any(self%last%beta /= (0.0_dp, 0.0_dp), dim=2))
       call self%flow%state_at(self%last%x, self%last%eta, self%last%beta, self%last%cs, t - self%last%t, tp, x)
     end if
   end subroutine ex_value_at

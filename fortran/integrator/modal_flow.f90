@@ -42,6 +42,11 @@ module pymr_integrator_modal_flow
     real(dp), allocatable :: wgt(:)
     !> Real and imaginary parts of V and of C V.
     real(dp), allocatable :: vre(:, :), vim(:, :), cre(:, :), cim(:, :)
+    !> The groups of fast coordinates diagonalised apart: group c has the kept eigenvalues
+    !> mode_start(c) .. mode_start(c+1) - 1 and the fast coordinates rows(row_start(c) ..
+    !> row_start(c+1) - 1); V and W are zero outside those blocks.
+    integer :: ng = 0
+    integer, allocatable :: mode_start(:), row_start(:), rows(:)
   contains
     procedure :: build => flow_build
     procedure :: remainder => flow_remainder
@@ -65,20 +70,27 @@ contains
     real(dp), intent(in) :: g(:, :), kf(:), df(:)
     type(error_type), allocatable, intent(out) :: error
     integer, allocatable :: group(:), idx(:)
-    integer :: nf, c, m
+    integer :: nf, c, m, i, ng
     nf = size(kf)
     self%ns = ns; self%nf = nf
     self%g0 = g; self%kf0 = kf; self%df0 = df
     group = coupled_groups(g(ns+1:, :))
-    if (allocated(self%lam)) deallocate(self%lam, self%v, self%w, self%cv, self%wgt)
+    ng = maxval([0, group])
+    if (allocated(self%lam)) deallocate(self%lam, self%v, self%w, self%cv, self%wgt, self%mode_start, self%row_start, &
+      & self%rows)
     allocate(self%lam(2*nf), self%v(2*nf, 2*nf), self%w(2*nf, 2*nf), self%wgt(2*nf))
+    allocate(self%mode_start(ng + 1), self%row_start(ng + 1), self%rows(nf))
     self%v = (0.0_dp, 0.0_dp); self%w = (0.0_dp, 0.0_dp)
-    m = 0
-    do c = 1, maxval([0, group])
-      idx = pack([(c, c = 1, nf)], group == c)
+    m = 0; self%row_start(1) = 1
+    do c = 1, ng
+      idx = pack([(i, i = 1, nf)], group == c)
+      self%mode_start(c) = m + 1
+      self%rows(self%row_start(c):self%row_start(c) + size(idx) - 1) = idx
+      self%row_start(c+1) = self%row_start(c) + size(idx)
       call build_group(self, idx, g(ns+idx, idx), kf(idx), df(idx), m, error); if (allocated(error)) return
     end do
-    self%nm = m
+    self%mode_start(ng + 1) = m + 1
+    self%ng = ng; self%nm = m
     self%lam = self%lam(1:m); self%v = self%v(:, 1:m); self%w = self%w(1:m, :); self%wgt = self%wgt(1:m)
     ! C V: the slow accelerations' response to the fast state, g_s [K | D] V
     self%cv = matmul(cmplx(g(1:ns, :)*spread(kf, 1, ns), 0.0_dp, dp), self%v(1:nf, :)) + &
@@ -215,10 +227,15 @@ contains
     class(modal_flow_t), intent(in) :: self
     real(dp), intent(in) :: r(:)
     complex(dp) :: p(self%nm)
-    integer :: j
-    p = (0.0_dp, 0.0_dp)
-    do j = 1, self%nf
-      p = p + self%w(:, self%nf+j)*r(self%ns+j)
+    integer :: i, c, j, k
+    do c = 1, self%ng
+      do i = self%mode_start(c), self%mode_start(c+1) - 1
+        p(i) = (0.0_dp, 0.0_dp)
+        do k = self%row_start(c), self%row_start(c+1) - 1
+          j = self%rows(k)
+          p(i) = p(i) + self%w(i, self%nf+j)*r(self%ns+j)
+        end do
+      end do
     end do
   end function flow_project
 
@@ -227,20 +244,28 @@ contains
     class(modal_flow_t), intent(in) :: self
     real(dp), intent(in) :: x(:)
     complex(dp) :: eta(self%nm)
-    integer :: n, j
+    integer :: n, i, c, j, k
     n = self%ns + self%nf
-    eta = (0.0_dp, 0.0_dp)
-    do j = 1, self%nf
-      eta = eta + self%w(:, j)*x(self%ns+j) + self%w(:, self%nf+j)*x(n+self%ns+j)
+    do c = 1, self%ng
+      do i = self%mode_start(c), self%mode_start(c+1) - 1
+        eta(i) = (0.0_dp, 0.0_dp)
+        do k = self%row_start(c), self%row_start(c+1) - 1
+          j = self%rows(k)
+          eta(i) = eta(i) + self%w(i, j)*x(self%ns+j) + self%w(i, self%nf+j)*x(n+self%ns+j)
+        end do
+      end do
     end do
   end function flow_modal_state
 
   !> tau^k phi_k(lambda tau), k = 0 .. n_coef + 2, of every kept eigenvalue (the flow's
   !> coefficients for a step of tau; pass them to state_at).
-  pure subroutine flow_phis(self, tau, tp)
+  pure subroutine flow_phis(self, tau, tp, active)
     class(modal_flow_t), intent(in) :: self
     real(dp), intent(in) :: tau
     complex(dp), intent(out) :: tp(0:, :)
+    !> Only these modes (the others' coefficients are set to zero): a mode at rest with no
+    !> forcing stays at rest.
+    logical, intent(in), optional :: active(:)
     real(dp) :: tr(0:kmax)
     integer :: i, j
     tr(0) = 1.0_dp
@@ -248,6 +273,11 @@ contains
       tr(j) = tr(j-1)*tau
     end do
     do i = 1, self%nm
+      if (present(active)) then
+        if (.not. active(i)) then
+          tp(:, i) = (0.0_dp, 0.0_dp); cycle
+        end if
+      end if
       call phi_functions(self%lam(i)*tau, tp(:, i))
       tp(:, i) = tr*tp(:, i)
     end do
@@ -263,7 +293,7 @@ contains
     real(dp), intent(out) :: x(:)
     real(dp) :: e0r(self%nm), e0i(self%nm), e1r(self%nm), e1i(self%nm), e2r(self%nm), e2i(self%nm), fact, tr
     complex(dp) :: e0, e1, e2
-    integer :: i, j, n, ns, nf
+    integer :: i, j, k, c, n, ns, nf
     n = self%ns + self%nf; ns = self%ns; nf = self%nf
     do i = 1, self%nm
       e0 = tp(0, i)*eta0(i); e1 = tp(1, i)*eta0(i); e2 = tp(2, i)*eta0(i)
@@ -277,9 +307,16 @@ contains
     ! the real parts of V e and C V e, by the real and imaginary parts of both
     x(ns+1:n) = 0.0_dp; x(n+ns+1:) = 0.0_dp
     x(n+1:n+ns) = x0(n+1:n+ns); x(1:ns) = x0(1:ns) + tau*x0(n+1:n+ns)
+    do c = 1, self%ng
+      do i = self%mode_start(c), self%mode_start(c+1) - 1
+        do k = self%row_start(c), self%row_start(c+1) - 1
+          j = self%rows(k)
+          x(ns+j) = x(ns+j) + self%vre(j, i)*e0r(i) - self%vim(j, i)*e0i(i)
+          x(n+ns+j) = x(n+ns+j) + self%vre(nf+j, i)*e0r(i) - self%vim(nf+j, i)*e0i(i)
+        end do
+      end do
+    end do
     do i = 1, self%nm
-      x(ns+1:n) = x(ns+1:n) + self%vre(1:nf, i)*e0r(i) - self%vim(1:nf, i)*e0i(i)
-      x(n+ns+1:) = x(n+ns+1:) + self%vre(nf+1:, i)*e0r(i) - self%vim(nf+1:, i)*e0i(i)
       x(n+1:n+ns) = x(n+1:n+ns) - self%cre(:, i)*e1r(i) + self%cim(:, i)*e1i(i)
       x(1:ns) = x(1:ns) - self%cre(:, i)*e2r(i) + self%cim(:, i)*e2i(i)
     end do
