@@ -109,3 +109,16 @@ def test_a_fast_step_is_refused_with_the_exponential_coupling(tmp_path):
     msg = str(exc.value)
     assert "&integrator: h_slow:" in msg and "coupling 'exponential' takes no fast step" in msg
     assert exc.value.kind == "bad_input"
+
+
+def test_a_loop_through_a_flexible_body_is_refused_before_the_run(tmp_path):
+    """The four-bar whose coupler is a flexible beam inside the loop: the constraint leaves
+    the coupler's modal response singular, so the coupling refuses the scene in one line
+    (exit 1), naming the item and the coupling that takes it."""
+    from test_loops import flexible_coupler_scene
+    scene, _ = flexible_coupler_scene(tmp_path)
+    with pytest.raises(pymr.SceneError) as exc:
+        pymr.run(scene, tmp_path / "x.csv", overrides=EXPONENTIAL)
+    msg = str(exc.value)
+    assert "&integrator: coupling:" in msg and "closed loop through a flexible body" in msg
+    assert "use coupling = 'response'" in msg and "\n" not in msg

@@ -8,7 +8,7 @@ module pymr_model_scene_rules
   use pymr_env_error, only : error_type, fatal_error, error_list
   use pymr_model_scene, only : scene_t, body_spec, joint_spec, force_spec, load_spec, control_spec, moving_load_spec, &
     & sensor_spec, sensor_items, joint_ndof, unset, body_items, beam_mode_count, &
-    & closes_loop, body_index
+    & closes_loop, body_index, flexible_loop
   use pymr_env_item_table, only : origin_t
   use pymr_model_names, only : name_index
   use pymr_env_text, only : itoa, fmt
@@ -139,6 +139,11 @@ contains
       if (trim(s%method) == 'single' .and. nint(r) /= 1) then
         call errs%add(w(step_item) // ": method 'single' takes one step for all coordinates: set h_fast = " &
           & // "h_slow, or method = 'multirate'"); return
+      end if
+      if (trim(s%method) == 'multirate' .and. s%coupling == 'exponential' .and. flexible_loop(sc)) then
+        call errs%add(w('coupling') // ": 'exponential' does not take a closed loop through a flexible body (the " // &
+          & "loop's constraint leaves the response of its modal coordinates singular, and their flow cannot be " // &
+          & "diagonalised): use coupling = 'response'"); return
       end if
       if (trim(s%method) == 'multirate' .and. s%coupling == 'exponential' .and. nint(r) /= 1) then
         call errs%add(w(step_item) // ": coupling 'exponential' takes no fast step (the fast coordinates move by " // &
