@@ -1,5 +1,5 @@
 !> Multirate integration with the fast side by its exact flow: the 'exponential' coupling
-!> (docs/method.md, section "The exponential coupling").
+!> (docs/method.md section 4.3).
 !>
 !> The model is evaluated in full once per (macro) step H. Between evaluations the
 !> accelerations are qdd = rho(t) - g0 (kf0 a + df0 ad): the elastic and damping forces of
@@ -32,9 +32,8 @@ module pymr_integrator_exponential
   !> Full evaluations the predictor's polynomial passes through.
   integer, parameter :: n_hist = n_coef
   !> Local error of the corrected step, from the difference of corrector and predictor
-  !> (Milne's estimate for the Adams pair through n_hist points: |C_AM|/(C_AB - C_AM), 19/270 for
-  !> the cubic, 863/19950 for the quintic).
-  real(dp), parameter :: milne = merge(19.0_dp/270.0_dp, 863.0_dp/19950.0_dp, n_hist == 4)
+  !> (Milne's estimate for the order-4 Adams pair, |C_AM|/(C_AB - C_AM) = 19/270).
+  real(dp), parameter :: milne = 19.0_dp/270.0_dp
   !> The response is frozen again when h^2 |Delta(g K)| + h |Delta(g D)| exceeds this.
   real(dp), parameter :: drift_limit = 0.05_dp
   !> Adaptive runs: steps in a row that may break down and be retried smaller.

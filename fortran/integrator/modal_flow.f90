@@ -1,6 +1,6 @@
 !> The exact flow of the fast (modal) subsystem, linear with frozen coefficients, under a
-!> polynomial forcing: the fast side of the 'exponential' coupling (docs/method.md, section
-!> "The exponential coupling").
+!> polynomial forcing: the fast side of the 'exponential' coupling (docs/method.md section
+!> 4.3).
 !>
 !> With the accelerations written as qdd = rho(t) - g0 (kf0 a + df0 ad), where g0 = M^-1 E
 !> (n x nf) and the modal stiffness and damping kf0, df0 are frozen at one state and rho(t)
