@@ -35,7 +35,7 @@ module pymr_integrator_exponential
   !> (Milne's estimate for the order-4 Adams pair, |C_AM|/(C_AB - C_AM) = 19/270).
   real(dp), parameter :: milne = 19.0_dp/270.0_dp
   !> The response is frozen again when h^2 |Delta(g K)| + h |Delta(g D)| exceeds this.
-  real(dp), parameter :: drift_limit = 0.05_dp
+  real(dp), parameter :: drift_limit = 0.5_dp
   !> Adaptive runs: steps in a row that may break down and be retried smaller.
   integer, parameter :: max_breakdowns = 10
 
