@@ -139,7 +139,9 @@ contains
       call self%flow%build(self%ns, g, kf, df, error); if (allocated(error)) return
       call size_modal(self)
       self%hist%nh = 0
-      call push_evaluation(self, t0, f(self%n+1:), fast_state(self, x0))
+      self%wk%y = fast_state(self, x0)
+      self%wk%rnew = self%flow%remainder(f(self%n+1:), self%wk%y); self%wk%pnew = self%flow%project(self%wk%rnew)
+      call push_evaluation(self, t0, f(self%n+1:), self%wk%y, self%wk%rnew, self%wk%pnew)
       self%t = t0; self%t0 = t0; self%x = x0
       self%last%t = t0; self%last%h = 0.0_dp; self%last%x = x0
       self%last%eta = self%flow%modal_state(x0)
@@ -159,9 +161,12 @@ contains
 
   !> A full evaluation (accelerations qdd at the fast state y) joins the history; the oldest
   !> leaves when it is full.
-  subroutine push_evaluation(self, t, qdd, y)
+  subroutine push_evaluation(self, t, qdd, y, r, p)
     class(exponential_integrator), intent(inout) :: self
     real(dp), intent(in) :: t, qdd(:), y(:)
+    !> Its remainder (flow%remainder) and modal forcing (flow%project).
+    real(dp), intent(in) :: r(:)
+    complex(dp), intent(in) :: p(:)
     integer :: m
     associate(h => self%hist)
       if (h%nh == n_hist) then
@@ -172,7 +177,7 @@ contains
       end if
       m = h%nh
       h%th(m) = t; h%hq(:, m) = qdd; h%hy(:, m) = y
-      h%hr(:, m) = self%flow%remainder(qdd, y); h%hp(:, m) = self%flow%project(h%hr(:, m))
+      h%hr(:, m) = r; h%hp(:, m) = p
     end associate
   end subroutine push_evaluation
 
@@ -275,7 +280,7 @@ contains
       self%last%t = t0; self%last%h = hs; self%last%x = self%x; self%last%eta = wk%eta0
       self%last%beta = wk%beta; self%last%cs = wk%cs
       self%x = wk%xc; self%t = tn; self%steps = self%steps + 1
-      call push_evaluation(self, tn, wk%f(n+1:), wk%y)
+      call push_evaluation(self, tn, wk%f(n+1:), wk%y, wk%rnew, wk%pnew)
       if (self%adaptive) self%h = min(hs*self%ctl%ratio(err, .true.), self%ctl%h_max)
     end associate
     class default
