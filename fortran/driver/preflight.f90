@@ -158,23 +158,17 @@ contains
     integer, intent(in) :: nj
     type(error_type), allocatable, intent(out) :: error
     real(dp), allocatable :: b(:, :), wr(:), wi(:)
-    integer :: n
+    integer :: n, i
     integer, allocatable :: idx(:)
     n = size(a, 1)/2
     joints_stable = .true.
     if (nj == 0) return
-    idx = [joint_rows(nj), n + joint_rows(nj)]
+    idx = [(i, i = 1, nj), (n + i, i = 1, nj)]
     b = a(idx, idx)
     allocate(wr(2*nj), wi(2*nj))
     call geev_real(b, wr, wi, "the joints' block of the linearised model", error); if (allocated(error)) return
     joints_stable = all_stable(wr, wi, h, t_end)
   end function joints_stable
-
-  pure function joint_rows(nj) result(r)
-    integer, intent(in) :: nj
-    integer :: r(nj), i
-    r = [(i, i = 1, nj)]
-  end function joint_rows
 
   !> No eigenvalue wr + i wi grows in fixed steps h over the run.
   logical function all_stable(wr, wi, h, t_end)
