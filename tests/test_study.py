@@ -194,23 +194,25 @@ def test_cpu_time_is_the_median_of_the_repeats():
 
 
 def test_quick_study_end_to_end(tmp_path, capsys):
-    """`pymr study --quick` on the tank, 2 runs per case: 38 cases (single-rate 3 fixed
-    steps and 3 tolerances of each formula, 'abm4' and 'adams'; per coupling 2 ratios x 2
-    fast steps and 3 tolerances; 5 peers x 3 tolerances), none refused (the quick grid's 'full' ratios 5 and 20 at h_fast
+    """`pymr study --quick` on the tank, 2 runs per case: 43 cases (single-rate 3 fixed
+    steps and 3 tolerances of each formula, 'abm4' and 'adams'; per coupling 'response' and
+    'full' 2 ratios x 2 fast steps and 3 tolerances; 'exponential' 2 steps and 3 tolerances;
+    5 peers x 3 tolerances), none refused (the quick grid's 'full' ratios 5 and 20 at h_fast
     5e-5 and 2.5e-5 s are within the stability limit of 33 at 1e-4 s), the weights, the
-    refusals and a front with its ratio at every level printed."""
+    refusals and a front with its ratio at every level (1e-4 to 1e-7 m) printed."""
     from pymr import study as study_mod
     assert study_mod.main(str(TANK), "muzzle", output=str(tmp_path / "q"), quick=True, repeats=2) == 0
     out = capsys.readouterr().out
     rows = list(csv.DictReader(open(tmp_path / "q.csv")))
-    assert len(rows) == 38
+    assert len(rows) == 43
     assert sum(r["method"].startswith("response fixed") for r in rows) == 4
+    assert sum(r["method"] == "exponential fixed" for r in rows) == 2
     assert all(r["status"] == "ok" or r["status"].startswith("skipped") for r in rows)
     assert all(int(r["runs"]) == 2 for r in rows if r["status"] == "ok")
     h1 = next(r for r in rows if r["method"] == "single fixed" and r["setting"] == "h=0.0001")
     assert float(h1["error_m"]) == pytest.approx(5.5e-8, rel=0.05)
     assert "refused by the pre-flight check: none" in out and "measured weight w" in out
-    assert out.count("fastest 'response' multirate / fastest single-rate: ") == 3 and "n/a" not in out
+    assert out.count("fastest multirate / fastest single-rate: ") == 4 and "n/a" not in out
     assert (tmp_path / "q.png").stat().st_size > 10000
     assert "variable order: fewest evaluations" in out and "step and order history of formula 'adams'" in out
     hist = list(csv.DictReader(open(tmp_path / "q_history.csv")))

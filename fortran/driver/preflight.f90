@@ -79,15 +79,10 @@ contains
     if (n == 0) return
     steps = st%pece(); counts = st%counts()
     allocate(wgt(n))
+    call linearised_for(model, x, steps, m, minv, k, c, a, error); if (allocated(error)) return
     if (steps%exact_modal) then
-      ! the modal columns hold the stiffness and damping the flow carries exactly: the joint
-      ! columns alone are linearised, and the state matrix is then block triangular, its
-      ! joints' block deciding
-      call linear_state(model, 0.0_dp, x, m, minv, k, c, a, error, model%d%nj); if (allocated(error)) return
       if (joints_stable(a, model%d%nj, steps%h_joint, t_end, error)) return
       if (allocated(error)) return
-    else
-      call linear_state(model, 0.0_dp, x, m, minv, k, c, a, error); if (allocated(error)) return
     end if
     allocate(wr(2*n), wi(2*n), vr(2*n, 2*n))
     if (steps%h_modal == steps%h_joint .and. counts%ratio == 1) then
@@ -150,6 +145,23 @@ contains
     if (abs(lam) == 0.0_dp .or. real(lam) > 1.0e-9_dp*abs(lam) .or. h <= 0.0_dp) return
     grows = log(pece_growth(lam*h))*t_end/h > log(run_growth)
   end function grows
+
+  !> The model linearised at x for a stepper's steps: with steps%exact_modal the modal
+  !> columns hold the stiffness and damping the flow carries exactly, so the joint columns
+  !> alone are linearised (the state matrix is then block triangular, its joints' block
+  !> deciding).
+  subroutine linearised_for(model, x, steps, m, minv, k, c, a, error)
+    type(model_t), intent(inout) :: model
+    real(dp), intent(in) :: x(:)
+    type(pece_steps), intent(in) :: steps
+    real(dp), allocatable, intent(out) :: m(:, :), minv(:, :), k(:, :), c(:, :), a(:, :)
+    type(error_type), allocatable, intent(out) :: error
+    if (steps%exact_modal) then
+      call linear_state(model, 0.0_dp, x, m, minv, k, c, a, error, model%d%nj)
+    else
+      call linear_state(model, 0.0_dp, x, m, minv, k, c, a, error)
+    end if
+  end subroutine linearised_for
 
   !> No vibration of the joints' block of the state matrix a (its rows and columns of the
   !> nj joint coordinates and rates) grows in fixed steps h over the run.
