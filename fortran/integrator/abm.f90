@@ -10,8 +10,7 @@ module pymr_integrator_abm
     & nordsieck_rescale, nordsieck_value, nordsieck_from_history
   use pymr_integrator_control, only : step_control, error_weights, wrms_norm
   use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps, state_record, project_step, projection_eta, &
-    & landing_ratio
-  use pymr_env_text, only : fmt
+    & landing_ratio, step_underflow
   implicit none
   private
   public :: abm_integrator, rk4_step, check_finite, hinit, pece_step
@@ -191,8 +190,7 @@ contains
       end if
       self%rejected = self%rejected + 1
       if (eta*self%h < self%ctl%h_min) then
-        call fatal_error(error, 'step size underflow at t = ' // fmt(self%t) // ' s (step ' // fmt(eta*self%h) // &
-          & ' s below h_min)', stat_solver)
+        call step_underflow(error, self%t, 'step', eta*self%h)
         return
       end if
       call nordsieck_rescale(self%z, eta)

@@ -16,7 +16,7 @@ module pymr_integrator_adams
   use pymr_integrator_ode, only : ode_system
   use pymr_integrator_control, only : step_control, error_weights, wrms_norm
   use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps, state_record, project_step, projection_eta, &
-    & landing_ratio
+    & landing_ratio, step_underflow
   use pymr_integrator_abm, only : check_finite
   use pymr_env_text, only : fmt, itoa
   use pymr_env_lapack, only : lu_factor, lu_solve
@@ -504,8 +504,7 @@ contains
     real(dp), intent(in) :: eta
     type(error_type), allocatable, intent(out) :: error
     if (eta*self%h < self%ctl%h_min) then
-      call fatal_error(error, 'step size underflow at t = ' // fmt(self%t) // ' s (step ' // fmt(eta*self%h) // &
-        & ' s below h_min)', stat_solver); return
+      call step_underflow(error, self%t, 'step', eta*self%h); return
     end if
     call rescale(self, eta)
     self%eta_max = 1.0_dp

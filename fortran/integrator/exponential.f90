@@ -18,13 +18,12 @@
 !> of the difference could no longer carry stably (drift_limit).
 module pymr_integrator_exponential
   use pymr_env_kinds, only : dp
-  use pymr_env_error, only : error_type, fatal_error, stat_solver
+  use pymr_env_error, only : error_type, fatal_error
   use pymr_integrator_ode, only : ode_system, partitioned_system
-  use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps, state_record, project_step
+  use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps, state_record, project_step, step_underflow
   use pymr_integrator_abm, only : check_finite
   use pymr_integrator_control, only : step_control, error_weights, wrms_norm
   use pymr_integrator_modal_flow, only : modal_flow_t, taylor_weights, n_coef, n_phi
-  use pymr_env_text, only : fmt
   implicit none
   private
   public :: exponential_integrator
@@ -266,8 +265,7 @@ contains
           if (err > 1.0_dp) then
             self%h = hs*self%ctl%ratio(err, .false.); self%rejected = self%rejected + 1
             if (self%h < self%ctl%h_min) then
-              call fatal_error(error, 'step size underflow at t = ' // fmt(t0) // ' s (step ' // fmt(self%h) // &
-                & ' s below h_min)', stat_solver); return
+              call step_underflow(error, t0, 'step', self%h); return
             end if
             cycle
           end if

@@ -10,10 +10,9 @@
 !> this is the single-rate PECE method.
 module pymr_integrator_multirate
   use pymr_env_kinds, only : dp
-  use pymr_env_error, only : error_type, fatal_error, stat_solver
+  use pymr_env_error, only : error_type, fatal_error
   use pymr_integrator_ode, only : ode_system, partitioned_system
-  use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps, state_record, project_step, projection_eta
-  use pymr_env_text, only : fmt
+  use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps, state_record, project_step, projection_eta, step_underflow
   use pymr_integrator_nordsieck, only : nq, nordsieck_predict, nordsieck_correct, nordsieck_value, &
     & nordsieck_from_history, nordsieck_rescale, corrector_l
   use pymr_integrator_abm, only : rk4_step, check_finite, pece_step
@@ -320,8 +319,7 @@ contains
       self%cnt%rejected = self%cnt%rejected + 1
       call choose_ratio(self, hs_new, hf_new, k_new)
       if (hf_new < self%ctl%h_min) then
-        call fatal_error(error, 'step size underflow at t = ' // fmt(self%t) // ' s (fast step ' // fmt(hf_new) // &
-          & ' s below h_min)', stat_solver); return
+        call step_underflow(error, self%t, 'fast step', hf_new); return
       end if
       ! back to the start of the macro step, with the arrays' own scaling
       self%zs = self%wk%zs0; self%zf = self%wk%zf0

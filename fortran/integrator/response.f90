@@ -22,14 +22,13 @@
 !> full and the surrogate accelerations at the same state.
 module pymr_integrator_response
   use pymr_env_kinds, only : dp
-  use pymr_env_error, only : error_type, fatal_error, stat_solver
+  use pymr_env_error, only : error_type, fatal_error
   use pymr_integrator_ode, only : ode_system, partitioned_system
-  use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps, state_record, project_step, projection_eta
+  use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps, state_record, project_step, projection_eta, step_underflow
   use pymr_integrator_nordsieck, only : nq, corrector_l, nordsieck_predict, nordsieck_correct, nordsieck_rescale, &
     & nordsieck_value
   use pymr_integrator_abm, only : abm_integrator, check_finite
   use pymr_integrator_control, only : step_control, error_weights, wrms_norm
-  use pymr_env_text, only : fmt
   implicit none
   private
   public :: response_integrator, extrapolation_weights
@@ -345,8 +344,7 @@ contains
     hm_new = self%kn*self%h*self%ctl%ratio(err_s, accepted .or. err_s <= 1.0_dp)
     if (.not. accepted .and. err_s <= 1.0_dp) hm_new = min(hm_new, self%kn*self%h)
     if (h_new < self%ctl%h_min) then
-      call fatal_error(error, 'step size underflow at t = ' // fmt(self%t) // ' s (fast step ' // fmt(h_new) // &
-        & ' s below h_min)', stat_solver); return
+      call step_underflow(error, self%t, 'fast step', h_new); return
     end if
     self%k = min(max(1, floor(hm_new/h_new)), self%k_max)
     self%kn = self%k
@@ -362,8 +360,7 @@ contains
     class(response_integrator), intent(inout) :: self
     type(error_type), allocatable, intent(out) :: error
     if (projection_eta*self%h < self%ctl%h_min) then
-      call fatal_error(error, 'step size underflow at t = ' // fmt(self%t) // ' s (fast step ' // &
-        & fmt(projection_eta*self%h) // ' s below h_min)', stat_solver); return
+      call step_underflow(error, self%t, 'fast step', projection_eta*self%h); return
     end if
     call nordsieck_rescale(self%z, projection_eta)
     self%h = projection_eta*self%h

@@ -8,12 +8,12 @@
 !> is made.
 module pymr_integrator_stepper
   use pymr_env_kinds, only : dp
-  use pymr_env_error, only : error_type, prefix_error
+  use pymr_env_error, only : error_type, prefix_error, fatal_error, stat_solver
   use pymr_env_text, only : fmt, itoa
   use pymr_integrator_ode, only : ode_system
   implicit none
   private
-  public :: stepper_t, landing_ratio, step_counts, pece_steps, state_record, project_step
+  public :: stepper_t, landing_ratio, step_counts, pece_steps, state_record, project_step, step_underflow
 
   !> A step whose projection onto the system's constraints fails is redone with its step
   !> times projection_eta, at most max_projection_fails times in one step (adaptive steppers;
@@ -187,6 +187,15 @@ contains
     if (fails > 0) error%message = error%message // ' (the step redone ' // itoa(fails) // ' times smaller)'
     call prefix_error(error, 'at t = ' // fmt(t) // ' s')
   end subroutine project_step
+
+  !> The failure of a step (what: 'step' or 'fast step') of h below h_min at time t.
+  subroutine step_underflow(error, t, what, h)
+    type(error_type), allocatable, intent(out) :: error
+    real(dp), intent(in) :: t, h
+    character(len=*), intent(in) :: what
+    call fatal_error(error, 'step size underflow at t = ' // fmt(t) // ' s (' // what // ' ' // fmt(h) // &
+      & ' s below h_min)', stat_solver)
+  end subroutine step_underflow
 
   !> The state vector's length and values, then the record's sizes and items.
   subroutine save_stepper(self, unit, ios)
