@@ -23,7 +23,7 @@ module pymr_integrator_modal_flow
   use pymr_env_lapack, only : potrf, sygvd, geev_real, complex_inverse
   implicit none
   private
-  public :: modal_flow_t, taylor_weights, phi_functions, n_coef, n_phi
+  public :: modal_flow_t, taylor_weights, n_coef, n_phi
 
   !> Taylor coefficients of the forcing polynomial (degree 3).
   integer, parameter :: n_coef = 4
@@ -36,11 +36,11 @@ module pymr_integrator_modal_flow
     integer :: ns = 0, nf = 0, nm = 0
     !> The frozen response g0 (n x nf) and modal stiffness and damping (nf).
     real(dp), allocatable :: g0(:, :), kf0(:), df0(:)
-    !> Eigenvalues kept (nm), their weights (2 for a complex pair, 1 for a real one),
-    !> right vectors V (2nf x nm), rows of V^-1 (nm x 2nf), and C V (ns x nm).
-    complex(dp), allocatable :: lam(:), v(:, :), w(:, :), cv(:, :)
+    !> Eigenvalues kept (nm), their weights (2 for a complex pair, 1 for a real one), and
+    !> the rows of V^-1 (nm x 2nf).
+    complex(dp), allocatable :: lam(:), w(:, :)
     real(dp), allocatable :: wgt(:)
-    !> Real and imaginary parts of V and of C V.
+    !> Real and imaginary parts of the right vectors V (2nf x nm) and of C V (ns x nm).
     real(dp), allocatable :: vre(:, :), vim(:, :), cre(:, :), cim(:, :)
     !> The groups of fast coordinates diagonalised apart: group c has the kept eigenvalues
     !> mode_start(c) .. mode_start(c+1) - 1 and the fast coordinates rows(row_start(c) ..
@@ -71,31 +71,31 @@ contains
     type(error_type), allocatable, intent(out) :: error
     integer, allocatable :: group(:), idx(:)
     integer :: nf, c, m, i, ng
+    complex(dp), allocatable :: v(:, :), cv(:, :)
     nf = size(kf)
     self%ns = ns; self%nf = nf
     self%g0 = g; self%kf0 = kf; self%df0 = df
     group = coupled_groups(g(ns+1:, :))
     ng = maxval([0, group])
-    if (allocated(self%lam)) deallocate(self%lam, self%v, self%w, self%cv, self%wgt, self%mode_start, self%row_start, &
-      & self%rows)
-    allocate(self%lam(2*nf), self%v(2*nf, 2*nf), self%w(2*nf, 2*nf), self%wgt(2*nf))
+    if (allocated(self%lam)) deallocate(self%lam, self%w, self%wgt, self%mode_start, self%row_start, self%rows)
+    allocate(self%lam(2*nf), v(2*nf, 2*nf), self%w(2*nf, 2*nf), self%wgt(2*nf))
     allocate(self%mode_start(ng + 1), self%row_start(ng + 1), self%rows(nf))
-    self%v = (0.0_dp, 0.0_dp); self%w = (0.0_dp, 0.0_dp)
+    v = (0.0_dp, 0.0_dp); self%w = (0.0_dp, 0.0_dp)
     m = 0; self%row_start(1) = 1
     do c = 1, ng
       idx = pack([(i, i = 1, nf)], group == c)
       self%mode_start(c) = m + 1
       self%rows(self%row_start(c):self%row_start(c) + size(idx) - 1) = idx
       self%row_start(c+1) = self%row_start(c) + size(idx)
-      call build_group(self, idx, g(ns+idx, idx), kf(idx), df(idx), m, error); if (allocated(error)) return
+      call build_group(self, idx, g(ns+idx, idx), kf(idx), df(idx), v, m, error); if (allocated(error)) return
     end do
     self%mode_start(ng + 1) = m + 1
     self%ng = ng; self%nm = m
-    self%lam = self%lam(1:m); self%v = self%v(:, 1:m); self%w = self%w(1:m, :); self%wgt = self%wgt(1:m)
+    self%lam = self%lam(1:m); v = v(:, 1:m); self%w = self%w(1:m, :); self%wgt = self%wgt(1:m)
     ! C V: the slow accelerations' response to the fast state, g_s [K | D] V
-    self%cv = matmul(cmplx(g(1:ns, :)*spread(kf, 1, ns), 0.0_dp, dp), self%v(1:nf, :)) + &
-      & matmul(cmplx(g(1:ns, :)*spread(df, 1, ns), 0.0_dp, dp), self%v(nf+1:, :))
-    self%vre = real(self%v); self%vim = aimag(self%v); self%cre = real(self%cv); self%cim = aimag(self%cv)
+    cv = matmul(cmplx(g(1:ns, :)*spread(kf, 1, ns), 0.0_dp, dp), v(1:nf, :)) + &
+      & matmul(cmplx(g(1:ns, :)*spread(df, 1, ns), 0.0_dp, dp), v(nf+1:, :))
+    self%vre = real(v); self%vim = aimag(v); self%cre = real(cv); self%cim = aimag(cv)
   end subroutine flow_build
 
   !> Group number of each fast coordinate: the connected parts of the graph G_ij /= 0.
@@ -125,9 +125,11 @@ contains
   !> The flow of one group of fast coordinates idx (its G, kf, df): its eigenvalues kept
   !> from position m + 1 on (m advanced past them), their vectors in V's rows and W's
   !> columns of the group.
-  subroutine build_group(self, idx, gf, kf, df, m, error)
+  subroutine build_group(self, idx, gf, kf, df, v, m, error)
     class(modal_flow_t), intent(inout) :: self
     integer, intent(in) :: idx(:)
+    !> The right vectors V (2nf x 2nf), filled in the group's rows and its modes' columns.
+    complex(dp), intent(inout) :: v(:, :)
     real(dp), intent(in) :: gf(:, :), kf(:), df(:)
     integer, intent(inout) :: m
     type(error_type), allocatable, intent(out) :: error
@@ -184,8 +186,8 @@ contains
       self%lam(m) = cmplx(wr(j), wi(j), dp)
       self%wgt(m) = merge(2.0_dp, 1.0_dp, wi(j) > 0.0_dp)
       ! z = [a; ad] = [Phi Omega^-1 Y1; Phi Y2]
-      self%v(idx, m) = matmul(phi, vy(1:ng, j)/om)
-      self%v(nf+idx, m) = matmul(phi, vy(ng+1:, j))
+      v(idx, m) = matmul(phi, vy(1:ng, j)/om)
+      v(nf+idx, m) = matmul(phi, vy(ng+1:, j))
       ! eta = W_y [Omega Phi^-1 a; Phi^-1 ad], Phi^-1 = Psi^T L^-1
       self%w(m, idx) = matmul(wy(j, 1:ng)*om, pinv)
       self%w(m, nf+idx) = matmul(wy(j, ng+1:), pinv)
