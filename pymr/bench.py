@@ -3,7 +3,10 @@ process; ratios are formed within the same run. Tests never assert wall time."""
 from __future__ import annotations
 
 import json
+import shutil
 import statistics
+import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -309,6 +312,12 @@ def main(what: str, repeats: int | None = None, json_path: str | None = None,
         if json_path:
             write_file(json_path, json.dumps(rows, indent=2), "figures")
         return 0
+    if what == "modal-import":
+        rows = bench_modal_import()
+        print_modal_import(rows)
+        if json_path:
+            write_file(json_path, json.dumps({"blas": loaded_lapack(), "rows": rows}, indent=2), "figures")
+        return 0
     if what == "table1":
         # runs of 5-30 ms are noisy on a shared machine: 21 interleaved repeats by default
         rows = bench_table1(repeats=max(repeats or 21, 5))
@@ -589,3 +598,112 @@ def print_output(rows: list[dict]) -> None:
     csv = by["csv, every step"]["us_per_row"]
     for name in ("hdf5, every step (compression 1)", "hdf5, every step (uncompressed)"):
         print(f"cost per row, {name.split(', every step ')[1][1:-1]} HDF5 against CSV: {by[name]['us_per_row'] / csv:.2f}")
+
+
+#: `pymr bench modal-import`: 3-D frame beams (6 DOFs a node) and solid blocks (8-node bricks,
+#: 3 DOFs a node, aspect 10) of about these DOF counts, reduced to 20 fixed-interface modes
+MODAL_IMPORT_SIZES = (10_000, 100_000, 300_000)
+#: the size at which the dense reduction (issue 17's, scipy.linalg.eigh) runs beside it
+MODAL_IMPORT_DENSE = 3_006
+
+
+def _fe_case(kind: str, dofs: int):
+    """The model and its attachment: a beam held at node 1, a block by its x = 0 face."""
+    from .fe_models import block_for, frame_beam, solid_block
+    if kind == "beam":
+        model = frame_beam(max(2, round(dofs / 6)))
+        return model, [1], []
+    model = solid_block(block_for(dofs))
+    face = model.ids[np.abs(model.xyz[:, 0]) < 1e-12].tolist()
+    return model, [face[0]], face[1:]
+
+
+def modal_import_case(folder: str, interface: list, clamp: list) -> dict:
+    """One reduction of the files in `folder` (run in a process of its own: its peak memory
+    is the process's)."""
+    import resource
+    from .modal_import import modal_import
+    folder = Path(folder)
+    dpn = 6 if (folder / "dpn6").exists() else 3
+    wall, cpu = time.perf_counter(), time.process_time()
+    body = modal_import(folder / "m.mtx", folder / "k.mtx", folder / "nodes.csv", interface, modes=20, clamp=clamp,
+                        dofs_per_node=dpn)
+    return {"wall_s": time.perf_counter() - wall, "cpu_s": time.process_time() - cpu,
+            "peak_gb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024 / 1e9,
+            "frequencies_hz": body.frequencies_hz.tolist(), "backend": _factor_backend(), "blas": _blas()}
+
+
+def _blas() -> str:
+    """The BLAS libraries this process loaded (the factorisation's speed is theirs)."""
+    try:
+        paths = {line.split()[-1] for line in open("/proc/self/maps") if "blas" in line}
+    except OSError:
+        return "unknown"
+    return ", ".join(sorted(p for p in paths if "/" in p and "scipy" not in p and "numpy" not in p)) or "unknown"
+
+
+def _factor_backend() -> str:
+    from .craig_bampton import have_cholmod
+    return "CHOLMOD" if have_cholmod() else "SuperLU"
+
+
+def dense_reference(folder: Path, interface: list, clamp: list) -> list:
+    """The lowest 20 fixed-interface frequencies by a dense generalized eigensolve of the
+    interior (scipy.linalg.eigh), the way issue 17's import solved them."""
+    import scipy.io
+    import scipy.linalg
+    from .fe_formats import read_nodes
+    k, m = (scipy.io.mmread(folder / f).tocsr() for f in ("k.mtx", "m.mtx"))
+    ids, _ = read_nodes(folder / "nodes.csv")
+    dpn = k.shape[0] // len(ids)
+    held = np.concatenate([dpn * (ids.index(n)) + np.arange(dpn) for n in interface + clamp])
+    inner = np.setdiff1d(np.arange(k.shape[0]), held)
+    lam = scipy.linalg.eigh(k[inner][:, inner].toarray(), m[inner][:, inner].toarray(), eigvals_only=True,
+                            subset_by_index=[0, 19])
+    return (np.sqrt(lam) / (2 * np.pi)).tolist()
+
+
+def bench_modal_import(sizes=MODAL_IMPORT_SIZES, kinds=("beam", "block")) -> list[dict]:
+    """Each case written as Matrix Market, then reduced by `pymr.modal_import` in a fresh
+    process: wall and CPU time, peak memory, the first frequencies."""
+    rows = []
+    with tempfile.TemporaryDirectory(prefix="pymr-bench-") as tmp:
+        cases = [("beam", MODAL_IMPORT_DENSE)] + [(k, s) for k in kinds for s in sizes]
+        for kind, dofs in cases:
+            folder = Path(tmp) / f"{kind}{dofs}"
+            model, interface, clamp = _fe_case(kind, dofs)
+            model.write(folder)
+            if model.dofs_per_node == 6:
+                (folder / "dpn6").touch()
+            code = ("import json, sys; from pymr.bench import modal_import_case; "
+                    f"print(json.dumps(modal_import_case({str(folder)!r}, {interface!r}, {clamp!r})))")
+            r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+            if r.returncode != 0:
+                rows.append({"model": kind, "dofs": model.ndof, "error": (r.stderr.strip().splitlines() or ["?"])[-1]})
+                continue
+            row = {"model": kind, "dofs": model.ndof, "nnz_k": int(model.k.nnz), **json.loads(r.stdout)}
+            if dofs == MODAL_IMPORT_DENSE:
+                row["dense_hz"] = dense_reference(folder, interface, clamp)
+            rows.append(row)
+            shutil.rmtree(folder)
+    return rows
+
+
+def print_modal_import(rows: list[dict]) -> None:
+    print("pymr bench modal-import: Craig-Bampton reduction to 20 fixed-interface modes from Matrix Market files, "
+          "one run a case in its own process")
+    print("BLAS of the reductions: " + "; ".join(sorted({r["blas"] for r in rows if "blas" in r})))
+    print(f"{'model':>6} {'DOFs':>8} {'nnz(K)':>10} {'factor':>8} {'wall s':>8} {'CPU s':>8} {'peak GB':>8} "
+          f"{'f1 Hz':>14} {'f2 Hz':>14} {'|f2-f1|/f1':>11}")
+    for r in rows:
+        if "error" in r:
+            print(f"{r['model']:>6} {r['dofs']:>8} failed: {r['error']}")
+            continue
+        f = r["frequencies_hz"]
+        print(f"{r['model']:>6} {r['dofs']:>8} {r['nnz_k']:>10} {r['backend']:>8} {r['wall_s']:>8.2f} {r['cpu_s']:>8.2f} "
+              f"{r['peak_gb']:>8.3f} {f[0]:>14.9f} {f[1]:>14.9f} {abs(f[1] - f[0]) / f[0]:>11.2e}")
+        if "dense_hz" in r:
+            d = np.asarray(r["dense_hz"])
+            gap = np.max(np.abs(np.asarray(f[:len(d)]) - d) / d)
+            print(f"{'':>6} {'':>8} dense eigh of the same interior: f1 {d[0]:.9f}, f2 {d[1]:.9f} Hz; largest "
+                  f"relative difference over 20 modes {gap:.2e}")

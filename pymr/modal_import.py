@@ -26,16 +26,14 @@ from pathlib import Path
 
 import numpy as np
 
+import scipy.sparse as sp
+
 from . import _kernel as _core
-from .api import SceneError, write_file
+from .api import write_file
+from .craig_bampton import reduce
+from .fe_formats import (DOF_NAMES, ImportInputError, dof_layout, layout_rows, read_matrix,  # noqa: F401
+                         read_matrix_market, read_nodes)
 from .outputs import check_output
-
-#: names of the six DOFs of a node, in the order of dofs_per_node 6 and DOF map numbers 1-6
-DOF_NAMES = ("u_x", "u_y", "u_z", "theta_x", "theta_y", "theta_z")
-
-
-class ImportInputError(SceneError):
-    """Bad input of ``pymr modal-import``: one line naming the file and the fault."""
 
 
 @dataclass
@@ -55,214 +53,36 @@ class ModalBody:
     kept: dict = field(default_factory=dict)   # counts: fixed-interface modes, constraint modes, reduced size
 
 
-# ----------------------------------------------------------------------------- input files
-
-def _lines(path: Path, comment: str):
-    """(line number, stripped text) of the file's lines that are not blank or comments."""
-    try:
-        text = path.read_text()
-    except FileNotFoundError:
-        raise ImportInputError(f"{path}: no such file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ImportInputError(f"{path}: cannot read: {exc}") from None
-    for k, line in enumerate(text.splitlines(), 1):
-        s = line.strip()
-        if s and not s.startswith(comment):
-            yield k, s
-
-
-def read_matrix_market(path: str | os.PathLike, rows: tuple[int, str] | None = None) -> np.ndarray:
-    """A real Matrix Market matrix (coordinate or array; general or symmetric) as a dense array.
-    `rows`: (count, why) when the caller knows how many rows the matrix must have (`why` says
-    from what, for the message). The size line is checked against it, and against the
-    entries the file holds, before the dense array is allocated (a size line of 1e9 asked
-    numpy for exabytes)."""
-    path = Path(path)
-    try:
-        with open(path) as fh:
-            header = fh.readline().split()
-    except FileNotFoundError:
-        raise ImportInputError(f"{path}: no such file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ImportInputError(f"{path}: cannot read: {exc}") from None
-    if len(header) != 5 or header[0].lower() != "%%matrixmarket" or header[1].lower() != "matrix":
-        raise ImportInputError(f"{path}: line 1: not a Matrix Market matrix (expected '%%MatrixMarket matrix ...')")
-    form, kind, sym = (h.lower() for h in header[2:])
-    if form not in ("coordinate", "array") or kind not in ("real", "integer", "double") \
-            or sym not in ("general", "symmetric"):
-        raise ImportInputError(f"{path}: line 1: {' '.join(header[2:])}: only real coordinate or array matrices, "
-                               "general or symmetric, are read")
-    lines = list(_lines(path, "%"))
-    if not lines:
-        raise ImportInputError(f"{path}: no size line")
-    k, size = lines[0]
-    try:
-        dims = [int(v) for v in size.split()]
-    except ValueError:
-        dims = []
-    if len(dims) != (3 if form == "coordinate" else 2) or min(dims) < 0:
-        raise ImportInputError(f"{path}: line {k}: expected the size line ("
-                               f"{'rows columns entries' if form == 'coordinate' else 'rows columns'})")
-    nr, nc = dims[:2]
-    if nr != nc:
-        raise ImportInputError(f"{path}: {nr} x {nc}: a square matrix expected")
-    if rows is not None and nr != rows[0]:
-        raise ImportInputError(f"{path}: line {k}: {nr} rows, but {rows[1]}")
-    body = lines[1:]
-    count = (nr * nc if sym == "general" else nr * (nr + 1) // 2) if form == "array" else dims[2]
-    if len(body) != count:
-        what = "values" if form == "array" else "entries"
-        raise ImportInputError(f"{path}: line {k}: the size line gives {count} {what} ({nr} x {nc}, {sym}), "
-                               f"the file holds {len(body)}")
-    try:
-        a = np.zeros((nr, nc))
-    except MemoryError:
-        raise ImportInputError(f"{path}: line {k}: {nr} x {nc}: too large for this machine's memory as a dense "
-                               f"matrix ({8 * nr * nc / 1e9:.3g} GB)") from None
-    if form == "array":
-        values = [_number(path, k, s) for k, s in body]
-        if sym == "general":
-            a[:, :] = np.asarray(values).reshape(nc, nr).T
-        else:
-            il, jl = np.tril_indices(nr)
-            order = np.lexsort((il, jl))           # column by column, each from the diagonal down
-            a[il[order], jl[order]] = values
-            a = np.tril(a) + np.tril(a, -1).T
-        return a
-    for k, s in body:
-        parts = s.split()
-        try:
-            i, j, v = int(parts[0]), int(parts[1]), float(parts[2])
-            if len(parts) != 3:
-                raise ValueError
-        except (ValueError, IndexError):
-            raise ImportInputError(f"{path}: line {k}: expected 'row column value'") from None
-        if not (1 <= i <= nr and 1 <= j <= nc):
-            raise ImportInputError(f"{path}: line {k}: entry ({i}, {j}) outside the {nr} x {nc} matrix")
-        if not np.isfinite(v):
-            raise ImportInputError(f"{path}: line {k}: entry ({i}, {j}) is not finite")
-        if sym == "symmetric":
-            if i < j:
-                raise ImportInputError(f"{path}: line {k}: entry ({i}, {j}) above the diagonal of a symmetric matrix")
-            if i != j:
-                a[j - 1, i - 1] += v
-        a[i - 1, j - 1] += v
-    return a
-
-
-def _number(path: Path, k: int, s: str) -> float:
-    try:
-        v = float(s)
-    except ValueError:
-        raise ImportInputError(f"{path}: line {k}: expected a number, got {s!r}") from None
-    if not np.isfinite(v):
-        raise ImportInputError(f"{path}: line {k}: {s} is not finite")
-    return v
-
-
-def read_nodes(path: str | os.PathLike) -> tuple[list[int], np.ndarray]:
-    """Node ids and coordinates (N, 3) from lines 'id, x, y, z' (commas or blanks; '#'
-    comments; a first line of words is a header)."""
-    path = Path(path)
-    ids, xyz = [], []
-    for n, (k, s) in enumerate(_lines(path, "#")):
-        parts = s.replace(",", " ").split()
-        try:
-            if len(parts) != 4:
-                raise ValueError
-            nid, x = int(parts[0]), [float(v) for v in parts[1:]]
-        except ValueError:
-            if n == 0 and not any(c.isdigit() for c in parts[0]):
-                continue                            # a header line
-            raise ImportInputError(f"{path}: line {k}: expected 'node id, x, y, z'") from None
-        if not np.all(np.isfinite(x)):
-            raise ImportInputError(f"{path}: line {k}: node {nid}: coordinates not finite")
-        ids.append(nid)
-        xyz.append(x)
-    if not ids:
-        raise ImportInputError(f"{path}: no nodes")
-    seen = set()
-    for nid in ids:
-        if nid in seen:
-            raise ImportInputError(f"{path}: node {nid} is given twice")
-        seen.add(nid)
-    return ids, np.asarray(xyz, dtype=float)
-
-
-def dof_layout(ids: list[int], ndof: int, matrix_path: Path, nodes_path: Path, dofs_per_node: int | None = None,
-               dof_map: str | os.PathLike | None = None) -> np.ndarray:
-    """Row of each node's DOF: an int array (nodes, 6), -1 where the node has no such DOF.
-    Each node has the three translations, and either no rotation or all three."""
-    dof = -np.ones((len(ids), 6), dtype=int)
-    if dof_map is None:
-        if dofs_per_node not in (3, 6):
-            raise ImportInputError(f"--dofs-per-node {dofs_per_node}: 3 or 6")
-        if ndof != dofs_per_node * len(ids):
-            raise ImportInputError(f"{matrix_path}: {ndof} rows, but {nodes_path} has {len(ids)} nodes x "
-                                   f"{dofs_per_node} DOFs = {dofs_per_node * len(ids)}")
-        dof[:, :dofs_per_node] = np.arange(ndof).reshape(len(ids), dofs_per_node)
-        return dof
-    path = Path(dof_map)
-    index = {nid: k for k, nid in enumerate(ids)}
-    seen = np.zeros(ndof, dtype=bool)
-    for k, s in _lines(path, "#"):
-        try:
-            row, nid, c = (int(v) for v in s.replace(",", " ").split())
-        except ValueError:
-            raise ImportInputError(f"{path}: line {k}: expected 'row node dof' (dof 1-6)") from None
-        if not 1 <= row <= ndof:
-            raise ImportInputError(f"{path}: line {k}: row {row} outside the matrices' {ndof} rows")
-        if nid not in index:
-            raise ImportInputError(f"{path}: line {k}: node {nid} is not in {nodes_path}")
-        if not 1 <= c <= 6:
-            raise ImportInputError(f"{path}: line {k}: dof {c}: 1-6 (u_x u_y u_z theta_x theta_y theta_z)")
-        if seen[row - 1] or dof[index[nid], c - 1] >= 0:
-            raise ImportInputError(f"{path}: line {k}: row {row} or node {nid} {DOF_NAMES[c - 1]} mapped twice")
-        seen[row - 1] = True
-        dof[index[nid], c - 1] = row - 1
-    if not seen.all():
-        raise ImportInputError(f"{path}: row {int(np.argmin(seen)) + 1} of the matrices is not mapped")
-    for n, nid in enumerate(ids):
-        has = dof[n] >= 0
-        if has.any() and not (has[:3].all() and (has[3:].all() or not has[3:].any())):
-            raise ImportInputError(f"{path}: node {nid}: give its three translations and none or all three rotations")
-    return dof
-
-
 # ----------------------------------------------------------------------------- linear algebra
 
-def check_symmetric(a: np.ndarray, path: Path) -> None:
+def check_symmetric(a: sp.spmatrix, path: Path) -> None:
     """The matrix equals its transpose to 1e-10 of its largest entry."""
-    d = np.abs(a - a.T)
-    scale = np.abs(a).max()
+    a = sp.csr_matrix(a)
+    scale = abs(a).max() if a.nnz else 0.0
     if not scale > 0:
         raise ImportInputError(f"{path}: the matrix is zero")
-    if d.max() > 1e-10 * scale:
-        i, j = np.unravel_index(np.argmax(d), d.shape)
+    d = abs(a - a.T).tocoo()
+    if d.nnz and d.data.max() > 1e-10 * scale:
+        w = int(np.argmax(d.data))
+        i, j = int(d.row[w]), int(d.col[w])
         raise ImportInputError(f"{path}: not symmetric (entries ({i + 1}, {j + 1}) and ({j + 1}, {i + 1}) differ "
-                               f"by {d[i, j]:.3g}, the largest entry is {scale:.3g})")
+                               f"by {d.data[w]:.3g}, the largest entry is {scale:.3g})")
 
 
-def flexibility_modes(k: np.ndarray, m: np.ndarray, what: str) -> tuple[np.ndarray, np.ndarray]:
-    """Eigenpairs of K v = lambda M v in the flexibility form M v = mu K v (K positive
-    definite, M semi-definite: a massless DOF has mu = 0): mu descending (lowest frequency
-    first) and v with v^T K v = 1. `what` names K for the message when it is not positive
-    definite."""
-    try:
-        low = np.linalg.cholesky(k)
-    except np.linalg.LinAlgError:
-        raise ImportInputError(what) from None
-    x = np.linalg.solve(low, m)
-    c = np.linalg.solve(low, x.T)             # L^-1 M L^-T (symmetric)
-    mu, y = np.linalg.eigh(0.5 * (c + c.T))
-    v = np.linalg.solve(low.T, y)
-    return mu[::-1], v[:, ::-1]
-
-
-def signed(v: np.ndarray) -> np.ndarray:
-    """Each column signed so that its largest component is positive."""
-    big = v[np.argmax(np.abs(v), axis=0), np.arange(v.shape[1])]
-    return v * np.where(big < 0, -1.0, 1.0)
+def check_mass(m: sp.spmatrix, path: Path) -> None:
+    """Positive semi-definite as far as 2 x 2 principal minors tell (a negative diagonal, or
+    |m_ij| > sqrt(m_ii m_jj)); the reduced mass matrix is checked whole after the reduction."""
+    c = sp.coo_matrix(m)
+    d = sp.csr_matrix(m).diagonal()
+    tol = 1e-10 * np.abs(c.data).max()
+    lowest = d.min()
+    if lowest < -tol:
+        raise ImportInputError(f"{path}: not positive semi-definite (a diagonal entry {lowest:.3g}): not a mass matrix")
+    excess = np.abs(c.data) - np.sqrt(np.maximum(d[c.row], 0) * np.maximum(d[c.col], 0))
+    if excess.max() > tol:
+        w = int(np.argmax(excess))
+        raise ImportInputError(f"{path}: not positive semi-definite (entry ({c.row[w] + 1}, {c.col[w] + 1}) exceeds "
+                               f"the root of its diagonal entries' product by {excess[w]:.3g}): not a mass matrix")
 
 
 # ----------------------------------------------------------------------------- inertia invariants
@@ -282,63 +102,75 @@ def rigid_modes(dof: np.ndarray, s: np.ndarray, ndof: int) -> np.ndarray:
     return r
 
 
-def direction_groups(m: np.ndarray, dof: np.ndarray, ids: list, path: Path) -> np.ndarray:
+def direction_groups(m: sp.spmatrix, dof: np.ndarray, ids: list, path: Path) -> np.ndarray:
     """Group of each DOF: 0-2 the translation direction it carries (translations, and the
     rotations the mass matrix couples with translations of that one direction), 3-5 a
     rotation the mass matrix couples with no translation (its axis, e.g. torsion). The mass
     matrix must be block-diagonal by group; else the message says which rows break it."""
     ndof = m.shape[0]
-    group = np.full(ndof, -1)
-    for c in range(3):
-        group[dof[:, c]] = c
-    tol = 1e-12 * np.abs(m).max()
-    trans = [dof[:, c] for c in range(3)]
-    where = {int(dof[n, c]): (ids[n], DOF_NAMES[c]) for n in range(len(ids)) for c in range(6) if dof[n, c] >= 0}
-    for n in range(len(ids)):
-        for c in range(3, 6):
-            d = dof[n, c]
-            if d < 0:
-                continue
-            coupled = [i for i in range(3) if np.abs(m[d, trans[i]]).max() > tol]
-            if len(coupled) > 1:
-                raise ImportInputError(f"{path}: node {ids[n]} {DOF_NAMES[c]} is coupled with translations along "
-                                       f"{' and '.join('xyz'[i] for i in coupled)}: the invariants need a mass matrix "
-                                       "block-diagonal by direction (solids Ms (x) I3; beams along and plates in "
-                                       "the body axes)")
-            group[d] = coupled[0] if coupled else c
-    cross = np.abs(m) * (group[:, None] != group[None, :])
-    if cross.max() > tol:
-        i, j = np.unravel_index(np.argmax(cross), cross.shape)
-        raise ImportInputError(f"{path}: rows {i + 1} and {j + 1} (node {where[i][0]} {where[i][1]}, node "
-                               f"{where[j][0]} {where[j][1]}) couple different directions: the invariants need a "
-                               "mass matrix block-diagonal by direction (solids Ms (x) I3; beams along and plates "
+    c = sp.coo_matrix(m)
+    tol = 1e-12 * np.abs(c.data).max()
+    big = np.abs(c.data) > tol
+    row, col = c.row[big], c.col[big]
+    direction = np.full(ndof, -1)
+    for d in range(3):
+        direction[dof[:, d]] = d
+    node, kind = np.full(ndof, -1), np.full(ndof, -1)
+    for d in range(6):
+        has = dof[:, d] >= 0
+        node[dof[has, d]], kind[dof[has, d]] = np.nonzero(has)[0], d
+    hit = np.zeros((ndof, 3), dtype=bool)
+    near = direction[col] >= 0
+    hit[row[near], direction[col[near]]] = True
+    group = direction.copy()
+    rotations = np.nonzero(kind >= 3)[0]
+    several = rotations[hit[rotations].sum(axis=1) > 1]
+    if several.size:
+        d = several[0]
+        raise ImportInputError(f"{path}: node {ids[node[d]]} {DOF_NAMES[kind[d]]} is coupled with translations along "
+                               f"{' and '.join('xyz'[i] for i in np.nonzero(hit[d])[0])}: the invariants need a mass "
+                               "matrix block-diagonal by direction (solids Ms (x) I3; beams along and plates in the "
+                               "body axes)")
+    coupled = hit[rotations].any(axis=1)
+    group[rotations] = np.where(coupled, np.argmax(hit[rotations], axis=1), kind[rotations])
+    cross = group[row] != group[col]
+    if cross.any():
+        w = np.nonzero(cross)[0][np.argmax(np.abs(c.data[big][cross]))]
+        i, j = int(row[w]), int(col[w])
+        raise ImportInputError(f"{path}: rows {i + 1} and {j + 1} (node {ids[node[i]]} {DOF_NAMES[kind[i]]}, node "
+                               f"{ids[node[j]]} {DOF_NAMES[kind[j]]}) couple different directions: the invariants need "
+                               "a mass matrix block-diagonal by direction (solids Ms (x) I3; beams along and plates "
                                "in the body axes)")
     return group
 
 
-def transport(m: np.ndarray, dof: np.ndarray, group: np.ndarray, i: int, j: int):
+def transport(m: sp.spmatrix, dof: np.ndarray, group: np.ndarray, i: int, j: int):
     """Signed node-by-node map from the DOFs of direction i to those of direction j, with
     S M_ii S^T = M_jj: the two directions' fields are interpolated alike and the cross
     integrals int rho f_i g_j follow from M. As (source rows, target rows, signs), or None
     when there is no such map (other DOFs, or other mass blocks: a beam's axial and bending
     directions)."""
-    src, dst, sign = list(dof[:, i]), list(dof[:, j]), [1.0] * dof.shape[0]
-    for n in range(dof.shape[0]):
-        ri = [d for d in dof[n, 3:] if d >= 0 and group[d] == i]
-        rj = [d for d in dof[n, 3:] if d >= 0 and group[d] == j]
-        if len(ri) != len(rj) or len(ri) > 1:
-            return None
-        if ri:
-            # the sign that carries the rotation's coupling with its direction's translations
-            col_i, col_j = m[dof[:, i], ri[0]], m[dof[:, j], rj[0]]
-            p = int(np.argmax(np.abs(col_i)))
-            src.append(ri[0])
-            dst.append(rj[0])
-            sign.append(-1.0 if col_i[p] * col_j[p] < 0 else 1.0)
-    src, dst, sign = np.array(src), np.array(dst), np.array(sign)
+    rot = np.where(dof[:, 3:] >= 0, dof[:, 3:], 0)
+    in_i = (dof[:, 3:] >= 0) & (group[rot] == i)
+    in_j = (dof[:, 3:] >= 0) & (group[rot] == j)
+    if (in_i.sum(axis=1) != in_j.sum(axis=1)).any() or in_i.sum(axis=1).max() > 1:
+        return None
+    nodes = np.nonzero(in_i.any(axis=1))[0]
+    ri, rj = rot[nodes, np.argmax(in_i[nodes], axis=1)], rot[nodes, np.argmax(in_j[nodes], axis=1)]
+    m = sp.csc_matrix(m)
+    sign = np.ones(dof.shape[0] + len(nodes))
+    if len(nodes):
+        # the sign that carries each rotation's coupling with its direction's translations
+        p = np.asarray(abs(m[dof[:, i]][:, ri]).argmax(axis=0)).ravel()
+        col_i = np.asarray(m[dof[p, i], ri]).ravel()
+        col_j = np.asarray(m[dof[p, j], rj]).ravel()
+        sign[dof.shape[0]:] = np.where(col_i * col_j < 0, -1.0, 1.0)
+    src, dst = np.concatenate([dof[:, i], ri]), np.concatenate([dof[:, j], rj])
     if len(src) != np.count_nonzero(group == i) or len(dst) != np.count_nonzero(group == j):
         return None
-    if np.abs(m[np.ix_(src, src)] * np.outer(sign, sign) - m[np.ix_(dst, dst)]).max() > 1e-10 * np.abs(m).max():
+    s = sp.diags(sign)
+    gap = (s @ m[src][:, src] @ s - m[dst][:, dst]).tocoo()
+    if gap.nnz and np.abs(gap.data).max() > 1e-10 * abs(m).max():
         return None
     return src, dst, sign
 
@@ -455,78 +287,33 @@ def inertia_invariants(m: np.ndarray, dof: np.ndarray, s: np.ndarray, u: np.ndar
     return mass, first, w, exact
 
 
-# ----------------------------------------------------------------------------- the reduction
-
-def craig_bampton(k: np.ndarray, m: np.ndarray, clamped: np.ndarray, boundary: np.ndarray, modes: int | None,
-                  keep: int | None, kpath: Path, attach: str):
-    """Craig-Bampton reduction with the `clamped` DOFs fixed (the body frame's attachment) and
-    the `boundary` DOFs (other interface nodes) kept as static constraint modes; `modes`
-    fixed-interface modes (None: all with mass). Returns the frequencies (Hz), the modes over
-    all DOFs (mass-normalised, lowest `keep`, or all) and the counts kept."""
-    ndof = k.shape[0]
-    free = np.setdiff1d(np.arange(ndof), clamped)
-    inner = np.setdiff1d(free, boundary)
-    kii = k[np.ix_(inner, inner)]
-    mu, v = flexibility_modes(kii, m[np.ix_(inner, inner)],
-                              f"{kpath}: not positive definite with every interface node held ({attach}): "
-                              "a mechanism or rigid motion of the inner nodes is left free") \
-        if len(inner) else (np.zeros(0), np.zeros((0, 0)))
-    with_mass = int(np.count_nonzero(mu > 1e-13 * (mu[0] if len(mu) else 0.0)))
-    nf = with_mass if modes is None else modes
-    if nf > with_mass:
-        raise ImportInputError(f"--modes {modes}: the inner DOFs have only {with_mass} modes with mass")
-    if nf + len(boundary) == 0:
-        raise ImportInputError(f"--modes {modes}: the body would have no mode (no interface node besides the origin "
-                               "gives a constraint mode): ask for 1 or more")
-    phi_i = v[:, :nf] / np.sqrt(mu[:nf])
-    psi_c = -np.linalg.solve(kii, k[np.ix_(inner, boundary)]) if len(inner) else np.zeros((0, len(boundary)))
-    # basis over the free DOFs (inner first, then boundary)
-    order = np.concatenate([inner, boundary])
-    t = np.zeros((len(order), nf + len(boundary)))
-    t[:len(inner), :nf] = phi_i
-    t[:len(inner), nf:] = psi_c
-    t[len(inner):, nf:] = np.eye(len(boundary))
-    kr = t.T @ k[np.ix_(order, order)] @ t
-    mr = t.T @ m[np.ix_(order, order)] @ t
-    mur, x = flexibility_modes(0.5 * (kr + kr.T), 0.5 * (mr + mr.T),
-                               f"{kpath}: not positive definite with the attachment clamped ({attach}): a "
-                               "mechanism or rigid motion is left free")
-    nr = int(np.count_nonzero(mur > 1e-13 * mur[0])) if len(mur) else 0
-    if keep is not None:
-        if keep > nr:
-            raise ImportInputError(f"--keep {keep}: the reduced body has only {nr} modes with mass")
-        nr = keep
-    if nr == 0:
-        raise ImportInputError(f"{kpath}: the reduced body has no mode with mass")
-    full = np.zeros((ndof, nr))
-    full[order] = t @ (x[:, :nr] / np.sqrt(mur[:nr]))
-    full = signed(full)
-    lam = 1.0 / mur[:nr]
-    counts = {"fixed_interface_modes": nf, "constraint_modes": len(boundary), "reduced_size": nf + len(boundary),
-              "modes_written": nr}
-    return np.sqrt(lam) / (2 * np.pi), full, counts
-
-
 def modal_import(mass: str | os.PathLike, stiffness: str | os.PathLike, nodes: str | os.PathLike,
                  interface, output: str | os.PathLike | None = None, *, dofs_per_node: int | None = 6,
                  dof_map: str | os.PathLike | None = None, modes: int | None = 10, keep: int | None = None,
-                 clamp=(), title: str = "") -> ModalBody:
-    """Import a finite-element body: Matrix Market `mass` and `stiffness`, `nodes` (id, x, y,
-    z), the DOF layout (`dofs_per_node` 3 or 6, rows node by node in the nodes file's order,
-    or a `dof_map` file of 'row node dof'), the `interface` node ids (the first is the body
-    frame's origin, clamped to its joint; `clamp`: more nodes clamped with it, for meshes
-    without rotations), `modes` fixed-interface modes (None: all) and the lowest `keep`
-    modes of the reduced body written (None: all). Writes the modal file to `output` when
-    given and returns the :class:`ModalBody`. Bad input raises :class:`ImportInputError`
-    (a :class:`pymr.SceneError`) naming the file, or the argument: each is checked before
-    any file is read (types, counts: `modes` 0 or more, `keep` 1 or more), and `output` may
-    not be one of the input files by any spelling (the kernel's same_file) nor a directory
-    (:class:`pymr.OutputError`)."""
+                 clamp=(), title: str = "", mass_name: str | None = None, stiffness_name: str | None = None,
+                 progress: bool = False, memory_limit: float | None = None) -> ModalBody:
+    """Import a finite-element body: the `mass` and `stiffness` matrices (Matrix Market,
+    Abaqus matrix output, Nastran DMIG or OP4: :mod:`pymr.fe_formats`; `mass_name`,
+    `stiffness_name` pick a matrix from a Nastran file holding several), `nodes` (CSV of id,
+    x, y, z, an Abaqus .inp or Nastran GRID cards), the DOF layout of unlabelled formats
+    (`dofs_per_node` 3 or 6, rows node by node in the nodes file's order, or a `dof_map`
+    file of 'row node dof'), the `interface` node ids (the first is the body frame's origin,
+    clamped to its joint; `clamp`: more nodes clamped with it, for meshes without
+    rotations), `modes` fixed-interface modes (None: all) and the lowest `keep` modes of the
+    reduced body written (None: all). `progress` draws bars on stderr for the factorisation
+    and the eigensolve; `memory_limit` (GB, default what the machine has available) refuses
+    a model whose reduction would need more, before any numeric work. Writes the modal file
+    to `output` when given and returns the :class:`ModalBody`. Bad input raises
+    :class:`ImportInputError` (a :class:`pymr.SceneError`) naming the file, or the argument:
+    each is checked before any file is read (types, counts: `modes` 0 or more, `keep` 1 or
+    more), and `output` may not be one of the input files by any spelling (the kernel's
+    same_file) nor a directory (:class:`pymr.OutputError`)."""
     mpath, kpath, npath = (_file_argument(n, v) for n, v in (("mass", mass), ("stiffness", stiffness),
                                                                 ("nodes", nodes)))
     dof_map = None if dof_map is None else _file_argument("dof_map", dof_map)
     interface, clamp = _node_ids("interface", interface), _node_ids("clamp", clamp)
     _counts(dofs_per_node, dof_map, modes, keep)
+    limit = _memory_limit(memory_limit)
     if not isinstance(title, str) or "\n" in title or "\r" in title:
         raise ImportInputError(f"title={title!r}: one line of text expected (the file's first comment)")
     if output is not None:
@@ -537,17 +324,69 @@ def modal_import(mass: str | os.PathLike, stiffness: str | os.PathLike, nodes: s
                 raise ImportInputError(f"{output}: would overwrite the {what} ({path}); choose another modal "
                                        "data file (-o)")
         check_output(output, "modal data file", option="output", example="body.modal", if_left_out=None)
+    ids, xyz, mm, kk, dof = read_body(mpath, kpath, npath, dofs_per_node, dof_map, mass_name, stiffness_name)
+    ids, xyz, dof, attach, boundary_nodes = attachment(ids, xyz, dof, interface, clamp, npath)
+    index = {nid: n for n, nid in enumerate(ids)}
+    rows = lambda nodes_: np.array(sorted(int(d) for n in nodes_ for d in dof[n] if d >= 0), dtype=int)
+    what = "node " + ", ".join(str(n) for n in attach) + " clamped"
+    red = reduce(kk, mm, rows([index[n] for n in attach]), rows([index[n] for n in boundary_nodes]), modes, keep,
+                 kpath, what, show=progress, memory_limit=limit)
+    u = red.modes
+    origin = xyz[index[interface[0]]]
+    s = xyz - origin
+    mass_, first, w, exact = inertia_invariants(mm, dof, s, u, ids, mpath)
+    pts = [index[n] for n in attach + boundary_nodes]
+    nm = u.shape[1]
+    psi, phi = np.zeros((len(pts), 3, nm)), np.zeros((len(pts), 3, nm))
+    for p, n in enumerate(pts):
+        psi[p] = u[dof[n, :3]]
+        if (dof[n, 3:] >= 0).all():
+            phi[p] = u[dof[n, 3:]]
+    body = ModalBody(red.frequencies_hz, u, mass_, first, w, [ids[n] for n in pts], s[pts], psi, phi, origin, exact,
+                     red.counts)
+    if output is not None:
+        write_modal_v2(output, body, title or f"imported from {mpath.name}, {kpath.name}, {npath.name}")
+    return body
+
+
+def read_body(mpath: Path, kpath: Path, npath: Path, dofs_per_node, dof_map, mass_name, stiffness_name):
+    """The nodes, M and K (sparse, symmetric, on the same rows) and the DOF layout."""
     ids, xyz = read_nodes(npath)
-    rows = layout_rows(ids, npath, dofs_per_node, dof_map)
-    mm = read_matrix_market(mpath, rows)
-    kk = read_matrix_market(kpath, rows)
+    rows = None if dof_map is None and dofs_per_node is None else layout_rows(ids, npath, dofs_per_node, dof_map)
+    mm, m_labels = read_matrix(mpath, rows, mass_name)
+    kk, k_labels = read_matrix(kpath, rows, stiffness_name)
+    if (m_labels is None) != (k_labels is None):
+        raise ImportInputError(f"{mpath if m_labels is None else kpath}: rows not labelled by node and DOF, but "
+                               f"{kpath if m_labels is None else mpath}'s are: give both matrices in one kind of file")
+    labels = None
+    if m_labels is not None:
+        labels, mm, kk = on_common_rows(m_labels, mm, k_labels, kk)
+    elif mm.shape != kk.shape:
+        raise ImportInputError(f"{kpath}: {kk.shape[0]} rows, but {mpath} has {mm.shape[0]}")
     check_symmetric(mm, mpath)
     check_symmetric(kk, kpath)
-    mm, kk = 0.5 * (mm + mm.T), 0.5 * (kk + kk.T)
-    lowest = np.linalg.eigvalsh(mm)[0]
-    if lowest < -1e-10 * np.abs(mm).max():
-        raise ImportInputError(f"{mpath}: not positive semi-definite (an eigenvalue {lowest:.3g}): not a mass matrix")
-    dof = dof_layout(ids, mm.shape[0], mpath, npath, dofs_per_node, dof_map)
+    mm, kk = (0.5 * (mm + mm.T)).tocsr(), (0.5 * (kk + kk.T)).tocsr()
+    check_mass(mm, mpath)
+    dof = dof_layout(ids, mm.shape[0], mpath, npath, dofs_per_node, dof_map, labels)
+    return ids, xyz, mm, kk, dof
+
+
+def on_common_rows(m_labels, mm, k_labels, kk):
+    """Both labelled matrices on the union of their rows (a row one leaves out is 0 there:
+    a DOF without mass)."""
+    code = lambda nd: nd[:, 0].astype(np.int64) * 16 + nd[:, 1]
+    labels = np.unique(np.concatenate([m_labels, k_labels]), axis=0)
+    out = []
+    for lab, a in ((m_labels, mm), (k_labels, kk)):
+        at = np.searchsorted(code(labels), code(lab))
+        embed = sp.csr_matrix((np.ones(len(at)), (at, np.arange(len(at)))), shape=(len(labels), len(at)))
+        out.append((embed @ a @ embed.T).tocsr())
+    return labels, out[0], out[1]
+
+
+def attachment(ids, xyz, dof, interface, clamp, npath):
+    """The nodes the matrices use, and the attachment (origin and clamped nodes) and the
+    other interface nodes, each checked."""
     index = {nid: n for n, nid in enumerate(ids)}
     if not interface:
         raise ImportInputError("--interface: give at least the node where the body is attached")
@@ -559,30 +398,8 @@ def modal_import(mass: str | os.PathLike, stiffness: str | os.PathLike, nodes: s
     if len(set(interface + clamp)) != len(interface + clamp):
         raise ImportInputError("--interface/--clamp: a node is given twice")
     used = (dof >= 0).any(axis=1)             # nodes of the nodes file that the matrices leave out play no part
-    ids, xyz, dof = [nid for nid, u_ in zip(ids, used) if u_], xyz[used], dof[used]
-    index = {nid: n for n, nid in enumerate(ids)}
-    attach = [interface[0]] + clamp
-    held = [index[n] for n in attach]
-    rows = lambda nodes_: np.array(sorted(int(d) for n in nodes_ for d in dof[n] if d >= 0), dtype=int)
-    clamped = rows(held)
-    boundary = rows([index[n] for n in interface[1:]])
-    what = "node " + ", ".join(str(n) for n in attach) + " clamped"
-    freq, u, counts = craig_bampton(kk, mm, clamped, boundary, modes, keep, kpath, what)
-    origin = xyz[index[interface[0]]]
-    s = xyz - origin
-    mass_, first, w, exact = inertia_invariants(mm, dof, s, u, ids, mpath)
-    pts = [index[n] for n in [interface[0]] + clamp + interface[1:]]
-    nm = u.shape[1]
-    psi = np.zeros((len(pts), 3, nm))
-    phi = np.zeros((len(pts), 3, nm))
-    for p, n in enumerate(pts):
-        psi[p] = u[dof[n, :3]]
-        if (dof[n, 3:] >= 0).all():
-            phi[p] = u[dof[n, 3:]]
-    body = ModalBody(freq, u, mass_, first, w, [ids[n] for n in pts], s[pts], psi, phi, origin, exact, counts)
-    if output is not None:
-        write_modal_v2(output, body, title or f"imported from {mpath.name}, {kpath.name}, {npath.name}")
-    return body
+    ids = [nid for nid, u_ in zip(ids, used) if u_]
+    return ids, xyz[used], dof[used], [interface[0]] + clamp, interface[1:]
 
 
 # ----------------------------------------------------------------------------- the arguments
@@ -616,6 +433,16 @@ def _node_ids(name: str, value) -> list[int]:
     raise ImportInputError(f"{name}={value!r}: node ids expected, whole numbers (a list such as [1, 21])")
 
 
+def _memory_limit(value) -> int | None:
+    """`memory_limit` in GB (positive) as bytes, or None for what the machine has."""
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
+            or not np.isfinite(value) or value <= 0:
+        raise ImportInputError(f"memory_limit={value!r}: a positive number of GB expected")
+    return int(float(value) * 1e9)
+
+
 def _counts(dofs_per_node, dof_map, modes, keep) -> None:
     """The counts: dofs_per_node 3 or 6 (None with a DOF map), modes 0 or more (None: all
     with mass), keep 1 or more (None: all)."""
@@ -633,17 +460,6 @@ def _counts(dofs_per_node, dof_map, modes, keep) -> None:
                                "for all")
     if keep is not None and keep < 1:
         raise ImportInputError(f"--keep {keep}: the count of modes to write, at least 1 (leave it out for all)")
-
-
-def layout_rows(ids: list[int], nodes_path: Path, dofs_per_node: int | None, dof_map: Path | None):
-    """The matrices' row count the DOF layout gives, and from what (for messages): nodes x
-    dofs_per_node, or one row a line of the DOF map. The matrices' size lines are checked
-    against it before anything is allocated."""
-    if dof_map is None:
-        n = dofs_per_node * len(ids)
-        return n, f"{nodes_path} has {len(ids)} nodes x {dofs_per_node} DOFs = {n}"
-    n = sum(1 for _ in _lines(dof_map, "#"))
-    return n, f"{dof_map} maps {n} rows (one a line)"
 
 
 # ----------------------------------------------------------------------------- the file

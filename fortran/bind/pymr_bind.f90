@@ -923,3 +923,20 @@ subroutine pymr_model_markers(handle, n, m, nmk, t, q, qd, exaggerate, pos, stat
     end do
   end do
 end subroutine pymr_model_markers
+
+!> Column counts of the sparse Cholesky factor of a symmetric matrix whose whole pattern
+!> (both triangles, in the order it will be factored) is (colptr, rowind), 1-based
+!> compressed columns (pymr_env_sparse_cholesky). `pymr modal-import` sizes its
+!> factorisation with them before making it.
+subroutine pymr_cholesky_counts(n, nnz, colptr, rowind, counts)
+  use pymr_env_sparse_cholesky, only : elimination_tree, column_counts
+  implicit none
+  integer, intent(in) :: n, nnz
+  integer, intent(in) :: colptr(n + 1), rowind(nnz)
+  integer, intent(out) :: counts(n)
+  !f2py threadsafe
+  integer, allocatable :: parent(:)
+  allocate(parent(n))
+  call elimination_tree(n, colptr, rowind, parent)
+  call column_counts(n, colptr, rowind, parent, counts)
+end subroutine pymr_cholesky_counts
