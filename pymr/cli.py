@@ -286,12 +286,14 @@ def _add_modal_import(sub) -> None:
     mi = sub.add_parser("modal-import", help="a kind='modal' body from finite-element mass and stiffness matrices "
                         "(Craig-Bampton reduction)")
     mi.add_argument("--mass", required=True, help="mass matrix: Matrix Market, Abaqus matrix output (.mtx), Nastran "
-                    "DMIG in bulk data or punch files (.bdf .dat .pch .nas .blk .bulk) or OP4 (.op4)")
+                    "DMIG in bulk data or punch files (.bdf .dat .pch .nas .blk .bulk), OP4 (.op4) or an Ansys full "
+                    "file (.full)")
     mi.add_argument("--stiffness", required=True, help="stiffness matrix (the same formats)")
     mi.add_argument("--mass-name", help="the mass matrix's name in a Nastran file holding several (DMIG, OP4)")
     mi.add_argument("--stiffness-name", help="the stiffness matrix's name in a Nastran file holding several")
     mi.add_argument("--nodes", required=True, help="node coordinates: lines 'id, x, y, z', an Abaqus input deck "
-                    "(.inp, its *NODE blocks) or Nastran bulk data (GRID cards)")
+                    "(.inp, its *NODE blocks), Nastran bulk data (GRID cards) or an Ansys archive or result file "
+                    "(.cdb, .rst)")
     lay = mi.add_mutually_exclusive_group()
     lay.add_argument("--dofs-per-node", type=int, choices=[3, 6], default=6,
                      help="rows node by node in the nodes file's order: 3 (u_x u_y u_z) or 6 (and theta_x theta_y "

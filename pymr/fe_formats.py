@@ -8,11 +8,14 @@ Matrices (:func:`read_matrix`, the format told from the file):
   INPUT``): lines ``node, dof, node, dof, value``, each row labelled with its node and DOF;
 - **Nastran DMIG** cards in bulk data or punch files (``PARAM,EXTOUT,DMIGPCH``), each row
   labelled with its grid and component; read by pyNastran;
-- **Nastran OP4** (ASCII or binary), read by pyNastran; laid out like Matrix Market.
+- **Nastran OP4** (ASCII or binary), read by pyNastran; laid out like Matrix Market;
+- **Ansys full files** (``.full``, both matrices in one), read by ansys-mapdl-reader, each
+  row labelled with its node and DOF.
 
 A symmetric matrix may be given by one triangle (either) or both. Nodes (:func:`read_nodes`):
-lines ``id, x, y, z`` (CSV), an Abaqus input deck's ``*NODE`` blocks, or Nastran ``GRID``
-cards (positions in the basic system).
+lines ``id, x, y, z`` (CSV), an Abaqus input deck's ``*NODE`` blocks, Nastran ``GRID``
+cards (positions in the basic system), or an Ansys archive (``.cdb``) or result file
+(``.rst``).
 """
 from __future__ import annotations
 
@@ -29,6 +32,8 @@ DOF_NAMES = ("u_x", "u_y", "u_z", "theta_x", "theta_y", "theta_z")
 #: file endings of Nastran bulk data (DMIG, GRID) and of OP4 files
 NASTRAN_BULK = (".bdf", ".dat", ".pch", ".nas", ".blk", ".bulk")
 OP4 = (".op4",)
+#: the matrices of an Ansys full file, by the role the caller reads it for
+ANSYS_FULL = {"mass": "MASS", "stiffness": "STIFF"}
 
 
 class ImportInputError(SceneError):
@@ -68,12 +73,15 @@ def _number(path: Path, k: int, s: str) -> float:
 
 # ----------------------------------------------------------------------------- matrices
 
-def read_matrix(path: str | os.PathLike, rows: tuple[int, str] | None = None, name: str | None = None):
+def read_matrix(path: str | os.PathLike, rows: tuple[int, str] | None = None, name: str | None = None,
+                role: str = "stiffness"):
     """The matrix in `path` as (scipy CSC, labels): labels (rows, 2) of (node, dof 1-6) for
     formats that label their rows, else None. `rows`: (count, why) the caller's DOF layout
     gives, checked against unlabelled formats; `name`: the matrix in a Nastran file holding
-    several."""
+    several; `role`: 'mass' or 'stiffness', the matrix an Ansys full file gives."""
     path = Path(path)
+    if path.suffix.lower() == ".full":
+        return read_full(path, role)
     if path.suffix.lower() in OP4:
         return read_op4(path, name, rows), None
     if path.suffix.lower() in NASTRAN_BULK:
@@ -206,6 +214,12 @@ def _entries_slowly(path: Path, nr: int, sym: str = "general") -> np.ndarray:
 def labelled(path: Path, row_nd: np.ndarray, col_nd: np.ndarray, v: np.ndarray):
     """A matrix from entries labelled (node, dof) by row and column: (CSC, labels), rows
     sorted by node then DOF. One triangle is mirrored; both must agree."""
+    bad = (row_nd[:, 1] < 1) | (row_nd[:, 1] > 6) | (col_nd[:, 1] < 1) | (col_nd[:, 1] > 6)
+    if bad.any():
+        w = int(np.argmax(bad))
+        node, dof = (row_nd[w] if not 1 <= row_nd[w, 1] <= 6 else col_nd[w]).tolist()
+        raise ImportInputError(f"{path}: node {node} DOF {dof}: DOFs 1-6 (u_x u_y u_z theta_x theta_y theta_z) "
+                               "expected")
     keys = np.unique(np.concatenate([row_nd, col_nd]), axis=0)
     code = lambda nd: nd[:, 0].astype(np.int64) * 16 + nd[:, 1]
     where = np.searchsorted(code(keys), code(row_nd)), np.searchsorted(code(keys), code(col_nd))
@@ -216,6 +230,32 @@ def labelled(path: Path, row_nd: np.ndarray, col_nd: np.ndarray, v: np.ndarray):
     if upper.nnz == 0 or lower.nnz == 0:
         a = a + (upper + lower).T
     return a.tocsc(), keys
+
+
+def read_full(path: Path, role: str):
+    """The mass or stiffness matrix of an Ansys full file (ansys-mapdl-reader), its rows
+    labelled by node and DOF (UX UY UZ ROTX ROTY ROTZ: 1-6)."""
+    try:
+        from ansys.mapdl.reader import read_binary
+    except ImportError:
+        raise ImportInputError("reading Ansys full files needs ansys-mapdl-reader: pip install ansys-mapdl-reader") \
+            from None
+    if not path.is_file():
+        raise ImportInputError(f"{path}: no such file")
+    try:
+        dof_ref, k, m = read_binary(str(path)).load_km(as_sparse=True, sort=True)
+    except Exception as exc:        # the reader raises many kinds for a bad file
+        raise ImportInputError(f"{path}: not read as an Ansys full file: {_first_line(exc)}") from None
+    nd = np.column_stack([np.asarray(dof_ref[:, 0], dtype=np.int64), np.asarray(dof_ref[:, 1], dtype=np.int64) + 1])
+    if ((nd[:, 1] < 1) | (nd[:, 1] > 6)).any():
+        node, dof = nd[np.argmax((nd[:, 1] < 1) | (nd[:, 1] > 6))].tolist()
+        raise ImportInputError(f"{path}: node {node} DOF {dof}: DOFs 1-6 (UX UY UZ ROTX ROTY ROTZ) expected")
+    a = sp.csc_matrix(m if role == "mass" else k)          # one triangle; a constrained DOF's row is empty
+    return (a + sp.triu(a, 1).T + sp.tril(a, -1).T).tocsc(), nd
+
+
+def _first_line(exc: Exception) -> str:
+    return str(exc).splitlines()[0] if str(exc) else type(exc).__name__
 
 
 def read_abaqus(path: Path):
@@ -267,7 +307,7 @@ def read_bulk(path: Path):
     try:
         model.read_bdf(str(path), xref=False, punch="BEGIN BULK" not in text.upper(), validate=False)
     except Exception as exc:        # pyNastran raises many kinds for a bad deck
-        raise ImportInputError(f"{path}: not read as Nastran bulk data: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}") from None
+        raise ImportInputError(f"{path}: not read as Nastran bulk data: {_first_line(exc)}") from None
     return model
 
 
@@ -308,7 +348,7 @@ def read_op4(path: Path, name: str | None, rows) -> sp.csc_matrix:
     try:
         found = op4(str(path), debug=False)
     except Exception as exc:        # pyNastran raises many kinds for a bad file
-        raise ImportInputError(f"{path}: not read as OP4: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}") from None
+        raise ImportInputError(f"{path}: not read as OP4: {_first_line(exc)}") from None
     data = _named(path, {k: m.data for k, m in found.items()}, name, "OP4")
     a = sp.csc_matrix(data, dtype=float)
     if a.shape[0] != a.shape[1]:
@@ -330,6 +370,8 @@ def read_nodes(path: str | os.PathLike) -> tuple[list[int], np.ndarray]:
     path = Path(path)
     if path.suffix.lower() == ".inp":
         ids, xyz = _abaqus_nodes(path)
+    elif path.suffix.lower() in (".cdb", ".rst"):
+        ids, xyz = _ansys_nodes(path)
     elif path.suffix.lower() in NASTRAN_BULK:
         grids = read_bulk(path).nodes
         ids = sorted(grids)
@@ -363,6 +405,21 @@ def _csv_nodes(path: Path):
         ids.append(nid)
         xyz.append(x)
     return ids, xyz
+
+
+def _ansys_nodes(path: Path):
+    """The nodes of an Ansys archive (.cdb) or result file (.rst), by ansys-mapdl-reader."""
+    try:
+        from ansys.mapdl.reader import Archive, read_binary
+    except ImportError:
+        raise ImportInputError("reading Ansys files needs ansys-mapdl-reader: pip install ansys-mapdl-reader") from None
+    if not path.is_file():
+        raise ImportInputError(f"{path}: no such file")
+    try:
+        mesh = Archive(str(path)) if path.suffix.lower() == ".cdb" else read_binary(str(path)).mesh
+        return np.asarray(mesh.nnum).tolist(), np.asarray(mesh.nodes, dtype=float)[:, :3].tolist()
+    except Exception as exc:        # the reader raises many kinds for a bad file
+        raise ImportInputError(f"{path}: nodes not read from this Ansys file: {_first_line(exc)}") from None
 
 
 def _abaqus_nodes(path: Path):

@@ -329,8 +329,10 @@ def modal_import(mass: str | os.PathLike, stiffness: str | os.PathLike, nodes: s
     index = {nid: n for n, nid in enumerate(ids)}
     rows = lambda nodes_: np.array(sorted(int(d) for n in nodes_ for d in dof[n] if d >= 0), dtype=int)
     what = "node " + ", ".join(str(n) for n in attach) + " clamped"
-    red = reduce(kk, mm, rows([index[n] for n in attach]), rows([index[n] for n in boundary_nodes]), modes, keep,
-                 kpath, what, show=progress, memory_limit=limit)
+    clamped = rows([index[n] for n in attach])
+    check_free_body(kk, dof, ids, kpath, clamped)
+    red = reduce(kk, mm, clamped, rows([index[n] for n in boundary_nodes]), modes, keep, kpath, what, show=progress,
+                 memory_limit=limit)
     u = red.modes
     origin = xyz[index[interface[0]]]
     s = xyz - origin
@@ -353,8 +355,8 @@ def read_body(mpath: Path, kpath: Path, npath: Path, dofs_per_node, dof_map, mas
     """The nodes, M and K (sparse, symmetric, on the same rows) and the DOF layout."""
     ids, xyz = read_nodes(npath)
     rows = None if dof_map is None and dofs_per_node is None else layout_rows(ids, npath, dofs_per_node, dof_map)
-    mm, m_labels = read_matrix(mpath, rows, mass_name)
-    kk, k_labels = read_matrix(kpath, rows, stiffness_name)
+    mm, m_labels = read_matrix(mpath, rows, mass_name, "mass")
+    kk, k_labels = read_matrix(kpath, rows, stiffness_name, "stiffness")
     if (m_labels is None) != (k_labels is None):
         raise ImportInputError(f"{mpath if m_labels is None else kpath}: rows not labelled by node and DOF, but "
                                f"{kpath if m_labels is None else mpath}'s are: give both matrices in one kind of file")
@@ -369,6 +371,19 @@ def read_body(mpath: Path, kpath: Path, npath: Path, dofs_per_node, dof_map, mas
     check_mass(mm, mpath)
     dof = dof_layout(ids, mm.shape[0], mpath, npath, dofs_per_node, dof_map, labels)
     return ids, xyz, mm, kk, dof
+
+
+def check_free_body(kk: sp.spmatrix, dof: np.ndarray, ids: list, kpath: Path, clamped: np.ndarray) -> None:
+    """No DOF but the clamped ones without stiffness: a constraint applied in the FE code
+    zeroes its row (and the mass of the constrained nodes with it)."""
+    diagonal = kk.diagonal()
+    diagonal[clamped] = 1.0
+    zero = np.nonzero(~(diagonal > 0))[0]
+    if zero.size:
+        n, c = np.argwhere(dof == zero[0])[0]
+        raise ImportInputError(f"{kpath}: row {zero[0] + 1} (node {ids[n]} {DOF_NAMES[c]}) has no stiffness, and "
+                               f"{zero.size} rows in all: DOFs constrained in the FE code? Export the free body "
+                               "(no boundary conditions; --interface and --clamp hold the attachment)")
 
 
 def on_common_rows(m_labels, mm, k_labels, kk):

@@ -3,7 +3,13 @@ from __future__ import annotations
 
 import os
 
-import pytest
+# One BLAS thread, as Dask's workers run (their nanny sets these): with OpenBLAS the thread
+# count changes the last bits of LAPACK's sums, and the sweep tests compare a worker's run
+# with the same run here. Set before anything loads the BLAS.
+for _name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_name, "1")
+
+import pytest  # noqa: E402
 
 from pymr._locate import mrsim_path
 

@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import scipy.io
 import scipy.linalg
 import scipy.sparse as sp
 import scipy.sparse.linalg as sla
@@ -317,3 +318,75 @@ def test_format_faults_are_one_line(barrel, tmp_path):
     op4 = write_op4(tmp_path, model)
     with pytest.raises(ImportInputError, match=r"barrel\.op4: 126 rows, but .*few\.inp has 2 nodes x 6 DOFs = 12"):
         pymr.modal_import(op4, op4, tmp_path / "few.inp", [1], mass_name="MAA", stiffness_name="KAA")
+
+
+# ----------------------------------------------------------------------------- Ansys
+
+try:
+    from ansys.mapdl.reader import examples as ansys_examples
+    from ansys.mapdl.reader import read_binary
+    HAVE_ANSYS = True
+except ImportError:
+    HAVE_ANSYS = False
+
+ANSYS_SCENE = """&scene title = 'Ansys beam', t_end = 1.0e-6, gravity = 0.0, 0.0, -9.81, start = 'static' /
+&integrator method = 'single', h_fast = 5.0e-7, h_slow = 5.0e-7 /
+&effects gravity = .true. /
+&body name = 'ground', kind = 'ground' /
+&body name = 'beam', kind = 'modal', modal_file = '{file}' /
+&joint name = 'hold', kind = 'fixed', parent = 'ground', child = 'beam' /
+&marker name = 'tip', body = 'beam', at = {tip} /
+&output dt = 1.0e-6 /
+"""
+
+
+@pytest.mark.skipif(not HAVE_ANSYS, reason="ansys-mapdl-reader not installed")
+def test_ansys_full_file_with_its_constrained_face_held(tmp_path):
+    """The full file ansys-mapdl-reader ships (321 nodes of solid elements; 21 nodes
+    constrained in Ansys, their rows 0) with the result file's nodes:
+    - not held, the constrained rows are one line naming the first;
+    - held (the first of them the origin, the rest clamped, the far corner an interface):
+      held alone, the frequencies equal a dense eigensolve of the interior to 1e-9; the body equals
+      the one from the same matrices written as Matrix Market with a DOF map, to
+      1e-12; and the static sag of the far corner under gravity, in a scene, equals the
+      file's own K u = M g to 1e-9 of it (constraint modes make it exact), beside the 8 ulps
+      of the 1 m position it is read from."""
+    full, rst = Path(ansys_examples.fullfile), Path(ansys_examples.rstfile)
+    dof_ref, k, m = read_binary(str(full)).load_km(as_sparse=True, sort=True)
+    held = np.unique(dof_ref[k.diagonal() == 0, 0]).tolist()
+    mesh = read_binary(str(rst)).mesh
+    xyz = dict(zip(mesh.nnum.tolist(), np.asarray(mesh.nodes)[:, :3].tolist()))
+    tip = max(xyz, key=lambda n: np.linalg.norm(np.subtract(xyz[n], xyz[held[0]])))
+    with pytest.raises(ImportInputError, match=r"file\.full: row \d+ \(node \d+ u_[xyz]\) has no stiffness, and "
+                                               r"\d+ rows in all: DOFs constrained in the FE code\?"):
+        pymr.modal_import(full, full, rst, [tip])
+    body = pymr.modal_import(full, full, rst, [held[0], tip], tmp_path / "ansys.modal", modes=10, clamp=held[1:])
+    # the same matrices as Matrix Market (lower triangles) and a DOF map
+    for name, a in (("k.mtx", k), ("m.mtx", m)):
+        scipy.io.mmwrite(tmp_path / name, sp.tril(a.T).tocoo(), symmetry="symmetric")
+    (tmp_path / "map.txt").write_text("".join(f"{r + 1} {n} {d + 1}\n" for r, (n, d) in enumerate(dof_ref.tolist())))
+    (tmp_path / "nodes.csv").write_text("".join(f"{n}, {x!r}, {y!r}, {z!r}\n" for n, (x, y, z) in xyz.items()))
+    mm = pymr.modal_import(tmp_path / "m.mtx", tmp_path / "k.mtx", tmp_path / "nodes.csv", [held[0], tip],
+                           tmp_path / "mm.modal", modes=10, clamp=held[1:], dof_map=tmp_path / "map.txt")
+    check_same_body(mm, body, 1e-12)
+    # held alone: the fixed-interface modes, against a dense eigensolve of every DOF but the held ones
+    rows = {(n, d): r for r, (n, d) in enumerate(dof_ref.tolist())}
+    free = np.setdiff1d(np.arange(k.shape[0]), [rows[(n, d)] for n in held for d in range(3)])
+    kf, mf = (sp.csr_matrix(a + sp.triu(a, 1).T) for a in (k, m))
+    lam = scipy.linalg.eigh(kf[free][:, free].toarray(), mf[free][:, free].toarray(), eigvals_only=True,
+                            subset_by_index=[0, 9])
+    solo = pymr.modal_import(full, full, rst, [held[0]], modes=10, clamp=held[1:])
+    np.testing.assert_allclose(solo.frequencies_hz, np.sqrt(lam) / (2 * np.pi), rtol=1e-9)
+    # the static sag: the scene against K u = M g over every DOF but the held ones
+    g = np.zeros(k.shape[0])
+    g[[rows[(n, 2)] for n in xyz if (n, 2) in rows]] = -9.81
+    u = sla.spsolve(kf[free][:, free].tocsc(), (mf @ g)[free])
+    want = np.array([u[np.searchsorted(free, rows[(tip, d)])] for d in range(3)])
+    scene = tmp_path / "ansys.nml"
+    at = ", ".join(repr(float(v) - float(o)) for v, o in zip(xyz[tip], xyz[held[0]]))
+    scene.write_text(ANSYS_SCENE.format(file="ansys.modal", tip=at))
+    pos = pymr.run(scene, tmp_path / "a.csv").marker("tip")[0][-1]
+    got = pos - (np.asarray(xyz[tip]) - np.asarray(xyz[held[0]]))
+    print(f"\nAnsys beam: f1 {body.frequencies_hz[0]:.9g} Hz; sag {got} m, K u = M g {want}")
+    # the sag is 3 nm on positions of 1 m: the marker's position carries it to its ulps
+    assert np.abs(got - want).max() < 1e-9 * np.abs(want).max() + 8 * np.finfo(float).eps * np.abs(pos).max()
