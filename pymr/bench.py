@@ -600,34 +600,34 @@ def print_output(rows: list[dict]) -> None:
         print(f"cost per row, {name.split(', every step ')[1][1:-1]} HDF5 against CSV: {by[name]['us_per_row'] / csv:.2f}")
 
 
-#: `pymr bench modal-import`: 3-D frame beams (6 DOFs a node) and solid blocks (8-node bricks,
-#: 3 DOFs a node, aspect 10) of about these DOF counts, reduced to 20 fixed-interface modes
+#: `pymr bench modal-import`: 3-D frames (towers of tubes, 6 DOFs a node, aspect 4) and solid
+#: blocks (8-node bricks, 3 DOFs a node, aspect 10) of about these DOF counts, reduced to 20
+#: fixed-interface modes
 MODAL_IMPORT_SIZES = (10_000, 100_000, 300_000)
 #: the size at which the dense reduction (issue 17's, scipy.linalg.eigh) runs beside it
-MODAL_IMPORT_DENSE = 3_006
+MODAL_IMPORT_DENSE = 3_000
 
 
 def _fe_case(kind: str, dofs: int):
-    """The model and its attachment: a beam held at node 1, a block by its x = 0 face."""
-    from .fe_models import block_for, frame_beam, solid_block
+    """The model and its attachment: a frame held by its base (z = 0), a block by its x = 0
+    face, a beam at node 1."""
+    from .fe_models import block_for, frame_beam, frame_lattice, lattice_for, solid_block
     if kind == "beam":
-        model = frame_beam(max(2, round(dofs / 6)))
-        return model, [1], []
-    model = solid_block(block_for(dofs))
-    face = model.ids[np.abs(model.xyz[:, 0]) < 1e-12].tolist()
+        return frame_beam(max(2, round(dofs / 6))), [1], []
+    model = frame_lattice(lattice_for(dofs)) if kind == "frame" else solid_block(block_for(dofs))
+    face = model.ids[np.abs(model.xyz[:, 2 if kind == "frame" else 0]) < 1e-12].tolist()
     return model, [face[0]], face[1:]
 
 
-def modal_import_case(folder: str, interface: list, clamp: list) -> dict:
+def modal_import_case(folder: str, interface: list, clamp: list, dofs_per_node: int) -> dict:
     """One reduction of the files in `folder` (run in a process of its own: its peak memory
     is the process's)."""
     import resource
     from .modal_import import modal_import
     folder = Path(folder)
-    dpn = 6 if (folder / "dpn6").exists() else 3
     wall, cpu = time.perf_counter(), time.process_time()
     body = modal_import(folder / "m.mtx", folder / "k.mtx", folder / "nodes.csv", interface, modes=20, clamp=clamp,
-                        dofs_per_node=dpn)
+                        dofs_per_node=dofs_per_node)
     return {"wall_s": time.perf_counter() - wall, "cpu_s": time.process_time() - cpu,
             "peak_gb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024 / 1e9,
             "frequencies_hz": body.frequencies_hz.tolist(), "backend": _factor_backend(), "blas": _blas()}
@@ -656,27 +656,26 @@ def dense_reference(folder: Path, interface: list, clamp: list) -> list:
     k, m = (scipy.io.mmread(folder / f).tocsr() for f in ("k.mtx", "m.mtx"))
     ids, _ = read_nodes(folder / "nodes.csv")
     dpn = k.shape[0] // len(ids)
-    held = np.concatenate([dpn * (ids.index(n)) + np.arange(dpn) for n in interface + clamp])
+    index = {n: i for i, n in enumerate(ids)}
+    held = np.concatenate([dpn * index[n] + np.arange(dpn) for n in interface + clamp])
     inner = np.setdiff1d(np.arange(k.shape[0]), held)
     lam = scipy.linalg.eigh(k[inner][:, inner].toarray(), m[inner][:, inner].toarray(), eigvals_only=True,
                             subset_by_index=[0, 19])
     return (np.sqrt(lam) / (2 * np.pi)).tolist()
 
 
-def bench_modal_import(sizes=MODAL_IMPORT_SIZES, kinds=("beam", "block")) -> list[dict]:
+def bench_modal_import(sizes=MODAL_IMPORT_SIZES, kinds=("frame", "block")) -> list[dict]:
     """Each case written as Matrix Market, then reduced by `pymr.modal_import` in a fresh
     process: wall and CPU time, peak memory, the first frequencies."""
     rows = []
     with tempfile.TemporaryDirectory(prefix="pymr-bench-") as tmp:
-        cases = [("beam", MODAL_IMPORT_DENSE)] + [(k, s) for k in kinds for s in sizes]
+        cases = [("frame", MODAL_IMPORT_DENSE)] + [(k, s) for k in kinds for s in sizes]
         for kind, dofs in cases:
             folder = Path(tmp) / f"{kind}{dofs}"
             model, interface, clamp = _fe_case(kind, dofs)
             model.write(folder)
-            if model.dofs_per_node == 6:
-                (folder / "dpn6").touch()
-            code = ("import json, sys; from pymr.bench import modal_import_case; "
-                    f"print(json.dumps(modal_import_case({str(folder)!r}, {interface!r}, {clamp!r})))")
+            code = ("import json, sys; from pymr.bench import modal_import_case; print(json.dumps(modal_import_case("
+                    f"{str(folder)!r}, {interface!r}, {clamp!r}, {model.dofs_per_node})))")
             r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
             if r.returncode != 0:
                 rows.append({"model": kind, "dofs": model.ndof, "error": (r.stderr.strip().splitlines() or ["?"])[-1]})

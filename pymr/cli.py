@@ -325,7 +325,7 @@ def _add_bench(sub) -> None:
                         "table1: the paper's Table 1 (tank, step ratios 1-50, both couplings); effects: cost "
                         "of one tank evaluation with each effect on and off; spacecraft: the flexible spacecraft, "
                         "single-rate against multirate; output: what writing a row at every step costs, as CSV "
-                        "and as HDF5; modal-import: Craig-Bampton reduction of frame beams and solid blocks of 10k, "
+                        "and as HDF5; modal-import: Craig-Bampton reduction of 3-D frames and solid blocks of 10k, "
                         "100k and 300k DOFs (time, peak memory, frequencies; a dense reduction beside it at 3k)")
     b.add_argument("--pinocchio-cpp", metavar="EXE",
                    help="chain: also time Pinocchio compiled, by this build of docs/pinocchio_chain.cpp")

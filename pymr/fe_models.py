@@ -3,6 +3,8 @@ matrices assembled here (vectorised), with their nodes.
 
 - :func:`frame_beam`: a straight 3-D frame beam along x, Euler-Bernoulli bending in y and z,
   bar and torsion; 6 DOFs a node, consistent mass (the torsion carries rho J_p).
+- :func:`frame_lattice`: a 3-D frame of tubes along x, y and z on a grid (a tower); 6 DOFs
+  a node, lumped mass.
 - :func:`solid_block`: a box of 8-node trilinear solid elements, 3 DOFs a node, isotropic,
   consistent mass, 2 x 2 x 2 Gauss.
 
@@ -87,6 +89,46 @@ def frame_beam(nodes: int, length: float = 5.0, e: float = 2.07e11, nu: float = 
     k, m = assemble(ke, me, dofs, 6 * nodes)
     xyz = np.column_stack([np.linspace(0.0, length, nodes), np.zeros((nodes, 2))])
     return FEModel(k, m, np.arange(1, nodes + 1), xyz, 6)
+
+
+def frame_lattice(count: tuple[int, int, int], spacing: float = 0.5, e: float = 2.07e11, nu: float = 0.3,
+                  rho: float = 7850.0, r_outer: float = 0.03, r_inner: float = 0.025) -> FEModel:
+    """A 3-D frame of (nx, ny, nz) bays of tubes along x, y and z between the nodes of a
+    grid (a tower, a truss), 6 DOFs a node, lumped mass: half of each member's mass on each
+    end's translations, its rotary inertia on its end's rotations (a consistent frame mass
+    couples a node's rotations with two directions at a joint, which the invariants refuse)."""
+    nx, ny, nz = count
+    area = np.pi * (r_outer**2 - r_inner**2)
+    i2 = np.pi / 4 * (r_outer**4 - r_inner**4)
+    ke, _ = frame_element(spacing, e, e / (2 * (1 + nu)), rho, area, i2, i2)
+    grid = np.arange((nx + 1) * (ny + 1) * (nz + 1)).reshape(nz + 1, ny + 1, nx + 1)   # x fastest
+    n = 6 * grid.size
+    k = sp.csc_matrix((n, n))
+    lumped = np.zeros(n)
+    axes = np.eye(3)
+    for a, (first, second) in enumerate(((grid[:, :, :-1], grid[:, :, 1:]), (grid[:, :-1, :], grid[:, 1:, :]),
+                                         (grid[:-1], grid[1:]))):
+        ex, ey = axes[a], axes[(a + 1) % 3]
+        rot = np.vstack([ex, ey, np.cross(ex, ey)])                       # local axes as rows
+        t = np.kron(np.eye(4), rot)
+        ends = np.column_stack([first.ravel(), second.ravel()])
+        dofs = (6 * ends[:, :, None] + np.arange(6)).reshape(len(ends), 12)
+        k = k + assemble(t.T @ ke @ t, np.zeros((12, 12)), dofs, n)[0]
+        for end in (0, 1):
+            np.add.at(lumped, (6 * ends[:, end, None] + np.arange(3)).ravel(), rho * area * spacing / 2)
+            rotary = rho * spacing / 2 * np.array([i2, i2, i2])
+            rotary[a] = rho * spacing / 2 * 2 * i2                       # the polar moment about the member
+            np.add.at(lumped, (6 * ends[:, end, None] + 3 + np.arange(3)).ravel(), np.tile(rotary, len(ends)))
+    pts = np.meshgrid(np.arange(nx + 1), np.arange(ny + 1), np.arange(nz + 1), indexing="ij")
+    xyz = spacing * np.column_stack([g.transpose(2, 1, 0).ravel() for g in pts])
+    return FEModel(k.tocsc(), sp.diags(lumped).tocsc(), np.arange(1, grid.size + 1), xyz, 6)
+
+
+def lattice_for(dofs: int, aspect: float = 4.0) -> tuple[int, int, int]:
+    """Bays (n, n, nz) of a frame lattice of about `dofs` DOFs, a tower nz = aspect n high."""
+    n = max(1, round(((dofs / 6) / aspect) ** (1 / 3)) - 1)
+    nz = max(1, round(dofs / 6 / (n + 1) ** 2) - 1)
+    return n, n, nz
 
 
 def hex_element(h: np.ndarray, e: float, nu: float, rho: float):
