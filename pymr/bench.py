@@ -253,9 +253,13 @@ def bench_lapack(repeats: int = 5) -> list[dict]:
 
 
 def main(what: str, repeats: int | None = None, json_path: str | None = None,
-         pinocchio_cpp: str | None = None) -> int:
+         pinocchio_cpp: str | None = None, sizes: list[int] | None = None) -> int:
     if repeats is not None and (isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1):
         raise SceneError(f"repeats: a whole number of timings, at least 1, got {repeats!r}")
+    if sizes is not None and what != "modal-import":
+        raise SceneError("--sizes: only pymr bench modal-import takes it (the DOF counts of its models)")
+    if sizes is not None and not all(isinstance(n, int) and 100 <= n <= 10_000_000 for n in sizes):
+        raise SceneError(f"--sizes {' '.join(map(str, sizes))}: DOF counts from 100 to 10000000")
     if what == "lapack":
         rows = bench_lapack(repeats=repeats or 5)
         print(f"pymr bench lapack: LAPACK work, median ms of CPU, with {loaded_lapack()}")
@@ -313,7 +317,7 @@ def main(what: str, repeats: int | None = None, json_path: str | None = None,
             write_file(json_path, json.dumps(rows, indent=2), "figures")
         return 0
     if what == "modal-import":
-        rows = bench_modal_import()
+        rows = bench_modal_import(sizes=tuple(sizes) if sizes else MODAL_IMPORT_SIZES)
         print_modal_import(rows)
         if json_path:
             write_file(json_path, json.dumps({"blas": loaded_lapack(), "rows": rows}, indent=2), "figures")

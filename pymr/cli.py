@@ -45,7 +45,8 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     if args.json is not None:
         check_output(args.json, "figures (JSON)", option="--json", example=f"{args.what}.json",
                      if_left_out="no JSON file")
-    return bench.main(args.what, repeats=args.repeats, json_path=args.json, pinocchio_cpp=args.pinocchio_cpp)
+    return bench.main(args.what, repeats=args.repeats, json_path=args.json, pinocchio_cpp=args.pinocchio_cpp,
+                      sizes=args.sizes)
 
 
 def _cmd_modal_file(args: argparse.Namespace) -> int:
@@ -333,6 +334,8 @@ def _add_bench(sub) -> None:
                    help="timing repeats, median reported (default 7 for rhs, chain and effects, 5 for lapack, "
                         "spacecraft and output, 21 for table1, which takes at least 5)")
     b.add_argument("--json", help="also write the figures to this JSON file")
+    b.add_argument("--sizes", type=int, nargs="+", metavar="DOFS",
+                   help="modal-import: the models' DOF counts (default 10000 100000 300000)")
     b.set_defaults(func=_cmd_bench)
 
 
