@@ -19,7 +19,6 @@ from __future__ import annotations
 import os
 import sys
 import threading
-import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -28,7 +27,7 @@ import scipy.sparse.linalg as sla
 
 from . import _kernel as _core
 from .errors import SolverError
-from .fe_formats import ImportInputError
+from .errors import ImportInputError
 
 #: bytes of one stored value and one index of a sparse factor
 VALUE, INDEX = 8, 4

@@ -55,6 +55,10 @@ class ArgumentTypeError(SceneError, TypeError):
     :class:`SceneError` (and so a ValueError) and a TypeError; the message names the argument."""
 
 
+class ImportInputError(SceneError):
+    """Bad input of ``pymr modal-import``: one line naming the file and the fault."""
+
+
 class SolverError(PymrError):
     """A run that failed: singular mass matrix, step size underflow, non-finite state."""
 

@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 import scipy.sparse as sp
 
-from .api import SceneError
+from .errors import ImportInputError
 
 #: names of the six DOFs of a node, in the order of dofs_per_node 6 and DOF numbers 1-6
 DOF_NAMES = ("u_x", "u_y", "u_z", "theta_x", "theta_y", "theta_z")
@@ -34,10 +34,6 @@ NASTRAN_BULK = (".bdf", ".dat", ".pch", ".nas", ".blk", ".bulk")
 OP4 = (".op4",)
 #: the matrices of an Ansys full file, by the role the caller reads it for
 ANSYS_FULL = {"mass": "MASS", "stiffness": "STIFF"}
-
-
-class ImportInputError(SceneError):
-    """Bad input of ``pymr modal-import``: one line naming the file and the fault."""
 
 
 # ----------------------------------------------------------------------------- text files
@@ -508,3 +504,83 @@ def _whole_nodes(dof: np.ndarray, ids: list[int], path: Path) -> np.ndarray:
         if has.any() and not (has[:3].all() and (has[3:].all() or not has[3:].any())):
             raise ImportInputError(f"{path}: node {nid}: give its three translations and none or all three rotations")
     return dof
+
+
+# ----------------------------------------------------------------------------- the body's matrices
+
+def read_body(mpath: Path, kpath: Path, npath: Path, dofs_per_node, dof_map, mass_name, stiffness_name):
+    """The nodes, M and K (sparse, symmetric, on the same rows) and the DOF layout."""
+    ids, xyz = read_nodes(npath)
+    rows = None if dof_map is None and dofs_per_node is None else layout_rows(ids, npath, dofs_per_node, dof_map)
+    mm, m_labels = read_matrix(mpath, rows, mass_name, "mass")
+    kk, k_labels = read_matrix(kpath, rows, stiffness_name, "stiffness")
+    if (m_labels is None) != (k_labels is None):
+        raise ImportInputError(f"{mpath if m_labels is None else kpath}: rows not labelled by node and DOF, but "
+                               f"{kpath if m_labels is None else mpath}'s are: give both matrices in one kind of file")
+    labels = None
+    if m_labels is not None:
+        labels, mm, kk = on_common_rows(m_labels, mm, k_labels, kk)
+    elif mm.shape != kk.shape:
+        raise ImportInputError(f"{kpath}: {kk.shape[0]} rows, but {mpath} has {mm.shape[0]}")
+    check_symmetric(mm, mpath)
+    check_symmetric(kk, kpath)
+    mm, kk = (0.5 * (mm + mm.T)).tocsr(), (0.5 * (kk + kk.T)).tocsr()
+    check_mass(mm, mpath)
+    dof = dof_layout(ids, mm.shape[0], mpath, npath, dofs_per_node, dof_map, labels)
+    return ids, xyz, mm, kk, dof
+
+
+def check_free_body(kk: sp.spmatrix, dof: np.ndarray, ids: list, kpath: Path, clamped: np.ndarray) -> None:
+    """No DOF but the clamped ones without stiffness: a constraint applied in the FE code
+    zeroes its row (and the mass of the constrained nodes with it)."""
+    diagonal = kk.diagonal()
+    diagonal[clamped] = 1.0
+    zero = np.nonzero(~(diagonal > 0))[0]
+    if zero.size:
+        n, c = np.argwhere(dof == zero[0])[0]
+        raise ImportInputError(f"{kpath}: row {zero[0] + 1} (node {ids[n]} {DOF_NAMES[c]}) has no stiffness, and "
+                               f"{zero.size} rows in all: DOFs constrained in the FE code? Export the free body "
+                               "(no boundary conditions; --interface and --clamp hold the attachment)")
+
+
+def on_common_rows(m_labels, mm, k_labels, kk):
+    """Both labelled matrices on the union of their rows (a row one leaves out is 0 there:
+    a DOF without mass)."""
+    code = lambda nd: nd[:, 0].astype(np.int64) * 16 + nd[:, 1]
+    labels = np.unique(np.concatenate([m_labels, k_labels]), axis=0)
+    out = []
+    for lab, a in ((m_labels, mm), (k_labels, kk)):
+        at = np.searchsorted(code(labels), code(lab))
+        embed = sp.csr_matrix((np.ones(len(at)), (at, np.arange(len(at)))), shape=(len(labels), len(at)))
+        out.append((embed @ a @ embed.T).tocsr())
+    return labels, out[0], out[1]
+
+
+def check_symmetric(a: sp.spmatrix, path: Path) -> None:
+    """The matrix equals its transpose to 1e-10 of its largest entry."""
+    a = sp.csr_matrix(a)
+    scale = abs(a).max() if a.nnz else 0.0
+    if not scale > 0:
+        raise ImportInputError(f"{path}: the matrix is zero")
+    d = abs(a - a.T).tocoo()
+    if d.nnz and d.data.max() > 1e-10 * scale:
+        w = int(np.argmax(d.data))
+        i, j = int(d.row[w]), int(d.col[w])
+        raise ImportInputError(f"{path}: not symmetric (entries ({i + 1}, {j + 1}) and ({j + 1}, {i + 1}) differ "
+                               f"by {d.data[w]:.3g}, the largest entry is {scale:.3g})")
+
+
+def check_mass(m: sp.spmatrix, path: Path) -> None:
+    """Positive semi-definite as far as 2 x 2 principal minors tell (a negative diagonal, or
+    |m_ij| > sqrt(m_ii m_jj)); the reduced mass matrix is checked whole after the reduction."""
+    c = sp.coo_matrix(m)
+    d = sp.csr_matrix(m).diagonal()
+    tol = 1e-10 * np.abs(c.data).max()
+    lowest = d.min()
+    if lowest < -tol:
+        raise ImportInputError(f"{path}: not positive semi-definite (a diagonal entry {lowest:.3g}): not a mass matrix")
+    excess = np.abs(c.data) - np.sqrt(np.maximum(d[c.row], 0) * np.maximum(d[c.col], 0))
+    if excess.max() > tol:
+        w = int(np.argmax(excess))
+        raise ImportInputError(f"{path}: not positive semi-definite (entry ({c.row[w] + 1}, {c.col[w] + 1}) exceeds "
+                               f"the root of its diagonal entries' product by {excess[w]:.3g}): not a mass matrix")

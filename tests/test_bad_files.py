@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 
 import pymr
-from pymr.modal_import import ImportInputError, read_matrix_market
+from pymr.fe_formats import ImportInputError, read_matrix_market
 
 ROOT = Path(__file__).resolve().parent.parent
 TANK = ROOT / "input" / "tank_gun_turret.nml"
