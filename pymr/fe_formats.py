@@ -396,11 +396,16 @@ def _csv_nodes(path: Path):
             if n == 0 and not any(c.isdigit() for c in parts[0]):
                 continue                            # a header line
             raise ImportInputError(f"{path}: line {k}: expected 'node id, x, y, z'") from None
-        if not np.all(np.isfinite(x)):
-            raise ImportInputError(f"{path}: line {k}: node {nid}: coordinates not finite")
-        ids.append(nid)
-        xyz.append(x)
+        _add_node(ids, xyz, nid, x, f"{path}: line {k}")
     return ids, xyz
+
+
+def _add_node(ids: list, xyz: list, nid: int, x: list, where: str) -> None:
+    """One node of a node list, its coordinates finite."""
+    if not np.all(np.isfinite(x)):
+        raise ImportInputError(f"{where}: node {nid}: coordinates not finite")
+    ids.append(nid)
+    xyz.append(x)
 
 
 def _ansys_nodes(path: Path):
@@ -434,10 +439,7 @@ def _abaqus_nodes(path: Path):
             nid, x = int(parts[0]), [float(v) for v in parts[1:]] + [0.0] * (4 - len(parts))
         except ValueError:
             raise ImportInputError(f"{path}: line {k}: expected 'node id, x, y, z' in a *NODE block") from None
-        if not np.all(np.isfinite(x)):
-            raise ImportInputError(f"{path}: line {k}: node {nid}: coordinates not finite")
-        ids.append(nid)
-        xyz.append(x)
+        _add_node(ids, xyz, nid, x, f"{path}: line {k}")
     return ids, xyz
 
 
