@@ -207,6 +207,15 @@ def _entries_slowly(path: Path, nr: int, sym: str = "general") -> np.ndarray:
     return np.asarray(out, dtype=float)
 
 
+def whole(a: sp.spmatrix) -> sp.csc_matrix:
+    """A symmetric matrix given by one triangle (either) mirrored whole; one given by both
+    as it is."""
+    upper, lower = sp.triu(a, 1), sp.tril(a, -1)
+    if upper.nnz == 0 or lower.nnz == 0:
+        a = a + (upper + lower).T
+    return sp.csc_matrix(a)
+
+
 def labelled(path: Path, row_nd: np.ndarray, col_nd: np.ndarray, v: np.ndarray):
     """A matrix from entries labelled (node, dof) by row and column: (CSC, labels), rows
     sorted by node then DOF. One triangle is mirrored; both must agree."""
@@ -222,10 +231,7 @@ def labelled(path: Path, row_nd: np.ndarray, col_nd: np.ndarray, v: np.ndarray):
     n = len(keys)
     a = sp.coo_matrix((v, where), shape=(n, n)).tocsr()
     a.sum_duplicates()
-    upper, lower = sp.triu(a, 1), sp.tril(a, -1)
-    if upper.nnz == 0 or lower.nnz == 0:
-        a = a + (upper + lower).T
-    return a.tocsc(), keys
+    return whole(a), keys
 
 
 def read_full(path: Path, role: str):
@@ -247,7 +253,7 @@ def read_full(path: Path, role: str):
         node, dof = nd[np.argmax((nd[:, 1] < 1) | (nd[:, 1] > 6))].tolist()
         raise ImportInputError(f"{path}: node {node} DOF {dof}: DOFs 1-6 (UX UY UZ ROTX ROTY ROTZ) expected")
     a = sp.csc_matrix(m if role == "mass" else k)          # one triangle; a constrained DOF's row is empty
-    return (a + sp.triu(a, 1).T + sp.tril(a, -1).T).tocsc(), nd
+    return whole(a), nd
 
 
 def _first_line(exc: Exception) -> str:
@@ -351,10 +357,7 @@ def read_op4(path: Path, name: str | None, rows) -> sp.csc_matrix:
         raise ImportInputError(f"{path}: {a.shape[0]} x {a.shape[1]}: a square matrix expected")
     if rows is not None and a.shape[0] != rows[0]:
         raise ImportInputError(f"{path}: {a.shape[0]} rows, but {rows[1]}")
-    upper, lower = sp.triu(a, 1), sp.tril(a, -1)
-    if upper.nnz == 0 or lower.nnz == 0:
-        a = a + (upper + lower).T
-    return a.tocsc()
+    return whole(a)
 
 
 # ----------------------------------------------------------------------------- nodes
