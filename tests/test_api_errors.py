@@ -124,7 +124,7 @@ def test_a_wrong_argument_is_a_pymr_error_naming_it(name, arg, k, results_csv, m
         given = args.get("scene", args.get("path", PENDULUM))
         scene = Path(os.fsdecode(given)).name if isinstance(given, (str, bytes, Path)) else PENDULUM.name
         named = (any(a in message for a in args) or scene in message or "--set" in message
-                 or (isinstance(BAD[k], str) and BAD[k] and f"{BAD[k]}:" in message)
+                 or (isinstance(BAD[k], (str, bytes)) and BAD[k] and f"{os.fsdecode(BAD[k])}:" in message)
                  or (arg == "x" and ("q" in message)) or (arg == "csv_path" and "pendulum.csv" in message)
                  or (name == "Scene.__setitem__" and "scene.title" in message))
         assert named, f"{name}({arg}={BAD[k]!r}): {message!r} names neither {arg!r} nor the scene"
