@@ -32,6 +32,12 @@ module pymr_integrator_modal_flow
   !> Columns of flow_phis' tp: phi_0 .. phi_kmax.
   integer, parameter :: n_phi = kmax + 1
 
+  !> A group's right vectors as one real block, so that the state is one product: rows
+  !> [a; ad] of the group's fast coordinates, columns [Re V | -Im V] of its kept modes.
+  type :: group_vectors
+    real(dp), allocatable :: b(:, :)
+  end type group_vectors
+
   type :: modal_flow_t
     integer :: ns = 0, nf = 0, nm = 0
     !> The frozen response g0 (n x nf) and modal stiffness and damping (nf).
@@ -40,8 +46,10 @@ module pymr_integrator_modal_flow
     !> the rows of V^-1 (nm x 2nf).
     complex(dp), allocatable :: lam(:), w(:, :)
     real(dp), allocatable :: wgt(:)
-    !> Real and imaginary parts of the right vectors V (2nf x nm) and of C V (ns x nm).
-    real(dp), allocatable :: vre(:, :), vim(:, :), cre(:, :), cim(:, :)
+    !> The right vectors V of each group (group_vectors), and C V as [Re C V | -Im C V]
+    !> (ns x 2nm).
+    type(group_vectors), allocatable :: vg(:)
+    real(dp), allocatable :: cv(:, :)
     !> The groups of fast coordinates diagonalised apart: group c has the kept eigenvalues
     !> mode_start(c) .. mode_start(c+1) - 1 and the fast coordinates rows(row_start(c) ..
     !> row_start(c+1) - 1); V and W are zero outside those blocks.
@@ -95,8 +103,35 @@ contains
     ! C V: the slow accelerations' response to the fast state, g_s [K | D] V
     cv = matmul(cmplx(g(1:ns, :)*spread(kf, 1, ns), 0.0_dp, dp), v(1:nf, :)) + &
       & matmul(cmplx(g(1:ns, :)*spread(df, 1, ns), 0.0_dp, dp), v(nf+1:, :))
-    self%vre = real(v); self%vim = aimag(v); self%cre = real(cv); self%cim = aimag(cv)
+    self%cv = reshape([real(cv), -aimag(cv)], [ns, 2*m])
+    call keep_group_vectors(self, v)
   end subroutine flow_build
+
+  !> Each group's block of V (its fast coordinates' rows, its modes' columns; V is zero
+  !> outside the blocks) as [Re V | -Im V].
+  pure subroutine keep_group_vectors(self, v)
+    class(modal_flow_t), intent(inout) :: self
+    complex(dp), intent(in) :: v(:, :)
+    integer :: c
+    integer, allocatable :: r(:), modes(:)
+    if (allocated(self%vg)) deallocate(self%vg)
+    allocate(self%vg(self%ng))
+    do c = 1, self%ng
+      r = self%rows(self%row_start(c):self%row_start(c+1) - 1)
+      r = [r, self%nf + r]
+      modes = group_modes(self, c)
+      self%vg(c)%b = reshape([real(v(r, modes)), -aimag(v(r, modes))], [size(r), 2*size(modes)])
+    end do
+  end subroutine keep_group_vectors
+
+  !> The kept modes of group c.
+  pure function group_modes(self, c) result(modes)
+    class(modal_flow_t), intent(in) :: self
+    integer, intent(in) :: c
+    integer, allocatable :: modes(:)
+    integer :: i
+    modes = [(i, i = self%mode_start(c), self%mode_start(c+1) - 1)]
+  end function group_modes
 
   !> Group number of each fast coordinate: the connected parts of the graph G_ij /= 0.
   pure function coupled_groups(gf) result(group)
@@ -295,8 +330,9 @@ contains
     real(dp), intent(out) :: x(:)
     real(dp) :: e0r(self%nm), e0i(self%nm), e1r(self%nm), e1i(self%nm), e2r(self%nm), e2i(self%nm), fact, tr
     complex(dp) :: e0, e1, e2
-    integer :: i, j, k, c, n, ns, nf
-    n = self%ns + self%nf; ns = self%ns; nf = self%nf
+    real(dp) :: e(2*self%nm), y(2*self%nf)
+    integer :: i, j, c, n, ns, m1, m2, nc, r1, r2, nr
+    n = self%ns + self%nf; ns = self%ns
     do i = 1, self%nm
       e0 = tp(0, i)*eta0(i); e1 = tp(1, i)*eta0(i); e2 = tp(2, i)*eta0(i)
       do j = 1, n_coef
@@ -306,22 +342,27 @@ contains
       e1r(i) = self%wgt(i)*real(e1); e1i(i) = self%wgt(i)*aimag(e1)
       e2r(i) = self%wgt(i)*real(e2); e2i(i) = self%wgt(i)*aimag(e2)
     end do
-    ! the real parts of V e and C V e, by the real and imaginary parts of both
-    x(ns+1:n) = 0.0_dp; x(n+ns+1:) = 0.0_dp
+    ! the real parts of V e and C V e, by the real and imaginary parts of both; a group
+    ! whose modes are all at rest and unforced is zero
     x(n+1:n+ns) = x0(n+1:n+ns); x(1:ns) = x0(1:ns) + tau*x0(n+1:n+ns)
     do c = 1, self%ng
-      do i = self%mode_start(c), self%mode_start(c+1) - 1
-        do k = self%row_start(c), self%row_start(c+1) - 1
-          j = self%rows(k)
-          x(ns+j) = x(ns+j) + self%vre(j, i)*e0r(i) - self%vim(j, i)*e0i(i)
-          x(n+ns+j) = x(n+ns+j) + self%vre(nf+j, i)*e0r(i) - self%vim(nf+j, i)*e0i(i)
-        end do
-      end do
+      m1 = self%mode_start(c); m2 = self%mode_start(c+1) - 1; nc = m2 - m1 + 1
+      r1 = self%row_start(c); r2 = self%row_start(c+1) - 1; nr = r2 - r1 + 1
+      if (all(e0r(m1:m2) == 0.0_dp .and. e0i(m1:m2) == 0.0_dp)) then
+        x(ns+self%rows(r1:r2)) = 0.0_dp; x(n+ns+self%rows(r1:r2)) = 0.0_dp
+        cycle
+      end if
+      e(1:nc) = e0r(m1:m2); e(nc+1:2*nc) = e0i(m1:m2)
+      y(1:2*nr) = 0.0_dp
+      call add_product(self%vg(c)%b, e(1:2*nc), y(1:2*nr))
+      x(ns+self%rows(r1:r2)) = y(1:nr); x(n+ns+self%rows(r1:r2)) = y(nr+1:2*nr)
     end do
-    do i = 1, self%nm
-      x(n+1:n+ns) = x(n+1:n+ns) - self%cre(:, i)*e1r(i) + self%cim(:, i)*e1i(i)
-      x(1:ns) = x(1:ns) - self%cre(:, i)*e2r(i) + self%cim(:, i)*e2i(i)
-    end do
+    y(1:ns) = 0.0_dp
+    call add_product(self%cv, [e1r, e1i], y(1:ns))
+    x(n+1:n+ns) = x(n+1:n+ns) - y(1:ns)
+    y(1:ns) = 0.0_dp
+    call add_product(self%cv, [e2r, e2i], y(1:ns))
+    x(1:ns) = x(1:ns) - y(1:ns)
     fact = 1.0_dp; tr = 1.0_dp
     do j = 1, n_coef
       fact = fact*j; tr = tr*tau                            ! j!, tau^j
@@ -329,6 +370,17 @@ contains
       x(1:ns) = x(1:ns) + tr*tau/(fact*(j+1))*cs(:, j)
     end do
   end subroutine flow_state_at
+
+  !> y = y + a v, column by column (contiguous, so that the compiler vectorises it; the
+  !> intrinsic matmul's inlined loop did not, on the spacecraft's dense output).
+  pure subroutine add_product(a, v, y)
+    real(dp), intent(in) :: a(:, :), v(:)
+    real(dp), intent(inout) :: y(:)
+    integer :: k
+    do k = 1, size(v)
+      y = y + a(:, k)*v(k)
+    end do
+  end subroutine add_product
 
   !> How far the response g with coefficients kf, df has moved from the frozen one, as the
   !> explicit step's stability sees it: h^2 |Delta(g K)| + h |Delta(g D)| (row sums, largest).
