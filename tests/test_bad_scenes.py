@@ -166,7 +166,7 @@ SET_FAULTS = [
     SetFault("no_such_body", "body[nobody].mass=1", "body[nobody].mass", 1.0,
              r": no &body group with name 'nobody'$"),
     SetFault("method_singel", "integrator.method=singel", "integrator.method", "singel",
-             r": &integrator: method: 'singel' is not one of: single, multirate; did you mean 'single'\?$"),
+             r": &integrator: method: 'singel' is not one of: single, multirate, auto; did you mean 'single'\?$"),
     SetFault("joint_kind_hinge", "joint[pivot].kind=hinge", "joint[pivot].kind", "hinge",
              r": &joint 'pivot': kind: 'hinge' is not one of: revolute, prismatic, fixed, spherical, free, "
              r"cylindrical, universal, planar$"),

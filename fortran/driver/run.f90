@@ -40,7 +40,7 @@ contains
     lines = .false.
     if (present(progress_lines)) lines = progress_lines
     call sim%open(file, overrides, out, len_trim(from) > 0, lines, error)
-    if (.not. allocated(error)) call sim%initial_state(error)
+    if (.not. allocated(error)) call sim%initial_state(from, error)
     if (.not. allocated(error)) call sim%start(from, error)
     if (.not. allocated(error)) then
       call sim%run_to(sim%sc%scene%t_end, error)

@@ -2,7 +2,7 @@
 !> scene, the model, the stepper, the results writer, the statistics and the clocks.
 !>
 !>     call sim%open(file, overrides, out, restarting, lines, error)   ! model, output, lock
-!>     call sim%initial_state(error)                  ! starting state, stepper, output plan
+!>     call sim%initial_state(restart, error)         ! starting state, method, stepper, output plan
 !>     call sim%start(restart, error)                 ! a new run, or one from a checkpoint
 !>     call sim%run_to(t, error)                      ! rows, checkpoints and steps up to t
 !>     call sim%finish(error)                         ! last row, statistics, files in place
@@ -34,6 +34,7 @@ module pymr_driver_simulation
   use pymr_driver_progress, only : run_clock
   use pymr_driver_settings_json, only : settings_json
   use pymr_driver_summary, only : summary_text
+  use pymr_driver_method_choice, only : choose_by_probe => choose_method, method_of_checkpoint, method_choice_t
   use pymr_driver_moving_load_exits, only : note_exits, next_exit, exits_json
   implicit none
   private
@@ -76,7 +77,7 @@ module pymr_driver_simulation
     procedure :: finish => simulation_finish
     procedure :: summary => simulation_summary
     procedure :: close => simulation_close
-    procedure, private :: choose_format
+    procedure, private :: choose_format, choose_method
     procedure, private :: begin_new, resume, put_row, put_rows_reached, put_last_row, checkpoint_if_due, start_again
     procedure, private :: write_results, name_file
   end type simulation_t
@@ -104,10 +105,12 @@ contains
     if (len(self%ckpt_path) == 0) self%ckpt_path = checkpoint_default(self%path)
   end subroutine simulation_open
 
-  !> The clocks started, the state the run starts from, the output plan and the stepper
-  !> (made, not started).
-  subroutine simulation_initial_state(self, error)
+  !> The clocks started, the state the run starts from, the method ('auto': chosen, or that
+  !> of the checkpoint `restart` when not ''), the output plan and the stepper (made, not
+  !> started).
+  subroutine simulation_initial_state(self, restart, error)
     class(simulation_t), intent(inout) :: self
+    character(len=*), intent(in) :: restart
     type(error_type), allocatable, intent(out) :: error
     real(dp) :: h
     call self%clock%start()
@@ -116,6 +119,9 @@ contains
     call starting_state(self%sc, self%model, self%x, error, self%stats)
     if (allocated(error)) then
       call self%name_file(error); return
+    end if
+    if (self%sc%integrator%method == 'auto') then
+      call self%choose_method(restart, error); if (allocated(error)) return
     end if
     self%dt_out = self%sc%output%dt
     if (self%dt_out <= 0.0_dp .and. .not. self%sc%integrator%adaptive) self%dt_out = h
@@ -127,6 +133,25 @@ contains
     call make_stepper(self%sc, self%model, self%x, self%st, self%h0, error)
     if (allocated(error)) call self%name_file(error)
   end subroutine simulation_initial_state
+
+  !> Method 'auto': the method chosen by probes from the initial state (or the one the
+  !> checkpoint `restart` was written with) set in the scene, and the choice reported.
+  subroutine choose_method(self, restart, error)
+    class(simulation_t), intent(inout) :: self
+    character(len=*), intent(in) :: restart
+    type(error_type), allocatable, intent(out) :: error
+    type(method_choice_t) :: choice
+    if (len_trim(restart) > 0) then
+      call method_of_checkpoint(self%sc, restart, choice, error)
+      if (allocated(error)) then
+        call self%name_file(error); return
+      end if
+    else
+      call choose_by_probe(self%sc, self%model, self%x, choice)
+    end if
+    self%stats%choice_line = choice%summary()
+    self%stats%choice_report = choice%json()
+  end subroutine choose_method
 
   !> The results file of &output format, what it writes (the plan of &output quantities)
   !> and what the run is.

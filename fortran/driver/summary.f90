@@ -32,6 +32,7 @@ contains
     character(len=:), allocatable :: warning
     integer :: j
     s = 'scene: ' // trim(sc%scene%title) // new_line('a') // 'method: ' // method_label(sc) // new_line('a')
+    if (allocated(st%choice_line)) s = s // st%choice_line // new_line('a')
     if (st%steps_fast /= st%steps_slow) then
       write(buf, '(a,i0,a,i0,a,i0,a,i0,a)') 'simulated 0 to ' // fmt(sc%scene%t_end) // ' s: ', st%steps_slow, &
         & ' steps (', st%steps_fast, ' fast), ', st%rejected_steps, ' rejected, ', st%rhs_full, ' full evaluations'

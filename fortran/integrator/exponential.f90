@@ -461,7 +461,7 @@ contains
   pure function ex_name(self) result(s)
     class(exponential_integrator), intent(in) :: self
     character(len=:), allocatable :: s
-    s = 'multirate'
+    s = 'exponential'
   end function ex_name
 
 end module pymr_integrator_exponential

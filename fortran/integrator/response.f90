@@ -467,7 +467,7 @@ contains
   pure function rs_name(self) result(s)
     class(response_integrator), intent(in) :: self
     character(len=:), allocatable :: s
-    s = 'multirate'
+    s = 'response'
   end function rs_name
 
 end module pymr_integrator_response

@@ -20,7 +20,7 @@ module pymr_io_checkpoint
   use pymr_io_results_output, only : pymr_version, n_work
   implicit none
   private
-  public :: run_progress, write_checkpoint, read_checkpoint
+  public :: run_progress, write_checkpoint, read_checkpoint, checkpoint_stepper
 
   character(len=8), parameter :: tag = 'PYMRCKPT'
   !> 6: the stepper's state written as its state vector and its record (state_record).
@@ -132,6 +132,25 @@ contains
     close(u)
     if (ios /= 0) call fatal_error(error, path // ': the checkpoint is truncated or damaged')
   end subroutine read_checkpoint
+
+  !> The name of the stepper that wrote the checkpoint `path` (a run of method 'auto'
+  !> continues with the method it chose), with read_checkpoint's refusals of the file.
+  function checkpoint_stepper(path, error) result(name)
+    character(len=*), intent(in) :: path
+    type(error_type), allocatable, intent(out) :: error
+    character(len=:), allocatable :: name
+    type(checkpoint_header) :: hd
+    integer :: u, ios
+    name = ''
+    call verify_file(path, error); if (allocated(error)) return
+    open(newunit=u, file=path, access='stream', form='unformatted', status='old', action='read', iostat=ios)
+    if (ios /= 0) then
+      call fatal_error(error, path // ': cannot read the checkpoint'); return
+    end if
+    call read_header(u, path, hd, error)
+    close(u)
+    if (.not. allocated(error)) name = trim(hd%name)
+  end function checkpoint_stepper
 
   !> A regular file that begins with the tag and ends with the sha256 of all before it.
   subroutine verify_file(path, error)

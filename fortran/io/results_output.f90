@@ -33,6 +33,9 @@ module pymr_io_results_output
     character(len=:), allocatable :: warnings
     !> JSON members the effects report (moving loads' exits), with their commas and lines.
     character(len=:), allocatable :: effects_report
+    !> Method 'auto': the JSON member of its choice (with its comma and line), and the
+    !> summary's line.
+    character(len=:), allocatable :: choice_report, choice_line
   end type run_stats
 
   !> The energy columns (energy.NAME): the four energies, their total, then the four works
@@ -398,6 +401,7 @@ contains
       call put(trim(buf))
     end if
     if (allocated(st%effects_report)) json = json // st%effects_report
+    if (allocated(st%choice_report)) json = json // st%choice_report
     if (allocated(st%warnings)) then
       call put('  "warnings": [' // json_lines(st%warnings) // '],')
     else

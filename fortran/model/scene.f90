@@ -336,7 +336,9 @@ contains
   subroutine describe_integrator(g, t)
     type(integrator_spec), target, intent(inout) :: g
     type(item_table), intent(inout) :: t
-    call t%add('method', g%method, 'single-rate or multirate integration', choices='single multirate')
+    call t%add('method', g%method, "single-rate or multirate integration; 'auto' (adaptive runs): the kernel " // &
+      & "chooses between single-rate 'adams' and the multirate couplings 'exponential' and 'response' by " // &
+      & "a measured probe over the first part of the run (docs/integrators.md)", choices='single multirate auto')
     call t%add('h_fast', g%h_fast, 's', 'step of the fast (modal) coordinates; default h_slow', &
       & ge=1.0e-12_dp, le=1.0e3_dp)
     call t%add('h_slow', g%h_slow, 's', 'step of the slow (joint) coordinates, the step of a single-rate run; ' // &
@@ -673,11 +675,12 @@ contains
     end associate
     if (sc%integrator%h_slow == unset) sc%integrator%h_slow = sc%integrator%h_fast
     if (len_trim(sc%integrator%formula) == 0) then
-      sc%integrator%formula = merge('adams', 'abm4 ', sc%integrator%adaptive .and. sc%integrator%method == 'single')
+      sc%integrator%formula = merge('adams', 'abm4 ', sc%integrator%adaptive .and. sc%integrator%method /= 'multirate')
     end if
     ! the paper's formula is of order 4 (a scene written back states it)
     if (sc%integrator%formula == 'abm4' .and. .not. sc%integrator%origin%given('order')) sc%integrator%order = 4
-    if (sc%integrator%coupling == 'response' .and. .not. sc%integrator%origin%given('k_max')) then
+    if ((sc%integrator%coupling == 'response' .or. sc%integrator%method == 'auto') .and. &
+      & .not. sc%integrator%origin%given('k_max')) then
       if (flexible_loop(sc)) sc%integrator%k_max = k_max_flexible_loop
     end if
   end subroutine complete_scene

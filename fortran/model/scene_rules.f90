@@ -154,7 +154,11 @@ contains
           call errs%add(w('n_corrector') // ": multirate uses PECE (n_corrector = 1)"); return
         end if
       end if
-      if (s%formula == 'adams' .and. (.not. s%adaptive .or. trim(s%method) /= 'single')) then
+      if (trim(s%method) == 'auto' .and. .not. s%adaptive) then
+        call errs%add(w('method') // ": 'auto' chooses among adaptive methods by what a probe of each costs: " // &
+          & "set adaptive = .true., or name the method of a fixed-step run ('single' or 'multirate')"); return
+      end if
+      if (s%formula == 'adams' .and. (.not. s%adaptive .or. trim(s%method) == 'multirate')) then
         call errs%add(w('formula') // ": 'adams' takes adaptive steps at one rate: set adaptive = .true. " // &
           & "and method = 'single', or formula = 'abm4'"); return
       end if

@@ -1,0 +1,222 @@
+!> `&integrator method = 'auto'`: the kernel chooses the method of an adaptive run.
+!>
+!> The candidates are single-rate 'adams' (the scene's formula) and, when the scene has
+!> slow (joint) and fast (modal) coordinates, the multirate couplings 'exponential' (not
+!> with a closed loop through a flexible body, which it refuses) and 'response'. Each
+!> candidate runs on a copy of the model from the initial state over the first
+!> `probe_share` of the run, at the scene's tolerances. Its CPU over the probe's second
+!> half (past the start's small steps), scaled to the rest of the run, plus its CPU up to
+!> there, predicts its run; the least prediction runs the scene. A probe that has taken
+!> `race_margin` times the CPU of the fastest finished probe is stopped: its candidate is
+!> slower. A scene without fast coordinates runs single-rate with no probe. A run
+!> continued from a checkpoint keeps the method that wrote it.
+module pymr_driver_method_choice
+  use pymr_env_kinds, only : dp
+  use pymr_env_error, only : error_type
+  use pymr_env_clock, only : thread_cpu_time
+  use pymr_env_text, only : fmt, json_escape
+  use pymr_model_scene, only : scene_t, flexible_loop
+  use pymr_model, only : model_t
+  use pymr_integrator_stepper, only : stepper_t
+  use pymr_io_checkpoint, only : checkpoint_stepper
+  use pymr_driver_stepper_setup, only : make_stepper
+  implicit none
+  private
+  public :: choose_method, method_of_checkpoint, method_choice_t
+
+  !> Share of the run (from its start) each candidate is probed over; CPU beyond the fastest
+  !> finished probe's at which a probe stops.
+  real(dp), parameter :: probe_share = 0.03_dp, race_margin = 1.5_dp
+  integer, parameter :: max_candidates = 3
+
+  !> What 'auto' chose and why: the candidates' labels and methods (set_method's numbers),
+  !> probe CPU and predicted run CPU (s; huge when the probe failed or stopped) and why it
+  !> did, the probe's end time.
+  type :: method_choice_t
+    integer :: n = 0, chosen = 0
+    character(len=40) :: label(max_candidates) = ''
+    integer :: method(max_candidates) = 0
+    real(dp) :: cpu(max_candidates) = huge(1.0_dp), predicted(max_candidates) = huge(1.0_dp)
+    character(len=200) :: failure(max_candidates) = ''
+    real(dp) :: t_probe = 0.0_dp
+    character(len=:), allocatable :: reason
+  contains
+    procedure :: summary => choice_summary
+    procedure :: json => choice_json
+  end type method_choice_t
+
+contains
+
+  !> Choose the method of the scene sc (method 'auto') at the initial state x of the model,
+  !> and set it in sc (method, coupling, formula).
+  subroutine choose_method(sc, model, x, choice)
+    type(scene_t), intent(inout) :: sc
+    type(model_t), intent(in) :: model
+    real(dp), intent(in) :: x(:)
+    type(method_choice_t), intent(out) :: choice
+    integer :: i
+    ! the multirate couplings first: where they pay, their probes are short and stop the rest
+    if (model%n_fast() > 0 .and. model%n_slow() > 0) then
+      if (.not. flexible_loop(sc)) call add_candidate(choice, "multirate 'exponential'", 2)
+      call add_candidate(choice, "multirate 'response'", 3)
+    end if
+    call add_candidate(choice, "single-rate '" // trim(sc%integrator%formula) // "'", 1)
+    if (choice%n == 1) then
+      choice%chosen = 1
+      choice%reason = 'the scene has no ' // trim(merge('fast (modal)', 'slow (joint)', model%n_fast() == 0)) // &
+        & ' coordinates: nothing to run at two rates'
+    else
+      choice%t_probe = probe_share*sc%scene%t_end
+      do i = 1, choice%n
+        call probe(sc, model, x, i, choice)
+      end do
+      choice%chosen = minloc(choice%predicted(1:choice%n), 1)
+      choice%reason = 'least predicted CPU'
+    end if
+    call set_method(sc, choice%method(choice%chosen))
+  end subroutine choose_method
+
+  subroutine add_candidate(choice, label, method)
+    type(method_choice_t), intent(inout) :: choice
+    character(len=*), intent(in) :: label
+    integer, intent(in) :: method
+    choice%n = choice%n + 1
+    choice%label(choice%n) = label; choice%method(choice%n) = method
+  end subroutine add_candidate
+
+  !> Set method i (1 single-rate, 2 'exponential', 3 'response') in sc.
+  subroutine set_method(sc, i)
+    type(scene_t), intent(inout) :: sc
+    integer, intent(in) :: i
+    if (i == 1) then
+      sc%integrator%method = 'single'; return
+    end if
+    sc%integrator%method = 'multirate'
+    sc%integrator%formula = 'abm4'; sc%integrator%order = 4
+    sc%integrator%coupling = trim(merge('exponential', 'response   ', i == 2))
+  end subroutine set_method
+
+  !> Candidate i from the initial state over [0, t_probe] on a copy of the model: its CPU
+  !> (the stepper's making included) and its predicted run.
+  subroutine probe(sc, model, x, i, choice)
+    type(scene_t), intent(in) :: sc
+    type(model_t), intent(in) :: model
+    real(dp), intent(in) :: x(:)
+    integer, intent(in) :: i
+    type(method_choice_t), intent(inout) :: choice
+    type(scene_t) :: trial
+    type(model_t) :: copy
+    class(stepper_t), allocatable :: st
+    type(error_type), allocatable :: error
+    real(dp) :: cpu0, cpu_half, t_half, cap
+    real(dp) :: h0
+    trial = sc; copy = model
+    call set_method(trial, choice%method(i))
+    cap = huge(1.0_dp)
+    if (i > 1) cap = minval(choice%cpu(1:i-1))
+    if (cap < huge(1.0_dp)) cap = race_margin*cap
+    cpu0 = thread_cpu_time(); cpu_half = -1.0_dp; t_half = 0.0_dp
+    call make_stepper(trial, copy, x, st, h0, error)
+    if (.not. allocated(error)) call st%start(copy, 0.0_dp, x, h0, error)
+    do while (.not. allocated(error))
+      if (cpu_half < 0.0_dp .and. st%time() >= 0.5_dp*choice%t_probe) then
+        cpu_half = thread_cpu_time(); t_half = st%time()
+      end if
+      if (st%time() >= choice%t_probe) exit
+      if (thread_cpu_time() - cpu0 > cap) then
+        choice%failure(i) = 'stopped at t = ' // fmt(st%time()) // ' s: slower than the fastest probe'; return
+      end if
+      call st%advance(copy, error)
+    end do
+    if (allocated(error)) then
+      choice%failure(i) = error%message; return
+    end if
+    choice%cpu(i) = thread_cpu_time() - cpu0
+    if (cpu_half < 0.0_dp .or. st%time() - t_half < 0.25_dp*choice%t_probe) then
+      ! a probe of one or two steps: its whole CPU scaled
+      choice%predicted(i) = choice%cpu(i)*sc%scene%t_end/st%time()
+    else
+      choice%predicted(i) = choice%cpu(i) + (cpu0 + choice%cpu(i) - cpu_half)*(sc%scene%t_end - st%time())/ &
+        & (st%time() - t_half)
+    end if
+  end subroutine probe
+
+  !> The method of a run of method 'auto' continued from the checkpoint `path`: the one
+  !> whose stepper wrote it, set in sc (a file read_checkpoint refuses is refused here).
+  subroutine method_of_checkpoint(sc, path, choice, error)
+    type(scene_t), intent(inout) :: sc
+    character(len=*), intent(in) :: path
+    type(method_choice_t), intent(out) :: choice
+    type(error_type), allocatable, intent(out) :: error
+    character(len=:), allocatable :: name
+    name = checkpoint_stepper(path, error); if (allocated(error)) return
+    select case (name)
+    case ('exponential')
+      call add_candidate(choice, "multirate 'exponential'", 2)
+    case ('response')
+      call add_candidate(choice, "multirate 'response'", 3)
+    case default
+      call add_candidate(choice, "single-rate '" // trim(sc%integrator%formula) // "'", 1)
+    end select
+    choice%chosen = 1
+    call set_method(sc, choice%method(1))
+    choice%reason = 'the method the checkpoint was written with'
+  end subroutine method_of_checkpoint
+
+  !> One line for the run's summary: "auto: multirate 'exponential' (least CPU over the
+  !> probe, 0 to 0.05 s: single-rate 'adams' 4.1 ms, ...)".
+  function choice_summary(self) result(s)
+    class(method_choice_t), intent(in) :: self
+    character(len=:), allocatable :: s
+    integer :: i
+    s = 'auto: ' // trim(self%label(self%chosen)) // ' (' // self%reason
+    if (self%t_probe > 0.0_dp) then
+      s = s // '; probes from 0 to ' // fmt(self%t_probe) // ' s:'
+      do i = 1, self%n
+        s = s // ' ' // trim(self%label(i)) // ' ' // probe_text(self, i) // trim(merge(',', ' ', i < self%n))
+      end do
+    end if
+    s = s // ')'
+  end function choice_summary
+
+  function probe_text(self, i) result(s)
+    class(method_choice_t), intent(in) :: self
+    integer, intent(in) :: i
+    character(len=:), allocatable :: s
+    if (len_trim(self%failure(i)) > 0) then
+      s = merge('stopped', 'failed ', self%failure(i)(1:7) == 'stopped')
+      s = trim(s)
+    else
+      s = milliseconds(self%cpu(i)) // ', run ' // milliseconds(self%predicted(i))
+    end if
+  end function probe_text
+
+  !> A CPU time t (s) in ms, to 0.01 ms ("12.34 ms").
+  function milliseconds(t) result(s)
+    real(dp), intent(in) :: t
+    character(len=:), allocatable :: s
+    character(len=32) :: buf
+    write(buf, '(f0.2)') min(1.0e3_dp*t, 1.0e12_dp)
+    if (buf(1:1) == '.') buf = '0' // buf
+    s = trim(buf) // ' ms'
+  end function milliseconds
+
+  !> The JSON member "method_choice": {...}, with its comma and line.
+  function choice_json(self) result(s)
+    class(method_choice_t), intent(in) :: self
+    character(len=:), allocatable :: s
+    integer :: i
+    s = '  "method_choice": {"chosen": "' // json_escape(trim(self%label(self%chosen))) // '", "reason": "' // &
+      & json_escape(self%reason) // '", "probe_t_end": ' // fmt(self%t_probe) // ', "candidates": ['
+    do i = 1, self%n
+      s = s // '{"method": "' // json_escape(trim(self%label(i))) // '", "probe_cpu_s": '
+      if (len_trim(self%failure(i)) > 0 .or. self%t_probe == 0.0_dp) then
+        s = s // 'null'
+      else
+        s = s // fmt(self%cpu(i)) // ', "predicted_cpu_s": ' // fmt(self%predicted(i))
+      end if
+      s = s // ', "failure": "' // json_escape(trim(self%failure(i))) // '"}' // trim(merge(', ', '  ', i < self%n))
+    end do
+    s = s // ']},' // new_line('a')
+  end function choice_json
+end module pymr_driver_method_choice

@@ -1,0 +1,118 @@
+"""`&integrator method = 'auto'` (issue 34): the kernel probes its candidate methods from the
+initial state and runs the scene with the one whose predicted run is cheapest. The run is
+then exactly the chosen method's run (the probes work on copies of the model), it continues
+from a checkpoint with the method it chose, and the choice is reported in the summary and
+the JSON."""
+from __future__ import annotations
+
+import json
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import pymr
+
+ROOT = Path(__file__).resolve().parent.parent
+SPACECRAFT = ROOT / "input" / "spacecraft.nml"
+PENDULUM = ROOT / "input" / "pendulum.nml"
+TANK = ROOT / "input" / "tank_gun_turret.nml"
+AUTO = {"integrator.method": "auto", "integrator.adaptive": True}
+#: the explicit settings of each label the choice reports
+METHOD_OF = {
+    "single-rate 'adams'": {"integrator.method": "single", "integrator.adaptive": True},
+    "multirate 'exponential'": {"integrator.method": "multirate", "integrator.coupling": "exponential",
+                                "integrator.adaptive": True, "integrator.formula": "abm4"},
+    "multirate 'response'": {"integrator.method": "multirate", "integrator.coupling": "response",
+                             "integrator.adaptive": True, "integrator.formula": "abm4"},
+}
+COUNTS = ("steps_slow", "steps_fast", "rhs_full", "rhs_fast", "rejected_steps", "rows")
+
+
+def _same_run(a, b):
+    assert np.array_equal(a.t, b.t) and np.array_equal(a.data, b.data)
+    for key in COUNTS:
+        assert a.stats[key] == b.stats[key], key
+
+
+def test_a_scene_without_modal_coordinates_runs_single_rate_with_no_probe(tmp_path):
+    auto = pymr.run(PENDULUM, tmp_path / "auto.csv", overrides=AUTO)
+    choice = auto.stats["method_choice"]
+    assert choice["chosen"] == "single-rate 'adams'" and "no fast (modal) coordinates" in choice["reason"]
+    assert choice["probe_t_end"] == 0 and len(choice["candidates"]) == 1
+    _same_run(auto, pymr.run(PENDULUM, tmp_path / "single.csv", overrides=METHOD_OF[choice["chosen"]]))
+
+
+def test_the_run_is_the_chosen_method_s_run_and_the_choice_is_reported(tmp_path):
+    """Spacecraft over 0.5 s at rtol 1e-6: 'exponential' costs about 1/20 of 'adams' there, so
+    the choice is 'exponential'; the run equals that method's own run (rows, counts); the
+    chosen one has the least predicted CPU among the probes that finished; the summary
+    names it and every candidate."""
+    over = {**AUTO, "scene.t_end": 0.5}
+    auto = pymr.run(SPACECRAFT, tmp_path / "auto.csv", overrides=over)
+    choice = auto.stats["method_choice"]
+    assert choice["chosen"] == "multirate 'exponential'"
+    assert choice["probe_t_end"] == pytest.approx(0.03 * 0.5)
+    labels = [c["method"] for c in choice["candidates"]]
+    assert sorted(labels) == sorted(METHOD_OF)
+    finished = [c for c in choice["candidates"] if c["probe_cpu_s"] is not None]
+    best = min(finished, key=lambda c: c["predicted_cpu_s"])
+    assert best["method"] == choice["chosen"]
+    assert all(c["failure"].startswith("stopped at t = ") for c in choice["candidates"] if c not in finished)
+    assert auto.stats["integrator"]["method"] == "multirate"
+    assert auto.stats["integrator"]["coupling"] == "exponential"
+    _same_run(auto, pymr.run(SPACECRAFT, tmp_path / "direct.csv",
+                             overrides={**METHOD_OF[choice["chosen"]], "scene.t_end": 0.5}))
+    line = next(s for s in auto.summary.splitlines() if s.startswith("auto: "))
+    assert line.startswith("auto: multirate 'exponential' (least predicted CPU; probes from 0 to 0.015 s:")
+    assert all(label in line for label in labels)
+
+
+def test_a_loop_through_a_flexible_body_leaves_exponential_out(tmp_path):
+    """'exponential' refuses such a loop, so it is no candidate; the run is the chosen one's."""
+    from test_loops import flexible_coupler_scene
+    scene, _ = flexible_coupler_scene(tmp_path)
+    over = {**AUTO, "scene.t_end": 0.2, "integrator.rtol": 1e-6}
+    auto = pymr.run(scene, tmp_path / "auto.csv", overrides=over)
+    choice = auto.stats["method_choice"]
+    assert sorted(c["method"] for c in choice["candidates"]) == ["multirate 'response'", "single-rate 'adams'"]
+    direct = {**METHOD_OF[choice["chosen"]], "scene.t_end": 0.2, "integrator.rtol": 1e-6}
+    if choice["chosen"] == "multirate 'response'":
+        direct["integrator.k_max"] = auto.stats["integrator"]["k_max"]
+    _same_run(auto, pymr.run(scene, tmp_path / "direct.csv", overrides=direct))
+
+
+def test_an_auto_run_continues_from_its_checkpoint_with_the_method_it_chose(tmp_path):
+    """Cut at 0.55 s after a checkpoint at 0.4 s and restarted: the rows and counts equal the
+    chosen method's uninterrupted run (no probe at the restart, which could choose another)."""
+    over = {**AUTO, "integrator.rtol": 1e-6, "output.checkpoint_dt": 0.2}
+    out = tmp_path / "job.csv"
+    cut = pymr.run(TANK, out, overrides={**over, "scene.t_end": 0.55})
+    chosen = cut.stats["method_choice"]["chosen"]
+    res = pymr.run(TANK, out, overrides=over, restart=tmp_path / "job.ckpt")
+    assert res.stats["method_choice"]["chosen"] == chosen
+    assert res.stats["method_choice"]["reason"] == "the method the checkpoint was written with"
+    full = pymr.run(TANK, tmp_path / "full.csv", overrides={**METHOD_OF[chosen], "integrator.rtol": 1e-6})
+    assert np.array_equal(res.t, full.t)
+    assert np.abs(res.data - full.data).max() <= 1e-10 * np.abs(full.data).max()
+    for key in COUNTS:
+        assert res.stats[key] == full.stats[key], key
+
+
+def test_auto_with_fixed_steps_is_refused_in_one_line(tmp_path, mrsim):
+    r = subprocess.run([mrsim, str(TANK), "-o", "x.csv", "--set", "integrator.method=auto"], capture_output=True,
+                       text=True, cwd=tmp_path)
+    assert r.returncode == 1 and r.stdout == ""
+    msg = r.stderr.strip()
+    assert "\n" not in msg and "&integrator: method: 'auto' chooses among adaptive methods" in msg
+    assert "set adaptive = .true." in msg and not (tmp_path / "x.csv").exists()
+
+
+def test_the_json_names_the_choice_for_post_processing(tmp_path):
+    auto = pymr.run(SPACECRAFT, tmp_path / "auto.csv", overrides={**AUTO, "scene.t_end": 0.2})
+    stats = json.loads((tmp_path / "auto.json").read_text())
+    assert stats["method_choice"] == auto.stats["method_choice"]
+    for c in stats["method_choice"]["candidates"]:
+        assert set(c) == {"method", "probe_cpu_s", "predicted_cpu_s", "failure"} or \
+            (c["probe_cpu_s"] is None and set(c) == {"method", "probe_cpu_s", "failure"})
