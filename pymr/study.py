@@ -87,6 +87,9 @@ ORDER_ERRORS = (1e-5, 1e-6, 1e-7, 1e-8)
 #: Tolerances of the step and order histories of formula 'adams'.
 HISTORY_RTOLS = (1e-4, 1e-8)
 MULTIRATE_FAMILIES = ("response fixed", "response adaptive", "exponential fixed", "exponential adaptive")
+#: Method 'auto' (the kernel's choice among the adaptive methods), set against the fastest
+#: of the families above at each error level.
+AUTO_FAMILY = "auto adaptive"
 #: Steps of the 'exponential' coupling (times the scene's h_slow): it has no fast step, and
 #: its step is bound by the accuracy of the cubic through the full evaluations alone.
 EXPONENTIAL_FACTORS = _steps(128.0, 2.0)
@@ -339,6 +342,10 @@ class Study:
                 "integrator.method": "multirate", "integrator.coupling": "exponential", "integrator.adaptive": True,
                 "integrator.rtol": rtol, "integrator.atol": rtol * 1e-2, "integrator.h_fast": h0,
                 "integrator.h_slow": h0}))
+        for rtol in (QUICK_TOLERANCES if quick else MULTIRATE_RTOLS):
+            out.append(("pymr", "auto adaptive", f"rtol={rtol:.1e}", {
+                "integrator.method": "auto", "integrator.adaptive": True, "integrator.rtol": rtol,
+                "integrator.atol": rtol * 1e-2}))
         for name in PEERS:
             for rtol in (QUICK_TOLERANCES if quick else ORDER_RTOLS if name == "CVODE Adams" else PEER_RTOLS):
                 out.append(("peer", name, rtol))
@@ -489,7 +496,12 @@ class Study:
             s = min(single, key=lambda c: c.cpu_s) if single else None
             m = min(multi, key=lambda c: c.cpu_s) if multi else None
             ratio = m.cpu_s / s.cpu_s if s and m else math.nan
-            out.append({"error": level, "best": best, "single": s, "multirate": m, "ratio": ratio})
+            pymr_best = [c for f, c in best.items() if f in SINGLE_FAMILIES + MULTIRATE_FAMILIES]
+            fastest = min(pymr_best, key=lambda c: c.cpu_s) if pymr_best else None
+            auto = best.get(AUTO_FAMILY)
+            out.append({"error": level, "best": best, "single": s, "multirate": m, "ratio": ratio,
+                        "auto": auto, "fastest": fastest,
+                        "auto_ratio": auto.cpu_s / fastest.cpu_s if auto and fastest else math.nan})
         return out
 
     def front_text(self, errors=FRONT_ERRORS) -> str:
@@ -512,6 +524,10 @@ class Study:
             else:
                 lines.append("    fastest multirate / fastest single-rate: n/a (a side has no case "
                              "this accurate)")
+            a, f = row["auto"], row["fastest"]
+            if a and f:
+                lines.append(f"    method 'auto' / fastest pymr method: {a.cpu_s:.4f} s ({a.setting}) / {f.cpu_s:.4f} s "
+                             f"({f.method} {f.setting}) = {row['auto_ratio']:.2f}")
         return "\n".join(lines)
 
     def order_summary(self, errors=ORDER_ERRORS) -> list[dict]:
@@ -612,7 +628,7 @@ class Study:
         fig, axes = plt.subplots(1, 2, figsize=(16, 6.2 + extra), sharey=True)
         methods = list(dict.fromkeys(c.method for c in self.cases))
         colours = {"single": plt.cm.Greys, "abm4": plt.cm.Purples, "adams": plt.cm.Reds, "response": plt.cm.Blues,
-                   "full": plt.cm.Oranges, "exponential": plt.cm.Greens}
+                   "full": plt.cm.Oranges, "exponential": plt.cm.Greens, "auto": plt.cm.copper}
         counts = {fam: 0 for fam in colours}
         shades = {fam: sum(1 for m in methods if m.split()[0] == fam) for fam in colours}
         peer_colours = iter(["tab:green", "tab:purple", "tab:olive", "tab:brown", "tab:pink"])

@@ -194,17 +194,18 @@ def test_cpu_time_is_the_median_of_the_repeats():
 
 
 def test_quick_study_end_to_end(tmp_path, capsys):
-    """`pymr study --quick` on the tank, 2 runs per case: 43 cases (single-rate 3 fixed
+    """`pymr study --quick` on the tank, 2 runs per case: 46 cases (single-rate 3 fixed
     steps and 3 tolerances of each formula, 'abm4' and 'adams'; per coupling 'response' and
     'full' 2 ratios x 2 fast steps and 3 tolerances; 'exponential' 2 steps and 3 tolerances;
-    5 peers x 3 tolerances), none refused (the quick grid's 'full' ratios 5 and 20 at h_fast
+    method 'auto' at 3 tolerances; 5 peers x 3 tolerances), none refused (the quick grid's 'full' ratios 5 and 20 at h_fast
     5e-5 and 2.5e-5 s are within the stability limit of 33 at 1e-4 s), the weights, the
     refusals and a front with its ratio at every level (1e-4 to 1e-7 m) printed."""
     from pymr import study as study_mod
     assert study_mod.main(str(TANK), "muzzle", output=str(tmp_path / "q"), quick=True, repeats=2) == 0
     out = capsys.readouterr().out
     rows = list(csv.DictReader(open(tmp_path / "q.csv")))
-    assert len(rows) == 43
+    assert len(rows) == 46
+    assert sum(r["method"] == "auto adaptive" for r in rows) == 3
     assert sum(r["method"].startswith("response fixed") for r in rows) == 4
     assert sum(r["method"] == "exponential fixed" for r in rows) == 2
     assert all(r["status"] == "ok" or r["status"].startswith("skipped") for r in rows)
@@ -213,6 +214,9 @@ def test_quick_study_end_to_end(tmp_path, capsys):
     assert float(h1["error_m"]) == pytest.approx(5.5e-8, rel=0.05)
     assert "refused by the pre-flight check: none" in out and "measured weight w" in out
     assert out.count("fastest multirate / fastest single-rate: ") == 4 and "n/a" not in out
+    # 'auto' at each level some case of it reaches, against the fastest pymr method there
+    auto = [float(r["error_m"]) for r in rows if r["method"] == "auto adaptive"]
+    assert out.count("method 'auto' / fastest pymr method: ") == sum(min(auto) <= e for e in (1e-4, 1e-5, 1e-6, 1e-7))
     assert (tmp_path / "q.png").stat().st_size > 10000
     assert "variable order: fewest evaluations" in out and "step and order history of formula 'adams'" in out
     hist = list(csv.DictReader(open(tmp_path / "q_history.csv")))

@@ -4,7 +4,9 @@
 !> slow (joint) and fast (modal) coordinates, the multirate couplings 'exponential' (not
 !> with a closed loop through a flexible body, which it refuses) and 'response'. Each
 !> candidate runs on a copy of the model from the initial state over the first
-!> `probe_share` of the run, at the scene's tolerances. Its CPU over the probe's second
+!> `probe_share` of the run, at the scene's tolerances, with the dense output of the run's
+!> rows (its cost differs between the methods: the exponential flow's closed form against
+!> a polynomial). Its CPU over the probe's second
 !> half (past the start's small steps), scaled to the rest of the run, plus its CPU up to
 !> there, predicts its run; the least prediction runs the scene. A probe that has taken
 !> `race_margin` times the CPU of the fastest finished probe is stopped: its candidate is
@@ -108,8 +110,9 @@ contains
     type(model_t) :: copy
     class(stepper_t), allocatable :: st
     type(error_type), allocatable :: error
-    real(dp) :: cpu0, cpu_half, t_half, cap
-    real(dp) :: h0
+    real(dp) :: cpu0, cpu_half, t_half, cap, h0
+    real(dp) :: xr(size(x))
+    integer :: k_row
     trial = sc; copy = model
     call set_method(trial, choice%method(i))
     cap = huge(1.0_dp)
@@ -118,7 +121,9 @@ contains
     cpu0 = thread_cpu_time(); cpu_half = -1.0_dp; t_half = 0.0_dp
     call make_stepper(trial, copy, x, st, h0, error)
     if (.not. allocated(error)) call st%start(copy, 0.0_dp, x, h0, error)
+    k_row = 1
     do while (.not. allocated(error))
+      call dense_rows(sc%output%dt, st, k_row, xr)
       if (cpu_half < 0.0_dp .and. st%time() >= 0.5_dp*choice%t_probe) then
         cpu_half = thread_cpu_time(); t_half = st%time()
       end if
@@ -140,6 +145,22 @@ contains
         & (st%time() - t_half)
     end if
   end subroutine probe
+
+  !> The dense output of the rows every dt (every step when dt is 0) up to the time the
+  !> stepper has reached, from row k on (k advanced past them); x: work space.
+  subroutine dense_rows(dt, st, k, x)
+    real(dp), intent(in) :: dt
+    class(stepper_t), intent(in) :: st
+    integer, intent(inout) :: k
+    real(dp), intent(out) :: x(:)
+    if (dt <= 0.0_dp) then
+      call st%value_at(st%time(), x); return
+    end if
+    do while (k*dt <= st%time())
+      call st%value_at(k*dt, x)
+      k = k + 1
+    end do
+  end subroutine dense_rows
 
   !> The method of a run of method 'auto' continued from the checkpoint `path`: the one
   !> whose stepper wrote it, set in sc (a file read_checkpoint refuses is refused here).
