@@ -116,3 +116,17 @@ def test_the_json_names_the_choice_for_post_processing(tmp_path):
     for c in stats["method_choice"]["candidates"]:
         assert set(c) == {"method", "probe_cpu_s", "predicted_cpu_s", "failure"} or \
             (c["probe_cpu_s"] is None and set(c) == {"method", "probe_cpu_s", "failure"})
+
+
+def test_when_every_probe_fails_the_single_rate_run_reports_why(tmp_path, mrsim):
+    """h_min = 0.05 s leaves no candidate a step it can take: the run is single-rate, fails
+    with exit 2 naming the time and the cause, and its partial JSON keeps each probe's
+    failure."""
+    r = subprocess.run([mrsim, str(TANK), "-o", "f.csv", "--set", "integrator.method=auto", "--set",
+                        "integrator.adaptive=.true.", "--set", "integrator.h_min=0.05"], capture_output=True,
+                       text=True, cwd=tmp_path)
+    assert r.returncode == 2 and "\n" not in r.stderr.strip()
+    assert "step size underflow at t = 0 s" in r.stderr
+    choice = json.loads((tmp_path / "f.json.partial").read_text())["method_choice"]
+    assert choice["chosen"] == "single-rate 'adams'" and choice["reason"].startswith("every probe failed")
+    assert all("step size underflow" in c["failure"] and c["probe_cpu_s"] is None for c in choice["candidates"])

@@ -74,6 +74,10 @@ contains
       end do
       choice%chosen = minloc(choice%predicted(1:choice%n), 1)
       choice%reason = 'least predicted CPU'
+      if (all(choice%predicted(1:choice%n) == huge(1.0_dp))) then
+        choice%chosen = choice%n
+        choice%reason = 'every probe failed: single-rate, whose run reports why'
+      end if
     end if
     call set_method(sc, choice%method(choice%chosen))
   end subroutine choose_method
