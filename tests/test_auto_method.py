@@ -1,8 +1,8 @@
 """`&integrator method = 'auto'` (issue 34): the kernel probes its candidate methods from the
-initial state and runs the scene with the one whose predicted run is cheapest. The run is
-then exactly the chosen method's run (the probes work on copies of the model), it continues
-from a checkpoint with the method it chose, and the choice is reported in the summary and
-the JSON."""
+initial state and runs the scene with the one whose predicted run is cheapest, going on from
+its probe where it can. The run is then exactly the chosen method's run (the probes work on
+copies of the model), it continues from a checkpoint with the method it chose, and the
+choice is reported in the summary and the JSON."""
 from __future__ import annotations
 
 import json
@@ -44,12 +44,15 @@ def test_a_scene_without_modal_coordinates_runs_single_rate_with_no_probe(tmp_pa
     _same_run(auto, pymr.run(PENDULUM, tmp_path / "single.csv", overrides=METHOD_OF[choice["chosen"]]))
 
 
-def test_the_run_is_the_chosen_method_s_run_and_the_choice_is_reported(tmp_path):
+@pytest.mark.parametrize("quantities", [["coordinates", "markers"], ["coordinates", "markers", "energy"]])
+def test_the_run_is_the_chosen_method_s_run_and_the_choice_is_reported(tmp_path, quantities):
     """Spacecraft over 0.5 s at rtol 1e-6: 'exponential' costs about 1/20 of 'adams' there, so
-    the choice is 'exponential'; the run equals that method's own run (rows, counts); the
-    chosen one has the least predicted CPU among the probes that finished; the summary
-    names it and every candidate."""
-    over = {**AUTO, "scene.t_end": 0.5}
+    the choice is 'exponential'; the run equals that method's own run (rows, counts), both
+    where it goes on from the chosen probe and where it starts again (the energy columns'
+    works integrate over the steps, which the probe did not); the chosen one has the least
+    predicted CPU among the probes that finished; the summary names it and every
+    candidate."""
+    over = {**AUTO, "scene.t_end": 0.5, "output.quantities": quantities}
     auto = pymr.run(SPACECRAFT, tmp_path / "auto.csv", overrides=over)
     choice = auto.stats["method_choice"]
     assert choice["chosen"] == "multirate 'exponential'"
@@ -62,8 +65,8 @@ def test_the_run_is_the_chosen_method_s_run_and_the_choice_is_reported(tmp_path)
     assert all(c["failure"].startswith("stopped at t = ") for c in choice["candidates"] if c not in finished)
     assert auto.stats["integrator"]["method"] == "multirate"
     assert auto.stats["integrator"]["coupling"] == "exponential"
-    _same_run(auto, pymr.run(SPACECRAFT, tmp_path / "direct.csv",
-                             overrides={**METHOD_OF[choice["chosen"]], "scene.t_end": 0.5}))
+    _same_run(auto, pymr.run(SPACECRAFT, tmp_path / "direct.csv", overrides={
+        **METHOD_OF[choice["chosen"]], "scene.t_end": 0.5, "output.quantities": quantities}))
     line = next(s for s in auto.summary.splitlines() if s.startswith("auto: "))
     assert line.startswith("auto: multirate 'exponential' (least predicted CPU; probes from 0 to 0.015 s:")
     assert all(label in line for label in labels)

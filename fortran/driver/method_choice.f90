@@ -24,12 +24,24 @@ module pymr_driver_method_choice
   use pymr_driver_stepper_setup, only : make_stepper
   implicit none
   private
-  public :: choose_method, method_of_checkpoint, method_choice_t
+  public :: choose_method, method_of_checkpoint, method_choice_t, probe_run
 
   !> Share of the run (from its start) each candidate is probed over; CPU beyond the fastest
   !> finished probe's at which a probe stops.
   real(dp), parameter :: probe_share = 0.03_dp, race_margin = 1.5_dp
   integer, parameter :: max_candidates = 3
+  !> Rows of dense output a probe keeps at most (beyond, its run starts again from 0).
+  integer, parameter :: max_probe_rows = 20000
+
+  !> A finished probe, kept until the choice: its stepper and model where it stopped, and
+  !> the states of the rows it passed (every dt of &output), so that the chosen method's
+  !> run can go on from there instead of starting again (nr = -1: too many rows kept).
+  type :: probe_run
+    class(stepper_t), allocatable :: st
+    type(model_t), allocatable :: model
+    real(dp), allocatable :: rows(:, :)
+    integer :: nr = 0
+  end type probe_run
 
   !> What 'auto' chose and why: the candidates' labels and methods (set_method's numbers),
   !> probe CPU and predicted run CPU (s; huge when the probe failed or stopped) and why it
@@ -42,6 +54,8 @@ module pymr_driver_method_choice
     character(len=200) :: failure(max_candidates) = ''
     real(dp) :: t_probe = 0.0_dp
     character(len=:), allocatable :: reason
+    !> The candidates' finished probes.
+    type(probe_run) :: runs(max_candidates)
   contains
     procedure :: summary => choice_summary
     procedure :: json => choice_json
@@ -103,65 +117,96 @@ contains
   end subroutine set_method
 
   !> Candidate i from the initial state over [0, t_probe] on a copy of the model: its CPU
-  !> (the stepper's making included) and its predicted run.
+  !> (the stepper's making included) and its predicted run; the probe is kept (runs(i))
+  !> when it finished.
   subroutine probe(sc, model, x, i, choice)
     type(scene_t), intent(in) :: sc
     type(model_t), intent(in) :: model
     real(dp), intent(in) :: x(:)
     integer, intent(in) :: i
-    type(method_choice_t), intent(inout) :: choice
+    type(method_choice_t), intent(inout), target :: choice
+    type(probe_run), pointer :: run
     type(scene_t) :: trial
-    type(model_t) :: copy
-    class(stepper_t), allocatable :: st
     type(error_type), allocatable :: error
     real(dp) :: cpu0, cpu_half, t_half, cap, h0
-    real(dp) :: xr(size(x))
     integer :: k_row
-    trial = sc; copy = model
+    trial = sc
     call set_method(trial, choice%method(i))
     cap = huge(1.0_dp)
     if (i > 1) cap = minval(choice%cpu(1:i-1))
     if (cap < huge(1.0_dp)) cap = race_margin*cap
+    run => choice%runs(i)
     cpu0 = thread_cpu_time(); cpu_half = -1.0_dp; t_half = 0.0_dp
-    call make_stepper(trial, copy, x, st, h0, error)
-    if (.not. allocated(error)) call st%start(copy, 0.0_dp, x, h0, error)
+    allocate(run%model, source=model)
+    allocate(run%rows(size(x), 16))
+    call make_stepper(trial, run%model, x, run%st, h0, error)
+    if (.not. allocated(error)) call run%st%start(run%model, 0.0_dp, x, h0, error)
     k_row = 1
     do while (.not. allocated(error))
-      call dense_rows(sc%output%dt, st, k_row, xr)
-      if (cpu_half < 0.0_dp .and. st%time() >= 0.5_dp*choice%t_probe) then
-        cpu_half = thread_cpu_time(); t_half = st%time()
+      call dense_rows(sc%output%dt, run, k_row)
+      if (cpu_half < 0.0_dp .and. run%st%time() >= 0.5_dp*choice%t_probe) then
+        cpu_half = thread_cpu_time(); t_half = run%st%time()
       end if
-      if (st%time() >= choice%t_probe) exit
+      if (run%st%time() >= choice%t_probe) exit
       if (thread_cpu_time() - cpu0 > cap) then
-        choice%failure(i) = 'stopped at t = ' // fmt(st%time()) // ' s: slower than the fastest probe'; return
+        choice%failure(i) = 'stopped at t = ' // fmt(run%st%time()) // ' s: slower than the fastest probe'
+        call forget(run); return
       end if
-      call st%advance(copy, error)
+      call run%st%advance(run%model, error)
     end do
     if (allocated(error)) then
-      choice%failure(i) = error%message; return
+      choice%failure(i) = error%message
+      call forget(run); return
     end if
     choice%cpu(i) = thread_cpu_time() - cpu0
-    if (cpu_half < 0.0_dp .or. st%time() - t_half < 0.25_dp*choice%t_probe) then
-      ! a probe of one or two steps: its whole CPU scaled
-      choice%predicted(i) = choice%cpu(i)*sc%scene%t_end/st%time()
-    else
-      choice%predicted(i) = choice%cpu(i) + (cpu0 + choice%cpu(i) - cpu_half)*(sc%scene%t_end - st%time())/ &
-        & (st%time() - t_half)
-    end if
+    choice%predicted(i) = predicted_run(choice%cpu(i), thread_cpu_time() - cpu_half, run%st%time(), t_half, &
+      & cpu_half >= 0.0_dp, choice%t_probe, sc%scene%t_end)
   end subroutine probe
 
-  !> The dense output of the rows every dt (every step when dt is 0) up to the time the
-  !> stepper has reached, from row k on (k advanced past them); x: work space.
-  subroutine dense_rows(dt, st, k, x)
-    real(dp), intent(in) :: dt
-    class(stepper_t), intent(in) :: st
-    integer, intent(inout) :: k
-    real(dp), intent(out) :: x(:)
-    if (dt <= 0.0_dp) then
-      call st%value_at(st%time(), x); return
+  !> A probe's predicted run: its CPU, and its CPU over its second half (from t_half to
+  !> t, cpu_2) scaled to the rest of the run to t_end; a probe of one or two steps (no
+  !> second half to speak of): its CPU scaled.
+  pure real(dp) function predicted_run(cpu, cpu_2, t, t_half, halved, t_probe, t_end) result(p)
+    real(dp), intent(in) :: cpu, cpu_2, t, t_half, t_probe, t_end
+    logical, intent(in) :: halved
+    if (.not. halved .or. t - t_half < 0.25_dp*t_probe) then
+      p = cpu*t_end/t
+    else
+      p = cpu + cpu_2*(t_end - t)/(t - t_half)
     end if
-    do while (k*dt <= st%time())
-      call st%value_at(k*dt, x)
+  end function predicted_run
+
+  !> A probe that failed or stopped is not kept.
+  subroutine forget(run)
+    type(probe_run), intent(inout) :: run
+    if (allocated(run%st)) deallocate(run%st)
+    if (allocated(run%model)) deallocate(run%model)
+    if (allocated(run%rows)) deallocate(run%rows)
+  end subroutine forget
+
+  !> The dense output of the rows every dt (every step when dt is 0: not kept) up to the
+  !> time the probe's stepper has reached, from row k on (k advanced past them), kept in
+  !> the probe's rows up to max_probe_rows.
+  subroutine dense_rows(dt, run, k)
+    real(dp), intent(in) :: dt
+    type(probe_run), intent(inout) :: run
+    integer, intent(inout) :: k
+    real(dp), allocatable :: grown(:, :)
+    if (dt <= 0.0_dp) then
+      call run%st%value_at(run%st%time(), run%rows(:, 1)); run%nr = -1; return
+    end if
+    do while (k*dt <= run%st%time())
+      if (run%nr >= 0 .and. k > size(run%rows, 2)) then
+        if (k > max_probe_rows) then
+          run%nr = -1
+        else
+          allocate(grown(size(run%rows, 1), 2*size(run%rows, 2)))
+          grown(:, 1:k-1) = run%rows(:, 1:k-1)
+          call move_alloc(grown, run%rows)
+        end if
+      end if
+      call run%st%value_at(k*dt, run%rows(:, min(k, size(run%rows, 2))))
+      if (run%nr >= 0) run%nr = k
       k = k + 1
     end do
   end subroutine dense_rows

@@ -34,7 +34,8 @@ module pymr_driver_simulation
   use pymr_driver_progress, only : run_clock
   use pymr_driver_settings_json, only : settings_json
   use pymr_driver_summary, only : summary_text
-  use pymr_driver_method_choice, only : choose_by_probe => choose_method, method_of_checkpoint, method_choice_t
+  use pymr_driver_method_choice, only : choose_by_probe => choose_method, method_of_checkpoint, method_choice_t, &
+    & probe_run
   use pymr_driver_moving_load_exits, only : note_exits, next_exit, exits_json
   implicit none
   private
@@ -47,6 +48,8 @@ module pymr_driver_simulation
     type(scene_t) :: sc
     type(model_t) :: model
     class(stepper_t), allocatable :: st
+    !> Method 'auto': the chosen method's probe, which the run continues when it can.
+    type(probe_run), allocatable :: probed
     class(results_file), allocatable :: out
     type(run_stats) :: stats
     type(run_clock) :: clock
@@ -78,7 +81,7 @@ module pymr_driver_simulation
     procedure :: summary => simulation_summary
     procedure :: close => simulation_close
     procedure, private :: choose_format, choose_method
-    procedure, private :: begin_new, resume, put_row, put_rows_reached, put_last_row, checkpoint_if_due, start_again
+    procedure, private :: begin_new, resume, continues_probe, continue_probe, put_row, put_rows_reached, put_last_row, checkpoint_if_due, start_again
     procedure, private :: write_results, name_file
   end type simulation_t
 
@@ -148,6 +151,13 @@ contains
       end if
     else
       call choose_by_probe(self%sc, self%model, self%x, choice)
+      if (allocated(choice%runs(choice%chosen)%st)) then
+        allocate(self%probed)
+        call move_alloc(choice%runs(choice%chosen)%st, self%probed%st)
+        call move_alloc(choice%runs(choice%chosen)%model, self%probed%model)
+        call move_alloc(choice%runs(choice%chosen)%rows, self%probed%rows)
+        self%probed%nr = choice%runs(choice%chosen)%nr
+      end if
     end if
     self%stats%choice_line = choice%summary()
     self%stats%choice_report = choice%json()
@@ -215,12 +225,47 @@ contains
       self%stats%preflight_cpu_s = thread_cpu_time() - self%stats%preflight_cpu_s
       self%clock%cpu0 = self%clock%cpu0 + self%stats%preflight_cpu_s
     end if
-    call self%st%start(self%model, 0.0_dp, self%x, self%h0, error)
+    if (self%continues_probe()) then
+      call self%continue_probe(error)
+    else
+      call self%st%start(self%model, 0.0_dp, self%x, self%h0, error)
+    end if
+    if (allocated(self%probed)) deallocate(self%probed)
     if (allocated(error)) then
       call self%out%discard()
       call self%name_file(error)
     end if
   end subroutine begin_new
+
+  !> Whether the run goes on from the probe of the method 'auto' chose: the probe's rows are
+  !> the run's (every &output dt, no energy columns, whose works integrate over the steps),
+  !> and nothing the run does between steps falls inside it (a moving load's exit, a
+  !> checkpoint).
+  logical function continues_probe(self)
+    class(simulation_t), intent(in) :: self
+    continues_probe = .false.
+    if (.not. allocated(self%probed)) return
+    if (self%probed%nr < 0 .or. self%dt_out <= 0.0_dp .or. self%out%plan%energy) return
+    if (next_exit(self%model, 0.0_dp) < huge(1.0_dp)) return
+    if (self%sc%output%checkpoint_dt > 0.0_dp .and. self%sc%output%checkpoint_dt <= self%probed%st%time()) return
+    continues_probe = self%probed%st%time() < self%sc%scene%t_end - self%eps
+  end function continues_probe
+
+  !> The run continued from the chosen method's probe: its stepper and model taken, the
+  !> rows it passed written. The run is the one a start from 0 gives, step for step.
+  subroutine continue_probe(self, error)
+    class(simulation_t), intent(inout) :: self
+    type(error_type), allocatable, intent(out) :: error
+    integer :: k
+    call move_alloc(self%probed%st, self%st)
+    self%model = self%probed%model
+    do k = 1, self%probed%nr
+      self%x = self%probed%rows(:, k)
+      call self%put_row(k*self%dt_out, self%work_step, error); if (allocated(error)) return
+      self%stats%rows = self%stats%rows + 1
+      self%k_out = self%k_out + 1; self%t_next = self%k_out*self%dt_out
+    end do
+  end subroutine continue_probe
 
   !> A run continued from the checkpoint file `restart`: the stepper and the model as they
   !> were, the results file reopened at the rows the checkpoint counts.
