@@ -10,7 +10,8 @@
 !> half (past the start's small steps), scaled to the rest of the run, plus its CPU up to
 !> there, predicts its run; the least prediction runs the scene. A probe that has taken
 !> `race_margin` times the CPU of the fastest finished probe is stopped: its candidate is
-!> slower. A scene without fast coordinates runs single-rate with no probe. A run
+!> slower; so is one whose CPU so far, scaled to the whole run, is `far_margin` times the
+!> least prediction (after `far_steps` steps: a method several times slower is seen early). A scene without fast coordinates runs single-rate with no probe. A run
 !> continued from a checkpoint keeps the method that wrote it.
 module pymr_driver_method_choice
   use pymr_env_kinds, only : dp
@@ -28,7 +29,8 @@ module pymr_driver_method_choice
 
   !> Share of the run (from its start) each candidate is probed over; CPU beyond the fastest
   !> finished probe's at which a probe stops.
-  real(dp), parameter :: probe_share = 0.03_dp, race_margin = 1.5_dp
+  real(dp), parameter :: probe_share = 0.03_dp, race_margin = 1.5_dp, far_margin = 10.0_dp
+  integer, parameter :: far_steps = 10
   integer, parameter :: max_candidates = 3
   !> Rows of dense output a probe keeps at most (beyond, its run starts again from 0).
   integer, parameter :: max_probe_rows = 20000
@@ -128,31 +130,35 @@ contains
     type(probe_run), pointer :: run
     type(scene_t) :: trial
     type(error_type), allocatable :: error
-    real(dp) :: cpu0, cpu_half, t_half, cap, h0
-    integer :: k_row
+    real(dp) :: cpu0, cpu_half, t_half, cap, h0, best
+    integer :: k_row, steps
     trial = sc
     call set_method(trial, choice%method(i))
     cap = huge(1.0_dp)
     if (i > 1) cap = minval(choice%cpu(1:i-1))
     if (cap < huge(1.0_dp)) cap = race_margin*cap
+    best = huge(1.0_dp)
+    if (i > 1) best = minval(choice%predicted(1:i-1))
     run => choice%runs(i)
     cpu0 = thread_cpu_time(); cpu_half = -1.0_dp; t_half = 0.0_dp
     allocate(run%model, source=model)
     allocate(run%rows(size(x), 16))
     call make_stepper(trial, run%model, x, run%st, h0, error)
     if (.not. allocated(error)) call run%st%start(run%model, 0.0_dp, x, h0, error)
-    k_row = 1
+    k_row = 1; steps = 0
     do while (.not. allocated(error))
       call dense_rows(sc%output%dt, run, k_row)
       if (cpu_half < 0.0_dp .and. run%st%time() >= 0.5_dp*choice%t_probe) then
         cpu_half = thread_cpu_time(); t_half = run%st%time()
       end if
       if (run%st%time() >= choice%t_probe) exit
-      if (thread_cpu_time() - cpu0 > cap) then
+      if (thread_cpu_time() - cpu0 > cap .or. (steps >= far_steps .and. best < huge(1.0_dp) .and. &
+        & (thread_cpu_time() - cpu0)*sc%scene%t_end > far_margin*best*run%st%time())) then
         choice%failure(i) = 'stopped at t = ' // fmt(run%st%time()) // ' s: slower than the fastest probe'
         call forget(run); return
       end if
       call run%st%advance(run%model, error)
+      steps = steps + 1
     end do
     if (allocated(error)) then
       choice%failure(i) = error%message
