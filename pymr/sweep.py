@@ -380,7 +380,9 @@ def run_sweep(sw: Sweep, scheduler: str | None = None, workers: int = 2) -> list
         # one thread per worker process, BLAS included: the workers inherit these
         for name in BLAS_THREADS:
             os.environ.setdefault(name, "1")
-        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None)
+        # the scheduler's HTTP server on a free port (None takes 8787, and a second sweep on the
+        # machine printed Dask's "Port 8787 is already in use" warning into pymr's one-line errors)
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0")
         client = Client(cluster)
     try:
         # the references run on the cluster too; each case waits for its own
