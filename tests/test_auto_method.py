@@ -117,8 +117,35 @@ def test_the_json_names_the_choice_for_post_processing(tmp_path):
     stats = json.loads((tmp_path / "auto.json").read_text())
     assert stats["method_choice"] == auto.stats["method_choice"]
     for c in stats["method_choice"]["candidates"]:
-        assert set(c) == {"method", "probe_cpu_s", "predicted_cpu_s", "failure"} or \
-            (c["probe_cpu_s"] is None and set(c) == {"method", "probe_cpu_s", "failure"})
+        assert set(c) == {"method", "probe_cpu_s", "predicted_cpu_s", "failure"}
+        assert (c["probe_cpu_s"] is None) == (c["predicted_cpu_s"] is None) == bool(c["failure"])
+
+
+@pytest.mark.parametrize("sets, expected", [
+    (["integrator.h_fast=1e-5", "integrator.h_slow=1e-3"],
+     "&integrator: h_slow: method 'auto' chooses the steps (its candidates start from h_slow): set h_fast = h_slow"),
+    (["integrator.adaptive=.false."], "&integrator: method: 'auto' chooses among adaptive methods"),
+])
+def test_settings_auto_cannot_take_are_refused_in_one_line(tmp_path, mrsim, sets, expected):
+    args = [mrsim, str(SPACECRAFT), "-o", "x.csv", "--set", "integrator.method=auto"]
+    for item in sets:
+        args += ["--set", item]
+    r = subprocess.run(args, capture_output=True, text=True, cwd=tmp_path)
+    assert r.returncode == 1 and "\n" not in r.stderr.strip() and expected in r.stderr
+
+
+def test_a_step_history_of_auto_is_refused_and_a_full_coupling_checkpoint_is_not_continued(tmp_path):
+    with pytest.raises(pymr.SceneError, match="method: 'auto' chooses by timing probes"):
+        pymr.step_history(TANK, overrides={**AUTO, "scene.t_end": 0.1})
+    out = tmp_path / "job.csv"
+    full = {"integrator.method": "multirate", "integrator.coupling": "full", "integrator.adaptive": True,
+            "integrator.rtol": 1e-6, "output.checkpoint_dt": 0.1}
+    pymr.run(TANK, out, overrides={**full, "scene.t_end": 0.15})
+    with pytest.raises(pymr.SceneError) as exc:
+        pymr.run(TANK, out, overrides={**AUTO, "integrator.rtol": 1e-6, "output.checkpoint_dt": 0.1},
+                 restart=tmp_path / "job.ckpt")
+    assert "job.ckpt: the checkpoint was written by the 'multirate' stepper, which method 'auto' never chooses" \
+        in str(exc.value) and "\n" not in str(exc.value)
 
 
 def test_when_every_probe_fails_the_single_rate_run_reports_why(tmp_path, mrsim):

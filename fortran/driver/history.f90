@@ -30,6 +30,11 @@ contains
     real(dp), allocatable :: x(:)
     real(dp) :: h0, t_prev
     nh = 0; t = 0.0_dp; h = 0.0_dp; q = 0
+    if (sc%integrator%method == 'auto') then
+      call fatal_error(error, sc%file // ": &integrator: method: 'auto' chooses by timing probes at the run's " // &
+        & "start, so its steps are not known before: name the method ('single' or 'multirate') for a step " // &
+        & "history"); return
+    end if
     allocate(x(2*model%d%n))
     call starting_state(sc, model, x, error); if (allocated(error)) return
     call make_stepper(sc, model, x, st, h0, error); if (allocated(error)) return

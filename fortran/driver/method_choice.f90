@@ -15,12 +15,12 @@
 !> continued from a checkpoint keeps the method that wrote it.
 module pymr_driver_method_choice
   use pymr_env_kinds, only : dp
-  use pymr_env_error, only : error_type
+  use pymr_env_error, only : error_type, fatal_error
   use pymr_env_clock, only : thread_cpu_time
-  use pymr_env_text, only : fmt, json_escape
+  use pymr_env_text, only : fmt, itoa, json_escape
   use pymr_model_scene, only : scene_t, flexible_loop
   use pymr_model, only : model_t
-  use pymr_integrator_stepper, only : stepper_t
+  use pymr_integrator_stepper, only : stepper_t, step_counts
   use pymr_io_checkpoint, only : checkpoint_stepper
   use pymr_driver_stepper_setup, only : make_stepper
   implicit none
@@ -132,6 +132,7 @@ contains
     type(error_type), allocatable :: error
     real(dp) :: cpu0, cpu_half, t_half, cap, h0, best
     integer :: k_row, steps
+    type(step_counts) :: done
     trial = sc
     call set_method(trial, choice%method(i))
     cap = huge(1.0_dp)
@@ -147,7 +148,7 @@ contains
     if (.not. allocated(error)) call run%st%start(run%model, 0.0_dp, x, h0, error)
     k_row = 1; steps = 0
     do while (.not. allocated(error))
-      call dense_rows(sc%output%dt, run, k_row)
+      call dense_rows(sc%output%dt, min(run%st%time(), sc%scene%t_end) + 1.0e-9_dp*sc%integrator%h_slow, run, k_row)
       if (cpu_half < 0.0_dp .and. run%st%time() >= 0.5_dp*choice%t_probe) then
         cpu_half = thread_cpu_time(); t_half = run%st%time()
       end if
@@ -159,6 +160,10 @@ contains
       end if
       call run%st%advance(run%model, error)
       steps = steps + 1
+      done = run%st%counts()
+      if (.not. allocated(error) .and. done%steps_fast > sc%integrator%max_steps) &
+        & call fatal_error(error, 'at t = ' // fmt(run%st%time()) // ' s: the probe took more than max_steps = ' // &
+        & itoa(sc%integrator%max_steps) // ' steps')
     end do
     if (allocated(error)) then
       choice%failure(i) = error%message
@@ -191,28 +196,29 @@ contains
   end subroutine forget
 
   !> The dense output of the rows every dt (every step when dt is 0: not kept) up to the
-  !> time the probe's stepper has reached, from row k on (k advanced past them), kept in
-  !> the probe's rows up to max_probe_rows.
-  subroutine dense_rows(dt, run, k)
-    real(dp), intent(in) :: dt
+  !> time t_last (the time the probe's stepper has reached, within the run, plus the run's
+  !> tolerance on output times), from row k on (k advanced past them), kept in the probe's
+  !> rows up to max_probe_rows; beyond, the rows are neither evaluated nor kept (nr = -1).
+  subroutine dense_rows(dt, t_last, run, k)
+    real(dp), intent(in) :: dt, t_last
     type(probe_run), intent(inout) :: run
     integer, intent(inout) :: k
     real(dp), allocatable :: grown(:, :)
+    integer :: stat
     if (dt <= 0.0_dp) then
       call run%st%value_at(run%st%time(), run%rows(:, 1)); run%nr = -1; return
     end if
-    do while (k*dt <= run%st%time())
-      if (run%nr >= 0 .and. k > size(run%rows, 2)) then
-        if (k > max_probe_rows) then
-          run%nr = -1
-        else
-          allocate(grown(size(run%rows, 1), 2*size(run%rows, 2)))
-          grown(:, 1:k-1) = run%rows(:, 1:k-1)
-          call move_alloc(grown, run%rows)
+    do while (k*dt <= t_last .and. run%nr >= 0)
+      if (k > size(run%rows, 2)) then
+        allocate(grown(size(run%rows, 1), min(2*size(run%rows, 2), max_probe_rows)), stat=stat)
+        if (k > max_probe_rows .or. stat /= 0) then
+          run%nr = -1; exit
         end if
+        grown(:, 1:k-1) = run%rows(:, 1:k-1)
+        call move_alloc(grown, run%rows)
       end if
-      call run%st%value_at(k*dt, run%rows(:, min(k, size(run%rows, 2))))
-      if (run%nr >= 0) run%nr = k
+      call run%st%value_at(k*dt, run%rows(:, k))
+      run%nr = k
       k = k + 1
     end do
   end subroutine dense_rows
@@ -231,8 +237,12 @@ contains
       call add_candidate(choice, "multirate 'exponential'", 2)
     case ('response')
       call add_candidate(choice, "multirate 'response'", 3)
-    case default
+    case ('adams', 'single')
       call add_candidate(choice, "single-rate '" // trim(sc%integrator%formula) // "'", 1)
+    case default
+      call fatal_error(error, path // ": the checkpoint was written by the '" // name // "' stepper, which " // &
+        & "method 'auto' never chooses: continue it with the scene's method set as it ran")
+      return
     end select
     choice%chosen = 1
     call set_method(sc, choice%method(1))
@@ -287,7 +297,7 @@ contains
     do i = 1, self%n
       s = s // '{"method": "' // json_escape(trim(self%label(i))) // '", "probe_cpu_s": '
       if (len_trim(self%failure(i)) > 0 .or. self%t_probe == 0.0_dp) then
-        s = s // 'null'
+        s = s // 'null, "predicted_cpu_s": null'
       else
         s = s // fmt(self%cpu(i)) // ', "predicted_cpu_s": ' // fmt(self%predicted(i))
       end if

@@ -39,6 +39,10 @@ contains
     ctl%rtol = sc%integrator%rtol; ctl%atol = sc%integrator%atol
     if (sc%integrator%h_min > 0.0_dp) ctl%h_min = sc%integrator%h_min
     if (sc%integrator%h_max > 0.0_dp) ctl%h_max = sc%integrator%h_max
+    if (trim(sc%integrator%method) == 'auto') then
+      call fatal_error(error, "method 'auto' is chosen before a stepper is made (pymr_driver_method_choice)")
+      return
+    end if
     if (trim(sc%integrator%method) == 'multirate') then
       call make_multirate(sc, model, x, ctl, st, h0, error)
     else if (sc%integrator%formula == 'adams') then

@@ -330,7 +330,7 @@ contains
     real(dp), intent(out) :: x(:)
     real(dp) :: e0r(self%nm), e0i(self%nm), e1r(self%nm), e1i(self%nm), e2r(self%nm), e2i(self%nm), fact, tr
     complex(dp) :: e0, e1, e2
-    real(dp) :: e(2*self%nm), y(2*self%nf)
+    real(dp) :: e(2*self%nm), y(2*self%nf), ys(self%ns)
     integer :: i, j, c, n, ns, m1, m2, nc, r1, r2, nr
     n = self%ns + self%nf; ns = self%ns
     do i = 1, self%nm
@@ -357,12 +357,12 @@ contains
       call add_product(self%vg(c)%b, e(1:2*nc), y(1:2*nr))
       x(ns+self%rows(r1:r2)) = y(1:nr); x(n+ns+self%rows(r1:r2)) = y(nr+1:2*nr)
     end do
-    y(1:ns) = 0.0_dp
-    call add_product(self%cv, [e1r, e1i], y(1:ns))
-    x(n+1:n+ns) = x(n+1:n+ns) - y(1:ns)
-    y(1:ns) = 0.0_dp
-    call add_product(self%cv, [e2r, e2i], y(1:ns))
-    x(1:ns) = x(1:ns) - y(1:ns)
+    ys = 0.0_dp
+    call add_product(self%cv, [e1r, e1i], ys)
+    x(n+1:n+ns) = x(n+1:n+ns) - ys
+    ys = 0.0_dp
+    call add_product(self%cv, [e2r, e2i], ys)
+    x(1:ns) = x(1:ns) - ys
     fact = 1.0_dp; tr = 1.0_dp
     do j = 1, n_coef
       fact = fact*j; tr = tr*tau                            ! j!, tau^j

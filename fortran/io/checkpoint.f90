@@ -23,8 +23,10 @@ module pymr_io_checkpoint
   public :: run_progress, write_checkpoint, read_checkpoint, checkpoint_stepper
 
   character(len=8), parameter :: tag = 'PYMRCKPT'
-  !> 6: the stepper's state written as its state vector and its record (state_record).
-  integer, parameter :: version = 6
+  !> 6: the stepper's state written as its state vector and its record (state_record);
+  !> 7: the 'response' and 'exponential' steppers named apart (a run of method 'auto'
+  !> continues with the one that wrote it).
+  integer, parameter :: version = 7
 
   !> What a checkpoint's header says: pymr's version, the model's size, the stepper's name,
   !> the time, the integrator settings and the model's fingerprint.

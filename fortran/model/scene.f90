@@ -337,8 +337,9 @@ contains
     type(integrator_spec), target, intent(inout) :: g
     type(item_table), intent(inout) :: t
     call t%add('method', g%method, "single-rate or multirate integration; 'auto' (adaptive runs): the kernel " // &
-      & "chooses between single-rate 'adams' and the multirate couplings 'exponential' and 'response' by " // &
-      & "a measured probe over the first part of the run (docs/integrators.md)", choices='single multirate auto')
+      & "chooses between single-rate (the scene's formula) and the multirate couplings 'exponential' and " // &
+      & "'response' by a measured probe over the first part of the run (docs/integrators.md)", &
+      & choices='single multirate auto')
     call t%add('h_fast', g%h_fast, 's', 'step of the fast (modal) coordinates; default h_slow', &
       & ge=1.0e-12_dp, le=1.0e3_dp)
     call t%add('h_slow', g%h_slow, 's', 'step of the slow (joint) coordinates, the step of a single-rate run; ' // &
@@ -670,7 +671,7 @@ contains
     if (sc%integrator%h_fast == unset) sc%integrator%h_fast = sc%integrator%h_slow
     ! at one rate h_slow is the step: a --set of it alone sets both
     associate(o => sc%integrator%origin)
-      if (sc%integrator%method == 'single' .and. o%given('h_slow') .and. o%line_of('h_slow') < 0 .and. &
+      if (sc%integrator%method /= 'multirate' .and. o%given('h_slow') .and. o%line_of('h_slow') < 0 .and. &
         & .not. (o%given('h_fast') .and. o%line_of('h_fast') < 0)) sc%integrator%h_fast = sc%integrator%h_slow
     end associate
     if (sc%integrator%h_slow == unset) sc%integrator%h_slow = sc%integrator%h_fast

@@ -105,10 +105,39 @@ contains
     end if
   end subroutine check_unique_names
 
+  !> The rules of a method on its steps (r = h_slow/h_fast, an integer; `where`: the step
+  !> item's place for messages) and on the scenes it takes.
+  subroutine check_method_steps(sc, r, where, errs)
+    type(scene_t), intent(in) :: sc
+    integer, intent(in) :: r
+    character(len=*), intent(in) :: where
+    type(error_list), intent(inout) :: errs
+    associate(s => sc%integrator)
+      if (trim(s%method) == 'single' .and. r /= 1) then
+        call errs%add(where // ": method 'single' takes one step for all coordinates: set h_fast = " &
+          & // "h_slow, or method = 'multirate'"); return
+      end if
+      if (trim(s%method) == 'auto' .and. r /= 1) then
+        call errs%add(where // ": method 'auto' chooses the steps (its candidates start from h_slow): " &
+          & // "set h_fast = h_slow or leave it out"); return
+      end if
+      if (trim(s%method) == 'multirate' .and. s%coupling == 'exponential' .and. flexible_loop(sc)) then
+        call errs%add(s%origin%where('coupling') // ": 'exponential' does not take a closed loop through a " // &
+          & "flexible body (the loop's constraint leaves the response of its modal coordinates singular, and " // &
+          & "their flow cannot be diagonalised): use coupling = 'response'"); return
+      end if
+      if (trim(s%method) == 'multirate' .and. s%coupling == 'exponential' .and. r /= 1) then
+        call errs%add(where // ": coupling 'exponential' takes no fast step (the fast coordinates move by " // &
+          & "their exact flow): h_slow is its step; set h_fast = h_slow or leave it out"); return
+      end if
+    end associate
+  end subroutine check_method_steps
+
   subroutine check_settings(sc, errs)
     type(scene_t), intent(in) :: sc
     type(error_list), intent(inout) :: errs
     real(dp) :: hf, hs, r
+    integer :: n0
     character(len=:), allocatable :: step_item
     ! a rule on both steps names the one the scene (or a --set) gave last
     step_item = 'h_slow'
@@ -136,19 +165,9 @@ contains
         end if
         return
       end if
-      if (trim(s%method) == 'single' .and. nint(r) /= 1) then
-        call errs%add(w(step_item) // ": method 'single' takes one step for all coordinates: set h_fast = " &
-          & // "h_slow, or method = 'multirate'"); return
-      end if
-      if (trim(s%method) == 'multirate' .and. s%coupling == 'exponential' .and. flexible_loop(sc)) then
-        call errs%add(w('coupling') // ": 'exponential' does not take a closed loop through a flexible body (the " // &
-          & "loop's constraint leaves the response of its modal coordinates singular, and their flow cannot be " // &
-          & "diagonalised): use coupling = 'response'"); return
-      end if
-      if (trim(s%method) == 'multirate' .and. s%coupling == 'exponential' .and. nint(r) /= 1) then
-        call errs%add(w(step_item) // ": coupling 'exponential' takes no fast step (the fast coordinates move by " // &
-          & "their exact flow): h_slow is its step; set h_fast = h_slow or leave it out"); return
-      end if
+      n0 = errs%n
+      call check_method_steps(sc, nint(r), w(step_item), errs)
+      if (errs%n > n0) return
       if (trim(s%method) == 'multirate') then
         if (s%n_corrector /= 1) then
           call errs%add(w('n_corrector') // ": multirate uses PECE (n_corrector = 1)"); return
