@@ -61,6 +61,7 @@ module pymr_driver_method_choice
   contains
     procedure :: summary => choice_summary
     procedure :: json => choice_json
+    procedure :: take_chosen
   end type method_choice_t
 
 contains
@@ -186,6 +187,19 @@ contains
       p = cpu + cpu_2*(t_end - t)/(t - t_half)
     end if
   end function predicted_run
+
+  !> The chosen candidate's probe moved to `run` (not allocated when the probe was not kept).
+  subroutine take_chosen(self, run)
+    class(method_choice_t), intent(inout) :: self
+    type(probe_run), allocatable, intent(out) :: run
+    if (self%chosen == 0) return
+    if (.not. allocated(self%runs(self%chosen)%st)) return
+    allocate(run)
+    call move_alloc(self%runs(self%chosen)%st, run%st)
+    call move_alloc(self%runs(self%chosen)%model, run%model)
+    call move_alloc(self%runs(self%chosen)%rows, run%rows)
+    run%nr = self%runs(self%chosen)%nr
+  end subroutine take_chosen
 
   !> A probe that failed or stopped is not kept.
   subroutine forget(run)

@@ -81,7 +81,8 @@ module pymr_driver_simulation
     procedure :: summary => simulation_summary
     procedure :: close => simulation_close
     procedure, private :: choose_format, choose_method
-    procedure, private :: begin_new, resume, continues_probe, continue_probe, put_row, put_rows_reached, put_last_row, checkpoint_if_due, start_again
+    procedure, private :: begin_new, resume, continues_probe, continue_probe
+    procedure, private :: put_row, put_rows_reached, put_last_row, checkpoint_if_due, start_again
     procedure, private :: write_results, name_file
   end type simulation_t
 
@@ -151,13 +152,7 @@ contains
       end if
     else
       call choose_by_probe(self%sc, self%model, self%x, choice)
-      if (allocated(choice%runs(choice%chosen)%st)) then
-        allocate(self%probed)
-        call move_alloc(choice%runs(choice%chosen)%st, self%probed%st)
-        call move_alloc(choice%runs(choice%chosen)%model, self%probed%model)
-        call move_alloc(choice%runs(choice%chosen)%rows, self%probed%rows)
-        self%probed%nr = choice%runs(choice%chosen)%nr
-      end if
+      call choice%take_chosen(self%probed)
     end if
     self%stats%choice_line = choice%summary()
     self%stats%choice_report = choice%json()
