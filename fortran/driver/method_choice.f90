@@ -1,18 +1,19 @@
 !> `&integrator method = 'auto'`: the kernel chooses the method of an adaptive run.
 !>
-!> The candidates are single-rate 'adams' (the scene's formula) and, when the scene has
-!> slow (joint) and fast (modal) coordinates, the multirate couplings 'exponential' (not
-!> with a closed loop through a flexible body, which it refuses) and 'response'. Each
-!> candidate runs on a copy of the model from the initial state over the first
-!> `probe_share` of the run, at the scene's tolerances, with the dense output of the run's
-!> rows (its cost differs between the methods: the exponential flow's closed form against
-!> a polynomial). Its CPU over the probe's second
-!> half (past the start's small steps), scaled to the rest of the run, plus its CPU up to
-!> there, predicts its run; the least prediction runs the scene. A probe that has taken
-!> `race_margin` times the CPU of the fastest finished probe is stopped: its candidate is
-!> slower; so is one whose CPU so far, scaled to the whole run, is `far_margin` times the
-!> least prediction (after `far_steps` steps: a method several times slower is seen early). A scene without fast coordinates runs single-rate with no probe. A run
-!> continued from a checkpoint keeps the method that wrote it.
+!> The candidates are single-rate (the scene's formula, 'adams' by default) and, when the
+!> scene has slow (joint) and fast (modal) coordinates, the multirate couplings
+!> 'exponential' (not with a closed loop through a flexible body, which it refuses) and
+!> 'response'. Each candidate runs on a copy of the model from the initial state over the
+!> first `probe_share` of the run, at the scene's tolerances, with the dense output of the
+!> run's rows (its cost differs between the methods: the exponential flow's closed form
+!> against a polynomial). Its CPU over the probe's second half (past the start's small
+!> steps), scaled to the rest of the run, plus its CPU up to there, predicts its run; the
+!> least prediction runs the scene. A probe that has taken `race_margin` times the CPU of
+!> the fastest finished probe is stopped: its candidate is slower; so is one whose CPU so
+!> far, scaled to the whole run, is `far_margin` times the least prediction (after
+!> `far_steps` steps: a method several times slower is seen early). A scene without both
+!> kinds of coordinates runs single-rate with no probe. A run continued from a checkpoint
+!> keeps the method that wrote it.
 module pymr_driver_method_choice
   use pymr_env_kinds, only : dp
   use pymr_env_error, only : error_type, fatal_error
@@ -76,10 +77,10 @@ contains
     integer :: i
     ! the multirate couplings first: where they pay, their probes are short and stop the rest
     if (model%n_fast() > 0 .and. model%n_slow() > 0) then
-      if (.not. flexible_loop(sc)) call add_candidate(choice, "multirate 'exponential'", 2)
-      call add_candidate(choice, "multirate 'response'", 3)
+      if (.not. flexible_loop(sc)) call add_candidate(choice, sc, 2)
+      call add_candidate(choice, sc, 3)
     end if
-    call add_candidate(choice, "single-rate '" // trim(sc%integrator%formula) // "'", 1)
+    call add_candidate(choice, sc, 1)
     if (choice%n == 1) then
       choice%chosen = 1
       choice%reason = 'the scene has no ' // trim(merge('fast (modal)', 'slow (joint)', model%n_fast() == 0)) // &
@@ -99,12 +100,22 @@ contains
     call set_method(sc, choice%method(choice%chosen))
   end subroutine choose_method
 
-  subroutine add_candidate(choice, label, method)
+  !> Method `method` of the scene sc (set_method's numbers) as the next candidate, with its
+  !> label ("single-rate 'adams'", "multirate 'exponential'").
+  subroutine add_candidate(choice, sc, method)
     type(method_choice_t), intent(inout) :: choice
-    character(len=*), intent(in) :: label
+    type(scene_t), intent(in) :: sc
     integer, intent(in) :: method
     choice%n = choice%n + 1
-    choice%label(choice%n) = label; choice%method(choice%n) = method
+    choice%method(choice%n) = method
+    select case (method)
+    case (1)
+      choice%label(choice%n) = "single-rate '" // trim(sc%integrator%formula) // "'"
+    case (2)
+      choice%label(choice%n) = "multirate 'exponential'"
+    case default
+      choice%label(choice%n) = "multirate 'response'"
+    end select
   end subroutine add_candidate
 
   !> Set method i (1 single-rate, 2 'exponential', 3 'response') in sc.
@@ -248,11 +259,11 @@ contains
     name = checkpoint_stepper(path, error); if (allocated(error)) return
     select case (name)
     case ('exponential')
-      call add_candidate(choice, "multirate 'exponential'", 2)
+      call add_candidate(choice, sc, 2)
     case ('response')
-      call add_candidate(choice, "multirate 'response'", 3)
+      call add_candidate(choice, sc, 3)
     case ('adams', 'single')
-      call add_candidate(choice, "single-rate '" // trim(sc%integrator%formula) // "'", 1)
+      call add_candidate(choice, sc, 1)
     case default
       call fatal_error(error, path // ": the checkpoint was written by the '" // name // "' stepper, which " // &
         & "method 'auto' never chooses: continue it with the scene's method set as it ran")
