@@ -23,7 +23,7 @@ module pymr_integrator_exponential
   use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps, state_record, project_step, step_underflow
   use pymr_integrator_abm, only : check_finite
   use pymr_integrator_control, only : step_control, error_weights, wrms_norm
-  use pymr_integrator_modal_flow, only : modal_flow_t, taylor_weights, n_coef, n_phi
+  use pymr_integrator_modal_flow, only : modal_flow_t, flow_rows_t, taylor_weights, n_coef, n_phi
   implicit none
   private
   public :: exponential_integrator
@@ -47,11 +47,13 @@ module pymr_integrator_exponential
     complex(dp), allocatable :: hp(:, :)
   end type flow_history_t
 
-  !> The last accepted step, for dense output: start, length, state, modal state, forcing.
+  !> The last accepted step, for dense output: start, length, state, modal state, forcing,
+  !> and its flow in the form rows take.
   type :: flow_step_t
     real(dp) :: t = 0.0_dp, h = 0.0_dp
     real(dp), allocatable :: x(:), cs(:, :)
     complex(dp), allocatable :: eta(:), beta(:, :)
+    type(flow_rows_t) :: rows
   end type flow_step_t
 
   !> Taylor weights tw for np points at the times rel relative to the step's start.
@@ -145,6 +147,7 @@ contains
       self%last%t = t0; self%last%h = 0.0_dp; self%last%x = x0
       self%last%eta = self%flow%modal_state(x0)
       self%last%beta = (0.0_dp, 0.0_dp); self%last%cs = 0.0_dp
+      call self%flow%rows_form(self%last%eta, self%last%beta, 0.0_dp, self%last%rows)
     class default
       call fatal_error(error, "the 'exponential' coupling needs a system partitioned into slow and fast coordinates")
     end select
@@ -277,6 +280,7 @@ contains
       end do
       self%last%t = t0; self%last%h = hs; self%last%x = self%x; self%last%eta = wk%eta0
       self%last%beta = wk%beta; self%last%cs = wk%cs
+      call self%flow%rows_form(wk%eta0, wk%beta, hs, self%last%rows)
       self%x = wk%xc; self%t = tn; self%steps = self%steps + 1
       call push_evaluation(self, tn, wk%f(n+1:), wk%y, wk%rnew, wk%pnew)
       if (self%adaptive) self%h = min(hs*self%ctl%ratio(err, .true.), self%ctl%h_max)
@@ -373,13 +377,11 @@ contains
     class(exponential_integrator), intent(in) :: self
     real(dp), intent(in) :: t
     real(dp), intent(out) :: x(:)
-    complex(dp) :: tp(0:n_phi-1, self%flow%nm)
     if (t >= self%t) then
       x = self%x
     else
-      call self%flow%phis(t - self%last%t, tp, self%last%eta /= (0.0_dp, 0.0_dp) .or. &
-        & any(self%last%beta /= (0.0_dp, 0.0_dp), dim=2))
-      call self%flow%state_at(self%last%x, self%last%eta, self%last%beta, self%last%cs, t - self%last%t, tp, x)
+      call self%flow%row_at(self%last%rows, self%last%x, self%last%eta, self%last%beta, self%last%cs, &
+        & t - self%last%t, x)
     end if
   end subroutine ex_value_at
 
@@ -409,6 +411,7 @@ contains
     call rec%item(br); call rec%item(bi); call rec%item(er); call rec%item(ei)
     if (rec%loading) then
       self%last%beta = cmplx(br, bi, dp); self%last%eta = cmplx(er, ei, dp)
+      call self%flow%rows_form(self%last%eta, self%last%beta, self%last%h, self%last%rows)
     end if
     call rec%item(self%steps); call rec%item(self%rejected); call rec%item(self%renewals)
   end subroutine ex_record

@@ -23,7 +23,7 @@ module pymr_integrator_modal_flow
   use pymr_env_lapack, only : potrf, sygvd, geev_real, complex_inverse
   implicit none
   private
-  public :: modal_flow_t, taylor_weights, n_coef, n_phi
+  public :: modal_flow_t, flow_rows_t, taylor_weights, n_coef, n_phi
 
   !> Taylor coefficients of the forcing polynomial (degree 3).
   integer, parameter :: n_coef = 4
@@ -38,6 +38,14 @@ module pymr_integrator_modal_flow
     real(dp), allocatable :: b(:, :)
   end type group_vectors
 
+  !> One step's flow in the form its rows take (flow_rows_form): for each kept mode, whether
+  !> it moves (active), whether it takes the particular solution (poly), d = eta0 - p(0)
+  !> and p's Taylor coefficients c (n_coef x nm).
+  type :: flow_rows_t
+    logical, allocatable :: active(:), poly(:)
+    complex(dp), allocatable :: d(:), c(:, :)
+  end type flow_rows_t
+
   type :: modal_flow_t
     integer :: ns = 0, nf = 0, nm = 0
     !> The frozen response g0 (n x nf) and modal stiffness and damping (nf).
@@ -47,9 +55,9 @@ module pymr_integrator_modal_flow
     complex(dp), allocatable :: lam(:), w(:, :)
     real(dp), allocatable :: wgt(:)
     !> The right vectors V of each group (group_vectors), and C V as [Re C V | -Im C V]
-    !> (ns x 2nm).
+    !> transposed (2nm x ns: a slow row is one contiguous dot product).
     type(group_vectors), allocatable :: vg(:)
-    real(dp), allocatable :: cv(:, :)
+    real(dp), allocatable :: cvt(:, :)
     !> The groups of fast coordinates diagonalised apart: group c has the kept eigenvalues
     !> mode_start(c) .. mode_start(c+1) - 1 and the fast coordinates rows(row_start(c) ..
     !> row_start(c+1) - 1); V and W are zero outside those blocks.
@@ -62,6 +70,8 @@ module pymr_integrator_modal_flow
     procedure :: modal_state => flow_modal_state
     procedure :: phis => flow_phis
     procedure :: state_at => flow_state_at
+    procedure :: rows_form => flow_rows_form
+    procedure :: row_at => flow_row_at
     procedure :: drift => flow_drift
   end type modal_flow_t
 
@@ -103,7 +113,7 @@ contains
     ! C V: the slow accelerations' response to the fast state, g_s [K | D] V
     cv = matmul(cmplx(g(1:ns, :)*spread(kf, 1, ns), 0.0_dp, dp), v(1:nf, :)) + &
       & matmul(cmplx(g(1:ns, :)*spread(df, 1, ns), 0.0_dp, dp), v(nf+1:, :))
-    self%cv = reshape([real(cv), -aimag(cv)], [ns, 2*m])
+    self%cvt = transpose(reshape([real(cv), -aimag(cv)], [ns, 2*m]))
     call keep_group_vectors(self, v)
   end subroutine flow_build
 
@@ -296,13 +306,10 @@ contains
 
   !> tau^k phi_k(lambda tau), k = 0 .. n_coef + 2, of every kept eigenvalue (the flow's
   !> coefficients for a step of tau; pass them to state_at).
-  pure subroutine flow_phis(self, tau, tp, active)
+  pure subroutine flow_phis(self, tau, tp)
     class(modal_flow_t), intent(in) :: self
     real(dp), intent(in) :: tau
     complex(dp), intent(out) :: tp(0:, :)
-    !> Only these modes (the others' coefficients are set to zero): a mode at rest with no
-    !> forcing stays at rest.
-    logical, intent(in), optional :: active(:)
     real(dp) :: tr(0:kmax)
     integer :: i, j
     tr(0) = 1.0_dp
@@ -310,11 +317,6 @@ contains
       tr(j) = tr(j-1)*tau
     end do
     do i = 1, self%nm
-      if (present(active)) then
-        if (.not. active(i)) then
-          tp(:, i) = (0.0_dp, 0.0_dp); cycle
-        end if
-      end if
       call phi_functions(self%lam(i)*tau, tp(:, i))
       tp(:, i) = tr*tp(:, i)
     end do
@@ -328,48 +330,142 @@ contains
     real(dp), intent(in) :: x0(:), cs(:, :), tau
     complex(dp), intent(in) :: eta0(:), beta(:, :), tp(0:, :)
     real(dp), intent(out) :: x(:)
-    real(dp) :: e0r(self%nm), e0i(self%nm), e1r(self%nm), e1i(self%nm), e2r(self%nm), e2i(self%nm), fact, tr
-    complex(dp) :: e0, e1, e2
-    real(dp) :: e(2*self%nm), y(2*self%nf), ys(self%ns)
-    integer :: i, j, c, n, ns, m1, m2, nc, r1, r2, nr
-    n = self%ns + self%nf; ns = self%ns
+    real(dp) :: e(2*self%nm, 0:2)
+    integer :: i
     do i = 1, self%nm
-      e0 = tp(0, i)*eta0(i); e1 = tp(1, i)*eta0(i); e2 = tp(2, i)*eta0(i)
-      do j = 1, n_coef
-        e0 = e0 + tp(j, i)*beta(i, j); e1 = e1 + tp(j+1, i)*beta(i, j); e2 = e2 + tp(j+2, i)*beta(i, j)
-      end do
-      e0r(i) = self%wgt(i)*real(e0); e0i(i) = self%wgt(i)*aimag(e0)
-      e1r(i) = self%wgt(i)*real(e1); e1i(i) = self%wgt(i)*aimag(e1)
-      e2r(i) = self%wgt(i)*real(e2); e2i(i) = self%wgt(i)*aimag(e2)
+      call put_amplitudes(self, i, phi_sums(tp(:, i), eta0(i), beta(i, :)), e)
     end do
-    ! the real parts of V e and C V e, by the real and imaginary parts of both; a group
-    ! whose modes are all at rest and unforced is zero
-    x(n+1:n+ns) = x0(n+1:n+ns); x(1:ns) = x0(1:ns) + tau*x0(n+1:n+ns)
+    call state_from_amplitudes(self, x0, cs, tau, e, x)
+  end subroutine flow_state_at
+
+  !> The modal state and its first and second integrals over tau, from the step's phi
+  !> functions tp (tau^k phi_k) of one mode: [eta, int eta, int int eta].
+  pure function phi_sums(tp, eta0, beta) result(s)
+    complex(dp), intent(in) :: tp(0:), eta0, beta(:)
+    complex(dp) :: s(0:2)
+    integer :: j
+    s = tp(0:2)*eta0
+    do j = 1, n_coef
+      s = s + tp(j:j+2)*beta(j)
+    end do
+  end function phi_sums
+
+  !> Mode i's amplitudes s (eta and its two integrals), weighted, into e: real parts in
+  !> rows 1 .. nm, imaginary parts in rows nm + 1 .. 2 nm.
+  pure subroutine put_amplitudes(self, i, s, e)
+    class(modal_flow_t), intent(in) :: self
+    integer, intent(in) :: i
+    complex(dp), intent(in) :: s(0:2)
+    real(dp), intent(inout) :: e(:, 0:)
+    e(i, :) = self%wgt(i)*real(s); e(self%nm+i, :) = self%wgt(i)*aimag(s)
+  end subroutine put_amplitudes
+
+  !> The state x at tau after x0 from the modal amplitudes e (put_amplitudes) and the slow
+  !> rows' forcing cs: the real parts of V e and C V e, by the real and imaginary parts of
+  !> both; a group whose modes are all zero is zero with no product.
+  pure subroutine state_from_amplitudes(self, x0, cs, tau, e, x)
+    class(modal_flow_t), intent(in) :: self
+    real(dp), intent(in) :: x0(:), cs(:, :), tau, e(:, 0:)
+    real(dp), intent(out) :: x(:)
+    real(dp) :: y(2*self%nf), fact, tr
+    integer :: i, j, c, n, ns, nm, m1, m2, nc, r1, r2, nr
+    n = self%ns + self%nf; ns = self%ns; nm = self%nm
     do c = 1, self%ng
       m1 = self%mode_start(c); m2 = self%mode_start(c+1) - 1; nc = m2 - m1 + 1
       r1 = self%row_start(c); r2 = self%row_start(c+1) - 1; nr = r2 - r1 + 1
-      if (all(e0r(m1:m2) == 0.0_dp .and. e0i(m1:m2) == 0.0_dp)) then
+      if (all(e(m1:m2, 0) == 0.0_dp .and. e(nm+m1:nm+m2, 0) == 0.0_dp)) then
         x(ns+self%rows(r1:r2)) = 0.0_dp; x(n+ns+self%rows(r1:r2)) = 0.0_dp
         cycle
       end if
-      e(1:nc) = e0r(m1:m2); e(nc+1:2*nc) = e0i(m1:m2)
       y(1:2*nr) = 0.0_dp
-      call add_product(self%vg(c)%b, e(1:2*nc), y(1:2*nr))
+      call add_product(self%vg(c)%b(:, 1:nc), e(m1:m2, 0), y(1:2*nr))
+      call add_product(self%vg(c)%b(:, nc+1:), e(nm+m1:nm+m2, 0), y(1:2*nr))
       x(ns+self%rows(r1:r2)) = y(1:nr); x(n+ns+self%rows(r1:r2)) = y(nr+1:2*nr)
     end do
-    ys = 0.0_dp
-    call add_product(self%cv, [e1r, e1i], ys)
-    x(n+1:n+ns) = x(n+1:n+ns) - ys
-    ys = 0.0_dp
-    call add_product(self%cv, [e2r, e2i], ys)
-    x(1:ns) = x(1:ns) - ys
+    do i = 1, ns
+      x(n+i) = x0(n+i) - dot_product(self%cvt(:, i), e(:, 1))
+      x(i) = x0(i) + tau*x0(n+i) - dot_product(self%cvt(:, i), e(:, 2))
+    end do
     fact = 1.0_dp; tr = 1.0_dp
     do j = 1, n_coef
       fact = fact*j; tr = tr*tau                            ! j!, tau^j
       x(n+1:n+ns) = x(n+1:n+ns) + tr/fact*cs(:, j)
       x(1:ns) = x(1:ns) + tr*tau/(fact*(j+1))*cs(:, j)
     end do
-  end subroutine flow_state_at
+  end subroutine state_from_amplitudes
+
+  !> One step's flow in the form its rows take (row_at): for a mode with |lambda| h >= 1,
+  !> the particular solution. With p the cubic that solves p' = lambda p + (the mode's
+  !> forcing) and d = eta0 - p(0), eta(tau) = e^(lambda tau) d + p(tau), and its integrals
+  !> tau phi_1 d + P1(tau), tau^2 phi_2 d + P2(tau). A row then needs phi_0 .. phi_2, not
+  !> phi_0 .. phi_6, and the polynomials share their powers of tau over the modes. A mode
+  !> slow against the step keeps the step's form (its p would cancel e^(lambda tau) d); a
+  !> mode at rest and unforced stays at rest.
+  pure subroutine flow_rows_form(self, eta0, beta, h, rows)
+    class(modal_flow_t), intent(in) :: self
+    complex(dp), intent(in) :: eta0(:), beta(:, :)
+    real(dp), intent(in) :: h
+    type(flow_rows_t), intent(inout) :: rows
+    integer :: i, m
+    real(dp) :: fact(0:n_coef-1)
+    fact(0) = 1.0_dp
+    do m = 1, n_coef - 1
+      fact(m) = fact(m-1)*m
+    end do
+    if (allocated(rows%c)) then
+      if (size(rows%c, 2) /= self%nm) deallocate(rows%active, rows%poly, rows%d, rows%c)
+    end if
+    if (.not. allocated(rows%c)) allocate(rows%active(self%nm), rows%poly(self%nm), rows%d(self%nm), &
+      & rows%c(0:n_coef-1, self%nm))
+    do i = 1, self%nm
+      rows%active(i) = eta0(i) /= (0.0_dp, 0.0_dp) .or. any(beta(i, :) /= (0.0_dp, 0.0_dp))
+      rows%poly(i) = rows%active(i) .and. abs(self%lam(i))*h >= 1.0_dp
+      rows%c(:, i) = (0.0_dp, 0.0_dp); rows%d(i) = (0.0_dp, 0.0_dp)
+      if (.not. rows%poly(i)) cycle
+      ! forcing sum_m a_m s^m with a_m = beta_(m+1)/m!: lambda c_m = (m + 1) c_(m+1) - a_m
+      rows%c(n_coef-1, i) = -beta(i, n_coef)/(fact(n_coef-1)*self%lam(i))
+      do m = n_coef - 2, 0, -1
+        rows%c(m, i) = ((m + 1)*rows%c(m+1, i) - beta(i, m+1)/fact(m))/self%lam(i)
+      end do
+      rows%d(i) = eta0(i) - rows%c(0, i)
+    end do
+  end subroutine flow_rows_form
+
+  !> The state at tau inside the step whose flow_rows_form is `rows` (the same state as
+  !> state_at's, for a row of the output).
+  pure subroutine flow_row_at(self, rows, x0, eta0, beta, cs, tau, x)
+    class(modal_flow_t), intent(in) :: self
+    type(flow_rows_t), intent(in) :: rows
+    real(dp), intent(in) :: x0(:), cs(:, :), tau
+    complex(dp), intent(in) :: eta0(:), beta(:, :)
+    real(dp), intent(out) :: x(:)
+    real(dp) :: e(2*self%nm, 0:2), pw(0:n_coef-1, 0:2), tr(0:kmax)
+    complex(dp) :: tp(0:kmax), s(0:2)
+    integer :: i, m
+    tr(0) = 1.0_dp
+    do m = 1, kmax
+      tr(m) = tr(m-1)*tau
+    end do
+    do m = 0, n_coef - 1                   ! tau^m, tau^(m+1)/(m+1), tau^(m+2)/((m+1)(m+2))
+      pw(m, :) = [tr(m), tr(m+1)/(m+1), tr(m+2)/((m+1)*(m+2))]
+    end do
+    do i = 1, self%nm
+      if (.not. rows%active(i)) then
+        s = (0.0_dp, 0.0_dp)
+      else if (rows%poly(i)) then
+        call phi_functions(self%lam(i)*tau, tp(0:2))
+        s = tr(0:2)*tp(0:2)*rows%d(i)
+        do m = 0, n_coef - 1
+          s = s + rows%c(m, i)*pw(m, :)
+        end do
+      else
+        call phi_functions(self%lam(i)*tau, tp)
+        s = phi_sums(tr*tp, eta0(i), beta(i, :))
+      end if
+      call put_amplitudes(self, i, s, e)
+    end do
+    call state_from_amplitudes(self, x0, cs, tau, e, x)
+  end subroutine flow_row_at
 
   !> y = y + a v, column by column (contiguous, so that the compiler vectorises it; the
   !> intrinsic matmul's inlined loop did not, on the spacecraft's dense output).

@@ -16,6 +16,9 @@ module pymr_io_fast_format
   !> The hundred two-digit strings '00' ... '99'.
   character(len=2), parameter :: pairs(0:99) = [(achar(iachar('0') + k_/10) // achar(iachar('0') + mod(k_, 10)), &
     & k_ = 0, 99)]
+  !> The powers of ten exact in double precision, and as 64-bit integers.
+  real(dp), parameter :: pow10(0:22) = [(10.0_dp**k_, k_ = 0, 22)]
+  integer(int64), parameter :: ipow10(0:18) = [(10_int64**k_, k_ = 0, 18)]
 
 contains
 
@@ -54,7 +57,7 @@ contains
     end if
     ! decimal exponent from the binary one (log10(2) = 0.30103...); the checks of m
     ! below correct the estimate by one either way
-    e = floor((exponent(x) - 1)*0.30102999566398120_dp)
+    e = floor((binary_exponent(x) - 1)*0.30102999566398120_dp)
     nd = 17
     if (present(digits)) nd = digits
     if (abs(e) > 21) then
@@ -70,13 +73,13 @@ contains
     end if
     ! m + ml times 10^(nd-1) < 1e17: its high part is a double in [1e16, 1e17) when nd = 17,
     ! an integer; the low part carries the rest
-    call two_product(m, 10.0_dp**(nd - 1), th, tl)
-    tl = tl + ml*10.0_dp**(nd - 1)
+    call two_product(m, pow10(nd - 1), th, tl)
+    tl = tl + ml*pow10(nd - 1)
     dgt = nint(th, int64) + nint(tl + (th - anint(th)), int64)
-    if (dgt >= 10_int64**nd) then
+    if (dgt >= ipow10(nd)) then
       dgt = dgt/10; e = e + 1
     end if
-    if (nd < 17) dgt = dgt*10_int64**(17 - nd)
+    if (nd < 17) dgt = dgt*ipow10(17 - nd)
     ! digits two at a time, in two 32-bit halves (9 + 8): fewer and cheaper divisions
     hi = int(dgt/100000000_int64)
     lo = int(dgt - 100000000_int64*hi)
@@ -126,7 +129,7 @@ contains
     integer, intent(in) :: k
     real(dp), intent(out) :: m, ml
     real(dp) :: p, ph, pl
-    p = 10.0_dp**abs(k)
+    p = pow10(abs(k))
     if (k >= 0) then
       call two_product(x, p, m, ml)
     else
@@ -135,6 +138,13 @@ contains
       ml = ((x - ph) - pl)/p
     end if
   end subroutine scale_by_pow10
+
+  !> exponent(x) of a finite x /= 0 (x = f 2^e, 0.5 <= |f| < 1) from its bits; a
+  !> subnormal x gives -1022, which put_real sends to the formatted WRITE as it should.
+  elemental integer function binary_exponent(x) result(e)
+    real(dp), intent(in) :: x
+    e = int(ibits(transfer(x, 0_int64), 52, 11)) - 1022
+  end function binary_exponent
 
   !> a b = p + e exactly (Dekker: both factors split into 26-bit halves).
   pure subroutine two_product(a, b, p, e)
