@@ -17,7 +17,7 @@ module pymr_driver_simulation
   use pymr_model, only : model_t
   use pymr_model_sensors, only : sensors_of
   use pymr_integrator_stepper, only : stepper_t, step_counts
-  use pymr_io_namelist_input, only : scene_fingerprint, checkpoint_identity, resolved_text
+  use pymr_io_namelist_input, only : text_fingerprint, checkpoint_identity, resolved_texts
   use pymr_io_results_output, only : json_path, write_json, run_stats, output_plan_of, n_work
   use pymr_io_results_file, only : results_file
   use pymr_io_results_csv, only : csv_writer
@@ -58,6 +58,9 @@ module pymr_driver_simulation
     !> The checkpoint file, and what a checkpoint must share with the scene (only when
     !> checkpoints are written or read).
     character(len=:), allocatable :: ckpt_path, settings, fingerprint
+    !> The resolved scene with absolute paths, and its fingerprint, as the results describe
+    !> them (the scene does not change once the method is chosen).
+    character(len=:), allocatable :: scene_text, scene_id
     !> The state [q; qd] (of the time last asked of the stepper).
     real(dp), allocatable :: x(:)
     !> The first step; the output interval (0: a row every step); times closer than eps are one.
@@ -162,6 +165,7 @@ contains
   !> and what the run is.
   subroutine choose_format(self)
     class(simulation_t), intent(inout) :: self
+    character(len=:), allocatable :: text
     if (self%sc%output%format == 'hdf5') then
       allocate(hdf5_writer :: self%out)
       select type (out => self%out)
@@ -173,8 +177,10 @@ contains
     end if
     self%out%digits = self%sc%output%precision
     self%out%plan = output_plan_of(self%sc%output%quantities, self%model%d, sensors_of(self%sc, self%model%d))
-    call self%out%describe(self%sc%scene%title, method_label(self%sc), scene_fingerprint(self%sc), &
-      & resolved_text(self%sc, absolute_paths=.true.), settings_json(self%sc))
+    call resolved_texts(self%sc, text, self%scene_text)
+    self%scene_id = text_fingerprint(text)
+    call self%out%describe(self%sc%scene%title, method_label(self%sc), self%scene_id, self%scene_text, &
+      & settings_json(self%sc))
   end subroutine choose_format
 
   !> Start the integration: from the checkpoint file `restart` (its results file keeps the
@@ -443,11 +449,10 @@ contains
     class(simulation_t), intent(inout) :: self
     type(error_type), allocatable, intent(inout) :: error
     type(error_type), allocatable :: json_error
-    character(len=:), allocatable :: scene_text, statistics
-    scene_text = resolved_text(self%sc, absolute_paths=.true.)
+    character(len=:), allocatable :: statistics
     if (.not. allocated(error)) call write_json(json_path(self%path), self%file, self%sc%scene%title, &
-      & scene_fingerprint(self%sc), settings_json(self%sc), self%model%d, self%model%wk, self%stats, 'complete', '', &
-      & self%sc%scene%t_end, error, self%overrides, scene_text, self%out%plan, staged=.true., text=statistics)
+      & self%scene_id, settings_json(self%sc), self%model%d, self%model%wk, self%stats, 'complete', '', &
+      & self%sc%scene%t_end, error, self%overrides, self%scene_text, self%out%plan, staged=.true., text=statistics)
     if (.not. allocated(error)) then
       call self%out%finish(statistics, error)
       if (allocated(error)) call remove_file(json_path(self%path) // '.tmp')
@@ -455,9 +460,9 @@ contains
     if (allocated(error)) then
       call self%out%close()
       error%message = self%file // ': ' // error%message
-      call write_json(json_path(self%path) // '.partial', self%file, self%sc%scene%title, scene_fingerprint(self%sc), &
+      call write_json(json_path(self%path) // '.partial', self%file, self%sc%scene%title, self%scene_id, &
         & settings_json(self%sc), self%model%d, self%model%wk, self%stats, 'failed', error%message, self%st%time(), json_error, &
-        & self%overrides, scene_text, self%out%plan)
+        & self%overrides, self%scene_text, self%out%plan)
       return
     end if
     call commit_staged(json_path(self%path), error)

@@ -97,17 +97,34 @@ contains
     write(form, '(a,i0,a,i0,a)') '(es', digits + 10, '.', digits - 1, 'e3)'
     write(buf, form) x
     p = index(buf, 'E')
-    read(buf(p+1:), *) e
+    e = (iachar(buf(p+2:p+2)) - iachar('0'))*100 + (iachar(buf(p+3:p+3)) - iachar('0'))*10 + &
+      & iachar(buf(p+4:p+4)) - iachar('0')
+    if (buf(p+1:p+1) == '-') e = -e
     if (e >= -4 .and. e < digits) then
-      write(form, '(a,i0,a)') '(f0.', max(0, digits - 1 - e), ')'
-      write(buf, form) x
-      s = strip_zeros(trim(adjustl(buf)))
-      if (s(1:1) == '.') s = '0' // s
-      if (s(1:min(2, len(s))) == '-.') s = '-0' // s(2:)
+      s = fixed_text(trim(adjustl(buf(:p-1))), e)
     else
       s = strip_zeros(trim(adjustl(buf(:p-1)))) // 'e' // merge('-', '+', e < 0) // itoa(abs(e))
     end if
   end function decimal_text
+
+  !> The fixed notation of the number whose scientific mantissa is m ('-d.ddd', every digit
+  !> significant) and decimal exponent e (-4 <= e < its digits): its digits moved past the
+  !> point, without trailing zeros ('0.000123', '-25', '2.5').
+  pure function fixed_text(m, e) result(s)
+    character(len=*), intent(in) :: m
+    integer, intent(in) :: e
+    character(len=:), allocatable :: s, d, sgn
+    integer :: i0
+    i0 = merge(2, 1, m(1:1) == '-')
+    sgn = m(1:i0-1)
+    d = m(i0:i0) // m(i0+2:)
+    if (e >= 0) then
+      s = sgn // d(1:e+1) // '.' // d(e+2:)
+    else
+      s = sgn // '0.' // repeat('0', -e - 1) // d
+    end if
+    s = strip_zeros(s)
+  end function fixed_text
 
   !> The shortest of 15 or 17 significant digits that reads back to x exactly.
   function exact_text(x) result(s)

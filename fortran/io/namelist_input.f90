@@ -15,7 +15,8 @@ module pymr_io_namelist_input
   use pymr_env_text_file, only : read_text_file
   implicit none
   private
-  public :: read_scene, read_scene_text, resolved_text, schema_text, scene_fingerprint, item_value
+  public :: read_scene, read_scene_text, resolved_text, resolved_texts, schema_text, scene_fingerprint, &
+    & text_fingerprint, item_value
   public :: check_removal
   public :: checkpoint_identity
 
@@ -405,14 +406,41 @@ contains
     !> Only the single groups the text or an override gives (a scene being built: a group
     !> not given yet can still be added).
     logical, intent(in), optional :: given
-    character(len=:), allocatable :: text
+    character(len=:), allocatable :: text, relative
+    logical :: want_absolute
+    want_absolute = .false.
+    if (present(absolute_paths)) want_absolute = absolute_paths
+    if (want_absolute) then
+      call put_resolved(sc, relative, text, groups, omit, given)
+    else
+      call put_resolved(sc, text, groups=groups, omit=omit, given=given)
+    end if
+  end function resolved_text
+
+  !> The whole resolved scene in one pass, as resolved_text gives it without and with
+  !> absolute paths: `text` and `absolute`.
+  subroutine resolved_texts(sc, text, absolute)
+    type(scene_t), target, intent(inout) :: sc
+    character(len=:), allocatable, intent(out) :: text, absolute
+    call put_resolved(sc, text, absolute)
+  end subroutine resolved_texts
+
+  !> resolved_text's work: `text` as written and, when present, `absolute` with the files
+  !> given relative to the scene's folder written absolute.
+  subroutine put_resolved(sc, text, absolute, groups, omit, given)
+    type(scene_t), target, intent(inout) :: sc
+    character(len=:), allocatable, intent(out) :: text
+    character(len=:), allocatable, intent(out), optional :: absolute
+    character(len=*), intent(in), optional :: groups, omit
+    logical, intent(in), optional :: given
     type(origin_t), pointer :: o
     type(item_table) :: t
     character(len=:), allocatable :: v
     character(len=16) :: name
-    integer :: i, j, k, m, n
-    n = 0
+    integer :: i, j, k, m, n, na
+    n = 0; na = 0
     allocate(character(len=4096) :: text)
+    if (present(absolute)) allocate(character(len=4096) :: absolute)
     i = 1
     do while (i <= len(group_names))
       j = index(group_names(i:) // ' ', ' ') + i - 2
@@ -429,33 +457,43 @@ contains
           o => group_origin(sc, trim(name), k)
           if (given .and. o%line == 0 .and. o%n == 0) cycle
         end if
-        call append('&' // trim(name) // new_line('a'))
+        call append_both('&' // trim(name) // new_line('a'))
         call describe_group(sc, trim(name), k, t)
         do m = 1, t%n
           if (.not. item_applies(sc, trim(name), k, t%items(m)%name)) cycle
           v = value_text(t%items(m))
-          if (present(absolute_paths)) then
-            if (absolute_paths) v = value_text(t%items(m), sc%file)
-          end if
-          if (len(v) > 0) call append('  ' // trim(t%items(m)%name) // ' = ' // v // new_line('a'))
+          if (len(v) > 0) call append(text, n, '  ' // trim(t%items(m)%name) // ' = ' // v // new_line('a'))
+          if (.not. present(absolute)) cycle
+          if (t%items(m)%scene_file) v = value_text(t%items(m), sc%file)
+          if (len(v) > 0) call append(absolute, na, '  ' // trim(t%items(m)%name) // ' = ' // v // new_line('a'))
         end do
-        call append('/' // new_line('a'))
+        call append_both('/' // new_line('a'))
       end do
     end do
     text = text(1:n)
+    if (present(absolute)) absolute = absolute(1:na)
   contains
-    subroutine append(s)
+    subroutine append_both(s)
       character(len=*), intent(in) :: s
-      character(len=:), allocatable :: tmp
-      if (n + len(s) > len(text)) then
-        allocate(character(len=2*(n + len(s))) :: tmp)
-        tmp(1:n) = text(1:n)
-        call move_alloc(tmp, text)
-      end if
-      text(n+1:n+len(s)) = s
-      n = n + len(s)
-    end subroutine append
-  end function resolved_text
+      call append(text, n, s)
+      if (present(absolute)) call append(absolute, na, s)
+    end subroutine append_both
+  end subroutine put_resolved
+
+  !> Append s to buf(1:n) (n advanced), doubling buf when it is full.
+  pure subroutine append(buf, n, s)
+    character(len=:), allocatable, intent(inout) :: buf
+    integer, intent(inout) :: n
+    character(len=*), intent(in) :: s
+    character(len=:), allocatable :: tmp
+    if (n + len(s) > len(buf)) then
+      allocate(character(len=2*(n + len(s))) :: tmp)
+      tmp(1:n) = buf(1:n)
+      call move_alloc(tmp, buf)
+    end if
+    buf(n+1:n+len(s)) = s
+    n = n + len(s)
+  end subroutine append
 
   !> Group and name of a removal's address: GROUP (a single group) or GROUP[NAME] (the
   !> occurrences of a repeated group its naming item names, as --set selects them).
@@ -539,8 +577,15 @@ contains
   function scene_fingerprint(sc) result(s)
     type(scene_t), target, intent(inout) :: sc
     character(len=:), allocatable :: s
-    s = 'sha256:' // sha256_hex(resolved_text(sc))
+    s = text_fingerprint(resolved_text(sc))
   end function scene_fingerprint
+
+  !> The fingerprint of a resolved scene text (resolved_text).
+  function text_fingerprint(text) result(s)
+    character(len=*), intent(in) :: text
+    character(len=:), allocatable :: s
+    s = 'sha256:' // sha256_hex(text)
+  end function text_fingerprint
 
   !> The groups and items of the tables, one item a line: name, type and count, default,
   !> range or choices, unit, meaning (tab-separated, groups as '&name' lines).
