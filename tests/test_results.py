@@ -27,6 +27,21 @@ def test_csv_numbers_round_trip(tmp_path):
     assert np.abs(vel[:, 1] - qd * pos[:, 0]).max() < 1e-14
 
 
+@pytest.mark.parametrize("q0", [np.nextafter(1e-5, 0.0), np.nextafter(0.1, 0.0), np.nextafter(1.0, 0.0),
+                                np.nextafter(np.nextafter(1e-3, 0.0), 0.0)])
+def test_csv_numbers_just_below_a_power_of_ten_keep_17_digits(tmp_path, q0):
+    """A number one or two ulp below a power of ten scales to exactly 10 (or 1) in double
+    precision: its digits are then found from the double-double, not the rounded product.
+    The pendulum's initial angle is written as d.dddddddddddddddde-XXX, 17 significant
+    digits, and reads back exactly (the writer had put 0.9999999999999999e-004, 16 digits)."""
+    out = tmp_path / "p.csv"
+    res = pymr.run(ROOT / "input" / "pendulum.nml", out, overrides={"scene.t_end": 0.01, "joint[pivot].q0": q0})
+    assert res["pivot.q"][0] == q0
+    lines = [ln for ln in out.read_text().splitlines() if not ln.startswith("#")]
+    text = lines[1].split(",")[lines[0].split(",").index("pivot.q")]
+    assert text[0] in "123456789" and text[1] == "." and len(text) == 23 and float(text) == q0
+
+
 def test_csv_layout_and_json(tmp_path):
     out = tmp_path / "tank.csv"
     pymr.run(ROOT / "input" / "tank_gun_turret.nml", out, overrides={"scene.t_end": 0.01})

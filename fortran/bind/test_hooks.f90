@@ -7,7 +7,7 @@
 !> The CSV writer's text of m reals in `digits` significant digits, as character codes
 !> (text(:, i) is value i, blank padded): for round-trip tests of the formatter.
 subroutine pymr_format_reals(m, x, digits, text)
-  use pymr_io_fast_format, only : put_real
+  use pymr_env_real_text, only : put_real
   implicit none
   integer, intent(in) :: m, digits
   double precision, intent(in) :: x(m)

@@ -2,6 +2,8 @@
 !> them or in the fewest digits that read back exactly, lower case.
 module pymr_env_text
   use pymr_env_kinds, only : dp
+  use pymr_env_real_text, only : decimal_digits, pow10
+  use, intrinsic :: iso_fortran_env, only : int64
   implicit none
   private
   public :: itoa, lower, fmt, decimal_text, exact_text, char_length, printable
@@ -107,6 +109,44 @@ contains
     end if
   end function decimal_text
 
+  !> exact_text without formatted I/O where that is certain (false elsewhere: zero,
+  !> magnitudes beyond the exact powers of ten, digits within 1e-6 of a tie). The 15 digits
+  !> read back to x exactly when their value, one correctly rounded product or quotient
+  !> of two exact doubles, is x, as a correctly rounded READ of the text would be.
+  logical function exact_digits_text(x, s) result(done)
+    real(dp), intent(in) :: x
+    character(len=:), allocatable, intent(out) :: s
+    integer(int64) :: dgt
+    integer :: e, nd, k
+    logical :: ok, tie
+    real(dp) :: y
+    character(len=17) :: d
+    integer :: i
+    done = .false.
+    if (.not. (x /= 0.0_dp .and. abs(x) <= huge(x))) return
+    do nd = 15, 17, 2
+      call decimal_digits(abs(x), nd, dgt, e, ok, tie)
+      if (.not. ok .or. tie) return
+      if (nd == 15) then
+        k = e - 14
+        if (abs(k) > 22) return
+        y = merge(real(dgt, dp)*pow10(max(k, 0)), real(dgt, dp)/pow10(max(-k, 0)), k >= 0)
+        if (y /= abs(x)) cycle
+      end if
+      do i = nd, 1, -1
+        d(i:i) = achar(iachar('0') + int(mod(dgt, 10_int64))); dgt = dgt/10
+      end do
+      s = merge('-', ' ', x < 0.0_dp) // d(1:1) // '.' // d(2:nd)
+      s = trim(adjustl(s))
+      if (e >= -4 .and. e < nd) then
+        s = fixed_text(s, e)
+      else
+        s = strip_zeros(s) // 'e' // merge('-', '+', e < 0) // itoa(abs(e))
+      end if
+      done = .true.; return
+    end do
+  end function exact_digits_text
+
   !> The fixed notation of the number whose scientific mantissa is m ('-d.ddd', every digit
   !> significant) and decimal exponent e (-4 <= e < its digits): its digits moved past the
   !> point, without trailing zeros ('0.000123', '-25', '2.5').
@@ -132,6 +172,7 @@ contains
     character(len=:), allocatable :: s
     real(dp) :: y
     integer :: ios
+    if (exact_digits_text(x, s)) return
     s = decimal_text(x, 15)
     if (x /= x .or. abs(x) > huge(x)) return
     read(s, *, iostat=ios) y

@@ -5,7 +5,7 @@ module pymr_io_results_csv
   use, intrinsic :: iso_fortran_env, only : int64
   use pymr_env_error, only : error_type, fatal_error, stat_solver
   use pymr_model_types, only : model_data
-  use pymr_io_fast_format, only : put_real
+  use pymr_env_real_text, only : put_real
   use pymr_env_text, only : itoa
   use pymr_env_text_file, only : sync_file, rename_file, file_size, check_size
   use pymr_io_results_output, only : pymr_version, header_line, row_width, row_values

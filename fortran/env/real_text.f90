@@ -1,24 +1,28 @@
-!> Fast formatting of reals for the CSV writer: 17 significant digits in E notation
-!> ("-1.2345678901234567e+002"), about ten times faster than a formatted WRITE.
+!> Reals as text without formatted I/O: correctly rounded decimal digits (decimal_digits),
+!> and put_real, the CSV writer's numbers: 17 significant digits in E notation
+!> ("-1.2345678901234567e+002"), about ten times faster than a formatted WRITE, and read
+!> back to the same double. pymr_env_text's exact_text takes its digits from here too.
+!>
 !> For magnitudes 1e-21 to 1e22 the digits come from x 10^-e carried in double-double
 !> arithmetic (error-free products and quotients by exact powers of ten, Dekker's
-!> splitting): they are correctly rounded (up to exact ties), so 17 digits read back to x.
-!> Beyond that range (subnormal numbers included) a formatted WRITE gives the correctly
-!> rounded digits.
-module pymr_io_fast_format
+!> splitting): they are correctly rounded, except where x lies within 1e-6 of the last
+!> digit of a tie (exact_text then leaves it to a formatted WRITE; put_real's 17 digits
+!> read back to x either way). Beyond that range (subnormal numbers included) put_real
+!> writes by a formatted WRITE.
+module pymr_env_real_text
   use pymr_env_kinds, only : dp
   use, intrinsic :: iso_fortran_env, only : int64
   implicit none
   private
-  public :: put_real
+  public :: decimal_digits, pow10, put_real
 
   integer :: k_
-  !> The hundred two-digit strings '00' ... '99'.
-  character(len=2), parameter :: pairs(0:99) = [(achar(iachar('0') + k_/10) // achar(iachar('0') + mod(k_, 10)), &
-    & k_ = 0, 99)]
   !> The powers of ten exact in double precision, and as 64-bit integers.
   real(dp), parameter :: pow10(0:22) = [(10.0_dp**k_, k_ = 0, 22)]
   integer(int64), parameter :: ipow10(0:18) = [(10_int64**k_, k_ = 0, 18)]
+  !> The hundred two-digit strings '00' ... '99'.
+  character(len=2), parameter :: pairs(0:99) = [(achar(iachar('0') + k_/10) // achar(iachar('0') + mod(k_, 10)), &
+    & k_ = 0, 99)]
 
 contains
 
@@ -31,7 +35,8 @@ contains
     integer, intent(in), optional :: digits
     integer :: e, i, ae, hi, lo, nd
     integer(int64) :: dgt
-    real(dp) :: m, ml, th, tl
+    logical :: ok
+    real(dp) :: r
     character(len=17) :: dstr
     if (x /= x) then
       buf(pos:pos+2) = 'nan'; pos = pos + 3; return
@@ -55,29 +60,11 @@ contains
     if (x < 0.0_dp) then
       buf(pos:pos) = '-'; pos = pos + 1
     end if
-    ! decimal exponent from the binary one (log10(2) = 0.30103...); the checks of m
-    ! below correct the estimate by one either way
-    e = floor((binary_exponent(x) - 1)*0.30102999566398120_dp)
     nd = 17
     if (present(digits)) nd = digits
-    if (abs(e) > 21) then
+    call rounded_digits(abs(x), nd, dgt, e, ok, r)
+    if (.not. ok) then
       call put_real_exact(abs(x), nd, buf, pos); return
-    end if
-    call scale_by_pow10(abs(x), -e, m, ml)
-    if (m >= 10.0_dp) then
-      e = e + 1
-      call scale_by_pow10(abs(x), -e, m, ml)
-    else if (m < 1.0_dp) then
-      e = e - 1
-      call scale_by_pow10(abs(x), -e, m, ml)
-    end if
-    ! m + ml times 10^(nd-1) < 1e17: its high part is a double in [1e16, 1e17) when nd = 17,
-    ! an integer; the low part carries the rest
-    call two_product(m, pow10(nd - 1), th, tl)
-    tl = tl + ml*pow10(nd - 1)
-    dgt = nint(th, int64) + nint(tl + (th - anint(th)), int64)
-    if (dgt >= ipow10(nd)) then
-      dgt = dgt/10; e = e + 1
     end if
     if (nd < 17) dgt = dgt*ipow10(17 - nd)
     ! digits two at a time, in two 32-bit halves (9 + 8): fewer and cheaper divisions
@@ -122,6 +109,63 @@ contains
     pos = pos + len_trim(text)
   end subroutine put_real_exact
 
+  !> The nd significant digits (nd <= 17) of x > 0 (finite) as the integer dgt,
+  !> 10^(nd-1) <= dgt < 10^nd, and its decimal exponent e: x ~ dgt 10^(e - nd + 1).
+  !> ok is false beyond 1e+-21 (dgt, e undefined); near_tie is true when x lies within
+  !> 1e-6 of a last digit from halfway between two roundings.
+  pure subroutine decimal_digits(x, nd, dgt, e, ok, near_tie)
+    real(dp), intent(in) :: x
+    integer, intent(in) :: nd
+    integer(int64), intent(out) :: dgt
+    integer, intent(out) :: e
+    logical, intent(out) :: ok, near_tie
+    real(dp) :: r
+    call rounded_digits(x, nd, dgt, e, ok, r)
+    near_tie = abs(abs(r - anint(r)) - 0.5_dp) < 1.0e-6_dp
+  end subroutine decimal_digits
+
+  !> decimal_digits' work; r: the part of x 10^(nd-1-e) beyond its nearest integer.
+  pure subroutine rounded_digits(x, nd, dgt, e, ok, r)
+    real(dp), intent(in) :: x
+    integer, intent(in) :: nd
+    integer(int64), intent(out) :: dgt
+    integer, intent(out) :: e
+    logical, intent(out) :: ok
+    real(dp), intent(out) :: r
+    real(dp) :: m, ml, th, tl
+    ! decimal exponent from the binary one (log10(2) = 0.30103...); the checks of m
+    ! below correct the estimate by one either way
+    e = floor((binary_exponent(x) - 1)*0.30102999566398120_dp)
+    ok = abs(e) <= 21
+    if (.not. ok) return
+    call scale_by_pow10(x, -e, m, ml)
+    ! compared as the double-double: x just below a power of ten can have m = 10 or 1
+    ! exactly with ml < 0
+    if (m > 10.0_dp .or. (m == 10.0_dp .and. ml >= 0.0_dp)) then
+      e = e + 1
+      call scale_by_pow10(x, -e, m, ml)
+    else if (m < 1.0_dp .or. (m == 1.0_dp .and. ml < 0.0_dp)) then
+      e = e - 1
+      call scale_by_pow10(x, -e, m, ml)
+    end if
+    ! m + ml times 10^(nd-1) < 1e17: its high part is a double in [1e16, 1e17) when nd = 17,
+    ! an integer; the low part carries the rest
+    call two_product(m, pow10(nd - 1), th, tl)
+    tl = tl + ml*pow10(nd - 1)
+    r = tl + (th - anint(th))
+    dgt = nint(th, int64) + nint(r, int64)
+    if (dgt >= ipow10(nd)) then
+      dgt = dgt/10; e = e + 1
+    end if
+  end subroutine rounded_digits
+
+  !> exponent(x) of a finite x /= 0 (x = f 2^e, 0.5 <= |f| < 1) from its bits; a
+  !> subnormal x gives -1022, beyond decimal_digits' range as it should be.
+  elemental integer function binary_exponent(x) result(e)
+    real(dp), intent(in) :: x
+    e = int(ibits(transfer(x, 0_int64), 52, 11)) - 1022
+  end function binary_exponent
+
   !> x 10^k as the double-double m + ml, for |k| <= 22 (10^|k| exact): a product by the
   !> power (error-free), or a quotient with its remainder (exact by Sterbenz's lemma).
   pure subroutine scale_by_pow10(x, k, m, ml)
@@ -139,13 +183,6 @@ contains
     end if
   end subroutine scale_by_pow10
 
-  !> exponent(x) of a finite x /= 0 (x = f 2^e, 0.5 <= |f| < 1) from its bits; a
-  !> subnormal x gives -1022, which put_real sends to the formatted WRITE as it should.
-  elemental integer function binary_exponent(x) result(e)
-    real(dp), intent(in) :: x
-    e = int(ibits(transfer(x, 0_int64), 52, 11)) - 1022
-  end function binary_exponent
-
   !> a b = p + e exactly (Dekker: both factors split into 26-bit halves).
   pure subroutine two_product(a, b, p, e)
     real(dp), intent(in) :: a, b
@@ -157,4 +194,4 @@ contains
     c = splitter*b; bh = c - (c - b); bl = b - bh
     e = ((ah*bh - p) + ah*bl + al*bh) + al*bl
   end subroutine two_product
-end module pymr_io_fast_format
+end module pymr_env_real_text
