@@ -14,7 +14,7 @@ module pymr_env_real_text
   use, intrinsic :: iso_fortran_env, only : int64
   implicit none
   private
-  public :: decimal_digits, pow10, put_real
+  public :: decimal_digits, digit_text, pow10, ipow10, put_real
 
   integer :: k_
   !> The powers of ten exact in double precision, and as 64-bit integers.
@@ -33,7 +33,7 @@ contains
     character(len=*), intent(inout) :: buf
     integer, intent(inout) :: pos
     integer, intent(in), optional :: digits
-    integer :: e, i, ae, hi, lo, nd
+    integer :: e, ae, nd
     integer(int64) :: dgt
     logical :: ok
     real(dp) :: r
@@ -67,18 +67,7 @@ contains
       call put_real_exact(abs(x), nd, buf, pos); return
     end if
     if (nd < 17) dgt = dgt*ipow10(17 - nd)
-    ! digits two at a time, in two 32-bit halves (9 + 8): fewer and cheaper divisions
-    hi = int(dgt/100000000_int64)
-    lo = int(dgt - 100000000_int64*hi)
-    do i = 16, 10, -2
-      dstr(i:i+1) = pairs(mod(lo, 100))
-      lo = lo/100
-    end do
-    do i = 8, 2, -2
-      dstr(i:i+1) = pairs(mod(hi, 100))
-      hi = hi/100
-    end do
-    dstr(1:1) = achar(iachar('0') + hi)
+    dstr = digit_text(dgt)
     buf(pos:pos) = dstr(1:1); buf(pos+1:pos+1) = '.'; buf(pos+2:pos+nd) = dstr(2:nd)
     pos = pos + nd + 1
     buf(pos:pos) = 'e'
@@ -89,6 +78,25 @@ contains
     buf(pos+4:pos+4) = achar(iachar('0') + mod(ae, 10))
     pos = pos + 5
   end subroutine put_real
+
+  !> The 17 decimal digits of 0 <= dgt < 10^17 (leading zeros kept), two at a time in two
+  !> 32-bit halves (9 + 8): fewer and cheaper divisions.
+  pure function digit_text(dgt) result(d)
+    integer(int64), intent(in) :: dgt
+    character(len=17) :: d
+    integer :: i, hi, lo
+    hi = int(dgt/100000000_int64)
+    lo = int(dgt - 100000000_int64*hi)
+    do i = 16, 10, -2
+      d(i:i+1) = pairs(mod(lo, 100))
+      lo = lo/100
+    end do
+    do i = 8, 2, -2
+      d(i:i+1) = pairs(mod(hi, 100))
+      hi = hi/100
+    end do
+    d(1:1) = achar(iachar('0') + hi)
+  end function digit_text
 
   !> Append the text of x > 0 by a formatted WRITE, correctly rounded to `digits` digits: the path
   !> for magnitudes beyond 1e+-21, where a power of ten is not exact in double precision

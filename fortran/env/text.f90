@@ -2,7 +2,7 @@
 !> them or in the fewest digits that read back exactly, lower case.
 module pymr_env_text
   use pymr_env_kinds, only : dp
-  use pymr_env_real_text, only : decimal_digits, pow10
+  use pymr_env_real_text, only : decimal_digits, digit_text, pow10, ipow10
   use, intrinsic :: iso_fortran_env, only : int64
   implicit none
   private
@@ -102,12 +102,22 @@ contains
     e = (iachar(buf(p+2:p+2)) - iachar('0'))*100 + (iachar(buf(p+3:p+3)) - iachar('0'))*10 + &
       & iachar(buf(p+4:p+4)) - iachar('0')
     if (buf(p+1:p+1) == '-') e = -e
-    if (e >= -4 .and. e < digits) then
-      s = fixed_text(trim(adjustl(buf(:p-1))), e)
-    else
-      s = strip_zeros(trim(adjustl(buf(:p-1)))) // 'e' // merge('-', '+', e < 0) // itoa(abs(e))
-    end if
+    s = person_text(trim(adjustl(buf(:p-1))), e, digits)
   end function decimal_text
+
+  !> decimal_text's form of the number whose scientific mantissa is m ('-d.ddd', `digits`
+  !> significant digits) and decimal exponent e: fixed notation from 1e-4 to 10**digits,
+  !> else d.ddde+N, without trailing zeros.
+  pure function person_text(m, e, digits) result(s)
+    character(len=*), intent(in) :: m
+    integer, intent(in) :: e, digits
+    character(len=:), allocatable :: s
+    if (e >= -4 .and. e < digits) then
+      s = fixed_text(m, e)
+    else
+      s = strip_zeros(m) // 'e' // merge('-', '+', e < 0) // itoa(abs(e))
+    end if
+  end function person_text
 
   !> exact_text without formatted I/O where that is certain (false elsewhere: zero,
   !> magnitudes beyond the exact powers of ten, digits within 1e-6 of a tie). The 15 digits
@@ -121,7 +131,6 @@ contains
     logical :: ok, tie
     real(dp) :: y
     character(len=17) :: d
-    integer :: i
     done = .false.
     if (.not. (x /= 0.0_dp .and. abs(x) <= huge(x))) return
     do nd = 15, 17, 2
@@ -133,16 +142,8 @@ contains
         y = merge(real(dgt, dp)*pow10(max(k, 0)), real(dgt, dp)/pow10(max(-k, 0)), k >= 0)
         if (y /= abs(x)) cycle
       end if
-      do i = nd, 1, -1
-        d(i:i) = achar(iachar('0') + int(mod(dgt, 10_int64))); dgt = dgt/10
-      end do
-      s = merge('-', ' ', x < 0.0_dp) // d(1:1) // '.' // d(2:nd)
-      s = trim(adjustl(s))
-      if (e >= -4 .and. e < nd) then
-        s = fixed_text(s, e)
-      else
-        s = strip_zeros(s) // 'e' // merge('-', '+', e < 0) // itoa(abs(e))
-      end if
+      d = digit_text(dgt*ipow10(17 - nd))
+      s = person_text(trim(merge('-', ' ', x < 0.0_dp)) // d(1:1) // '.' // d(2:nd), e, nd)
       done = .true.; return
     end do
   end function exact_digits_text

@@ -56,12 +56,6 @@ module pymr_integrator_exponential
     type(flow_rows_t) :: rows
   end type flow_step_t
 
-  !> Taylor weights tw for np points at the times rel relative to the step's start.
-  type :: weights_cache_t
-    integer :: np = 0
-    real(dp) :: rel(n_hist) = 0.0_dp, tw(n_hist, n_coef) = 0.0_dp
-  end type weights_cache_t
-
   !> Work arrays of a step.
   type :: flow_work_t
     real(dp), allocatable :: w(:), xp(:), xc(:), f(:), g(:, :), kf(:), df(:), y(:), rnew(:), cs(:, :)
@@ -85,9 +79,6 @@ module pymr_integrator_exponential
     complex(dp), allocatable :: tp(:, :)
     real(dp) :: tau_phi = -1.0_dp
     type(flow_work_t) :: wk
-    !> The last Taylor weights of the predictor (1) and the corrector (2), by their points'
-    !> times relative to the step's start (fixed steps reuse them).
-    type(weights_cache_t) :: tw(2)
   contains
     procedure :: init => ex_init
     procedure :: start => ex_start
@@ -316,6 +307,7 @@ contains
     allocate(self%wk%eta0(nm), self%wk%pnew(nm), self%wk%beta(nm, n_coef), self%hist%hp(nm, n_hist), &
       & self%last%eta(nm), self%last%beta(nm, n_coef))
     self%hist%hp = (0.0_dp, 0.0_dp); self%last%eta = (0.0_dp, 0.0_dp); self%last%beta = (0.0_dp, 0.0_dp)
+    call self%flow%rows_form(self%last%eta, self%last%beta, 0.0_dp, self%last%rows)
   end subroutine size_modal
 
   !> The flow's coefficients for a step of tau (computed again only when it changes).
@@ -333,35 +325,31 @@ contains
 
   !> Taylor coefficients at t0 (wk%cs: slow rows, wk%beta: modal) of the polynomial
   !> through the history's last m remainders and, with `with_new`, the pending one (wk%rnew,
-  !> wk%pnew at tn).
+  !> wk%pnew at tn). The weights come from the history's own times each step (a few hundred
+  !> operations), so that a run continued from a checkpoint repeats the uninterrupted one.
   pure subroutine forcing(self, t0, m, with_new, tn)
     class(exponential_integrator), intent(inout) :: self
     real(dp), intent(in) :: t0, tn
     integer, intent(in) :: m
     logical, intent(in) :: with_new
-    real(dp) :: th(n_hist)
-    integer :: i, j, j0, np, c
+    real(dp) :: th(n_hist), tw(n_hist, n_coef)
+    integer :: i, j, j0, np
     associate(h => self%hist, wk => self%wk, ns => self%ns)
       j0 = h%nh - m
       th(1:m) = h%th(j0+1:h%nh) - t0; np = m
       if (with_new) then
         np = m + 1; th(np) = tn - t0
       end if
-      c = merge(2, 1, with_new)
-      ! the same relative times within round-off (fixed steps: t0 + m H) give the same weights
-      if (self%tw(c)%np /= np .or. any(abs(self%tw(c)%rel(1:np) - th(1:np)) > 1.0e-12_dp*abs(tn - t0))) then
-        call taylor_weights(th(1:np), 0.0_dp, self%tw(c)%tw(1:np, :))
-        self%tw(c)%np = np; self%tw(c)%rel(1:np) = th(1:np)
-      end if
+      call taylor_weights(th(1:np), 0.0_dp, tw(1:np, :))
       wk%cs = 0.0_dp; wk%beta = (0.0_dp, 0.0_dp)
       do j = 1, n_coef
         do i = 1, m
-          wk%cs(:, j) = wk%cs(:, j) + self%tw(c)%tw(i, j)*h%hr(1:ns, j0+i)
-          wk%beta(:, j) = wk%beta(:, j) + self%tw(c)%tw(i, j)*h%hp(:, j0+i)
+          wk%cs(:, j) = wk%cs(:, j) + tw(i, j)*h%hr(1:ns, j0+i)
+          wk%beta(:, j) = wk%beta(:, j) + tw(i, j)*h%hp(:, j0+i)
         end do
         if (with_new) then
-          wk%cs(:, j) = wk%cs(:, j) + self%tw(c)%tw(np, j)*wk%rnew(1:ns)
-          wk%beta(:, j) = wk%beta(:, j) + self%tw(c)%tw(np, j)*wk%pnew
+          wk%cs(:, j) = wk%cs(:, j) + tw(np, j)*wk%rnew(1:ns)
+          wk%beta(:, j) = wk%beta(:, j) + tw(np, j)*wk%pnew
         end if
       end do
     end associate

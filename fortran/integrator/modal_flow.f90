@@ -395,7 +395,8 @@ contains
   end subroutine state_from_amplitudes
 
   !> One step's flow in the form its rows take (row_at): for a mode with |lambda| h >= 1,
-  !> the particular solution. With p the cubic that solves p' = lambda p + (the mode's
+  !> the particular solution, taken by a row where |lambda| tau >= 1 (nearer the step's
+  !> start, e^(lambda tau) d and p(tau) would cancel). With p the cubic that solves p' = lambda p + (the mode's
   !> forcing) and d = eta0 - p(0), eta(tau) = e^(lambda tau) d + p(tau), and its integrals
   !> tau phi_1 d + P1(tau), tau^2 phi_2 d + P2(tau). A row then needs phi_0 .. phi_2, not
   !> phi_0 .. phi_6, and the polynomials share their powers of tau over the modes. A mode
@@ -452,7 +453,7 @@ contains
     do i = 1, self%nm
       if (.not. rows%active(i)) then
         s = (0.0_dp, 0.0_dp)
-      else if (rows%poly(i)) then
+      else if (rows%poly(i) .and. abs(self%lam(i))*tau >= 1.0_dp) then
         call phi_functions(self%lam(i)*tau, tp(0:2))
         s = tr(0:2)*tp(0:2)*rows%d(i)
         do m = 0, n_coef - 1
