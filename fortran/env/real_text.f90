@@ -39,23 +39,11 @@ contains
     real(dp) :: r
     character(len=17) :: dstr
     if (x /= x) then
-      buf(pos:pos+2) = 'nan'; pos = pos + 3; return
-    end if
-    if (abs(x) > huge(x)) then
-      if (x > 0) then
-        buf(pos:pos+2) = 'inf'; pos = pos + 3
-      else
-        buf(pos:pos+3) = '-inf'; pos = pos + 4
-      end if
-      return
-    end if
-    if (x == 0.0_dp) then
-      if (sign(1.0_dp, x) < 0.0_dp) then
-        buf(pos:pos+3) = '-0.0'; pos = pos + 4
-      else
-        buf(pos:pos+2) = '0.0'; pos = pos + 3
-      end if
-      return
+      call put_word('nan', buf, pos); return
+    else if (abs(x) > huge(x)) then
+      call put_word(trim(merge('inf ', '-inf', x > 0.0_dp)), buf, pos); return
+    else if (x == 0.0_dp) then
+      call put_word(trim(merge('-0.0', '0.0 ', sign(1.0_dp, x) < 0.0_dp)), buf, pos); return
     end if
     if (x < 0.0_dp) then
       buf(pos:pos) = '-'; pos = pos + 1
@@ -78,6 +66,15 @@ contains
     buf(pos+4:pos+4) = achar(iachar('0') + mod(ae, 10))
     pos = pos + 5
   end subroutine put_real
+
+  !> Append the word w to buf at pos (advanced past it).
+  pure subroutine put_word(w, buf, pos)
+    character(len=*), intent(in) :: w
+    character(len=*), intent(inout) :: buf
+    integer, intent(inout) :: pos
+    buf(pos:pos+len(w)-1) = w
+    pos = pos + len(w)
+  end subroutine put_word
 
   !> The 17 decimal digits of 0 <= dgt < 10^17 (leading zeros kept), two at a time in two
   !> 32-bit halves (9 + 8): fewer and cheaper divisions.
