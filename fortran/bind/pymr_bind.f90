@@ -440,13 +440,12 @@ subroutine pymr_scene_write(scene, overrides, what, path, stat, message, detail)
   use pymr_model_scene, only : scene_t
   use pymr_model, only : model_t
   use pymr_driver_run, only : load_model
-  use pymr_io_namelist_input, only : resolved_text, schema_text, scene_fingerprint
+  use pymr_io_namelist_input, only : resolved_texts, schema_text, text_fingerprint
   use pymr_env_text_file, only : write_text_file
-  use pymr_io_sha256, only : sha256_hex
   implicit none
   character(len=*), intent(in) :: scene, overrides, path
   integer, intent(in) :: what
-  character(len=:), allocatable :: text
+  character(len=:), allocatable :: text, absolute
   integer, intent(out) :: stat
   character(len=8192), intent(out) :: message
   character(len=4096), intent(out) :: detail
@@ -458,11 +457,11 @@ subroutine pymr_scene_write(scene, overrides, what, path, stat, message, detail)
   else
     call load_model(scene, overrides, sc, model, error)
     if (.not. allocated(error)) then
-      text = resolved_text(sc, what == 2)
+      call resolved_texts(sc, text, absolute)
       if (what == 2) then
-        call write_text_file(path, text // '! fingerprint ' // scene_fingerprint(sc) // new_line('a'), error)
+        call write_text_file(path, absolute // '! fingerprint ' // text_fingerprint(text) // new_line('a'), error)
       else
-        call write_text_file(path, text // '! fingerprint sha256:' // sha256_hex(text) // new_line('a'), error)
+        call write_text_file(path, text // '! fingerprint ' // text_fingerprint(text) // new_line('a'), error)
       end if
     end if
   end if

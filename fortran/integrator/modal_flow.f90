@@ -395,13 +395,13 @@ contains
   end subroutine state_from_amplitudes
 
   !> One step's flow in the form its rows take (row_at): for a mode with |lambda| h >= 1,
-  !> the particular solution, taken by a row where |lambda| tau >= 1 (nearer the step's
-  !> start, e^(lambda tau) d and p(tau) would cancel). With p the cubic that solves p' = lambda p + (the mode's
+  !> the particular solution. With p the cubic that solves p' = lambda p + (the mode's
   !> forcing) and d = eta0 - p(0), eta(tau) = e^(lambda tau) d + p(tau), and its integrals
   !> tau phi_1 d + P1(tau), tau^2 phi_2 d + P2(tau). A row then needs phi_0 .. phi_2, not
-  !> phi_0 .. phi_6, and the polynomials share their powers of tau over the modes. A mode
-  !> slow against the step keeps the step's form (its p would cancel e^(lambda tau) d); a
-  !> mode at rest and unforced stays at rest.
+  !> phi_0 .. phi_6, and the polynomials share their powers of tau over the modes. Where
+  !> e^(lambda tau) d and p(tau) would cancel (a mode slow against the step, or a row with
+  !> |lambda| tau < 1 near the step's start) the step's form is kept; a mode at rest and
+  !> unforced stays at rest.
   pure subroutine flow_rows_form(self, eta0, beta, h, rows)
     class(modal_flow_t), intent(in) :: self
     complex(dp), intent(in) :: eta0(:), beta(:, :)

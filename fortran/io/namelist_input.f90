@@ -568,7 +568,7 @@ contains
     settings = resolved_text(sc, groups='integrator')
     t_end = sc%scene%t_end
     sc%scene%t_end = unset
-    model_fingerprint = 'sha256:' // sha256_hex(resolved_text(sc, groups='scene effects body joint drive spring ' // &
+    model_fingerprint = text_fingerprint(resolved_text(sc, groups='scene effects body joint drive spring ' // &
       & 'motion load marker force'))
     sc%scene%t_end = t_end
   end subroutine checkpoint_identity
