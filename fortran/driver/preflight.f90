@@ -37,11 +37,20 @@ module pymr_driver_preflight
   !> dropped: on the stiff barrel its Ritz values lay outside the spectrum (non-normal map).
   integer, parameter :: max_exact_state = 400, max_iterations = 3000
 
+  !> Relative resolution of the linearisation's central differences (increments 1e-6 of
+  !> each coordinate: rounding of about 2e-16/1e-6 of the forces): a residual stiffness or
+  !> damping below it is zero to the check.
+  real(dp), parameter :: fd_resolution = 1.0e-10_dp
+
   !> The model linearised at a state, M qdd = -(K q + C qd), as a partitioned system: a
-  !> stepper applied to it gives its linearised step map.
+  !> stepper applied to it gives its linearised step map. Its accelerations are kept as
+  !> products with the state: ax (n x 2n) of the whole state [q; qd], as and af (n x 2ns,
+  !> n x 2nf) of the slow and fast states; the fast equation's fast accelerations fxs and fxf
+  !> of the slow and fast states and fa of the slow accelerations; g = M^-1 E (the response
+  !> to modal forces), the modal stiffness kf and damping df.
   type, extends(partitioned_system) :: linear_system
     integer :: ns = 0, nf = 0
-    real(dp), allocatable :: minv(:, :), k(:, :), c(:, :), mffinv(:, :), mfs(:, :), kf(:), df(:), tfs(:, :)
+    real(dp), allocatable :: ax(:, :), as(:, :), af(:, :), fxs(:, :), fxf(:, :), fa(:, :), g(:, :), kf(:), df(:)
   contains
     procedure :: eval => lin_eval
     procedure :: component_name => lin_name
@@ -85,12 +94,15 @@ contains
       if (allocated(error)) return
     end if
     allocate(wr(2*n), wi(2*n), vr(2*n, 2*n))
-    if (steps%h_modal == steps%h_joint .and. counts%ratio == 1) then
+    if (steps%h_modal == steps%h_joint) then
       ! one step for every coordinate: the eigenvalues alone decide; the vectors are needed
       ! only to name the coordinate of a mode that fails
       ev = a
       call geev_real(ev, wr, wi, 'the linearised model', error); if (allocated(error)) return
-      if (all_stable(wr, wi, steps%h_joint, t_end)) return
+      if (all_stable(wr, wi, steps%h_joint, t_end)) then
+        call check_coupling(model, x, m, minv, k, c, max(maxval(wr), 0.0_dp), st, label, t_end, where, error)
+        return
+      end if
     end if
     call geev_real(a, wr, wi, 'the linearised model', error, vr); if (allocated(error)) return
     worst = 0; worst_ratio = 1.0_dp; worst_lam = (0.0_dp, 0.0_dp)
@@ -114,7 +126,7 @@ contains
       i = i + 1
     end do
     if (worst == 0) then
-      if (counts%ratio > 1) call check_macro_step(model, x, m, minv, k, c, max(maxval(wr), 0.0_dp), st, label, t_end, where, error)
+      call check_coupling(model, x, m, minv, k, c, max(maxval(wr), 0.0_dp), st, label, t_end, where, error)
       return
     end if
     h = merge(steps%h_modal, steps%h_joint, worst > model%d%nj)
@@ -162,6 +174,54 @@ contains
       call linear_state(model, 0.0_dp, x, m, minv, k, c, a, error)
     end if
   end subroutine linearised_for
+
+  !> Multirate runs whose fixed steps are stable mode by mode: the coupling's own stability
+  !> (sigma: the linearised model's growth rate), unless its surrogate is exact on the
+  !> linearised model.
+  subroutine check_coupling(model, x, m, minv, k, c, sigma, st, label, t_end, where, error)
+    type(model_t), intent(inout) :: model
+    real(dp), intent(in) :: x(:), m(:, :), minv(:, :), k(:, :), c(:, :), sigma, t_end
+    class(stepper_t), intent(in) :: st
+    character(len=*), intent(in) :: label, where
+    type(error_type), allocatable, intent(out) :: error
+    type(step_counts) :: counts
+    type(pece_steps) :: steps
+    counts = st%counts(); steps = st%pece()
+    if (counts%ratio == 1) return
+    if (steps%modal_surrogate) then
+      if (modal_forces_only(model, m, k, c)) return
+    end if
+    call check_macro_step(model, x, m, minv, k, c, sigma, st, label, t_end, where, error)
+  end subroutine check_coupling
+
+  !> Are the linearised model's stiffness k and damping c the modal ones alone (the modal
+  !> stiffness and damping on the modal diagonal, nothing else), within the resolution of
+  !> the central differences? Then a surrogate built on them (steps%modal_surrogate) is
+  !> exact on the linearised model. Entries are compared scaled by the mass matrix's
+  !> diagonal, against the largest scaled stiffness (omega_max^2) and omega_max.
+  logical function modal_forces_only(model, m, k, c)
+    type(model_t), intent(in) :: model
+    real(dp), intent(in) :: m(:, :), k(:, :), c(:, :)
+    real(dp), allocatable :: kf(:), df(:), rk(:, :), rc(:, :), s(:)
+    real(dp) :: kmax
+    integer :: n, ns, i
+    n = size(m, 1); ns = model%d%nj
+    allocate(kf(n - ns), df(n - ns))
+    call modal_stiffness_damping(model%d, model%effects, kf, df)
+    rk = k; rc = c
+    do i = ns + 1, n
+      rk(i, i) = rk(i, i) - kf(i - ns)
+      rc(i, i) = rc(i, i) - df(i - ns)
+    end do
+    s = [(1.0_dp/sqrt(m(i, i)), i = 1, n)]
+    do i = 1, n
+      rk(:, i) = rk(:, i)*s*s(i)
+      rc(:, i) = rc(:, i)*s*s(i)
+    end do
+    kmax = maxval([(k(i, i)*s(i)**2, i = 1, n)])
+    modal_forces_only = kmax > 0.0_dp .and. maxval(abs(rk)) <= fd_resolution*kmax .and. &
+      & maxval(abs(rc)) <= fd_resolution*sqrt(kmax)
+  end function modal_forces_only
 
   !> No vibration of the joints' block of the state matrix a (its rows and columns of the
   !> nj joint coordinates and rates) grows in fixed steps h over the run.
@@ -248,7 +308,7 @@ contains
     character(len=*), intent(in) :: label, where
     type(error_type), allocatable, intent(out) :: error
     type(linear_system) :: sys
-    integer :: kr, ks, dom, d2, k_run
+    integer :: kr, ks, dom, k_run
     real(dp) :: rho, r2, hf
     character(len=32) :: b1, b2, b3
     type(step_counts) :: counts
@@ -257,12 +317,14 @@ contains
     counts = st%counts(); steps = st%pece()
     k_run = counts%ratio; kr = k_run
     hf = steps%h_modal
-    call macro_growth(sys, m, st, kr, hf, t_end, rho, dom, error); if (allocated(error)) return
+    call macro_growth(sys, m, st, kr, hf, t_end, rho, error); if (allocated(error)) return
     if ((log(rho) - sigma*kr*hf)*t_end/(kr*hf) <= log(run_growth)) return
-    ! the largest stable ratio below kr (stability need not be monotone in k: scan all)
+    ! refused: the growing motion's coordinate, and the largest stable ratio below kr
+    ! (stability need not be monotone in k: scan all)
+    call macro_growth(sys, m, st, kr, hf, t_end, rho, error, dom); if (allocated(error)) return
     ks = 0
     do kr = 1, k_run - 1
-      call macro_growth(sys, m, st, kr, hf, t_end, r2, d2, error); if (allocated(error)) return
+      call macro_growth(sys, m, st, kr, hf, t_end, r2, error); if (allocated(error)) return
       if ((log(r2) - sigma*kr*hf)*t_end/(kr*hf) <= log(run_growth)) ks = kr
     end do
     kr = k_run
@@ -290,41 +352,49 @@ contains
     integer :: n, ns, nf
     integer, allocatable :: used(:)
     integer :: n_fast
-    real(dp), allocatable :: l(:, :), g(:, :), kg(:, :)
+    real(dp), allocatable :: l(:, :), g(:, :), kg(:, :), mffinv(:, :), tfs(:, :), kc(:, :)
     n = size(m, 1); ns = model%d%nj; nf = n - ns
     sys%ns = ns; sys%nf = nf
-    sys%k = k; sys%c = c
-    sys%minv = minv
-    allocate(sys%mffinv(nf, nf), sys%kf(nf), sys%df(nf))
+    allocate(mffinv(nf, nf), tfs(nf, ns), sys%kf(nf), sys%df(nf))
     l = m(ns+1:, ns+1:)
     call potrf(l, 'M_ff at the initial state', error); if (allocated(error)) return
-    call factor_inverse(l, sys%mffinv, 'M_ff', error); if (allocated(error)) return
-    sys%mfs = m(ns+1:, 1:ns)
+    call factor_inverse(l, mffinv, 'M_ff', error); if (allocated(error)) return
     call modal_stiffness_damping(model%d, model%effects, sys%kf, sys%df)
-    if (model%d%cuts%n_rows == 0) return
-    call loop_jacobian(model%d, model%wk, x(1:n), g, error); if (allocated(error)) return
-    allocate(used(size(g, 1)), sys%tfs(nf, ns))
-    call independent_rows(g(:, ns+1:), used, n_fast)
-    sys%tfs = 0.0_dp
-    if (n_fast == 0) return
-    allocate(kg(nf, n_fast))
-    call constrain_inverse(sys%mffinv, g(used(1:n_fast), ns+1:), error, kg); if (allocated(error)) return
-    sys%tfs = matmul(kg, g(used(1:n_fast), 1:ns))
+    tfs = 0.0_dp
+    if (model%d%cuts%n_rows > 0) then
+      call loop_jacobian(model%d, model%wk, x(1:n), g, error); if (allocated(error)) return
+      allocate(used(size(g, 1)))
+      call independent_rows(g(:, ns+1:), used, n_fast)
+      if (n_fast > 0) then
+        allocate(kg(nf, n_fast))
+        call constrain_inverse(mffinv, g(used(1:n_fast), ns+1:), error, kg); if (allocated(error)) return
+        tfs = matmul(kg, g(used(1:n_fast), 1:ns))
+      end if
+    end if
+    ! the columns of [K C] in the order of the slow and the fast states
+    kc = reshape([k(:, 1:ns), c(:, 1:ns), k(:, ns+1:), c(:, ns+1:)], [n, 2*n])
+    sys%ax = -matmul(minv, reshape([k, c], [n, 2*n]))
+    sys%as = -matmul(minv, kc(:, 1:2*ns))
+    sys%af = -matmul(minv, kc(:, 2*ns+1:))
+    sys%fxs = -matmul(mffinv, kc(ns+1:, 1:2*ns))
+    sys%fxf = -matmul(mffinv, kc(ns+1:, 2*ns+1:))
+    sys%fa = -matmul(mffinv, m(ns+1:, 1:ns)) - tfs
+    sys%g = minv(:, ns+1:)
   end subroutine linear_model
 
   !> Growth rho per macro step (ratio kr, fast step hf) of the stepper `proto` applied to
-  !> the linear system, and the coordinate `dom` whose kinetic energy dominates the growing
-  !> motion. The stepper is started at rest and taken past its start-up phase; then its
-  !> macro step is a linear map of its whole state vector.
-  subroutine macro_growth(sys, m, proto, kr, hf, t_end, rho, dom, error)
+  !> the linear system, and (if asked) the coordinate `dom` whose kinetic energy dominates
+  !> the growing motion. The stepper is started at rest and taken past its start-up phase;
+  !> then its macro step is a linear map of its whole state vector.
+  subroutine macro_growth(sys, m, proto, kr, hf, t_end, rho, error, dom)
     type(linear_system), intent(inout) :: sys
     real(dp), intent(in) :: m(:, :)
     class(stepper_t), intent(in) :: proto
     integer, intent(in) :: kr
     real(dp), intent(in) :: hf, t_end
     real(dp), intent(out) :: rho
-    integer, intent(out) :: dom
     type(error_type), allocatable, intent(out) :: error
+    integer, intent(out), optional :: dom
     class(stepper_t), allocatable :: st
     real(dp), allocatable :: v(:), x0(:)
     integer :: n, i
@@ -339,31 +409,39 @@ contains
     end do
     allocate(v(st%state_size()))
     if (size(v) <= max_exact_state) then
-      call map_radius(sys, st, v, rho, error)
+      call map_radius(sys, st, v, rho, error, present(dom))
     else
       call power_radius(sys, st, v, min(max_iterations, max(300, 4*nint(t_end/(kr*hf)))), rho, error)
     end if
-    if (allocated(error)) return
+    if (allocated(error) .or. .not. present(dom)) return
     dom = maxloc([(m(i, i)*(v(i)**2 + v(n + i)**2), i = 1, n)], 1)
   end subroutine macro_growth
 
   !> Spectral radius of the macro-step map from its matrix (one macro step per column);
-  !> v: the dominant eigenvector (its real part).
-  subroutine map_radius(sys, st, v, rho, error)
+  !> with_vector: v, the dominant eigenvector (its real part; the eigenvalues alone cost a
+  !> third of the work).
+  subroutine map_radius(sys, st, v, rho, error, with_vector)
     type(linear_system), intent(inout) :: sys
     class(stepper_t), intent(inout) :: st
     real(dp), intent(out) :: v(:), rho
     type(error_type), allocatable, intent(out) :: error
+    logical, intent(in) :: with_vector
     real(dp), allocatable :: g(:, :), wr(:), wi(:), vr(:, :)
     integer :: j, nz, top
     nz = size(v)
-    allocate(g(nz, nz), wr(nz), wi(nz), vr(nz, nz))
+    allocate(g(nz, nz), wr(nz), wi(nz))
     do j = 1, nz
       v = 0.0_dp; v(j) = 1.0_dp
       call st%set_state(v)
       call st%advance(sys, error); if (allocated(error)) return
       call st%get_state(g(:, j))
     end do
+    if (.not. with_vector) then
+      call geev_real(g, wr, wi, 'the linearised macro step', error); if (allocated(error)) return
+      rho = maxval(hypot(wr, wi))
+      return
+    end if
+    allocate(vr(nz, nz))
     call geev_real(g, wr, wi, 'the linearised macro step', error, vr); if (allocated(error)) return
     top = maxloc(hypot(wr, wi), 1)
     rho = hypot(wr(top), wi(top))
@@ -426,7 +504,7 @@ contains
     integer :: n
     n = self%ns + self%nf
     f(1:n) = x(n+1:)
-    f(n+1:) = -matmul(self%minv, matmul(self%k, x(1:n)) + matmul(self%c, x(n+1:)))
+    f(n+1:) = matmul(self%ax, x)
   end subroutine lin_eval
 
   function lin_name(self, i) result(name)
@@ -446,24 +524,15 @@ contains
     lin_n_fast = self%nf
   end function lin_n_fast
 
-  !> Generalised forces -(K q + C qd) at the full state gathered from xs and xf.
-  pure function forces(self, xs, xf) result(p)
-    class(linear_system), intent(in) :: self
-    real(dp), intent(in) :: xs(:), xf(:)
-    real(dp) :: p(self%ns + self%nf)
-    p = -matmul(self%k, [xs(1:self%ns), xf(1:self%nf)]) - matmul(self%c, [xs(self%ns+1:), xf(self%nf+1:)])
-  end function forces
-
   subroutine lin_sync(self, t, xs, xf, fs, ff, error)
     class(linear_system), intent(inout) :: self
     real(dp), intent(in) :: t, xs(:), xf(:)
     real(dp), intent(out) :: fs(:), ff(:)
     type(error_type), allocatable, intent(out) :: error
-    real(dp) :: p(self%ns + self%nf), a(self%ns + self%nf)
+    real(dp) :: a(self%ns + self%nf)
     integer :: ns, nf
     ns = self%ns; nf = self%nf
-    p = forces(self, xs, xf)
-    a = matmul(self%minv, p)
+    a = matmul(self%as, xs) + matmul(self%af, xf)
     fs = [xs(ns+1:), a(1:ns)]
     ff = [xf(nf+1:), a(ns+1:)]
   end subroutine lin_sync
@@ -472,7 +541,7 @@ contains
     class(linear_system), intent(inout) :: self
     real(dp), intent(out) :: g(:, :), kf(:), df(:)
     type(error_type), allocatable, intent(out) :: error
-    g = self%minv(:, self%ns+1:)
+    g = self%g
     kf = self%kf; df = self%df
   end subroutine lin_response
 
@@ -481,12 +550,9 @@ contains
     real(dp), intent(in) :: t, xs(:), xf(:), acc_s(:)
     real(dp), intent(out) :: ff(:)
     type(error_type), allocatable, intent(out) :: error
-    real(dp) :: p(self%ns + self%nf)
-    integer :: ns, nf
-    ns = self%ns; nf = self%nf
-    p = forces(self, xs, xf)
-    ff(nf+1:) = matmul(self%mffinv, p(ns+1:) - matmul(self%mfs, acc_s))
-    if (allocated(self%tfs)) ff(nf+1:) = ff(nf+1:) - matmul(self%tfs, acc_s)
+    integer :: nf
+    nf = self%nf
+    ff(nf+1:) = matmul(self%fxs, xs) + matmul(self%fxf, xf) + matmul(self%fa, acc_s)
     ff(1:nf) = xf(nf+1:)
   end subroutine lin_fast
 end module pymr_driver_preflight

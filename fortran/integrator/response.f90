@@ -416,6 +416,7 @@ contains
     type(pece_steps) :: s
     s%h_joint = self%h; s%h_modal = self%h
     s%item_joint = 'h_fast'; s%item_modal = 'h_fast'
+    s%modal_surrogate = .true.
   end function rs_steps
 
   pure integer function rs_state_size(self)

@@ -44,6 +44,10 @@ module pymr_integrator_stepper
     !> The modal stiffness and damping move by their exact flow (the 'exponential'
     !> coupling): only the rest of the linearised model is judged against the steps.
     logical :: exact_modal = .false.
+    !> The macro step's surrogate is exact wherever the model's only stiffness and damping
+    !> are the modal ones (the 'response' coupling): on such a linearised model the macro
+    !> step is k fast steps of the single-rate formula, judged mode by mode.
+    logical :: modal_surrogate = .false.
   end type pece_steps
 
   !> The part of a stepper's state that its state vector (get_state) does not hold: times,
