@@ -313,3 +313,22 @@ def test_fixed_steps_reach_t_end_in_the_counted_number_of_steps(tmp_path, over, 
     res = pymr.run(tank, tmp_path / "x.csv", overrides={"scene.t_end": 7.0, "output.dt": 0.5, **over})
     assert res.stats["steps_fast"] == steps
     assert res.t[-1] == 7.0 and len(res.t) == 15
+
+
+def test_amplitude_error_norm_weighs_a_mode_by_its_amplitude_at_every_phase():
+    """error_norm = 'amplitude': over a period of a free vibration q = A cos(omega t),
+    qd = -A omega sin(omega t), the weights stay those of the amplitude A, 1/(rtol A + atol)
+    for q and omega times less for qd; a coordinate without frequency (a joint) keeps
+    1/(rtol |x| + atol) for each of q and qd, and 'state' keeps it for every coordinate."""
+    rtol, atol, amp, omega = 1e-5, 1e-9, 3e-3, 2 * math.pi * 240.0
+    freq = np.array([0.0, omega])
+    for phase in np.linspace(0.0, 2 * math.pi, 17):
+        q = np.array([1.3, amp * math.cos(phase)])
+        qd = np.array([-0.4, -amp * omega * math.sin(phase)])
+        x = np.concatenate([q, qd])
+        w = _testhooks.pymr_error_weights(x, freq, rtol, atol, 1)
+        assert w[1] == pytest.approx(1 / (rtol * amp + atol), rel=1e-12)
+        assert w[3] == pytest.approx(1 / (omega * (rtol * amp + atol)), rel=1e-12)
+        assert w[[0, 2]] == pytest.approx(1 / (rtol * np.abs(x[[0, 2]]) + atol), rel=1e-15)
+        assert _testhooks.pymr_error_weights(x, freq, rtol, atol, 0) == pytest.approx(1 / (rtol * np.abs(x) + atol),
+                                                                                       rel=1e-15)

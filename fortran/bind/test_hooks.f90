@@ -1,6 +1,6 @@
 !> Test hooks: entry points that expose kernel internals to the test suite only (the
-!> Nordsieck operators, the step ratio, the ODE test problems, the number formatter, the
-!> LAPACK error handler, the Adams kernel). They are built into pymr._testhooks, an
+!> Nordsieck operators, the step ratio, the error weights, the ODE test problems, the number
+!> formatter, the LAPACK error handler, the Adams kernel). They are built into pymr._testhooks, an
 !> extension apart from the shipped pymr._core (scipy's pattern for test-only extensions),
 !> so the package's binding exports none of them.
 
@@ -91,6 +91,21 @@ subroutine pymr_step_ratio(err, accepted, eta)
   type(step_control) :: ctl
   eta = ctl%ratio(err, accepted /= 0)
 end subroutine pymr_step_ratio
+
+!> Error weights of the state x = [q; qd] (m coordinates) at rtol and atol, with the
+!> angular frequencies omega of its coordinates (error_norm 'amplitude') when amplitude /= 0.
+subroutine pymr_error_weights(m, x, omega, rtol, atol, amplitude, w)
+  use pymr_integrator_control, only : step_control, error_weights
+  implicit none
+  integer, intent(in) :: m, amplitude
+  double precision, intent(in) :: x(2*m), omega(m), rtol, atol
+  double precision, intent(out) :: w(2*m)
+  !f2py integer intent(hide), depend(omega) :: m = len(omega)
+  type(step_control) :: ctl
+  ctl%rtol = rtol; ctl%atol = atol
+  if (amplitude /= 0) ctl%omega = omega
+  call error_weights(ctl, x, w)
+end subroutine pymr_error_weights
 
 !> LAPACK called with an illegal argument: info and the routine pymr's XERBLA recorded
 !> (the process goes on; the reference XERBLA would have stopped it).

@@ -39,6 +39,7 @@ contains
     ctl%rtol = sc%integrator%rtol; ctl%atol = sc%integrator%atol
     if (sc%integrator%h_min > 0.0_dp) ctl%h_min = sc%integrator%h_min
     if (sc%integrator%h_max > 0.0_dp) ctl%h_max = sc%integrator%h_max
+    if (sc%integrator%error_norm == 'amplitude') call modal_frequencies(model, ctl%omega)
     if (trim(sc%integrator%method) == 'auto') then
       call fatal_error(error, "method 'auto' is chosen before a stepper is made (pymr_driver_method_choice)")
       return
@@ -59,6 +60,22 @@ contains
       call move_alloc(abm, st)
     end if
   end subroutine make_stepper
+
+  !> The angular frequency of each coordinate for error_norm = 'amplitude': a modal
+  !> coordinate's from its modal stiffness (the flexible body's omega^2: its modes are
+  !> mass-normalised), 0 for joint coordinates. A property of the model, not of the state:
+  !> a run continued from a checkpoint weighs its errors as the run that wrote it.
+  subroutine modal_frequencies(model, omega)
+    type(model_t), intent(in) :: model
+    real(dp), allocatable, intent(out) :: omega(:)
+    real(dp), allocatable :: kf(:), df(:)
+    integer :: nj
+    nj = model%d%nj
+    allocate(omega(model%d%n), kf(model%d%n - nj), df(model%d%n - nj))
+    call modal_stiffness_damping(model%d, model%effects, kf, df)
+    omega(1:nj) = 0.0_dp
+    omega(nj+1:) = sqrt(max(kf, 0.0_dp))
+  end subroutine modal_frequencies
 
   !> The step control of a stepper whose PECE formula acts with one step on every modal
   !> coordinate (single-rate, 'response', the fast steps of 'full'): adaptive steps stay

@@ -15,18 +15,40 @@ module pymr_integrator_control
     real(dp) :: safety = 0.85_dp, grow_max = 4.0_dp, shrink_min = 0.2_dp
     !> Ratios in [1, hold_band) keep the step (no rescale for tiny gains).
     real(dp) :: hold_band = 1.25_dp
+    !> &integrator error_norm = 'amplitude': the angular frequency of each coordinate of
+    !> the state [q; qd] (rad/s; 0 where none: joint coordinates). Not allocated: 'state'.
+    real(dp), allocatable :: omega(:)
   contains
     procedure :: ratio => control_ratio
   end type step_control
 
 contains
 
-  !> Error weights w_i = 1 / (rtol |x_i| + atol).
-  pure subroutine error_weights(ctl, x, w)
+  !> Error weights w_i = 1 / (rtol |x_i| + atol) of a state x = [q; qd]. With ctl%omega
+  !> (error_norm = 'amplitude') a coordinate of frequency omega > 0 is weighted by its
+  !> amplitude A = sqrt(q^2 + (qd/omega)^2): 1 / (rtol A + atol) for q, and omega times
+  !> less for qd, whose error moves the amplitude by its 1/omega. `first`: the coordinate of
+  !> x(1) among ctl%omega's (default 1; a stepper that weights a part of the state apart).
+  pure subroutine error_weights(ctl, x, w, first)
     type(step_control), intent(in) :: ctl
     real(dp), intent(in) :: x(:)
     real(dp), intent(out) :: w(:)
+    integer, intent(in), optional :: first
+    integer :: m, i0, i
+    real(dp) :: om, tol
     w = 1.0_dp/(ctl%rtol*abs(x) + ctl%atol)
+    if (.not. allocated(ctl%omega)) return
+    m = size(x)/2
+    i0 = 0
+    if (present(first)) i0 = first - 1
+    if (i0 + m > size(ctl%omega)) return
+    do i = 1, m
+      om = ctl%omega(i0 + i)
+      if (om <= 0.0_dp) cycle
+      tol = ctl%rtol*hypot(x(i), x(m + i)/om) + ctl%atol
+      w(i) = 1.0_dp/tol
+      w(m + i) = 1.0_dp/(om*tol)
+    end do
   end subroutine error_weights
 
   !> Weighted root-mean-square norm sqrt(mean((v w)^2)).

@@ -305,7 +305,7 @@ contains
     self%wk%zs0 = self%zs; self%wk%zf0 = self%zf
     hs0 = self%hs; hf0 = self%hf
     call error_weights(self%ctl, self%zs(:, 0), self%wk%ws)
-    call error_weights(self%ctl, self%zf(:, 0), self%wk%wf)
+    call error_weights(self%ctl, self%zf(:, 0), self%wk%wf, self%ns + 1)
     do
       call try_macro_step(self, sys, err_s, err_f, error); if (allocated(error)) return
       if (err_s <= 1.0_dp .and. err_f <= 1.0_dp) then

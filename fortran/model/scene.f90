@@ -59,6 +59,9 @@ module pymr_model_scene
     !> Adaptive multirate: the largest step ratio H/h the controller may choose (with the
     !> 'response' coupling and a closed loop through a flexible body: k_max_flexible_loop).
     integer :: k_max = 50
+    !> How adaptive steps weigh a modal coordinate's error: 'state' (its position and rate
+    !> apart) or 'amplitude' (both as the mode's amplitude).
+    character(len=16) :: error_norm = 'state'
     !> Refuse fixed steps that the pre-flight check finds unstable (.false.: run anyway).
     logical :: stability_check = .true.
     !> Most (fast) steps a run may take.
@@ -370,8 +373,12 @@ contains
       & "factor M, O(n^3)) or 'auto' (articulated without flexible bodies, and with them from 12 " // &
       & "joint coordinates on: where it is the faster; " // &
       & "multirate and the pre-flight check always use M)", choices='auto articulated mass_matrix')
-    call t%add('k_max', g%k_max, '-', "largest step ratio H/h of adaptive multirate (default 8 with the " // &
+    call t%add('k_max', g%k_max, '-', "largest step ratio H/h of adaptive multirate (default 4 with the " // &
       & "'response' coupling when a closed loop passes through a flexible body)", ge=1, le=100000)
+    call t%add('error_norm', g%error_norm, "how adaptive steps weigh the local error of a modal coordinate: " // &
+      & "'state' its position and rate apart (each against rtol |x| + atol), 'amplitude' both as the mode's " // &
+      & "amplitude A = sqrt(a^2 + (ad/omega)^2) (the position against rtol A + atol, the rate against omega " // &
+      & "times that; omega from the modal stiffness and mass at the initial state)", choices='state amplitude')
     call t%add('stability_check', g%stability_check, 'refuse fixed steps that the pre-flight check finds unstable')
     call t%add('max_steps', g%max_steps, '-', 'most (fast) steps a run may take: a fixed-step run needing more is ' // &
       & 'refused, an adaptive one stops', ge=1, le=2000000000)

@@ -126,6 +126,11 @@ contains
           & "flexible body (the loop's constraint leaves the response of its modal coordinates singular, and " // &
           & "their flow cannot be diagonalised): use coupling = 'response'"); return
       end if
+      if (s%error_norm == 'amplitude' .and. flexible_loop(sc)) then
+        call errs%add(s%origin%where('error_norm') // ": 'amplitude' does not take a closed loop through a " // &
+          & "flexible body (the loop turns its modes' rates into the joints' motion, which a rate error " // &
+          & "weighed by 1/omega leaves uncontrolled): use error_norm = 'state'"); return
+      end if
       if (trim(s%method) == 'multirate' .and. s%coupling == 'exponential' .and. r /= 1) then
         call errs%add(where // ": coupling 'exponential' takes no fast step (the fast coordinates move by " // &
           & "their exact flow): h_slow is its step; set h_fast = h_slow or leave it out"); return
