@@ -30,6 +30,8 @@ METHODS = {
                               "integrator.h_slow": 1e-3, "integrator.h_fast": 1e-3},
     "adaptive multirate exponential": {"integrator.method": "multirate", "integrator.coupling": "exponential",
                                        "integrator.adaptive": True, "integrator.rtol": 1e-6},
+    "adaptive multirate amplitude norm": {"integrator.method": "multirate", "integrator.adaptive": True,
+                                          "integrator.rtol": 1e-6, "integrator.error_norm": "amplitude"},
 }
 
 
