@@ -83,10 +83,9 @@ contains
     complex(dp) :: lam, worst_lam
     character(len=32) :: b1, b2, b3, b4
     type(pece_steps) :: steps
-    type(step_counts) :: counts
     n = model%d%n
     if (n == 0) return
-    steps = st%pece(); counts = st%counts()
+    steps = st%pece()
     allocate(wgt(n))
     call linearised_for(model, x, steps, m, minv, k, c, a, error); if (allocated(error)) return
     if (steps%exact_modal) then
