@@ -315,6 +315,30 @@ def test_fixed_steps_reach_t_end_in_the_counted_number_of_steps(tmp_path, over, 
     assert res.t[-1] == 7.0 and len(res.t) == 15
 
 
+def _pece_growth(q: complex) -> float:
+    """Spectral radius of the ABM4 PECE step's amplification matrix G(q) = (I + l (q e_0^T
+    - e_1^T)) A on x' = lambda x, q = lambda h, written out here from the method (Nordsieck
+    order 3, Pascal predictor A, corrector vector l = [3/8, 1, 3/4, 1/6])."""
+    l = np.array([3 / 8, 1, 3 / 4, 1 / 6])
+    a = np.array([[math.comb(j, i) for j in range(4)] for i in range(4)], dtype=complex)
+    c = np.eye(4, dtype=complex)
+    c[:, 0] += l * q
+    c[:, 1] -= l
+    return float(np.abs(np.linalg.eigvals(c @ a)).max())
+
+
+def test_undamped_stability_limit_is_the_methods_own():
+    """The steppers bound a step on an undamped mode of omega by imaginary_axis_limit/omega,
+    a constant: it is the kernel's search along the imaginary axis to 1e-9, and the
+    amplification matrix built here from the method grows past 1 just beyond it and not
+    below it. The search scales as 1/|lambda| (q = lambda h), which the constant relies on."""
+    h, axis = _testhooks.pymr_pece_limit(0.0, 1.0)
+    assert h == pytest.approx(axis, rel=1e-9)
+    assert _pece_growth(1j * axis * (1 - 1e-6)) <= 1 + 1e-12 < _pece_growth(1j * axis * (1 + 1e-6))
+    for omega in (3.7, 6.4e3):
+        assert _testhooks.pymr_pece_limit(0.0, omega)[0] * omega == pytest.approx(axis, rel=1e-9)
+
+
 def test_amplitude_error_norm_weighs_a_mode_by_its_amplitude_at_every_phase():
     """error_norm = 'amplitude': over a period of a free vibration q = A cos(omega t),
     qd = -A omega sin(omega t), the weights stay those of the amplitude A, 1/(rtol A + atol)

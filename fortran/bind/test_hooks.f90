@@ -1,6 +1,6 @@
 !> Test hooks: entry points that expose kernel internals to the test suite only (the
-!> Nordsieck operators, the step ratio, the error weights, the ODE test problems, the number
-!> formatter, the LAPACK error handler, the Adams kernel). They are built into pymr._testhooks, an
+!> Nordsieck operators, the step ratio, the error weights, the PECE stability limit, the
+!> ODE test problems, the number formatter, the LAPACK error handler, the Adams kernel). They are built into pymr._testhooks, an
 !> extension apart from the shipped pymr._core (scipy's pattern for test-only extensions),
 !> so the package's binding exports none of them.
 
@@ -135,3 +135,14 @@ subroutine pymr_adams_kernel(op, q, m, s, n, z, l, tq, zout)
   if (op == 2) call adams_lower_order(zout, q, s, s(1))
   if (op == 3) tq(1) = stable_omega_h(q)
 end subroutine pymr_adams_kernel
+
+!> The PECE step's stability limit along the ray of lambda = (re, im) (the search
+!> pece_limit), and the imaginary-axis limit the steppers take as a constant.
+subroutine pymr_pece_limit(re, im, h, axis_limit)
+  use pymr_integrator_stability, only : pece_limit, imaginary_axis_limit
+  implicit none
+  double precision, intent(in) :: re, im
+  double precision, intent(out) :: h, axis_limit
+  h = pece_limit(cmplx(re, im, kind(1.0d0)))
+  axis_limit = imaginary_axis_limit
+end subroutine pymr_pece_limit

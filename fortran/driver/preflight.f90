@@ -14,7 +14,7 @@ module pymr_driver_preflight
   use pymr_env_lapack, only : potrf, potrs, geev_real, factor_inverse
   use pymr_model, only : model_t, modal_stiffness_damping, model_counters
   use pymr_model_loops, only : independent_rows, loop_jacobian, constrain_inverse
-  use pymr_integrator_stability, only : pece_growth, pece_limit
+  use pymr_integrator_stability, only : pece_growth, pece_limit, imaginary_axis_limit
   use pymr_integrator_ode, only : partitioned_system
   use pymr_integrator_stepper, only : stepper_t, pece_steps, step_counts
   use pymr_env_text, only : itoa
@@ -81,7 +81,7 @@ contains
     real(dp), allocatable :: m(:, :), minv(:, :), k(:, :), c(:, :), a(:, :), ev(:, :), wr(:), wi(:), vr(:, :), wgt(:)
     real(dp) :: h, ratio, worst_ratio
     complex(dp) :: lam, worst_lam
-    character(len=32) :: b1, b2, b3, b4
+    character(len=32) :: b1, b2, b3, b4, b5
     type(pece_steps) :: steps
     n = model%d%n
     if (n == 0) return
@@ -137,10 +137,11 @@ contains
       write(b3, '(es9.2)') abs(worst_lam)*h
     end if
     write(b4, '(es9.2)') pece_limit(worst_lam)
+    write(b5, '(f5.3)') imaginary_axis_limit
     call fatal_error(error, where // trim(merge(steps%item_modal, steps%item_joint, worst > model%d%nj)) // &
       & ': a fixed step of ' // trim(adjustl(b1)) // ' s is not stable for ' // coordinate_name(model, worst) // ' (' // &
       & trim(b2) // ' Hz, omega*h = ' // trim(adjustl(b3)) // '); the largest stable step is ' // trim(adjustl(b4)) // &
-      & ' s (the ABM PECE method is stable up to omega*h = 0.430 on an undamped mode): take a smaller step, ' // &
+      & ' s (the ABM PECE method is stable up to omega*h = ' // trim(b5) // ' on an undamped mode): take a smaller step, ' // &
       & 'or adaptive = .true.')
     call set_fault(error, kind='unstable_step', group='integrator', stable_step=pece_limit(worst_lam), &
       & item=trim(merge(steps%item_modal, steps%item_joint, worst > model%d%nj)))

@@ -380,19 +380,25 @@ contains
   function json_escape(s) result(r)
     character(len=*), intent(in) :: s
     character(len=:), allocatable :: r
-    character(len=6) :: u
-    integer :: i
-    r = ''
+    character(len=16), parameter :: hex = '0123456789ABCDEF'
+    integer :: i, k, c
+    ! one pass to size the text, one to fill it: no text grown a character at a time
+    k = 0
     do i = 1, len(s)
-      select case (s(i:i))
-      case ('\', '"')
-        r = r // '\' // s(i:i)
-      case (achar(0):achar(31), achar(127))
-        write(u, '(a,z4.4)') '\u', iachar(s(i:i))
-        r = r // u
-      case default
-        r = r // s(i:i)
-      end select
+      c = iachar(s(i:i))
+      k = k + merge(2, merge(6, 1, c < 32 .or. c == 127), s(i:i) == '\' .or. s(i:i) == '"')
+    end do
+    allocate(character(len=k) :: r)
+    k = 0
+    do i = 1, len(s)
+      c = iachar(s(i:i))
+      if (s(i:i) == '\' .or. s(i:i) == '"') then
+        r(k+1:k+2) = '\' // s(i:i); k = k + 2
+      else if (c < 32 .or. c == 127) then
+        r(k+1:k+6) = '\u00' // hex(c/16+1:c/16+1) // hex(mod(c, 16)+1:mod(c, 16)+1); k = k + 6
+      else
+        r(k+1:k+1) = s(i:i); k = k + 1
+      end if
     end do
   end function json_escape
 end module pymr_env_text

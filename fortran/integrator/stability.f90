@@ -11,10 +11,14 @@ module pymr_integrator_stability
   use pymr_integrator_nordsieck, only : nq, corrector_l
   implicit none
   private
-  public :: pece_growth, pece_limit
+  public :: pece_growth, pece_limit, undamped_limit
 
   !> A step counts as stable while the growth factor is at most 1 + growth_tol.
   real(dp), parameter :: growth_tol = 1.0e-12_dp
+  !> |q| up to which the step is stable on the imaginary axis: pece_limit((0, 1)), which
+  !> the suite checks against it (test_integrator.py); held here so that a stepper's
+  !> bound on an undamped mode costs no search (70 eigenvalue problems).
+  real(dp), parameter, public :: imaginary_axis_limit = 0.42998707991_dp
 
 contains
 
@@ -74,4 +78,11 @@ contains
     end do
     h = lo
   end function pece_limit
+
+  !> The largest stable step on an undamped mode of angular frequency omega > 0:
+  !> pece_limit((0, omega)), by the method's scaling in q = lambda h.
+  pure real(dp) function undamped_limit(omega) result(h)
+    real(dp), intent(in) :: omega
+    h = imaginary_axis_limit/omega
+  end function undamped_limit
 end module pymr_integrator_stability
