@@ -1,8 +1,9 @@
 !> Test hooks: entry points that expose kernel internals to the test suite only (the
 !> Nordsieck operators, the step ratio, the error weights, the PECE stability limit, the
-!> ODE test problems, the number formatter, the LAPACK error handler, the Adams kernel). They are built into pymr._testhooks, an
-!> extension apart from the shipped pymr._core (scipy's pattern for test-only extensions),
-!> so the package's binding exports none of them.
+!> ODE test problems, the number formatter, the LAPACK error handler, the Adams kernel).
+!> They are built into pymr._testhooks, an extension apart from the shipped pymr._core
+!> (scipy's pattern for test-only extensions), so the package's binding exports none of
+!> them.
 
 !> The CSV writer's text of m reals in `digits` significant digits, as character codes
 !> (text(:, i) is value i, blank padded): for round-trip tests of the formatter.

@@ -79,7 +79,7 @@ contains
     type(error_type), allocatable, intent(out) :: error
     integer :: n, i, dom, worst
     real(dp), allocatable :: m(:, :), minv(:, :), k(:, :), c(:, :), a(:, :), ev(:, :), wr(:), wi(:), vr(:, :), wgt(:)
-    real(dp) :: h, ratio, worst_ratio
+    real(dp) :: h, ratio, worst_ratio, stable
     complex(dp) :: lam, worst_lam
     character(len=32) :: b1, b2, b3, b4, b5
     type(pece_steps) :: steps
@@ -136,14 +136,14 @@ contains
     else
       write(b3, '(es9.2)') abs(worst_lam)*h
     end if
-    write(b4, '(es9.2)') pece_limit(worst_lam)
+    stable = pece_limit(worst_lam); write(b4, '(es9.2)') stable
     write(b5, '(f5.3)') imaginary_axis_limit
     call fatal_error(error, where // trim(merge(steps%item_modal, steps%item_joint, worst > model%d%nj)) // &
       & ': a fixed step of ' // trim(adjustl(b1)) // ' s is not stable for ' // coordinate_name(model, worst) // ' (' // &
       & trim(b2) // ' Hz, omega*h = ' // trim(adjustl(b3)) // '); the largest stable step is ' // trim(adjustl(b4)) // &
       & ' s (the ABM PECE method is stable up to omega*h = ' // trim(b5) // ' on an undamped mode): take a smaller step, ' // &
       & 'or adaptive = .true.')
-    call set_fault(error, kind='unstable_step', group='integrator', stable_step=pece_limit(worst_lam), &
+    call set_fault(error, kind='unstable_step', group='integrator', stable_step=stable, &
       & item=trim(merge(steps%item_modal, steps%item_joint, worst > model%d%nj)))
   end subroutine check_step_stability
 
