@@ -385,20 +385,33 @@ contains
     ! one pass to size the text, one to fill it: no text grown a character at a time
     k = 0
     do i = 1, len(s)
-      c = iachar(s(i:i))
-      k = k + merge(2, merge(6, 1, c < 32 .or. c == 127), s(i:i) == '\' .or. s(i:i) == '"')
+      k = k + escaped_length(s(i:i))
     end do
     allocate(character(len=k) :: r)
     k = 0
     do i = 1, len(s)
       c = iachar(s(i:i))
-      if (s(i:i) == '\' .or. s(i:i) == '"') then
-        r(k+1:k+2) = '\' // s(i:i); k = k + 2
-      else if (c < 32 .or. c == 127) then
-        r(k+1:k+6) = '\u00' // hex(c/16+1:c/16+1) // hex(mod(c, 16)+1:mod(c, 16)+1); k = k + 6
-      else
-        r(k+1:k+1) = s(i:i); k = k + 1
-      end if
+      select case (escaped_length(s(i:i)))
+      case (2)
+        r(k+1:k+2) = '\' // s(i:i)
+      case (6)
+        r(k+1:k+6) = '\u00' // hex(c/16+1:c/16+1) // hex(mod(c, 16)+1:mod(c, 16)+1)
+      case default
+        r(k+1:k+1) = s(i:i)
+      end select
+      k = k + escaped_length(s(i:i))
     end do
   end function json_escape
+
+  !> Length of the character ch in a JSON string: 2 for a backslash or a quote (escaped), 6
+  !> for a control character (\uXXXX), 1 else.
+  pure integer function escaped_length(ch) result(n)
+    character, intent(in) :: ch
+    n = 1
+    if (ch == '\' .or. ch == '"') then
+      n = 2
+    else if (iachar(ch) < 32 .or. iachar(ch) == 127) then
+      n = 6
+    end if
+  end function escaped_length
 end module pymr_env_text
