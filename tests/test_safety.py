@@ -102,6 +102,9 @@ def test_refused_and_failed_runs_leave_the_earlier_complete_result(tmp_path, mrs
     assert re.search(r"at t = .* s: .*(M_e|M_ff|mass matrix)", partial["error"])
     rows = [ln for ln in (tmp_path / "out.csv.partial").read_text().splitlines() if not ln.startswith("#")][1:]
     assert len(rows) >= 2 and float(rows[-1].split(",")[0]) <= partial["t_reached"] + 1e-12
+    # every row the run wrote before it failed is on disk (none left in a buffer): as many
+    # as the partial JSON counts, the last within one output step of the time reached
+    assert len(rows) == partial["rows"] and float(rows[-1].split(",")[0]) > partial["t_reached"] - 5e-3 - 1e-12
 
 
 @pytest.mark.parametrize("delay", [0.15, 0.45, 0.9])

@@ -16,13 +16,15 @@ module pymr_env_real_text
   private
   public :: decimal_digits, digit_text, pow10, ipow10, put_real
 
-  integer :: k_
+  integer :: k_, j_
   !> The powers of ten exact in double precision, and as 64-bit integers.
   real(dp), parameter :: pow10(0:22) = [(10.0_dp**k_, k_ = 0, 22)]
   integer(int64), parameter :: ipow10(0:18) = [(10_int64**k_, k_ = 0, 18)]
   !> The hundred two-digit strings '00' ... '99'.
-  character(len=2), parameter :: pairs(0:99) = [(achar(iachar('0') + k_/10) // achar(iachar('0') + mod(k_, 10)), &
-    & k_ = 0, 99)]
+  character(len=2), parameter :: pairs(0:99) = [((achar(iachar('0') + k_) // achar(iachar('0') + j_), j_ = 0, 9), &
+    & k_ = 0, 9)]
+  !> The ten thousand four-digit strings '0000' ... '9999'.
+  character(len=4), parameter :: quads(0:9999) = [((pairs(k_) // pairs(j_), j_ = 0, 99), k_ = 0, 99)]
 
 contains
 
@@ -33,7 +35,7 @@ contains
     character(len=*), intent(inout) :: buf
     integer, intent(inout) :: pos
     integer, intent(in), optional :: digits
-    integer :: e, ae, nd
+    integer :: e, nd
     integer(int64) :: dgt
     logical :: ok
     real(dp) :: r
@@ -56,14 +58,15 @@ contains
     end if
     if (nd < 17) dgt = dgt*ipow10(17 - nd)
     dstr = digit_text(dgt)
-    buf(pos:pos) = dstr(1:1); buf(pos+1:pos+1) = '.'; buf(pos+2:pos+nd) = dstr(2:nd)
+    buf(pos:pos) = dstr(1:1); buf(pos+1:pos+1) = '.'
+    if (nd == 17) then                    ! a copy of known length, inline
+      buf(pos+2:pos+17) = dstr(2:17)
+    else
+      buf(pos+2:pos+nd) = dstr(2:nd)
+    end if
     pos = pos + nd + 1
-    buf(pos:pos) = 'e'
-    buf(pos+1:pos+1) = merge('-', '+', e < 0)
-    ae = abs(e)
-    buf(pos+2:pos+2) = achar(iachar('0') + ae/100)
-    buf(pos+3:pos+3) = achar(iachar('0') + mod(ae/10, 10))
-    buf(pos+4:pos+4) = achar(iachar('0') + mod(ae, 10))
+    buf(pos:pos+1) = merge('e-', 'e+', e < 0); buf(pos+2:pos+2) = '0'
+    buf(pos+3:pos+4) = pairs(abs(e))                      ! |e| <= 23 here
     pos = pos + 5
   end subroutine put_real
 
@@ -76,23 +79,17 @@ contains
     pos = pos + len(w)
   end subroutine put_word
 
-  !> The 17 decimal digits of 0 <= dgt < 10^17 (leading zeros kept), two at a time in two
-  !> 32-bit halves (9 + 8): fewer and cheaper divisions.
+  !> The 17 decimal digits of 0 <= dgt < 10^17 (leading zeros kept), four at a time in two
+  !> 32-bit halves (9 + 8): five divisions by constants.
   pure function digit_text(dgt) result(d)
     integer(int64), intent(in) :: dgt
     character(len=17) :: d
-    integer :: i, hi, lo
+    integer :: hi, lo
     hi = int(dgt/100000000_int64)
     lo = int(dgt - 100000000_int64*hi)
-    do i = 16, 10, -2
-      d(i:i+1) = pairs(mod(lo, 100))
-      lo = lo/100
-    end do
-    do i = 8, 2, -2
-      d(i:i+1) = pairs(mod(hi, 100))
-      hi = hi/100
-    end do
-    d(1:1) = achar(iachar('0') + hi)
+    d(14:17) = quads(mod(lo, 10000)); d(10:13) = quads(lo/10000)
+    d(6:9) = quads(mod(hi, 10000)); hi = hi/10000
+    d(2:5) = quads(mod(hi, 10000)); d(1:1) = achar(iachar('0') + hi/10000)
   end function digit_text
 
   !> Append the text of x > 0 by a formatted WRITE, correctly rounded to `digits` digits: the path
@@ -126,7 +123,7 @@ contains
     logical, intent(out) :: ok, near_tie
     real(dp) :: r
     call rounded_digits(x, nd, dgt, e, ok, r)
-    near_tie = abs(abs(r - anint(r)) - 0.5_dp) < 1.0e-6_dp
+    near_tie = abs(abs(r - real(nearest_integer(r), dp)) - 0.5_dp) < 1.0e-6_dp
   end subroutine decimal_digits
 
   !> decimal_digits' work; r: the part of x 10^(nd-1-e) beyond its nearest integer.
@@ -140,6 +137,7 @@ contains
     real(dp) :: m, ml, th, tl
     ! decimal exponent from the binary one (log10(2) = 0.30103...); the checks of m
     ! below correct the estimate by one either way
+    dgt = 0; r = 0.0_dp
     e = floor((binary_exponent(x) - 1)*0.30102999566398120_dp)
     ok = abs(e) <= 21
     if (.not. ok) return
@@ -157,12 +155,27 @@ contains
     ! an integer; the low part carries the rest
     call two_product(m, pow10(nd - 1), th, tl)
     tl = tl + ml*pow10(nd - 1)
-    r = tl + (th - anint(th))
-    dgt = nint(th, int64) + nint(r, int64)
+    dgt = nearest_integer(th)
+    r = tl + (th - real(dgt, dp))
+    dgt = dgt + nearest_integer(r)
     if (dgt >= ipow10(nd)) then
       dgt = dgt/10; e = e + 1
     end if
   end subroutine rounded_digits
+
+  !> The integer nearest v, |v| < 2^63 (halves away from zero, as nint): inline, where
+  !> gfortran's nint and anint call the C library's lround and round.
+  elemental integer(int64) function nearest_integer(v) result(k)
+    real(dp), intent(in) :: v
+    real(dp) :: f
+    k = int(v, int64)
+    f = v - real(k, dp)                   ! exact: k and v share their leading bits
+    if (f >= 0.5_dp) then
+      k = k + 1
+    else if (f <= -0.5_dp) then
+      k = k - 1
+    end if
+  end function nearest_integer
 
   !> exponent(x) of a finite x /= 0 (x = f 2^e, 0.5 <= |f| < 1) from its bits; a
   !> subnormal x gives -1022, beyond decimal_digits' range as it should be.

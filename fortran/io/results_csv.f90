@@ -26,6 +26,11 @@ module pymr_io_results_csv
     integer :: unchecked = 0
     real(dp), allocatable :: row(:)
     character(len=:), allocatable :: line
+    !> Rows formatted and not yet handed to the runtime: pending(1:n_pending), each ended
+    !> by a newline, written in one WRITE when the next would not fit (a formatted WRITE
+    !> per row cost as much as formatting half its numbers).
+    character(len=:), allocatable :: pending
+    integer :: n_pending = 0
   contains
     procedure :: open => csv_open
     procedure :: reopen => csv_reopen
@@ -38,6 +43,9 @@ module pymr_io_results_csv
 
   !> Rows between checks of the file's size against the bytes written.
   integer, parameter :: check_rows = 256
+  !> Bytes of rows held before they are written: the size of the runtime's own buffer
+  !> (gfortran's for formatted files), so that a killed run loses at most that much more.
+  integer, parameter :: pending_bytes = 8192
 
 contains
 
@@ -63,8 +71,7 @@ contains
     if (self%ios /= 0) then
       call fatal_error(error, self%partial // ': cannot write the results: ' // trim(self%io_message)); return
     end if
-    allocate(self%row(row_width(self%plan, d)))
-    allocate(character(len=25*size(self%row)) :: self%line)
+    call allocate_row(self, d)
   contains
     !> One line, its bytes counted.
     subroutine put(text)
@@ -145,9 +152,18 @@ contains
     end if
     self%opened = .true.
     self%written = file_size(self%partial)
-    allocate(self%row(row_width(self%plan, d)))
-    allocate(character(len=25*size(self%row)) :: self%line)
+    call allocate_row(self, d)
   end subroutine csv_reopen
+
+  !> The row's values and text, and the pending rows' buffer (at least one row).
+  subroutine allocate_row(self, d)
+    class(csv_writer), intent(inout) :: self
+    type(model_data), intent(in) :: d
+    allocate(self%row(row_width(self%plan, d)))
+    allocate(character(len=25*size(self%row) + 1) :: self%line)
+    allocate(character(len=max(pending_bytes, len(self%line))) :: self%pending)
+    self%n_pending = 0
+  end subroutine allocate_row
 
   !> Write the row for time t: the coordinates q and rates qd (grouped by joint and body,
   !> when the plan writes them), then the plan's other values `extra`.
@@ -164,12 +180,24 @@ contains
       end if
       call put_real(self%row(i), self%line, pos, self%digits)
     end do
+    self%line(pos:pos) = new_line('a')
     if (self%ios /= 0) return
-    write(self%unit, '(a)', iostat=self%ios, iomsg=self%io_message) self%line(1:pos-1)
+    if (self%n_pending + pos > len(self%pending)) call write_pending(self)
+    self%pending(self%n_pending+1:self%n_pending+pos) = self%line(1:pos)
+    self%n_pending = self%n_pending + pos
     self%written = self%written + pos
     self%unchecked = self%unchecked + 1
     if (self%unchecked >= check_rows) call self%flush_rows()
   end subroutine csv_write_row
+
+  !> Hand the pending rows to the runtime (their newlines are in the text: the WRITE adds
+  !> the last one's).
+  subroutine write_pending(self)
+    class(csv_writer), intent(inout) :: self
+    if (self%n_pending > 0 .and. self%ios == 0) write(self%unit, '(a)', iostat=self%ios, iomsg=self%io_message) &
+      & self%pending(1:self%n_pending-1)
+    self%n_pending = 0
+  end subroutine write_pending
 
   !> Hand the rows written so far to the system and check that the file holds them all
   !> (a refused write sets ios and io_message, which the run reports with its time).
@@ -178,6 +206,8 @@ contains
     integer(int64) :: size_now
     self%unchecked = 0
     if (self%ios /= 0 .or. .not. self%opened) return
+    call write_pending(self)
+    if (self%ios /= 0) return
     flush(self%unit, iostat=self%ios, iomsg=self%io_message)
     if (self%ios /= 0) return
     size_now = file_size(self%partial)
@@ -191,7 +221,10 @@ contains
   !> Close the partial file, leaving it in place (a failed run's rows).
   subroutine csv_close(self)
     class(csv_writer), intent(inout) :: self
-    if (self%opened) close(self%unit, iostat=self%ios)
+    if (self%opened) then
+      call write_pending(self)
+      close(self%unit, iostat=self%ios)
+    end if
     self%opened = .false.
   end subroutine csv_close
 
