@@ -31,6 +31,10 @@ module pymr_integrator_modal_flow
   integer, parameter :: kmax = n_coef + 2
   !> Columns of flow_phis' tp: phi_0 .. phi_kmax.
   integer, parameter :: n_phi = kmax + 1
+  integer :: k_
+  !> 1/k for the terms of phi_kmax's series (at most 30 past kmax): a product, where
+  !> a complex quotient by an integer costs a division of complex numbers.
+  real(dp), parameter :: reciprocal(kmax + 30) = [(1.0_dp/k_, k_ = 1, kmax + 30)]
 
   !> A group's right vectors as one real block, so that the state is one product: rows
   !> [a; ad] of the group's fast coordinates, columns [Re V | -Im V] of its kept modes.
@@ -374,13 +378,17 @@ contains
       m1 = self%mode_start(c); m2 = self%mode_start(c+1) - 1; nc = m2 - m1 + 1
       r1 = self%row_start(c); r2 = self%row_start(c+1) - 1; nr = r2 - r1 + 1
       if (all(e(m1:m2, 0) == 0.0_dp .and. e(nm+m1:nm+m2, 0) == 0.0_dp)) then
-        x(ns+self%rows(r1:r2)) = 0.0_dp; x(n+ns+self%rows(r1:r2)) = 0.0_dp
+        do i = r1, r2
+          x(ns+self%rows(i)) = 0.0_dp; x(n+ns+self%rows(i)) = 0.0_dp
+        end do
         cycle
       end if
       y(1:2*nr) = 0.0_dp
       call add_product(self%vg(c)%b(:, 1:nc), e(m1:m2, 0), y(1:2*nr))
       call add_product(self%vg(c)%b(:, nc+1:), e(nm+m1:nm+m2, 0), y(1:2*nr))
-      x(ns+self%rows(r1:r2)) = y(1:nr); x(n+ns+self%rows(r1:r2)) = y(nr+1:2*nr)
+      do i = 1, nr                                        ! a loop: no vector-subscript temporaries
+        x(ns+self%rows(r1+i-1)) = y(i); x(n+ns+self%rows(r1+i-1)) = y(nr+i)
+      end do
     end do
     do i = 1, ns
       x(n+i) = x0(n+i) - dot_product(self%cvt(:, i), e(:, 1))
@@ -518,7 +526,7 @@ contains
     end do
     term = cmplx(1.0_dp/fk, 0.0_dp, dp); p(kt) = term
     do m = 1, 30
-      term = term*z/(m + kt)
+      term = term*(z*reciprocal(m + kt))
       p(kt) = p(kt) + term
       if (abs(real(term)) + abs(aimag(term)) <= 1.0e-18_dp*(abs(real(p(kt))) + abs(aimag(p(kt))))) exit
     end do
