@@ -44,10 +44,12 @@ module pymr_integrator_modal_flow
 
   !> One step's flow in the form its rows take (flow_rows_form): for each kept mode, whether
   !> it moves (active), whether it takes the particular solution (poly), d = eta0 - p(0)
-  !> and p's Taylor coefficients c (n_coef x nm).
+  !> and p's Taylor coefficients c (n_coef x nm), and from which time into the step a
+  !> row takes that form (tau_poly = 1/|lambda|; huge where poly is false).
   type :: flow_rows_t
     logical, allocatable :: active(:), poly(:)
     complex(dp), allocatable :: d(:), c(:, :)
+    real(dp), allocatable :: tau_poly(:)
   end type flow_rows_t
 
   type :: modal_flow_t
@@ -422,15 +424,17 @@ contains
       fact(m) = fact(m-1)*m
     end do
     if (allocated(rows%c)) then
-      if (size(rows%c, 2) /= self%nm) deallocate(rows%active, rows%poly, rows%d, rows%c)
+      if (size(rows%c, 2) /= self%nm) deallocate(rows%active, rows%poly, rows%d, rows%c, rows%tau_poly)
     end if
     if (.not. allocated(rows%c)) allocate(rows%active(self%nm), rows%poly(self%nm), rows%d(self%nm), &
-      & rows%c(0:n_coef-1, self%nm))
+      & rows%c(0:n_coef-1, self%nm), rows%tau_poly(self%nm))
     do i = 1, self%nm
       rows%active(i) = eta0(i) /= (0.0_dp, 0.0_dp) .or. any(beta(i, :) /= (0.0_dp, 0.0_dp))
       rows%poly(i) = rows%active(i) .and. abs(self%lam(i))*h >= 1.0_dp
       rows%c(:, i) = (0.0_dp, 0.0_dp); rows%d(i) = (0.0_dp, 0.0_dp)
+      rows%tau_poly(i) = huge(1.0_dp)
       if (.not. rows%poly(i)) cycle
+      rows%tau_poly(i) = 1.0_dp/abs(self%lam(i))
       ! forcing sum_m a_m s^m with a_m = beta_(m+1)/m!: lambda c_m = (m + 1) c_(m+1) - a_m
       rows%c(n_coef-1, i) = -beta(i, n_coef)/(fact(n_coef-1)*self%lam(i))
       do m = n_coef - 2, 0, -1
@@ -449,8 +453,8 @@ contains
     complex(dp), intent(in) :: eta0(:), beta(:, :)
     real(dp), intent(out) :: x(:)
     real(dp) :: e(2*self%nm, 0:2), pw(0:n_coef-1, 0:2), tr(0:kmax)
-    complex(dp) :: tp(0:kmax), s(0:2)
-    integer :: i, m
+    complex(dp) :: tp(0:kmax), s(0:2), acc
+    integer :: i, m, k
     tr(0) = 1.0_dp
     do m = 1, kmax
       tr(m) = tr(m-1)*tau
@@ -461,11 +465,14 @@ contains
     do i = 1, self%nm
       if (.not. rows%active(i)) then
         s = (0.0_dp, 0.0_dp)
-      else if (rows%poly(i) .and. abs(self%lam(i))*tau >= 1.0_dp) then
+      else if (tau >= rows%tau_poly(i)) then
         call phi_functions(self%lam(i)*tau, tp(0:2))
-        s = tr(0:2)*tp(0:2)*rows%d(i)
-        do m = 0, n_coef - 1
-          s = s + rows%c(m, i)*pw(m, :)
+        do k = 0, 2                                       ! scalar sums: no array temporaries
+          acc = tr(k)*tp(k)*rows%d(i)
+          do m = 0, n_coef - 1
+            acc = acc + rows%c(m, i)*pw(m, k)
+          end do
+          s(k) = acc
         end do
       else
         call phi_functions(self%lam(i)*tau, tp)

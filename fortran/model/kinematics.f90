@@ -149,15 +149,18 @@ contains
     integer, intent(in) :: m
     real(dp), intent(in) :: q(:), qd(:)
     real(dp), intent(out) :: r(3), v(3)
-    integer :: b, nm
-    real(dp) :: loc(3)
+    integer :: b, nm, k, a0
+    real(dp) :: loc(3), vloc(3)
     b = d%markers%body(m)
-    nm = d%nm(b)
-    loc = d%markers%at(:, m)
-    if (nm > 0) loc = loc + matmul(d%markers%psi(:, 1:nm, m), q(d%a0(b):d%a0(b) + nm - 1))
+    nm = d%nm(b); a0 = d%a0(b)
+    loc = d%markers%at(:, m); vloc = 0.0_dp
+    do k = 1, nm                          ! Psi a and Psi ad by columns: no temporaries
+      loc = loc + d%markers%psi(:, k, m)*q(a0+k-1)
+      vloc = vloc + d%markers%psi(:, k, m)*qd(a0+k-1)
+    end do
     r = wk%pos(:, b) + matmul(wk%rot(:, :, b), loc)
     v = wk%vel(1:3, b) + cross(wk%vel(4:6, b), r)
-    if (nm > 0) v = v + matmul(wk%rot(:, :, b), matmul(d%markers%psi(:, 1:nm, m), qd(d%a0(b):d%a0(b) + nm - 1)))
+    if (nm > 0) v = v + matmul(wk%rot(:, :, b), vloc)
   end subroutine marker_motion
 
   !> Inertial acceleration of marker m from its body's spatial acceleration acc_b = [a_O; alpha]
