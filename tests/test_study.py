@@ -156,6 +156,26 @@ def test_front_summary_picks_the_fastest_accurate_case_of_each_family():
     assert [c.setting for c in s.refused()] == ["h_fast=1e-4"]
 
 
+def test_front_contenders_take_more_timing_passes():
+    """The cases within FRONT_MARGIN of their family's fastest at some level of the front
+    (hand-made, as above) take FRONT_PASSES more timing runs and their CPU becomes the
+    median of all of them; the others keep theirs. Here every added run takes 1 ms: a
+    contender with one sample of 3.4 ms ends at 1 ms, a case 2x slower than its family's
+    fastest at every level it reaches keeps its 0.034 s."""
+    from pymr import study as study_module
+    s = Study.__new__(Study)
+    s.cases = _front_cases() + [Case("response fixed k=40", "h_fast=5e-5", error_m=5e-6, cpu_s=0.034, runs=1)]
+    s.say = lambda *a: None
+    s._pymr_cpu = lambda over: 0.001
+    runs = [(("pymr", c.method, c.setting, {}), c, [c.cpu_s]) for c in s.cases]
+    slow, k40 = s.cases[-1], s.cases[6]
+    assert (k40.method, k40.setting, k40.cpu_s) == ("response fixed k=40", "h_fast=1e-4", 0.0034)
+    s._time_front(runs)
+    assert k40.runs == 1 + study_module.FRONT_PASSES and k40.cpu_s == 0.001
+    assert slow.runs == 1 and slow.cpu_s == 0.034
+    assert all(c.runs == 0 for c in s.cases if c.status != "ok")
+
+
 def test_peers_table_csv_and_figure(study, tmp_path):
     """DOP853 and CVODE Adams (when installed) on the kernel's right-hand side reach the
     accuracy of their tolerance; the table, CSV and PNG hold every case, and the refused
