@@ -16,6 +16,7 @@ import numpy as np
 from . import _kernel as _core
 from .api import SceneError, _raise, format_overrides, model_size, write_file
 from ._args import _text, model_of
+from ._timing import shuffled
 from .scenes import ROD_LENGTH, ROD_MASS, ROD_RADIUS, serial_chain, spatial_chain
 
 
@@ -364,8 +365,8 @@ def bench_effects(repeats: int = 7) -> list[dict]:
     # interleaved: every repeat times each case once, so that machine drift hits all alike
     samples: dict[str, list] = {name: [] for name, _ in cases}
     reps = 20000
-    for _ in range(repeats):
-        for name, over in cases:
+    for r in range(repeats):
+        for name, over in shuffled(cases, r):
             with model_of(scene, (scene, over)) as handle:
                 qc, qdc = _state_of(handle, state)
                 sec, stat, msg, detail = _core.pymr_time_evaluation(handle, qc, qdc, reps)
@@ -515,13 +516,14 @@ def bench_spacecraft(repeats: int = 5) -> list[dict]:
         travel = float(np.linalg.norm(tip - tip[0], axis=1).max())
         cpu: dict[str, list] = {name: [] for name in SPACECRAFT_CASES}
         last = {}
-        for _ in range(repeats):
-            for name, over in SPACECRAFT_CASES.items():
+        for r in range(repeats):
+            for name, over in shuffled(list(SPACECRAFT_CASES.items()), r):
                 res = run(scene, Path(tmp) / "case.csv", overrides={**over, "output.dt": 1e-3})
                 cpu[name].append(res.stats["cpu_time_s"])
                 last[name] = res
     rows = []
-    for name, res in last.items():
+    for name in SPACECRAFT_CASES:
+        res = last[name]
         err = float(np.linalg.norm(res.marker("tip_right")[0] - tip, axis=1).max())
         rows.append({"case": name, "tip_error_m": err, "travel_m": travel, "median_cpu_s": statistics.median(cpu[name]),
                      "preflight_cpu_s": float(res.stats.get("preflight_cpu_s", 0.0)), "rhs_full": res.stats["rhs_full"],
@@ -573,8 +575,8 @@ def bench_output(repeats: int = 5) -> list[dict]:
     cpu: dict[str, list] = {name: [] for name in OUTPUT_CASES}
     info: dict[str, dict] = {}
     with tempfile.TemporaryDirectory(prefix="pymr-output-") as tmp:
-        for _ in range(repeats):
-            for name, over in OUTPUT_CASES.items():
+        for r in range(repeats):
+            for name, over in shuffled(list(OUTPUT_CASES.items()), r):
                 out = "out.h5" if over.get("output.format") == "hdf5" else "out.csv"
                 sets = [a for k, v in over.items() for a in ("--set", f"{k}={v}")]
                 cpu[name].append(_mrsim_cpu([scene, "-o", out, "--quiet", *sets], tmp))

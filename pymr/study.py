@@ -39,6 +39,7 @@ from pathlib import Path
 import numpy as np
 
 from .api import Model, PymrError, SceneError, SolverError, initial_state, run, write_file
+from ._timing import shuffled
 from .outputs import check_output
 from .scene import Scene
 
@@ -123,16 +124,6 @@ class Case:
     def family(self) -> str:
         """The method without its step ratio: 'response fixed k=10' -> 'response fixed'."""
         return self.method.split(" k=")[0]
-
-
-def _shuffled(items: list, seed: int) -> list:
-    """The items in an order drawn afresh for each timing pass (seeded: a study repeats
-    its order). In a fixed order a case always runs after the same neighbours: the first
-    'exponential' cases after the seconds of 'full' runs, whose load slows what follows
-    (measured: a tank run right after a 'full' one took 1.55x its CPU). Shuffled, that
-    cost falls on every family alike."""
-    order = np.random.default_rng(seed).permutation(len(items))
-    return [items[i] for i in order]
 
 
 #: The kinds of error (PymrError.kind) of a step or step ratio the pre-flight check refuses.
@@ -391,7 +382,7 @@ class Study:
         samples = [[c.cpu_s] for c in first]
         for p in range(2, self.repeats + 1):
             self.say(f"pass {p} of {self.repeats}: CPU times")
-            for spec, case, cpu in _shuffled(list(zip(specs, first, samples)), p):
+            for spec, case, cpu in shuffled(list(zip(specs, first, samples)), p):
                 if case.status != "ok":
                     continue
                 if spec[0] == "pymr":
@@ -418,7 +409,7 @@ class Study:
                 contenders.append((spec, case, cpu))
         for p in range(1, FRONT_PASSES + 1):
             self.say(f"front pass {p} of {FRONT_PASSES}: CPU times of {len(contenders)} contending cases")
-            for spec, case, cpu in _shuffled(contenders, self.repeats + p):
+            for spec, case, cpu in shuffled(contenders, self.repeats + p):
                 cpu.append(self._pymr_cpu(spec[3]))
         for spec, case, cpu in contenders:
             self._set_cpu(case, cpu)

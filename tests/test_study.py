@@ -166,6 +166,7 @@ def test_front_contenders_take_more_timing_passes():
     s = Study.__new__(Study)
     s.cases = _front_cases() + [Case("response fixed k=40", "h_fast=5e-5", error_m=5e-6, cpu_s=0.034, runs=1)]
     s.say = lambda *a: None
+    s.repeats = 1
     s._pymr_cpu = lambda over: 0.001
     runs = [(("pymr", c.method, c.setting, {}), c, [c.cpu_s]) for c in s.cases]
     slow, k40 = s.cases[-1], s.cases[6]
