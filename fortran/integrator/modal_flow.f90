@@ -43,11 +43,11 @@ module pymr_integrator_modal_flow
   end type group_vectors
 
   !> One step's flow in the form its rows take (flow_rows_form): for each kept mode, whether
-  !> it moves (active), whether it takes the particular solution (poly), d = eta0 - p(0)
-  !> and p's Taylor coefficients c (n_coef x nm), and from which time into the step a
-  !> row takes that form (tau_poly = 1/|lambda|; huge where poly is false).
+  !> it moves (active), from which time into the step a row takes the particular solution
+  !> (tau_poly = 1/|lambda|; huge for a mode that never does), d = eta0 - p(0) and p's
+  !> Taylor coefficients c (n_coef x nm).
   type :: flow_rows_t
-    logical, allocatable :: active(:), poly(:)
+    logical, allocatable :: active(:)
     complex(dp), allocatable :: d(:), c(:, :)
     real(dp), allocatable :: tau_poly(:)
   end type flow_rows_t
@@ -424,16 +424,15 @@ contains
       fact(m) = fact(m-1)*m
     end do
     if (allocated(rows%c)) then
-      if (size(rows%c, 2) /= self%nm) deallocate(rows%active, rows%poly, rows%d, rows%c, rows%tau_poly)
+      if (size(rows%c, 2) /= self%nm) deallocate(rows%active, rows%d, rows%c, rows%tau_poly)
     end if
-    if (.not. allocated(rows%c)) allocate(rows%active(self%nm), rows%poly(self%nm), rows%d(self%nm), &
-      & rows%c(0:n_coef-1, self%nm), rows%tau_poly(self%nm))
+    if (.not. allocated(rows%c)) allocate(rows%active(self%nm), rows%d(self%nm), rows%c(0:n_coef-1, self%nm), &
+      & rows%tau_poly(self%nm))
     do i = 1, self%nm
       rows%active(i) = eta0(i) /= (0.0_dp, 0.0_dp) .or. any(beta(i, :) /= (0.0_dp, 0.0_dp))
-      rows%poly(i) = rows%active(i) .and. abs(self%lam(i))*h >= 1.0_dp
       rows%c(:, i) = (0.0_dp, 0.0_dp); rows%d(i) = (0.0_dp, 0.0_dp)
       rows%tau_poly(i) = huge(1.0_dp)
-      if (.not. rows%poly(i)) cycle
+      if (.not. (rows%active(i) .and. abs(self%lam(i))*h >= 1.0_dp)) cycle
       rows%tau_poly(i) = 1.0_dp/abs(self%lam(i))
       ! forcing sum_m a_m s^m with a_m = beta_(m+1)/m!: lambda c_m = (m + 1) c_(m+1) - a_m
       rows%c(n_coef-1, i) = -beta(i, n_coef)/(fact(n_coef-1)*self%lam(i))
