@@ -149,18 +149,11 @@ contains
     integer, intent(in) :: m
     real(dp), intent(in) :: q(:), qd(:)
     real(dp), intent(out) :: r(3), v(3)
-    integer :: b, nm, k, a0
-    real(dp) :: loc(3), vloc(3)
+    integer :: b
     b = d%markers%body(m)
-    nm = d%nm(b); a0 = d%a0(b)
-    loc = d%markers%at(:, m); vloc = 0.0_dp
-    do k = 1, nm                          ! Psi a and Psi ad by columns: no temporaries
-      loc = loc + d%markers%psi(:, k, m)*q(a0+k-1)
-      vloc = vloc + d%markers%psi(:, k, m)*qd(a0+k-1)
-    end do
-    r = wk%pos(:, b) + matmul(wk%rot(:, :, b), loc)
+    r = wk%pos(:, b) + matmul(wk%rot(:, :, b), d%markers%at(:, m) + marker_deflection(d, m, q))
     v = wk%vel(1:3, b) + cross(wk%vel(4:6, b), r)
-    if (nm > 0) v = v + matmul(wk%rot(:, :, b), vloc)
+    if (d%nm(b) > 0) v = v + matmul(wk%rot(:, :, b), marker_deflection(d, m, qd))
   end subroutine marker_motion
 
   !> Inertial acceleration of marker m from its body's spatial acceleration acc_b = [a_O; alpha]
@@ -172,17 +165,30 @@ contains
     integer, intent(in) :: m
     real(dp), intent(in) :: qd(:), qdd(:), acc_b(6), r(3), v(3)
     real(dp), intent(out) :: a(3)
-    integer :: b, nm
+    integer :: b
     real(dp) :: vd(3)
     b = d%markers%body(m)
-    nm = d%nm(b)
     a = acc_b(1:3) + cross(acc_b(4:6), r) + cross(wk%vel(4:6, b), v)
-    if (nm == 0) return
-    associate(psi => d%markers%psi(:, 1:nm, m), rot => wk%rot(:, :, b))
-      vd = matmul(rot, matmul(psi, qd(d%a0(b):d%a0(b) + nm - 1)))
-      a = a + cross(wk%vel(4:6, b), vd) + matmul(rot, matmul(psi, qdd(d%a0(b):d%a0(b) + nm - 1)))
-    end associate
+    if (d%nm(b) == 0) return
+    vd = matmul(wk%rot(:, :, b), marker_deflection(d, m, qd))
+    a = a + cross(wk%vel(4:6, b), vd) + matmul(wk%rot(:, :, b), marker_deflection(d, m, qdd))
   end subroutine marker_acceleration
+
+  !> Psi v at marker m: the deflection (or its rate, or acceleration) in its body's frame
+  !> from the body's modal coordinates in v (q, qd or qdd), summed by columns (a matmul of
+  !> array sections made heap temporaries per call); zero on a rigid body.
+  pure function marker_deflection(d, m, v) result(u)
+    type(model_data), intent(in) :: d
+    integer, intent(in) :: m
+    real(dp), intent(in) :: v(:)
+    real(dp) :: u(3)
+    integer :: b, k
+    b = d%markers%body(m)
+    u = 0.0_dp
+    do k = 1, d%nm(b)
+      u = u + d%markers%psi(:, k, m)*v(d%a0(b)+k-1)
+    end do
+  end function marker_deflection
 
   !> Orientation of marker m's frame (inertial from marker axes; after forward_kinematics):
   !> its body's, turned on a flexible body by the small rotation exp((Phi a)~) of the point.
