@@ -381,7 +381,7 @@ contains
     character(len=*), intent(in) :: s
     character(len=:), allocatable :: r
     character(len=16), parameter :: hex = '0123456789ABCDEF'
-    integer :: i, k, c
+    integer :: i, k, c, n
     ! one pass to size the text, one to fill it: no text grown a character at a time
     k = 0
     do i = 1, len(s)
@@ -391,7 +391,8 @@ contains
     k = 0
     do i = 1, len(s)
       c = iachar(s(i:i))
-      select case (escaped_length(s(i:i)))
+      n = escaped_length(s(i:i))
+      select case (n)
       case (2)
         r(k+1:k+2) = '\' // s(i:i)
       case (6)
@@ -399,7 +400,7 @@ contains
       case default
         r(k+1:k+1) = s(i:i)
       end select
-      k = k + escaped_length(s(i:i))
+      k = k + n
     end do
   end function json_escape
 
