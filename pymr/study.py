@@ -401,12 +401,10 @@ class Study:
         """FRONT_PASSES more interleaved timing passes over the pymr cases (spec, case, CPU
         samples) within FRONT_MARGIN of their family's fastest at some level of FRONT_ERRORS;
         their CPU is then the median of all their samples."""
-        contenders = []
-        for spec, case, cpu in runs:
-            if case.status == "ok" and any(
-                    case.error_m <= level and case.cpu_s <= FRONT_MARGIN * self.best_at(level)[case.family].cpu_s
-                    for level in FRONT_ERRORS):
-                contenders.append((spec, case, cpu))
+        best = {level: self.best_at(level) for level in FRONT_ERRORS}
+        contenders = [(spec, case, cpu) for spec, case, cpu in runs if case.status == "ok" and any(
+            case.error_m <= level and case.cpu_s <= FRONT_MARGIN * best[level][case.family].cpu_s
+            for level in FRONT_ERRORS)]
         for p in range(1, FRONT_PASSES + 1):
             self.say(f"front pass {p} of {FRONT_PASSES}: CPU times of {len(contenders)} contending cases")
             for spec, case, cpu in shuffled(contenders, self.repeats + p):
