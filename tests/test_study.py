@@ -125,6 +125,7 @@ def _front_cases() -> list[Case]:
         Case("full fixed k=40", "h_fast=1e-4", status="refused: largest stable ratio is k = 33", stable_ratio=33),
         Case("response fixed k=80", "h_fast=1e-4", error_m=1e-9, cpu_s=1e-4, status="failed: made up"),
         ok("CVODE BDF", "rtol=1e-5", 4.5e-6, 0.035),
+        ok("response adaptive amplitude", "rtol=3.2e-5", 8.0e-6, 0.0031),
     ]
 
 
@@ -133,7 +134,8 @@ def test_front_summary_picks_the_fastest_accurate_case_of_each_family():
     h = 4e-4 and rtol 1e-4 miss the level), the fastest 'response' case k = 20, h_fast =
     2e-4 (0.0026 s; k = 40, h_fast = 4e-4 misses it): ratio 0.0026 / 0.017. The 'full'
     coupling's faster case and the failed case with a made-up error do not count; at
-    1e-7 m no single-rate case qualifies."""
+    1e-7 m no single-rate case qualifies. Adaptive 'response' is set against its fixed
+    steps by the faster of its two error norms' cases."""
     s = Study.__new__(Study)
     s.cases = _front_cases()
     rows = s.front_summary(errors=(1e-4, 1e-5, 1e-6, 1e-7))
@@ -142,7 +144,7 @@ def test_front_summary_picks_the_fastest_accurate_case_of_each_family():
     assert (r4["single"].setting, r4["multirate"].setting) == ("h=4e-4", "h_fast=2e-4")
     assert r4["ratio"] == pytest.approx(0.0026 / 0.009)
     assert set(r5["best"]) == {"single fixed", "abm4 adaptive", "response fixed", "response adaptive",
-                               "full fixed", "CVODE BDF"}
+                               "response adaptive amplitude", "full fixed", "CVODE BDF"}
     assert r5["best"]["abm4 adaptive"].setting == "rtol=1e-5"
     assert r5["best"]["response fixed"].method == "response fixed k=20"
     assert (r5["single"].setting, r5["multirate"].method, r5["multirate"].setting) == \
@@ -151,8 +153,14 @@ def test_front_summary_picks_the_fastest_accurate_case_of_each_family():
     assert r6["multirate"].setting == "h_fast=1e-4" and r6["ratio"] == pytest.approx(0.0041 / 0.017)
     assert r6["best"]["full fixed"].cpu_s == 0.0010 and "CVODE BDF" not in r6["best"]
     assert r7["single"] is None and r7["multirate"] is None and math.isnan(r7["ratio"])
+    # adaptive 'response' against its fixed steps: the faster of its two norms' cases
+    a, f, ratio = r5["adaptive"]["response"]
+    assert (a.method, f.setting) == ("response adaptive amplitude", "h_fast=2e-4")
+    assert ratio == pytest.approx(0.0031 / 0.0026)
+    assert "exponential" not in r5["adaptive"] and r6["adaptive"] == {}      # no adaptive case reaches 1e-6 m
     text = s.front_text(errors=(1e-5,))
     assert "= 0.15" in text and "(none this accurate)" not in text
+    assert "adaptive / fixed 'response': 0.0031 s (response adaptive amplitude rtol=3.2e-5) / 0.0026 s" in text
     assert [c.setting for c in s.refused()] == ["h_fast=1e-4"]
 
 
@@ -215,18 +223,20 @@ def test_cpu_time_is_the_median_of_the_repeats():
 
 
 def test_quick_study_end_to_end(tmp_path, capsys):
-    """`pymr study --quick` on the tank, 2 runs per case: 46 cases (single-rate 3 fixed
+    """`pymr study --quick` on the tank, 2 runs per case: 52 cases (single-rate 3 fixed
     steps and 3 tolerances of each formula, 'abm4' and 'adams'; per coupling 'response' and
-    'full' 2 ratios x 2 fast steps and 3 tolerances; 'exponential' 2 steps and 3 tolerances;
-    method 'auto' at 3 tolerances; 5 peers x 3 tolerances), none refused (the quick grid's 'full' ratios 5 and 20 at h_fast
+    'full' 2 ratios x 2 fast steps and 3 tolerances, 'response' with both error norms;
+    'exponential' 2 steps and 3 tolerances with each norm; method 'auto' at 3 tolerances;
+    5 peers x 3 tolerances), none refused (the quick grid's 'full' ratios 5 and 20 at h_fast
     5e-5 and 2.5e-5 s are within the stability limit of 33 at 1e-4 s), the weights, the
     refusals and a front with its ratio at every level (1e-4 to 1e-7 m) printed."""
     from pymr import study as study_mod
     assert study_mod.main(str(TANK), "muzzle", output=str(tmp_path / "q"), quick=True, repeats=2) == 0
     out = capsys.readouterr().out
     rows = list(csv.DictReader(open(tmp_path / "q.csv")))
-    assert len(rows) == 46
+    assert len(rows) == 52
     assert sum(r["method"] == "auto adaptive" for r in rows) == 3
+    assert sum(r["method"].endswith("adaptive amplitude") for r in rows) == 6
     assert sum(r["method"].startswith("response fixed") for r in rows) == 4
     assert sum(r["method"] == "exponential fixed" for r in rows) == 2
     assert all(r["status"] == "ok" or r["status"].startswith("skipped") for r in rows)
@@ -235,6 +245,7 @@ def test_quick_study_end_to_end(tmp_path, capsys):
     assert float(h1["error_m"]) == pytest.approx(5.5e-8, rel=0.05)
     assert "refused by the pre-flight check: none" in out and "measured weight w" in out
     assert out.count("fastest multirate / fastest single-rate: ") == 4 and "n/a" not in out
+    assert out.count("adaptive / fixed 'response': ") >= 1
     # 'auto' at each level some case of it reaches, against the fastest pymr method there
     auto = [float(r["error_m"]) for r in rows if r["method"] == "auto adaptive"]
     assert out.count("method 'auto' / fastest pymr method: ") == sum(min(auto) <= e for e in (1e-4, 1e-5, 1e-6, 1e-7))
