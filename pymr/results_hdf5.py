@@ -49,7 +49,8 @@ def read_hdf5(path: Path):
             order = _text(f.attrs["column_order"]).split(",")
             data = _columns_in_order(f, order)
             attrs = {k: _text(v) for k, v in f.attrs.items()}
-    except (OSError, KeyError, ValueError) as exc:
+    except (OSError, RuntimeError, KeyError, ValueError) as exc:
+        # h5py raises RuntimeError for some damage (a superblock it cannot decode)
         raise ResultsError(f"{path}: not a pymr HDF5 results file ({' '.join(str(exc).split())})") from None
     if data.shape[0] == 0:
         raise ResultsError(f"{path}: has no result rows")
@@ -58,13 +59,23 @@ def read_hdf5(path: Path):
     return Results(columns=order, data=data, stats=stats, meta=meta, path=str(path))
 
 
+#: What HDF5 says of a file still marked open for writing (a run killed as it wrote): the
+#: one reason to open it again in single-writer/multiple-reader mode.
+OPEN_FOR_WRITE = "already open for write"
+
+
 def _open(h5py, path: Path):
-    """The file open for reading; a run's partial file that was killed as it wrote is still
-    marked open for writing, and opens in single-writer/multiple-reader mode."""
+    """The file open for reading. A run's partial file that was killed as it wrote is still
+    marked open for writing, and opens (once more, no retry loop of ours) in
+    single-writer/multiple-reader mode. Any other failure (a truncated file, a damaged
+    superblock) is the first open's: SWMR mode would not repair it, and its reads retry a
+    damaged file's metadata for minutes before giving up."""
     try:
         return h5py.File(path, "r")
-    except OSError:
-        return h5py.File(path, "r", swmr=True)
+    except OSError as exc:
+        if OPEN_FOR_WRITE not in str(exc):
+            raise
+    return h5py.File(path, "r", swmr=True)
 
 
 def _columns_in_order(f, order: list[str]) -> np.ndarray:
