@@ -43,6 +43,7 @@ import itertools
 import math
 import os
 import re
+import stat
 import sys
 import time
 import tomllib
@@ -82,10 +83,8 @@ class Sweep:
 def load_sweep(path: str | os.PathLike) -> Sweep:
     path = Path(path)
     try:
-        spec = tomllib.loads(path.read_text())
-    except FileNotFoundError:
-        raise SweepError(f"{path}: not found") from None
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError, IsADirectoryError) as exc:
+        spec = tomllib.loads(_sweep_text(path))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise SweepError(f"{path}: not a TOML sweep file ({exc})") from None
     check_types(path, spec)
     for key in spec:
@@ -113,6 +112,22 @@ def load_sweep(path: str | os.PathLike) -> Sweep:
     check_cases(sw)
     check_metric(sw)
     return sw
+
+
+def _sweep_text(path: Path) -> str:
+    """The text of the sweep file, a regular file as the kernel's scene reader has it: a
+    FIFO blocked the read for ever (and a device is no sweep file); a folder is named."""
+    try:
+        mode = path.stat().st_mode
+        if stat.S_ISDIR(mode):
+            raise SweepError(f"{path}: cannot read: it is a directory")
+        if not stat.S_ISREG(mode):
+            raise SweepError(f"{path}: cannot read: it is not a regular file (a FIFO, a socket or a device)")
+        return path.read_text()
+    except FileNotFoundError:
+        raise SweepError(f"{path}: not found") from None
+    except OSError as exc:
+        raise SweepError(f"{path}: cannot read: {exc.strerror or exc}") from None
 
 
 #: The sweep file's keys and the TOML type each must have.

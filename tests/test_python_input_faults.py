@@ -61,3 +61,16 @@ def test_a_damaged_hdf5_superblock_is_a_results_error(runs, tmp_path):
     bad.write_bytes((runs / "pendh.h5").read_bytes()[:8] + b"\xff" * 64)
     with pytest.raises(pymr.ResultsError, match=r"s\.h5: not a pymr HDF5 results file \("):
         pymr.load_results(bad)
+
+
+@pytest.mark.parametrize("make, fault", [
+    (lambda p: os.mkfifo(p), "cannot read: it is not a regular file (a FIFO, a socket or a device)"),
+    (lambda p: p.mkdir(), "cannot read: it is a directory"),
+], ids=["fifo", "folder"])
+def test_a_sweep_file_that_is_not_a_regular_file_is_refused(tmp_path, make, fault):
+    """pymr sweep FIFO.toml blocked for ever in the read; it is refused as the kernel's scene
+    reader refuses a FIFO, and a folder is named as one (it was 'Errno 21')."""
+    toml = tmp_path / "s.toml"
+    make(toml)
+    refused(cli("sweep", toml, "--emit-slurm", tmp_path / "out"), f"{toml}: {fault}")
+    assert not (tmp_path / "out").exists()
