@@ -28,9 +28,10 @@ centre lines, tubes, markers and everything beyond a flexible body) are drawn X 
 ``displacement`` stays the true one.
 
 The collection is written whole or not at all: into a temporary folder beside DIR, then
-renamed to DIR (an earlier export there is removed only once the new one is complete). DIR
-must be new, empty, or an earlier pymr export (it holds pymr_export.json): a folder with
-anything else in it is never replaced.
+renamed to DIR (an earlier export there is removed only once the new one is complete, and
+only the files its pymr_export.json records). DIR must be new, empty, or an earlier pymr
+export (it holds pymr_export.json, and nothing that index does not record): a folder with
+anything else in it, or whose index is damaged, is never replaced.
 """
 from __future__ import annotations
 
@@ -148,10 +149,36 @@ def check_export_folder(folder, option: str = "--vtk") -> Path:
     if os.path.lexists(out):
         if out.is_symlink() or not out.is_dir():
             raise OutputError(f"{option} {text}: is not a folder; choose a new folder for the export")
-        if any(out.iterdir()) and not (out / INDEX).is_file():
-            raise OutputError(f"{option} {text}: a folder that holds files and is not a pymr export (no {INDEX}); "
-                              "choose a new or empty folder")
+        recorded(out, option)
     return out
+
+
+def recorded(out: Path, option: str = "--vtk") -> list[str]:
+    """The files of the earlier export in the folder `out` that pymr wrote and recorded in
+    its index (the .vtu files, the .pvd, the index itself): the only files a new export may
+    remove. A folder holding anything else, or whose index is damaged (nothing then proves
+    a file pymr's), is refused (OutputError) and left alone; [] for an empty folder."""
+    present = sorted(p.name for p in out.iterdir())
+    if not present:
+        return []
+    if INDEX not in present:
+        raise OutputError(f"{option} {out}: a folder that holds files and is not a pymr export (no {INDEX}); "
+                          "choose a new or empty folder")
+    try:
+        index = json.loads((out / INDEX).read_text())
+        names = [*index["files"], index["collection"], INDEX]
+        if not all(isinstance(n, str) and n == Path(n).name and n not in ("", ".", "..") for n in names):
+            raise ValueError("a file name that is not a name in the folder")
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise OutputError(f"{option} {out}: its {INDEX} is damaged ({' '.join(str(exc).split())}), so no file in it "
+                          "is known to be an earlier export's: nothing was removed; choose a new or empty folder") \
+            from None
+    others = [n for n in present if n not in names or not (out / n).is_file() or (out / n).is_symlink()]
+    if others:
+        raise OutputError(f"{option} {out}: holds files the earlier export did not write ({', '.join(others[:5])}"
+                          f"{', ...' if len(others) > 5 else ''}): nothing was removed; move them out or choose a "
+                          "new folder")
+    return [n for n in present if n in names]
 
 
 def _write_pvd(path: Path, times, files) -> None:
@@ -165,9 +192,11 @@ def _write_pvd(path: Path, times, files) -> None:
     ET.ElementTree(root).write(path, xml_declaration=True, encoding="utf-8")
 
 
-def _swap_in(tmp: Path, out: Path) -> None:
+def _swap_in(tmp: Path, out: Path, earlier: list[str]) -> None:
     """Rename the complete export `tmp` to `out`; an earlier export at `out` is moved aside
-    first and removed only after the rename (moved back if it fails)."""
+    first (moved back if the rename fails), and then only its files `earlier` (those its
+    index records, :func:`recorded`) are removed, and its folder if that leaves it empty:
+    a file put there meanwhile is left in the folder aside."""
     old = None
     if os.path.lexists(out):
         old = out.with_name(f".{out.name}.old-{os.getpid()}")
@@ -179,7 +208,12 @@ def _swap_in(tmp: Path, out: Path) -> None:
             os.rename(old, out)
         raise
     if old is not None:
-        shutil.rmtree(old, ignore_errors=True)
+        for name in earlier:
+            (old / name).unlink(missing_ok=True)
+        try:
+            old.rmdir()
+        except OSError:
+            pass
 
 
 def _write_all(mo: Motion, tmp: Path, name: str, res: Results) -> list[str]:
@@ -207,6 +241,7 @@ def export_vtk(results: Results | str | os.PathLike, folder, scene=None, every: 
     return the path of its .pvd."""
     res = results if isinstance(results, Results) else load_results(results)
     out = check_export_folder(folder, option)
+    earlier = recorded(out, option) if out.is_dir() else []
     try:
         import meshio  # noqa: F401
     except ImportError:
@@ -220,7 +255,7 @@ def export_vtk(results: Results | str | os.PathLike, folder, scene=None, every: 
         os.umask(umask)
         os.chmod(tmp, 0o777 & ~umask)
         _write_all(mo, tmp, name, res)
-        _swap_in(tmp, out)
+        _swap_in(tmp, out, earlier)
     except OSError as exc:
         raise OutputError(f"{option} {out}: cannot write the export ({' '.join(str(exc).split())})") from None
     finally:

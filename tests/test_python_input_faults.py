@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 import pymr
+import pymr.export
 
 ROOT = Path(__file__).resolve().parent.parent
 PENDULUM = ROOT / "input" / "pendulum.nml"
@@ -74,3 +75,35 @@ def test_a_sweep_file_that_is_not_a_regular_file_is_refused(tmp_path, make, faul
     make(toml)
     refused(cli("sweep", toml, "--emit-slurm", tmp_path / "out"), f"{toml}: {fault}")
     assert not (tmp_path / "out").exists()
+
+
+# ------------------------------------------------------------------ data loss
+
+@pytest.mark.parametrize("index", ["{not json", '{"files": "all", "collection": 5}', None],
+                         ids=["damaged", "wrong_types", "valid"])
+def test_export_never_removes_a_file_its_index_does_not_record(runs, tmp_path, index):
+    """pymr export --vtk DIR replaced DIR whole when it held any pymr_export.json: a damaged
+    one (or a user's file beside a valid one) lost the user's files. Now only the files a
+    valid index records are pymr's to remove; anything else is refused, every file kept."""
+    out = tmp_path / "vtk"
+    pymr.export.export_vtk(runs / "pend.csv", out, frames=2)
+    if index is not None:
+        (out / "pymr_export.json").write_text(index)
+    (out / "notes.txt").write_text("keep me")
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    fault = "is damaged" if index is not None else "holds files the earlier export did not write (notes.txt)"
+    refused(cli("export", runs / "pend.csv", "--vtk", out, "--frames", "2"), f"--vtk {out}: ")
+    with pytest.raises(pymr.OutputError, match=f"--vtk {out}: .*{fault.replace('(', '.').replace(')', '.')}"):
+        pymr.export.export_vtk(runs / "pend.csv", out, frames=2)
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["vtk"]
+
+
+def test_export_replaces_an_earlier_export_file_by_recorded_file(runs, tmp_path):
+    """An earlier export is still replaced: its recorded files go, the new ones come."""
+    out = tmp_path / "vtk"
+    pymr.export.export_vtk(runs / "pend.csv", out, frames=3)
+    pymr.export.export_vtk(runs / "pend.csv", out, frames=2)
+    index = json.loads((out / "pymr_export.json").read_text())
+    assert sorted(p.name for p in out.iterdir()) == sorted([*index["files"], index["collection"], "pymr_export.json"])
+    assert len(index["files"]) == 2 and sorted(p.name for p in tmp_path.iterdir()) == ["vtk"]
