@@ -12,7 +12,6 @@ import numpy as np
 from .errors import ResultsError
 
 
-
 @dataclass(frozen=True)
 class Column:
     """What the kernel says of one column of a results file (OUT.json's "columns"): its
@@ -26,6 +25,34 @@ class Column:
     owner: str
     quantity: str
     unit: str
+
+
+#: The lists of OUT.json's "columns", in the order of :class:`Column`'s fields.
+COLUMN_FIELDS = ("name", "group", "owner", "quantity", "unit")
+
+
+def column_table(meta, columns: list[str], where: str) -> list[Column]:
+    """OUT.json's "columns" (`meta`) as one :class:`Column` per column of `columns`, checked:
+    an object of the five lists of COLUMN_FIELDS, each of one text per column, the names
+    those of `columns`. A damaged or hand-edited one is a ResultsError naming `where` and
+    the fault (it gave TypeError or KeyError tracebacks where it was used)."""
+    if not isinstance(meta, dict):
+        raise ResultsError(f'{where}: "columns" is not an object of the lists {", ".join(COLUMN_FIELDS)} '
+                           "(the file was changed)")
+    for key in COLUMN_FIELDS:
+        if key not in meta:
+            raise ResultsError(f'{where}: "columns" has no list "{key}" (the file was changed)')
+        values = meta[key]
+        if not isinstance(values, list) or not all(isinstance(v, str) for v in values):
+            raise ResultsError(f'{where}: "columns" "{key}" is not a list of texts, one per column (the file was '
+                               "changed)")
+        if len(values) != len(columns):
+            raise ResultsError(f'{where}: "columns" "{key}" has {len(values)} entries for the {len(columns)} '
+                               "columns of the results (the file was changed, or is another run's)")
+    if meta["name"] != list(columns):
+        raise ResultsError(f'{where}: "columns" "name" does not match the results\' columns (the file was changed, '
+                           "or is another run's)")
+    return [Column(*fields) for fields in zip(*(meta[k] for k in COLUMN_FIELDS))]
 
 
 @dataclass
@@ -84,11 +111,11 @@ class Results:
         cached = self.__dict__.get("_column_cache")
         if cached is not None and cached[0] is meta and cached[1] == self.columns:
             return cached[2]
+        where = self.path or "these results"
         if not isinstance(meta, dict) or meta.get("name") != self.columns:
-            where = self.path or "these results"
             raise ResultsError(f"{where}: no column metadata matching the columns (OUT.json beside the results "
                                "file gives it: run the scene again to write it)")
-        info = [Column(*fields) for fields in zip(*(meta[k] for k in ("name", "group", "owner", "quantity", "unit")))]
+        info = column_table(meta, self.columns, where)
         self.__dict__["_column_cache"] = (meta, list(self.columns), info)
         return info
 
@@ -256,48 +283,136 @@ def load_results(csv_path: str | os.PathLike) -> Results:
     pymr results file (header from the column 't', rows of finite numbers) or has no rows,
     and a JSON beside it that is not JSON, raise :class:`ResultsError`."""
     from ._args import _path             # the one check of a path argument
-    if not _path("csv_path", csv_path):
+    text = _path("csv_path", csv_path)
+    if not text:
         raise ResultsError("csv_path: an empty path (give a results file, OUT.csv)")
-    path = Path(_path("csv_path", csv_path))
-    if not path.is_file():
-        raise ResultsError(f"{path}: no such result file")
+    path = Path(text)
+    _check_file(path)
     from .results_hdf5 import is_hdf5, read_hdf5
     if is_hdf5(path):
         return read_hdf5(path)
+    meta, header, skip = _read_head(path)
+    if not header or header[0] != "t":
+        raise ResultsError(f"{path}: not a pymr result file (its header does not start with the column 't')")
     try:
-        meta, header, skip = _read_head(path)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")      # numpy's "input contained no data"
             data = np.loadtxt(path, delimiter=",", comments="#", skiprows=skip, ndmin=2)
-    except (OSError, ValueError) as exc:
-        raise ResultsError(f"{path}: not a pymr result file ({' '.join(str(exc).split())})") from None
-    if not header or header[0] != "t":
-        raise ResultsError(f"{path}: not a pymr result file (its header does not start with the column 't')")
+    except ValueError:
+        raise ResultsError(f"{path}: not a pymr result file ({_row_fault(path, skip, header)})") from None
+    except OSError as exc:
+        raise ResultsError(f"{path}: cannot read it ({exc.strerror or exc})") from None
+    if data.shape[0] and data.shape[1] != len(header):
+        raise ResultsError(f"{path}: not a pymr result file ({_row_fault(path, skip, header)})")
+    jpath = path.with_suffix(".json")
+    return checked(path, header, data, _read_stats(jpath), meta, str(jpath))
+
+
+def checked(path: Path, columns: list[str], data: np.ndarray, stats: dict, meta: dict, where: str) -> Results:
+    """The Results of a results file read (CSV or HDF5: one rule for both), refused unless
+    it has rows, every value is finite (a run writes none that is not) and its statistics
+    (read from `where`) are whole: the fields pymr reads of their types, the column
+    metadata one entry per column, and a complete run's row count the file's."""
     if data.shape[0] == 0:
         raise ResultsError(f"{path}: has no result rows")
-    if data.shape[1] != len(header):
-        raise ResultsError(f"{path}: not a pymr result file ({data.shape[1]} values a row, {len(header)} columns)")
     if not np.isfinite(data).all():
         row, col = np.argwhere(~np.isfinite(data))[0]
-        raise ResultsError(f"{path}: row {row + 1}, column {header[col]}: {data[row, col]} is not a finite number "
+        raise ResultsError(f"{path}: row {row + 1}, column {columns[col]}: {data[row, col]} is not a finite number "
                            "(a run writes none: the file was changed)")
-    return Results(columns=header, data=data, stats=_read_stats(path.with_suffix(".json")), meta=meta, path=str(path))
+    _check_stats(stats, columns, where)
+    rows = stats.get("rows")
+    if stats.get("status") == "complete" and rows is not None and rows != data.shape[0]:
+        # a failed run's statistics ('failed') count its partial file's rows, not these
+        fault = "the file was cut" if data.shape[0] < rows else "the file was changed"
+        raise ResultsError(f"{path}: {data.shape[0]} row{'s' if data.shape[0] != 1 else ''} of the {rows} the run "
+                           f"wrote ({fault})")
+    return Results(columns=columns, data=data, stats=stats, meta=meta, path=str(path))
+
+
+#: The statistics fields pymr reads, and what each must be (besides "columns":
+#: :func:`column_table`). A field of another type is refused where the file is read.
+STATS_FIELDS = {"status": (str, "a text"), "scene": (str, "a text (the scene file)"),
+                "resolved_scene": (str, "a text (the scene as the run read it)"),
+                "scene_fingerprint": (str, "a text"), "title": (str, "a text"),
+                "rows": (int, "a whole number"), "cpu_time_s": ((int, float), "a number of seconds")}
+
+
+def _check_stats(stats: dict, columns: list[str], where: str) -> None:
+    """The statistics' fields that pymr reads are of their types (a ResultsError naming
+    `where` and the field otherwise)."""
+    for key, (kind, what) in STATS_FIELDS.items():
+        value = stats.get(key)
+        if key in stats and (not isinstance(value, kind) or isinstance(value, bool)):
+            from ._args import _shown
+            raise ResultsError(f'{where}: "{key}" is {_shown(value)}, not {what} (the file was changed)')
+    if "columns" in stats:
+        column_table(stats["columns"], columns, where)
+
+
+def _check_file(path: Path) -> None:
+    """A results file is there and is a regular file (a ResultsError saying what it is
+    otherwise: missing, a folder, a FIFO or a device, unreadable)."""
+    import stat
+    try:
+        mode = path.stat().st_mode
+    except FileNotFoundError:
+        raise ResultsError(f"{path}: no such result file") from None
+    except OSError as exc:
+        raise ResultsError(f"{path}: cannot read it ({exc.strerror or exc})") from None
+    if stat.S_ISDIR(mode):
+        raise ResultsError(f"{path}: is a folder, not a result file")
+    if not stat.S_ISREG(mode):
+        raise ResultsError(f"{path}: not a regular file (a FIFO, a device or a socket), not a result file")
 
 
 def _read_head(path: Path) -> tuple[dict[str, str], list[str], int]:
     """The comment lines as key: value, the header's columns and the lines up to it."""
     meta: dict[str, str] = {}
     skip = 0
-    with open(path) as fh:
-        for line in fh:
-            skip += 1
-            if line.startswith("#"):
-                key, colon, value = line[1:].strip().partition(":")
-                if colon:                    # '# key: value' (not the '# pymr 0.1.0 results' line)
-                    meta[key.strip()] = value.strip()
-                continue
-            return meta, line.strip().split(","), skip
+    try:
+        with open(path, encoding="utf-8") as fh:
+            for line in fh:
+                if skip == 0 and line.startswith("\ufeff"):
+                    raise ResultsError(f"{path}: not a pymr result file (it starts with a byte order mark, U+FEFF, "
+                                       "which pymr never writes: another program saved it)")
+                skip += 1
+                if line.startswith("#"):
+                    key, colon, value = line[1:].strip().partition(":")
+                    if colon:                    # '# key: value' (not the '# pymr 0.1.0 results' line)
+                        meta[key.strip()] = value.strip()
+                    continue
+                return meta, line.strip().split(","), skip
+    except UnicodeDecodeError:
+        raise ResultsError(f"{path}: not a pymr result file (line {skip + 1} is not UTF-8 text)") from None
+    except OSError as exc:
+        raise ResultsError(f"{path}: cannot read it ({exc.strerror or exc})") from None
     return meta, [], skip
+
+
+def _row_fault(path: Path, skip: int, header: list[str]) -> str:
+    """Why the lines after the header (the first `skip` lines) are not rows of numbers, one
+    per column: the first line that is not, in pymr's words (numpy's counted rows from the
+    header and suggested its own arguments)."""
+    from ._args import _short
+    with open(path, "rb") as fh:
+        for number, raw in enumerate(fh, start=1):
+            if number <= skip:
+                continue
+            try:
+                line = raw.decode("utf-8").split("#", 1)[0].strip()
+            except UnicodeDecodeError:
+                return f"line {number} is not UTF-8 text"
+            if not line:
+                continue
+            values = line.split(",")
+            if len(values) != len(header):
+                return f"line {number} holds {len(values)} values, the header names {len(header)} columns"
+            for name, value in zip(header, values):
+                try:
+                    float(value)
+                except ValueError:
+                    return f"line {number}, column {name}: {_short(value.strip())} is not a number"
+    return "its rows are not numbers separated by commas"
 
 
 def _read_stats(jpath: Path) -> dict:
@@ -305,9 +420,19 @@ def _read_stats(jpath: Path) -> dict:
     if not jpath.exists():
         return {}
     try:
-        stats = json.loads(jpath.read_text())
+        text = jpath.read_text()
     except (OSError, ValueError) as exc:
         raise ResultsError(f"{jpath}: not a pymr statistics file ({' '.join(str(exc).split())})") from None
+    return parse_stats(text, str(jpath))
+
+
+def parse_stats(text: str, where: str) -> dict:
+    """The statistics in `text` (OUT.json's, or an HDF5 file's attribute) as a dict; a
+    ResultsError naming `where` when they are not a JSON object."""
+    try:
+        stats = json.loads(text)
+    except ValueError as exc:
+        raise ResultsError(f"{where}: not a pymr statistics file ({' '.join(str(exc).split())})") from None
     if not isinstance(stats, dict):
-        raise ResultsError(f"{jpath}: not a pymr statistics file (not a JSON object)")
+        raise ResultsError(f"{where}: not a pymr statistics file (not a JSON object)")
     return stats

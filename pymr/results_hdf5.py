@@ -11,7 +11,6 @@ both formats give the same :class:`Results`.
 """
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
@@ -37,8 +36,8 @@ def _text(value) -> str:
 
 def read_hdf5(path: Path):
     """The Results of the HDF5 results file at `path` (statistics from the file, else from
-    OUT.json beside it)."""
-    from .results import Results, _read_stats
+    OUT.json beside it), checked as a CSV's are (:func:`pymr.results.checked`)."""
+    from .results import _read_stats, checked, parse_stats
     try:
         import h5py
     except ImportError:
@@ -46,17 +45,23 @@ def read_hdf5(path: Path):
                            "(pip install h5py)") from None
     try:
         with _open(h5py, path) as f:
+            if "column_order" not in f.attrs:
+                raise ResultsError(f"{path}: not a pymr HDF5 results file (no attribute 'column_order')")
             order = _text(f.attrs["column_order"]).split(",")
-            data = _columns_in_order(f, order)
+            data = _columns_in_order(h5py, f, order, path)
             attrs = {k: _text(v) for k, v in f.attrs.items()}
-    except (OSError, RuntimeError, KeyError, ValueError) as exc:
+    except ResultsError:
+        raise
+    except (OSError, RuntimeError, KeyError, ValueError, TypeError) as exc:
         # h5py raises RuntimeError for some damage (a superblock it cannot decode)
         raise ResultsError(f"{path}: not a pymr HDF5 results file ({' '.join(str(exc).split())})") from None
-    if data.shape[0] == 0:
-        raise ResultsError(f"{path}: has no result rows")
-    stats = json.loads(attrs["statistics"]) if "statistics" in attrs else _read_stats(path.with_suffix(".json"))
+    if "statistics" in attrs:
+        stats, where = parse_stats(attrs["statistics"], f"{path} (its attribute 'statistics')"), \
+            f"{path} (its attribute 'statistics')"
+    else:
+        stats, where = _read_stats(path.with_suffix(".json")), str(path.with_suffix(".json"))
     meta = {"title": attrs.get("title", ""), "method": attrs.get("method", "")}
-    return Results(columns=order, data=data, stats=stats, meta=meta, path=str(path))
+    return checked(path, order, data, stats, meta, where)
 
 
 #: What HDF5 says of a file still marked open for writing (a run killed as it wrote): the
@@ -78,20 +83,38 @@ def _open(h5py, path: Path):
     return h5py.File(path, "r", swmr=True)
 
 
-def _columns_in_order(f, order: list[str]) -> np.ndarray:
-    """The datasets' columns side by side in `order` (rows, columns)."""
+def _columns_in_order(h5py, f, order: list[str], path: Path) -> np.ndarray:
+    """The datasets' columns side by side in `order` (rows, columns): each dataset of
+    numbers, one row per time, with its attribute 'columns' (a ResultsError naming the
+    dataset otherwise)."""
+    def fault(text: str) -> ResultsError:
+        return ResultsError(f"{path}: not a pymr HDF5 results file ({text})")
+
+    if "time" not in f:
+        raise fault("no dataset 'time'")
     place: dict[str, tuple[str, int]] = {}
+    arrays = {}
     for name, dataset in f.items():
-        for k, column in enumerate(dataset.attrs["columns"]):
+        if not isinstance(dataset, h5py.Dataset):
+            raise fault(f"{name!r} is a group, not a dataset of columns")
+        if "columns" not in dataset.attrs:
+            raise fault(f"dataset {name!r} has no attribute 'columns'")
+        for k, column in enumerate(np.atleast_1d(dataset.attrs["columns"])):
             place[_text(column)] = (name, k)
-    arrays = {name: np.asarray(dataset[()]) for name, dataset in f.items()}
+        values = np.asarray(dataset[()])
+        if values.dtype.kind not in "iuf":
+            raise fault(f"dataset {name!r} does not hold numbers")
+        arrays[name] = values
     missing = [c for c in order if c not in place]
     if missing:
-        raise KeyError(f"no dataset holds the columns {', '.join(missing[:5])}")
-    rows = len(arrays["time"])
+        raise fault(f"no dataset holds the columns {', '.join(missing[:5])}")
+    rows = len(np.atleast_1d(arrays["time"]))
     data = np.empty((rows, len(order)))
     for j, column in enumerate(order):
         name, k = place[column]
         values = arrays[name]
+        if values.ndim not in (1, 2) or len(values) != rows or (values.ndim == 2 and k >= values.shape[1]):
+            raise fault(f"dataset {name!r} has shape {values.shape}, not one row per time ({rows}) and a column "
+                        f"per name")
         data[:, j] = values if values.ndim == 1 else values[:, k]
     return data

@@ -107,3 +107,126 @@ def test_export_replaces_an_earlier_export_file_by_recorded_file(runs, tmp_path)
     index = json.loads((out / "pymr_export.json").read_text())
     assert sorted(p.name for p in out.iterdir()) == sorted([*index["files"], index["collection"], "pymr_export.json"])
     assert len(index["files"]) == 2 and sorted(p.name for p in tmp_path.iterdir()) == ["vtk"]
+
+
+# ------------------------------------------------------------------ reading results
+
+def _h5_copy(runs, tmp_path, change) -> Path:
+    """A copy of the HDF5 run, changed by `change(h5py.File)`."""
+    import h5py
+    path = tmp_path / "h.h5"
+    path.write_bytes((runs / "pendh.h5").read_bytes())
+    with h5py.File(path, "r+") as f:
+        change(f)
+    return path
+
+
+def _set_value(f, value):
+    data = f["markers"][()]
+    data[3, 1] = value
+    f["markers"][...] = data
+
+
+@pytest.mark.parametrize("change, message", [
+    (lambda f: f.attrs.modify("statistics", "{not json"), r"h\.h5 \(its attribute 'statistics'\): not a pymr "
+                                                          r"statistics file \(Expecting property name"),
+    (lambda f: f.attrs.modify("statistics", "[1, 2]"), r"h\.h5 \(its attribute 'statistics'\): not a pymr statistics "
+                                                       r"file \(not a JSON object\)$"),
+    (lambda f: _set_value(f, np.nan), r"h\.h5: row 4, column tip\.y: nan is not a finite number"),
+    (lambda f: _set_value(f, np.inf), r"h\.h5: row 4, column tip\.y: inf is not a finite number"),
+    (lambda f: f.attrs.__delitem__("column_order"), r"h\.h5: not a pymr HDF5 results file \(no attribute "
+                                                    r"'column_order'\)$"),
+], ids=["statistics_not_json", "statistics_not_object", "nan", "inf", "no_column_order"])
+def test_a_damaged_hdf5_results_file_is_one_results_error(runs, tmp_path, change, message):
+    """The statistics attribute gave JSONDecodeError or AttributeError tracebacks, NaN and
+    Inf were loaded silently (and crashed pymr plot): each is now refused as the CSV's are."""
+    bad = _h5_copy(runs, tmp_path, change)
+    with pytest.raises(pymr.ResultsError, match=message):
+        pymr.load_results(bad)
+    refused(cli("plot", bad, "-o", tmp_path / "h.png"), f"{bad}")
+
+
+def _sidecar(runs, tmp_path, change, csv: str = "pend.csv") -> Path:
+    """A copy of the CSV run whose OUT.json `change(stats)` has changed."""
+    out = tmp_path / "r.csv"
+    out.write_text((runs / csv).read_text())
+    stats = json.loads((runs / csv).with_suffix(".json").read_text())
+    change(stats)
+    out.with_suffix(".json").write_text(json.dumps(stats))
+    return out
+
+
+def _put(path: str, value):
+    def change(stats):
+        *keys, last = path.split(".")
+        target = stats
+        for key in keys:
+            target = target[key]
+        target[last] = value
+    return change
+
+
+@pytest.mark.parametrize("change, message", [
+    (_put("columns.group", 5), r'"columns" "group" is not a list of texts, one per column'),
+    (lambda s: s["columns"].pop("unit"), r'"columns" has no list "unit"'),
+    (lambda s: s["columns"]["owner"].__setitem__(1, None), r'"columns" "owner" is not a list of texts'),
+    (lambda s: s["columns"].__setitem__("quantity", s["columns"]["quantity"][:3]),
+     r'"columns" "quantity" has 3 entries for the 9 columns of the results'),
+    (_put("columns", [1, 2]), r'"columns" is not an object of the lists name, group, owner, quantity, unit'),
+    (_put("scene", 5), r'"scene" is int 5, not a text \(the scene file\)'),
+    (_put("resolved_scene", 42), r'"resolved_scene" is int 42, not a text'),
+    (_put("cpu_time_s", "fast"), r'"cpu_time_s" is str \'fast\', not a number of seconds'),
+    (_put("rows", 500), r"r\.csv: 21 rows of the 500 the run wrote \(the file was cut\)"),
+    (_put("rows", 3), r"r\.csv: 21 rows of the 3 the run wrote \(the file was changed\)"),
+], ids=["group_int", "no_unit", "owner_null", "short_list", "not_object", "scene_int", "resolved_int", "cpu_str",
+        "cut", "changed"])
+def test_a_statistics_file_that_does_not_fit_its_results_is_refused(runs, tmp_path, change, message):
+    """Malformed column metadata or fields of the wrong type gave TypeError, KeyError or
+    AttributeError tracebacks where they were used (plot, view, export, animate, sweep
+    --collect); a CSV shorter than its complete run's row count loaded silently. Each is
+    refused when the file is read, naming the JSON (or the CSV) and the fault."""
+    bad = _sidecar(runs, tmp_path, change)
+    with pytest.raises(pymr.ResultsError, match=message):
+        pymr.load_results(bad)
+    for command in (["plot", bad, "-o", tmp_path / "p.png"], ["view", bad, "-o", tmp_path / "v.html"]):
+        refused(cli(*command), str(bad.with_suffix(".json") if "rows" not in message else bad))
+
+
+def test_a_failed_runs_statistics_do_not_count_the_rows(runs, tmp_path):
+    """Only a complete run's row count is compared with the file's: a failed run's
+    statistics describe its partial file (status 'failed'), and those rows load."""
+    res = pymr.load_results(_sidecar(runs, tmp_path, lambda s: s.update(status="failed", rows=500)))
+    assert res.data.shape == (21, 9) and res.stats["rows"] == 500
+
+
+@pytest.mark.parametrize("make, message", [
+    (lambda p: p.mkdir(), "is a folder, not a result file"),
+    (lambda p: os.mkfifo(p), "not a regular file (a FIFO, a device or a socket), not a result file"),
+], ids=["folder", "fifo"])
+def test_a_results_path_that_is_no_file_says_what_it_is(tmp_path, make, message):
+    """A folder, a FIFO or /dev/null was 'no such result file'."""
+    path = tmp_path / "r.csv"
+    make(path)
+    with pytest.raises(pymr.ResultsError, match=f"^{path}: {message.replace('(', '.').replace(')', '.')}$"):
+        pymr.load_results(path)
+    with pytest.raises(pymr.ResultsError, match=r"^/dev/null: not a regular file"):
+        pymr.load_results("/dev/null")
+    refused(cli("plot", path, "-o", tmp_path / "p.png"), f"{path}: {message}")
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda lines: lines[:8] + [lines[8].rsplit(",", 1)[0]] + lines[9:],
+     r"r\.csv: not a pymr result file \(line 9 holds 8 values, the header names 9 columns\)$"),
+    (lambda lines: lines[:6] + [",".join([lines[6].split(",")[0], "abc", *lines[6].split(",")[2:]])] + lines[7:],
+     r"r\.csv: not a pymr result file \(line 7, column pivot.q: 'abc' is not a number\)$"),
+    (lambda lines: ["\ufeff" + lines[0]] + lines[1:],
+     r"r\.csv: not a pymr result file \(it starts with a byte order mark, U\+FEFF"),
+], ids=["short_row", "text", "bom"])
+def test_a_damaged_csv_is_named_in_pymrs_words(runs, tmp_path, edit, message):
+    """numpy's wording leaked into the message ('the number of columns changed from 9 to 8 at
+    row 5; use `usecols`', 'could not convert string 't' to float64')."""
+    lines = (runs / "pend.csv").read_text().splitlines()
+    bad = tmp_path / "r.csv"
+    bad.write_text("\n".join(edit(lines)) + "\n")
+    with pytest.raises(pymr.ResultsError, match=message):
+        pymr.load_results(bad)
