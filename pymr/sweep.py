@@ -138,10 +138,16 @@ KEY_TYPES = {"scene": (str, "a file name (a string)"), "output": (str, "a folder
 
 def check_types(path: Path, spec: dict) -> None:
     """Each known key of the sweep file has its type (a number where a file name goes gave
-    a TypeError traceback)."""
+    a TypeError traceback), and a file or folder name holds no NUL character (TOML's
+    \\u0000 gave a ValueError traceback) and is not empty."""
     for key, (kind, what) in KEY_TYPES.items():
         if key in spec and not isinstance(spec[key], kind):
             raise SweepError(f"{path}: {key}: must be {what}, got {spec[key]!r}")
+    for key in ("scene", "output"):
+        if "\0" in spec.get(key, ""):
+            raise SweepError(f"{path}: {key}: {spec[key]!r}: a file name cannot hold a NUL character")
+    if spec.get("scene", None) == "":
+        raise SweepError(f"{path}: scene: an empty file name (the base scene's namelist file)")
 
 
 def check_cases(sw: Sweep) -> None:
@@ -383,11 +389,15 @@ def run_sweep(sw: Sweep, scheduler: str | None = None, workers: int = 2) -> list
     summary = check_output(sw.output / "summary.csv", "sweep's summary", option=f"{sw.path}: output")
     cases = sw.cases
     cluster = None
-    if scheduler:
+    if scheduler is not None:
         try:
             client = Client(scheduler)
         except OSError as exc:
             raise SweepError(f"--scheduler {scheduler}: cannot reach it ({' '.join(str(exc).split())})") from None
+        except (ValueError, TypeError) as exc:
+            # Dask's parser of addresses: 'missing port number', 'unknown address scheme'
+            raise SweepError(f"--scheduler {scheduler}: not the address of a Dask scheduler, such as "
+                             f"tcp://host:8786 ({' '.join(str(exc).split())})") from None
     else:
         # one thread per worker process, BLAS included: the workers inherit these
         for name in BLAS_THREADS:
@@ -499,15 +509,24 @@ MRSIM="${{PYMR_MRSIM:-{exe}}}"
 def main(toml: str, scheduler: str | None = None, workers: int = 2, emit: str | None = None,
          collect_from: str | None = None) -> int:
     """``pymr sweep``: exit 0 when every case ran and gave its metric; 2 when a case failed,
-    or (--collect) has not run or not finished: the summary lists every case either way."""
+    or (--collect) has not run or not finished: the summary lists every case either way.
+    An option given empty (an unset shell variable) is refused, not taken as left out."""
+    for option, value, left_out in (("--emit-slurm", emit, "to run the cases here"),
+                                    ("--collect", collect_from, "to run the cases here"),
+                                    ("--scheduler", scheduler, "for a LocalCluster on this machine")):
+        if value is not None and not value.strip():
+            raise SweepError(f"{option}: an empty {'address' if option == '--scheduler' else 'folder name'} "
+                             f"(leave {option} out {left_out})")
+    if emit is not None and collect_from is not None:
+        raise SweepError("--emit-slurm and --collect: one at a time (emit the cases, run them, then collect)")
     sw = load_sweep(toml)
-    if emit:
+    if emit is not None:
         script = emit_slurm(sw, emit)
         print(f"wrote {len(sw.cases)} case namelists and {script} (submit with: cd {emit} && sbatch sweep.slurm; "
               f"then: pymr sweep {toml} --collect {emit})")
         return 0
     t0 = time.time()
-    if collect_from:
+    if collect_from is not None:
         rows = collect(sw, collect_from)
         where = Path(collect_from) / "summary.csv"
     else:
@@ -516,12 +535,13 @@ def main(toml: str, scheduler: str | None = None, workers: int = 2, emit: str | 
     not_run = [r["case"] for r in rows if r["status"].startswith(NOT_RUN)]
     failed = [r["case"] for r in rows if r["status"] != "ok" and r["case"] not in not_run]
     counts = f"{len(rows) - len(failed) - len(not_run)} ok, {len(failed)} failed"
-    if collect_from:
+    if collect_from is not None:
         counts += f", {len(not_run)} not run or not finished"
     print(f"{len(rows)} cases: {counts}, {time.time() - t0:.1f} s: {where}")
     for r in rows:
         params = ", ".join(f"{k}={r[k]}" for k in sw.grid)
-        print(f"  {r['case']}  {params}  metric {r['metric']:.4g}  cpu {r['cpu_time_s']:.3f} s  {r['status'][:90]}")
+        metric = f"  metric {r['metric']:.4g}" if sw.metric else ""        # no metric: no 'metric nan'
+        print(f"  {r['case']}  {params}{metric}  cpu {r['cpu_time_s']:.3f} s  {r['status'][:90]}")
     if failed or not_run:
         parts = [f"{len(failed)} failed ({', '.join(failed)})"] if failed else []
         if not_run:

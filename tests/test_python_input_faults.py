@@ -230,3 +230,64 @@ def test_a_damaged_csv_is_named_in_pymrs_words(runs, tmp_path, edit, message):
     bad.write_text("\n".join(edit(lines)) + "\n")
     with pytest.raises(pymr.ResultsError, match=message):
         pymr.load_results(bad)
+
+
+# ------------------------------------------------------------------ pymr sweep
+
+SWEEP = """scene = "{scene}"
+output = "{output}"
+metric = "final:pivot.q"
+[grid]
+"integrator.h_slow" = [1e-3, 2e-3]
+[fixed]
+"scene.t_end" = 0.05
+"""
+
+
+@pytest.mark.parametrize("scene, output, message", [
+    ("pend\\u0000ulum.nml", "out", "scene: 'pend\\x00ulum.nml': a file name cannot hold a NUL character"),
+    (str(PENDULUM), "o\\u0000ut", "output: 'o\\x00ut': a file name cannot hold a NUL character"),
+    ("", "out", "scene: an empty file name"),
+], ids=["scene_nul", "output_nul", "scene_empty"])
+def test_a_sweep_file_name_with_nul_or_empty_is_refused(tmp_path, scene, output, message):
+    """TOML's \\u0000 in scene or output gave a ValueError traceback (embedded null byte)."""
+    toml = tmp_path / "s.toml"
+    toml.write_text(SWEEP.format(scene=scene, output=output))
+    refused(cli("sweep", toml, "--emit-slurm", tmp_path / "slurm", cwd=tmp_path), f"{toml}: {message}")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.toml"]
+
+
+@pytest.mark.parametrize("options, message", [
+    (["--scheduler", "not an address"], "--scheduler not an address: not the address of a Dask scheduler"),
+    (["--scheduler", "ftp://x"], "--scheduler ftp://x: not the address of a Dask scheduler"),
+    (["--scheduler", ""], "--scheduler: an empty address (leave --scheduler out for a LocalCluster"),
+    (["--emit-slurm", ""], "--emit-slurm: an empty folder name (leave --emit-slurm out to run the cases here)"),
+    (["--collect", ""], "--collect: an empty folder name"),
+    (["--emit-slurm", "a", "--collect", "a"], "--emit-slurm and --collect: one at a time"),
+], ids=["scheduler_garbage", "scheduler_ftp", "scheduler_empty", "emit_empty", "collect_empty", "emit_and_collect"])
+def test_sweep_options_that_are_empty_or_no_address_are_refused(tmp_path, options, message):
+    """--scheduler 'not an address' gave Dask's ValueError traceback; an empty --emit-slurm
+    (or --collect, --scheduler) was taken as not given and the whole sweep ran."""
+    toml = tmp_path / "s.toml"
+    toml.write_text(SWEEP.format(scene=PENDULUM, output="out"))
+    refused(cli("sweep", toml, *options, cwd=tmp_path), message)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.toml"]
+
+
+def test_collect_lists_a_case_whose_statistics_are_damaged_as_failed(tmp_path):
+    """A case JSON whose cpu_time_s is not a number gave a ValueError traceback in --collect;
+    the case is now listed as failed (its results cannot be read) and the others collected."""
+    from pymr.sweep import emit_slurm, load_sweep
+    toml = tmp_path / "s.toml"
+    toml.write_text(SWEEP.format(scene=PENDULUM, output="out"))
+    folder = tmp_path / "slurm"
+    emit_slurm(load_sweep(toml), folder)
+    for i in range(2):
+        pymr.run(folder / f"case{i:04d}.nml", folder / f"case{i:04d}.csv")
+    stats = json.loads((folder / "case0001.json").read_text())
+    (folder / "case0001.json").write_text(json.dumps({**stats, "cpu_time_s": "fast"}))
+    r = cli("sweep", toml, "--collect", folder)
+    assert r.returncode == 2 and "Traceback" not in r.stderr and r.stderr.count("\n") == 1, r.stderr
+    assert "of 2 cases, 1 failed (case0001)" in r.stderr
+    summary = (folder / "summary.csv").read_text().splitlines()
+    assert summary[1].endswith(",ok") and '"cpu_time_s" is str \'fast\', not a number of seconds' in summary[2]
