@@ -21,7 +21,13 @@ module pymr_model_beam_modes
 
   !> Beams with more elements take the banded eigensolver (the dense one is kept below it,
   !> so the results of smaller beams stay as they were).
-  integer, parameter :: dense_elements = 100
+  integer, parameter, public :: dense_elements = 100
+  !> The banded eigensolver's shifts come from the same beam on a dense mesh of
+  !> shift_elements elements per mode kept (at least dense_elements), at most
+  !> max_shift_mesh elements: so a beam with more than dense_elements elements keeps at most
+  !> max_banded_modes modes per family (scene rule).
+  integer, parameter :: shift_elements = 8, max_shift_mesh = 400
+  integer, parameter, public :: max_banded_modes = max_shift_mesh/shift_elements
 
   !> Gauss-Legendre points and weights on [0, 1] (exact for degree 7): the nodes
   !> +-0.8611363115940526, +-0.3399810435848563 of [-1, 1] halved and shifted.
@@ -276,24 +282,36 @@ contains
 
   !> Lowest `nm` modes of field f: nodal vectors (2*(ne+1) rows, the clamped values as
   !> zeros), M-normalised, signed so that the tip value is positive.
-  recursive subroutine field_modes(f, le, ne, nm, what, v, lam, error)
+  subroutine field_modes(f, le, ne, nm, what, v, lam, error)
     type(mode_field), intent(in) :: f
     real(dp), intent(in) :: le
     integer, intent(in) :: ne, nm
     character(len=*), intent(in) :: what
     real(dp), allocatable, intent(out) :: v(:, :), lam(:)
     type(error_type), allocatable, intent(out) :: error
-    real(dp), allocatable :: kk(:, :), mm(:, :), w(:)
     real(dp) :: ke(4, 4), me(4, 4)
-    integer :: nd, el, i0, i, j, k
     if (nm == 0) then
       allocate(v(2*ne + 2, 0), lam(0)); return
     end if
-    nd = 2*ne + 2 - f%nfix
     call element_matrices(f, le, ke, me)
     if (ne > dense_elements) then
-      call field_modes_banded(f, le, ke, me, ne, nm, what, v, lam, error); return
+      call field_modes_banded(f, le, ke, me, ne, nm, what, v, lam, error)
+    else
+      call field_modes_dense(f, ke, me, ne, nm, what, v, lam, error)
     end if
+  end subroutine field_modes
+
+  !> Lowest `nm` modes of field f from the dense matrices of its ne elements (ke, me).
+  subroutine field_modes_dense(f, ke, me, ne, nm, what, v, lam, error)
+    type(mode_field), intent(in) :: f
+    real(dp), intent(in) :: ke(4, 4), me(4, 4)
+    integer, intent(in) :: ne, nm
+    character(len=*), intent(in) :: what
+    real(dp), allocatable, intent(out) :: v(:, :), lam(:)
+    type(error_type), allocatable, intent(out) :: error
+    real(dp), allocatable :: kk(:, :), mm(:, :), w(:)
+    integer :: nd, el, i0, i, j, k
+    nd = 2*ne + 2 - f%nfix
     allocate(kk(nd, nd), mm(nd, nd), w(nd), v(2*ne + 2, nm), lam(nm))
     kk = 0.0_dp; mm = 0.0_dp
     do el = 1, ne
@@ -317,14 +335,14 @@ contains
       if (v(2*ne + 1, k) < 0.0_dp) v(f%nfix + 1:, k) = -v(f%nfix + 1:, k)
       lam(k) = 1.0_dp/w(nd + 1 - k)
     end do
-  end subroutine field_modes
+  end subroutine field_modes_dense
 
   !> Modes of a long beam (more than dense_elements elements) from the banded matrices: each
   !> mode by inverse iteration with (K - sigma M) (LAPACK's banded LU), sigma the mode's
   !> eigenvalue on a coarse mesh, then its eigenvalue as the Rayleigh quotient summed
   !> element by element. Work and memory grow as the number of elements, not its cube and
   !> square.
-  recursive subroutine field_modes_banded(f, le, ke, me, ne, nm, what, v, lam, error)
+  subroutine field_modes_banded(f, le, ke, me, ne, nm, what, v, lam, error)
     type(mode_field), intent(in) :: f
     real(dp), intent(in) :: le, ke(4, 4), me(4, 4)
     integer, intent(in) :: ne, nm
@@ -353,9 +371,11 @@ contains
     ! for the modes kept); inverse iteration then converges to the fine mesh's modes
     block
       real(dp), allocatable :: vc(:, :)
+      real(dp) :: kc(4, 4), mc(4, 4)
       integer :: nc
-      nc = max(dense_elements, 8*nm)
-      call field_modes(f, le*ne/nc, nc, nm, what, vc, lam, error); if (allocated(error)) return
+      nc = min(max(dense_elements, shift_elements*nm), max_shift_mesh)
+      call element_matrices(f, le*ne/nc, kc, mc)
+      call field_modes_dense(f, kc, mc, nc, nm, what, vc, lam, error); if (allocated(error)) return
     end block
     do k = 1, nm
       sigma = lam(k)
