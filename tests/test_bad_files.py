@@ -69,8 +69,8 @@ def modal_scene(tmp_path):
     assert BEAM in text
     text = text.replace(BEAM, "  name = 'gun', kind = 'modal', modal_file = 'g.modal'\n")
     (tmp_path / "s.nml").write_text(text)
-    group = text.splitlines().index("  name = 'gun', kind = 'modal', modal_file = 'g.modal'")   # &body is the line before
-    return tmp_path, "s.nml", f"mrsim: error: s.nml:{group}: &body 'gun': modal_file: g.modal: "
+    line = text.splitlines().index("  name = 'gun', kind = 'modal', modal_file = 'g.modal'") + 1   # modal_file's line
+    return tmp_path, "s.nml", f"mrsim: error: s.nml:{line}: &body 'gun': modal_file: g.modal: "
 
 
 def mrsim_run(mrsim, folder, scene):
@@ -294,19 +294,28 @@ TABLE_CORRUPTIONS = [
      "line 4: expected two finite numbers (time, value), got 4: 1.0 2.0 # held"),
     ("fortran_slash", TABLE.replace("1.0 2.0", "1.0 2/3"), "line 4: expected two finite numbers (time, value), got: 1.0 2/3"),
     ("nan", TABLE.replace("1.0 2.0", "1.0 nan"), "line 4: expected two finite numbers (time, value), got: 1.0 nan"),
+    # found by fuzzing: an empty value between commas was skipped; a finite 1e308 overflowed the model
+    ("double_comma", TABLE.replace("0.5, 2.0", "0.5,, 2.0"),
+     "line 3: a comma with no value beside it (an empty value): 0.5,, 2.0"),
+    ("trailing_comma", TABLE.replace("0.5, 2.0", "0.5, 2.0,"),
+     "line 3: a comma with no value beside it (an empty value): 0.5, 2.0,"),
+    ("beyond_range", TABLE.replace("0.5, 2.0", "0.5, 1e308"), "line 3: the value 1e+308 is beyond +-{limit}"),
 ]
 
 
-@pytest.mark.parametrize("group, effect, where", [
-    ("&drive joint = 'rail', form = 'table', file = 't.csv' /", "joint_drives", "s.nml:7: &drive #1: file"),
-    ("&motion joint = 'rail', form = 'table', file = 't.csv' /", "base_motion", "s.nml:7: &motion #1: file"),
+@pytest.mark.parametrize("group, effect, where, limit", [
+    ("&drive joint = 'rail', form = 'table', file = 't.csv' /", "joint_drives", "s.nml:7: &drive #1: file", "1e+12"),
+    ("&motion joint = 'rail', form = 'table', file = 't.csv' /", "base_motion", "s.nml:7: &motion #1: file", "1e+6"),
 ], ids=["drive", "motion"])
 @pytest.mark.parametrize("table, fault", [c[1:] for c in TABLE_CORRUPTIONS], ids=[c[0] for c in TABLE_CORRUPTIONS])
-def test_a_table_line_of_other_than_two_numbers_is_one_line_exit_1(tmp_path, mrsim, group, effect, where, table,
-                                                                   fault):
+def test_a_table_line_of_other_than_two_numbers_is_one_line_exit_1(tmp_path, mrsim, group, effect, where, limit,
+                                                                   table, fault):
     """A drive's or a motion's table with a third column (a file written for something
     else) was read as its first two; now any line of other than two numbers is refused:
-    exit 1, one line naming the scene's item, the table file and its line."""
+    exit 1, one line naming the scene's item, the table file and its line. A value beyond
+    the range of the item the table stands in for (a drive's force 1e12 N, a motion's
+    position 1e6 m) is refused too."""
+    fault = fault.format(limit=limit)
     (tmp_path / "s.nml").write_text(RAIL.format(group=group, effect=effect))
     (tmp_path / "t.csv").write_text(TABLE)
     r = subprocess.run([mrsim, "s.nml", "-o", "ok.csv"], cwd=tmp_path, capture_output=True, text=True, timeout=60)
@@ -314,6 +323,22 @@ def test_a_table_line_of_other_than_two_numbers_is_one_line_exit_1(tmp_path, mrs
     (tmp_path / "t.csv").write_text(table)
     r = subprocess.run([mrsim, "s.nml", "-o", "out.csv"], cwd=tmp_path, capture_output=True, text=True, timeout=60)
     assert one_line(r) == f"mrsim: error: {where}: 't.csv' {fault}"
+
+
+def test_a_scene_with_old_mac_line_ends_reads_as_with_line_feeds(tmp_path, mrsim):
+    """A file whose lines end in a carriage return alone (old Mac) read as one line: its
+    first comment swallowed the scene ('&scene: missing group'). It now runs, and gives the
+    rows the same scene with line feeds gives, byte for byte (the same run)."""
+    text = (ROOT / "input" / "pendulum.nml").read_text()
+    (tmp_path / "lf.nml").write_text(text)
+    (tmp_path / "cr.nml").write_bytes(text.replace("\n", "\r").encode())
+    for name in ("lf", "cr"):
+        r = subprocess.run([mrsim, f"{name}.nml", "-o", f"{name}.csv", "--set", "scene.t_end=0.5"], cwd=tmp_path,
+                           capture_output=True, text=True, timeout=60)
+        assert r.returncode == 0, r.stderr
+    rows = [[ln for ln in (tmp_path / f"{name}.csv").read_text().splitlines() if not ln.startswith("#")]
+            for name in ("lf", "cr")]
+    assert len(rows[0]) == 52 and rows[0] == rows[1]          # a header and 51 rows, 0 to 0.5 s
 
 
 # ----------------------------------------------------------------------------- pymr modal-import

@@ -209,6 +209,31 @@ CASES = [
          ("&body", "'arm'", "modal_damping", "[0, 1)", "got 1.5")),
     Case("modal_damping_negative", damped_beam("-0.01"),
          ("&body", "'arm'", "modal_damping", "[0, 1)", "got -0.01")),
+    # 16. found by fuzzing (each was a hang, a crash or a silent acceptance)
+    # a beam of more than 100 elements with 51 modes in a family: the banded eigensolver's
+    # shifts would need a dense mesh of 408 elements (with 13 it recursed without end)
+    Case("banded_beam_modes", damped_beam("0.01").replace("modes_y = 1,", "n_elements = 101, modes_y = 51,"),
+         ("&body", "'arm'", "modes_y", "at most 50 modes per family on a beam of more than 100 elements", "got 51")),
+    # an adaptive step bound that no step can keep: h_max below h_min's default of 1e-12 s
+    Case("h_max_below_h_min", BASE, ("&integrator", "h_max", "below the smallest adaptive step h_min = 1e-12 s"),
+         sets=("integrator.adaptive=.true.", "integrator.h_max=1e-13")),
+    Case("h_max_too_many_steps", BASE, ("&integrator", "h_max", "more than max_steps = 1000"),
+         sets=("integrator.adaptive=.true.", "integrator.h_max=1e-6", "integrator.max_steps=1000")),
+    Case("h_min_beyond_t_end", BASE, ("&integrator", "h_min", "must be below t_end = 0.05 s"),
+         sets=("integrator.adaptive=.true.", "integrator.h_min=0.1")),
+    # a repeat count gives as many values as it stands for
+    Case("q0_repeat_count", replaced("q0 = 1.0", "q0 = 3*1.0"),
+         ("&joint", "'pivot'", "q0", "a revolute joint has 1 coordinate, got 3 values")),
+    # names head the results' columns
+    Case("name_with_comma", BASE.replace("'pivot'", "'pi,vot'"),
+         ("&joint", "name", "may not hold a comma")),
+    # a number below the smallest normal one (it made a spin-up's acceleration infinite)
+    Case("subnormal_value", BASE, ("&body", "'bob'", "mass", "'4.9e-324' is below the smallest normal number"),
+         sets=("body[bob].mass=4.9e-324",)),
+    # an item of another form of &motion (&load, &drive and &moving_load refused theirs)
+    Case("motion_item_of_another_form", BASE.replace("gravity = .true.", "gravity = .true., base_motion = .true.")
+         + "&motion joint = 'pivot', form = 'sine', amplitude = 0.1, frequency = 1.0, rate = 2.0 /\n",
+         ("&motion", "rate", "only form 'spinup' uses it (form is 'sine')")),
 ]
 
 CASE_PARAMS = [pytest.param(c, id=c.id) for c in CASES]
@@ -307,6 +332,7 @@ def test_mrsim_bad_input(mrsim, tmp_path, case):
     pytest.param(["a.nml", "b.nml"], "one scene file", id="two_scenes"),
     pytest.param(["a.nml", "-o"], "-o", id="output_without_name"),
     pytest.param(["a.nml", "--set"], "--set", id="set_without_value"),
+    pytest.param(["a.nml", "--set", ""], "--set needs GROUP.ITEM=VALUE (got an empty one)", id="set_empty"),
 ])
 def test_mrsim_usage_error(mrsim, tmp_path, args, expect):
     r = run_mrsim(mrsim, args, tmp_path)

@@ -53,6 +53,9 @@ def test_stiff_barrel_fixed_step_is_refused_with_mode_frequency_and_largest_step
     with pytest.raises(pymr.SceneError) as exc:
         pymr.run(scene, tmp_path / "x.csv")
     msg = str(exc.value)
+    # the item's own line in the scene file (the check once named the group alone)
+    line = next(i for i, t in enumerate(scene.read_text().splitlines(), 1) if t.strip().startswith("h_slow"))
+    assert msg.startswith(f"{scene}:{line}: &integrator: h_slow: "), msg
     m = re.search(r"h_slow: a fixed step of 1.00E-04 s is not stable for body 'gun', mode 8 \(([\d.]+) Hz, "
                   r"omega\*h = ([\d.]+)\); the largest stable step is ([\d.E+-]+) s", msg)
     assert m, msg

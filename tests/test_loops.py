@@ -813,7 +813,7 @@ def test_a_static_start_needs_the_loops_joints_to_settle(tmp_path):
     """Only the crank marked settle: the held coupler and rocker joints hold the loop, which
     is refused in one line naming what to do."""
     (tmp_path / "s.nml").write_text(sprung_fourbar_scene(settle=("A",)))
-    with pytest.raises(pymr.SceneError, match=r"s\.nml: &scene: start: the coordinates to settle \(the modal ones and "
+    with pytest.raises(pymr.SceneError, match=r"s\.nml:\d+: &scene: start: the coordinates to settle \(the modal ones and "
                        r"those of the joints marked settle\) move only 1 of the loops' 2 independent constraints: the "
                        r"joints held fast hold the loops \(mark settle every joint of a loop that should settle\)$"):
         pymr.run(tmp_path / "s.nml", tmp_path / "s.csv")

@@ -105,8 +105,8 @@ def test_a_restart_refuses_a_checkpoint_that_does_not_belong_to_its_scene(tmp_pa
     with pytest.raises(pymr.SceneError, match=r"job.ckpt: the checkpoint was written with other integrator "
                                                r"settings: h_fast = 0.0001 then, h_fast = 5e-5 now"):
         pymr.run(TANK, out, overrides={"integrator.h_slow": 5e-5, "integrator.h_fast": 5e-5}, restart=ckpt)
-    with pytest.raises(pymr.SceneError, match=r"job.ckpt: the checkpoint is of another scene \(its bodies, joints, "
-                                               r"loads or effects differ"):
+    with pytest.raises(pymr.SceneError, match=r"job.ckpt: the checkpoint is of another scene \(a group other "
+                                               r"than &integrator and &output differs"):
         pymr.run(TANK, out, overrides={"body[turret].mass": 9001.0}, restart=ckpt)
     with pytest.raises(pymr.SceneError, match=r"job.ckpt: t_end = 0.15 s is not after the checkpoint's time 0.2 s"):
         pymr.run(TANK, out, overrides={"scene.t_end": 0.15}, restart=ckpt)
@@ -132,6 +132,21 @@ def test_a_restart_refuses_a_checkpoint_that_does_not_belong_to_its_scene(tmp_pa
                  restart=ckpt)
     with pytest.raises(pymr.SceneError, match=r"other integrator settings: order = 0 then, order = 5 now"):
         pymr.run(TANK, out, overrides={**adams, "scene.t_end": 0.4, "integrator.order": 5}, restart=ckpt)
+
+
+@pytest.mark.parametrize("change", [{"control[stabiliser].kp": 1.0e6}, {"moving_load[shot].mass": 60.0}])
+def test_a_checkpoint_belongs_to_its_controllers_and_moving_loads(tmp_path, change):
+    """The model a checkpoint belongs to is every group but &integrator and &output: a
+    restart with another controller gain or shot mass is refused (each was once continued
+    with exit 0 from the state the other scene had reached); the same scene goes on."""
+    scene = ROOT / "input" / "tank_on_the_move.nml"
+    out = tmp_path / "move.csv"
+    pymr.run(scene, out, overrides={"scene.t_end": 0.05, "output.checkpoint_dt": 0.02})
+    ckpt = tmp_path / "move.ckpt"
+    with pytest.raises(pymr.SceneError, match=r"move.ckpt: the checkpoint is of another scene"):
+        pymr.run(scene, out, overrides={"scene.t_end": 0.06, **change}, restart=ckpt)
+    res = pymr.run(scene, out, overrides={"scene.t_end": 0.06}, restart=ckpt)
+    assert res.t[-1] == pytest.approx(0.06)
 
 
 def test_an_empty_checkpoint_or_output_name_is_refused_not_a_fresh_run(tmp_path, mrsim, monkeypatch):

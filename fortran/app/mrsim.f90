@@ -68,6 +68,7 @@ contains
       case ('--set')
         if (i == nargs) call usage_error('--set needs GROUP.ITEM=VALUE')
         i = i + 1; arg = get_arg(i)
+        if (len_trim(arg) == 0) call usage_error('--set needs GROUP.ITEM=VALUE (got an empty one)')
         ! the kernel reads one override a line: a line break would make two of one
         if (scan(arg, achar(10) // achar(13)) > 0) call usage_error('--set ' // escaped_breaks(arg) // &
           & ': a line break in an override (one GROUP.ITEM=VALUE, on one line)')

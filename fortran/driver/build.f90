@@ -200,7 +200,7 @@ contains
         if (bs%kind == 'modal') then
           call read_modal_file(scene_relative(sc%file, trim(bs%modal_file)), mfd(b), mnd(b), error)
           if (allocated(error)) then
-            error%message = sc%bodies(order(b))%origin%where() // ': modal_file: ' // error%message; return
+            error%message = sc%bodies(order(b))%origin%where('modal_file') // ': ' // error%message; return
           end if
           nmb = mfd(b)%m
         end if

@@ -5,7 +5,7 @@
 module pymr_driver_build_effects
   use pymr_env_kinds, only : dp
   use pymr_env_error, only : error_type, fatal_error
-  use pymr_model_scene, only : scene_t, unset, control_count
+  use pymr_model_scene, only : scene_t, unset, control_count, big_time, big_length, big_force
   use pymr_model_scene_rules, only : body_index
   use pymr_model_types, only : model_data, model_work
   use pymr_model_time_table, only : spline_setup
@@ -101,7 +101,7 @@ contains
         drives(i)%frequency = dr%frequency; drives(i)%phase = dr%phase
         drives(i)%tabulated = dr%form == 'table'
         if (.not. drives(i)%tabulated) cycle
-        call read_time_table(scene_relative(sc%file, trim(dr%file)), dr%origin%where('file'), &
+        call read_time_table(scene_relative(sc%file, trim(dr%file)), dr%origin%where('file'), [big_time, big_force], &
           & drives(i)%table%t, drives(i)%table%y, error)
         if (allocated(error)) return
       end associate
@@ -171,7 +171,7 @@ contains
         case default; loads(i)%form = load_pulse
         end select
         if (loads(i)%form /= load_table) cycle
-        call read_time_table(scene_relative(sc%file, trim(ld%file)), ld%origin%where('file'), &
+        call read_time_table(scene_relative(sc%file, trim(ld%file)), ld%origin%where('file'), [big_time, big_force], &
           & loads(i)%table%t, loads(i)%table%y, error)
         if (allocated(error)) return
       end associate
@@ -197,7 +197,7 @@ contains
         el%tabulated = len_trim(fs%file) > 0
         if (.not. el%tabulated) cycle
         call read_time_table(scene_relative(sc%file, trim(fs%file)), fs%origin%where('file'), &
-          & el%table%t, el%table%y, error, 'deflection, force')
+          & [big_length, big_force], el%table%t, el%table%y, error, 'deflection, force')
         if (allocated(error)) return
       end associate
     end do
@@ -232,7 +232,7 @@ contains
         if (ct%max_effort /= unset) c%max_effort = ct%max_effort
         c%tabulated = len_trim(ct%file) > 0
         if (.not. c%tabulated) cycle
-        call read_time_table(scene_relative(sc%file, trim(ct%file)), ct%origin%where('file'), &
+        call read_time_table(scene_relative(sc%file, trim(ct%file)), ct%origin%where('file'), [big_time, big_length], &
           & c%table%t, c%table%y, error)
         if (allocated(error)) return
       end associate
@@ -263,7 +263,7 @@ contains
         ld%start = ml%start; ld%s0 = ml%s0; ld%speed = ml%speed
         ld%tabulated = ml%form == 'table'
         if (.not. ld%tabulated) cycle
-        call read_time_table(scene_relative(sc%file, trim(ml%file)), ml%origin%where('file'), &
+        call read_time_table(scene_relative(sc%file, trim(ml%file)), ml%origin%where('file'), [big_time, big_length], &
           & ld%table%t, ld%table%y, error)
         if (allocated(error)) return
         call spline_setup(ld%table, ml%origin%where('file'), error); if (allocated(error)) return
@@ -308,7 +308,8 @@ contains
         pm%rate = mo%rate; pm%ramp_time = mo%ramp_time
         if (pm%form /= motion_table) cycle
         where_file = mo%origin%where('file')
-        call read_time_table(scene_relative(sc%file, trim(mo%file)), where_file, pm%table%t, pm%table%y, error)
+        call read_time_table(scene_relative(sc%file, trim(mo%file)), where_file, [big_time, big_length], pm%table%t, &
+          & pm%table%y, error)
         if (allocated(error)) return
         call spline_setup(pm%table, where_file, error); if (allocated(error)) return
       end associate

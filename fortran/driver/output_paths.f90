@@ -4,7 +4,8 @@
 module pymr_driver_output_paths
   use pymr_env_kinds, only : dp
   use pymr_env_error, only : error_type, fatal_error
-  use pymr_model_scene, only : scene_t
+  use pymr_model_scene, only : scene_t, group_names, group_count, describe_group, item_applies, group_origin
+  use pymr_env_item_table, only : item_table, origin_t
   use pymr_io_results_output, only : json_path
   use pymr_env_text_file, only : absolute_path, scene_relative, not_regular, missing_folder, same_file
   implicit none
@@ -47,13 +48,20 @@ contains
     end if
     ! the run writes each file whole beside it and renames it over the old one
     if (replaces(path, 'output ' // path, 'another results file')) return
+    if (len_trim(sc%output%file) > 0 .and. path == trim(sc%output%file)) then
+      if (no_folder(path, sc%output%origin%where('file'), 'a file')) return
+    else
+      if (no_folder(path, sc%file // ': output ' // path, 'an output')) return
+    end if
     if (replaces(json_path(path), 'output ' // path // ': its statistics ' // json_path(path), &
       & 'another results file')) return
     if (sc%output%checkpoint_dt > 0.0_dp) then
       if (len_trim(sc%output%checkpoint_file) > 0) then
         if (replaces(trim(sc%output%checkpoint_file), sc%output%origin%where('checkpoint_file'), &
           & 'another checkpoint file')) return
-        if (no_folder(trim(sc%output%checkpoint_file), sc%output%origin%where('checkpoint_file'))) return
+        if (no_folder(trim(sc%output%checkpoint_file), sc%output%origin%where('checkpoint_file'), &
+          & 'a checkpoint_file')) return
+        if (collides(trim(sc%output%checkpoint_file), sc%output%origin%where('checkpoint_file'))) return
       else
         if (replaces(checkpoint_default(path), 'output ' // path // ': its checkpoint ' // checkpoint_default(path), &
           & 'another results file, or a checkpoint_file in &output')) return
@@ -81,12 +89,33 @@ contains
       end if
     end function replaces
 
-    !> Is the folder that `file` would be written in missing? Found before the run starts.
-    logical function no_folder(file, label)
+    !> Would the checkpoint `file` replace what the run reads or its own results? `label`
+    !> is the item's place.
+    logical function collides(file, label)
       character(len=*), intent(in) :: file, label
+      character(len=:), allocatable :: what
+      what = scene_input(sc, file)
+      if (len(what) == 0 .and. same_file(file, path)) what = 'the results (' // path // ')'
+      if (len(what) == 0 .and. same_file(file, json_path(path))) what = 'their statistics (' // json_path(path) // ')'
+      collides = len(what) > 0
+      if (collides) call fatal_error(error, label // ': would overwrite ' // what // '; choose another checkpoint file')
+    end function collides
+
+    !> Is the folder that `file` would be written in missing? Found before the run starts;
+    !> `choice` names what to choose instead ('a checkpoint_file').
+    logical function no_folder(file, label, choice)
+      character(len=*), intent(in) :: file, label, choice
+      logical :: there
       no_folder = len(missing_folder(file)) > 0
-      if (no_folder) call fatal_error(error, label // ": the folder '" // missing_folder(file) // &
-        & "' does not exist (make it, or choose a checkpoint_file in a folder that does)")
+      if (.not. no_folder) return
+      inquire(file=missing_folder(file), exist=there)
+      if (there) then
+        call fatal_error(error, label // ": '" // missing_folder(file) // "' is not a folder (choose " // choice // &
+          & ' in a folder)')
+      else
+        call fatal_error(error, label // ": the folder '" // missing_folder(file) // "' does not exist (make it, " // &
+          & 'or choose ' // choice // ' in a folder that does)')
+      end if
     end function no_folder
   end subroutine check_output_path
 
@@ -112,34 +141,41 @@ contains
     end if
   end function wrong_extension
 
-  !> What of the scene's input `path` is: 'the scene (FILE)', 'a modal file of the scene
-  !> (FILE)', 'a table file of the scene (FILE)', or '' when the run reads no such file. An
-  !> output written there would destroy the input of the next run.
+  !> What of the scene's input `path` is: 'the scene (FILE)', or the file item that names it,
+  !> as "an input of the scene, &load 'shot' file (FILE)" (every item the scene's tables mark as a file of the
+  !> scene: modal files and the tables of drives, motions, loads, forces, controls and moving
+  !> loads), or '' when the run reads no such file. An output written there would destroy
+  !> the input of the next run.
   function scene_input(sc, path) result(what)
     type(scene_t), intent(in) :: sc
     character(len=*), intent(in) :: path
-    character(len=:), allocatable :: what
-    integer :: i
+    character(len=:), allocatable :: what, name, file
+    type(scene_t), target :: copy
+    type(item_table) :: t
+    type(origin_t), pointer :: o
+    integer :: i, j, k, m
     what = ''
-    if (is(sc%file, 'the scene')) return
-    do i = 1, size(sc%bodies)
-      if (len_trim(sc%bodies(i)%modal_file) == 0) cycle
-      if (is(scene_relative(sc%file, trim(sc%bodies(i)%modal_file)), 'a modal file of the scene')) return
+    if (same_file(sc%file, path)) then
+      what = 'the scene (' // sc%file // ')'; return
+    end if
+    copy = sc
+    i = 1
+    do while (i <= len(group_names))
+      j = index(group_names(i:) // ' ', ' ') + i - 2
+      name = group_names(i:j); i = j + 2
+      do k = 1, group_count(copy, name)
+        call describe_group(copy, name, k, t)
+        do m = 1, t%n
+          if (.not. t%items(m)%scene_file .or. len_trim(t%items(m)%s) == 0) cycle
+          if (.not. item_applies(copy, name, k, t%items(m)%name)) cycle
+          file = scene_relative(sc%file, trim(t%items(m)%s))
+          if (.not. same_file(file, path)) cycle
+          o => group_origin(copy, name, k)
+          what = 'an input of the scene, ' // o%label // ' ' // trim(t%items(m)%name) // ' (' // file // ')'
+          return
+        end do
+      end do
     end do
-    do i = 1, size(sc%drives)
-      if (len_trim(sc%drives(i)%file) == 0) cycle
-      if (is(scene_relative(sc%file, trim(sc%drives(i)%file)), 'a table file of the scene')) return
-    end do
-    do i = 1, size(sc%motions)
-      if (len_trim(sc%motions(i)%file) == 0) cycle
-      if (is(scene_relative(sc%file, trim(sc%motions(i)%file)), 'a table file of the scene')) return
-    end do
-  contains
-    logical function is(file, label)
-      character(len=*), intent(in) :: file, label
-      is = same_file(file, path)
-      if (is) what = label // ' (' // file // ')'
-    end function is
   end function scene_input
 
   !> The checkpoint file beside the CSV: extension replaced by .ckpt (or appended).

@@ -18,6 +18,7 @@ module pymr_driver_preflight
   use pymr_integrator_ode, only : partitioned_system
   use pymr_integrator_stepper, only : stepper_t, pece_steps, step_counts
   use pymr_env_text, only : itoa
+  use pymr_env_item_table, only : origin_t
   use pymr_driver_linearise, only : linear_state
   use pymr_driver_normal_modes, only : normal_modes, top_frequency
   implicit none
@@ -66,7 +67,7 @@ contains
   !> Refuse (error naming the body and mode, its frequency and the largest stable step)
   !> fixed steps of the stepper `st` (made, not started) that cannot be stable at the
   !> initial state x = [q; qd].
-  subroutine check_step_stability(model, x, st, label, t_end, where, error)
+  subroutine check_step_stability(model, x, st, label, t_end, o, error)
     type(model_t), intent(inout) :: model
     real(dp), intent(in) :: x(:)
     class(stepper_t), intent(in) :: st
@@ -75,7 +76,8 @@ contains
     !> Length of the run (s): a step is refused when the linearised growth over the whole
     !> run would exceed `run_growth`.
     real(dp), intent(in) :: t_end
-    character(len=*), intent(in) :: where
+    !> The &integrator group's origin: messages name its item and line.
+    type(origin_t), intent(in) :: o
     type(error_type), allocatable, intent(out) :: error
     integer :: n, i, dom, worst
     real(dp), allocatable :: m(:, :), minv(:, :), k(:, :), c(:, :), a(:, :), ev(:, :), wr(:), wi(:), vr(:, :), wgt(:)
@@ -99,7 +101,7 @@ contains
       ev = a
       call geev_real(ev, wr, wi, 'the linearised model', error); if (allocated(error)) return
       if (all_stable(wr, wi, steps%h_joint, t_end)) then
-        call check_coupling(model, x, m, minv, k, c, max(maxval(wr), 0.0_dp), st, label, t_end, where, error)
+        call check_coupling(model, x, m, minv, k, c, max(maxval(wr), 0.0_dp), st, label, t_end, o, error)
         return
       end if
     end if
@@ -125,7 +127,7 @@ contains
       i = i + 1
     end do
     if (worst == 0) then
-      call check_coupling(model, x, m, minv, k, c, max(maxval(wr), 0.0_dp), st, label, t_end, where, error)
+      call check_coupling(model, x, m, minv, k, c, max(maxval(wr), 0.0_dp), st, label, t_end, o, error)
       return
     end if
     h = merge(steps%h_modal, steps%h_joint, worst > model%d%nj)
@@ -138,7 +140,7 @@ contains
     end if
     stable = pece_limit(worst_lam); write(b4, '(es9.2)') stable
     write(b5, '(f5.3)') imaginary_axis_limit
-    call fatal_error(error, where // trim(merge(steps%item_modal, steps%item_joint, worst > model%d%nj)) // &
+    call fatal_error(error, o%where(trim(merge(steps%item_modal, steps%item_joint, worst > model%d%nj))) // &
       & ': a fixed step of ' // trim(adjustl(b1)) // ' s is not stable for ' // coordinate_name(model, worst) // ' (' // &
       & trim(b2) // ' Hz, omega*h = ' // trim(adjustl(b3)) // '); the largest stable step is ' // trim(adjustl(b4)) // &
       & ' s (the ABM PECE method is stable up to omega*h = ' // trim(b5) // ' on an undamped mode): take a smaller step, ' // &
@@ -178,11 +180,12 @@ contains
   !> Multirate runs whose fixed steps are stable mode by mode: the coupling's own stability
   !> (sigma: the linearised model's growth rate), unless its surrogate is exact on the
   !> linearised model.
-  subroutine check_coupling(model, x, m, minv, k, c, sigma, st, label, t_end, where, error)
+  subroutine check_coupling(model, x, m, minv, k, c, sigma, st, label, t_end, o, error)
     type(model_t), intent(inout) :: model
     real(dp), intent(in) :: x(:), m(:, :), minv(:, :), k(:, :), c(:, :), sigma, t_end
     class(stepper_t), intent(in) :: st
-    character(len=*), intent(in) :: label, where
+    character(len=*), intent(in) :: label
+    type(origin_t), intent(in) :: o
     type(error_type), allocatable, intent(out) :: error
     type(step_counts) :: counts
     type(pece_steps) :: steps
@@ -191,7 +194,7 @@ contains
     if (steps%modal_surrogate) then
       if (modal_forces_only(model, m, k, c)) return
     end if
-    call check_macro_step(model, x, m, minv, k, c, sigma, st, label, t_end, where, error)
+    call check_macro_step(model, x, m, minv, k, c, sigma, st, label, t_end, o, error)
   end subroutine check_coupling
 
   !> Are the linearised model's stiffness k and damping c the modal ones alone (the modal
@@ -298,14 +301,15 @@ contains
   !> closed loop's coordinates that the projection removes) would exceed run_growth over the
   !> run, the run is refused, naming the coordinate that
   !> carries the growing motion and the largest stable step ratio at this fast step.
-  subroutine check_macro_step(model, x, m, minv, k, c, sigma, st, label, t_end, where, error)
+  subroutine check_macro_step(model, x, m, minv, k, c, sigma, st, label, t_end, o, error)
     type(model_t), intent(inout) :: model
     real(dp), intent(in) :: x(:), m(:, :), minv(:, :), k(:, :), c(:, :), t_end
     !> The linearised model's own growth rate (1/s; its largest real eigenvalue part, or 0):
     !> only the growth beyond it is the stepper's.
     real(dp), intent(in) :: sigma
     class(stepper_t), intent(in) :: st
-    character(len=*), intent(in) :: label, where
+    character(len=*), intent(in) :: label
+    type(origin_t), intent(in) :: o
     type(error_type), allocatable, intent(out) :: error
     type(linear_system) :: sys
     integer :: kr, ks, dom, k_run
@@ -331,7 +335,7 @@ contains
     write(b1, '(es9.2)') kr*hf
     write(b2, '(f0.4)') rho
     write(b3, '(es9.2)') hf
-    call fatal_error(error, where // 'h_slow: the multirate macro step of ' // trim(adjustl(b1)) // ' s (k = ' // &
+    call fatal_error(error, o%where('h_slow') // ': the multirate macro step of ' // trim(adjustl(b1)) // ' s (k = ' // &
       & itoa(kr) // ', ' // label // ') is not stable: linearised at the initial state, one macro step multiplies ' // &
       & 'the motion of ' // coordinate_name(model, dom) // ' by ' // trim(b2) // '; at h_fast = ' // &
       & trim(adjustl(b3)) // ' s the largest stable ratio is k = ' // itoa(ks) // ' (growth below 10 over the ' // &

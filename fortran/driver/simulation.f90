@@ -219,7 +219,7 @@ contains
     if (.not. self%sc%integrator%adaptive .and. self%sc%integrator%stability_check) then
       self%stats%preflight_cpu_s = thread_cpu_time()
       call check_step_stability(self%model, self%x, self%st, stepper_label(self%sc), self%sc%scene%t_end, &
-        & self%file // ': &integrator: ', error)
+        & self%sc%integrator%origin, error)
       if (allocated(error)) then
         call self%out%discard(); return
       end if

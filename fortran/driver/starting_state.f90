@@ -88,7 +88,10 @@ contains
     do i = 1, n
       names(i) = model%component_name(i)
     end do
-    call static_start(model, u, names, x, error, iterations, change); if (allocated(error)) return
+    call static_start(model, u, names, x, error, iterations, change)
+    if (allocated(error)) then
+      error%message = sc%scene%origin%where('start') // ': ' // error%message; return
+    end if
     if (present(stats)) then
       stats%static_settled = size(u); stats%static_iterations = iterations; stats%static_change = change
     end if

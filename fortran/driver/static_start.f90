@@ -56,7 +56,7 @@ contains
       if (allocated(error)) then
         call model%set_counters(counters)
         why = error%message
-        call fatal_error(error, '&scene: start: no static equilibrium at t = 0: ' // why // &
+        call fatal_error(error, 'no static equilibrium at t = 0: ' // why // &
           & ' (a joint marked settle that no spring or stiffness holds has none)', stat_input); return
       end if
       x(u) = x(u) + du
@@ -67,7 +67,7 @@ contains
     end do
     call model%set_counters(counters)
     worst = maxloc(abs(du)/max(1.0_dp, abs(x(u))), 1)
-    call fatal_error(error, "&scene: start: no static equilibrium found in " // itoa(newton_max) // &
+    call fatal_error(error, "no static equilibrium found in " // itoa(newton_max) // &
       & ' Newton iterations (the last change of ' // trim(names(u(worst))) // ' was ' // fmt_es(du(worst)) // &
       & '): the loads may have none', stat_input)
   contains
@@ -166,11 +166,11 @@ contains
     call settle_residual(model, x(1:model%d%n), x(model%d%n+1:), u, [(0.0_dp, n_ind = 1, model%wk%loops%n_used)], &
       & r, gu, phi)
     call independent_rows(gu, used, n_ind)
-    if (n_ind < model%wk%loops%n_used) call fatal_error(error, '&scene: start: the coordinates to settle (the modal ' // &
+    if (n_ind < model%wk%loops%n_used) call fatal_error(error, 'the coordinates to settle (the modal ' // &
       & 'ones and those of the joints marked settle) move only ' // itoa(n_ind) // ' of the loops'' ' // &
       & itoa(model%wk%loops%n_used) // ' independent constraints: the joints held fast hold the loops (mark settle ' // &
       & 'every joint of a loop that should settle)', stat_input)
-    if (.not. allocated(error) .and. size(u) <= n_ind) call fatal_error(error, '&scene: start: the loops leave ' // &
+    if (.not. allocated(error) .and. size(u) <= n_ind) call fatal_error(error, 'the loops leave ' // &
       & 'the coordinates to settle no freedom (' // itoa(size(u)) // ' coordinates, ' // itoa(n_ind) // &
       & ' independent constraints on them): with the joints held they can only stay as given (mark settle ' // &
       & 'the joints of the loop, or start from the given state)', stat_input)

@@ -16,7 +16,7 @@ module pymr_env_item_table
   implicit none
   private
   public :: item_t, item_table, origin_t, unset, t_real, t_integer, t_logical, t_string
-  public :: suggestion, value_text, is_unset, set_item, schema_line, comma_list
+  public :: suggestion, value_text, is_unset, set_item, given_values, schema_line, comma_list
 
   !> Marker for "not given, no default" in real items.
   real(dp), parameter :: unset = -huge(1.0_dp)
@@ -221,6 +221,8 @@ contains
     integer :: k, n
     call expand_repeats(values, it%count, flat, n, error); if (allocated(error)) return
     call check_count(it, n, error); if (allocated(error)) return
+    ! the values given replace the whole item: none of an earlier, longer list stays behind
+    if (it%type == t_real .and. it%variable) it%r = unset
     do k = 1, n
       select case (it%type)
       case (t_real); call set_real(it, k, flat(k), error)
@@ -279,6 +281,16 @@ contains
     end do
   end subroutine expand_repeats
 
+  !> How many values the tokens stand for (a repeat N*VALUE counts N; tokens that are no
+  !> repeat count one each).
+  integer function given_values(values) result(n)
+    type(token_t), intent(in) :: values(:)
+    type(token_t), allocatable :: flat(:)
+    type(error_type), allocatable :: error
+    call expand_repeats(values, 0, flat, n, error)
+    if (allocated(error)) n = size(values)
+  end function given_values
+
   subroutine check_count(it, n, error)
     type(item_t), intent(in) :: it
     integer, intent(in) :: n
@@ -307,6 +319,10 @@ contains
     end if
     if (x /= x .or. abs(x) > huge(x)) then
       call fatal_error(error, '''' // tok%text // ''' is not a finite number'); return
+    end if
+    if (x /= 0.0_dp .and. abs(x) < tiny(x)) then
+      call fatal_error(error, '''' // tok%text // ''' is below the smallest normal number (' // fmt(tiny(x)) // &
+        & '): give 0 or a larger magnitude'); return
     end if
     call check_range(it, x, error); if (allocated(error)) return
     it%r(k) = x

@@ -257,7 +257,7 @@ contains
     do k = 1, min(n_items, size(g%items))
       if (g%items(k)%name /= 'name' .or. .not. allocated(g%items(k)%values)) cycle
       if (size(g%items(k)%values) /= 1) cycle
-      if (g%items(k)%values(1)%quoted) then
+      if (g%items(k)%values(1)%quoted .and. len_trim(g%items(k)%values(1)%text) > 0) then
         s = s // ' ''' // g%items(k)%values(1)%text // ''''; return
       end if
     end do

@@ -164,7 +164,23 @@ contains
     if (sz >= 3) then
       if (text(1:3) == achar(239) // achar(187) // achar(191)) text(1:3) = ' '
     end if
+    call lone_returns_as_breaks(text)
   end subroutine read_text_file
+
+  !> Old Mac line ends: a carriage return not followed by a line feed ends a line (one
+  !> followed by a line feed, as Windows writes them, is left to the readers, which take it
+  !> for a blank).
+  pure subroutine lone_returns_as_breaks(text)
+    character(len=*), intent(inout) :: text
+    integer :: i
+    do i = 1, len(text)
+      if (text(i:i) /= achar(13)) cycle
+      if (i < len(text)) then
+        if (text(i+1:i+1) == achar(10)) cycle
+      end if
+      text(i:i) = achar(10)
+    end do
+  end subroutine lone_returns_as_breaks
 
   !> A count read from a file (a header's number of points, modes, entries) must fit the
   !> file before anything is allocated by it: `count` items of at least `least` bytes each
@@ -307,6 +323,18 @@ contains
     end do
   end function absolute_path
 
+  !> The system's reason in a run-time library's message ("Cannot open file 'x': Permission
+  !> denied" -> "Permission denied"): the file it names may be one of pymr's own.
+  function system_reason(msg) result(r)
+    character(len=*), intent(in) :: msg
+    character(len=:), allocatable :: r
+    integer :: k
+    k = index(msg, ': ', back=.true.)
+    r = trim(msg(k + 1:))
+    r = trim(adjustl(r))
+    if (len(r) == 0) r = trim(msg)
+  end function system_reason
+
   !> Take PATH.lock for this process: refused while another living process holds it (a
   !> lock left by a killed run is taken over).
   subroutine acquire_lock(path, error)
@@ -325,8 +353,8 @@ contains
       inquire(file=path // '.lock', exist=held)
       if (.not. held) then
         ! no lock there, and none can be made: the folder is missing or not writable
-        call fatal_error(error, path // ': cannot write in its folder ' // folder_of(path) // ' (' // trim(msg) // &
-          & '): the results could not be written'); return
+        call fatal_error(error, path // ': cannot write in its folder ' // folder_of(path) // ' (' // &
+          & system_reason(msg) // '): the results could not be written'); return
       end if
       pid = 0
       open(newunit=u, file=path // '.lock', status='old', action='read', iostat=ios)

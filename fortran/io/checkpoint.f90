@@ -230,8 +230,9 @@ contains
         & first_difference(hd%settings, settings)); return
     end if
     if (hd%fp /= fingerprint_field(fingerprint)) then
-      call fatal_error(error, path // ': the checkpoint is of another scene (its bodies, joints, loads or ' // &
-        & 'effects differ: model fingerprint ' // hd%fp(8:19) // '..., the scene''s ' // fingerprint(8:19) // '...)')
+      call fatal_error(error, path // ': the checkpoint is of another scene (a group other than &integrator ' // &
+        & 'and &output differs: model fingerprint ' // hd%fp(8:19) // '..., the scene''s ' // fingerprint(8:19) // &
+        & '...)')
       return
     end if
     if (.not. (t_end > hd%t)) then

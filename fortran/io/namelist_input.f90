@@ -7,7 +7,7 @@ module pymr_io_namelist_input
   use pymr_model_scene, only : scene_t, unset, group_names, single_groups, repeated_groups, describe_group, &
     & group_origin, &
     & group_count, naming_item, complete_scene, item_applies
-  use pymr_env_item_table, only : item_table, origin_t, set_item, value_text, suggestion, schema_line, comma_list, &
+  use pymr_env_item_table, only : item_table, origin_t, set_item, given_values, value_text, suggestion, schema_line, comma_list, &
     & t_string
   use pymr_env_namelist_parse, only : group_text, item_text, token_t, parse_namelist, parse_values, group_label
   use pymr_env_text, only : itoa, lower
@@ -137,7 +137,7 @@ contains
         if (allocated(error)) then
           call name_without_equals(sc, g, it, o%label, error); return
         end if
-        call o%note(trim(it%name), it%line, size(it%values), room=size(g%items))
+        call o%note(trim(it%name), it%line, given_values(it%values), room=size(g%items))
       end associate
     end do
   end subroutine fill_group
@@ -383,7 +383,7 @@ contains
       call set_record_item(sc, trim(ov%group), k, trim(ov%item), ov%values, sc%file // ': ' // ov%source // ': ' // &
         & o%label, error)
       if (allocated(error)) return
-      call o%note_set(trim(ov%item), ov%source, size(ov%values))
+      call o%note_set(trim(ov%item), ov%source, given_values(ov%values))
       hits = hits + 1
     end do
     if (hits == 0) call fatal_error(error, sc%file // ': ' // ov%source // ': no &' // trim(ov%group) // &
@@ -568,10 +568,23 @@ contains
     settings = resolved_text(sc, groups='integrator')
     t_end = sc%scene%t_end
     sc%scene%t_end = unset
-    model_fingerprint = text_fingerprint(resolved_text(sc, groups='scene effects body joint drive spring ' // &
-      & 'motion load marker force'))
+    model_fingerprint = text_fingerprint(resolved_text(sc, groups=model_groups()))
     sc%scene%t_end = t_end
   end subroutine checkpoint_identity
+
+  !> The groups that make the model a checkpoint belongs to: all but &integrator (its
+  !> settings, compared apart) and &output.
+  function model_groups() result(groups)
+    character(len=:), allocatable :: groups
+    integer :: i, j
+    groups = ''
+    i = 1
+    do while (i <= len(group_names))
+      j = index(group_names(i:) // ' ', ' ') + i - 2
+      if (group_names(i:j) /= 'integrator' .and. group_names(i:j) /= 'output') groups = groups // ' ' // group_names(i:j)
+      i = j + 2
+    end do
+  end function model_groups
 
   !> The scene's fingerprint: 'sha256:' and the hex digest of its resolved text.
   function scene_fingerprint(sc) result(s)

@@ -15,10 +15,13 @@ module pymr_io_table_file
 contains
 
   !> Read the table at `path` into t and y. `what` starts every error message (the scene
-  !> file, group and item that named the file). `columns` names the two columns in the
-  !> messages (default 'time, value'), the first of them the one that must increase.
-  subroutine read_time_table(path, what, t, y, error, columns)
+  !> file, group and item that named the file). `limits` are the largest magnitudes of the
+  !> two columns (those of the items the table stands in for). `columns` names the two
+  !> columns in the messages (default 'time, value'), the first of them the one that must
+  !> increase.
+  subroutine read_time_table(path, what, limits, t, y, error, columns)
     character(len=*), intent(in) :: path, what
+    real(dp), intent(in) :: limits(2)
     character(len=*), intent(in), optional :: columns
     real(dp), allocatable, intent(out) :: t(:), y(:)
     type(error_type), allocatable, intent(out) :: error
@@ -52,6 +55,9 @@ contains
       call split_words(ln, wa, wb, nw)
       if (nw == 0) cycle
       if (ln(wa(1):wa(1)) == '#') cycle
+      if (count([(ln(k:k) == ',', k = 1, len(ln))]) > nw - 1) then
+        call fail('a comma with no value beside it (an empty value): ' // trim(adjustl(ln))); return
+      end if
       ln = ln(wa(1):wb(nw))
       if (nw /= 2) then
         call fail('expected two finite numbers (' // cols // '), got ' // itoa(nw) // ': ' // ln); return
@@ -60,6 +66,9 @@ contains
         call number_text(ln(wa(k) - wa(1) + 1:wb(k) - wa(1) + 1), row(k), ok)
         if (.not. ok .or. row(k) /= row(k) .or. abs(row(k)) > huge(1.0_dp)) then
           call fail('expected two finite numbers (' // cols // '), got: ' // ln); return
+        end if
+        if (abs(row(k)) > limits(k)) then
+          call fail('the ' // column_name(k) // ' ' // fmt(row(k)) // ' is beyond +-' // fmt(limits(k))); return
         end if
       end do
       if (n > 0) then
@@ -80,6 +89,16 @@ contains
     end if
     t = tt(1:n); y = yy(1:n)
   contains
+    function column_name(k) result(c)
+      integer, intent(in) :: k
+      character(len=:), allocatable :: c
+      if (k == 1) then
+        c = cols(1:index(cols, ',') - 1)
+      else
+        c = trim(adjustl(cols(index(cols, ',') + 1:)))
+      end if
+    end function column_name
+
     subroutine fail(why)
       character(len=*), intent(in) :: why
       call fatal_error(error, what // ": '" // path // "' line " // itoa(line) // ': ' // why)

@@ -13,7 +13,7 @@ module pymr_model_scene
   public :: scene_t, body_spec, joint_spec, drive_spec, marker_spec, integrator_spec, effects_spec
   public :: spring_spec, motion_spec, load_spec, force_spec, control_spec, moving_load_spec, output_spec, scene_spec
   public :: sensor_spec, sensor_items
-  public :: max_modes_input
+  public :: max_modes_input, big_length, big_force, big_time
   public :: joint_ndof, unset, group_names, single_groups, repeated_groups, describe_group, group_origin, group_count
   public :: naming_item, complete_scene, body_items, item_applies, output_quantities, beam_mode_count
   public :: closes_loop, flexible_loop, k_max_flexible_loop, body_index, control_count
@@ -40,6 +40,8 @@ module pymr_model_scene
 
   !> Bounds that keep every physical value far from overflow in the model's arithmetic.
   real(dp), parameter :: big_length = 1.0e6_dp, big_force = 1.0e12_dp, big_mass = 1.0e12_dp
+  !> Largest time (s) an item or a table's time column may give.
+  real(dp), parameter :: big_time = 1.0e9_dp
   !> Most per-mode values an item such as modal_damping can hold.
   integer, parameter :: max_modes_input = 64
 

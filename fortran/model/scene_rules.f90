@@ -7,10 +7,12 @@ module pymr_model_scene_rules
   use pymr_env_kinds, only : dp, name_len
   use pymr_env_error, only : error_type, fatal_error, error_list
   use pymr_model_scene, only : scene_t, body_spec, joint_spec, force_spec, load_spec, control_spec, moving_load_spec, &
-    & sensor_spec, sensor_items, joint_ndof, unset, body_items, beam_mode_count, &
+    & sensor_spec, motion_spec, sensor_items, joint_ndof, unset, body_items, beam_mode_count, &
     & closes_loop, body_index, flexible_loop
   use pymr_env_item_table, only : origin_t
   use pymr_model_names, only : name_index
+  use pymr_model_beam_modes, only : dense_elements, max_banded_modes
+  use pymr_integrator_control, only : step_control
   use pymr_env_text, only : itoa, fmt
   implicit none
   private
@@ -68,6 +70,13 @@ contains
     type(scene_t), intent(in) :: sc
     type(error_list), intent(inout) :: errs
     integer :: i, j
+    call check_name_characters(sc%bodies%name, sc%bodies%origin, errs)
+    call check_name_characters(sc%joints%name, sc%joints%origin, errs)
+    call check_name_characters(sc%markers%name, sc%markers%origin, errs)
+    call check_name_characters(sc%forces%name, sc%forces%origin, errs)
+    call check_name_characters(sc%controls%name, sc%controls%origin, errs)
+    call check_name_characters(sc%moving_loads%name, sc%moving_loads%origin, errs)
+    call check_name_characters(sc%sensors%name, sc%sensors%origin, errs)
     call first_repeat(sc%bodies%name, i, j)
     if (j > 0) then
       call errs%add(sc%bodies(j)%origin%where('name') // ': used by another &body too (line ' // &
@@ -104,6 +113,25 @@ contains
         & itoa(sc%sensors(i)%origin%line) // ')')
     end if
   end subroutine check_unique_names
+
+  !> Names head the results' columns ("gun.a1", "muzzle.x"): no comma (it would split a CSV
+  !> column), no double quote and no control character.
+  subroutine check_name_characters(names, origins, errs)
+    character(len=*), intent(in) :: names(:)
+    type(origin_t), intent(in) :: origins(:)
+    type(error_list), intent(inout) :: errs
+    integer :: k, c
+    do k = 1, size(names)
+      do c = 1, len_trim(names(k))
+        if (names(k)(c:c) == ',' .or. names(k)(c:c) == '"' .or. iachar(names(k)(c:c)) < 32 .or. &
+          & iachar(names(k)(c:c)) == 127) then
+          call errs%add(origins(k)%where('name') // ': may not hold a comma, a double quote or a control ' // &
+            & 'character (names head the results'' columns)')
+          exit
+        end if
+      end do
+    end do
+  end subroutine check_name_characters
 
   !> The rules of a method on its steps (r = h_slow/h_fast, an integer; `where`: the step
   !> item's place for messages) and on the scenes it takes.
@@ -194,6 +222,9 @@ contains
         call errs%add(w('h_min') // ': larger than h_max = ' // fmt(s%h_max) // ' s (got ' // fmt(s%h_min) // &
           & ' s): no step would be allowed'); return
       end if
+      if (s%adaptive) then
+        call check_step_bounds(sc, errs); if (errs%n > n0) return
+      end if
       ! bounded work: a fixed-step run's steps are known before it starts
       if (.not. s%adaptive .and. sc%scene%t_end/hf > real(s%max_steps, dp)) then
         call errs%add(w(step_item) // ': the run would take ' // fmt(sc%scene%t_end/hf) // ' steps of ' // &
@@ -208,6 +239,42 @@ contains
       s = sc%integrator%origin%where(item)
     end function w
   end subroutine check_settings
+
+  !> An adaptive run's step bounds against its span: h_max not below the smallest step
+  !> (h_min, or the controller's default), h_min below t_end, and at most max_steps steps
+  !> of h_max to t_end.
+  subroutine check_step_bounds(sc, errs)
+    type(scene_t), intent(in) :: sc
+    type(error_list), intent(inout) :: errs
+    type(step_control) :: default_control
+    real(dp) :: h_lo
+    character(len=:), allocatable :: default
+    associate(s => sc%integrator, t_end => sc%scene%t_end)
+      h_lo = s%h_min; default = ''
+      if (h_lo <= 0.0_dp) then
+        h_lo = default_control%h_min; default = ' (its default)'
+      end if
+      if (s%h_max > 0.0_dp .and. s%h_max < h_lo) then
+        call errs%add(w('h_max') // ': below the smallest adaptive step h_min = ' // fmt(h_lo) // ' s' // default // &
+          & ' (got ' // fmt(s%h_max) // ' s): no step would be allowed'); return
+      end if
+      if (h_lo >= t_end) then
+        call errs%add(w('h_min') // ': the smallest adaptive step (' // fmt(h_lo) // ' s) must be below t_end = ' // &
+          & fmt(t_end) // ' s'); return
+      end if
+      if (s%h_max > 0.0_dp .and. t_end/s%h_max > real(s%max_steps, dp)) then
+        call errs%add(w('h_max') // ': the run would take at least ' // fmt(t_end/s%h_max) // ' steps of at most ' // &
+          & fmt(s%h_max) // ' s to t_end = ' // fmt(t_end) // ' s, more than max_steps = ' // itoa(s%max_steps) // &
+          & ' (raise it in &integrator if you mean it)')
+      end if
+    end associate
+  contains
+    function w(item) result(s)
+      character(len=*), intent(in) :: item
+      character(len=:), allocatable :: s
+      s = sc%integrator%origin%where(item)
+    end function w
+  end subroutine check_step_bounds
 
   subroutine check_bodies(sc, errs)
     type(scene_t), intent(in) :: sc
@@ -310,6 +377,12 @@ contains
       call within('modes_z', b%modes_z, 2*b%n_elements, '2*n_elements'); if (allocated(error)) return
       call within('modes_x', b%modes_x, 2*b%n_elements + 1, '2*n_elements + 1'); if (allocated(error)) return
       call within('modes_t', b%modes_t, 2*b%n_elements + 1, '2*n_elements + 1'); if (allocated(error)) return
+      if (b%n_elements > dense_elements) then
+        call banded_within('modes_y', b%modes_y); if (allocated(error)) return
+        call banded_within('modes_z', b%modes_z); if (allocated(error)) return
+        call banded_within('modes_x', b%modes_x); if (allocated(error)) return
+        call banded_within('modes_t', b%modes_t); if (allocated(error)) return
+      end if
       if (b%r_outer /= unset .and. b%torsion_constant /= unset) then
         call fatal_error(error, b%origin%where('torsion_constant') // ': a tube has pi/2 (r_outer^4 - r_inner^4); ' // &
           & 'give torsion_constant only with area, iy and iz'); return
@@ -339,6 +412,15 @@ contains
       if (count > most) call fatal_error(error, sc%bodies(i)%origin%where(item) // ': must be 0 to ' // says // &
         & ' = ' // itoa(most) // ', got ' // itoa(count))
     end subroutine within
+
+    !> A beam of more than dense_elements elements: its modes by the banded eigensolver.
+    subroutine banded_within(item, count)
+      character(len=*), intent(in) :: item
+      integer, intent(in) :: count
+      if (count > max_banded_modes) call fatal_error(error, sc%bodies(i)%origin%where(item) // ': at most ' // &
+        & itoa(max_banded_modes) // ' modes per family on a beam of more than ' // itoa(dense_elements) // &
+        & ' elements (n_elements = ' // itoa(sc%bodies(i)%n_elements) // '), got ' // itoa(count))
+    end subroutine banded_within
   end subroutine check_beam
 
   subroutine check_joints(sc, errs)
@@ -463,11 +545,6 @@ contains
           call errs%add(o%where(trim(first_given([character(len=6) :: 'q0', 'qd0', 'settle', 'hold'], &
             & [nonzero(jt%q0), nonzero(jt%qd0), jt%settle, jt%hold]))) // &
             & ': a joint that closes a loop has no coordinates of its own (its state follows from the tree)'); cycle
-        end if
-        if (any(sc%drives%joint == jt%name) .or. any(sc%springs%joint == jt%name) .or. &
-          & any(sc%motions%joint == jt%name)) then
-          call errs%add(o%where('name') // ': a joint that closes a loop has no coordinates to drive, spring ' // &
-            & 'or prescribe'); cycle
         end if
         ! a 'free' cut constrains nothing: nothing more to refuse
         if (jt%kind == 'free') cycle
@@ -753,6 +830,7 @@ contains
         end do
         if (.not. table_form(errs, mo%origin, mo%form, mo%file, [mo%amplitude, mo%frequency, mo%phase])) &
           & cycle each_motions
+        if (.not. motion_form_items(errs, mo)) cycle each_motions
         if (mo%form == 'spinup' .and. mo%ramp_time == unset) then
           call errs%add(mo%origin%where('ramp_time') // ": missing (form 'spinup' needs the ramp time, s)")
           cycle each_motions
@@ -762,6 +840,31 @@ contains
       end associate
     end do each_motions
   end subroutine check_motions
+
+  !> A motion's items are its form's: 'spinup' takes no sine items, the other forms no
+  !> spin-up items (else the error is added).
+  logical function motion_form_items(errs, mo) result(ok)
+    type(error_list), intent(inout) :: errs
+    type(motion_spec), intent(in) :: mo
+    character(len=*), parameter :: sine_items(3) = [character(len=9) :: 'amplitude', 'frequency', 'phase']
+    character(len=*), parameter :: spinup_items(2) = [character(len=9) :: 'rate', 'ramp_time']
+    integer :: k
+    ok = .false.
+    if (mo%form == 'spinup') then
+      k = findloc([mo%amplitude /= 0.0_dp, mo%frequency /= 0.0_dp, mo%phase /= 0.0_dp], .true., 1)
+      if (k > 0) then
+        call errs%add(mo%origin%where(trim(sine_items(k))) // ": not used by form 'spinup' (offset, rate " // &
+          & 'and ramp_time give the motion)'); return
+      end if
+    else
+      k = findloc([mo%rate /= 0.0_dp, mo%ramp_time /= unset], .true., 1)
+      if (k > 0) then
+        call errs%add(mo%origin%where(trim(spinup_items(k))) // ": only form 'spinup' uses it (form is '" // &
+          & trim(mo%form) // "')"); return
+      end if
+    end if
+    ok = .true.
+  end function motion_form_items
 
   !> A flexible body that gives modal damping needs &effects modal_damping on.
   subroutine check_damping_effect(sc, errs)
@@ -908,8 +1011,8 @@ contains
     end do
   end subroutine check_controls
 
-  !> The joint is a tree joint and no &motion prescribes the coordinate (else the error is
-  !> added): a controller drives a coordinate of the tree that moves freely.
+  !> No &motion prescribes the coordinate (else the error is added): a controller drives a
+  !> coordinate of the tree (joint_coordinate) that moves freely.
   logical function free_tree_coordinate(sc, errs, o, joint, coordinate) result(ok)
     type(scene_t), intent(in) :: sc
     type(error_list), intent(inout) :: errs
@@ -918,11 +1021,6 @@ contains
     integer, intent(in) :: coordinate
     integer :: j
     ok = .false.
-    do j = 1, size(sc%joints)
-      if (sc%joints(j)%name /= joint .or. .not. closes_loop(sc, j)) cycle
-      call errs%add(o%where('joint') // ": '" // trim(joint) // "' closes a loop: it has no coordinate of its " // &
-        & 'own to drive (drive a joint of the tree)'); return
-    end do
     do j = 1, size(sc%motions)
       if (sc%motions(j)%joint /= joint .or. sc%motions(j)%coordinate /= coordinate) cycle
       call errs%add(o%where('coordinate') // ': ' // itoa(coordinate) // " of joint '" // trim(joint) // &
@@ -1063,7 +1161,8 @@ contains
       & '(or .false. to leave it out on purpose)'
   end function effect_not_on
 
-  !> The named joint exists and has the coordinate (else the error is added).
+  !> The named joint exists, is a joint of the tree (a loop-closing joint has no coordinates
+  !> of its own) and has the coordinate (else the error is added).
   logical function joint_coordinate(sc, errs, o, joint, coordinate) result(ok)
     type(scene_t), intent(in) :: sc
     type(error_list), intent(inout) :: errs
@@ -1081,6 +1180,10 @@ contains
     end do
     if (k == 0) then
       call errs%add(o%where('joint') // ": no &joint named '" // trim(joint) // "'"); return
+    end if
+    if (closes_loop(sc, k)) then
+      call errs%add(o%where('joint') // ": '" // trim(joint) // "' closes a loop: it has no coordinate of its own " // &
+        & 'to act on (its state follows from the tree; act on a joint of the tree)'); return
     end if
     ndof = joint_ndof(sc%joints(k)%kind)
     if (coordinate < 1 .or. coordinate > ndof) then
