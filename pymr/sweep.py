@@ -385,6 +385,8 @@ def run_sweep(sw: Sweep, scheduler: str | None = None, workers: int = 2) -> list
                          "pip install 'dask[distributed]' (or write SLURM files with --emit-slurm)") from None
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise SweepError(f"workers: a whole number of worker processes, at least 1, got {workers!r}")
+    if scheduler is not None:
+        _check_address(scheduler)
     make_folder(sw.output, "output")
     summary = check_output(sw.output / "summary.csv", "sweep's summary", option=f"{sw.path}: output")
     cases = sw.cases
@@ -394,10 +396,6 @@ def run_sweep(sw: Sweep, scheduler: str | None = None, workers: int = 2) -> list
             client = Client(scheduler)
         except OSError as exc:
             raise SweepError(f"--scheduler {scheduler}: cannot reach it ({' '.join(str(exc).split())})") from None
-        except (ValueError, TypeError) as exc:
-            # Dask's parser of addresses: 'missing port number', 'unknown address scheme'
-            raise SweepError(f"--scheduler {scheduler}: not the address of a Dask scheduler, such as "
-                             f"tcp://host:8786 ({' '.join(str(exc).split())})") from None
     else:
         # one thread per worker process, BLAS included: the workers inherit these
         for name in BLAS_THREADS:
@@ -433,6 +431,18 @@ def run_sweep(sw: Sweep, scheduler: str | None = None, workers: int = 2) -> list
             cluster.close()
     write_summary(sw, rows, summary.parent)
     return rows
+
+
+def _check_address(scheduler) -> None:
+    """A scheduler's address as Dask parses it (host and port, a scheme it knows), checked
+    before anything is made: Dask's ValueError ('missing port number', 'unknown address
+    scheme') was a traceback."""
+    from distributed.comm.addressing import get_address_host_port
+    try:
+        get_address_host_port(scheduler)
+    except (ValueError, TypeError) as exc:
+        raise SweepError(f"--scheduler {scheduler}: not the address of a Dask scheduler, such as tcp://HOST:8786 "
+                         f"({' '.join(str(exc).split())})") from None
 
 
 def make_folder(folder: Path, what: str) -> None:
