@@ -226,11 +226,7 @@ contains
         call check_step_bounds(sc, errs); if (errs%n > n0) return
       end if
       ! bounded work: a fixed-step run's steps are known before it starts
-      if (.not. s%adaptive .and. sc%scene%t_end/hf > real(s%max_steps, dp)) then
-        call errs%add(w(step_item) // ': the run would take ' // fmt(sc%scene%t_end/hf) // ' steps of ' // &
-          & fmt(hf) // ' s to t_end = ' // fmt(sc%scene%t_end) // ' s, more than max_steps = ' // itoa(s%max_steps) // &
-          & ' (raise it in &integrator if you mean it)'); return
-      end if
+      if (.not. s%adaptive) call check_step_count(sc, errs, step_item, hf, ' steps of ')
     end associate
   contains
     function w(item) result(s)
@@ -255,26 +251,33 @@ contains
         h_lo = default_control%h_min; default = ' (its default)'
       end if
       if (s%h_max > 0.0_dp .and. s%h_max < h_lo) then
-        call errs%add(w('h_max') // ': below the smallest adaptive step h_min = ' // fmt(h_lo) // ' s' // default // &
+        call errs%add(s%origin%where('h_max') // ': below the smallest adaptive step h_min = ' // fmt(h_lo) // ' s' // default // &
           & ' (got ' // fmt(s%h_max) // ' s): no step would be allowed'); return
       end if
       if (h_lo >= t_end) then
-        call errs%add(w('h_min') // ': the smallest adaptive step (' // fmt(h_lo) // ' s) must be below t_end = ' // &
+        call errs%add(s%origin%where('h_min') // ': the smallest adaptive step (' // fmt(h_lo) // ' s) must be below t_end = ' // &
           & fmt(t_end) // ' s'); return
       end if
-      if (s%h_max > 0.0_dp .and. t_end/s%h_max > real(s%max_steps, dp)) then
-        call errs%add(w('h_max') // ': the run would take at least ' // fmt(t_end/s%h_max) // ' steps of at most ' // &
-          & fmt(s%h_max) // ' s to t_end = ' // fmt(t_end) // ' s, more than max_steps = ' // itoa(s%max_steps) // &
-          & ' (raise it in &integrator if you mean it)')
-      end if
+      if (s%h_max > 0.0_dp) call check_step_count(sc, errs, 'h_max', s%h_max, ' steps of at most ')
     end associate
-  contains
-    function w(item) result(s)
-      character(len=*), intent(in) :: item
-      character(len=:), allocatable :: s
-      s = sc%integrator%origin%where(item)
-    end function w
   end subroutine check_step_bounds
+
+  !> Bounded work: t_end/h steps (h the step `item` sets; `steps` says how they relate, as
+  !> ' steps of at most ') at most max_steps (else the error is added).
+  subroutine check_step_count(sc, errs, item, h, steps)
+    type(scene_t), intent(in) :: sc
+    type(error_list), intent(inout) :: errs
+    character(len=*), intent(in) :: item, steps
+    real(dp), intent(in) :: h
+    character(len=:), allocatable :: least
+    if (sc%scene%t_end/h <= real(sc%integrator%max_steps, dp)) return
+    least = ''
+    if (index(steps, 'most') > 0) least = 'at least '
+    call errs%add(sc%integrator%origin%where(item) // ': the run would take ' // least // &
+      & fmt(sc%scene%t_end/h) // steps // fmt(h) // ' s to t_end = ' // &
+      & fmt(sc%scene%t_end) // ' s, more than max_steps = ' // itoa(sc%integrator%max_steps) // &
+      & ' (raise it in &integrator if you mean it)')
+  end subroutine check_step_count
 
   subroutine check_bodies(sc, errs)
     type(scene_t), intent(in) :: sc
