@@ -6,7 +6,7 @@ this package runs scenes, loads results and drives studies and benchmarks.
 from __future__ import annotations
 
 from .results import Results, load_results
-from .api import (PymrError, SceneError, ArgumentTypeError, SolverError, OutputError, ResultsError, run, model_terms, model_accelerations, step_history, marker_shapes,
+from .api import (PymrError, SceneError, ArgumentTypeError, SolverError, OutputError, ResultsError, ResultsKeyError, run, model_terms, model_accelerations, step_history, marker_shapes,
                   model_energy, model_size, write_modal_file, loop_rows, Model,
                   force_response, modes, Modes)
 
@@ -17,7 +17,7 @@ from .sweep import SweepError
 
 __version__ = "0.1.0"
 
-__all__ = ["PymrError", "SceneError", "ArgumentTypeError", "SolverError", "OutputError", "ResultsError", "Results", "load_results", "run",
+__all__ = ["PymrError", "SceneError", "ArgumentTypeError", "SolverError", "OutputError", "ResultsError", "ResultsKeyError", "Results", "load_results", "run",
            "model_terms", "model_accelerations", "step_history", "marker_shapes", "model_energy", "model_size", "write_modal_file", "loop_rows",
            "modal_import", "ModalBody",
            "Model", "force_response", "modes", "Modes", "PlotError", "SweepError", "Scene", "schema",

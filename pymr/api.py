@@ -16,7 +16,8 @@ except ImportError:
     raise ImportError("pymr's compiled kernel (pymr._core) is not here: this is the source folder, not the "
                       "installed package. Build and install it with 'bash .ci/setup' (or 'pip install "
                       "--no-build-isolation .') and import pymr from outside the checkout.") from None
-from .errors import ArgumentTypeError, OutputError, PymrError, ResultsError, SceneError, SolverError  # noqa: F401
+from .errors import (ArgumentTypeError, OutputError, PymrError, ResultsError, ResultsKeyError,  # noqa: F401
+                     SceneError, SolverError)
 from .results import Results, load_results
 from ._args import (_array, _flag, _name, _names, _path, _raise, _scene_and_overrides, _short, _text,  # noqa: F401
                     check_not_input, format_overrides, model_of, nml_value, write_file)

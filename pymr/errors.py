@@ -71,3 +71,12 @@ class OutputError(PymrError):
 class ResultsError(PymrError, ValueError):
     """A results file that cannot be read: missing, not a pymr CSV, no rows, a broken JSON
     beside it (bad input)."""
+
+
+class ResultsKeyError(ResultsError, KeyError):
+    """A name that results do not have (a column, marker, joint, flexible body, a joint's
+    reactions), asked of a :class:`pymr.Results`: a :class:`ResultsError` and, as a mapping's
+    unknown key is, a KeyError. The message lists the names the results have."""
+
+    def __str__(self) -> str:
+        return BaseException.__str__(self)       # the message itself (KeyError's str quotes it)

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import ResultsError
+from .errors import ArgumentTypeError, ResultsError, ResultsKeyError
 
 
 @dataclass(frozen=True)
@@ -55,6 +55,20 @@ def column_table(meta, columns: list[str], where: str) -> list[Column]:
     return [Column(*fields) for fields in zip(*(meta[k] for k in COLUMN_FIELDS))]
 
 
+def _unknown(what: str, name: str, known: list[str]) -> ResultsKeyError:
+    """The error of a name the results do not have, listing those they have."""
+    return ResultsKeyError(f"no {what} {name!r}; {what}s: {', '.join(known) or '(none)'}")
+
+
+def _key(what: str, name) -> str:
+    """A name asked of the results: a str (None, a number or a list was taken as 'every
+    owner', or failed inside numpy): an ArgumentTypeError naming `what`."""
+    if not isinstance(name, str):
+        from ._args import _shown
+        raise ArgumentTypeError(f"{what}: a name (str), got {_shown(name)}")
+    return name
+
+
 @dataclass
 class Results:
     """A run's results: columns by name as numpy arrays, statistics and comment lines.
@@ -74,14 +88,32 @@ class Results:
     path: str | None = None
     summary: str = ""
 
+    def __post_init__(self) -> None:
+        """Results made by hand are checked as a file's are: column names (str) from 't', a
+        (rows, columns) array of real numbers, statistics and comment lines as dicts (an
+        ArgumentTypeError or a ResultsError naming the field, not an error where used)."""
+        from ._args import _array, _shown
+        if isinstance(self.columns, str) or not isinstance(self.columns, (list, tuple)) \
+                or not all(isinstance(c, str) for c in self.columns):
+            raise ArgumentTypeError(f"columns: a list of column names (str), got {_shown(self.columns)}")
+        self.columns = list(self.columns)
+        if not self.columns or self.columns[0] != "t":
+            raise ResultsError(f"columns: the first column is the time 't', got {_shown(self.columns)}")
+        self.data = _array("data", self.data)
+        if self.data.ndim != 2 or self.data.shape[1] != len(self.columns):
+            raise ResultsError(f"data: an array (rows, {len(self.columns)}) for the {len(self.columns)} columns, "
+                               f"got shape {self.data.shape}")
+        for name in ("stats", "meta"):
+            if not isinstance(getattr(self, name), dict):
+                raise ArgumentTypeError(f"{name}: a dict, got {_shown(getattr(self, name))}")
+
     def __getitem__(self, name: str) -> np.ndarray:
-        try:
-            return self.data[:, self.columns.index(name)]
-        except ValueError:
-            raise KeyError(f"no column {name!r}; columns: {', '.join(self.columns)}") from None
+        if _key("name", name) not in self.columns:
+            raise _unknown("column", name, self.columns)
+        return self.data[:, self.columns.index(name)]
 
     def __contains__(self, name: str) -> bool:
-        return name in self.columns
+        return _key("name", name) in self.columns
 
     @property
     def t(self) -> np.ndarray:
@@ -121,10 +153,11 @@ class Results:
 
     def unit(self, name: str) -> str:
         """The unit of column `name` (``'rad'``, ``'m'``, ``'J'`` ...)."""
+        _key("name", name)
         for c in self.column_info:
             if c.name == name:
                 return c.unit
-        raise KeyError(f"no column {name!r}; columns: {', '.join(self.columns)}")
+        raise _unknown("column", name, self.columns)
 
     def _names(self, group: str, owner: str | None = None, quantity: str | None = None) -> list[str]:
         """The names of the columns of `group` (of `owner`, of `quantity`), in column order."""
@@ -151,17 +184,17 @@ class Results:
 
     def joint_columns(self, name: str) -> list[str]:
         """Coordinate column names of joint ``name``: ``["j.q"]`` or ``["j.q1", ..., "j.qn"]``."""
-        cols = self._names("joint_coordinates", name)
+        cols = self._names("joint_coordinates", _key("name", name))
         if not cols:
-            raise KeyError(f"no joint {name!r}; joints: {', '.join(self.joints) or '(none)'}")
+            raise _unknown("joint", name, self.joints)
         return cols
 
     def modal_columns(self, body: str) -> list[str]:
         """Modal coordinate column names of flexible body ``body``: ``["b.a1", ..., "b.aM"]``."""
-        cols = self._names("modal_coordinates", body)
+        cols = self._names("modal_coordinates", _key("body", body))
         if not cols:
-            raise KeyError(f"no flexible body {body!r}; flexible bodies: "
-                           f"{', '.join(self.flexible_bodies) or '(none)'}")
+            raise ResultsKeyError(f"no flexible body {body!r}; flexible bodies: "
+                                  f"{', '.join(self.flexible_bodies) or '(none)'}")
         return cols
 
     def _stack(self, names: list[str]) -> np.ndarray:
@@ -170,17 +203,19 @@ class Results:
 
     def marker(self, name: str) -> tuple[np.ndarray, np.ndarray]:
         """Position (rows, 3) and velocity (rows, 3) of a marker, inertial frame."""
-        if name not in self.markers:
-            raise KeyError(f"no marker {name!r}; markers: {', '.join(self.markers) or '(none)'}")
+        if _key("name", name) not in self.markers:
+            raise _unknown("marker", name, self.markers)
         return (self._stack(self._names("markers", name, "position")),
                 self._stack(self._names("markers", name, "velocity")))
 
     def reaction(self, joint: str) -> tuple[np.ndarray, np.ndarray]:
         """Force (rows, 3; N) and moment (rows, 3; N m) that ``joint`` passes to its child, in
         the child's axes, the moment about the joint point (``&output quantities 'reactions'``)."""
-        force, moment = self._names("reactions", joint, "force"), self._names("reactions", joint, "moment")
+        force = self._names("reactions", _key("joint", joint), "force")
+        moment = self._names("reactions", joint, "moment")
         if not force:
-            raise KeyError(f"no reactions of joint {joint!r} (&output quantities 'reactions')")
+            raise ResultsKeyError(f"no reactions of joint {joint!r} (&output quantities 'reactions'; joints with "
+                                  f"reactions: {', '.join(self._owners('reactions')) or '(none)'})")
         return self._stack(force), self._stack(moment)
 
     def joint(self, name: str) -> tuple[np.ndarray, np.ndarray]:

@@ -292,3 +292,61 @@ def test_collect_lists_a_case_whose_statistics_are_damaged_as_failed(tmp_path):
     summary = (folder / "summary.csv").read_text().splitlines()
     assert summary[1].endswith(",ok") and summary[2].startswith("case0001,0.002,nan,nan,\"failed: incomplete results: ")
     assert "cpu_time_s\"\" is str 'fast', not a number of seconds" in summary[2]
+
+
+# ------------------------------------------------------------------ Results in Python
+
+@pytest.mark.parametrize("call, message", [
+    (lambda r: r["nope"], r"^no column 'nope'; columns: t, pivot.q, "),
+    (lambda r: r.marker("nope"), r"^no marker 'nope'; markers: tip$"),
+    (lambda r: r.marker(""), r"^no marker ''; markers: tip$"),
+    (lambda r: r.joint("nope"), r"^no joint 'nope'; joints: pivot$"),
+    (lambda r: r.joint_columns("x"), r"^no joint 'x'; joints: pivot$"),
+    (lambda r: r.modal("nope"), r"^no flexible body 'nope'; flexible bodies: \(none\)$"),
+    (lambda r: r.reaction("pivot"), r"^no reactions of joint 'pivot' \(&output quantities 'reactions'; joints with "
+                                    r"reactions: \(none\)\)$"),
+    (lambda r: r.unit("nope"), r"^no column 'nope'; columns: t, "),
+], ids=["getitem", "marker", "marker_empty", "joint", "joint_columns", "modal", "reaction", "unit"])
+def test_an_unknown_name_is_a_results_key_error(runs, call, message):
+    """An unknown name raised a bare KeyError from inside the package: now pymr's own
+    ResultsKeyError, a ResultsError that is also a KeyError (the documented promise), whose
+    message is the text itself (KeyError's str quoted it)."""
+    res = pymr.load_results(runs / "pend.csv")
+    with pytest.raises(pymr.ResultsKeyError, match=message) as info:
+        call(res)
+    assert isinstance(info.value, KeyError) and isinstance(info.value, pymr.ResultsError)
+
+
+@pytest.mark.parametrize("call, argument", [
+    (lambda r: r.joint(None), "name"), (lambda r: r.modal(None), "body"), (lambda r: r.marker(3), "name"),
+    (lambda r: r.reaction(None), "joint"), (lambda r: r[0], "name"), (lambda r: r[1:3], "name"),
+    (lambda r: r[["t"]], "name"), (lambda r: r.unit(None), "name"), (lambda r: r.modal_columns(None), "body"),
+    (lambda r: ["t"] in r, "name"), (lambda r: None in r, "name"),
+], ids=["joint_none", "modal_none", "marker_int", "reaction_none", "getitem_int", "getitem_slice", "getitem_list",
+        "unit_none", "modal_columns_none", "contains_list", "contains_none"])
+def test_a_name_that_is_not_text_is_refused(runs, call, argument):
+    """res.joint(None) and res.modal(None) returned every joint's (body's) columns; an int,
+    a slice or a list gave numpy's or a KeyError. Each is an ArgumentTypeError naming the
+    argument."""
+    res = pymr.load_results(runs / "pend.csv")
+    with pytest.raises(pymr.ArgumentTypeError, match=f"^{argument}: a name \\(str\\), got "):
+        call(res)
+
+
+@pytest.mark.parametrize("kwargs, error, message", [
+    (dict(columns=["t"], data=np.zeros(3)), pymr.ResultsError, r"^data: an array \(rows, 1\) for the 1 columns, got "
+                                                               r"shape \(3,\)$"),
+    (dict(columns=["t", "x"], data=np.zeros((3, 5))), pymr.ResultsError, r"^data: an array \(rows, 2\)"),
+    (dict(columns=["x"], data=np.zeros((3, 1))), pymr.ResultsError, r"^columns: the first column is the time 't'"),
+    (dict(columns="t", data=np.zeros((3, 1))), pymr.ArgumentTypeError, r"^columns: a list of column names \(str\)"),
+    (dict(columns=["t"], data=[["a"]]), pymr.ArgumentTypeError, r"^data: an array of real numbers"),
+    (dict(columns=["t"], data=np.zeros((3, 1)), stats=[1]), pymr.ArgumentTypeError, r"^stats: a dict, got list"),
+    (dict(columns=["t"], data=np.zeros((3, 1)), meta="x"), pymr.ArgumentTypeError, r"^meta: a dict, got str"),
+], ids=["1d", "shape", "no_t", "columns_str", "data_text", "stats_list", "meta_str"])
+def test_results_made_by_hand_are_checked(kwargs, error, message):
+    """Results(...) with a wrong shape or type failed later with IndexError, KeyError,
+    TypeError or AttributeError in whatever used it."""
+    with pytest.raises(error, match=message):
+        pymr.Results(**kwargs)
+    good = pymr.Results(columns=["t", "x"], data=[[0.0, 1.0], [1.0, 2.0]])
+    assert good.data.dtype == float and np.array_equal(good["x"], [1.0, 2.0])
