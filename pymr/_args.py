@@ -13,7 +13,7 @@ from typing import Iterable, Mapping
 import numpy as np
 
 from . import _kernel as _core
-from .errors import ArgumentTypeError, OutputError, SceneError, SolverError
+from .errors import ArgumentTypeError, OutputError, PymrError, SceneError, SolverError
 
 
 class SceneSource:
@@ -60,7 +60,7 @@ def write_file(path: str | os.PathLike, data: str | bytes, what: str) -> Path:
     """Write `data` to `path` whole or not at all: a temporary file beside it, flushed to
     the disk (fsync), then renamed over it, so an earlier complete file survives a failed
     write. A failure is an :class:`OutputError` naming the file and `what` it was to hold."""
-    path = Path(_path("path", path))
+    path = Path(_path("path", path, OutputError))
     if path.is_dir() or not path.name:       # '.', '..', '/': no file name to write (or rename) to
         raise OutputError(f"{path}: cannot write the {what} (it is a directory)")
     tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
@@ -71,7 +71,10 @@ def write_file(path: str | os.PathLike, data: str | bytes, what: str) -> Path:
             os.fsync(fh.fileno())
         os.replace(tmp, path)
     except OSError as exc:
-        tmp.unlink(missing_ok=True)
+        try:
+            tmp.unlink(missing_ok=True)
+        except OSError:              # a read-only folder refuses the unlink too: nothing was written
+            pass
         raise OutputError(f"{path}: cannot write the {what} ({exc.strerror or exc})") from None
     return path
 
@@ -80,7 +83,8 @@ def overwritten_input(scene, path: str | os.PathLike, overrides=None) -> str:
     """The scene's input (the scene, a modal or table file) that `path`, an output, would
     overwrite, by the kernel's rule (which the results and modal files obey too); '' for
     none. A scene that cannot be read raises its SceneError."""
-    found, stat, msg, detail = _core.pymr_scene_input(*_scene_and_overrides(scene, overrides), _path("output", path))
+    found, stat, msg, detail = _core.pymr_scene_input(*_scene_and_overrides(scene, overrides),
+                                                      _path("output", path, OutputError))
     _raise(stat, msg, detail)
     return _text(found)
 
@@ -119,13 +123,19 @@ def _shown(value: object) -> str:
     return f"{type(value).__name__} {_short(value)}"
 
 
-def _path(name: str, value) -> str:
-    """A file path argument (str or os.PathLike; bytes as the file system names them)."""
+def _path(name: str, value, error: type[PymrError] = SceneError) -> str:
+    """A file path argument (str or os.PathLike; bytes as the file system names them). A
+    NUL character is refused as `error` naming the argument: no file name holds one, and
+    the kernel's text would end at it (a file of another name read or written)."""
     if isinstance(value, (str, bytes, os.PathLike)):
         try:
-            return os.fsdecode(os.fspath(value))
+            text = os.fsdecode(os.fspath(value))
         except TypeError:          # an os.PathLike whose __fspath__ gives no str or bytes
             pass
+        else:
+            if "\0" in text:
+                raise error(f"{name}: {text!r}: a file path cannot hold a NUL character")
+            return text
     raise ArgumentTypeError(f"{name}: a file path (str or os.PathLike), got {_shown(value)}")
 
 
@@ -231,6 +241,8 @@ def _array(name: str, value) -> np.ndarray:
     try:
         a = np.asarray(value)
         if a.dtype.kind == "O":
+            if any(v is None for v in a.ravel()):
+                raise TypeError            # numpy would make None a NaN
             a = a.astype(float)
     except (TypeError, ValueError, OverflowError):
         raise ArgumentTypeError(f"{name}: an array of real numbers, got {_shown(value)}") from None

@@ -41,9 +41,10 @@ def run(scene, output: str | os.PathLike | None = None,
     its progress ten times a second: no per-step call crosses into Python.
     Raises :class:`SceneError` for bad input and :class:`SolverError` for a failed run.
     """
-    scene, text = _scene_and_overrides(scene, overrides)
+    source = scene            # a pymr.Scene's file lives as long as the Scene: held to the end of the run
+    scene, text = _scene_and_overrides(source, overrides)
     if output is not None:
-        output = _path("output", output)
+        output = _path("output", output, OutputError)
     progress = _flag("progress", progress, none=True)
     ckpt = "" if restart is None else _path("restart", restart)
     if restart is not None and not ckpt:
@@ -68,6 +69,7 @@ def run(scene, output: str | os.PathLike | None = None,
         _raise(stat, msg, detail)
         res = load_results(out)
     res.summary = _text(summary)
+    del source
     return res
 
 
@@ -167,6 +169,9 @@ def _many_states(t, q, qd) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     q, qd = _states(q, qd)
     if q.ndim not in (1, 2):
         raise SceneError(f"q: one state of shape (n,) or states of shape (m, n) expected, got shape {q.shape}")
+    if q.ndim == 2 and q.shape[0] == 0:
+        # the kernel's arrays cannot be empty (f2py raised its own ValueError)
+        raise SceneError(f"q: no states (shape {q.shape}): give at least one, of shape (n,) or (m, n)")
     q2 = np.asfortranarray(np.atleast_2d(q).T)
     qd2 = np.asfortranarray(np.atleast_2d(qd).T)
     t1 = np.atleast_1d(_array("t", t))
@@ -382,7 +387,9 @@ def write_modal_file(scene: str | os.PathLike, body: str, path: str | os.PathLik
     """Write the modes of beam ``body`` of a scene to a modal data file, which a
     ``kind='modal'`` body can read back (``modal_file=...``)."""
     where = _scene_and_overrides(scene, overrides)
-    body, path = _name("body", body), _path("path", path)
+    body, path = _name("body", body), _path("path", path, OutputError)
+    if not path:
+        raise OutputError("path: an empty file name for the modal file")
     with model_of(scene, where) as handle:
         stat, msg, detail = _core.pymr_write_modal(handle, body, path)
     _raise(stat, msg, detail)
@@ -409,14 +416,21 @@ class Model:
             k = int(np.argmin(np.isfinite(x)))
             part, i = ("q", k) if k < self.n else ("qd", k - self.n)
             _finite(part, x[k:k + 1], f" (x[{k}], entry {i} of {part} in x = [q; qd])")
-        f, evals, stat, msg, detail = _core.pymr_model_rhs(self.handle, _time(t), x)
+        f, evals, stat, msg, detail = _core.pymr_model_rhs(self._live(), _time(t), x)
         if stat:
             _raise(stat, msg, detail)
         self.evaluations = int(evals)
         return f
 
+    def _live(self) -> int:
+        """The open model's handle; a SceneError once the model is closed (its names came
+        back empty, its markers 'not found')."""
+        if self.handle <= 0:
+            raise SceneError(f"{self.scene}: this pymr.Model is closed (make a new one)")
+        return self.handle
+
     def marker(self, name: str, t, q, qd) -> np.ndarray:
-        k = int(_core.pymr_model_marker_index(self.handle, _name("name", name)))
+        k = int(_core.pymr_model_marker_index(self._live(), _name("name", name)))
         if k == 0:
             raise SceneError(f"{self.scene}: no marker {name!r}")
         t1, q2, qd2 = self._states(t, q, qd)
@@ -428,7 +442,7 @@ class Model:
         """Every body's frame origin (inertial, m) at states of shape (m, n): an array
         (m, nb, 3), and each body's parent (1-based, 0 for the ground), for drawing."""
         t1, q2, qd2 = self._states(t, q, qd)
-        pos, parent, stat, msg, detail = _core.pymr_model_frames(self.handle, _count("nb", nb), t1, q2, qd2)
+        pos, parent, stat, msg, detail = _core.pymr_model_frames(self._live(), _count("nb", nb), t1, q2, qd2)
         _raise(stat, msg, detail)
         return np.transpose(pos, (2, 1, 0)).copy(), np.asarray(parent, dtype=int)
 
@@ -441,18 +455,19 @@ class Model:
 
     def marker_names(self) -> list[str]:
         """The model's markers' names, in the scene's order."""
-        names = []
-        while name := _text(_core.pymr_model_marker_name(self.handle, len(names) + 1)):
+        names, handle = [], self._live()
+        while name := _text(_core.pymr_model_marker_name(handle, len(names) + 1)):
             names.append(name)
         return names
 
     def coordinate_names(self) -> list[str]:
         """The coordinates' column names (``joint.q``, ``body.a1`` ...), in model order."""
-        return [_text(_core.pymr_model_coordinate_name(self.handle, k + 1)) for k in range(self.n)]
+        handle = self._live()
+        return [_text(_core.pymr_model_coordinate_name(handle, k + 1)) for k in range(self.n)]
 
     def marker_body(self, name: str) -> int:
         """The index (0-based, as in :meth:`frames`) of the body marker `name` is on."""
-        k = int(_core.pymr_model_marker_index(self.handle, _name("name", name)))
+        k = int(_core.pymr_model_marker_index(self._live(), _name("name", name)))
         if k == 0:
             raise SceneError(f"{self.scene}: no marker {name!r}")
         return int(_core.pymr_model_marker_body(self.handle, k)) - 1

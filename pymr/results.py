@@ -318,7 +318,7 @@ def load_results(csv_path: str | os.PathLike) -> Results:
     pymr results file (header from the column 't', rows of finite numbers) or has no rows,
     and a JSON beside it that is not JSON, raise :class:`ResultsError`."""
     from ._args import _path             # the one check of a path argument
-    text = _path("csv_path", csv_path)
+    text = _path("csv_path", csv_path, ResultsError)
     if not text:
         raise ResultsError("csv_path: an empty path (give a results file, OUT.csv)")
     path = Path(text)

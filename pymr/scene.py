@@ -150,7 +150,11 @@ class Scene(SceneSource):
         """The scene's text with `appended`, `overrides` and without `omit`, read by the
         kernel (a draft: its groups and items), then whole: refused, nothing changes."""
         if self._text is None:                 # the file's text and its overrides, as given
-            base = _edited_text(os.fsdecode(self.path.read_bytes()), self._home, self.overrides, "", whole=False)
+            try:
+                data = self.path.read_bytes()
+            except OSError as exc:             # the file was deleted (or made unreadable) since
+                raise SceneError(f"{self.path}: cannot read the scene file ({exc.strerror or exc})") from None
+            base = _edited_text(os.fsdecode(data), self._home, self.overrides, "", whole=False)
         else:
             base = self._text
         text = _edited_text(base + appended, self._home, overrides, omit, whole=False)

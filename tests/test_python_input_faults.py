@@ -350,3 +350,103 @@ def test_results_made_by_hand_are_checked(kwargs, error, message):
         pymr.Results(**kwargs)
     good = pymr.Results(columns=["t", "x"], data=[[0.0, 1.0], [1.0, 2.0]])
     assert good.data.dtype == float and np.array_equal(good["x"], [1.0, 2.0])
+
+
+# ------------------------------------------------------------------ the API's arguments
+
+def _built() -> pymr.Scene:
+    scene = pymr.Scene()
+    with scene.editing():
+        scene.add("scene", title="p", t_end=0.05, gravity=[0.0, -9.81, 0.0])
+        scene.add("integrator", method="single", h_slow=1e-3)
+        scene.add("body", name="ground", kind="ground")
+        scene.add("body", name="bob", kind="rigid", mass=1.0, com=[0.0, -1.0, 0.0], inertia=[1e-4] * 3 + [0.0] * 3)
+        scene.add("joint", name="pivot", kind="revolute", parent="ground", child="bob", axis=[0, 0, 1], q0=0.1)
+    return scene
+
+
+def test_run_keeps_a_scene_built_inline_alive_for_the_call():
+    """pymr.run(build()) dropped the last reference to the Scene as it took its path, and its
+    private folder was removed before the kernel read the file ('file not found')."""
+    res = pymr.run(_built())
+    assert res.t[-1] == pytest.approx(0.05) and res.joints == ["pivot"]
+
+
+@pytest.mark.parametrize("call, error, message", [
+    (lambda d: pymr.run(PENDULUM, output=str(d / "r\0s.csv")), pymr.OutputError, r"^output: '.*r\\x00s.csv': a file path "
+                                                                                  r"cannot hold a NUL character$"),
+    (lambda d: pymr.run(str(PENDULUM) + "\0x"), pymr.SceneError, r"^scene: .*: a file path cannot hold a NUL"),
+    (lambda d: pymr.run(PENDULUM, output=d / "r.csv", restart="c\0k"), pymr.SceneError, r"^restart: 'c\\x00k': "),
+    (lambda d: pymr.load_results("r\0.csv"), pymr.ResultsError, r"^csv_path: 'r\\x00.csv': a file path cannot hold"),
+    (lambda d: pymr.Scene("p\0.nml"), pymr.SceneError, r"^path: 'p\\x00.nml': a file path cannot hold"),
+    (lambda d: pymr.Scene(PENDULUM).write(d / "s\0.nml"), pymr.OutputError, r"^path: '.*s\\x00.nml': a file path"),
+    (lambda d: pymr.write_modal_file(PENDULUM, "bob", "m\0.modal"), pymr.OutputError, r"^path: 'm\\x00.modal': "),
+], ids=["run_output", "run_scene", "restart", "load_results", "scene", "scene_write", "write_modal_file"])
+def test_a_path_with_a_nul_character_is_refused_naming_the_argument(tmp_path, call, error, message):
+    """A NUL ended the kernel's text early (another file read or written) or gave Python's
+    ValueError: refused before anything is read or written."""
+    with pytest.raises(error, match=message):
+        call(tmp_path)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_scene_whose_file_was_deleted_is_a_scene_error_on_add(tmp_path):
+    """Scene(path).add(...) after the file was deleted raised FileNotFoundError."""
+    path = tmp_path / "p.nml"
+    path.write_text(PENDULUM.read_text())
+    scene = pymr.Scene(path)
+    path.unlink()
+    with pytest.raises(pymr.SceneError, match=f"^{path}: cannot read the scene file \\(No such file or directory\\)$"):
+        scene.add("marker", name="m2", body="bob")
+
+
+def test_scene_write_to_a_folder_that_refuses_the_write_is_an_output_error(tmp_path, monkeypatch):
+    """On a read-only folder the failed write's clean-up (unlinking its temporary file) raised
+    the bare OSError in place of the OutputError; the folder is simulated here (the tests
+    may run as root, whom a read-only mode does not stop)."""
+    import errno
+    import pathlib
+
+    def refuse(*args, **kwargs):
+        raise OSError(errno.EROFS, "Read-only file system")
+
+    monkeypatch.setattr(os, "fsync", refuse)
+    monkeypatch.setattr(pathlib.Path, "unlink", refuse)
+    with pytest.raises(pymr.OutputError, match=r"s\.nml: cannot write the resolved scene \(Read-only file system\)$"):
+        pymr.Scene(PENDULUM).write(tmp_path / "s.nml")
+
+
+@pytest.mark.parametrize("call", [
+    lambda: pymr.model_accelerations(PENDULUM, np.zeros(0), np.zeros((0, 1)), np.zeros((0, 1))),
+    lambda: pymr.model_energy(PENDULUM, np.zeros((0, 1)), np.zeros((0, 1))),
+], ids=["model_accelerations", "model_energy"])
+def test_zero_states_are_refused(call):
+    """States of shape (0, n) reached f2py, whose ValueError was the answer."""
+    with pytest.raises(pymr.SceneError, match=r"^q: no states \(shape \(0, 1\)\): give at least one"):
+        call()
+
+
+def test_none_is_no_time():
+    """t=None became NaN in numpy and was refused as 'nan is not a finite time'."""
+    with pytest.raises(pymr.ArgumentTypeError, match=r"^t: an array of real numbers, got NoneType None$"):
+        pymr.model_accelerations(PENDULUM, None, [0.1], [0.0])
+
+
+@pytest.mark.parametrize("method, args", [
+    ("coordinate_names", ()), ("marker_names", ()), ("marker", ("tip", 0.0, [0.1], [0.0])), ("marker_body", ("tip",)),
+    ("rhs", (0.0, [0.1, 0.0])), ("frames", (0.0, [0.1], [0.0], 2)),
+])
+def test_a_closed_model_refuses_every_call(method, args):
+    """After close(), coordinate_names and marker_names returned empty values and marker
+    said the marker was not there."""
+    model = pymr.Model(PENDULUM)
+    assert model.marker_names() == ["tip"]
+    model.close()
+    with pytest.raises(pymr.SceneError, match=r"pendulum.nml: this pymr.Model is closed \(make a new one\)$"):
+        getattr(model, method)(*args)
+
+
+def test_write_modal_file_refuses_an_empty_path():
+    """An empty path reached the kernel, which said ': cannot move the new file into place'."""
+    with pytest.raises(pymr.OutputError, match=r"^path: an empty file name for the modal file$"):
+        pymr.write_modal_file(PENDULUM, "bob", "")
