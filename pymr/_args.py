@@ -172,7 +172,8 @@ def _flag(name: str, value, none: bool = False) -> bool | None:
 def format_overrides(overrides: Mapping[str, object] | Iterable[str] | None, name: str = "overrides") -> str:
     """Turn ``{"integrator.h_slow": 5e-4}`` or ``["integrator.h_slow=5e-4"]`` into the
     kernel's override text (one ``GROUP.ITEM=VALUE`` per line, values in namelist syntax).
-    One str is one override (``"integrator.h_slow=5e-4"``), not a list of its characters.
+    One str is one override (``"integrator.h_slow=5e-4"``), not a list of its characters;
+    an empty one is refused (the kernel skipped its empty line), and so is a set (no order).
     Anything else (a number, bytes, a list of non-text) is an :class:`ArgumentTypeError`
     naming `name`; the kernel checks each entry's address and value and names the scene."""
     if overrides is None:
@@ -185,7 +186,8 @@ def format_overrides(overrides: Mapping[str, object] | Iterable[str] | None, nam
             items.append(f"{k}={nml_value(v, f'{name}[{k!r}]')}")
     elif isinstance(overrides, str):
         items = [overrides]        # one override (iterating it gave one per character)
-    elif isinstance(overrides, (bytes, bytearray)) or not isinstance(overrides, Iterable):
+    elif isinstance(overrides, (bytes, bytearray, set, frozenset)) or not isinstance(overrides, Iterable):
+        # a set has no order, and a later override must win over an earlier one
         raise ArgumentTypeError(f"{name}: a mapping {{'GROUP.ITEM': value}} or a list of 'GROUP.ITEM=VALUE' "
                                 f"texts, got {_shown(overrides)}")
     else:
@@ -194,6 +196,9 @@ def format_overrides(overrides: Mapping[str, object] | Iterable[str] | None, nam
             if not isinstance(item, str):
                 raise ArgumentTypeError(f"{name}[{k}]: an override 'GROUP.ITEM=VALUE' (str), got {_shown(item)}")
     for item in items:
+        if not item.strip():
+            # an unset shell variable: refused as mrsim refuses it, not skipped
+            raise SceneError("--set needs GROUP.ITEM=VALUE (got an empty one)")
         if "\n" in item or "\r" in item:
             # the kernel reads one override a line: a line break would make two of one
             raise SceneError(f"--set {item!r}: a line break in an override (one GROUP.ITEM=VALUE, on one line)")

@@ -450,3 +450,29 @@ def test_write_modal_file_refuses_an_empty_path():
     """An empty path reached the kernel, which said ': cannot move the new file into place'."""
     with pytest.raises(pymr.OutputError, match=r"^path: an empty file name for the modal file$"):
         pymr.write_modal_file(PENDULUM, "bob", "")
+
+
+# ------------------------------------------------------------------ empty values
+
+@pytest.mark.parametrize("overrides", [[""], ["scene.t_end=0.05", "  "], ""], ids=["list", "blank", "str"])
+def test_an_empty_override_is_refused(tmp_path, overrides):
+    """overrides=[''] (and pymr run --set '') was skipped: the run went on as if it had not
+    been given. It is refused as mrsim refuses it."""
+    with pytest.raises(pymr.SceneError, match=r"^--set needs GROUP.ITEM=VALUE \(got an empty one\)$"):
+        pymr.run(PENDULUM, tmp_path / "r.csv", overrides=overrides)
+    with pytest.raises(pymr.SceneError, match=r"^--set needs GROUP.ITEM=VALUE \(got an empty one\)$"):
+        pymr.Scene(PENDULUM, overrides)
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("command", ["run", "scene"])
+def test_pymr_set_empty_is_refused(tmp_path, command):
+    r = cli(command, PENDULUM, "--set", "scene.t_end=0.05", "--set", "", cwd=tmp_path)
+    refused(r, "--set needs GROUP.ITEM=VALUE (got an empty one)")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_overrides_in_a_set_are_refused():
+    """A set has no order, and the later of two overrides of one item wins."""
+    with pytest.raises(pymr.ArgumentTypeError, match=r"^overrides: a mapping .* got set "):
+        pymr.run(PENDULUM, overrides={"scene.t_end=0.05"})
