@@ -35,12 +35,13 @@ import io
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Sequence, Union
+from typing import Iterable, Mapping, Sequence, Union
 
+from ._args import _names, _shown
 from .api import PymrError, write_file
-from .errors import ResultsError
+from .errors import ArgumentTypeError, ResultsError
 from .outputs import check_output
-from .results import Results, load_results
+from .results import Results, check_rows, load_results
 
 RunLike = Union[Results, str, os.PathLike]
 
@@ -79,15 +80,31 @@ class Panel:
     unit: str
 
 
+def run_list(runs) -> list:
+    """`runs` as a list: one run (a results file's path or a Results, not the characters of
+    a path) or a sequence of them; anything else an ArgumentTypeError naming it."""
+    if isinstance(runs, (Results, str, bytes, os.PathLike)):
+        return [runs]
+    if isinstance(runs, Mapping) or not isinstance(runs, Iterable):
+        raise ArgumentTypeError(f"runs: a results file's path, a pymr.Results or a list of them, got {_shown(runs)}")
+    items = list(runs)
+    for k, run in enumerate(items):
+        if not isinstance(run, (Results, str, bytes, os.PathLike)):
+            raise ArgumentTypeError(f"runs[{k}]: a results file's path or a pymr.Results, got {_shown(run)}")
+    return items
+
+
 def load_runs(runs: Sequence[RunLike]) -> list[Results]:
-    """Results as given, or loaded from CSV paths (a missing or unreadable file is a PlotError)."""
+    """Results as given, or loaded from CSV paths (a missing or unreadable file, or Results
+    without rows or with a value that is not finite, is a PlotError)."""
     out = []
-    for run in runs:
-        if isinstance(run, Results):
-            out.append(run)
-            continue
+    for k, run in enumerate(run_list(runs)):
         try:
-            out.append(load_results(run))
+            if isinstance(run, Results):
+                check_rows(_name(run, k), run.data, run.columns)   # a file's were checked as it was read
+                out.append(run)
+            else:
+                out.append(load_results(run))
         except ResultsError as exc:
             raise PlotError(str(exc)) from None
     if not out:
@@ -270,13 +287,16 @@ def plot_results(runs: Sequence[RunLike], output: str | os.PathLike | None = Non
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
+    runs = run_list(runs)
     if output is not None:
         output = check_figure_path(output, "output", runs)
+    markers, joints, columns = (None if v is None else _names(n, v)
+                                for n, v in (("markers", markers), ("joints", joints), ("columns", columns)))
+    if title is not None and not isinstance(title, str):
+        raise ArgumentTypeError(f"title: a text (str), got {_shown(title)}")
+    if labels is not None:
+        labels = [labels] if isinstance(labels, str) else _texts("labels", labels)
     runs = load_runs(runs)
-    if isinstance(markers, str):
-        markers = [markers]
-    if isinstance(columns, str):
-        columns = [columns]
     if columns is not None and (markers is not None or joints is not None):
         raise PlotError("columns draw the chosen columns alone: give markers and joints as columns too "
                         "(e.g. 'muzzle.*', 'elevation.q')")
@@ -304,6 +324,17 @@ def plot_results(runs: Sequence[RunLike], output: str | os.PathLike | None = Non
     if output is not None:
         _write_figure(fig, output)
     return fig
+
+
+def _texts(name: str, value) -> list[str]:
+    """A list of texts (str), each of any content (a label may be empty)."""
+    if isinstance(value, (bytes, Mapping)) or not isinstance(value, Iterable):
+        raise ArgumentTypeError(f"{name}: a list of texts (str), got {_shown(value)}")
+    items = list(value)
+    for k, item in enumerate(items):
+        if not isinstance(item, str):
+            raise ArgumentTypeError(f"{name}[{k}]: a text (str), got {_shown(item)}")
+    return items
 
 
 def _run_styles(n: int) -> tuple[list[str], list[str], list[float]]:

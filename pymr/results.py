@@ -348,12 +348,7 @@ def checked(path: Path, columns: list[str], data: np.ndarray, stats: dict, meta:
     it has rows, every value is finite (a run writes none that is not) and its statistics
     (read from `where`) are whole: the fields pymr reads of their types, the column
     metadata one entry per column, and a complete run's row count the file's."""
-    if data.shape[0] == 0:
-        raise ResultsError(f"{path}: has no result rows")
-    if not np.isfinite(data).all():
-        row, col = np.argwhere(~np.isfinite(data))[0]
-        raise ResultsError(f"{path}: row {row + 1}, column {columns[col]}: {data[row, col]} is not a finite number "
-                           "(a run writes none: the file was changed)")
+    check_rows(path, data, columns)
     _check_stats(stats, columns, where)
     rows = stats.get("rows")
     if stats.get("status") == "complete" and rows is not None and rows != data.shape[0]:
@@ -362,6 +357,17 @@ def checked(path: Path, columns: list[str], data: np.ndarray, stats: dict, meta:
         raise ResultsError(f"{path}: {data.shape[0]} row{'s' if data.shape[0] != 1 else ''} of the {rows} the run "
                            f"wrote ({fault})")
     return Results(columns=columns, data=data, stats=stats, meta=meta, path=str(path))
+
+
+def check_rows(where, data: np.ndarray, columns: list[str]) -> None:
+    """Results' rows as a run writes them: at least one, every value finite (a ResultsError
+    naming `where`, the row and the column otherwise)."""
+    if data.shape[0] == 0:
+        raise ResultsError(f"{where}: has no result rows")
+    if not np.isfinite(data).all():
+        row, col = np.argwhere(~np.isfinite(data))[0]
+        raise ResultsError(f"{where}: row {row + 1}, column {columns[col]}: {data[row, col]} is not a finite number "
+                           "(a run writes none: the file was changed)")
 
 
 #: The statistics fields pymr reads, and what each must be (besides "columns":

@@ -15,6 +15,7 @@ import pytest
 
 import pymr
 import pymr.export
+import pymr.plot
 
 ROOT = Path(__file__).resolve().parent.parent
 PENDULUM = ROOT / "input" / "pendulum.nml"
@@ -476,3 +477,46 @@ def test_overrides_in_a_set_are_refused():
     """A set has no order, and the later of two overrides of one item wins."""
     with pytest.raises(pymr.ArgumentTypeError, match=r"^overrides: a mapping .* got set "):
         pymr.run(PENDULUM, overrides={"scene.t_end=0.05"})
+
+
+# ------------------------------------------------------------------ plot_results
+
+@pytest.mark.parametrize("kwargs, message", [
+    (dict(runs=None), r"^runs: a results file's path, a pymr.Results or a list of them, got NoneType None$"),
+    (dict(runs=["RUN", 5]), r"^runs\[1\]: a results file's path or a pymr.Results, got int 5$"),
+    (dict(markers=5), r"^markers: a name or a list of names \(str\), got int 5$"),
+    (dict(joints=5), r"^joints: a name or a list of names \(str\), got int 5$"),
+    (dict(columns=5), r"^columns: a name or a list of names \(str\), got int 5$"),
+    (dict(title=5), r"^title: a text \(str\), got int 5$"),
+    (dict(labels=[None]), r"^labels\[0\]: a text \(str\), got NoneType None$"),
+], ids=["runs_none", "runs_int", "markers_int", "joints_int", "columns_int", "title_int", "labels_none"])
+def test_plot_results_refuses_arguments_of_the_wrong_type(runs, kwargs, message):
+    """TypeErrors from inside plot (None, 5 where names go), or a figure drawn with a title or
+    a label of the wrong type."""
+    kwargs.setdefault("runs", [runs / "pend.csv"])
+    kwargs["runs"] = [runs / "pend.csv" if r == "RUN" else r for r in kwargs["runs"]] \
+        if isinstance(kwargs["runs"], list) else kwargs["runs"]
+    with pytest.raises(pymr.ArgumentTypeError, match=message):
+        pymr.plot.plot_results(**kwargs)
+
+
+def test_plot_results_takes_one_run_and_one_name_whole(runs):
+    """A str where a list of runs goes was read as its characters ('p: no such result file'),
+    and joints='pivot' as the joints 'p', 'i', ...: one str is one run, one name, one label."""
+    fig = pymr.plot.plot_results(str(runs / "pend.csv"), joints="pivot", markers="tip", labels="mine")
+    titles = [ax.get_title() for ax in fig.axes]
+    assert titles == ["tip.x", "tip.y", "tip.z", "tip.vx", "tip.vy", "tip.vz", "pivot.q"]
+    assert [t.get_text() for t in fig.legends[0].get_texts()] == ["mine"]
+
+
+@pytest.mark.parametrize("change, message", [
+    (lambda r: r.data.__setitem__((3, 1), np.nan), r"pend\.csv: row 4, column pivot\.q: nan is not a finite number"),
+    (lambda r: setattr(r, "data", r.data[:0]), r"pend\.csv: has no result rows$"),
+], ids=["nan", "empty"])
+def test_plot_results_refuses_results_without_rows_or_with_nan(runs, tmp_path, change, message):
+    """A NaN crashed matplotlib's axis limits (ValueError); no rows, numpy's max of nothing."""
+    res = pymr.load_results(runs / "pend.csv")
+    change(res)
+    with pytest.raises(pymr.plot.PlotError, match=message):
+        pymr.plot.plot_results([res], tmp_path / "p.png")
+    assert list(tmp_path.iterdir()) == []
