@@ -160,6 +160,14 @@ def _names(name: str, value) -> list[str]:
     return items
 
 
+def _real(name: str, value) -> float:
+    """A real number argument (int or float; not text, a bool or an array): the float, any
+    range (the caller judges it); an ArgumentTypeError naming `name` otherwise."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise ArgumentTypeError(f"{name}: a number, got {_shown(value)}")
+    return float(value)
+
+
 def _flag(name: str, value, none: bool = False) -> bool | None:
     """A True/False argument (or None where `none`)."""
     if value is None and none:

@@ -31,6 +31,9 @@ from pathlib import Path
 
 import numpy as np
 
+from ._args import _flag, _real, _shown
+from .api import _time
+from .errors import ArgumentTypeError
 from .geometry import BodyTrack, GeometryError, Motion, motion, scene_of
 from .outputs import check_output
 from .results import Results, load_results
@@ -261,14 +264,39 @@ def check_animation_path(output, option: str, res: Results, scene=None) -> Path:
     return out
 
 
+#: The fewest frames of an animation (one frame is a still: a .png output).
+LEAST_FRAMES = 2
+
+
+def check_drawing(view, exaggerate, frames, orbit) -> None:
+    """The drawing's options, each checked alone and named: `view` a text, `exaggerate`
+    None or a number above 0, `frames` a whole number of at least LEAST_FRAMES, `orbit` a
+    bool (a wrong type is an ArgumentTypeError; they were TypeErrors and AttributeErrors
+    from inside, and frames and exaggerate shared one message)."""
+    if not isinstance(view, str):
+        raise ArgumentTypeError(f"view: a named view or 'ELEV,AZIM' (str), got {_shown(view)}")
+    if exaggerate is not None and not 0 < _real("exaggerate", exaggerate) < np.inf:
+        raise AnimateError(f"exaggerate: a scale of the deflections, a finite number above 0, got {exaggerate!r}")
+    _whole("frames", frames, LEAST_FRAMES, " (one frame is a still: write a .png)")
+    _flag("orbit", orbit)
+
+
+def _whole(name: str, value, least: int, note: str = "") -> int:
+    """A whole number argument of at least `least`."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
+        raise ArgumentTypeError(f"{name}: a whole number, got {_shown(value)}")
+    if value < least:
+        raise AnimateError(f"{name}: at least {least}, got {value}{note}")
+    return int(value)
+
+
 def drawing(res: Results, scene=None, view: str = "iso", exaggerate: float | None = None, frames: int = 200,
             orbit: bool = False) -> Drawing:
     """The Drawing of at most `frames` evenly spaced output rows (exaggerate None: the default
     factor of the module's doc)."""
     import matplotlib
     matplotlib.use("Agg")
-    if frames < 2 or (exaggerate is not None and not 0 < exaggerate < np.inf):
-        raise AnimateError("frames (at least 2) and exaggerate (above 0) must be positive")
+    check_drawing(view, exaggerate, frames, orbit)
     source = scene_of(res, scene)
     up = vertical_axis(source)
     camera(view, up)                                     # a bad view is refused before any work
@@ -292,10 +320,10 @@ def animate(results: Results | str | os.PathLike, output: str | os.PathLike, sce
     # a writer matplotlib lacks (ffmpeg) is logged, then the Pillow fallback's error is ours
     logging.getLogger("matplotlib.animation").setLevel(logging.ERROR)
     res = results if isinstance(results, Results) else load_results(results)
-    if fps < 1:
-        raise AnimateError("fps (at least 1) must be positive")
-    if at is not None and not np.isfinite(at):
-        raise AnimateError(f"at {at!r}: a finite time in seconds")
+    check_drawing(view, exaggerate, frames, orbit)       # the options before any work
+    _whole("fps", fps, 1)
+    if at is not None:
+        _time(at, "at")
     out = check_animation_path(output, option, res, scene)
     d = drawing(res, scene, view=view, exaggerate=exaggerate, frames=frames, orbit=orbit)
     # written beside it under a temporary name (of the same suffix: the writers go by it),

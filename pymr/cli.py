@@ -199,15 +199,15 @@ class _Parser(argparse.ArgumentParser):
         raise SystemExit(1)
 
 
-def _count_of(what: str):
-    """An argparse type: a whole number, at least 1, of `what`."""
+def _count_of(what: str, least: int = 1):
+    """An argparse type: a whole number, at least `least`, of `what`."""
     def convert(text: str) -> int:
         try:
             value = int(text)
         except ValueError:
-            value = 0
-        if value < 1:
-            raise argparse.ArgumentTypeError(f"{text!r}: a whole number of {what}, at least 1")
+            value = least - 1
+        if value < least:
+            raise argparse.ArgumentTypeError(f"{text!r}: a whole number of {what}, at least {least}")
         return value
     return convert
 
@@ -354,6 +354,7 @@ def _add_modes(sub) -> None:
 
 def _add_animate(sub) -> None:
     """The `pymr animate` subcommand and its options."""
+    from .animate import LEAST_FRAMES
     an = sub.add_parser("animate", help="3-D animation of the moving mechanism from a run's results (GIF, video, "
                         "or a .png still)")
     an.add_argument("csv", help="results CSV (its JSON beside it names the scene)")
@@ -367,7 +368,8 @@ def _add_animate(sub) -> None:
                     "largest shows as 5%% of the mechanism's size, at least 1)")
     an.add_argument("--at", type=_seconds, default=None, help="a .png still's time (s; default: the last frame)")
     an.add_argument("--fps", type=_count_of("frames per second"), default=25, help="frames per second")
-    an.add_argument("--frames", type=_count_of("frames"), default=200, help="most frames (evenly spaced output rows)")
+    an.add_argument("--frames", type=_count_of("frames", LEAST_FRAMES), default=200,
+                    help=f"most frames (evenly spaced output rows; at least {LEAST_FRAMES})")
     an.set_defaults(func=_cmd_animate)
 
 

@@ -36,7 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._args import _raise, _text
+from ._args import _path, _raise, _real, _text
 from .api import Model, PymrError, _core
 from .results import Results, load_results
 
@@ -137,8 +137,12 @@ def scene_of(res: Results, scene=None):
     from .scene import Scene
     if isinstance(scene, Scene):
         return scene
-    if scene:
-        path = Path(scene)
+    if scene is not None:
+        # an empty name (an unset shell variable) is refused, not taken as left out
+        text = _path("scene", scene)
+        if not text:
+            raise GeometryError("scene: an empty file name (leave it out for the scene the results name)")
+        path = Path(text)
     elif res.stats.get("resolved_scene"):
         return _resolved_scene_file(res.stats["resolved_scene"])
     elif res.stats.get("scene"):
@@ -183,7 +187,7 @@ def motion(res: Results | str | os.PathLike, scene=None, exaggerate: float = 1.0
     """The mechanism's geometry at the results' output rows. every: take every k-th row;
     frames: at most this many rows, evenly spread (both optional)."""
     res = res if isinstance(res, Results) else load_results(res)
-    if not 0 <= float(exaggerate) < np.inf:
+    if not 0 <= _real("exaggerate", exaggerate) < np.inf:
         raise GeometryError(f"exaggerate: a finite number from 0, got {exaggerate!r}")
     rows = rows_of(len(res.t), every, frames)
     source = scene_of(res, scene)

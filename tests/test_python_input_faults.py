@@ -520,3 +520,53 @@ def test_plot_results_refuses_results_without_rows_or_with_nan(runs, tmp_path, c
     with pytest.raises(pymr.plot.PlotError, match=message):
         pymr.plot.plot_results([res], tmp_path / "p.png")
     assert list(tmp_path.iterdir()) == []
+
+
+# ------------------------------------------------------------------ animate and geometry
+
+@pytest.mark.parametrize("kwargs, error, message", [
+    (dict(exaggerate="2"), pymr.ArgumentTypeError, r"^exaggerate: a number, got str '2'$"),
+    (dict(fps="2"), pymr.ArgumentTypeError, r"^fps: a whole number, got str '2'$"),
+    (dict(frames="2"), pymr.ArgumentTypeError, r"^frames: a whole number, got str '2'$"),
+    (dict(at="1"), pymr.ArgumentTypeError, r"^at: a time in seconds, got '1'$"),
+    (dict(view=5), pymr.ArgumentTypeError, r"^view: a named view or 'ELEV,AZIM' \(str\), got int 5$"),
+    (dict(orbit="yes"), pymr.ArgumentTypeError, r"^orbit: True or False, got str 'yes'$"),
+    (dict(frames=1), pymr.PymrError, r"^frames: at least 2, got 1 \(one frame is a still: write a .png\)$"),
+    (dict(exaggerate=-1.0), pymr.PymrError, r"^exaggerate: a scale of the deflections, a finite number above 0, "
+                                            r"got -1.0$"),
+    (dict(scene=""), pymr.PymrError, r"^scene: an empty file name \(leave it out for the scene the results name\)$"),
+    (dict(scene=5), pymr.ArgumentTypeError, r"^scene: a file path \(str or os.PathLike\), got int 5$"),
+], ids=["exaggerate_str", "fps_str", "frames_str", "at_str", "view_int", "orbit_str", "frames_1", "exaggerate_neg",
+        "scene_empty", "scene_int"])
+def test_animate_names_each_bad_option(runs, tmp_path, kwargs, error, message):
+    """String numbers and wrong types were TypeErrors or AttributeErrors from inside; frames
+    and exaggerate shared one message; scene='' was taken as not given."""
+    from pymr.animate import animate
+    with pytest.raises(error, match=message):
+        animate(runs / "pend.csv", tmp_path / "a.png", **kwargs)
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("kwargs, error, message", [
+    (dict(exaggerate="big"), pymr.ArgumentTypeError, r"^exaggerate: a number, got str 'big'$"),
+    (dict(scene=5), pymr.ArgumentTypeError, r"^scene: a file path \(str or os.PathLike\), got int 5$"),
+    (dict(scene=""), pymr.PymrError, r"^scene: an empty file name"),
+], ids=["exaggerate_str", "scene_int", "scene_empty"])
+def test_motion_names_each_bad_argument(runs, kwargs, error, message):
+    from pymr.geometry import motion
+    with pytest.raises(error, match=message):
+        motion(runs / "pend.csv", **kwargs)
+
+
+@pytest.mark.parametrize("command", [["animate", "-o", "a.png"], ["view", "-o", "v.html"], ["export", "--vtk", "x"]])
+def test_an_empty_scene_option_is_refused(runs, tmp_path, command):
+    """pymr animate --scene '' drew with the results' own scene (exit 0)."""
+    name, *rest = command
+    refused(cli(name, runs / "pend.csv", "--scene", "", *rest, cwd=tmp_path), "scene: an empty file name")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_animate_frames_one_is_refused_by_the_command_line(runs, tmp_path):
+    """--frames 1 passed argparse and was refused later with frames' and exaggerate's one message."""
+    refused(cli("animate", runs / "pend.csv", "--frames", "1", "-o", tmp_path / "a.png"),
+            "animate: argument --frames: '1': a whole number of frames, at least 2")
