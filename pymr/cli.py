@@ -65,7 +65,7 @@ def _cmd_modal_import(args: argparse.Namespace) -> int:
     check_output(args.output, "modal data file", example="body.modal", if_left_out=None)
     modes = None if args.modes == "all" else _count("--modes", args.modes)
     body = modal_import(args.mass, args.stiffness, args.nodes, args.interface, args.output,
-                        dofs_per_node=None if args.dof_map else args.dofs_per_node, dof_map=args.dof_map,
+                        dofs_per_node=args.dofs_per_node, dof_map=args.dof_map,
                         modes=modes, keep=args.keep, clamp=args.clamp or (), mass_name=args.mass_name,
                         stiffness_name=args.stiffness_name, memory_limit=args.memory_limit,
                         progress=not args.quiet and sys.stderr.isatty())
@@ -296,7 +296,7 @@ def _add_modal_import(sub) -> None:
                     "(.inp, its *NODE blocks), Nastran bulk data (GRID cards) or an Ansys archive or result file "
                     "(.cdb, .rst)")
     lay = mi.add_mutually_exclusive_group()
-    lay.add_argument("--dofs-per-node", type=int, choices=[3, 6], default=6,
+    lay.add_argument("--dofs-per-node", type=int, choices=[3, 6], default=None,
                      help="rows node by node in the nodes file's order: 3 (u_x u_y u_z) or 6 (and theta_x theta_y "
                           "theta_z) (default 6)")
     lay.add_argument("--dof-map", help="file of lines 'row node dof' (dof 1-6: u_x u_y u_z theta_x theta_y theta_z)")

@@ -76,6 +76,10 @@ def read_matrix(path: str | os.PathLike, rows: tuple[int, str] | None = None, na
     gives, checked against unlabelled formats; `name`: the matrix in a Nastran file holding
     several; `role`: 'mass' or 'stiffness', the matrix an Ansys full file gives."""
     path = Path(path)
+    if name is not None and path.suffix.lower() not in OP4 + NASTRAN_BULK:
+        # it was ignored, and the file's one matrix read as if it were the one named
+        raise ImportInputError(f"{path}: a {role} matrix's name ({name!r}) picks one of the matrices of a Nastran "
+                               "file (DMIG, OP4); this file holds one matrix: leave the name out")
     if path.suffix.lower() == ".full":
         return read_full(path, role)
     if path.suffix.lower() in OP4:
@@ -152,7 +156,7 @@ def _size_line(path: Path, text: str, form: str, sym: str, rows):
             raise ImportInputError(f"{path}: line {k}: {nr} rows, but {rows[1]}")
         count = (nr * nc if sym == "general" else nr * (nr + 1) // 2) if form == "array" else dims[2]
         body = text[at:]
-        values = np.fromstring(body, sep=" ") if form == "coordinate" and "%" not in body else None
+        values = _numbers(body) if form == "coordinate" and "%" not in body else None
         if values is None or values.size != 3 * count:
             held = sum(1 for ln in body.splitlines() if ln.strip() and not ln.lstrip().startswith("%"))
             if held != count:
@@ -165,6 +169,16 @@ def _size_line(path: Path, text: str, form: str, sym: str, rows):
                                    f"({32 * (nr + 1) / 1e9:.3g} GB for the row pointers of its copies alone)")
         return nr, body, values
     raise ImportInputError(f"{path}: no size line")
+
+
+def _numbers(body: str) -> np.ndarray | None:
+    """The numbers of a Matrix Market body read fast, or None when it holds text that is not
+    a number (numpy 2 raises ValueError; the caller then reads it line by line, naming the
+    bad line)."""
+    try:
+        return np.fromstring(body, sep=" ")
+    except ValueError:
+        return None
 
 
 def _memory_bound() -> int:

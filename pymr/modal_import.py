@@ -50,7 +50,7 @@ class ModalBody:
 
 
 def modal_import(mass: str | os.PathLike, stiffness: str | os.PathLike, nodes: str | os.PathLike,
-                 interface, output: str | os.PathLike | None = None, *, dofs_per_node: int | None = 6,
+                 interface, output: str | os.PathLike | None = None, *, dofs_per_node: int | None = None,
                  dof_map: str | os.PathLike | None = None, modes: int | None = 10, keep: int | None = None,
                  clamp=(), title: str = "", mass_name: str | None = None, stiffness_name: str | None = None,
                  progress: bool = False, memory_limit: float | None = None) -> ModalBody:
@@ -58,8 +58,8 @@ def modal_import(mass: str | os.PathLike, stiffness: str | os.PathLike, nodes: s
     Abaqus matrix output, Nastran DMIG or OP4: :mod:`pymr.fe_formats`; `mass_name`,
     `stiffness_name` pick a matrix from a Nastran file holding several), `nodes` (CSV of id,
     x, y, z, an Abaqus .inp or Nastran GRID cards), the DOF layout of unlabelled formats
-    (`dofs_per_node` 3 or 6, rows node by node in the nodes file's order, or a `dof_map`
-    file of 'row node dof'), the `interface` node ids (the first is the body frame's origin,
+    (`dofs_per_node` 3 or 6, rows node by node in the nodes file's order, default 6; or a
+    `dof_map` file of 'row node dof', not with `dofs_per_node`), the `interface` node ids (the first is the body frame's origin,
     clamped to its joint; `clamp`: more nodes clamped with it, for meshes without
     rotations), `modes` fixed-interface modes (None: all) and the lowest `keep` modes of the
     reduced body written (None: all). `progress` draws bars on stderr for the factorisation
@@ -74,10 +74,20 @@ def modal_import(mass: str | os.PathLike, stiffness: str | os.PathLike, nodes: s
                                                                 ("nodes", nodes)))
     dof_map = None if dof_map is None else _file_argument("dof_map", dof_map)
     interface, clamp = _node_ids("interface", interface), _node_ids("clamp", clamp)
+    if dof_map is not None and dofs_per_node is not None:
+        raise ImportInputError(f"dofs_per_node={dofs_per_node!r} and dof_map: give one of them (the DOF map lays out "
+                               "the rows itself)")
+    if dof_map is None and dofs_per_node is None:
+        dofs_per_node = 6
     _counts(dofs_per_node, dof_map, modes, keep)
     limit = _memory_limit(memory_limit)
     if not isinstance(title, str) or "\n" in title or "\r" in title:
         raise ImportInputError(f"title={title!r}: one line of text expected (the file's first comment)")
+    for name, value in (("mass_name", mass_name), ("stiffness_name", stiffness_name)):
+        if value is not None and (not isinstance(value, str) or not value.strip()):
+            raise ImportInputError(f"{name}={value!r}: a matrix's name (str) expected, or None")
+    if not isinstance(progress, (bool, np.bool_)):
+        raise ImportInputError(f"progress={progress!r}: True or False expected")
     if output is not None:
         output = _file_argument("output", output)
         for what, path in (("mass matrix", mpath), ("stiffness matrix", kpath), ("nodes file", npath),
@@ -122,14 +132,15 @@ def attachment(ids, xyz, dof, interface, clamp, npath):
     other interface nodes, each checked."""
     index = {nid: n for n, nid in enumerate(ids)}
     if not interface:
-        raise ImportInputError("--interface: give at least the node where the body is attached")
+        raise ImportInputError("interface=[]: give at least the node where the body is attached")
     for nid in interface + clamp:
         if nid not in index:
             raise ImportInputError(f"{npath}: interface node {nid} is not in the mesh")
         if not (dof[index[nid]] >= 0).any():
             raise ImportInputError(f"{npath}: interface node {nid} has no DOF in the matrices")
-    if len(set(interface + clamp)) != len(interface + clamp):
-        raise ImportInputError("--interface/--clamp: a node is given twice")
+    twice = sorted({n for n in interface + clamp if (interface + clamp).count(n) > 1})
+    if twice:
+        raise ImportInputError(f"interface and clamp: node {twice[0]} is given twice")
     used = (dof >= 0).any(axis=1)             # nodes of the nodes file that the matrices leave out play no part
     ids = [nid for nid, u_ in zip(ids, used) if u_]
     return ids, xyz[used], dof[used], [interface[0]] + clamp, interface[1:]
@@ -166,13 +177,22 @@ def _node_ids(name: str, value) -> list[int]:
     raise ImportInputError(f"{name}={value!r}: node ids expected, whole numbers (a list such as [1, 21])")
 
 
+#: The smallest memory limit (GB) taken: one kilobyte. Below it no reduction fits, and the
+#: limit was most likely given in another unit (it is in GB: 8 for 8 GB).
+LEAST_MEMORY_GB = 1e-6
+
+
 def _memory_limit(value) -> int | None:
-    """`memory_limit` in GB (positive) as bytes, or None for what the machine has."""
+    """`memory_limit` in GB (positive, at least LEAST_MEMORY_GB) as bytes, or None for what
+    the machine has."""
     if value is None:
         return None
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
             or not np.isfinite(value) or value <= 0:
         raise ImportInputError(f"memory_limit={value!r}: a positive number of GB expected")
+    if value < LEAST_MEMORY_GB:
+        raise ImportInputError(f"memory_limit={value!r}: below {LEAST_MEMORY_GB:g} GB (one kilobyte), in which no "
+                               "reduction fits: the limit is in GB (8 for 8 GB)")
     return int(float(value) * 1e9)
 
 

@@ -570,3 +570,91 @@ def test_animate_frames_one_is_refused_by_the_command_line(runs, tmp_path):
     """--frames 1 passed argparse and was refused later with frames' and exaggerate's one message."""
     refused(cli("animate", runs / "pend.csv", "--frames", "1", "-o", tmp_path / "a.png"),
             "animate: argument --frames: '1': a whole number of frames, at least 2")
+
+
+# ------------------------------------------------------------------ modal-import
+
+@pytest.fixture(scope="module")
+def fe(tmp_path_factory):
+    """A small FE body: a chain of 5 nodes of 3 DOFs (springs between them, lumped masses),
+    as Matrix Market files and a nodes file."""
+    folder = tmp_path_factory.mktemp("fe")
+    n = 15
+    k = np.zeros((n, n))
+    for node in range(4):
+        for d in range(3):
+            i, j = 3 * node + d, 3 * node + 3 + d
+            k[i, i] += 1e6
+            k[j, j] += 1e6
+            k[i, j] -= 1e6
+            k[j, i] -= 1e6
+    for name, matrix in (("k.mtx", k), ("m.mtx", np.eye(n))):
+        rows = [f"{i + 1} {j + 1} {float(matrix[i, j])!r}" for j in range(n) for i in range(j, n)
+                if matrix[i, j] != 0]
+        (folder / name).write_text("%%MatrixMarket matrix coordinate real symmetric\n"
+                                   f"{n} {n} {len(rows)}\n" + "\n".join(rows) + "\n")
+    (folder / "nodes.csv").write_text("".join(f"{i + 1}, {0.5 * i}, 0, 0\n" for i in range(5)))
+    return folder
+
+
+def _import(fe, tmp_path, **kwargs):
+    from pymr.errors import ImportInputError  # noqa: F401
+    return pymr.modal_import(fe / "m.mtx", fe / "k.mtx", fe / "nodes.csv", kwargs.pop("interface", [1, 5]),
+                             tmp_path / "b.modal", dofs_per_node=kwargs.pop("dofs_per_node", 3), modes=2, **kwargs)
+
+
+def test_a_small_fe_body_imports(fe, tmp_path):
+    body = _import(fe, tmp_path)
+    assert len(body.frequencies_hz) == 5 and (tmp_path / "b.modal").exists()
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    (dict(mass_name="MAAX"), r"m\.mtx: a mass matrix's name \('MAAX'\) picks one of the matrices of a Nastran file "
+                             r"\(DMIG, OP4\); this file holds one matrix: leave the name out$"),
+    (dict(stiffness_name="KAAX"), r"k\.mtx: a stiffness matrix's name \('KAAX'\) picks one"),
+    (dict(mass_name=5), r"^mass_name=5: a matrix's name \(str\) expected, or None$"),
+    (dict(stiffness_name=b"K"), r"^stiffness_name=b'K': a matrix's name \(str\) expected, or None$"),
+    (dict(progress="no"), r"^progress='no': True or False expected$"),
+    (dict(memory_limit=1e-12), r"^memory_limit=1e-12: below 1e-06 GB \(one kilobyte\), in which no reduction fits: "
+                               r"the limit is in GB \(8 for 8 GB\)$"),
+    (dict(dofs_per_node=6, dof_map="map.txt"), r"^dofs_per_node=6 and dof_map: give one of them"),
+    (dict(interface=[]), r"^interface=\[\]: give at least the node where the body is attached$"),
+    (dict(interface=[1, 5], clamp=[5]), r"^interface and clamp: node 5 is given twice$"),
+], ids=["mass_name_mtx", "stiffness_name_mtx", "mass_name_int", "stiffness_name_bytes", "progress_str",
+        "memory_tiny", "dofs_and_map", "interface_empty", "twice"])
+def test_modal_import_refuses_arguments_that_do_not_apply(fe, tmp_path, kwargs, message):
+    """A matrix name with a Matrix Market file was ignored (the file's one matrix read as
+    the one named); mass_name=5 and progress='no' were taken; a memory limit of 1e-12 GB
+    passed (a small model never met it); dofs_per_node=6 with a dof_map was ignored; the
+    API's messages named the command line's options."""
+    from pymr.errors import ImportInputError
+    if "dof_map" in kwargs:
+        kwargs["dof_map"] = fe / kwargs["dof_map"]
+    with pytest.raises(ImportInputError, match=message):
+        _import(fe, tmp_path, **kwargs)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_pymr_modal_import_refuses_a_matrix_name_with_matrix_market(fe, tmp_path):
+    """It failed later, on the mode count, as if the name had picked a matrix."""
+    r = cli("modal-import", "--mass", fe / "m.mtx", "--stiffness", fe / "k.mtx", "--nodes", fe / "nodes.csv",
+            "--interface", "1", "5", "--dofs-per-node", "3", "--modes", "2", "--mass-name", "NOPE",
+            "-o", tmp_path / "b.modal")
+    refused(r, "m.mtx: a mass matrix's name ('NOPE') picks one of the matrices of a Nastran file")
+    r = cli("modal-import", "--mass", fe / "m.mtx", "--stiffness", fe / "k.mtx", "--nodes", fe / "nodes.csv",
+            "--interface", "1", "5", "--dofs-per-node", "3", "--modes", "2", "--memory-limit", "1e-12",
+            "-o", tmp_path / "b.modal")
+    refused(r, "memory_limit=1e-12: below 1e-06 GB")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_matrix_market_entry_that_is_not_a_number_is_named(fe, tmp_path):
+    """numpy 2's fromstring raised ValueError ('could not be read to its end due to unmatched
+    data') for an entry that is not a number: a traceback, where the line is now named."""
+    from pymr.errors import ImportInputError
+    lines = (fe / "k.mtx").read_text().splitlines()
+    lines[3] = lines[3].rsplit(" ", 1)[0] + " abc"
+    bad = tmp_path / "k.mtx"
+    bad.write_text("\n".join(lines) + "\n")
+    with pytest.raises(ImportInputError, match=r"k\.mtx: line 4: "):
+        pymr.modal_import(fe / "m.mtx", bad, fe / "nodes.csv", [1, 5], dofs_per_node=3, modes=2)
