@@ -142,6 +142,8 @@ def check_export_folder(folder, option: str = "--vtk") -> Path:
     if not isinstance(folder, (str, os.PathLike)) or os.fspath(folder) == "":
         raise OutputError(f"{option}: a folder's name expected for the export, got {folder!r}")
     text = os.fspath(folder).rstrip("/") or "/"
+    if "\0" in text:
+        raise OutputError(f"{option} {text!r}: a folder name cannot hold a NUL character")
     out = Path(text)
     if out.name in ("", ".", ".."):
         raise OutputError(f"{option} {text}: name a folder of its own for the export (it is replaced whole)")

@@ -160,6 +160,8 @@ def _file_argument(name: str, value) -> Path:
         path = None
     if path is None or os.fspath(value) == "":
         raise ImportInputError(f"{name}={value!r}: a file name (str or path) expected")
+    if "\0" in str(path):
+        raise ImportInputError(f"{name}={value!r}: a file name cannot hold a NUL character")
     return path
 
 

@@ -128,6 +128,10 @@ def _sweep_text(path: Path) -> str:
         raise SweepError(f"{path}: not found") from None
     except OSError as exc:
         raise SweepError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    except UnicodeDecodeError:               # not text: the caller says it is no TOML
+        raise
+    except ValueError:                       # a NUL in the name (Python's 'embedded null byte')
+        raise SweepError(f"{str(path)!r}: a file name cannot hold a NUL character") from None
 
 
 #: The sweep file's keys and the TOML type each must have.

@@ -658,3 +658,23 @@ def test_a_matrix_market_entry_that_is_not_a_number_is_named(fe, tmp_path):
     bad.write_text("\n".join(lines) + "\n")
     with pytest.raises(ImportInputError, match=r"k\.mtx: line 4: "):
         pymr.modal_import(fe / "m.mtx", bad, fe / "nodes.csv", [1, 5], dofs_per_node=3, modes=2)
+
+
+@pytest.mark.parametrize("call, message", [
+    (lambda fe, d: pymr.modal_import(str(fe / "m.mtx") + "\0", fe / "k.mtx", fe / "nodes.csv", [1, 5]),
+     r"^mass='.*m\.mtx\\x00': a file name cannot hold a NUL character$"),
+    (lambda fe, d: pymr.modal_import(fe / "m.mtx", fe / "k.mtx", fe / "nodes.csv", [1, 5], dof_map="a\0b"),
+     r"^dof_map='a\\x00b': a file name cannot hold a NUL character$"),
+    (lambda fe, d: pymr.export.export_vtk(d / "missing.csv", "v\0x"), r"missing.csv: no such result file$"),
+    (lambda fe, d: __import__("pymr.sweep").sweep.load_sweep("s\0.toml"),
+     r"^'s\\x00.toml': a file name cannot hold a NUL character$"),
+], ids=["modal_import_mass", "modal_import_dof_map", "export_results_first", "load_sweep"])
+def test_a_nul_in_the_other_functions_paths_is_refused(fe, tmp_path, call, message):
+    """modal_import, export_vtk and load_sweep gave Python's ValueError 'embedded null byte'."""
+    with pytest.raises(pymr.PymrError, match=message):
+        call(fe, tmp_path)
+
+
+def test_export_refuses_a_nul_in_its_folder(runs):
+    with pytest.raises(pymr.OutputError, match=r"^--vtk 'v\\x00x': a folder name cannot hold a NUL character$"):
+        pymr.export.export_vtk(runs / "pend.csv", "v\0x")
