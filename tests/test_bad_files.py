@@ -300,6 +300,11 @@ TABLE_CORRUPTIONS = [
     ("trailing_comma", TABLE.replace("0.5, 2.0", "0.5, 2.0,"),
      "line 3: a comma with no value beside it (an empty value): 0.5, 2.0,"),
     ("beyond_range", TABLE.replace("0.5, 2.0", "0.5, 1e308"), "line 3: the value 1e+308 is beyond +-{limit}"),
+    ("leading_comma", TABLE.replace("0.5, 2.0", ", 0.5 2.0"),
+     "line 3: a comma with no value beside it (an empty value): , 0.5 2.0"),
+    ("comma_alone", TABLE.replace("0.5, 2.0", ","), "line 3: a comma with no value beside it (an empty value): ,"),
+    ("subnormal", TABLE.replace("0.5, 2.0", "0.5, 1e-310"),
+     "line 3: the value 1e-310 is below the smallest normal number (2.22507e-308): give 0 or a larger magnitude"),
 ]
 
 

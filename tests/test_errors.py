@@ -230,6 +230,9 @@ CASES = [
     # a number below the smallest normal one (it made a spin-up's acceleration infinite)
     Case("subnormal_value", BASE, ("&body", "'bob'", "mass", "'4.9e-324' is below the smallest normal number"),
          sets=("body[bob].mass=4.9e-324",)),
+    # a repeat N*VALUE of text (a marker was named "'tip'" with its quotes)
+    Case("repeat_of_text", replaced("&marker name = 'tip'", "&marker name = 1*'tip'"),
+         ("&marker", "name", "cannot read 1*'tip' (a repeat N*VALUE is of numbers or logicals: give text once)")),
     # an item of another form of &motion (&load, &drive and &moving_load refused theirs)
     Case("motion_item_of_another_form", BASE.replace("gravity = .true.", "gravity = .true., base_motion = .true.")
          + "&motion joint = 'pivot', form = 'sine', amplitude = 0.1, frequency = 1.0, rate = 2.0 /\n",
@@ -511,6 +514,7 @@ def test_mrsim_solver_failure_exit_2(mrsim, tmp_path):
     line = error_line(r.stderr, "mrsim: error: ")
     assert "step size underflow" in line
     assert line.startswith("mrsim: error: underflow.nml: "), f"the scene file is not named: {line!r}"
+    assert line.count("underflow.nml") == 1, f"the scene file is named twice: {line!r}"
     check_single_line(r.stderr, "mrsim: error: ")
 
 

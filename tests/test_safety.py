@@ -104,6 +104,26 @@ def test_a_checkpoint_file_over_the_scene_or_the_results_is_refused(tmp_path, mr
     assert scene.read_bytes() == before and not (tmp_path / "s.csv").exists()
 
 
+def test_no_file_the_run_writes_through_replaces_an_input(tmp_path, mrsim):
+    """The run writes its results through OUT.partial, OUT.lock and staging files: a scene
+    named r.csv.partial was deleted by a successful run to r.csv, and a checkpoint_file
+    named r.csv.lock was lost. Both are refused; the scene stays."""
+    scene = tmp_path / "r.csv.partial"
+    scene.write_text(PENDULUM)
+    before = scene.read_bytes()
+    r = run_mrsim(mrsim, ["r.csv.partial", "-o", "r.csv"], tmp_path)
+    assert r.returncode == 1 and r.stderr.strip() == (
+        "mrsim: error: r.csv.partial: output r.csv: the run's file r.csv.partial would overwrite the scene "
+        "(r.csv.partial); choose another results file"), r.stderr
+    assert scene.read_bytes() == before
+    (tmp_path / "s.nml").write_text(PENDULUM)
+    r = run_mrsim(mrsim, ["s.nml", "-o", "r.csv", "--set", "output.checkpoint_dt=1", "--set",
+                          "output.checkpoint_file=r.csv.lock"], tmp_path)
+    assert r.returncode == 1 and r.stderr.strip().endswith(
+        "&output: checkpoint_file: would overwrite the run's file r.csv.lock; choose another checkpoint file"), r.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["r.csv.partial", "s.nml"]
+
+
 def run_mrsim(mrsim, args, cwd):
     return subprocess.run([mrsim, *args], cwd=cwd, capture_output=True, text=True, timeout=300)
 

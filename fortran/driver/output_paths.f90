@@ -11,6 +11,8 @@ module pymr_driver_output_paths
   implicit none
   private
   public :: default_output, check_output_path, scene_input, checkpoint_default
+  !> Longest path of a file the run writes.
+  integer, parameter :: path_len = 4096
 
 contains
 
@@ -41,6 +43,8 @@ contains
     character(len=*), intent(in) :: path
     type(error_type), allocatable, intent(out) :: error
     character(len=:), allocatable :: what
+    character(len=path_len), allocatable :: files(:)
+    integer :: k
     if (wrong_extension(sc, path, error)) return
     if (absolute_path(json_path(path)) == absolute_path(path)) then
       call fatal_error(error, sc%file // ': output ' // path // ': the results and their statistics would both ' // &
@@ -72,9 +76,15 @@ contains
       call fatal_error(error, sc%file // ': output ' // path // ': would overwrite ' // what // &
         & '; choose another results file'); return
     end if
-    what = scene_input(sc, json_path(path))
-    if (len(what) > 0) call fatal_error(error, sc%file // ': output ' // path // ': its statistics ' // &
-      & json_path(path) // ' would overwrite ' // what // '; choose another results file')
+    files = results_files(path)
+    if (sc%output%checkpoint_dt > 0.0_dp .and. len_trim(sc%output%checkpoint_file) == 0) &
+      & files = [character(len=path_len) :: files, checkpoint_default(path), checkpoint_default(path) // '.tmp']
+    do k = 2, size(files)
+      what = scene_input(sc, trim(files(k)))
+      if (len(what) == 0) cycle
+      call fatal_error(error, sc%file // ': output ' // path // ': the run''s file ' // trim(files(k)) // &
+        & ' would overwrite ' // what // '; choose another results file'); return
+    end do
   contains
     !> Is `file` there and no regular file, that the run's file would replace? `label` names
     !> it in the message (after the scene's name unless it is an item's place), `advice` what to choose.
@@ -94,9 +104,22 @@ contains
     logical function collides(file, label)
       character(len=*), intent(in) :: file, label
       character(len=:), allocatable :: what
+      character(len=path_len) :: mine(2)
+      integer :: i, j
       what = scene_input(sc, file)
-      if (len(what) == 0 .and. same_file(file, path)) what = 'the results (' // path // ')'
-      if (len(what) == 0 .and. same_file(file, json_path(path))) what = 'their statistics (' // json_path(path) // ')'
+      if (len(what) == 0) what = scene_input(sc, file // '.tmp')
+      files = results_files(path)
+      mine = [character(len=path_len) :: file, file // '.tmp']
+      do i = 1, size(files)
+        do j = 1, 2
+          if (len(what) > 0 .or. .not. same_file(trim(mine(j)), trim(files(i)))) cycle
+          select case (i)
+          case (1); what = 'the results (' // trim(files(i)) // ')'
+          case (2); what = 'their statistics (' // trim(files(i)) // ')'
+          case default; what = 'the run''s file ' // trim(files(i))
+          end select
+        end do
+      end do
       collides = len(what) > 0
       if (collides) call fatal_error(error, label // ': would overwrite ' // what // '; choose another checkpoint file')
     end function collides
@@ -118,6 +141,15 @@ contains
       end if
     end function no_folder
   end subroutine check_output_path
+
+  !> The files a run to `path` writes: the results, their statistics, and the files it
+  !> writes them through (the partial results and statistics, their staging files, the lock).
+  function results_files(path) result(files)
+    character(len=*), intent(in) :: path
+    character(len=path_len), allocatable :: files(:)
+    files = [character(len=path_len) :: path, json_path(path), path // '.partial', path // '.partial.tmp', &
+      & path // '.tmp', path // '.lock', json_path(path) // '.tmp', json_path(path) // '.partial']
+  end function results_files
 
   !> Does the results file's extension contradict &output format (a .h5 or .hdf5 file is
   !> HDF5, any other text)? Then the error says what to change.

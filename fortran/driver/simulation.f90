@@ -459,7 +459,7 @@ contains
     end if
     if (allocated(error)) then
       call self%out%close()
-      error%message = self%file // ': ' // error%message
+      call self%name_file(error)
       call write_json(json_path(self%path) // '.partial', self%file, self%sc%scene%title, self%scene_id, &
         & settings_json(self%sc), self%model%d, self%model%wk, self%stats, 'failed', error%message, self%st%time(), json_error, &
         & self%overrides, self%scene_text, self%out%plan)

@@ -263,6 +263,10 @@ contains
           & .or. star == len(values(k)%text)) then
           call fatal_error(error, 'cannot read ''' // values(k)%text // ''' (a repeat is N*VALUE)'); return
         end if
+        if (scan(values(k)%text(star+1:star+1), '''"') > 0) then
+          call fatal_error(error, 'cannot read ' // values(k)%text // ' (a repeat N*VALUE is of numbers or ' // &
+            & 'logicals: give text once)'); return
+        end if
       end if
       total = total + max(reps(k), 1)
     end do

@@ -53,11 +53,13 @@ contains
     do while (next_text_line(text, pos, ln))
       line = line + 1
       call split_words(ln, wa, wb, nw)
-      if (nw == 0) cycle
-      if (ln(wa(1):wa(1)) == '#') cycle
-      if (count([(ln(k:k) == ',', k = 1, len(ln))]) > nw - 1) then
+      if (nw > 0) then
+        if (ln(wa(1):wa(1)) == '#') cycle
+      end if
+      if (empty_value(ln, wa, wb, nw)) then
         call fail('a comma with no value beside it (an empty value): ' // trim(adjustl(ln))); return
       end if
+      if (nw == 0) cycle
       ln = ln(wa(1):wb(nw))
       if (nw /= 2) then
         call fail('expected two finite numbers (' // cols // '), got ' // itoa(nw) // ': ' // ln); return
@@ -66,6 +68,10 @@ contains
         call number_text(ln(wa(k) - wa(1) + 1:wb(k) - wa(1) + 1), row(k), ok)
         if (.not. ok .or. row(k) /= row(k) .or. abs(row(k)) > huge(1.0_dp)) then
           call fail('expected two finite numbers (' // cols // '), got: ' // ln); return
+        end if
+        if (row(k) /= 0.0_dp .and. abs(row(k)) < tiny(row(k))) then
+          call fail('the ' // column_name(k) // ' ' // ln(wa(k) - wa(1) + 1:wb(k) - wa(1) + 1) // ' is below the ' // &
+            & 'smallest normal number (' // fmt(tiny(row(k))) // '): give 0 or a larger magnitude'); return
         end if
         if (abs(row(k)) > limits(k)) then
           call fail('the ' // column_name(k) // ' ' // fmt(row(k)) // ' is beyond +-' // fmt(limits(k))); return
@@ -89,6 +95,21 @@ contains
     end if
     t = tt(1:n); y = yy(1:n)
   contains
+    !> Is a comma of line `ln` (words wa(k):wb(k), k = 1..nw) not between two values: before
+    !> the first, after the last, or a second one between two?
+    logical function empty_value(ln, wa, wb, nw)
+      character(len=*), intent(in) :: ln
+      integer, intent(in) :: wa(:), wb(:), nw
+      integer :: k, j
+      if (nw == 0) then
+        empty_value = index(ln, ',') > 0; return
+      end if
+      empty_value = index(ln(1:wa(1) - 1), ',') > 0 .or. index(ln(wb(nw) + 1:), ',') > 0
+      do k = 1, nw - 1
+        empty_value = empty_value .or. count([(ln(j:j) == ',', j = wb(k) + 1, wa(k + 1) - 1)]) > 1
+      end do
+    end function empty_value
+
     function column_name(k) result(c)
       integer, intent(in) :: k
       character(len=:), allocatable :: c

@@ -254,9 +254,12 @@ contains
         call errs%add(s%origin%where('h_max') // ': below the smallest adaptive step h_min = ' // fmt(h_lo) // ' s' // default // &
           & ' (got ' // fmt(s%h_max) // ' s): no step would be allowed'); return
       end if
-      if (h_lo >= t_end) then
-        call errs%add(s%origin%where('h_min') // ': the smallest adaptive step (' // fmt(h_lo) // ' s) must be below t_end = ' // &
-          & fmt(t_end) // ' s'); return
+      if (h_lo >= t_end .and. len(default) > 0) then
+        call errs%add(sc%scene%origin%where('t_end') // ': shorter than the smallest adaptive step (' // fmt(h_lo) // &
+          & ' s, h_min''s default), got ' // fmt(t_end) // ' s'); return
+      else if (h_lo >= t_end) then
+        call errs%add(s%origin%where('h_min') // ': the smallest adaptive step (' // fmt(h_lo) // &
+          & ' s) must be below t_end = ' // fmt(t_end) // ' s'); return
       end if
       if (s%h_max > 0.0_dp) call check_step_count(sc, errs, 'h_max', s%h_max, ' steps of at most ')
     end associate
