@@ -174,6 +174,8 @@ def _many_states(t, q, qd) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         raise SceneError(f"q: no states (shape {q.shape}): give at least one, of shape (n,) or (m, n)")
     q2 = np.asfortranarray(np.atleast_2d(q).T)
     qd2 = np.asfortranarray(np.atleast_2d(qd).T)
+    if t is None:                  # numpy makes None a NaN: 'nan is not a finite time' named no fault
+        raise ArgumentTypeError("t: a time or an array of times (s), got None")
     t1 = np.atleast_1d(_array("t", t))
     if t1.shape != (q2.shape[1],):
         raise SceneError(f"t: one time per state expected, shape ({q2.shape[1]},), got shape {t1.shape}")
