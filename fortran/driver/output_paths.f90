@@ -36,41 +36,58 @@ contains
     end if
   end function default_output
 
-  !> The output must not overwrite what the run reads (the scene, its modal and table files)
-  !> nor collide with its own statistics file.
+  !> The output must not overwrite what the run reads (the scene, its modal and table files),
+  !> nor collide with its own statistics or checkpoint, nor be written where no folder is.
   subroutine check_output_path(sc, path, error)
     type(scene_t), intent(in) :: sc
     character(len=*), intent(in) :: path
     type(error_type), allocatable, intent(out) :: error
-    character(len=:), allocatable :: what
-    character(len=path_len), allocatable :: files(:)
-    integer :: k
     if (wrong_extension(sc, path, error)) return
     if (absolute_path(json_path(path)) == absolute_path(path)) then
       call fatal_error(error, sc%file // ': output ' // path // ': the results and their statistics would both ' // &
         & 'be ' // json_path(path) // ' (give a .csv file)'); return
     end if
     ! the run writes each file whole beside it and renames it over the old one
-    if (replaces(path, 'output ' // path, 'another results file')) return
+    if (replaces(sc, path, 'output ' // path, 'another results file', error)) return
     if (len_trim(sc%output%file) > 0 .and. path == trim(sc%output%file)) then
-      if (no_folder(path, sc%output%origin%where('file'), 'a file')) return
+      if (no_folder(path, sc%output%origin%where('file'), 'a file', error)) return
     else
-      if (no_folder(path, sc%file // ': output ' // path, 'an output')) return
+      if (no_folder(path, sc%file // ': output ' // path, 'an output', error)) return
     end if
-    if (replaces(json_path(path), 'output ' // path // ': its statistics ' // json_path(path), &
-      & 'another results file')) return
-    if (sc%output%checkpoint_dt > 0.0_dp) then
-      if (len_trim(sc%output%checkpoint_file) > 0) then
-        if (replaces(trim(sc%output%checkpoint_file), sc%output%origin%where('checkpoint_file'), &
-          & 'another checkpoint file')) return
-        if (no_folder(trim(sc%output%checkpoint_file), sc%output%origin%where('checkpoint_file'), &
-          & 'a checkpoint_file')) return
-        if (collides(trim(sc%output%checkpoint_file), sc%output%origin%where('checkpoint_file'))) return
-      else
-        if (replaces(checkpoint_default(path), 'output ' // path // ': its checkpoint ' // checkpoint_default(path), &
-          & 'another results file, or a checkpoint_file in &output')) return
-      end if
+    if (replaces(sc, json_path(path), 'output ' // path // ': its statistics ' // json_path(path), &
+      & 'another results file', error)) return
+    call check_checkpoint_path(sc, path, error); if (allocated(error)) return
+    call check_inputs_kept(sc, path, error)
+  end subroutine check_output_path
+
+  !> The checkpoint file (&output checkpoint_file, else beside the results) of a run that
+  !> writes checkpoints: a regular file or none, in a folder, over no input nor the run's files.
+  subroutine check_checkpoint_path(sc, path, error)
+    type(scene_t), intent(in) :: sc
+    character(len=*), intent(in) :: path
+    type(error_type), allocatable, intent(out) :: error
+    character(len=:), allocatable :: file, label
+    if (sc%output%checkpoint_dt <= 0.0_dp) return
+    if (len_trim(sc%output%checkpoint_file) == 0) then
+      if (replaces(sc, checkpoint_default(path), 'output ' // path // ': its checkpoint ' // checkpoint_default(path), &
+        & 'another results file, or a checkpoint_file in &output', error)) return
+      return
     end if
+    file = trim(sc%output%checkpoint_file); label = sc%output%origin%where('checkpoint_file')
+    if (replaces(sc, file, label, 'another checkpoint file', error)) return
+    if (no_folder(file, label, 'a checkpoint_file', error)) return
+    if (collides(sc, path, file, label, error)) return
+  end subroutine check_checkpoint_path
+
+  !> Neither the results nor any file the run writes through (results_files, and the default
+  !> checkpoint's) may be a file the scene reads.
+  subroutine check_inputs_kept(sc, path, error)
+    type(scene_t), intent(in) :: sc
+    character(len=*), intent(in) :: path
+    type(error_type), allocatable, intent(out) :: error
+    character(len=:), allocatable :: what
+    character(len=path_len), allocatable :: files(:)
+    integer :: k
     what = scene_input(sc, path)
     if (len(what) > 0) then
       call fatal_error(error, sc%file // ': output ' // path // ': would overwrite ' // what // &
@@ -85,62 +102,68 @@ contains
       call fatal_error(error, sc%file // ': output ' // path // ': the run''s file ' // trim(files(k)) // &
         & ' would overwrite ' // what // '; choose another results file'); return
     end do
-  contains
-    !> Is `file` there and no regular file, that the run's file would replace? `label` names
-    !> it in the message (after the scene's name unless it is an item's place), `advice` what to choose.
-    logical function replaces(file, label, advice)
-      character(len=*), intent(in) :: file, label, advice
-      replaces = len(not_regular(file)) > 0
-      if (.not. replaces) return
-      if (index(label, sc%file) == 1) then
-        call fatal_error(error, label // ': ' // not_regular(file) // '; choose ' // advice)
-      else
-        call fatal_error(error, sc%file // ': ' // label // ': ' // not_regular(file) // '; choose ' // advice)
-      end if
-    end function replaces
+  end subroutine check_inputs_kept
 
-    !> Would the checkpoint `file` replace what the run reads or its own results? `label`
-    !> is the item's place.
-    logical function collides(file, label)
-      character(len=*), intent(in) :: file, label
-      character(len=:), allocatable :: what
-      character(len=path_len) :: mine(2)
-      integer :: i, j
-      what = scene_input(sc, file)
-      if (len(what) == 0) what = scene_input(sc, file // '.tmp')
-      files = results_files(path)
-      mine = [character(len=path_len) :: file, file // '.tmp']
-      do i = 1, size(files)
-        do j = 1, 2
-          if (len(what) > 0 .or. .not. same_file(trim(mine(j)), trim(files(i)))) cycle
-          select case (i)
-          case (1); what = 'the results (' // trim(files(i)) // ')'
-          case (2); what = 'their statistics (' // trim(files(i)) // ')'
-          case default; what = 'the run''s file ' // trim(files(i))
-          end select
-        end do
+  !> Is `file` there and no regular file, that the run's file would replace? `label` names
+  !> it in the message (after the scene's name unless it is an item's place), `advice` what to choose.
+  logical function replaces(sc, file, label, advice, error)
+    type(scene_t), intent(in) :: sc
+    character(len=*), intent(in) :: file, label, advice
+    type(error_type), allocatable, intent(inout) :: error
+    replaces = len(not_regular(file)) > 0
+    if (.not. replaces) return
+    if (index(label, sc%file) == 1) then
+      call fatal_error(error, label // ': ' // not_regular(file) // '; choose ' // advice)
+    else
+      call fatal_error(error, sc%file // ': ' // label // ': ' // not_regular(file) // '; choose ' // advice)
+    end if
+  end function replaces
+
+  !> Would the checkpoint `file` (or its staging file) replace what the run reads, or a file
+  !> the run to `path` writes? `label` is the item's place.
+  logical function collides(sc, path, file, label, error)
+    type(scene_t), intent(in) :: sc
+    character(len=*), intent(in) :: path, file, label
+    type(error_type), allocatable, intent(inout) :: error
+    character(len=:), allocatable :: what
+    character(len=path_len), allocatable :: files(:)
+    character(len=path_len) :: mine(2)
+    integer :: i, j
+    what = scene_input(sc, file)
+    if (len(what) == 0) what = scene_input(sc, file // '.tmp')
+    files = results_files(path)
+    mine = [character(len=path_len) :: file, file // '.tmp']
+    do i = 1, size(files)
+      do j = 1, 2
+        if (len(what) > 0 .or. .not. same_file(trim(mine(j)), trim(files(i)))) cycle
+        select case (i)
+        case (1); what = 'the results (' // trim(files(i)) // ')'
+        case (2); what = 'their statistics (' // trim(files(i)) // ')'
+        case default; what = 'the run''s file ' // trim(files(i))
+        end select
       end do
-      collides = len(what) > 0
-      if (collides) call fatal_error(error, label // ': would overwrite ' // what // '; choose another checkpoint file')
-    end function collides
+    end do
+    collides = len(what) > 0
+    if (collides) call fatal_error(error, label // ': would overwrite ' // what // '; choose another checkpoint file')
+  end function collides
 
-    !> Is the folder that `file` would be written in missing? Found before the run starts;
-    !> `choice` names what to choose instead ('a checkpoint_file').
-    logical function no_folder(file, label, choice)
-      character(len=*), intent(in) :: file, label, choice
-      logical :: there
-      no_folder = len(missing_folder(file)) > 0
-      if (.not. no_folder) return
-      inquire(file=missing_folder(file), exist=there)
-      if (there) then
-        call fatal_error(error, label // ": '" // missing_folder(file) // "' is not a folder (choose " // choice // &
-          & ' in a folder)')
-      else
-        call fatal_error(error, label // ": the folder '" // missing_folder(file) // "' does not exist (make it, " // &
-          & 'or choose ' // choice // ' in a folder that does)')
-      end if
-    end function no_folder
-  end subroutine check_output_path
+  !> Is the folder that `file` would be written in missing? Found before the run starts;
+  !> `choice` names what to choose instead ('a checkpoint_file').
+  logical function no_folder(file, label, choice, error)
+    character(len=*), intent(in) :: file, label, choice
+    type(error_type), allocatable, intent(inout) :: error
+    logical :: there
+    no_folder = len(missing_folder(file)) > 0
+    if (.not. no_folder) return
+    inquire(file=missing_folder(file), exist=there)
+    if (there) then
+      call fatal_error(error, label // ": '" // missing_folder(file) // "' is not a folder (choose " // choice // &
+        & ' in a folder)')
+    else
+      call fatal_error(error, label // ": the folder '" // missing_folder(file) // "' does not exist (make it, " // &
+        & 'or choose ' // choice // ' in a folder that does)')
+    end if
+  end function no_folder
 
   !> The files a run to `path` writes: the results, their statistics, and the files it
   !> writes them through (the partial results and statistics, their staging files, the lock).

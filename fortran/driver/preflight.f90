@@ -76,8 +76,7 @@ contains
     !> Length of the run (s): a step is refused when the linearised growth over the whole
     !> run would exceed `run_growth`.
     real(dp), intent(in) :: t_end
-    !> The &integrator group's origin: messages name its item and line.
-    type(origin_t), intent(in) :: o
+    type(origin_t), intent(in) :: o       ! &integrator's: messages name its item and line
     type(error_type), allocatable, intent(out) :: error
     integer :: n, i, dom, worst
     real(dp), allocatable :: m(:, :), minv(:, :), k(:, :), c(:, :), a(:, :), ev(:, :), wr(:), wi(:), vr(:, :), wgt(:)

@@ -27,10 +27,10 @@ contains
     type(error_type), allocatable, intent(out) :: error
     integer :: pos, line, n, nw, k
     integer, allocatable :: wa(:), wb(:)
-    character(len=:), allocatable :: text, ln
+    character(len=:), allocatable :: text, ln, why
     real(dp) :: row(2)
     real(dp), allocatable :: tt(:), yy(:)
-    logical :: exists, ok
+    logical :: exists
     character(len=:), allocatable :: cols, first, first_symbol
     cols = 'time, value'
     if (present(columns)) cols = columns
@@ -65,16 +65,10 @@ contains
         call fail('expected two finite numbers (' // cols // '), got ' // itoa(nw) // ': ' // ln); return
       end if
       do k = 1, 2
-        call number_text(ln(wa(k) - wa(1) + 1:wb(k) - wa(1) + 1), row(k), ok)
-        if (.not. ok .or. row(k) /= row(k) .or. abs(row(k)) > huge(1.0_dp)) then
-          call fail('expected two finite numbers (' // cols // '), got: ' // ln); return
-        end if
-        if (row(k) /= 0.0_dp .and. abs(row(k)) < tiny(row(k))) then
-          call fail('the ' // column_name(k) // ' ' // ln(wa(k) - wa(1) + 1:wb(k) - wa(1) + 1) // ' is below the ' // &
-            & 'smallest normal number (' // fmt(tiny(row(k))) // '): give 0 or a larger magnitude'); return
-        end if
-        if (abs(row(k)) > limits(k)) then
-          call fail('the ' // column_name(k) // ' ' // fmt(row(k)) // ' is beyond +-' // fmt(limits(k))); return
+        why = value_fault(ln(wa(k) - wa(1) + 1:wb(k) - wa(1) + 1), column_name(cols, k), limits(k), row(k))
+        if (why == 'not a number') why = 'expected two finite numbers (' // cols // '), got: ' // ln
+        if (len(why) > 0) then
+          call fail(why); return
         end if
       end do
       if (n > 0) then
@@ -95,34 +89,57 @@ contains
     end if
     t = tt(1:n); y = yy(1:n)
   contains
-    !> Is a comma of line `ln` (words wa(k):wb(k), k = 1..nw) not between two values: before
-    !> the first, after the last, or a second one between two?
-    logical function empty_value(ln, wa, wb, nw)
-      character(len=*), intent(in) :: ln
-      integer, intent(in) :: wa(:), wb(:), nw
-      integer :: k, j
-      if (nw == 0) then
-        empty_value = index(ln, ',') > 0; return
-      end if
-      empty_value = index(ln(1:wa(1) - 1), ',') > 0 .or. index(ln(wb(nw) + 1:), ',') > 0
-      do k = 1, nw - 1
-        empty_value = empty_value .or. count([(ln(j:j) == ',', j = wb(k) + 1, wa(k + 1) - 1)]) > 1
-      end do
-    end function empty_value
-
-    function column_name(k) result(c)
-      integer, intent(in) :: k
-      character(len=:), allocatable :: c
-      if (k == 1) then
-        c = cols(1:index(cols, ',') - 1)
-      else
-        c = trim(adjustl(cols(index(cols, ',') + 1:)))
-      end if
-    end function column_name
 
     subroutine fail(why)
       character(len=*), intent(in) :: why
       call fatal_error(error, what // ": '" // path // "' line " // itoa(line) // ': ' // why)
     end subroutine fail
   end subroutine read_time_table
+
+  !> Is a comma of line `ln` (words wa(k):wb(k), k = 1..nw) not between two values: before
+  !> the first, after the last, or a second one between two?
+  pure logical function empty_value(ln, wa, wb, nw)
+    character(len=*), intent(in) :: ln
+    integer, intent(in) :: wa(:), wb(:), nw
+    integer :: k, j
+    if (nw == 0) then
+      empty_value = index(ln, ',') > 0; return
+    end if
+    empty_value = index(ln(1:wa(1) - 1), ',') > 0 .or. index(ln(wb(nw) + 1:), ',') > 0
+    do k = 1, nw - 1
+      empty_value = empty_value .or. count([(ln(j:j) == ',', j = wb(k) + 1, wa(k + 1) - 1)]) > 1
+    end do
+  end function empty_value
+
+  !> The value of `word`, in column `name` of at most `limit` in magnitude: '' and x if it
+  !> is one, else what is wrong ('not a number' for no finite number).
+  function value_fault(word, name, limit, x) result(why)
+    character(len=*), intent(in) :: word, name
+    real(dp), intent(in) :: limit
+    real(dp), intent(out) :: x
+    character(len=:), allocatable :: why
+    logical :: ok
+    why = ''
+    call number_text(word, x, ok)
+    if (.not. ok .or. x /= x .or. abs(x) > huge(1.0_dp)) then
+      why = 'not a number'
+    else if (x /= 0.0_dp .and. abs(x) < tiny(x)) then
+      why = 'the ' // name // ' ' // word // ' is below the smallest normal number (' // fmt(tiny(x)) // &
+        & '): give 0 or a larger magnitude'
+    else if (abs(x) > limit) then
+      why = 'the ' // name // ' ' // fmt(x) // ' is beyond +-' // fmt(limit)
+    end if
+  end function value_fault
+
+  !> Column k's name in `cols` ('time, value').
+  pure function column_name(cols, k) result(c)
+    character(len=*), intent(in) :: cols
+    integer, intent(in) :: k
+    character(len=:), allocatable :: c
+    if (k == 1) then
+      c = cols(1:index(cols, ',') - 1)
+    else
+      c = trim(adjustl(cols(index(cols, ',') + 1:)))
+    end if
+  end function column_name
 end module pymr_io_table_file
