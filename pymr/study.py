@@ -191,6 +191,20 @@ class Study:
         self.weight_ratio: dict[str, int] = {}
         self.c_full = math.nan
         self.ref_check = math.nan
+        self._check_multirate()
+
+    def _check_multirate(self) -> None:
+        """A study runs multirate cases: a scene the kernel refuses them for (no modal or no
+        joint coordinates) is refused at once, before the reference runs, in the kernel's
+        words (one step of fixed multirate steps)."""
+        try:
+            self._pymr({"integrator.method": "multirate", "integrator.coupling": "response", "integrator.adaptive": False,
+                        "integrator.h_slow": self.h0, "integrator.h_fast": self.h0, "scene.t_end": self.h0,
+                        "integrator.stability_check": False, "output.dt": self.h0})
+        except SceneError as exc:
+            reason = str(exc).split("method: ", 1)[-1]
+            raise SceneError(f"{self.scene.path}: pymr study compares single-rate and multirate methods, and this "
+                             f"scene takes no multirate run ({reason})") from None
 
     def _t_end(self) -> float:
         return float(self.scene["scene.t_end"])

@@ -309,3 +309,15 @@ def test_order_summary_compares_evaluations_and_cpu():
     assert r5["fixed"].setting == "h=2e-4" and r5["cpu_ratio"] == pytest.approx(0.004 / 0.017)
     assert r8["adams"] is None and math.isnan(r8["evals_ratio"]) and math.isnan(r8["cpu_ratio"])
     assert "= 0.80" in s.order_text((1e-5,))
+
+
+def test_a_scene_without_modal_coordinates_is_refused_before_the_reference(tmp_path):
+    """The pendulum has no modal coordinates, so the study's multirate cases cannot run: it
+    is refused at once in the kernel's words (it failed after the reference runs, with a
+    message about a method = 'multirate' the user never gave)."""
+    said = []
+    with pytest.raises(pymr.SceneError, match=r"pendulum\.nml: pymr study compares single-rate and multirate "
+                                               r"methods, and this scene takes no multirate run \('multirate' needs "
+                                               r"slow \(joint\) and fast \(modal\) coordinates; this scene has 1 and 0"):
+        Study(TANK.parent / "pendulum.nml", quick=True, progress=said.append)
+    assert said == []
