@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import os
 import subprocess
+import tempfile
 import sys
 from pathlib import Path
 
@@ -23,8 +24,9 @@ PENDULUM = ROOT / "input" / "pendulum.nml"
 
 def cli(*args, cwd=None, timeout=120):
     """`pymr ARGS` in a fresh process (the timeout only keeps a hang from stalling the suite)."""
+    # outside the checkout by default: there `python -m pymr` would find the source folder
     return subprocess.run([sys.executable, "-m", "pymr", *map(str, args)], capture_output=True, text=True,
-                          cwd=cwd, timeout=timeout, stdin=subprocess.DEVNULL)
+                          cwd=cwd or tempfile.gettempdir(), timeout=timeout, stdin=subprocess.DEVNULL)
 
 
 def refused(r, text: str) -> None:
