@@ -572,6 +572,7 @@ def test_animate_frames_one_is_refused_by_the_command_line(runs, tmp_path):
     """--frames 1 passed argparse and was refused later with frames' and exaggerate's one message."""
     refused(cli("animate", runs / "pend.csv", "--frames", "1", "-o", tmp_path / "a.png"),
             "animate: argument --frames: '1': a whole number of frames, at least 2")
+    assert not (tmp_path / "a.png").exists()
 
 
 # ------------------------------------------------------------------ modal-import
