@@ -86,9 +86,10 @@ contains
     character(len=*), intent(in) :: path
     type(error_type), allocatable, intent(out) :: error
     character(len=:), allocatable :: what
-    character(len=path_len), allocatable :: files(:)
+    character(len=path_len), allocatable :: files(:), inputs(:), labels(:)
     integer :: k
-    what = scene_input(sc, path)
+    call input_files(sc, inputs, labels)
+    what = input_at(inputs, labels, path)
     if (len(what) > 0) then
       call fatal_error(error, sc%file // ': output ' // path // ': would overwrite ' // what // &
         & '; choose another results file'); return
@@ -97,7 +98,7 @@ contains
     if (sc%output%checkpoint_dt > 0.0_dp .and. len_trim(sc%output%checkpoint_file) == 0) &
       & files = [character(len=path_len) :: files, checkpoint_default(path), checkpoint_default(path) // '.tmp']
     do k = 2, size(files)
-      what = scene_input(sc, trim(files(k)))
+      what = input_at(inputs, labels, trim(files(k)))
       if (len(what) == 0) cycle
       call fatal_error(error, sc%file // ': output ' // path // ': the run''s file ' // trim(files(k)) // &
         & ' would overwrite ' // what // '; choose another results file'); return
@@ -126,11 +127,12 @@ contains
     character(len=*), intent(in) :: path, file, label
     type(error_type), allocatable, intent(inout) :: error
     character(len=:), allocatable :: what
-    character(len=path_len), allocatable :: files(:)
+    character(len=path_len), allocatable :: files(:), inputs(:), labels(:)
     character(len=path_len) :: mine(2)
     integer :: i, j
-    what = scene_input(sc, file)
-    if (len(what) == 0) what = scene_input(sc, file // '.tmp')
+    call input_files(sc, inputs, labels)
+    what = input_at(inputs, labels, file)
+    if (len(what) == 0) what = input_at(inputs, labels, file // '.tmp')
     files = results_files(path)
     mine = [character(len=path_len) :: file, file // '.tmp']
     do i = 1, size(files)
@@ -197,41 +199,64 @@ contains
   end function wrong_extension
 
   !> What of the scene's input `path` is: 'the scene (FILE)', or the file item that names it,
-  !> as "an input of the scene, &load 'shot' file (FILE)" (every item the scene's tables mark as a file of the
-  !> scene: modal files and the tables of drives, motions, loads, forces, controls and moving
-  !> loads), or '' when the run reads no such file. An output written there would destroy
-  !> the input of the next run.
+  !> as "an input of the scene, &load 'shot' file (FILE)" (input_files), or '' when the run
+  !> reads no such file. An output written there would destroy the input of the next run.
   function scene_input(sc, path) result(what)
     type(scene_t), intent(in) :: sc
     character(len=*), intent(in) :: path
-    character(len=:), allocatable :: what, name, file
+    character(len=:), allocatable :: what
+    character(len=path_len), allocatable :: files(:), labels(:)
+    call input_files(sc, files, labels)
+    what = input_at(files, labels, path)
+  end function scene_input
+
+  !> The label of the input among `files` that `path` is ('' if none).
+  function input_at(files, labels, path) result(what)
+    character(len=*), intent(in) :: files(:), labels(:), path
+    character(len=:), allocatable :: what
+    integer :: k
+    what = ''
+    do k = 1, size(files)
+      if (.not. same_file(trim(files(k)), path)) cycle
+      what = trim(labels(k)); return
+    end do
+  end function input_at
+
+  !> Every file the scene reads, with what it is: the scene, and each item its tables mark as
+  !> a file of the scene (modal files, the tables of drives, motions, loads, forces, controls
+  !> and moving loads) as "an input of the scene, &load 'shot' file (FILE)".
+  subroutine input_files(sc, files, labels)
+    type(scene_t), intent(in) :: sc
+    character(len=path_len), allocatable, intent(out) :: files(:), labels(:)
+    character(len=:), allocatable :: name, file
     type(scene_t), target :: copy
     type(item_table) :: t
     type(origin_t), pointer :: o
     integer :: i, j, k, m
-    what = ''
-    if (same_file(sc%file, path)) then
-      what = 'the scene (' // sc%file // ')'; return
-    end if
+    files = [character(len=path_len) :: sc%file]; labels = [character(len=path_len) :: 'the scene (' // sc%file // ')']
     copy = sc
     i = 1
     do while (i <= len(group_names))
       j = index(group_names(i:) // ' ', ' ') + i - 2
       name = group_names(i:j); i = j + 2
+      if (group_count(copy, name) == 0) cycle
+      ! a group whose table has no file item (markers, joints, ...) reads no file
+      call describe_group(copy, name, 1, t)
+      if (.not. any([(t%items(m)%scene_file, m = 1, t%n)])) cycle
       do k = 1, group_count(copy, name)
         call describe_group(copy, name, k, t)
         do m = 1, t%n
           if (.not. t%items(m)%scene_file .or. len_trim(t%items(m)%s) == 0) cycle
           if (.not. item_applies(copy, name, k, t%items(m)%name)) cycle
           file = scene_relative(sc%file, trim(t%items(m)%s))
-          if (.not. same_file(file, path)) cycle
           o => group_origin(copy, name, k)
-          what = 'an input of the scene, ' // o%label // ' ' // trim(t%items(m)%name) // ' (' // file // ')'
-          return
+          files = [character(len=path_len) :: files, file]
+          labels = [character(len=path_len) :: labels, 'an input of the scene, ' // o%label // ' ' // &
+            & trim(t%items(m)%name) // ' (' // file // ')']
         end do
       end do
     end do
-  end function scene_input
+  end subroutine input_files
 
   !> The checkpoint file beside the CSV: extension replaced by .ckpt (or appended).
   function checkpoint_default(csv) result(p)
