@@ -11,7 +11,7 @@ module pymr_env_item_table
   use pymr_env_kinds, only : dp, name_len
   use pymr_env_error, only : error_type, fatal_error
   use pymr_env_namelist_parse, only : token_t
-  use pymr_env_text, only : itoa, lower, fmt, exact_text, char_length, number_text
+  use pymr_env_text, only : itoa, lower, fmt, exact_text, char_length, number_text, below_normal
   use pymr_env_text_file, only : scene_relative, absolute_path
   implicit none
   private
@@ -324,9 +324,8 @@ contains
     if (x /= x .or. abs(x) > huge(x)) then
       call fatal_error(error, '''' // tok%text // ''' is not a finite number'); return
     end if
-    if (x /= 0.0_dp .and. abs(x) < tiny(x)) then
-      call fatal_error(error, '''' // tok%text // ''' is below the smallest normal number (' // fmt(tiny(x)) // &
-        & '): give 0 or a larger magnitude'); return
+    if (len(below_normal(x)) > 0) then
+      call fatal_error(error, '''' // tok%text // ''' ' // below_normal(x)); return
     end if
     call check_range(it, x, error); if (allocated(error)) return
     it%r(k) = x

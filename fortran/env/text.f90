@@ -8,7 +8,7 @@ module pymr_env_text
   private
   public :: itoa, lower, fmt, decimal_text, exact_text, char_length, printable
   public :: number_text, count_text, split_words, next_text_line
-  public :: json_escape
+  public :: json_escape, below_normal
 
   !> Integer (default or 64-bit) to text without blanks.
   interface itoa
@@ -70,6 +70,17 @@ contains
       if (c >= iachar('A') .and. c <= iachar('Z')) r(i:i) = achar(c + 32)
     end do
   end function lower
+
+  !> '' for 0 and a normal number; for one below the smallest normal number (subnormal),
+  !> what a reader says of it: 'is below the smallest normal number (2.22507e-308): give 0 or
+  !> a larger magnitude' (no input means one: it makes a quotient overflow).
+  function below_normal(x) result(s)
+    real(dp), intent(in) :: x
+    character(len=:), allocatable :: s
+    s = ''
+    if (x /= 0.0_dp .and. abs(x) < tiny(x)) s = 'is below the smallest normal number (' // fmt(tiny(x)) // &
+      & '): give 0 or a larger magnitude'
+  end function below_normal
 
   !> A real for messages as a person writes it, at most 6 significant digits: 0.01, 2.5,
   !> 150000, 1.5e+8, -3e-7 (never a compiler's own form such as 0.100000E-1).

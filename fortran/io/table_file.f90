@@ -6,7 +6,7 @@
 module pymr_io_table_file
   use pymr_env_kinds, only : dp
   use pymr_env_error, only : error_type, fatal_error
-  use pymr_env_text, only : itoa, fmt, number_text, split_words, next_text_line
+  use pymr_env_text, only : itoa, fmt, number_text, split_words, next_text_line, below_normal
   use pymr_env_text_file, only : not_regular, read_text_file
   implicit none
   private
@@ -123,9 +123,8 @@ contains
     call number_text(word, x, ok)
     if (.not. ok .or. x /= x .or. abs(x) > huge(1.0_dp)) then
       why = 'not a number'
-    else if (x /= 0.0_dp .and. abs(x) < tiny(x)) then
-      why = 'the ' // name // ' ' // word // ' is below the smallest normal number (' // fmt(tiny(x)) // &
-        & '): give 0 or a larger magnitude'
+    else if (len(below_normal(x)) > 0) then
+      why = 'the ' // name // ' ' // word // ' ' // below_normal(x)
     else if (abs(x) > limit) then
       why = 'the ' // name // ' ' // fmt(x) // ' is beyond +-' // fmt(limit)
     end if
