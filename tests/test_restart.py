@@ -106,7 +106,7 @@ def test_a_restart_refuses_a_checkpoint_that_does_not_belong_to_its_scene(tmp_pa
                                                r"settings: h_fast = 0.0001 then, h_fast = 5e-5 now"):
         pymr.run(TANK, out, overrides={"integrator.h_slow": 5e-5, "integrator.h_fast": 5e-5}, restart=ckpt)
     with pytest.raises(pymr.SceneError, match=r"job.ckpt: the checkpoint is of another scene \(a group other "
-                                               r"than &integrator and &output differs"):
+                                               r"than &integrator and &output, or a file the scene reads, differs"):
         pymr.run(TANK, out, overrides={"body[turret].mass": 9001.0}, restart=ckpt)
     with pytest.raises(pymr.SceneError, match=r"job.ckpt: t_end = 0.15 s is not after the checkpoint's time 0.2 s"):
         pymr.run(TANK, out, overrides={"scene.t_end": 0.15}, restart=ckpt)
@@ -147,6 +147,36 @@ def test_a_checkpoint_belongs_to_its_controllers_and_moving_loads(tmp_path, chan
         pymr.run(scene, out, overrides={"scene.t_end": 0.06, **change}, restart=ckpt)
     res = pymr.run(scene, out, overrides={"scene.t_end": 0.06}, restart=ckpt)
     assert res.t[-1] == pytest.approx(0.06)
+
+
+def test_a_checkpoint_belongs_to_the_contents_of_the_files_its_scene_reads(tmp_path):
+    """The model is built from the scene's table files too: a restart after one of them
+    changed (a terrain height moved by 1 mm, the scene text the same) is refused, as
+    another scene is; with the files as they were, the restart ends on the uninterrupted
+    run's rows (continued before, with exit 0, on the other terrain)."""
+    import shutil
+    scene_dir = tmp_path / "scene"
+    shutil.copytree(ROOT / "input" / "tank_on_the_move", scene_dir / "tank_on_the_move")
+    scene = scene_dir / "tank_on_the_move.nml"
+    shutil.copy(ROOT / "input" / "tank_on_the_move.nml", scene)
+    out = tmp_path / "move.csv"
+    over = {"scene.t_end": 0.05, "output.checkpoint_dt": 0.02, "output.dt": 1e-3}
+    whole = pymr.run(scene, tmp_path / "whole.csv", overrides={**over, "scene.t_end": 0.06})
+    pymr.run(scene, out, overrides=over)
+    ckpt = tmp_path / "move.ckpt"
+    terrain = scene_dir / "tank_on_the_move" / "terrain_front.txt"
+    kept = terrain.read_text()
+    lines = kept.splitlines()
+    t, z = lines[-1].split()
+    terrain.write_text("\n".join(lines[:-1] + [f"{t} {float(z) + 1e-3!r}"]) + "\n")
+    with pytest.raises(pymr.SceneError, match=r"move.ckpt: the checkpoint is of another scene \(a group other "
+                                               r"than &integrator and &output, or a file the scene reads, differs"):
+        pymr.run(scene, out, overrides={**over, "scene.t_end": 0.06}, restart=ckpt)
+    terrain.write_text(kept)
+    res = pymr.run(scene, out, overrides={**over, "scene.t_end": 0.06}, restart=ckpt)
+    assert res.t[-1] == pytest.approx(0.06)
+    assert np.array_equal(res.t, whole.t)
+    assert np.abs(res.data - whole.data).max() <= 1e-10 * np.abs(whole.data).max()
 
 
 def test_an_empty_checkpoint_or_output_name_is_refused_not_a_fresh_run(tmp_path, mrsim, monkeypatch):

@@ -7,10 +7,11 @@ module pymr_driver_output_paths
   use pymr_model_scene, only : scene_t, group_names, group_count, describe_group, item_applies, group_origin
   use pymr_env_item_table, only : item_table, origin_t
   use pymr_io_results_output, only : json_path
-  use pymr_env_text_file, only : absolute_path, scene_relative, not_regular, missing_folder, same_file
+  use pymr_env_text_file, only : absolute_path, scene_relative, not_regular, missing_folder, same_file, read_text_file
+  use pymr_io_sha256, only : sha256_hex
   implicit none
   private
-  public :: default_output, check_output_path, scene_input, checkpoint_default
+  public :: default_output, check_output_path, scene_input, checkpoint_default, inputs_digest
   !> Longest path of a file the run writes.
   integer, parameter :: path_len = 4096
 
@@ -221,6 +222,23 @@ contains
       what = trim(labels(k)); return
     end do
   end function input_at
+
+  !> The sha256 of each file the scene reads besides itself (its modal and table files), a
+  !> line each in the scene's order, for the fingerprint of the model a checkpoint belongs
+  !> to: the model is built from their contents, which a restart must find unchanged.
+  function inputs_digest(sc, error) result(s)
+    type(scene_t), intent(in) :: sc
+    type(error_type), allocatable, intent(out) :: error
+    character(len=:), allocatable :: s, text
+    character(len=path_len), allocatable :: files(:), labels(:)
+    integer :: i
+    s = ''
+    call input_files(sc, files, labels)
+    do i = 2, size(files)
+      call read_text_file(trim(files(i)), text, error); if (allocated(error)) return
+      s = s // 'file ' // sha256_hex(text) // new_line('a')
+    end do
+  end function inputs_digest
 
   !> Every file the scene reads, with what it is: the scene, and each item its tables mark as
   !> a file of the scene (modal files, the tables of drives, motions, loads, forces, controls

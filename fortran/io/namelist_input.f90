@@ -560,15 +560,17 @@ contains
 
   !> What a checkpoint must share with the scene that continues it: the integrator's
   !> settings (its resolved group), and the fingerprint of the model (every group but
-  !> &integrator and &output, without t_end: a restart may run further or write elsewhere).
-  subroutine checkpoint_identity(sc, settings, model_fingerprint)
+  !> &integrator and &output, without t_end: a restart may run further or write elsewhere;
+  !> and `inputs`, the digest of the files the scene reads).
+  subroutine checkpoint_identity(sc, inputs, settings, model_fingerprint)
     type(scene_t), target, intent(inout) :: sc
+    character(len=*), intent(in) :: inputs
     character(len=:), allocatable, intent(out) :: settings, model_fingerprint
     real(dp) :: t_end
     settings = resolved_text(sc, groups='integrator')
     t_end = sc%scene%t_end
     sc%scene%t_end = unset
-    model_fingerprint = text_fingerprint(resolved_text(sc, groups=model_groups()))
+    model_fingerprint = text_fingerprint(resolved_text(sc, groups=model_groups()) // inputs)
     sc%scene%t_end = t_end
   end subroutine checkpoint_identity
 
