@@ -182,3 +182,34 @@ def test_modal_file_of_the_ground_says_it_is_not_a_beam(tmp_path):
     r = subprocess.run(["pymr", "modal-file", str(TANK), "chassis", "-o", str(tmp_path / "c.modal")],
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 1 and "'chassis' is the ground, not a beam" in r.stderr, r.stderr
+
+
+def test_a_model_too_large_for_the_memory_fails_in_one_line(tmp_path, mrsim):
+    """A chain of 30 beams with 60 modes each has 30 + 30 x 60 = 1830 coordinates; a run holds
+    at most two n x n and two 2n x 2n dense matrices at once (the mass matrix and its
+    factor, the 'adams' Newton Jacobian and its factor): 8 (2 + 8) n^2 bytes = 0.267912 GB.
+    Under a 250 MiB address-space limit (ulimit -v) the run fails before the first step in
+    one line naming both figures, exit 2, where an allocation deep in the run ended in the
+    compiler's runtime message and backtrace (exit 1; inside Python, the end of the
+    session)."""
+    import resource
+    lines = ["&scene title = 'beams', t_end = 1e-3 /", "&integrator method = 'single', adaptive = .true., h_slow = 1e-4 /",
+             "&body name = 'g', kind = 'ground' /"]
+    parent = "g"
+    for i in range(30):
+        lines.append(f"&body name = 'b{i}', kind = 'beam', length = 1.0, youngs_modulus = 2e11, density = 7850, "
+                     f"r_outer = 0.05, r_inner = 0.04, n_elements = 40, modes_y = 30, modes_z = 30 /")
+        lines.append(f"&joint name = 'j{i}', kind = 'revolute', parent = '{parent}', child = 'b{i}', "
+                     f"at = {0.0 if i == 0 else 1.0}, 0, 0, axis = 0, 0, 1 /")
+        parent = f"b{i}"
+    scene = tmp_path / "beams.nml"
+    scene.write_text("\n".join(lines) + "\n")
+    limit = 250 * 2**20
+    r = subprocess.run([mrsim, str(scene), "-o", str(tmp_path / "beams.csv")], capture_output=True, text=True,
+                       timeout=120, preexec_fn=lambda: resource.setrlimit(resource.RLIMIT_AS, (limit, limit)))
+    assert r.returncode == 2, r.stderr
+    assert r.stderr.count("\n") == 1 and "Error termination" not in r.stderr, r.stderr
+    assert r.stderr.startswith(f"mrsim: error: {scene}: at t = 0 s: the model has 1830 coordinates: its dense "
+                               f"matrices need about {8 * 10 * 1830**2 / 1e9:g} GB, more than the "), r.stderr
+    assert "GB this process may still take" in r.stderr
+    assert not (tmp_path / "beams.csv").exists()

@@ -3,7 +3,7 @@
 !> then the effects' list (driver/build_effects.f90).
 module pymr_driver_build
   use pymr_env_kinds, only : dp, name_len, pi
-  use pymr_env_error, only : error_type, fatal_error
+  use pymr_env_error, only : error_type, fatal_error, stat_solver
   use pymr_model_scene, only : scene_t, body_spec, joint_spec, joint_ndof, unset, beam_mode_count, control_count
   use pymr_model_scene_rules, only : check_scene, body_index, inertia_matrix, closes_loop
   use pymr_model_types, only : model_data, model_work, prim_revolute, prim_prismatic, &
@@ -17,6 +17,7 @@ module pymr_driver_build
   use pymr_env_text_file, only : scene_relative
   use pymr_model, only : model_t
   use pymr_env_text, only : itoa, fmt
+  use pymr_env_memory, only : memory_limit
   implicit none
   private
   public :: build_model
@@ -176,7 +177,7 @@ contains
     call fill_joint_shapes(sc, order, inboard, d, error); if (allocated(error)) return
     call fill_markers_moments(sc, pos_in, d, wk, error); if (allocated(error)) return
     call fill_cuts(sc, pos_in, d, wk, error); if (allocated(error)) return
-    call allocate_work(d, wk)
+    call allocate_work(d, wk, error)
   end subroutine fill_model
 
   !> The coordinates: joint coordinates, then each flexible body's modes (a modal body's
@@ -270,16 +271,35 @@ contains
     end do
   end subroutine fill_joint_shapes
 
-  !> The evaluations' kinematics and terms, sized and cleared.
-  subroutine allocate_work(d, wk)
+  !> The evaluations' kinematics and terms, sized and cleared. A model too large for the
+  !> memory the process may hold fails here in one line (dense_bytes), not in the compiler's
+  !> runtime at some later allocation (which would also end a Python session).
+  subroutine allocate_work(d, wk, error)
     type(model_data), intent(in) :: d
     type(model_work), intent(inout) :: wk
-    integer :: nb
+    type(error_type), allocatable, intent(out) :: error
+    integer :: nb, stat
     nb = d%nb
+    stat = 0
+    if (dense_bytes(d%n) <= memory_limit()) allocate(wk%mm(d%n, d%n), wk%lf(d%n, d%n), stat=stat)
+    if (dense_bytes(d%n) > memory_limit() .or. stat /= 0) then
+      call fatal_error(error, 'the model has ' // itoa(d%n) // ' coordinates: its dense matrices need about ' // &
+        & fmt(dense_bytes(d%n)/1.0e9_dp) // ' GB, more than the ' // fmt(memory_limit()/1.0e9_dp) // &
+        & ' GB this process may still take (the machine''s memory, or its ulimit -v)', stat_solver)
+      return
+    end if
     allocate(wk%rot(3, 3, nb), wk%pos(3, nb), wk%vel(6, nb), wk%acc(6, nb), wk%s(6, d%n), wk%i6(6, 6, nb), &
-      & wk%w(6, nb), wk%ic(6, 6, nb), wk%wc(6, nb), wk%mm(d%n, d%n), wk%lf(d%n, d%n), wk%p(d%n), wk%tau(d%n))
+      & wk%w(6, nb), wk%ic(6, 6, nb), wk%wc(6, nb), wk%p(d%n), wk%tau(d%n))
     wk%i6 = 0.0_dp; wk%w = 0.0_dp; wk%ic = 0.0_dp; wk%wc = 0.0_dp; wk%mm = 0.0_dp; wk%tau = 0.0_dp; wk%s = 0.0_dp
   end subroutine allocate_work
+
+  !> Bytes of the dense matrices a run of n coordinates holds at once, at most: the mass
+  !> matrix and its factor (n x n each), and a 2n x 2n pair (the 'adams' Newton iteration's
+  !> Jacobian and factor, or the pre-flight eigenproblem's matrix and vectors).
+  pure real(dp) function dense_bytes(n)
+    integer, intent(in) :: n
+    dense_bytes = 8.0_dp*(2.0_dp + 8.0_dp)*real(n, dp)**2
+  end function dense_bytes
 
   !> The loop-closing joints (closes_loop) and their constraint rows (model/loops.f90); a
   !> cut joint's point on a flexible body takes the body's mode shapes there (flexible_point).
