@@ -2,9 +2,7 @@
 !> `mrsim` program and the Python binding; the jobs are the simulation's
 !> (pymr_driver_simulation) and the modules it uses, each named for its job.
 module pymr_driver_run
-  use pymr_env_kinds, only : dp
-  use pymr_env_error, only : error_type, stat_solver
-  use pymr_env_text, only : fmt
+  use pymr_env_error, only : error_type
   use pymr_driver_simulation, only : simulation_t
   use pymr_driver_load_model, only : load_model
   use pymr_driver_output_paths, only : scene_input, default_output
@@ -44,10 +42,10 @@ contains
     call sim%open(file, overrides, out, len_trim(from) > 0, lines, error)
     if (.not. allocated(error)) call sim%initial_state(from, error)
     if (.not. allocated(error)) call sim%start(from, error)
-    if (allocated(error)) call place_failure(error, file, sim)
+    if (allocated(error)) call sim%name_file(error)
     if (.not. allocated(error)) then
       call sim%run_to(sim%sc%scene%t_end, error)
-      if (allocated(error)) call place_failure(error, file, sim)
+      if (allocated(error)) call sim%name_file(error)
       call sim%finish(error)
     end if
     if (.not. allocated(error)) then
@@ -56,24 +54,4 @@ contains
     end if
     call sim%close()
   end subroutine run_scene
-
-  !> A failed run's message names the scene and the time it failed at: "FILE: at t = T s:
-  !> ..." (the time the stepper had reached, 0 before it started), whichever of the two the
-  !> failure did not say.
-  subroutine place_failure(error, file, sim)
-    type(error_type), intent(inout) :: error
-    character(len=*), intent(in) :: file
-    type(simulation_t), intent(in) :: sim
-    character(len=:), allocatable :: msg
-    real(dp) :: t
-    if (error%stat /= stat_solver) return
-    msg = error%message
-    if (index(msg, file // ': ') == 1) msg = msg(len(file) + 3:)
-    if (index(msg, 'at t = ') == 0) then
-      t = 0.0_dp
-      if (allocated(sim%st)) t = sim%st%time()
-      msg = 'at t = ' // fmt(t) // ' s: ' // msg
-    end if
-    error%message = file // ': ' // msg
-  end subroutine place_failure
 end module pymr_driver_run

@@ -86,7 +86,8 @@ module pymr_driver_simulation
     procedure, private :: choose_format, choose_method
     procedure, private :: begin_new, resume, continues_probe, continue_probe
     procedure, private :: put_row, put_rows_reached, put_last_row, checkpoint_if_due, start_again
-    procedure, private :: write_results, name_file
+    procedure :: name_file
+    procedure, private :: write_results
   end type simulation_t
 
 contains
@@ -500,10 +501,25 @@ contains
     if (allocated(self%locked)) deallocate(self%locked)
   end subroutine simulation_close
 
-  !> An error message begins with the scene file's name (as the caller gave it).
+  !> An error message begins with the scene file's name (as the caller gave it), and a
+  !> failed run's (stat_solver) names the time it failed at: "FILE: at t = T s: ..." (the
+  !> time the stepper had reached, 0 before it started), whichever of the two it did not say.
   subroutine name_file(self, error)
     class(simulation_t), intent(in) :: self
     type(error_type), intent(inout) :: error
-    if (index(error%message, self%file) /= 1) error%message = self%file // ': ' // error%message
+    character(len=:), allocatable :: msg
+    real(dp) :: t
+    msg = error%message
+    if (index(msg, self%file // ': ') == 1) then
+      msg = msg(len(self%file) + 3:)
+    else if (index(msg, self%file) == 1) then
+      return                                 ! "FILE:LINE: ..." of the scene reader
+    end if
+    if (error%stat == stat_solver .and. index(msg, 'at t = ') == 0) then
+      t = 0.0_dp
+      if (allocated(self%st)) t = self%st%time()
+      msg = 'at t = ' // fmt(t) // ' s: ' // msg
+    end if
+    error%message = self%file // ': ' // msg
   end subroutine name_file
 end module pymr_driver_simulation
