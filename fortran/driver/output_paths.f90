@@ -43,6 +43,7 @@ contains
     type(scene_t), intent(in) :: sc
     character(len=*), intent(in) :: path
     type(error_type), allocatable, intent(out) :: error
+    character(len=path_len), allocatable :: inputs(:), labels(:)
     if (wrong_extension(sc, path, error)) return
     if (absolute_path(json_path(path)) == absolute_path(path)) then
       call fatal_error(error, sc%file // ': output ' // path // ': the results and their statistics would both ' // &
@@ -57,15 +58,17 @@ contains
     end if
     if (replaces(sc, json_path(path), 'output ' // path // ': its statistics ' // json_path(path), &
       & 'another results file', error)) return
-    call check_checkpoint_path(sc, path, error); if (allocated(error)) return
-    call check_inputs_kept(sc, path, error)
+    call input_files(sc, inputs, labels)
+    call check_checkpoint_path(sc, path, inputs, labels, error); if (allocated(error)) return
+    call check_inputs_kept(sc, path, inputs, labels, error)
   end subroutine check_output_path
 
   !> The checkpoint file (&output checkpoint_file, else beside the results) of a run that
-  !> writes checkpoints: a regular file or none, in a folder, over no input nor the run's files.
-  subroutine check_checkpoint_path(sc, path, error)
+  !> writes checkpoints: a regular file or none, in a folder, over no input (`inputs`, with
+  !> their `labels`: input_files) nor the run's files.
+  subroutine check_checkpoint_path(sc, path, inputs, labels, error)
     type(scene_t), intent(in) :: sc
-    character(len=*), intent(in) :: path
+    character(len=*), intent(in) :: path, inputs(:), labels(:)
     type(error_type), allocatable, intent(out) :: error
     character(len=:), allocatable :: file, label
     if (sc%output%checkpoint_dt <= 0.0_dp) return
@@ -77,19 +80,18 @@ contains
     file = trim(sc%output%checkpoint_file); label = sc%output%origin%where('checkpoint_file')
     if (replaces(sc, file, label, 'another checkpoint file', error)) return
     if (no_folder(file, label, 'a checkpoint_file', error)) return
-    if (collides(sc, path, file, label, error)) return
+    if (collides(path, file, label, inputs, labels, error)) return
   end subroutine check_checkpoint_path
 
   !> Neither the results nor any file the run writes through (results_files, and the default
-  !> checkpoint's) may be a file the scene reads.
-  subroutine check_inputs_kept(sc, path, error)
+  !> checkpoint's) may be a file the scene reads (`inputs`, with their `labels`).
+  subroutine check_inputs_kept(sc, path, inputs, labels, error)
     type(scene_t), intent(in) :: sc
-    character(len=*), intent(in) :: path
+    character(len=*), intent(in) :: path, inputs(:), labels(:)
     type(error_type), allocatable, intent(out) :: error
     character(len=:), allocatable :: what
-    character(len=path_len), allocatable :: files(:), inputs(:), labels(:)
+    character(len=path_len), allocatable :: files(:)
     integer :: k
-    call input_files(sc, inputs, labels)
     what = input_at(inputs, labels, path)
     if (len(what) > 0) then
       call fatal_error(error, sc%file // ': output ' // path // ': would overwrite ' // what // &
@@ -121,17 +123,15 @@ contains
     end if
   end function replaces
 
-  !> Would the checkpoint `file` (or its staging file) replace what the run reads, or a file
-  !> the run to `path` writes? `label` is the item's place.
-  logical function collides(sc, path, file, label, error)
-    type(scene_t), intent(in) :: sc
-    character(len=*), intent(in) :: path, file, label
+  !> Would the checkpoint `file` (or its staging file) replace what the run reads (`inputs`,
+  !> with their `labels`), or a file the run to `path` writes? `label` is the item's place.
+  logical function collides(path, file, label, inputs, labels, error)
+    character(len=*), intent(in) :: path, file, label, inputs(:), labels(:)
     type(error_type), allocatable, intent(inout) :: error
     character(len=:), allocatable :: what
-    character(len=path_len), allocatable :: files(:), inputs(:), labels(:)
+    character(len=path_len), allocatable :: files(:)
     character(len=path_len) :: mine(2)
     integer :: i, j
-    call input_files(sc, inputs, labels)
     what = input_at(inputs, labels, file)
     if (len(what) == 0) what = input_at(inputs, labels, file // '.tmp')
     files = results_files(path)
