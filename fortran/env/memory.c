@@ -19,17 +19,24 @@ static double address_space(void)
    is set; -1 when none is known. */
 double pymr_memory_limit(void)
 {
-    double bytes = -1.0, lim;
+    int known = 0;
+    double bytes = 0.0, lim;
     long pages = sysconf(_SC_PHYS_PAGES), size = sysconf(_SC_PAGE_SIZE);
     struct rlimit r;
-    if (pages > 0 && size > 0) bytes = (double)pages * (double)size;
+    if (pages > 0 && size > 0) {
+        bytes = (double)pages * (double)size;
+        known = 1;
+    }
     if (getrlimit(RLIMIT_AS, &r) == 0 && r.rlim_cur != RLIM_INFINITY) {
         lim = (double)r.rlim_cur - address_space();
-        if (bytes < 0.0 || lim < bytes) bytes = lim;
+        if (!known || lim < bytes) bytes = lim;
+        known = 1;
     }
     if (getrlimit(RLIMIT_DATA, &r) == 0 && r.rlim_cur != RLIM_INFINITY) {
         lim = (double)r.rlim_cur;
-        if (bytes < 0.0 || lim < bytes) bytes = lim;
+        if (!known || lim < bytes) bytes = lim;
+        known = 1;
     }
+    if (!known) return -1.0;
     return bytes > 0.0 ? bytes : 0.0;
 }

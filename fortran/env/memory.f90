@@ -17,8 +17,10 @@ module pymr_env_memory
 contains
 
   !> The bytes the process may still take: physical memory, or less where an address-space
-  !> limit (less what the process holds) or a data limit is set.
+  !> limit (less what the process holds) or a data limit is set; huge when the system does
+  !> not say.
   real(dp) function memory_limit()
     memory_limit = real(c_memory_limit(), dp)
+    if (memory_limit < 0.0_dp) memory_limit = huge(1.0_dp)
   end function memory_limit
 end module pymr_env_memory

@@ -231,8 +231,8 @@ contains
     end if
     if (hd%fp /= fingerprint_field(fingerprint)) then
       call fatal_error(error, path // ': the checkpoint is of another scene (a group other than &integrator ' // &
-        & 'and &output, or a file the scene reads, differs: model fingerprint ' // hd%fp(8:19) // '..., the scene''s ' // fingerprint(8:19) // &
-        & '...)')
+        & 'and &output, or a file the scene reads, differs: model fingerprint ' // hd%fp(8:19) // &
+        & '..., the scene''s ' // fingerprint(8:19) // '...)')
       return
     end if
     if (.not. (t_end > hd%t)) then
