@@ -11,9 +11,16 @@ module pymr_driver_output_paths
   use pymr_io_sha256, only : sha256_hex
   implicit none
   private
-  public :: default_output, check_output_path, scene_input, checkpoint_default, inputs_digest
+  public :: default_output, check_output_path, scene_input, checkpoint_default, inputs_digest, scene_files, &
+    & list_inputs
   !> Longest path of a file the run writes.
   integer, parameter :: path_len = 4096
+
+  !> The files a scene reads and what each is (input_files), listed once for the checks
+  !> and the checkpoint's digest.
+  type :: scene_files
+    character(len=path_len), allocatable :: files(:), labels(:)
+  end type scene_files
 
 contains
 
@@ -39,11 +46,12 @@ contains
 
   !> The output must not overwrite what the run reads (the scene, its modal and table files),
   !> nor collide with its own statistics or checkpoint, nor be written where no folder is.
-  subroutine check_output_path(sc, path, error)
+  subroutine check_output_path(sc, path, inputs, error)
     type(scene_t), intent(in) :: sc
     character(len=*), intent(in) :: path
+    !> The scene's inputs (list_inputs).
+    type(scene_files), intent(in) :: inputs
     type(error_type), allocatable, intent(out) :: error
-    character(len=path_len), allocatable :: inputs(:), labels(:)
     if (wrong_extension(sc, path, error)) return
     if (absolute_path(json_path(path)) == absolute_path(path)) then
       call fatal_error(error, sc%file // ': output ' // path // ': the results and their statistics would both ' // &
@@ -58,9 +66,8 @@ contains
     end if
     if (replaces(sc, json_path(path), 'output ' // path // ': its statistics ' // json_path(path), &
       & 'another results file', error)) return
-    call input_files(sc, inputs, labels)
-    call check_checkpoint_path(sc, path, inputs, labels, error); if (allocated(error)) return
-    call check_inputs_kept(sc, path, inputs, labels, error)
+    call check_checkpoint_path(sc, path, inputs%files, inputs%labels, error); if (allocated(error)) return
+    call check_inputs_kept(sc, path, inputs%files, inputs%labels, error)
   end subroutine check_output_path
 
   !> The checkpoint file (&output checkpoint_file, else beside the results) of a run that
@@ -223,22 +230,28 @@ contains
     end do
   end function input_at
 
-  !> The sha256 of each file the scene reads besides itself (its modal and table files), a
-  !> line each in the scene's order, for the fingerprint of the model a checkpoint belongs
-  !> to: the model is built from their contents, which a restart must find unchanged.
-  function inputs_digest(sc, error) result(s)
-    type(scene_t), intent(in) :: sc
+  !> The sha256 of each file the scene reads besides itself (its modal and table files, from
+  !> list_inputs), a line each in the scene's order, for the fingerprint of the model a
+  !> checkpoint belongs to: the model is built from their contents, which a restart must
+  !> find unchanged.
+  function inputs_digest(inputs, error) result(s)
+    type(scene_files), intent(in) :: inputs
     type(error_type), allocatable, intent(out) :: error
     character(len=:), allocatable :: s, text
-    character(len=path_len), allocatable :: files(:), labels(:)
     integer :: i
     s = ''
-    call input_files(sc, files, labels)
-    do i = 2, size(files)
-      call read_text_file(trim(files(i)), text, error); if (allocated(error)) return
+    do i = 2, size(inputs%files)
+      call read_text_file(trim(inputs%files(i)), text, error); if (allocated(error)) return
       s = s // 'file ' // sha256_hex(text) // new_line('a')
     end do
   end function inputs_digest
+
+  !> The files the scene sc reads (input_files), listed once.
+  function list_inputs(sc) result(inputs)
+    type(scene_t), intent(in) :: sc
+    type(scene_files) :: inputs
+    call input_files(sc, inputs%files, inputs%labels)
+  end function list_inputs
 
   !> Every file the scene reads, with what it is: the scene, and each item its tables mark as
   !> a file of the scene (modal files, the tables of drives, motions, loads, forces, controls

@@ -27,7 +27,8 @@ module pymr_driver_simulation
   use pymr_driver_output_quantities, only : write_output_row, work_at
   use pymr_driver_preflight, only : check_step_stability, check_mass_matrix
   use pymr_driver_load_model, only : load_model
-  use pymr_driver_output_paths, only : default_output, check_output_path, checkpoint_default, inputs_digest
+  use pymr_driver_output_paths, only : default_output, check_output_path, checkpoint_default, inputs_digest, &
+    & scene_files, list_inputs
   use pymr_driver_output_size, only : check_output_size
   use pymr_driver_starting_state, only : starting_state
   use pymr_driver_deflection_watch, only : watch_deflection
@@ -100,17 +101,19 @@ contains
     character(len=*), intent(in) :: file, overrides, out
     logical, intent(in) :: restarting, lines
     type(error_type), allocatable, intent(out) :: error
-    character(len=:), allocatable :: inputs
+    type(scene_files) :: inputs
+    character(len=:), allocatable :: digest
     self%file = file; self%overrides = overrides
     self%clock%lines = lines
     call load_model(file, overrides, self%sc, self%model, error); if (allocated(error)) return
     self%path = default_output(self%sc, out)
-    call check_output_path(self%sc, self%path, error); if (allocated(error)) return
+    inputs = list_inputs(self%sc)
+    call check_output_path(self%sc, self%path, inputs, error); if (allocated(error)) return
     call acquire_lock(self%path, error); if (allocated(error)) return
     self%locked = self%path
     if (restarting .or. self%sc%output%checkpoint_dt > 0.0_dp) then
-      inputs = inputs_digest(self%sc, error); if (allocated(error)) return
-      call checkpoint_identity(self%sc, inputs, self%settings, self%fingerprint)
+      digest = inputs_digest(inputs, error); if (allocated(error)) return
+      call checkpoint_identity(self%sc, digest, self%settings, self%fingerprint)
     end if
     self%ckpt_path = trim(self%sc%output%checkpoint_file)
     if (len(self%ckpt_path) == 0) self%ckpt_path = checkpoint_default(self%path)
