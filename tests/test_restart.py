@@ -3,6 +3,7 @@ equals the uninterrupted run (the test asks 1e-10; measured: bit-identical), wit
 row lost or duplicated, for every method; bad checkpoints are one-line errors."""
 from __future__ import annotations
 
+import shutil
 import subprocess
 from pathlib import Path
 

@@ -279,12 +279,14 @@ contains
     type(model_work), intent(inout) :: wk
     type(error_type), allocatable, intent(out) :: error
     integer :: nb, stat
+    real(dp) :: need, room
     nb = d%nb
-    stat = 0
-    if (dense_bytes(d%n) <= memory_limit()) allocate(wk%mm(d%n, d%n), wk%lf(d%n, d%n), stat=stat)
-    if (dense_bytes(d%n) > memory_limit() .or. stat /= 0) then
+    need = dense_bytes(d%n); room = memory_limit()
+    stat = 1
+    if (need <= room) allocate(wk%mm(d%n, d%n), wk%lf(d%n, d%n), stat=stat)
+    if (stat /= 0) then
       call fatal_error(error, 'the model has ' // itoa(d%n) // ' coordinates: its dense matrices need about ' // &
-        & fmt(dense_bytes(d%n)/1.0e9_dp) // ' GB, more than the ' // fmt(memory_limit()/1.0e9_dp) // &
+        & fmt(need/1.0e9_dp) // ' GB, more than the ' // fmt(room/1.0e9_dp) // &
         & ' GB this process may still take (the machine''s memory, or its ulimit -v)', stat_solver)
       return
     end if

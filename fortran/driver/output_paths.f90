@@ -16,7 +16,7 @@ module pymr_driver_output_paths
   !> Longest path of a file the run writes.
   integer, parameter :: path_len = 4096
 
-  !> The files a scene reads and what each is (input_files), listed once for the checks
+  !> The files a scene reads and what each is (list_inputs), listed once for the checks
   !> and the checkpoint's digest.
   type :: scene_files
     character(len=path_len), allocatable :: files(:), labels(:)
@@ -66,16 +66,17 @@ contains
     end if
     if (replaces(sc, json_path(path), 'output ' // path // ': its statistics ' // json_path(path), &
       & 'another results file', error)) return
-    call check_checkpoint_path(sc, path, inputs%files, inputs%labels, error); if (allocated(error)) return
-    call check_inputs_kept(sc, path, inputs%files, inputs%labels, error)
+    call check_checkpoint_path(sc, path, inputs, error); if (allocated(error)) return
+    call check_inputs_kept(sc, path, inputs, error)
   end subroutine check_output_path
 
   !> The checkpoint file (&output checkpoint_file, else beside the results) of a run that
-  !> writes checkpoints: a regular file or none, in a folder, over no input (`inputs`, with
-  !> their `labels`: input_files) nor the run's files.
-  subroutine check_checkpoint_path(sc, path, inputs, labels, error)
+  !> writes checkpoints: a regular file or none, in a folder, over no input (`inputs`) nor
+  !> the run's files.
+  subroutine check_checkpoint_path(sc, path, inputs, error)
     type(scene_t), intent(in) :: sc
-    character(len=*), intent(in) :: path, inputs(:), labels(:)
+    character(len=*), intent(in) :: path
+    type(scene_files), intent(in) :: inputs
     type(error_type), allocatable, intent(out) :: error
     character(len=:), allocatable :: file, label
     if (sc%output%checkpoint_dt <= 0.0_dp) return
@@ -87,19 +88,20 @@ contains
     file = trim(sc%output%checkpoint_file); label = sc%output%origin%where('checkpoint_file')
     if (replaces(sc, file, label, 'another checkpoint file', error)) return
     if (no_folder(file, label, 'a checkpoint_file', error)) return
-    if (collides(path, file, label, inputs, labels, error)) return
+    if (collides(path, file, label, inputs, error)) return
   end subroutine check_checkpoint_path
 
   !> Neither the results nor any file the run writes through (results_files, and the default
-  !> checkpoint's) may be a file the scene reads (`inputs`, with their `labels`).
-  subroutine check_inputs_kept(sc, path, inputs, labels, error)
+  !> checkpoint's) may be a file the scene reads (`inputs`).
+  subroutine check_inputs_kept(sc, path, inputs, error)
     type(scene_t), intent(in) :: sc
-    character(len=*), intent(in) :: path, inputs(:), labels(:)
+    character(len=*), intent(in) :: path
+    type(scene_files), intent(in) :: inputs
     type(error_type), allocatable, intent(out) :: error
     character(len=:), allocatable :: what
     character(len=path_len), allocatable :: files(:)
     integer :: k
-    what = input_at(inputs, labels, path)
+    what = input_at(inputs, path)
     if (len(what) > 0) then
       call fatal_error(error, sc%file // ': output ' // path // ': would overwrite ' // what // &
         & '; choose another results file'); return
@@ -108,7 +110,7 @@ contains
     if (sc%output%checkpoint_dt > 0.0_dp .and. len_trim(sc%output%checkpoint_file) == 0) &
       & files = [character(len=path_len) :: files, checkpoint_default(path), checkpoint_default(path) // '.tmp']
     do k = 2, size(files)
-      what = input_at(inputs, labels, trim(files(k)))
+      what = input_at(inputs, trim(files(k)))
       if (len(what) == 0) cycle
       call fatal_error(error, sc%file // ': output ' // path // ': the run''s file ' // trim(files(k)) // &
         & ' would overwrite ' // what // '; choose another results file'); return
@@ -130,17 +132,18 @@ contains
     end if
   end function replaces
 
-  !> Would the checkpoint `file` (or its staging file) replace what the run reads (`inputs`,
-  !> with their `labels`), or a file the run to `path` writes? `label` is the item's place.
-  logical function collides(path, file, label, inputs, labels, error)
-    character(len=*), intent(in) :: path, file, label, inputs(:), labels(:)
+  !> Would the checkpoint `file` (or its staging file) replace what the run reads (`inputs`),
+  !> or a file the run to `path` writes? `label` is the item's place.
+  logical function collides(path, file, label, inputs, error)
+    character(len=*), intent(in) :: path, file, label
+    type(scene_files), intent(in) :: inputs
     type(error_type), allocatable, intent(inout) :: error
     character(len=:), allocatable :: what
     character(len=path_len), allocatable :: files(:)
     character(len=path_len) :: mine(2)
     integer :: i, j
-    what = input_at(inputs, labels, file)
-    if (len(what) == 0) what = input_at(inputs, labels, file // '.tmp')
+    what = input_at(inputs, file)
+    if (len(what) == 0) what = input_at(inputs, file // '.tmp')
     files = results_files(path)
     mine = [character(len=path_len) :: file, file // '.tmp']
     do i = 1, size(files)
@@ -207,26 +210,25 @@ contains
   end function wrong_extension
 
   !> What of the scene's input `path` is: 'the scene (FILE)', or the file item that names it,
-  !> as "an input of the scene, &load 'shot' file (FILE)" (input_files), or '' when the run
+  !> as "an input of the scene, &load 'shot' file (FILE)" (list_inputs), or '' when the run
   !> reads no such file. An output written there would destroy the input of the next run.
   function scene_input(sc, path) result(what)
     type(scene_t), intent(in) :: sc
     character(len=*), intent(in) :: path
     character(len=:), allocatable :: what
-    character(len=path_len), allocatable :: files(:), labels(:)
-    call input_files(sc, files, labels)
-    what = input_at(files, labels, path)
+    what = input_at(list_inputs(sc), path)
   end function scene_input
 
-  !> The label of the input among `files` that `path` is ('' if none).
-  function input_at(files, labels, path) result(what)
-    character(len=*), intent(in) :: files(:), labels(:), path
+  !> The label of the input among `inputs` that `path` is ('' if none).
+  function input_at(inputs, path) result(what)
+    type(scene_files), intent(in) :: inputs
+    character(len=*), intent(in) :: path
     character(len=:), allocatable :: what
     integer :: k
     what = ''
-    do k = 1, size(files)
-      if (.not. same_file(trim(files(k)), path)) cycle
-      what = trim(labels(k)); return
+    do k = 1, size(inputs%files)
+      if (.not. same_file(trim(inputs%files(k)), path)) cycle
+      what = trim(inputs%labels(k)); return
     end do
   end function input_at
 
@@ -246,25 +248,19 @@ contains
     end do
   end function inputs_digest
 
-  !> The files the scene sc reads (input_files), listed once.
-  function list_inputs(sc) result(inputs)
-    type(scene_t), intent(in) :: sc
-    type(scene_files) :: inputs
-    call input_files(sc, inputs%files, inputs%labels)
-  end function list_inputs
-
   !> Every file the scene reads, with what it is: the scene, and each item its tables mark as
   !> a file of the scene (modal files, the tables of drives, motions, loads, forces, controls
   !> and moving loads) as "an input of the scene, &load 'shot' file (FILE)".
-  subroutine input_files(sc, files, labels)
+  function list_inputs(sc) result(inputs)
     type(scene_t), intent(in) :: sc
-    character(len=path_len), allocatable, intent(out) :: files(:), labels(:)
+    type(scene_files) :: inputs
     character(len=:), allocatable :: name, file
     type(scene_t), target :: copy
     type(item_table) :: t
     type(origin_t), pointer :: o
     integer :: i, j, k, m
-    files = [character(len=path_len) :: sc%file]; labels = [character(len=path_len) :: 'the scene (' // sc%file // ')']
+    inputs%files = [character(len=path_len) :: sc%file]
+    inputs%labels = [character(len=path_len) :: 'the scene (' // sc%file // ')']
     copy = sc
     i = 1
     do while (i <= len(group_names))
@@ -281,13 +277,13 @@ contains
           if (.not. item_applies(copy, name, k, t%items(m)%name)) cycle
           file = scene_relative(sc%file, trim(t%items(m)%s))
           o => group_origin(copy, name, k)
-          files = [character(len=path_len) :: files, file]
-          labels = [character(len=path_len) :: labels, 'an input of the scene, ' // o%label // ' ' // &
+          inputs%files = [character(len=path_len) :: inputs%files, file]
+          inputs%labels = [character(len=path_len) :: inputs%labels, 'an input of the scene, ' // o%label // ' ' // &
             & trim(t%items(m)%name) // ' (' // file // ')']
         end do
       end do
     end do
-  end subroutine input_files
+  end function list_inputs
 
   !> The checkpoint file beside the CSV: extension replaced by .ckpt (or appended).
   function checkpoint_default(csv) result(p)
