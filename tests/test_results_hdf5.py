@@ -92,10 +92,13 @@ def test_h5py_alone_reads_the_file(mrsim, tmp_path):
 
 def test_a_killed_run_restarts_into_the_same_file(mrsim, tmp_path):
     """SIGKILL at 12 random moments of HDF5 runs and restarts (checkpoint every simulated
-    second): after each kill the earlier complete file is byte for byte what it was, the
-    killed partial file can be read and holds the run's first rows, each restart continues
-    from the last checkpoint's rows, and the result finally completed equals the
-    uninterrupted run (the same doubles)."""
+    second): after each kill the earlier complete file is byte for byte what it was (or,
+    when the kill came after the run had put its own complete result in place, in the few
+    milliseconds its statistics' rename and lock release take, that result, equal to the
+    uninterrupted run), the killed partial file can be read and holds the run's first rows,
+    each restart continues from the last checkpoint's rows, and the result finally completed
+    equals the uninterrupted run (the same doubles). Files are compared as booleans: a
+    failing comparison of two whole files made pytest diff megabytes for many minutes."""
     common = ["--quiet", "--set", "scene.t_end=40", "--set", "output.checkpoint_dt=1", "--set", "output.format=hdf5"]
     assert run(mrsim, [LONG, "-o", "full.h5", *common], tmp_path).returncode == 0
     full = pymr.load_results(tmp_path / "full.h5")
@@ -119,7 +122,13 @@ def test_a_killed_run_restarts_into_the_same_file(mrsim, tmp_path):
             continue
         assert job.returncode == -signal.SIGKILL, err
         kills += 1
-        assert (tmp_path / "out.h5").read_bytes() == complete
+        now = (tmp_path / "out.h5").read_bytes()
+        if now != complete:          # killed after its complete result was in place
+            assert np.array_equal(pymr.load_results(tmp_path / "out.h5").data, full.data)
+            assert not (tmp_path / "out.h5.partial").exists()
+            complete = now
+            (tmp_path / "out.ckpt").unlink(missing_ok=True)
+            continue
         partial = tmp_path / "out.h5.partial"
         if partial.exists() and rng.random() < 0.5:
             # the killed file opens (in HDF5's reader mode) and holds a prefix of the run
