@@ -314,6 +314,26 @@ def test_multirate_and_articulated_follow_a_tight_single_rate_run(tmp_path, inte
     assert np.abs(q - qr).max() < tol * np.abs(qr).max(), np.abs(q - qr).max() / np.abs(qr).max()
 
 
+def test_a_response_macro_step_stable_only_uncorrected_runs_uncorrected(tmp_path):
+    """The surrogate's correction narrows the explicit stability of forces outside the
+    'response' surrogate's linear response (a damper: |lambda H| 0.24-0.28 to 0.16-0.18; an
+    oscillator: omega H 1.1-1.2 to about 0.6, docs/integrators.md). The gyro's rate feedback is such a
+    force: at h_fast = 2e-5 s the linearised macro step grows by 1.07 per step at k = 5 with
+    the correction and not at all without it. The pre-flight check then runs it without the
+    correction and says so (k = 4 keeps it), and both follow the tight single-rate run to
+    1e-6 of the largest coordinate (measured 2.0e-7)."""
+    ref = pymr.run(beam(tmp_path, "method = 'single', h_slow = 1.0e-5, adaptive = .true., rtol = 1.0e-11, atol = 1.0e-13",
+                        t_end=0.3, name="ref.nml"))
+    qr = ref.coordinates()[0]
+    for k, warned in ((4, False), (5, True)):
+        res = pymr.run(beam(tmp_path, f"method = 'multirate', h_fast = 2.0e-5, h_slow = {k * 2.0e-5!r}", t_end=0.3))
+        said = [w for w in res.stats["warnings"] if "stable only without the surrogate's correction" in w]
+        assert bool(said) == warned, res.stats["warnings"]
+        if warned:
+            assert said[0].startswith(f"the macro step of k = {k} (coupling 'response')")
+        assert np.abs(res.coordinates()[0] - qr).max() < 1e-6 * np.abs(qr).max()
+
+
 def test_controls_off_on_purpose_change_nothing(tmp_path):
     """controls = .false.: the &control groups are ignored (no state coordinate, no
     effect), results bit-identical to the scene without them."""

@@ -86,13 +86,15 @@ def test_ratio_one_is_single_rate_pece(tmp_path):
 
 def test_table1_ratio_ten_is_within_a_micrometre_of_the_converged_muzzle(tmp_path, tank_reference):
     """The paper's Table 1 case k = 10, h_fast = 1e-4 s: the muzzle within 1e-6 m of the
-    converged motion over 0-1 s (measured 1.0e-7 m; the paper's coupling: 4.4e-3 m). One
-    full evaluation per macro step after the first three, whose steps are all full (the
-    surrogate needs four full evaluations): 1000 macro steps, 10000 fast steps."""
+    converged motion over 0-1 s (measured 5.8e-8 m, 1.0e-7 m before the surrogate's
+    correction; the paper's coupling: 4.4e-3 m). One full evaluation per macro step after
+    the first three, whose steps are all full (the surrogate needs four full evaluations),
+    and one surrogate evaluation more at each macro step's end (its difference from the full
+    one is the error the correction takes out): 1000 macro steps, 10000 fast steps."""
     res = pymr.run(TANK, tmp_path / "k10.csv", overrides=response(10, 1e-4, **{"output.dt": 1e-3}))
     assert marker_dev(res, tank_reference, "muzzle") < 1e-6
     assert res.stats["steps_fast"] == 10000 and res.stats["steps_slow"] == 1000
-    assert res.stats["rhs_fast"] + res.stats["rhs_full"] < 10040
+    assert res.stats["rhs_fast"] + res.stats["rhs_full"] < 11040
     assert res.stats["rhs_full"] < 1040
 
 

@@ -17,6 +17,7 @@ module pymr_driver_preflight
   use pymr_integrator_stability, only : pece_growth, pece_limit, imaginary_axis_limit
   use pymr_integrator_ode, only : partitioned_system
   use pymr_integrator_stepper, only : stepper_t, pece_steps, step_counts
+  use pymr_integrator_response, only : response_integrator
   use pymr_env_text, only : itoa
   use pymr_env_item_table, only : origin_t
   use pymr_driver_linearise, only : linear_state
@@ -66,18 +67,19 @@ contains
 
   !> Refuse (error naming the body and mode, its frequency and the largest stable step)
   !> fixed steps of the stepper `st` (made, not started) that cannot be stable at the
-  !> initial state x = [q; qd].
-  subroutine check_step_stability(model, x, st, label, t_end, o, error)
+  !> initial state x = [q; qd]; label: what the stepper is, for messages ("coupling
+  !> 'response'"); t_end: the run's length (a step is refused when the linearised growth
+  !> over the whole run would exceed `run_growth`). A 'response' stepper whose macro step is
+  !> stable only without its surrogate correction has it turned off, and `note` says so.
+  subroutine check_step_stability(model, x, st, label, t_end, o, error, note)
     type(model_t), intent(inout) :: model
     real(dp), intent(in) :: x(:)
-    class(stepper_t), intent(in) :: st
-    !> What the stepper is, for messages ("coupling 'response'").
+    class(stepper_t), intent(inout) :: st
     character(len=*), intent(in) :: label
-    !> Length of the run (s): a step is refused when the linearised growth over the whole
-    !> run would exceed `run_growth`.
     real(dp), intent(in) :: t_end
     type(origin_t), intent(in) :: o       ! &integrator's: messages name its item and line
     type(error_type), allocatable, intent(out) :: error
+    character(len=:), allocatable, intent(out) :: note
     integer :: n, i, dom, worst
     real(dp), allocatable :: m(:, :), minv(:, :), k(:, :), c(:, :), a(:, :), ev(:, :), wr(:), wi(:), vr(:, :), wgt(:)
     real(dp) :: h, ratio, worst_ratio, stable
@@ -100,7 +102,7 @@ contains
       ev = a
       call geev_real(ev, wr, wi, 'the linearised model', error); if (allocated(error)) return
       if (all_stable(wr, wi, steps%h_joint, t_end)) then
-        call check_coupling(model, x, m, minv, k, c, max(maxval(wr), 0.0_dp), st, label, t_end, o, error)
+        call check_coupling(model, x, m, minv, k, c, max(maxval(wr), 0.0_dp), st, label, t_end, o, error, note)
         return
       end if
     end if
@@ -126,7 +128,7 @@ contains
       i = i + 1
     end do
     if (worst == 0) then
-      call check_coupling(model, x, m, minv, k, c, max(maxval(wr), 0.0_dp), st, label, t_end, o, error)
+      call check_coupling(model, x, m, minv, k, c, max(maxval(wr), 0.0_dp), st, label, t_end, o, error, note)
       return
     end if
     h = merge(steps%h_modal, steps%h_joint, worst > model%d%nj)
@@ -179,13 +181,14 @@ contains
   !> Multirate runs whose fixed steps are stable mode by mode: the coupling's own stability
   !> (sigma: the linearised model's growth rate), unless its surrogate is exact on the
   !> linearised model.
-  subroutine check_coupling(model, x, m, minv, k, c, sigma, st, label, t_end, o, error)
+  subroutine check_coupling(model, x, m, minv, k, c, sigma, st, label, t_end, o, error, note)
     type(model_t), intent(inout) :: model
     real(dp), intent(in) :: x(:), m(:, :), minv(:, :), k(:, :), c(:, :), sigma, t_end
-    class(stepper_t), intent(in) :: st
+    class(stepper_t), intent(inout) :: st
     character(len=*), intent(in) :: label
     type(origin_t), intent(in) :: o
     type(error_type), allocatable, intent(out) :: error
+    character(len=:), allocatable, intent(out) :: note
     type(step_counts) :: counts
     type(pece_steps) :: steps
     counts = st%counts(); steps = st%pece()
@@ -193,7 +196,7 @@ contains
     if (steps%modal_surrogate) then
       if (modal_forces_only(model, m, k, c)) return
     end if
-    call check_macro_step(model, x, m, minv, k, c, sigma, st, label, t_end, o, error)
+    call check_macro_step(model, x, m, minv, k, c, sigma, st, label, t_end, o, error, note)
   end subroutine check_coupling
 
   !> Are the linearised model's stiffness k and damping c the modal ones alone (the modal
@@ -298,37 +301,50 @@ contains
   !> linearised at the initial state (power iteration on its whole state). When its growth
   !> beyond the linearised model's own (a motion that grows physically, or the drift of a
   !> closed loop's coordinates that the projection removes) would exceed run_growth over the
-  !> run, the run is refused, naming the coordinate that
-  !> carries the growing motion and the largest stable step ratio at this fast step.
-  subroutine check_macro_step(model, x, m, minv, k, c, sigma, st, label, t_end, o, error)
+  !> run, a 'response' stepper is tried without its surrogate correction (which halves the
+  !> stable range of forces outside its linear response: docs/integrators.md); if neither
+  !> is stable the run is refused, naming the coordinate that carries the growing motion and
+  !> the largest stable step ratio at this fast step.
+  subroutine check_macro_step(model, x, m, minv, k, c, sigma, st, label, t_end, o, error, note)
     type(model_t), intent(inout) :: model
     real(dp), intent(in) :: x(:), m(:, :), minv(:, :), k(:, :), c(:, :), t_end
     !> The linearised model's own growth rate (1/s; its largest real eigenvalue part, or 0):
     !> only the growth beyond it is the stepper's.
     real(dp), intent(in) :: sigma
-    class(stepper_t), intent(in) :: st
+    class(stepper_t), intent(inout) :: st
     character(len=*), intent(in) :: label
     type(origin_t), intent(in) :: o
     type(error_type), allocatable, intent(out) :: error
+    character(len=:), allocatable, intent(out) :: note
     type(linear_system) :: sys
     integer :: kr, ks, dom, k_run
-    real(dp) :: rho, r2, hf
+    real(dp) :: rho, hf
     character(len=32) :: b1, b2, b3
     type(step_counts) :: counts
     type(pece_steps) :: steps
+    logical :: ok
     call linear_model(model, x, m, minv, k, c, sys, error); if (allocated(error)) return
     counts = st%counts(); steps = st%pece()
     k_run = counts%ratio; kr = k_run
     hf = steps%h_modal
-    call macro_growth(sys, m, st, kr, hf, t_end, rho, error); if (allocated(error)) return
-    if ((log(rho) - sigma*kr*hf)*t_end/(kr*hf) <= log(run_growth)) return
-    ! refused: the growing motion's coordinate, and the largest stable ratio below kr
-    ! (stability need not be monotone in k: scan all)
+    call macro_stable(sys, m, st, kr, hf, t_end, sigma, ok, rho, error); if (allocated(error)) return
+    if (ok) return
+    if (set_correction(st, .false.)) then
+      call macro_stable(sys, m, st, kr, hf, t_end, sigma, ok, rho, error); if (allocated(error)) return
+      if (ok) then
+        note = 'the macro step of k = ' // itoa(kr) // ' (' // label // ') is stable only without the ' // &
+          & 'surrogate''s correction: the run goes without it (its error is larger; adaptive = .true. keeps it)'
+        return
+      end if
+      ok = set_correction(st, .true.)
+    end if
+    ! refused: the growing motion's coordinate, and the largest stable ratio below kr, with
+    ! or without the correction (stability need not be monotone in k: scan all)
     call macro_growth(sys, m, st, kr, hf, t_end, rho, error, dom); if (allocated(error)) return
     ks = 0
     do kr = 1, k_run - 1
-      call macro_growth(sys, m, st, kr, hf, t_end, r2, error); if (allocated(error)) return
-      if ((log(r2) - sigma*kr*hf)*t_end/(kr*hf) <= log(run_growth)) ks = kr
+      call stable_either(sys, m, st, kr, hf, t_end, sigma, ok, error); if (allocated(error)) return
+      if (ok) ks = kr
     end do
     kr = k_run
     write(b1, '(es9.2)') kr*hf
@@ -341,6 +357,49 @@ contains
       & 'run; or use adaptive = .true.)')
     call set_fault(error, kind='unstable_ratio', group='integrator', item='h_slow', stable_ratio=ks)
   end subroutine check_macro_step
+
+  !> Is the macro step of ratio kr stable with the stepper's surrogate correction or without
+  !> it (the stepper is left with it)?
+  subroutine stable_either(sys, m, st, kr, hf, t_end, sigma, ok, error)
+    type(linear_system), intent(inout) :: sys
+    real(dp), intent(in) :: m(:, :), hf, t_end, sigma
+    class(stepper_t), intent(inout) :: st
+    integer, intent(in) :: kr
+    logical, intent(out) :: ok
+    type(error_type), allocatable, intent(out) :: error
+    real(dp) :: rho
+    call macro_stable(sys, m, st, kr, hf, t_end, sigma, ok, rho, error)
+    if (ok .or. allocated(error)) return
+    if (.not. set_correction(st, .false.)) return
+    call macro_stable(sys, m, st, kr, hf, t_end, sigma, ok, rho, error)
+    if (set_correction(st, .true.)) return
+  end subroutine stable_either
+
+  !> Is the macro step of ratio kr stable over the run (growth rho per macro step beyond the
+  !> linearised model's own rate sigma within run_growth)?
+  subroutine macro_stable(sys, m, st, kr, hf, t_end, sigma, ok, rho, error)
+    type(linear_system), intent(inout) :: sys
+    real(dp), intent(in) :: m(:, :), hf, t_end, sigma
+    class(stepper_t), intent(in) :: st
+    integer, intent(in) :: kr
+    logical, intent(out) :: ok
+    real(dp), intent(out) :: rho
+    type(error_type), allocatable, intent(out) :: error
+    ok = .false.
+    call macro_growth(sys, m, st, kr, hf, t_end, rho, error); if (allocated(error)) return
+    ok = (log(rho) - sigma*kr*hf)*t_end/(kr*hf) <= log(run_growth)
+  end subroutine macro_stable
+
+  !> Turn a 'response' stepper's surrogate correction on or off: whether it has one.
+  logical function set_correction(st, on)
+    class(stepper_t), intent(inout) :: st
+    logical, intent(in) :: on
+    set_correction = .false.
+    select type (st)
+    class is (response_integrator)
+      st%correct = on; set_correction = .true.
+    end select
+  end function set_correction
 
   !> The linearised model as a partitioned system (slow = joint coordinates), with its
   !> (constrained) inverse mass matrix minv. With closed loops its fast steps keep the loops

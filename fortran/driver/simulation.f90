@@ -214,6 +214,7 @@ contains
   subroutine begin_new(self, error)
     class(simulation_t), intent(inout) :: self
     type(error_type), allocatable, intent(out) :: error
+    character(len=:), allocatable :: note
     call check_output_size(self%sc, self%model, self%out, self%dt_out, error); if (allocated(error)) return
     call self%out%open(self%path, self%model%d, error)
     if (allocated(error)) return
@@ -226,9 +227,13 @@ contains
     if (.not. self%sc%integrator%adaptive .and. self%sc%integrator%stability_check) then
       self%stats%preflight_cpu_s = thread_cpu_time()
       call check_step_stability(self%model, self%x, self%st, stepper_label(self%sc), self%sc%scene%t_end, &
-        & self%sc%integrator%origin, error)
+        & self%sc%integrator%origin, error, note)
       if (allocated(error)) then
         call self%out%discard(); return
+      end if
+      if (allocated(note)) then
+        if (.not. allocated(self%stats%warnings)) self%stats%warnings = ''
+        self%stats%warnings = self%stats%warnings // note // new_line('a')
       end if
       self%stats%preflight_cpu_s = thread_cpu_time() - self%stats%preflight_cpu_s
       self%clock%cpu0 = self%clock%cpu0 + self%stats%preflight_cpu_s

@@ -26,7 +26,7 @@ module pymr_io_checkpoint
   !> 6: the stepper's state written as its state vector and its record (state_record);
   !> 7: the 'response' and 'exponential' steppers named apart (a run of method 'auto'
   !> continues with the one that wrote it).
-  integer, parameter :: version = 7
+  integer, parameter :: version = 8
 
   !> What a checkpoint's header says: pymr's version, the model's size, the stepper's name,
   !> the time, the integrator settings and the model's fingerprint.

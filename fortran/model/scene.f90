@@ -19,13 +19,13 @@ module pymr_model_scene
   public :: closes_loop, flexible_loop, k_max_flexible_loop, body_index, control_count
 
   !> Default k_max of adaptive 'response' runs whose closed loops pass through a flexible
-  !> body. The loop's fast modes move its joints (the flexible four-bar's 115 and 677 Hz
-  !> modes have their largest motion in the coupler's and the rocker's angles), which the
-  !> surrogate follows only through the modal state, and the macro-step estimate misses it.
-  !> Over rtol 1e-4 to 1e-8 that four-bar ended 14-44 rtol away at k_max = 50, 1.1-2.3 rtol at
-  !> 8 and 0.3-1.3 at 5 to 7 (erratic with k), and 0.008-0.22 rtol at 4 at nine tolerances, in
-  !> 1.3-2.0x the CPU of k_max = 8 (docs/scenes.md, "Closed loops").
-  integer, parameter :: k_max_flexible_loop = 4
+  !> body. The loop's fast modes move its joints through the constraint forces, which the
+  !> surrogate extrapolates; each macro step's error, as estimated and taken out, leaves a
+  !> residual that adds up over the run to a phase error of the crank. On the flexible
+  !> four-bar over rtol 1e-4 to 1e-8 (17 tolerances, with and without glibc's FMA/AVX2 paths)
+  !> it ended 0.19-0.84 rtol away at k_max = 8, and 0.14-2.2 at 50 (2.2 from rtol 5.6e-8 on),
+  !> at 1.0-1.1x the CPU of 50 (docs/scenes.md, "Loops in multirate runs").
+  integer, parameter :: k_max_flexible_loop = 8
 
   !> The groups of a scene file, in the order the resolved scene is written.
   character(len=*), parameter :: group_names = &
@@ -375,7 +375,7 @@ contains
       & "factor M, O(n^3)) or 'auto' (articulated without flexible bodies, and with them from 12 " // &
       & "joint coordinates on: where it is the faster; " // &
       & "multirate and the pre-flight check always use M)", choices='auto articulated mass_matrix')
-    call t%add('k_max', g%k_max, '-', "largest step ratio H/h of adaptive multirate (default 4 with the " // &
+    call t%add('k_max', g%k_max, '-', "largest step ratio H/h of adaptive multirate (default 8 with the " // &
       & "'response' coupling when a closed loop passes through a flexible body)", ge=1, le=100000)
     call t%add('error_norm', g%error_norm, "how adaptive steps weigh the local error of a modal coordinate: " // &
       & "'state' its position and rate apart (each against rtol |x| + atol), 'amplitude' both as the mode's " // &
