@@ -80,14 +80,14 @@ module pymr_integrator_response
     !> macro step (dense output, scaled with hb), kb of them.
     real(dp), allocatable :: z(:, :), zbuf(:, :, :)
     integer :: kb = 0
-    !> The correction of the last macro step (correct_surrogate_error), when it had one: the
-    !> surrogate's error d_c (n) at its end t_c, the history times th_c it grew from. The
-    !> arrays of its fast steps before the last are kept uncorrected; value_at adds it.
-    logical :: corrected = .false.
     !> Whether macro steps take the surrogate's error out of their state (set before the
     !> start: the pre-flight check of a fixed-step run turns it off where the macro step is
     !> stable only without it).
     logical :: correct = .true.
+    !> The correction of the last macro step (correct_surrogate_error), when it had one: the
+    !> surrogate's error d_c (n) at its end t_c, the history times th_c it grew from. The
+    !> arrays of its fast steps before the last are kept uncorrected; value_at adds it.
+    logical :: corrected = .false.
     real(dp) :: t_c = 0.0_dp, th_c(n_hist) = 0.0_dp
     real(dp), allocatable :: d_c(:)
     !> History of full evaluations.
