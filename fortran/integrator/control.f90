@@ -62,16 +62,20 @@ contains
     end if
   end function wrms_norm
 
-  !> Step ratio for a normalised error estimate `err` of a method whose estimate is O(h^4).
-  pure function control_ratio(self, err, accepted) result(eta)
+  !> Step ratio for a normalised error estimate `err` that is O(h^order) (default 4).
+  pure function control_ratio(self, err, accepted, order) result(eta)
     class(step_control), intent(in) :: self
     real(dp), intent(in) :: err
     logical, intent(in) :: accepted
+    integer, intent(in), optional :: order
     real(dp) :: eta
+    integer :: p
+    p = 4
+    if (present(order)) p = order
     if (err <= 0.0_dp) then
       eta = self%grow_max
     else
-      eta = self%safety*err**(-0.25_dp)
+      eta = self%safety*err**(-1.0_dp/p)
     end if
     if (accepted) then
       eta = min(max(eta, 0.5_dp), self%grow_max)

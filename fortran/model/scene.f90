@@ -23,8 +23,8 @@ module pymr_model_scene
   !> surrogate extrapolates; each macro step's error, as estimated and taken out, leaves a
   !> residual that adds up over the run to a phase error of the crank. On the flexible
   !> four-bar over rtol 1e-4 to 1e-8 (17 tolerances, with and without glibc's FMA/AVX2 paths)
-  !> it ended 0.19-0.84 rtol away at k_max = 8, and 0.14-2.2 at 50 (2.2 from rtol 5.6e-8 on),
-  !> at 1.0-1.1x the CPU of 50 (docs/scenes.md, "Loops in multirate runs").
+  !> it ended 0.15-0.85 rtol away at k_max = 8, and 0.02-2.3 at 50 (above 2 from rtol 1.8e-8
+  !> on), at 1.0-1.1x the CPU of 50 (docs/scenes.md, "Loops in multirate runs").
   integer, parameter :: k_max_flexible_loop = 8
 
   !> The groups of a scene file, in the order the resolved scene is written.
