@@ -322,7 +322,7 @@ contains
     character(len=32) :: b1, b2, b3
     type(step_counts) :: counts
     type(pece_steps) :: steps
-    logical :: ok
+    logical :: ok, has
     call linear_model(model, x, m, minv, k, c, sys, error); if (allocated(error)) return
     counts = st%counts(); steps = st%pece()
     k_run = counts%ratio; kr = k_run
@@ -336,7 +336,7 @@ contains
           & 'surrogate''s correction: the run goes without it (its error is larger; adaptive = .true. keeps it)'
         return
       end if
-      ok = set_correction(st, .true.)
+      has = set_correction(st, .true.)
     end if
     ! refused: the growing motion's coordinate, and the largest stable ratio below kr, with
     ! or without the correction (stability need not be monotone in k: scan all)
@@ -368,11 +368,12 @@ contains
     logical, intent(out) :: ok
     type(error_type), allocatable, intent(out) :: error
     real(dp) :: rho
+    logical :: has
     call macro_stable(sys, m, st, kr, hf, t_end, sigma, ok, rho, error)
     if (ok .or. allocated(error)) return
     if (.not. set_correction(st, .false.)) return
     call macro_stable(sys, m, st, kr, hf, t_end, sigma, ok, rho, error)
-    if (set_correction(st, .true.)) return
+    has = set_correction(st, .true.)
   end subroutine stable_either
 
   !> Is the macro step of ratio kr stable over the run (growth rho per macro step beyond the

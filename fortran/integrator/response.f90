@@ -43,7 +43,7 @@ module pymr_integrator_response
   !> Order in H of the macro step's error estimate: the cubic's extrapolation error d is
   !> O(H^4), and the rate error it leaves over the step O(H^5). (The exponent 1/4 of the
   !> fast steps' rule over-shot it: on the flexible four-bar 16 % of the macro steps were
-  !> rejected at rtol 1e-4, 10 % with 1/5.)
+  !> rejected at rtol 1e-4, 9 % with 1/5.)
   integer, parameter :: surrogate_order = 5
   !> Adaptive runs: macro steps in a row that may break down (a failed factorisation, a
   !> non-finite value) and be retried smaller before the run stops.
