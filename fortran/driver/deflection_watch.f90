@@ -25,11 +25,12 @@ contains
     integer :: b
     character(len=:), allocatable :: said
     if (sc%scene%deflection_limit <= 0.0_dp) return
-    if (.not. allocated(stats%warnings)) stats%warnings = ''
     do b = 2, model%d%nb
       if (model%d%nm(b) == 0) cycle
       ! a body is warned about once: not measured again after that
-      if (index(stats%warnings, "body '" // trim(model%d%body_name(b)) // "' deflects") > 0) cycle
+      if (allocated(stats%warnings)) then
+        if (index(stats%warnings, "body '" // trim(model%d%body_name(b)) // "' deflects") > 0) cycle
+      end if
       size_m = model%d%flex(b)%size_m
       deflection = point_deflection(model%d%flex(b), q(model%d%a0(b):model%d%a0(b) + model%d%nm(b) - 1), &
         & sc%scene%deflection_limit*size_m)
@@ -40,7 +41,7 @@ contains
       if (sc%scene%deflection_stop) then
         call fatal_error(error, 'at t = ' // fmt(t) // ' s: ' // said // ' (deflection_stop)', stat_solver); return
       end if
-      stats%warnings = stats%warnings // 'at t = ' // fmt(t) // ' s: ' // said // new_line('a')
+      call stats%add_warning('at t = ' // fmt(t) // ' s: ' // said)
     end do
   end subroutine watch_deflection
 end module pymr_driver_deflection_watch

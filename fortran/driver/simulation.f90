@@ -231,10 +231,7 @@ contains
       if (allocated(error)) then
         call self%out%discard(); return
       end if
-      if (allocated(note)) then
-        if (.not. allocated(self%stats%warnings)) self%stats%warnings = ''
-        self%stats%warnings = self%stats%warnings // note // new_line('a')
-      end if
+      if (allocated(note)) call self%stats%add_warning(note)
       self%stats%preflight_cpu_s = thread_cpu_time() - self%stats%preflight_cpu_s
       self%clock%cpu0 = self%clock%cpu0 + self%stats%preflight_cpu_s
     end if

@@ -29,13 +29,16 @@ module pymr_io_results_output
     !> iterations, the largest change in the last one.
     integer :: static_settled = -1, static_iterations = 0
     real(dp) :: static_change = 0.0_dp
-    !> Warnings of the run, one a line (a flexible body deflecting beyond its limit).
+    !> Warnings of the run, one a line (a flexible body deflecting beyond its limit, a
+    !> 'response' macro step run without its correction): add_warning.
     character(len=:), allocatable :: warnings
     !> JSON members the effects report (moving loads' exits), with their commas and lines.
     character(len=:), allocatable :: effects_report
     !> Method 'auto': the JSON member of its choice (with its comma and line), and the
     !> summary's line.
     character(len=:), allocatable :: choice_report, choice_line
+  contains
+    procedure :: add_warning
   end type run_stats
 
   !> The energy columns (energy.NAME): the four energies, their total, then the four works
@@ -99,6 +102,14 @@ module pymr_io_results_output
   character(len=*), parameter :: metadata_fields(5) = [character(len=8) :: 'name', 'group', 'owner', 'quantity', 'unit']
 
 contains
+
+  !> One more line of the run's warnings.
+  pure subroutine add_warning(self, line)
+    class(run_stats), intent(inout) :: self
+    character(len=*), intent(in) :: line
+    if (.not. allocated(self%warnings)) self%warnings = ''
+    self%warnings = self%warnings // line // new_line('a')
+  end subroutine add_warning
 
   !> OUT.json beside OUT.csv (extension replaced, or appended).
   function json_path(csv) result(p)
