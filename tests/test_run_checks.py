@@ -8,6 +8,7 @@ and a second run of the scene the statistics hold."""
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 from pathlib import Path
 
@@ -184,32 +185,81 @@ def test_modal_file_of_the_ground_says_it_is_not_a_beam(tmp_path):
     assert r.returncode == 1 and "'chassis' is the ground, not a beam" in r.stderr, r.stderr
 
 
-def test_a_model_too_large_for_the_memory_fails_in_one_line(tmp_path, mrsim):
-    """A chain of 30 beams with 60 modes each has 30 + 30 x 60 = 1830 coordinates; a run holds
-    at most two n x n and two 2n x 2n dense matrices at once (the mass matrix and its
-    factor, the 'adams' Newton Jacobian and its factor): 8 (2 + 8) n^2 bytes = 0.267912 GB.
-    Under a 250 MiB address-space limit (ulimit -v) the run fails before the first step in
-    one line naming both figures, exit 2, where an allocation deep in the run ended in the
-    compiler's runtime message and backtrace (exit 1; inside Python, the end of the
-    session)."""
-    import resource
-    lines = ["&scene title = 'beams', t_end = 1e-3 /", "&integrator method = 'single', adaptive = .true., h_slow = 1e-4 /",
+def beam_chain(n_beams: int, modes: int, integrator: str) -> str:
+    """A chain of n_beams beams on revolute joints, each with `modes` bending modes: n_beams
+    x (1 + modes) coordinates."""
+    lines = ["&scene title = 'beams', t_end = 1e-6 /", f"&integrator {integrator} /",
              "&body name = 'g', kind = 'ground' /"]
     parent = "g"
-    for i in range(30):
+    for i in range(n_beams):
         lines.append(f"&body name = 'b{i}', kind = 'beam', length = 1.0, youngs_modulus = 2e11, density = 7850, "
-                     f"r_outer = 0.05, r_inner = 0.04, n_elements = 40, modes_y = 30, modes_z = 30 /")
+                     f"r_outer = 0.05, r_inner = 0.04, n_elements = 40, modes_y = {modes // 2}, "
+                     f"modes_z = {modes // 2} /")
         lines.append(f"&joint name = 'j{i}', kind = 'revolute', parent = '{parent}', child = 'b{i}', "
                      f"at = {0.0 if i == 0 else 1.0}, 0, 0, axis = 0, 0, 1 /")
         parent = f"b{i}"
+    return "\n".join(lines) + "\n"
+
+
+def run_under_limit(mrsim, scene, out, limit):
+    import resource
+    return subprocess.run([mrsim, str(scene), "-o", str(out)], capture_output=True, text=True, timeout=300,
+                          preexec_fn=lambda: resource.setrlimit(resource.RLIMIT_AS, (limit, limit)))
+
+
+MEMORY_GB = r"its dense matrices need about ([0-9.E+-]+) GB, more than the ([0-9.E+-]+) GB this process may still take"
+
+
+def test_a_model_too_large_for_the_memory_fails_in_one_line(tmp_path, mrsim):
+    """A chain of 30 beams with 60 modes each has 30 + 30 x 60 = 1830 coordinates; an
+    adaptive 'adams' run holds the mass matrix, its factor and the start's working copies,
+    and the Newton Jacobian and its factor ((2n)^2 each): 13 n^2 words, 8 x 13 x 1830^2 bytes
+    = 0.348293 GB. Under a 250 MiB address-space limit (ulimit -v) the run fails before the
+    first step in one line naming both figures, exit 2, where an allocation deep in the run
+    ended in the compiler's runtime message and backtrace (exit 1; inside Python, the end of
+    the session)."""
     scene = tmp_path / "beams.nml"
-    scene.write_text("\n".join(lines) + "\n")
-    limit = 250 * 2**20
-    r = subprocess.run([mrsim, str(scene), "-o", str(tmp_path / "beams.csv")], capture_output=True, text=True,
-                       timeout=120, preexec_fn=lambda: resource.setrlimit(resource.RLIMIT_AS, (limit, limit)))
+    scene.write_text(beam_chain(30, 60, "method = 'single', adaptive = .true., h_slow = 1e-4"))
+    r = run_under_limit(mrsim, scene, tmp_path / "beams.csv", 250 * 2**20)
     assert r.returncode == 2, r.stderr
     assert r.stderr.count("\n") == 1 and "Error termination" not in r.stderr, r.stderr
     assert r.stderr.startswith(f"mrsim: error: {scene}: at t = 0 s: the model has 1830 coordinates: its dense "
-                               f"matrices need about {8 * 10 * 1830**2 / 1e9:g} GB, more than the "), r.stderr
+                               f"matrices need about {8 * 13 * 1830**2 / 1e9:g} GB, more than the "), r.stderr
     assert "GB this process may still take" in r.stderr
     assert not (tmp_path / "beams.csv").exists()
+
+
+@pytest.mark.parametrize("integrator", [
+    "method = 'single', formula = 'abm4', adaptive = .false., h_slow = 1e-7",
+    "method = 'single', formula = 'abm4', adaptive = .false., h_slow = 1e-7, stability_check = .false.",
+    "method = 'single', formula = 'abm4', adaptive = .true., h_slow = 1e-7",
+    "method = 'single', adaptive = .true., h_slow = 1e-7",
+    "method = 'multirate', coupling = 'response', adaptive = .false., h_slow = 2e-7, h_fast = 1e-7",
+    "method = 'multirate', coupling = 'response', adaptive = .true., h_slow = 1e-7",
+    "method = 'multirate', coupling = 'full', adaptive = .false., h_slow = 2e-7, h_fast = 1e-7",
+    "method = 'multirate', coupling = 'full', adaptive = .true., h_slow = 1e-7",
+    "method = 'multirate', coupling = 'exponential', adaptive = .false., h_slow = 2e-7, h_fast = 2e-7",
+    "method = 'multirate', coupling = 'exponential', adaptive = .true., h_slow = 1e-7",
+    "method = 'auto', adaptive = .true., h_slow = 1e-7",
+])
+def test_a_run_the_memory_check_lets_through_finishes(tmp_path, mrsim, integrator):
+    """The memory check's figure is a bound on what the run takes, by its method: under an
+    address-space limit (ulimit -v) that leaves the process just the room the check asks
+    for (read from its own refusal at a smaller limit, plus 4 MiB for the arrays that are
+    not n x n), the run finishes. 25 beams x 20 modes: 525 coordinates, 5-40 n^2 words.
+    Before the check knew the method (a flat 10 n^2 words), 6 of these 11 settings (fixed
+    steps with the pre-flight check, 'exponential', 'auto') failed here in a segmentation
+    fault or the compiler's runtime message, and it refused 4 others at 1.3-2.4 times the
+    room they take."""
+    scene = tmp_path / "beams.nml"
+    scene.write_text(beam_chain(25, 20, integrator))
+    small = 45 * 2**20
+    r = run_under_limit(mrsim, scene, tmp_path / "beams.csv", small)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
+    found = re.search(MEMORY_GB, r.stderr)
+    assert found, r.stderr
+    need, room = float(found.group(1)) * 1e9, float(found.group(2)) * 1e9
+    held = small - room                    # the process's address space when it checks
+    r = run_under_limit(mrsim, scene, tmp_path / "beams.csv", int(held + need) + 4 * 2**20)
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "beams.csv").exists()

@@ -4,7 +4,7 @@
 module pymr_driver_build
   use pymr_env_kinds, only : dp, name_len, pi
   use pymr_env_error, only : error_type, fatal_error, stat_solver
-  use pymr_model_scene, only : scene_t, body_spec, joint_spec, joint_ndof, unset, beam_mode_count, control_count
+  use pymr_model_scene, only : scene_t, integrator_spec, body_spec, joint_spec, joint_ndof, unset, beam_mode_count, control_count
   use pymr_model_scene_rules, only : check_scene, body_index, inertia_matrix, closes_loop
   use pymr_model_types, only : model_data, model_work, prim_revolute, prim_prismatic, &
     & cut_fixed, cut_revolute, cut_spherical, cut_prismatic, cut_free, cut_cylindrical, cut_universal, cut_planar
@@ -177,7 +177,7 @@ contains
     call fill_joint_shapes(sc, order, inboard, d, error); if (allocated(error)) return
     call fill_markers_moments(sc, pos_in, d, wk, error); if (allocated(error)) return
     call fill_cuts(sc, pos_in, d, wk, error); if (allocated(error)) return
-    call allocate_work(d, wk, error)
+    call allocate_work(d, wk, run_bytes(sc%integrator, d%n), error)
   end subroutine fill_model
 
   !> The coordinates: joint coordinates, then each flexible body's modes (a modal body's
@@ -272,16 +272,18 @@ contains
   end subroutine fill_joint_shapes
 
   !> The evaluations' kinematics and terms, sized and cleared. A model too large for the
-  !> memory the process may hold fails here in one line (dense_bytes), not in the compiler's
-  !> runtime at some later allocation (which would also end a Python session).
-  subroutine allocate_work(d, wk, error)
+  !> memory the process may hold (`need` bytes at the run's peak: run_bytes) fails here in
+  !> one line, not in the compiler's runtime at some later allocation (which would also end
+  !> a Python session).
+  subroutine allocate_work(d, wk, need, error)
     type(model_data), intent(in) :: d
     type(model_work), intent(inout) :: wk
+    real(dp), intent(in) :: need
     type(error_type), allocatable, intent(out) :: error
     integer :: nb, stat
-    real(dp) :: need, room
+    real(dp) :: room
     nb = d%nb
-    need = dense_bytes(d%n); room = memory_limit()
+    room = memory_limit()
     stat = 1
     if (need <= room) allocate(wk%mm(d%n, d%n), wk%lf(d%n, d%n), stat=stat)
     if (stat /= 0) then
@@ -295,13 +297,42 @@ contains
     wk%i6 = 0.0_dp; wk%w = 0.0_dp; wk%ic = 0.0_dp; wk%wc = 0.0_dp; wk%mm = 0.0_dp; wk%tau = 0.0_dp; wk%s = 0.0_dp
   end subroutine allocate_work
 
-  !> Bytes of the dense matrices a run of n coordinates holds at once, at most: the mass
-  !> matrix and its factor (n x n each), and a 2n x 2n pair (the 'adams' Newton iteration's
-  !> Jacobian and factor, or the pre-flight eigenproblem's matrix and vectors).
-  pure real(dp) function dense_bytes(n)
+  !> Bytes of the dense matrices (n x n and larger) a run of n coordinates holds at its
+  !> peak, by its method: n^2 times the words measured for each (the address-space limit
+  !> below which the run cannot start or finish, bisected at two sizes;
+  !> docs/performance.md), rounded up by about a tenth. Every run holds the mass matrix, its
+  !> factor and the start's working copies (5 n^2 words). Beside them: single-rate 'adams'
+  !> with Newton, its Jacobian and factor ((2n)^2 each); 'response' and 'full', the fast
+  !> force response and partition; 'exponential', the modal flow's complex eigenvectors
+  !> and their inverse ((2 nf)^2 complex each) while it is made; the pre-flight check of
+  !> fixed steps, the linearised model (2n x 2n, its eigenvectors, and for multirate the
+  !> macro step's own linearisation); 'auto', a copy of the model per probe, the probe kept
+  !> and the one running.
+  pure real(dp) function run_bytes(integ, n)
+    type(integrator_spec), intent(in) :: integ
     integer, intent(in) :: n
-    dense_bytes = 8.0_dp*(2.0_dp + 8.0_dp)*real(n, dp)**2
-  end function dense_bytes
+    real(dp) :: words
+    logical :: checked
+    checked = .not. integ%adaptive .and. integ%stability_check
+    select case (trim(integ%method))
+    case ('auto')
+      words = 40.0_dp
+    case ('multirate')
+      select case (trim(integ%coupling))
+      case ('exponential')
+        words = 36.0_dp
+      case ('full')
+        words = merge(34.0_dp, 7.0_dp, checked)
+      case default
+        words = merge(28.0_dp, 9.0_dp, checked)
+      end select
+    case default
+      words = 5.0_dp
+      if (integ%adaptive .and. integ%formula /= 'abm4' .and. integ%corrector == 'newton') words = 13.0_dp
+      if (checked) words = 22.0_dp
+    end select
+    run_bytes = 8.0_dp*words*real(n, dp)**2
+  end function run_bytes
 
   !> The loop-closing joints (closes_loop) and their constraint rows (model/loops.f90); a
   !> cut joint's point on a flexible body takes the body's mode shapes there (flexible_point).

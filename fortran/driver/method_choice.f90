@@ -184,7 +184,20 @@ contains
     choice%cpu(i) = thread_cpu_time() - cpu0
     choice%predicted(i) = predicted_run(choice%cpu(i), thread_cpu_time() - cpu_half, run%st%time(), t_half, &
       & cpu_half >= 0.0_dp, choice%t_probe, sc%scene%t_end)
+    call keep_least(choice, i)
   end subroutine probe
+
+  !> Of the finished probes 1..i only the one of least predicted CPU is kept (each holds a
+  !> copy of the model and a stepper: run_words counts one besides the probe running).
+  subroutine keep_least(choice, i)
+    type(method_choice_t), intent(inout) :: choice
+    integer, intent(in) :: i
+    integer :: j, least
+    least = minloc(choice%predicted(1:i), 1)
+    do j = 1, i
+      if (j /= least) call forget(choice%runs(j))
+    end do
+  end subroutine keep_least
 
   !> A probe's predicted run: its CPU, and its CPU over its second half (from t_half to
   !> t, cpu_2) scaled to the rest of the run to t_end; a probe of one or two steps (no

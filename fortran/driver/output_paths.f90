@@ -273,7 +273,8 @@ contains
       do k = 1, group_count(copy, name)
         call describe_group(copy, name, k, t)
         do m = 1, t%n
-          if (.not. t%items(m)%scene_file .or. len_trim(t%items(m)%s) == 0) cycle
+          if (.not. t%items(m)%scene_file) cycle      ! only a file item holds a string to look at
+          if (len_trim(t%items(m)%s) == 0) cycle
           if (.not. item_applies(copy, name, k, t%items(m)%name)) cycle
           file = scene_relative(sc%file, trim(t%items(m)%s))
           o => group_origin(copy, name, k)

@@ -238,6 +238,8 @@ contains
     if (self%continues_probe()) then
       call self%continue_probe(error)
     else
+      ! the probe's copy of the model and its stepper go before this run's stepper starts
+      if (allocated(self%probed)) deallocate(self%probed)
       call self%st%start(self%model, 0.0_dp, self%x, self%h0, error)
     end if
     if (allocated(self%probed)) deallocate(self%probed)
