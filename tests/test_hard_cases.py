@@ -169,14 +169,21 @@ def test_singular_mass_matrix_is_named_before_the_first_step(tmp_path):
 
 # ------------------------------------------------------------------- 6. impulse
 
-@pytest.mark.parametrize("formula, per_decade", [("abm4", (0.85, 1.15)), ("adams", (0.6, 1.15))])
-def test_firing_impulse_adaptive_steps_shrink_recover_and_converge(tmp_path, formula, per_decade):
+HALF_DECADES = tuple(10.0 ** -(4 + k / 2) for k in range(9))
+
+
+@pytest.mark.parametrize("formula, rtols, per_decade", [("abm4", (1e-4, 1e-6, 1e-8), (0.85, 1.15)),
+                                                        ("adams", HALF_DECADES, (0.6, 1.15))])
+def test_firing_impulse_adaptive_steps_shrink_recover_and_converge(tmp_path, formula, rtols, per_decade):
     """tank_firing.nml with adaptive steps: at the onset of the 10 ms, 1 MN pulse the step
     shrinks below a third of the typical (median) step before it and grows back afterwards
     (at rtol 1e-4: 'abm4' 1.8e-5 against 4.0e-4 s, median 3.8e-4 s after 0.6 s; 'adams'
     5.4e-4 against 8.5e-4 s, 9.9e-4 s after). The muzzle error against rtol 1e-10 falls
     with rtol: 10x per decade for the paper's fixed order (measured 3.2e-5, 3.0e-7, 3.2e-9 m
-    at 1e-4, 1e-6, 1e-8), as rtol^(q/(q+1)) for variable order (5.7e-6, 2.3e-7, 2.1e-9 m)."""
+    at 1e-4, 1e-6, 1e-8), as rtol^(q/(q+1)) for variable order, whose error is not monotone
+    within a factor 2-3 as the orders it chooses change: its slope is fitted over nine
+    tolerances half a decade apart (0.885 per decade; 0.883 from a build at -O0, whose last
+    bits differ, where the decade pairs went 1.10 / 0.66 and 0.48 / 1.15)."""
     scene = ROOT / "input" / "tank_firing.nml"
 
     def adaptive(rtol, dt=1e-3):
@@ -184,11 +191,15 @@ def test_firing_impulse_adaptive_steps_shrink_recover_and_converge(tmp_path, for
                 "integrator.formula": formula}
     ref = pymr.run(scene, tmp_path / "ref.csv", overrides=adaptive(1e-10))
     errs = []
-    for rtol in (1e-4, 1e-6, 1e-8):
+    for rtol in rtols:
         res = pymr.run(scene, tmp_path / f"a{rtol}.csv", overrides=adaptive(rtol))
         errs.append(np.abs(res.marker("muzzle")[0] - ref.marker("muzzle")[0]).max())
-    for k in range(2):
-        assert per_decade[0] <= np.log10(errs[k] / errs[k + 1]) / 2 <= per_decade[1]
+    if len(rtols) == 3:
+        for k in range(2):
+            assert per_decade[0] <= np.log10(errs[k] / errs[k + 1]) / 2 <= per_decade[1]
+    else:
+        slope = np.polyfit(np.log10(rtols), np.log10(errs), 1)[0]
+        assert per_decade[0] <= slope <= per_decade[1], (slope, errs)
     steps = pymr.run(scene, tmp_path / "steps.csv", overrides=adaptive(1e-4, dt=0.0))
     t = steps.t
     h, tm = np.diff(t), t[1:]
