@@ -263,3 +263,46 @@ def test_a_run_the_memory_check_lets_through_finishes(tmp_path, mrsim, integrato
     r = run_under_limit(mrsim, scene, tmp_path / "beams.csv", int(held + need) + 4 * 2**20)
     assert r.returncode == 0, r.stderr
     assert (tmp_path / "beams.csv").exists()
+
+
+MODES_CHILD = r"""
+import re, resource, sys
+import pymr
+from pymr.api import initial_state
+scene, extra = sys.argv[1], int(sys.argv[2])
+q, qd = initial_state(scene)
+held = int([l.split()[1] for l in open("/proc/self/status") if l.startswith("VmSize")][0]) * 1024
+resource.setrlimit(resource.RLIMIT_AS, (held + extra, held + extra))
+try:
+    freq, zeta, shapes = pymr.modes(scene, q, qd)
+    print("ok", len(freq))
+except pymr.SolverError as e:
+    found = re.search(r"need about ([0-9.E+-]+) GB, more than the ([0-9.E+-]+) GB this process may still take", str(e))
+    print("refused", float(found.group(1)) * 1e9, held + extra - float(found.group(2)) * 1e9 - held)
+"""
+
+
+def test_modes_the_memory_check_lets_through_finish(tmp_path):
+    """`pymr.modes` takes a working copy of the model and the 2n x 2n eigenproblem beside
+    the model it builds (22 n^2 words more): under an address-space limit that leaves the
+    process just the room a refusal asks for (+4 MiB), the next check passes and the modes
+    come out; every call before is refused in one SolverError. Before, a Python session
+    ended in the compiler's runtime message or a segmentation fault (25 beams x 20 modes,
+    525 coordinates, at 30-46 MiB of room)."""
+    import os
+    import sys
+    scene = tmp_path / "beams.nml"
+    scene.write_text(beam_chain(25, 20, "method = 'single', formula = 'abm4', adaptive = .true., h_slow = 1e-7"))
+    env = dict(os.environ, OPENBLAS_NUM_THREADS="1")
+    extra, answers = 16 * 2**20, []
+    for _ in range(4):
+        r = subprocess.run([sys.executable, "-c", MODES_CHILD, str(scene), str(extra)], capture_output=True,
+                           text=True, timeout=300, env=env, cwd=tmp_path)
+        assert r.returncode == 0, r.stderr[-2000:]
+        answers.append(r.stdout.split())
+        if answers[-1][0] == "ok":
+            break
+        need, used = float(answers[-1][1]), float(answers[-1][2])
+        extra = int(used + need) + 4 * 2**20
+    assert answers[-1][0] == "ok" and int(answers[-1][1]) > 0, answers
+    assert [a[0] for a in answers[:-1]] == ["refused"] * (len(answers) - 1), answers

@@ -118,7 +118,8 @@ subroutine pymr_modes(handle, n, t, q, qd, nm, kind, freq, zeta, rate, shapes, s
   use pymr_bind_support, only : report
   use pymr_bind_models, only : scratch
   use pymr_model, only : model_t
-  use pymr_driver_preflight, only : normal_modes
+  use pymr_driver_preflight, only : normal_modes, modes_bytes
+  use pymr_env_memory, only : check_room
   implicit none
   integer, intent(in) :: handle, n
   double precision, intent(in) :: t, q(n), qd(n)
@@ -131,7 +132,8 @@ subroutine pymr_modes(handle, n, t, q, qd, nm, kind, freq, zeta, rate, shapes, s
   type(error_type), allocatable :: error
   type(model_t) :: model
   freq = 0.0d0; zeta = 0.0d0; rate = 0.0d0; shapes = 0.0d0; kind = 0; nm = 0
-  call scratch(handle, model, error, n)
+  call check_room(n, modes_bytes(n), error)
+  if (.not. allocated(error)) call scratch(handle, model, error, n)
   if (.not. allocated(error)) call normal_modes(model, t, [q, qd], freq, zeta, rate, shapes, kind, nm, error)
   call report(error, stat, message, detail)
 end subroutine pymr_modes

@@ -17,7 +17,7 @@ module pymr_driver_build
   use pymr_env_text_file, only : scene_relative
   use pymr_model, only : model_t
   use pymr_env_text, only : itoa, fmt
-  use pymr_env_memory, only : memory_limit
+  use pymr_env_memory, only : memory_limit, check_room, refuse_room
   implicit none
   private
   public :: build_model
@@ -281,16 +281,11 @@ contains
     real(dp), intent(in) :: need
     type(error_type), allocatable, intent(out) :: error
     integer :: nb, stat
-    real(dp) :: room
     nb = d%nb
-    room = memory_limit()
-    stat = 1
-    if (need <= room) allocate(wk%mm(d%n, d%n), wk%lf(d%n, d%n), stat=stat)
+    call check_room(d%n, need, error); if (allocated(error)) return
+    allocate(wk%mm(d%n, d%n), wk%lf(d%n, d%n), stat=stat)
     if (stat /= 0) then
-      call fatal_error(error, 'the model has ' // itoa(d%n) // ' coordinates: its dense matrices need about ' // &
-        & fmt(need/1.0e9_dp) // ' GB, more than the ' // fmt(room/1.0e9_dp) // &
-        & ' GB this process may still take (the machine''s memory, or its ulimit -v)', stat_solver)
-      return
+      call refuse_room(d%n, need, memory_limit(), error); return
     end if
     allocate(wk%rot(3, 3, nb), wk%pos(3, nb), wk%vel(6, nb), wk%acc(6, nb), wk%s(6, d%n), wk%i6(6, 6, nb), &
       & wk%w(6, nb), wk%ic(6, 6, nb), wk%wc(6, nb), wk%p(d%n), wk%tau(d%n))

@@ -21,12 +21,12 @@ module pymr_driver_preflight
   use pymr_env_text, only : itoa
   use pymr_env_item_table, only : origin_t
   use pymr_driver_linearise, only : linear_state
-  use pymr_driver_normal_modes, only : normal_modes, top_frequency
+  use pymr_driver_normal_modes, only : normal_modes, top_frequency, modes_bytes
   implicit none
   private
   public :: check_step_stability, check_mass_matrix
   !> Used from here by the binding and the stepper setup.
-  public :: normal_modes, top_frequency
+  public :: normal_modes, top_frequency, modes_bytes
 
   !> Largest growth of a linearised perturbation over a whole run that is accepted: a
   !> step whose growth factor per step is above 1 only by roundoff-sized amounts (an

@@ -3,9 +3,11 @@
 module pymr_env_memory
   use, intrinsic :: iso_c_binding, only : c_double
   use pymr_env_kinds, only : dp
+  use pymr_env_error, only : error_type, fatal_error, stat_solver
+  use pymr_env_text, only : itoa, fmt
   implicit none
   private
-  public :: memory_limit
+  public :: memory_limit, check_room, refuse_room
 
   interface
     function c_memory_limit() bind(c, name='pymr_memory_limit') result(bytes)
@@ -23,4 +25,27 @@ contains
     memory_limit = real(c_memory_limit(), dp)
     if (memory_limit < 0.0_dp) memory_limit = huge(1.0_dp)
   end function memory_limit
+
+  !> A job on a model of n coordinates whose dense matrices need `need` bytes at its peak:
+  !> refused (refuse_room) when that is more than the process may still take, before the
+  !> job allocates them (an allocation that fails later ends in the compiler's runtime
+  !> message, or a segmentation fault, and inside Python ends the session).
+  subroutine check_room(n, need, error)
+    integer, intent(in) :: n
+    real(dp), intent(in) :: need
+    type(error_type), allocatable, intent(out) :: error
+    real(dp) :: room
+    room = memory_limit()
+    if (need > room) call refuse_room(n, need, room, error)
+  end subroutine check_room
+
+  !> The one line (exit 2) of a model too large for the memory: both figures, in GB.
+  subroutine refuse_room(n, need, room, error)
+    integer, intent(in) :: n
+    real(dp), intent(in) :: need, room
+    type(error_type), allocatable, intent(out) :: error
+    call fatal_error(error, 'the model has ' // itoa(n) // ' coordinates: its dense matrices need about ' // &
+      & fmt(need/1.0e9_dp) // ' GB, more than the ' // fmt(room/1.0e9_dp) // &
+      & ' GB this process may still take (the machine''s memory, or its ulimit -v)', stat_solver)
+  end subroutine refuse_room
 end module pymr_env_memory
