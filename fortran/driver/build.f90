@@ -3,7 +3,7 @@
 !> then the effects' list (driver/build_effects.f90).
 module pymr_driver_build
   use pymr_env_kinds, only : dp, name_len, pi
-  use pymr_env_error, only : error_type, fatal_error, stat_solver
+  use pymr_env_error, only : error_type, fatal_error
   use pymr_model_scene, only : scene_t, integrator_spec, body_spec, joint_spec, joint_ndof, unset, beam_mode_count, control_count
   use pymr_model_scene_rules, only : check_scene, body_index, inertia_matrix, closes_loop
   use pymr_model_types, only : model_data, model_work, prim_revolute, prim_prismatic, &

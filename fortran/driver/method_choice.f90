@@ -188,7 +188,8 @@ contains
   end subroutine probe
 
   !> Of the finished probes 1..i only the one of least predicted CPU is kept (each holds a
-  !> copy of the model and a stepper: run_words counts one besides the probe running).
+  !> copy of the model and a stepper: the memory check, build.f90 run_bytes, counts one
+  !> besides the probe running).
   subroutine keep_least(choice, i)
     type(method_choice_t), intent(inout) :: choice
     integer, intent(in) :: i
@@ -321,7 +322,7 @@ contains
     character(len=:), allocatable :: s
     character(len=32) :: buf
     write(buf, '(f0.2)') min(1.0e3_dp*t, 1.0e12_dp)
-    if (buf(1:1) == '.') buf = '0' // buf
+    if (buf(1:1) == '.') buf = '0' // buf(1:len(buf) - 1)
     s = trim(buf) // ' ms'
   end function milliseconds
 

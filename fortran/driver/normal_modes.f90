@@ -18,7 +18,6 @@ module pymr_driver_normal_modes
   !> drifting) has nothing else to set the scale of its roundoff (1e-12 /s measured).
   real(dp), parameter :: lambda_floor = 1.0e-9_dp
 
-
   !> The modes found so far, in the order found: kind (1 vibration, 2 rigid, 3 drift),
   !> frequency (Hz), damping ratio, rate (1/s), shape, and the key each kind is sorted by.
   type :: mode_list
