@@ -246,7 +246,7 @@ def test_a_run_the_memory_check_lets_through_finishes(tmp_path, mrsim, integrato
     """The memory check's figure is a bound on what the run takes, by its method: under an
     address-space limit (ulimit -v) that leaves the process just the room the check asks
     for (read from its own refusal at a smaller limit, plus 4 MiB for the arrays that are
-    not n x n), the run finishes. 25 beams x 20 modes: 525 coordinates, 5-40 n^2 words.
+    not n x n), the run finishes. 25 beams x 20 modes: 525 coordinates, 5-42 n^2 words.
     Before the check knew the method (a flat 10 n^2 words), 6 of these 11 settings (fixed
     steps with the pre-flight check, 'exponential', 'auto') failed here in a segmentation
     fault or the compiler's runtime message, and it refused 4 others at 1.3-2.4 times the
@@ -263,6 +263,31 @@ def test_a_run_the_memory_check_lets_through_finishes(tmp_path, mrsim, integrato
     r = run_under_limit(mrsim, scene, tmp_path / "beams.csv", int(held + need) + 4 * 2**20)
     assert r.returncode == 0, r.stderr
     assert (tmp_path / "beams.csv").exists()
+
+
+def test_auto_on_a_rigid_chain_is_counted_as_the_single_rate_run_it_is(tmp_path, mrsim):
+    """Without modal coordinates 'auto' runs single-rate 'adams' with no probe: the check
+    counts its 13 n^2 words (the Newton pair beside the mass matrix), not the 40 of a
+    flexible scene's probes, and under a limit that leaves just that room the run finishes.
+    600 rigid links: 600 coordinates."""
+    lines = ["&scene title = 'links', t_end = 1e-6 /", "&integrator method = 'auto', adaptive = .true., h_slow = 1e-7 /",
+             "&body name = 'g', kind = 'ground' /"]
+    parent = "g"
+    for i in range(600):
+        lines.append(f"&body name = 'b{i}', kind = 'rigid', mass = 1.0, com = 0.5, 0, 0, inertia = 0.01, 0.1, 0.1, 0, 0, 0 /")
+        lines.append(f"&joint name = 'j{i}', kind = 'revolute', parent = '{parent}', child = 'b{i}', "
+                     f"at = {0.0 if i == 0 else 1.0}, 0, 0, axis = 0, 0, 1 /")
+        parent = f"b{i}"
+    scene = tmp_path / "links.nml"
+    scene.write_text("\n".join(lines) + "\n")
+    small = 45 * 2**20
+    r = run_under_limit(mrsim, scene, tmp_path / "links.csv", small)
+    found = re.search(MEMORY_GB, r.stderr)
+    assert r.returncode == 2 and found, r.stderr
+    need, room = float(found.group(1)) * 1e9, float(found.group(2)) * 1e9
+    assert need == pytest.approx(8 * 13 * 600**2, rel=1e-4)
+    r = run_under_limit(mrsim, scene, tmp_path / "links.csv", int(small - room + need) + 4 * 2**20)
+    assert r.returncode == 0, r.stderr
 
 
 MODES_CHILD = r"""

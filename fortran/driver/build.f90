@@ -177,7 +177,7 @@ contains
     call fill_joint_shapes(sc, order, inboard, d, error); if (allocated(error)) return
     call fill_markers_moments(sc, pos_in, d, wk, error); if (allocated(error)) return
     call fill_cuts(sc, pos_in, d, wk, error); if (allocated(error)) return
-    call allocate_work(d, wk, run_bytes(sc%integrator, d%n), error)
+    call allocate_work(d, wk, run_bytes(sc%integrator, d%n, d%n - d%nj), error)
   end subroutine fill_model
 
   !> The coordinates: joint coordinates, then each flexible body's modes (a modal body's
@@ -302,20 +302,22 @@ contains
   !> and their inverse ((2 nf)^2 complex each) while it is made; the pre-flight check of
   !> fixed steps, the linearised model (2n x 2n, its eigenvectors, and for multirate the
   !> macro step's own linearisation); 'auto', a copy of the model per probe, the probe kept
-  !> and the one running.
-  pure real(dp) function run_bytes(integ, n)
+  !> and the one running (single-rate alone, with no probe, without both joint and modal
+  !> coordinates). The modal flow's words go with the nf modal coordinates' nf^2.
+  pure real(dp) function run_bytes(integ, n, nf)
     type(integrator_spec), intent(in) :: integ
-    integer, intent(in) :: n
-    real(dp) :: words
+    integer, intent(in) :: n, nf
+    real(dp) :: words, r2
     logical :: checked
     checked = .not. integ%adaptive .and. integ%stability_check
+    r2 = (real(nf, dp)/max(n, 1))**2
     select case (trim(integ%method))
     case ('auto')
-      words = 40.0_dp
+      words = merge(13.0_dp + 29.0_dp*r2, 13.0_dp, nf > 0 .and. nf < n)
     case ('multirate')
       select case (trim(integ%coupling))
       case ('exponential')
-        words = 36.0_dp
+        words = 5.0_dp + 33.0_dp*r2
       case ('full')
         words = merge(34.0_dp, 7.0_dp, checked)
       case default
