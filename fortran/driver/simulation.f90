@@ -237,12 +237,12 @@ contains
     end if
     if (self%continues_probe()) then
       call self%continue_probe(error)
+      deallocate(self%probed)
     else
       ! the probe's copy of the model and its stepper go before this run's stepper starts
       if (allocated(self%probed)) deallocate(self%probed)
       call self%st%start(self%model, 0.0_dp, self%x, self%h0, error)
     end if
-    if (allocated(self%probed)) deallocate(self%probed)
     if (allocated(error)) then
       call self%out%discard()
       call self%name_file(error)
