@@ -82,6 +82,21 @@ def test_stiff_barrel_fixed_step_is_refused_with_mode_frequency_and_largest_step
         str(broke.value)
 
 
+def test_a_run_shorter_than_its_fixed_step_still_takes_that_step_and_is_checked(tmp_path):
+    """A run to 1 ms in fixed steps of 10 ms takes one whole step (its rows are
+    interpolated back): the top mode (1015 Hz, omega h = 63.8) grows by the PECE polynomial's
+    spectral radius in that one step (146), far above 10, so the step is refused like any other.
+    The check counted t_end/h = 0.1 steps, let it through, and the run ended with exit 0
+    and a barrel deflected by 1e52 m."""
+    scene = HARD / "stiff_barrel.nml"
+    assert pece_growth(1j * 2 * np.pi * 1015.0 * 1e-2) > 100
+    over = {"integrator.h_slow": 1e-2, "integrator.h_fast": 1e-2, "scene.t_end": 1e-3}
+    with pytest.raises(pymr.SceneError, match=r"h_slow: a fixed step of 1.00E-02 s is not stable for body 'gun', "
+                                              r"mode 8 \(1015.0 Hz"):
+        pymr.run(scene, tmp_path / "x.csv", overrides=over)
+    assert not (tmp_path / "x.csv").exists()
+
+
 def test_stiff_barrel_adaptive_run_stays_stable_and_accurate(tmp_path):
     """Adaptive steps on the stiff barrel: the controller keeps the top mode stable by
     itself (measured muzzle error 6.1e-7 m at rtol 1e-4 against rtol 1e-9)."""

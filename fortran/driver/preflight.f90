@@ -158,8 +158,15 @@ contains
     real(dp), intent(in) :: h, t_end
     grows = .false.
     if (abs(lam) == 0.0_dp .or. real(lam) > 1.0e-9_dp*abs(lam) .or. h <= 0.0_dp) return
-    grows = log(pece_growth(lam*h))*t_end/h > log(run_growth)
+    grows = log(pece_growth(lam*h))*steps_in_run(t_end, h) > log(run_growth)
   end function grows
+
+  !> Steps of length h a run to t_end takes: at least one, however short the run (a step
+  !> past t_end is taken whole, and its rows are interpolated back).
+  pure real(dp) function steps_in_run(t_end, h) result(n)
+    real(dp), intent(in) :: t_end, h
+    n = max(1.0_dp, t_end/h)
+  end function steps_in_run
 
   !> The model linearised at x for a stepper's steps: with steps%exact_modal the modal
   !> columns hold the stiffness and damping the flow carries exactly, so the joint columns
@@ -388,7 +395,7 @@ contains
     type(error_type), allocatable, intent(out) :: error
     ok = .false.
     call macro_growth(sys, m, st, kr, hf, t_end, rho, error); if (allocated(error)) return
-    ok = (log(rho) - sigma*kr*hf)*t_end/(kr*hf) <= log(run_growth)
+    ok = (log(rho) - sigma*kr*hf)*steps_in_run(t_end, kr*hf) <= log(run_growth)
   end subroutine macro_stable
 
   !> Turn a 'response' stepper's surrogate correction on or off: whether it has one.
