@@ -209,6 +209,9 @@ SET_FAULTS = [
              r": &joint 'pivot': parent: no &body named 'nobody'$"),
     SetFault("marker_body_unknown", "marker[tip].body=nobody", "marker[tip].body", "nobody",
              r": &marker 'tip': body: no &body named 'nobody'$"),
+    # a fault on the ground body leaves it the ground: no second line says the scene has none
+    SetFault("ground_mass", "body[ground].mass=1", "body[ground].mass", 1.0,
+             r": &body 'ground': mass: not an item of a ground body \(it takes name kind\)$"),
     SetFault("single_h_fast_not_h_slow", "integrator.h_fast=5e-4", "integrator.h_fast", 5e-4,
              r": &integrator: h_(fast|slow): method 'single' takes one step for all coordinates"),
 ]

@@ -291,6 +291,8 @@ contains
     ng = 0
     each_bodies: do i = 1, size(sc%bodies)
       associate(b => sc%bodies(i))
+        ! counted first: a ground with another fault is still the scene's ground
+        if (trim(b%kind) == 'ground') ng = ng + 1
         if (len_trim(b%name) == 0) then
           call errs%add(b%origin%where('name') // ': missing'); cycle each_bodies
         end if
@@ -300,7 +302,6 @@ contains
         end if
         select case (trim(b%kind))
         case ('ground')
-          ng = ng + 1
           if (ng == 2) call errs%add(b%origin%where('kind') // ": a second ground (the tree has one fixed base): " // &
             & 'join this body to the first ground with a fixed joint')
         case ('rigid')
@@ -1192,6 +1193,7 @@ contains
         & 'to act on (its state follows from the tree; act on a joint of the tree)'); return
     end if
     ndof = joint_ndof(sc%joints(k)%kind)
+    if (ndof < 0) return    ! the joint's kind is missing or unknown: its own error says so
     if (coordinate < 1 .or. coordinate > ndof) then
       call errs%add(o%where('coordinate') // ': joint ''' // trim(joint) // ''' has ' // itoa(ndof) // &
         & trim(merge(' coordinate ', ' coordinates', ndof == 1)) // ', got ' // itoa(coordinate)); return
