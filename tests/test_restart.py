@@ -95,6 +95,37 @@ def test_bad_restarts_are_one_line_errors(tmp_path):
         pymr.run(TANK, out, overrides={"output.checkpoint_dt": -1.0})
 
 
+@pytest.mark.parametrize("fmt", ["csv", "hdf5"])
+@pytest.mark.parametrize("change", ["nan", "inf"])
+def test_a_restart_refuses_kept_rows_that_a_run_cannot_have_written(tmp_path, fmt, change):
+    """A restart keeps the rows before its checkpoint as they are in the file. A run writes
+    only finite numbers, so a kept row holding a non-finite one was changed after the run:
+    the restart is refused naming the file, row and column, and the file is left as it was
+    (the restart once continued with exit 0, the value kept in its results)."""
+    out = tmp_path / f"job.{'csv' if fmt == 'csv' else 'h5'}"
+    over = {"scene.t_end": 0.25, "output.checkpoint_dt": 0.1, "output.format": fmt}
+    pymr.run(TANK, out, overrides=over)
+    bad = float(change)
+    if fmt == "csv":
+        lines = out.read_text().splitlines(keepends=True)
+        head = next(i for i, t in enumerate(lines) if t.startswith("t,"))
+        cells = lines[head + 3].split(",")                    # row 3, column elevation.q
+        cells[lines[head].rstrip().split(",").index("elevation.q")] = change
+        lines[head + 3] = ",".join(cells)
+        out.write_text("".join(lines))
+    else:
+        import h5py
+        with h5py.File(out, "r+") as f:
+            block = f["joint_coordinates"][...]
+            block[2, 1] = bad                                 # row 3, elevation.q
+            f["joint_coordinates"][...] = block
+    before = out.read_bytes()
+    with pytest.raises(pymr.SceneError, match=rf"{out.name}: row 3, column elevation.q: not a finite number \(a run "
+                                              r"writes none: the file was changed after the run\)"):
+        pymr.run(TANK, out, overrides={**over, "scene.t_end": 0.3}, restart=tmp_path / "job.ckpt")
+    assert out.read_bytes() == before
+
+
 def test_a_restart_refuses_a_checkpoint_that_does_not_belong_to_its_scene(tmp_path):
     """A checkpoint carries the integrator settings, the model's fingerprint, pymr's version,
     its time and a checksum: a restart with other settings, of another scene of the same

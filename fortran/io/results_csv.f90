@@ -9,10 +9,15 @@ module pymr_io_results_csv
   use pymr_env_text, only : itoa
   use pymr_env_text_file, only : sync_file, rename_file, file_size, check_size
   use pymr_io_results_output, only : pymr_version, header_line, row_width, row_values
-  use pymr_io_results_file, only : results_file
+  use pymr_io_results_file, only : results_file, check_kept_values
   implicit none
   private
   public :: csv_writer
+
+  !> A line of text read back.
+  type :: line_t
+    character(len=:), allocatable :: s
+  end type line_t
 
   !> A CSV results file being written (comment lines, the header row, one row per output
   !> time), its rows streamed to PATH.partial.
@@ -95,9 +100,6 @@ contains
     integer :: u, ios, k, keep
     character(len=256) :: msg
     character(len=:), allocatable :: buf, source
-    type :: line_t
-      character(len=:), allocatable :: s
-    end type line_t
     type(line_t), allocatable :: lines(:)
     logical :: exists
     keep = rows + 4
@@ -133,6 +135,10 @@ contains
       call fatal_error(error, source // ': its columns are not the ones this run writes (&output quantities, or ' // &
         & 'the markers, differ from the checkpointed run''s): restart with the same ones'); return
     end if
+    do k = 5, keep
+      call check_kept_line(source, k - 4, lines(k)%s, lines(4)%s, row_width(self%plan, d), error)
+      if (allocated(error)) return
+    end do
     open(newunit=u, file=self%partial // '.tmp', status='replace', action='write', iostat=ios, iomsg=msg)
     do k = 1, keep
       if (ios == 0) write(u, '(a)', iostat=ios, iomsg=msg) lines(k)%s
@@ -154,6 +160,24 @@ contains
     self%written = file_size(self%partial)
     call allocate_row(self, d)
   end subroutine csv_reopen
+
+  !> Row `row` of the results in `source`, kept by a restart, is what a run writes: `width`
+  !> finite numbers (the columns named in `header`), else the error names file and row.
+  subroutine check_kept_line(source, row, line, header, width, error)
+    character(len=*), intent(in) :: source, line, header
+    integer, intent(in) :: row, width
+    type(error_type), allocatable, intent(out) :: error
+    real(dp) :: values(width)
+    integer :: ios, fields
+    fields = count([(line(ios:ios) == ',', ios = 1, len(line))]) + 1
+    if (fields == width) read(line, *, iostat=ios) values
+    if (fields /= width .or. ios /= 0) then
+      call fatal_error(error, source // ': row ' // itoa(row) // ' is not a row of ' // itoa(width) // &
+        & ' numbers (a run writes no other: the file was changed after the run): restart from the results the ' // &
+        & 'run wrote'); return
+    end if
+    call check_kept_values(source, row, values, header, 1, error)
+  end subroutine check_kept_line
 
   !> The row's values and text, and the pending rows' buffer (at least one row).
   subroutine allocate_row(self, d)

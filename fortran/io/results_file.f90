@@ -3,13 +3,15 @@
 !> failed run leaves it as it is (close), a refused one removes it (discard), so an earlier
 !> complete PATH is never lost. A restart (reopen) keeps the rows a checkpoint counts.
 module pymr_io_results_file
+  use, intrinsic :: ieee_arithmetic, only : ieee_is_finite
   use pymr_env_kinds, only : dp
-  use pymr_env_error, only : error_type
+  use pymr_env_error, only : error_type, fatal_error
+  use pymr_env_text, only : itoa
   use pymr_model_types, only : model_data
   use pymr_io_results_output, only : output_plan
   implicit none
   private
-  public :: results_file
+  public :: results_file, check_kept_values
 
   type, abstract :: results_file
     !> The results file, and the partial file written until the run is complete.
@@ -93,4 +95,34 @@ contains
     self%scene_text = scene_text; self%settings = settings
   end subroutine file_describe
 
+  !> Values a restart keeps (row `row` of `source`, the columns named by `column` from its
+  !> first, comma-separated) are finite: a run writes no other, so a row that holds one was
+  !> changed after the run (else the error names file, row and column).
+  subroutine check_kept_values(source, row, values, columns, first, error)
+    character(len=*), intent(in) :: source, columns
+    integer, intent(in) :: row, first
+    real(dp), intent(in) :: values(:)
+    type(error_type), allocatable, intent(out) :: error
+    integer :: k
+    k = findloc(ieee_is_finite(values), .false., 1)
+    if (k == 0) return
+    call fatal_error(error, source // ': row ' // itoa(row) // ', column ' // column_name(columns, first + k - 1) // &
+      & ': not a finite number (a run writes none: the file was changed after the run): restart from the ' // &
+      & 'results the run wrote')
+  end subroutine check_kept_values
+
+  !> The k-th name of the comma-separated list `columns`.
+  pure function column_name(columns, k) result(name)
+    character(len=*), intent(in) :: columns
+    integer, intent(in) :: k
+    character(len=:), allocatable :: name
+    integer :: i, start, found
+    start = 1; found = 1
+    do i = 1, len(columns)
+      if (columns(i:i) /= ',') cycle
+      if (found == k) exit
+      found = found + 1; start = i + 1
+    end do
+    name = columns(start:i-1)
+  end function column_name
 end module pymr_io_results_file

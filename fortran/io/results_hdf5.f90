@@ -19,7 +19,7 @@ module pymr_io_results_hdf5
   use pymr_env_text_file, only : sync_file, rename_file, remove_file
   use pymr_model_types, only : model_data
   use pymr_io_results_output, only : pymr_version, output_plan, column_sink, walk_columns, header_line, row_width, row_values
-  use pymr_io_results_file, only : results_file
+  use pymr_io_results_file, only : results_file, check_kept_values
   implicit none
   private
   public :: hdf5_writer
@@ -468,9 +468,28 @@ contains
       if (err /= 0) call fatal_error(error, source // ': cannot read the results (' // kept%group(k)%name // ')')
       if (err == 0 .and. have < rows) call fatal_error(error, source // ': has ' // itoa(have) // &
         & ' result rows, the checkpoint expects ' // itoa(rows) // ': the file belongs to another run')
+      if (.not. allocated(error)) call check_kept_group(source, kept, k, rows, header_line(plan, d), error)
     end do
     call h5fclose_f(file, err)
   end subroutine read_kept_rows
+
+  !> The kept rows of group k hold only finite numbers (check_kept_values; `columns`: the
+  !> row's column names, which g%place indexes).
+  subroutine check_kept_group(source, kept, k, rows, columns, error)
+    character(len=*), intent(in) :: source, columns
+    type(group_sink), intent(in) :: kept
+    integer, intent(in) :: k, rows
+    type(error_type), allocatable, intent(out) :: error
+    integer :: r, j
+    associate(g => kept%group(k))
+      do r = 1, rows
+        do j = 1, g%n
+          call check_kept_values(source, r, g%block(j:j, r), columns, g%place(j), error)
+          if (allocated(error)) return
+        end do
+      end do
+    end associate
+  end subroutine check_kept_group
 
   !> The first `rows` rows of group g's dataset in `file` into g%block (`have`: the rows
   !> the dataset holds).
