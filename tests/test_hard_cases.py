@@ -182,6 +182,33 @@ def test_singular_mass_matrix_is_named_before_the_first_step(tmp_path):
         pymr.run(scene, tmp_path / "g.csv", overrides={"body[bob].mass": 0.0})
 
 
+def test_a_scene_too_far_from_the_origin_to_resolve_its_inertia_is_refused(tmp_path):
+    """The spatial inertias are assembled about the inertial origin: a 1 kg disc (I = 4e-5
+    kg m^2 about its hinge) R from the origin carries m R^2 there, and what is left of its
+    own inertia after the cancellation holds about -log10(eps R^2 / I) digits. At R = 1 km
+    (5.5e-6 of I) a constant 1e-3 N m turns it by T t^2 / (2 I) to 1e-5; at 10 km (5.5e-4)
+    and at 1000 km (where the inertia came out 0 and the run was refused as a singular mass
+    matrix of a body with mass and inertia) the scene is refused naming the coordinate and
+    the cause; at 100 km it ran with the inertia 5 % off."""
+    scene = tmp_path / "far.nml"
+    scene.write_text("""
+&scene t_end = 0.1, gravity = 0.0, 0.0, 0.0 /
+&integrator h_slow = 1.0e-3 /
+&effects joint_drives = .true. /
+&body name = 'ground', kind = 'ground' /
+&body name = 'disc', kind = 'rigid', mass = 1.0, inertia = 4.0e-5, 4.0e-5, 4.0e-5, 0.0, 0.0, 0.0 /
+&joint name = 'pivot', kind = 'revolute', parent = 'ground', child = 'disc', at = 1.0e3, 0.0, 0.0 /
+&drive joint = 'pivot', offset = 1.0e-3 /
+""")
+    res = pymr.run(scene, tmp_path / "far.csv")
+    assert res["pivot.q"][-1] == pytest.approx(1e-3 * 0.1**2 / (2 * 4e-5), rel=1e-5)
+    for r in (1e4, 1e5, 1e6):
+        with pytest.raises(pymr.SceneError, match=r"far.nml: the mass matrix cannot be resolved at the initial state: "
+                                                   r"coordinate pivot\.q moves an inertia of .*place the scene nearer "
+                                                   r"the origin"):
+            pymr.run(scene, tmp_path / "x.csv", overrides={"joint[pivot].at": [r, 0.0, 0.0]})
+
+
 # ------------------------------------------------------------------- 6. impulse
 
 HALF_DECADES = tuple(10.0 ** -(4 + k / 2) for k in range(9))

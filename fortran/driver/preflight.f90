@@ -18,7 +18,7 @@ module pymr_driver_preflight
   use pymr_integrator_ode, only : partitioned_system
   use pymr_integrator_stepper, only : stepper_t, pece_steps, step_counts
   use pymr_integrator_response, only : response_integrator
-  use pymr_env_text, only : itoa
+  use pymr_env_text, only : itoa, fmt
   use pymr_env_item_table, only : origin_t
   use pymr_driver_linearise, only : linear_state
   use pymr_driver_normal_modes, only : normal_modes, top_frequency, modes_bytes
@@ -283,6 +283,7 @@ contains
     counters = model%counters()
     call model%terms(0.0_dp, x(1:n), x(n+1:2*n))
     call model%set_counters(counters)
+    call check_resolved(model, where, error); if (allocated(error)) return
     l = model%wk%mm
     call potrf(l, 'the mass matrix', error, minor)
     if (.not. allocated(error)) then
@@ -303,6 +304,41 @@ contains
       error%message = where // error%message
     end if
   end subroutine check_mass_matrix
+
+  !> Every coordinate moves an inertia that the assembly resolves: at least `resolved` times
+  !> the roundoff the bodies' inertia about the inertial origin leaves (origin_roundoff), so
+  !> that the mass matrix holds its 4 leading digits. A scene far from the origin fails here,
+  !> not as a singular mass matrix or with its inertias silently off.
+  subroutine check_resolved(model, where, error)
+    type(model_t), intent(in) :: model
+    character(len=*), intent(in) :: where
+    type(error_type), allocatable, intent(out) :: error
+    real(dp), parameter :: resolved = 1.0e4_dp
+    real(dp) :: e
+    integer :: i
+    e = origin_roundoff(model)
+    do i = 1, model%d%n
+      if (abs(model%wk%mm(i, i)) > resolved*e) cycle
+      call fatal_error(error, where // 'the mass matrix cannot be resolved at the initial state: coordinate ' // &
+        & trim(model%d%qname(i)) // ' moves an inertia of ' // fmt(model%wk%mm(i, i)) // ', less than 1e4 times ' // &
+        & 'the roundoff (' // fmt(e) // ') of the bodies'' inertia about the inertial origin, which pymr ' // &
+        & 'assembles about (m r^2 up to ' // fmt(e/epsilon(1.0_dp)) // ' kg m^2): place the scene nearer the origin')
+      return
+    end do
+  end subroutine check_resolved
+
+  !> Roundoff of the mass matrix's entries (kg m^2): the spatial inertias are taken about the
+  !> inertial origin, so a body of mass m at distance r carries m r^2 there, and its own
+  !> inertia is what is left after the cancellation (epsilon of the largest m r^2).
+  real(dp) function origin_roundoff(model) result(e)
+    type(model_t), intent(in) :: model
+    integer :: b
+    e = 0.0_dp
+    do b = 2, model%d%nb
+      e = max(e, model%d%mass(b)*sum(model%wk%pos(:, b)**2))
+    end do
+    e = epsilon(1.0_dp)*e
+  end function origin_roundoff
 
   !> Multirate runs: the growth per macro step of the stepper itself applied to the model
   !> linearised at the initial state (power iteration on its whole state). When its growth
