@@ -121,7 +121,7 @@ def rows_of(nt: int, every: int = 1, frames: int | None = None) -> np.ndarray:
     them evenly spread (the first and the last of those kept)."""
     if isinstance(every, bool) or not isinstance(every, (int, np.integer)) or every < 1:
         raise GeometryError(f"every: a whole number from 1, got {every!r}")
-    rows = np.arange(0, nt, every)
+    rows = np.arange(0, nt, min(int(every), max(nt, 1)))   # beyond nt: the first row (numpy's int64 ends below)
     if frames is not None:
         if isinstance(frames, bool) or not isinstance(frames, (int, np.integer)) or frames < 1:
             raise GeometryError(f"frames: a whole number from 1, got {frames!r}")
@@ -201,7 +201,11 @@ def motion(res: Results | str | os.PathLike, scene=None, exaggerate: float = 1.0
         bodies = _bodies(model, t, q, qd, float(exaggerate))
         joints = _joints(model, t, q, qd, float(exaggerate), [b.name for b in bodies])
         markers = _markers(model, t, q, qd, float(exaggerate))      # every marker of the scene
-    return Motion(t=t, bodies=bodies, joints=joints, markers=markers, exaggerate=float(exaggerate))
+    drawn = Motion(t=t, bodies=bodies, joints=joints, markers=markers, exaggerate=float(exaggerate))
+    if not all((np.abs(x) <= np.finfo(np.float32).max).all() for x in drawn.bounds()):   # nan fails too
+        raise GeometryError(f"exaggerate: {exaggerate!r} scales the deflections beyond what a drawing holds "
+                            f"(single precision, {np.finfo(np.float32).max:.1e} m): take a smaller scale")
+    return drawn
 
 
 def _states(t, q, qd):

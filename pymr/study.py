@@ -347,8 +347,11 @@ class Study:
         self.say(self.weights_text())
 
     def weights_text(self) -> str:
-        parts = [f"'{c}' {self.weight.get(c, math.nan):.3f} (c_fast {self.c_fast.get(c, math.nan) * 1e6:.3f} us "
-                 f"at k = {self.weight_ratio.get(c, '-')})" for c in COUPLINGS]
+        ratios = ", ".join(map(str, WEIGHT_RATIOS))
+        parts = [f"'{c}' {self.weight[c]:.3f} (c_fast {self.c_fast[c] * 1e6:.3f} us at k = {self.weight_ratio[c]})"
+                 if math.isfinite(self.weight.get(c, math.nan)) else
+                 f"'{c}' not measured (the pre-flight check refused k = {ratios}: its cases have no equivalents)"
+                 for c in COUPLINGS]
         return (f"measured weight w = c_fast / c_full of a fast-only evaluation (c_full {self.c_full * 1e6:.3f} us "
                 f"per single-rate step): " + ", ".join(parts))
 
@@ -526,7 +529,10 @@ class Study:
         w = csv.DictWriter(fh, fieldnames=list(asdict(self.cases[0])))
         w.writeheader()
         for c in self.cases:
-            w.writerow(asdict(c))
+            row = asdict(c)
+            if c.status == "ok" and math.isnan(c.equivalents):
+                row["equivalents"] = ""          # a coupling whose weight was not measured (weights_text)
+            w.writerow(row)
         write_file(path, fh.getvalue(), "study's table")
 
     def best_at(self, error: float) -> dict[str, Case]:

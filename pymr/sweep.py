@@ -102,7 +102,11 @@ def load_sweep(path: str | os.PathLike) -> Sweep:
     if metric and not re.fullmatch(r"(deviation|final|max_abs):[\w.\[\]]+", metric):
         raise SweepError(f"{path}: metric: {metric!r} is not 'deviation:MARKER', 'final:COLUMN' or 'max_abs:COLUMN'")
     scene = (path.parent / spec["scene"]).resolve()
-    if not scene.exists():
+    try:
+        found = scene.exists()
+    except OSError as exc:       # a name the system cannot take (too long, a component too long)
+        raise SweepError(f"{path}: scene: {scene}: {exc.strerror}") from None
+    if not found:
         raise SweepError(f"{path}: scene: {scene} not found")
     if spec.get("output", None) == "":
         raise SweepError(f"{path}: output: an empty folder name (leave it out for {path.stem}/ in the working folder)")
@@ -459,9 +463,10 @@ def make_folder(folder: Path, what: str) -> None:
 
 
 def write_summary(sw: Sweep, rows: list[dict], folder: Path | None = None) -> Path:
-    """folder/summary.csv, written whole (an earlier summary stays until the new one is complete)."""
-    fields = ["case", *sw.grid, "metric", *(["reference"] if sw.metric.startswith("deviation:") else []),
-              "cpu_time_s", "status"]
+    """folder/summary.csv, written whole (an earlier summary stays until the new one is complete);
+    a sweep without a metric has no metric column (it held nan in every row)."""
+    fields = ["case", *sw.grid, *(["metric"] if sw.metric else []),
+              *(["reference"] if sw.metric.startswith("deviation:") else []), "cpu_time_s", "status"]
     fh = io.StringIO(newline="")
     w = csv.DictWriter(fh, fieldnames=fields, extrasaction="ignore")
     w.writeheader()

@@ -681,3 +681,46 @@ def test_a_nul_in_the_other_functions_paths_is_refused(fe, tmp_path, call, messa
 def test_export_refuses_a_nul_in_its_folder(runs):
     with pytest.raises(pymr.OutputError, match=r"^--vtk 'v\\x00x': a folder name cannot hold a NUL character$"):
         pymr.export.export_vtk(runs / "pend.csv", "v\0x")
+
+
+# ------------------------------------------------------------------ the reader goes away
+
+@pytest.mark.parametrize("args", [("modes", ROOT / "input" / "tank_gun_turret.nml"), ("scene", "--schema")],
+                         ids=["modes", "schema"])
+def test_output_cut_short_by_its_reader_ends_quietly(args):
+    """`pymr modes SCENE | head -1`: the reader closes the pipe before pymr writes, so every
+    write fails (EPIPE). pymr stops with exit 0 and nothing on stderr; `pymr modes` ended in
+    a BrokenPipeError traceback (exit 1)."""
+    p = subprocess.Popen([sys.executable, "-m", "pymr", *map(str, args)], stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, stdin=subprocess.DEVNULL, cwd=tempfile.gettempdir())
+    p.stdout.close()                                  # before the interpreter has even started
+    err = p.stderr.read()
+    assert p.wait(timeout=120) == 0 and err == b"", err.decode()
+
+
+# ------------------------------------------------------------------ overflowing scales, names
+
+@pytest.mark.parametrize("command", ["export", "view", "animate"])
+def test_a_deflection_scale_that_overflows_is_refused(tmp_path, command):
+    """The tank's barrel deflects about 1e-4 m: scaled by 1e300 its drawn points lie beyond
+    what a drawing holds (single precision, 3.4e38 m), as by 1e308.
+    Each drawing command refuses the scale in one line (export wrote .vtu files of inf and
+    nan with exit 0; view and animate ended in tracebacks)."""
+    pymr.run(ROOT / "input" / "tank_gun_turret.nml", tmp_path / "t.csv", overrides={"scene.t_end": 0.02})
+    out = {"export": ["--vtk", tmp_path / "vtk"], "view": ["-o", tmp_path / "t.html"],
+           "animate": ["-o", tmp_path / "t.gif"]}[command]
+    for scale in ("1e300", "1e308"):
+        refused(cli(command, tmp_path / "t.csv", *out, "--exaggerate", scale),
+                f"exaggerate: {float(scale)!r} scales the deflections beyond what a drawing holds (single "
+                "precision, 3.4e+38 m): take a smaller scale")
+    assert not any(p.suffix in (".vtu", ".pvd", ".html", ".gif") for p in tmp_path.rglob("*"))
+    assert cli(command, tmp_path / "t.csv", *out, "--exaggerate", "1e3").returncode == 0
+
+
+def test_a_sweep_whose_scene_name_the_system_cannot_take_is_one_line(tmp_path):
+    """A scene name of 300 characters (above the file system's 255 per name): one line
+    naming the sweep file and the system's reason (it was an OSError traceback)."""
+    toml = tmp_path / "long.toml"
+    toml.write_text(f'scene = "{"p" * 300}.nml"\n[grid]\n"integrator.h_slow" = [1e-3]\n')
+    refused(cli("sweep", toml, "--emit-slurm", tmp_path / "out"), "long.toml: scene: ")
+    assert "File name too long" in cli("sweep", toml).stderr

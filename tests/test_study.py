@@ -218,6 +218,27 @@ def test_peers_table_csv_and_figure(study, tmp_path):
         Study(TANK, "muzzle", repeats=0)
 
 
+def test_a_coupling_whose_weight_was_not_measured_leaves_its_equivalents_empty(tmp_path):
+    """Where the pre-flight check refuses every weight ratio of a coupling (the flexible
+    chain's 'full' at k = 10, 5 and 2), its weight is unknown: the weights line says so and
+    its cases' equivalents cell is empty, where 'nan' stood in rows marked ok. A measured
+    coupling keeps rhs_full + w rhs_fast (10 + 0.25 x 20 = 15)."""
+    s = Study.__new__(Study)
+    s.c_full = 6.0e-6
+    s.weight, s.c_fast, s.weight_ratio = {"response": 0.25, "full": math.nan}, {"response": 1.5e-6, "full": math.nan}, \
+        {"response": 10}
+    text = s.weights_text()
+    assert "'response' 0.250 (c_fast 1.500 us at k = 10)" in text
+    assert "'full' not measured (the pre-flight check refused k = 10, 5, 2: its cases have no equivalents)" in text
+    s.cases = [Case("full fixed k=5", "h_fast=2.5e-05", error_m=2.8e-3, cpu_s=5e-3, rhs_full=10, rhs_fast=20, runs=1),
+               Case("response fixed k=5", "h_fast=2.5e-05", error_m=2.8e-3, cpu_s=5e-3, rhs_full=10, rhs_fast=20,
+                    equivalents=10 + 0.25 * 20, runs=1)]
+    s.write_csv(tmp_path / "w.csv")
+    rows = list(csv.DictReader(open(tmp_path / "w.csv")))
+    assert [r["equivalents"] for r in rows] == ["", "15.0"]
+    assert "nan" not in (tmp_path / "w.csv").read_text()
+
+
 def test_cpu_time_is_the_median_of_the_repeats():
     """Median, not mean or minimum: of 0.5, 0.1, 0.3 and 9.0 s it is 0.4 s."""
     c = Case("single fixed", "h=1e-4")

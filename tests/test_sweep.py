@@ -98,6 +98,21 @@ def test_a_failing_case_is_recorded_and_the_others_run(tmp_path, monkeypatch):
     assert rows[1]["metric"] == alone["elevation.q"][-1]
 
 
+def test_a_sweep_without_a_metric_has_no_metric_column(tmp_path, monkeypatch):
+    """The metric is optional: without one the summary lists each case's CPU time and
+    status and no metric column (it held nan in every row marked ok); each case's CPU time is
+    its own run's (positive, finite)."""
+    monkeypatch.chdir(tmp_path)
+    toml = tmp_path / "plain.toml"
+    toml.write_text(f'scene = "{ROOT / "input" / "pendulum.nml"}"\n[fixed]\n"scene.t_end" = 0.05\n'
+                    '[grid]\n"integrator.h_slow" = [5e-4, 1e-3]\n')
+    rows = run_sweep(load_sweep(toml), workers=1)
+    table = list(csv.DictReader(open(tmp_path / "plain" / "summary.csv")))
+    assert list(table[0]) == ["case", "integrator.h_slow", "cpu_time_s", "status"]
+    assert [r["status"] for r in table] == ["ok", "ok"] and "nan" not in (tmp_path / "plain" / "summary.csv").read_text()
+    assert all(0 < float(r["cpu_time_s"]) < 10 for r in table) and len(rows) == 2
+
+
 def test_a_case_the_kernel_refuses_stops_the_sweep_before_any_case_runs(tmp_path):
     """Every case's scene is read and checked by the kernel when the sweep is loaded: a
     value it refuses (h_slow not a multiple of h_fast) is one error naming the case."""
