@@ -317,12 +317,15 @@ contains
     real(dp) :: e
     integer :: i
     e = origin_roundoff(model)
+    if (e == 0.0_dp) return     ! every body at the origin: the factorisation names a singular matrix
     do i = 1, model%d%n
       if (abs(model%wk%mm(i, i)) > resolved*e) cycle
       call fatal_error(error, where // 'the mass matrix cannot be resolved at the initial state: coordinate ' // &
         & trim(model%d%qname(i)) // ' moves an inertia of ' // fmt(model%wk%mm(i, i)) // ', less than 1e4 times ' // &
         & 'the roundoff (' // fmt(e) // ') of the bodies'' inertia about the inertial origin, which pymr ' // &
-        & 'assembles about (m r^2 up to ' // fmt(e/epsilon(1.0_dp)) // ' kg m^2): place the scene nearer the origin')
+        & 'assembles about (m r^2 up to ' // fmt(e/epsilon(1.0_dp)) // ' kg m^2): either it moves (almost) no ' // &
+        & 'inertia (check the masses and inertias of the bodies it moves and the axes of its joint), or the ' // &
+        & 'scene lies too far from the origin (place it nearer)')
       return
     end do
   end subroutine check_resolved
