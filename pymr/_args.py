@@ -61,7 +61,11 @@ def write_file(path: str | os.PathLike, data: str | bytes, what: str) -> Path:
     the disk (fsync), then renamed over it, so an earlier complete file survives a failed
     write. A failure is an :class:`OutputError` naming the file and `what` it was to hold."""
     path = Path(_path("path", path, OutputError))
-    if path.is_dir() or not path.name:       # '.', '..', '/': no file name to write (or rename) to
+    try:
+        folder = path.is_dir()
+    except OSError:                          # a name too long: the write below says so
+        folder = False
+    if folder or not path.name:              # '.', '..', '/': no file name to write (or rename) to
         raise OutputError(f"{path}: cannot write the {what} (it is a directory)")
     tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
     try:

@@ -1,7 +1,11 @@
-"""The order of interleaved timing runs, shared by ``pymr study`` and ``pymr bench``."""
+"""The order of interleaved timing runs, and how many there may be, shared by ``pymr study``
+and ``pymr bench``."""
 from __future__ import annotations
 
 import numpy as np
+
+#: Most timing runs per case (--repeats): beyond, a study or bench would not end in a day.
+MAX_REPEATS = 1000
 
 
 def shuffled(items: list, seed: int) -> list:

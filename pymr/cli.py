@@ -10,6 +10,7 @@ import sys
 import numpy as np
 
 from .api import PymrError, SceneError, SolverError, run, write_file
+from ._timing import MAX_REPEATS
 from .outputs import check_output
 
 
@@ -200,8 +201,8 @@ class _Parser(argparse.ArgumentParser):
         raise SystemExit(1)
 
 
-def _count_of(what: str, least: int = 1):
-    """An argparse type: a whole number, at least `least`, of `what`."""
+def _count_of(what: str, least: int = 1, most: int | None = None):
+    """An argparse type: a whole number, at least `least` (and at most `most`), of `what`."""
     def convert(text: str) -> int:
         try:
             value = int(text)
@@ -209,6 +210,8 @@ def _count_of(what: str, least: int = 1):
             value = least - 1
         if value < least:
             raise argparse.ArgumentTypeError(f"{text!r}: a whole number of {what}, at least {least}")
+        if most is not None and value > most:
+            raise argparse.ArgumentTypeError(f"{text!r}: a whole number of {what}, at most {most}")
         return value
     return convert
 
@@ -331,7 +334,7 @@ def _add_bench(sub) -> None:
                         "100k and 300k DOFs (time, peak memory, frequencies; a dense reduction beside it at 3k)")
     b.add_argument("--pinocchio-cpp", metavar="EXE",
                    help="chain: also time Pinocchio compiled, by this build of docs/pinocchio_chain.cpp")
-    b.add_argument("--repeats", type=_count_of("repeats"), default=None,
+    b.add_argument("--repeats", type=_count_of("repeats", most=MAX_REPEATS), default=None,
                    help="timing repeats, median reported (default 7 for rhs, chain and effects, 5 for lapack, "
                         "spacecraft and output, 21 for table1, which takes at least 5)")
     b.add_argument("--json", help="also write the figures to this JSON file")
@@ -398,7 +401,7 @@ def _add_study(sub) -> None:
     s.add_argument("-o", "--output", help="prefix of the files written: PREFIX.csv, PREFIX.png, PREFIX_history.csv "
                    "(default: SCENE_study)")
     s.add_argument("--quick", action="store_true", help="fewer steps and tolerances (a smoke run)")
-    s.add_argument("--repeats", type=_count_of("runs per case"), default=5, help="runs per case; the CPU time is their median (default 5)")
+    s.add_argument("--repeats", type=_count_of("runs per case", most=MAX_REPEATS), default=5, help="runs per case; the CPU time is their median (default 5)")
     s.set_defaults(func=_cmd_study)
 
 

@@ -77,7 +77,24 @@ def _folder_of(text: str, option: str) -> Path:
         raise OutputError(f"{option} {text}: {shown} is not a folder")
     if not os.access(parent, os.W_OK | os.X_OK):
         raise OutputError(f"{option} {text}: cannot write in the folder {shown} (permission denied)")
+    room = _name_max(parent) - TEMPORARY_NAME
+    if len(os.fsencode(path.name)) > room:
+        raise OutputError(f"{option} {text}: a name of {len(os.fsencode(path.name))} bytes; the folder takes "
+                          f"names of {room + TEMPORARY_NAME}, and pymr writes a temporary file beside it: "
+                          f"take at most {room}")
     return parent
+
+
+#: Bytes a temporary file's name adds to its output's (".NAME.PID.tmp", ".NAME.tmp-XXXXXXXX").
+TEMPORARY_NAME = 24
+
+
+def _name_max(folder: Path) -> int:
+    """The longest file name (bytes) the file system of `folder` takes (255 if it does not say)."""
+    try:
+        return int(os.pathconf(folder, "PC_NAME_MAX"))
+    except (OSError, ValueError):
+        return 255
 
 
 def check_output(path, what: str, *, option: str = "-o", example: str | None = None,

@@ -39,7 +39,7 @@ from pathlib import Path
 import numpy as np
 
 from .api import Model, PymrError, SceneError, SolverError, initial_state, run, write_file
-from ._timing import shuffled
+from ._timing import MAX_REPEATS, shuffled
 from .outputs import check_output
 from .scene import Scene
 
@@ -162,8 +162,8 @@ class Study:
         # a path or a pymr.Scene (its overrides apply to every run of the study)
         self.scene = scene if isinstance(scene, Scene) else Scene(scene)
         self.quick = quick
-        if isinstance(repeats, bool) or not isinstance(repeats, (int, np.integer)) or repeats < 1:
-            raise SceneError(f"repeats: a whole number of runs per case, at least 1, got {repeats!r}")
+        if isinstance(repeats, bool) or not isinstance(repeats, (int, np.integer)) or not 1 <= repeats <= MAX_REPEATS:
+            raise SceneError(f"repeats: a whole number of runs per case from 1 to {MAX_REPEATS}, got {repeats!r}")
         self.repeats = int(repeats)
         self.say = progress or (lambda *a, **k: None)
         q, qd = initial_state(self.scene)

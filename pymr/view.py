@@ -352,7 +352,8 @@ def figure(motion, res: Results, columns: list[str], up: np.ndarray, every: int 
     size = max(float(np.max(hi - lo)), 1e-9)
     mesh = solids(motion)
     mechanism(fig, motion, mesh, size)
-    rows = np.arange(0, len(res.t), every)
+    from .geometry import rows_of
+    rows = rows_of(len(res.t), every)
     ranges, follow = add_panels(fig, res, chosen, rows, float(motion.t[0]))
     fig.frames = animation_frames(motion, mesh, size, follow, ranges)
     note = f"deflections x{motion.exaggerate:g}" if motion.exaggerate != 1 else "deflections to scale"

@@ -724,3 +724,36 @@ def test_a_sweep_whose_scene_name_the_system_cannot_take_is_one_line(tmp_path):
     toml.write_text(f'scene = "{"p" * 300}.nml"\n[grid]\n"integrator.h_slow" = [1e-3]\n')
     refused(cli("sweep", toml, "--emit-slurm", tmp_path / "out"), "long.toml: scene: ")
     assert "File name too long" in cli("sweep", toml).stderr
+
+
+@pytest.mark.parametrize("command, option, suffix", [("export", "--vtk", ""), ("plot", "-o", ".png"),
+                                                     ("view", "-o", ".html"), ("animate", "-o", ".gif")])
+def test_an_output_name_the_folder_cannot_take_is_refused_before_any_work(runs, tmp_path, command, option, suffix):
+    """A name of 300 bytes (the file system takes 255, and pymr writes a temporary file
+    beside it, whose name adds up to 24): one line naming the option and the most it may
+    take (each was an OSError traceback, the study's only after its runs)."""
+    name = tmp_path / ("o" * 300 + suffix)
+    refused(cli(command, runs / "pend.csv", option, name), f"{option} {name}: a name of {300 + len(suffix)} bytes; "
+            "the folder takes names of 255, and pymr writes a temporary file beside it: take at most 231")
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("command", ["study", "bench"])
+def test_repeats_beyond_what_can_end_are_refused(command):
+    """--repeats 1e20 was taken, and the study never ended: at most 1000 runs per case."""
+    args = ["study", "--quick", PENDULUM] if command == "study" else ["bench", "rhs"]
+    r = cli(*args, "--repeats", "99999999999999999999")
+    assert r.returncode == 1 and "--repeats: '99999999999999999999': a whole number of" in r.stderr and \
+        "at most 1000" in r.stderr and r.stderr.count("\n") == 1, r.stderr
+    with pytest.raises(pymr.SceneError, match=r"repeats: a whole number of runs per case from 1 to 1000"):
+        from pymr.study import Study
+        Study(PENDULUM, repeats=1001)
+
+
+def test_every_beyond_the_rows_takes_the_first_row(runs, tmp_path):
+    """--every 2**63 (beyond numpy's int64) was an IndexError traceback in view and export;
+    now the first row alone is drawn."""
+    r = cli("view", runs / "pend.csv", "-o", tmp_path / "v.html", "--every", str(2**63))
+    assert r.returncode == 0 and r.stderr == "", r.stderr
+    r = cli("export", runs / "pend.csv", "--vtk", tmp_path / "vtk", "--every", str(2**63))
+    assert r.returncode == 0 and "(1 times)" in r.stdout, r.stderr
