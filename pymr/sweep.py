@@ -53,8 +53,8 @@ from pathlib import Path
 import numpy as np
 
 from .api import PymrError, SceneError, run, write_file
-from .errors import ResultsError
-from .outputs import check_output
+from .errors import OutputError, ResultsError
+from .outputs import _folder_of, check_output
 from .results import load_results
 from .scene import Scene
 
@@ -454,10 +454,15 @@ def _check_address(scheduler) -> None:
 
 
 def make_folder(folder: Path, what: str) -> None:
-    """`folder` made (with its parents) unless it is there; a file in its place, or a folder
-    that cannot be made, is a SweepError naming `what` it is for."""
+    """`folder` made unless it is there, in a folder that must be there (as for every pymr
+    output: a mistyped path made folders wherever it pointed); a file in its place, or a
+    folder that cannot be made, is a SweepError naming `what` it is for."""
     try:
-        folder.mkdir(parents=True, exist_ok=True)
+        _folder_of(os.fspath(folder), what)
+    except OutputError as exc:
+        raise SweepError(str(exc)) from None
+    try:
+        folder.mkdir(exist_ok=True)
     except OSError as exc:
         raise SweepError(f"{folder}: cannot make the {what} folder ({exc.strerror or exc})") from None
 

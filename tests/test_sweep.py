@@ -113,6 +113,21 @@ def test_a_sweep_without_a_metric_has_no_metric_column(tmp_path, monkeypatch):
     assert all(0 < float(r["cpu_time_s"]) < 10 for r in table) and len(rows) == 2
 
 
+@pytest.mark.parametrize("mode", ["emit", "run"])
+def test_a_sweep_makes_its_own_folder_only_in_a_folder_that_is_there(tmp_path, monkeypatch, mode):
+    """As for every pymr output, the folder a sweep writes into must be in a folder that is
+    there: a mistyped path made every missing folder on it (found by fuzzing: /nonexistent)."""
+    monkeypatch.chdir(tmp_path)
+    toml = tmp_path / "s.toml"
+    out = tmp_path / "no" / "such" / "runs"
+    toml.write_text(f'scene = "{ROOT / "input" / "pendulum.nml"}"\n' + (f'output = "{out}"\n' if mode == "run" else "")
+                    + '[grid]\n"integrator.h_slow" = [1e-3]\n')
+    what = "--emit-slurm" if mode == "emit" else "output"
+    with pytest.raises(SweepError, match=rf"^{what} {out}: the folder {out.parent} is not there \(make it first\)$"):
+        emit_slurm(load_sweep(toml), out) if mode == "emit" else run_sweep(load_sweep(toml), workers=1)
+    assert not (tmp_path / "no").exists()
+
+
 def test_a_case_the_kernel_refuses_stops_the_sweep_before_any_case_runs(tmp_path):
     """Every case's scene is read and checked by the kernel when the sweep is loaded: a
     value it refuses (h_slow not a multiple of h_fast) is one error naming the case."""
