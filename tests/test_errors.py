@@ -336,6 +336,12 @@ def test_mrsim_bad_input(mrsim, tmp_path, case):
     pytest.param(["a.nml", "-o"], "-o", id="output_without_name"),
     pytest.param(["a.nml", "--set"], "--set", id="set_without_value"),
     pytest.param(["a.nml", "--set", ""], "--set needs GROUP.ITEM=VALUE (got an empty one)", id="set_empty"),
+    # an option where the value belongs: the value was left out (-o --quiet wrote a file '--quiet')
+    pytest.param(["a.nml", "-o", "--quiet"], "-o needs a file name (got the option --quiet)", id="output_option"),
+    pytest.param(["a.nml", "--restart", "-o", "x.csv"], "--restart needs a checkpoint file (got the option -o)",
+                 id="restart_option"),
+    pytest.param(["a.nml", "--set", "-o", "x.csv"], "--set needs GROUP.ITEM=VALUE (got the option -o)",
+                 id="set_option"),
 ])
 def test_mrsim_usage_error(mrsim, tmp_path, args, expect):
     r = run_mrsim(mrsim, args, tmp_path)

@@ -62,20 +62,17 @@ contains
           & // '[--progress] [--quiet] | --version'
         stop
       case ('-o', '--output')
-        if (i == nargs) call usage_error(arg // ' needs a file name')
-        i = i + 1; out = get_arg(i)
+        out = option_value(i, nargs, arg, 'a file name')
         if (len(out) == 0) call usage_error(arg // ' needs a file name (got an empty one)')
       case ('--set')
-        if (i == nargs) call usage_error('--set needs GROUP.ITEM=VALUE')
-        i = i + 1; arg = get_arg(i)
+        arg = option_value(i, nargs, arg, 'GROUP.ITEM=VALUE')
         if (len_trim(arg) == 0) call usage_error('--set needs GROUP.ITEM=VALUE (got an empty one)')
         ! the kernel reads one override a line: a line break would make two of one
         if (scan(arg, achar(10) // achar(13)) > 0) call usage_error('--set ' // escaped_breaks(arg) // &
           & ': a line break in an override (one GROUP.ITEM=VALUE, on one line)')
         overrides = overrides // arg // achar(10)
       case ('--restart')
-        if (i == nargs) call usage_error('--restart needs a checkpoint file')
-        i = i + 1; restart = get_arg(i)
+        restart = option_value(i, nargs, arg, 'a checkpoint file')
         ! an empty name (an unset shell variable) would run from the start instead
         if (len(restart) == 0) call usage_error('--restart needs a checkpoint file (got an empty name)')
       case ('--progress')
@@ -90,6 +87,23 @@ contains
       i = i + 1
     end do
   end subroutine read_arguments
+
+  !> The value of the option at argument i (the next argument, i advanced to it); none, or
+  !> one of mrsim's own options in its place (the value left out: `-o --quiet` would write
+  !> the results to a file named --quiet), stops with status 1 saying the option needs `what`.
+  function option_value(i, nargs, option, what) result(v)
+    integer, intent(inout) :: i
+    integer, intent(in) :: nargs
+    character(len=*), intent(in) :: option, what
+    character(len=:), allocatable :: v
+    character(len=*), parameter :: options = ' -o --output --set --restart --progress -q --quiet --version -h --help '
+    if (i == nargs) call usage_error(option // ' needs ' // what)
+    i = i + 1; v = get_arg(i)
+    if (len(v) > 0) then
+      if (index(options, ' ' // v // ' ') > 0) call usage_error(option // ' needs ' // what // ' (got the option ' // &
+        & v // ')')
+    end if
+  end function option_value
 
   function get_arg(k) result(a)
     integer, intent(in) :: k
