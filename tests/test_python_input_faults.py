@@ -757,3 +757,31 @@ def test_every_beyond_the_rows_takes_the_first_row(runs, tmp_path):
     assert r.returncode == 0 and r.stderr == "", r.stderr
     r = cli("export", runs / "pend.csv", "--vtk", tmp_path / "vtk", "--every", str(2**63))
     assert r.returncode == 0 and "(1 times)" in r.stdout, r.stderr
+
+
+@pytest.mark.parametrize("fmt", ["csv", "hdf5"])
+def test_results_whose_times_do_not_increase_are_refused(runs, tmp_path, fmt):
+    """A run writes its rows in time. Rows swapped in the file (CSV lines or HDF5 dataset
+    rows) are refused where the results are read, naming the row (export wrote a ParaView
+    collection whose times ran backwards, with exit 0)."""
+    if fmt == "csv":
+        lines = (runs / "pend.csv").read_text().splitlines(keepends=True)
+        head = next(i for i, t in enumerate(lines) if t.startswith("t,"))
+        lines[head + 2], lines[head + 3] = lines[head + 3], lines[head + 2]      # rows 2 and 3
+        path = tmp_path / "pend.csv"
+        path.write_text("".join(lines))
+        (tmp_path / "pend.json").write_text((runs / "pend.json").read_text())
+    else:
+        import h5py
+        import shutil
+        path = Path(shutil.copy(runs / "pendh.h5", tmp_path / "pendh.h5"))
+        shutil.copy(runs / "pendh.json", tmp_path / "pendh.json")
+        with h5py.File(path, "r+") as f:
+            for name in f:
+                block = f[name][...]
+                block[[1, 2]] = block[[2, 1]]
+                f[name][...] = block
+    with pytest.raises(pymr.ResultsError, match=r"row 3, column t: 0.01 is not after the row before it \(0.02; a "
+                                                r"run writes its rows in time: the file was changed\)"):
+        pymr.load_results(path)
+    refused(cli("export", path, "--vtk", tmp_path / "vtk"), "row 3, column t: 0.01 is not after")
