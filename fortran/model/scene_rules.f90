@@ -472,11 +472,13 @@ contains
         end if
         ip = body_index(sc, jt%parent); ic = body_index(sc, jt%child)
         if (ip == 0) then
-          call errs%add(sc%joints(i)%origin%where('parent') // ": no &body named '" // trim(jt%parent) // "'")
+          call add_unknown_name(errs, sc%bodies%name, &
+            & sc%joints(i)%origin%where('parent') // ": no &body named '" // trim(jt%parent) // "'")
           cycle each_joints
         end if
         if (ic == 0) then
-          call errs%add(sc%joints(i)%origin%where('child') // ": no &body named '" // trim(jt%child) // "'")
+          call add_unknown_name(errs, sc%bodies%name, &
+            & sc%joints(i)%origin%where('child') // ": no &body named '" // trim(jt%child) // "'")
           cycle each_joints
         end if
         if (ip == ic) then
@@ -690,7 +692,8 @@ contains
         else if (len_trim(se%frame) == 0) then
           call errs%add(o%where('frame') // ": missing (the body in whose frame 'position' measures)")
         else if (body_index(sc, se%frame) == 0) then
-          call errs%add(o%where('frame') // ": no &body named '" // trim(se%frame) // "'")
+          call add_unknown_name(errs, sc%bodies%name, &
+            & o%where('frame') // ": no &body named '" // trim(se%frame) // "'")
         end if
       end associate
     end do
@@ -725,7 +728,7 @@ contains
         end if
         if (.not. travel_body(sc, errs, ml)) cycle
         if (.not. travel_items(sc, errs, ml)) cycle
-        if (forgotten(sc, sc%effects%moving_loads, 'moving_loads')) &
+        if (i == 1 .and. forgotten(sc, sc%effects%moving_loads, 'moving_loads')) &
           & call errs%add(o%where() // effect_not_on('the scene gives moving loads', 'moving_loads'))
       end associate
     end do
@@ -745,7 +748,8 @@ contains
       end if
       b = body_index(sc, ml%body)
       if (b == 0) then
-        call errs%add(o%where('body') // ": no &body named '" // trim(ml%body) // "'"); return
+        call add_unknown_name(errs, sc%bodies%name, &
+          & o%where('body') // ": no &body named '" // trim(ml%body) // "'"); return
       end if
       if (sc%bodies(b)%kind == 'modal') then
         call errs%add(o%where('body') // ": '" // trim(ml%body) // "' is a modal-file body, whose shapes " // &
@@ -800,7 +804,7 @@ contains
       associate(dr => sc%drives(i))
         if (.not. joint_coordinate(sc, errs, dr%origin, dr%joint, dr%coordinate)) cycle
         if (.not. table_form(errs, dr%origin, dr%form, dr%file, [dr%amplitude, dr%frequency, dr%phase])) cycle
-        if (forgotten(sc, sc%effects%joint_drives, 'joint_drives')) &
+        if (i == 1 .and. forgotten(sc, sc%effects%joint_drives, 'joint_drives')) &
           & call errs%add(dr%origin%where() // effect_not_on('the scene gives drives', 'joint_drives'))
       end associate
     end do
@@ -814,7 +818,7 @@ contains
     do i = 1, size(sc%springs)
       associate(sp => sc%springs(i))
         if (.not. joint_coordinate(sc, errs, sp%origin, sp%joint, sp%coordinate)) cycle
-        if (forgotten(sc, sc%effects%joint_springs, 'joint_springs')) &
+        if (i == 1 .and. forgotten(sc, sc%effects%joint_springs, 'joint_springs')) &
           & call errs%add(sp%origin%where() // effect_not_on('the scene gives springs', 'joint_springs'))
       end associate
     end do
@@ -842,7 +846,7 @@ contains
           call errs%add(mo%origin%where('ramp_time') // ": missing (form 'spinup' needs the ramp time, s)")
           cycle each_motions
         end if
-        if (forgotten(sc, sc%effects%base_motion, 'base_motion')) &
+        if (i == 1 .and. forgotten(sc, sc%effects%base_motion, 'base_motion')) &
           & call errs%add(mo%origin%where() // effect_not_on('the scene prescribes motion', 'base_motion'))
       end associate
     end do each_motions
@@ -883,9 +887,11 @@ contains
         if (b%kind /= 'beam' .and. b%kind /= 'modal') cycle
         if (any(b%modal_damping /= unset .and. b%modal_damping /= 0.0_dp) .or. b%rayleigh_alpha /= 0.0_dp .or. &
           & b%rayleigh_beta /= 0.0_dp) then
-          if (forgotten(sc, sc%effects%modal_damping, 'modal_damping')) &
-            & call errs%add(b%origin%where(damping_item(b)) // effect_not_on('the body gives modal damping', &
-            & 'modal_damping'))
+          if (forgotten(sc, sc%effects%modal_damping, 'modal_damping')) then
+            call errs%add(b%origin%where(damping_item(b)) // effect_not_on('the body gives modal damping', &
+              & 'modal_damping'))
+            exit        ! said once, at the first such body
+          end if
         end if
       end associate
     end do
@@ -900,14 +906,15 @@ contains
     do i = 1, size(sc%loads)
       associate(ld => sc%loads(i))
         if (.not. any(sc%markers%name == ld%marker)) then
-          call errs%add(ld%origin%where('marker') // ": no &marker named '" // trim(ld%marker) // "'"); cycle
+          call add_unknown_name(errs, sc%markers%name, &
+            & ld%origin%where('marker') // ": no &marker named '" // trim(ld%marker) // "'"); cycle
         end if
         if (norm2(ld%direction) < 1.0e-12_dp) then
           call errs%add(ld%origin%where('direction') // ': missing or zero (a direction in the frame given by ' // &
             & 'frame)'); cycle
         end if
         if (.not. load_form_items(errs, ld)) cycle
-        if (forgotten(sc, sc%effects%firing_load, 'firing_load')) &
+        if (i == 1 .and. forgotten(sc, sc%effects%firing_load, 'firing_load')) &
           & call errs%add(ld%origin%where() // effect_not_on('the scene gives loads', 'firing_load'))
       end associate
     end do
@@ -969,7 +976,8 @@ contains
         call errs%add(sc%markers(i)%origin%where('name') // ': missing'); cycle
       end if
       if (body_index(sc, sc%markers(i)%body) == 0) &
-        & call errs%add(sc%markers(i)%origin%where('body') // ": no &body named '" // trim(sc%markers(i)%body) // "'")
+        & call add_unknown_name(errs, sc%bodies%name, &
+          & sc%markers(i)%origin%where('body') // ": no &body named '" // trim(sc%markers(i)%body) // "'")
     end do
   end subroutine check_markers
 
@@ -989,7 +997,7 @@ contains
         end if
         if (.not. force_markers(sc, errs, fe%origin, fe%marker_i, fe%marker_j)) cycle
         if (.not. force_values(errs, fe)) cycle
-        if (forgotten(sc, sc%effects%force_elements, 'force_elements')) &
+        if (i == 1 .and. forgotten(sc, sc%effects%force_elements, 'force_elements')) &
           & call errs%add(o%where() // effect_not_on('the scene gives force elements', 'force_elements'))
       end associate
     end do
@@ -1012,7 +1020,7 @@ contains
         if (ct%kp == 0.0_dp .and. ct%ki == 0.0_dp .and. ct%kd == 0.0_dp) then
           call errs%add(o%where('kp') // ': kp, ki and kd are all 0 (give the gains of the controller)'); cycle
         end if
-        if (forgotten(sc, sc%effects%controls, 'controls')) &
+        if (i == 1 .and. forgotten(sc, sc%effects%controls, 'controls')) &
           & call errs%add(o%where() // effect_not_on('the scene gives controllers', 'controls'))
       end associate
     end do
@@ -1081,6 +1089,16 @@ contains
     ok = .true.
   end function force_markers
 
+  !> Add `message`, that a reference names no group of a kind whose `names` are given,
+  !> unless one of those groups has no name: its own error says so, and the reference is
+  !> most likely to it (one fault, one line).
+  subroutine add_unknown_name(errs, names, message)
+    type(error_list), intent(inout) :: errs
+    character(len=*), intent(in) :: names(:), message
+    if (any(len_trim(names) == 0)) return
+    call errs%add(message)
+  end subroutine add_unknown_name
+
   !> Marker item `item` names an existing marker (else the error is added).
   logical function named_marker(sc, errs, o, item, marker) result(ok)
     type(scene_t), intent(in) :: sc
@@ -1092,7 +1110,8 @@ contains
       call errs%add(o%where(item) // ': missing (a marker name)'); return
     end if
     if (.not. any(sc%markers%name == marker)) then
-      call errs%add(o%where(item) // ": no &marker named '" // trim(marker) // "'"); return
+      call add_unknown_name(errs, sc%markers%name, &
+        & o%where(item) // ": no &marker named '" // trim(marker) // "'"); return
     end if
     ok = .true.
   end function named_marker
@@ -1152,7 +1171,8 @@ contains
     ok = .true.
   end function table_spring
 
-  !> An effect whose data the scene gives is off without being turned off on purpose.
+  !> An effect whose data the scene gives is off without being turned off on purpose (said
+  !> at the first group of the kind: one fault, one line).
   logical function forgotten(sc, on, effect)
     type(scene_t), intent(in) :: sc
     logical, intent(in) :: on
@@ -1186,7 +1206,8 @@ contains
       if (sc%joints(j)%name == joint) k = j
     end do
     if (k == 0) then
-      call errs%add(o%where('joint') // ": no &joint named '" // trim(joint) // "'"); return
+      call add_unknown_name(errs, sc%joints%name, &
+        & o%where('joint') // ": no &joint named '" // trim(joint) // "'"); return
     end if
     if (closes_loop(sc, k)) then
       call errs%add(o%where('joint') // ": '" // trim(joint) // "' closes a loop: it has no coordinate of its own " // &
