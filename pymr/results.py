@@ -361,16 +361,18 @@ def checked(path: Path, columns: list[str], data: np.ndarray, stats: dict, meta:
 
 def check_rows(where, data: np.ndarray, columns: list[str]) -> None:
     """Results' rows as a run writes them: at least one, every value finite, their times
-    (column t) increasing (a ResultsError naming `where`, the row and the column otherwise)."""
+    (column t) in order (a ResultsError naming `where`, the row and the column otherwise;
+    two rows may show one time where &output precision is below the digits that tell them
+    apart)."""
     if data.shape[0] == 0:
         raise ResultsError(f"{where}: has no result rows")
     if not np.isfinite(data).all():
         row, col = np.argwhere(~np.isfinite(data))[0]
         raise ResultsError(f"{where}: row {row + 1}, column {columns[col]}: {data[row, col]} is not a finite number "
                            "(a run writes none: the file was changed)")
-    if columns and columns[0] == "t" and not (np.diff(data[:, 0]) > 0).all():
-        row = int(np.argmin(np.diff(data[:, 0]) > 0)) + 2
-        raise ResultsError(f"{where}: row {row}, column t: {float(data[row - 1, 0])!r} is not after the row before it "
+    if columns and columns[0] == "t" and not (np.diff(data[:, 0]) >= 0).all():
+        row = int(np.argmin(np.diff(data[:, 0]) >= 0)) + 2
+        raise ResultsError(f"{where}: row {row}, column t: {float(data[row - 1, 0])!r} is before the row before it "
                            f"({float(data[row - 2, 0])!r}; a run writes its rows in time: the file was changed)")
 
 

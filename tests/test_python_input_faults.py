@@ -781,7 +781,18 @@ def test_results_whose_times_do_not_increase_are_refused(runs, tmp_path, fmt):
                 block = f[name][...]
                 block[[1, 2]] = block[[2, 1]]
                 f[name][...] = block
-    with pytest.raises(pymr.ResultsError, match=r"row 3, column t: 0.01 is not after the row before it \(0.02; a "
+    with pytest.raises(pymr.ResultsError, match=r"row 3, column t: 0.01 is before the row before it \(0.02; a "
                                                 r"run writes its rows in time: the file was changed\)"):
         pymr.load_results(path)
-    refused(cli("export", path, "--vtk", tmp_path / "vtk"), "row 3, column t: 0.01 is not after")
+    refused(cli("export", path, "--vtk", tmp_path / "vtk"), "row 3, column t: 0.01 is before")
+
+
+def test_rows_that_precision_writes_with_one_time_are_read(tmp_path):
+    """At &output precision 6, times 1e-5 apart just past 1 s are written alike
+    (1.00000e+000 for 1.000001 ... 1.000004): the results the run wrote are read (the
+    time-order check once refused them as changed)."""
+    res = pymr.run(PENDULUM, tmp_path / "p6.csv", overrides={"scene.t_end": 1.000004, "output.dt": 1e-6,
+                                                             "output.precision": 6, "integrator.h_slow": 1e-5,
+                                                             "integrator.h_fast": 1e-5,
+                                                             "output.quantities": ["coordinates"]})
+    assert (res.t[-5:] == 1.0).all() and (np.diff(res.t) >= 0).all()

@@ -126,6 +126,58 @@ def test_a_restart_refuses_kept_rows_that_a_run_cannot_have_written(tmp_path, fm
     assert out.read_bytes() == before
 
 
+@pytest.mark.parametrize("change", ["empty", "slash", "repeat", "blank", "swap"])
+def test_a_restart_refuses_kept_csv_rows_that_are_not_as_a_run_writes_them(tmp_path, change):
+    """Fortran's list-directed READ takes an empty field, '/' (the rest left unread),
+    'r*v' (v r times) and blank-separated values: a kept row edited so was continued and its
+    line copied into the new results (found in review). Each is refused naming the row, as is
+    a row out of time order; the file is left as it was."""
+    out = tmp_path / "job.csv"
+    over = {"scene.t_end": 0.25, "output.checkpoint_dt": 0.1}
+    pymr.run(TANK, out, overrides=over)
+    lines = out.read_text().splitlines(keepends=True)
+    head = next(i for i, t in enumerate(lines) if t.startswith("t,"))
+    cells = lines[head + 3].rstrip("\n").split(",")
+    if change == "swap":
+        lines[head + 2], lines[head + 3] = lines[head + 3], lines[head + 2]
+    else:
+        if change == "empty":
+            cells[2] = ""
+        elif change == "slash":
+            cells[2] = "/"
+        elif change == "repeat":
+            cells[1], cells[2] = "2*" + cells[1], cells[3]          # as many fields as before
+        else:
+            cells[1] += " 7"
+            del cells[2]
+            cells.append("9")
+        lines[head + 3] = ",".join(cells) + "\n"
+    out.write_text("".join(lines))
+    before = out.read_bytes()
+    expect = (r"job.csv: row 3, column t: 0.001 is before the row before it \(0.002; a run writes its rows in time"
+              if change == "swap" else r"job.csv: row 3 is not a row of \d+ numbers \(a run writes no other: the file was "
+              r"changed after the run\)")
+    with pytest.raises(pymr.SceneError, match=expect):
+        pymr.run(TANK, out, overrides={**over, "scene.t_end": 0.3}, restart=tmp_path / "job.ckpt")
+    assert out.read_bytes() == before
+
+
+def test_a_restart_refuses_hdf5_rows_out_of_time_order(tmp_path):
+    """The HDF5 file's kept rows are held to the same order: rows 2 and 3 swapped in every
+    dataset are refused naming row 3."""
+    import h5py
+    out = tmp_path / "job.h5"
+    over = {"scene.t_end": 0.25, "output.checkpoint_dt": 0.1, "output.format": "hdf5"}
+    pymr.run(TANK, out, overrides=over)
+    with h5py.File(out, "r+") as f:
+        for name in f:
+            block = f[name][...]
+            block[[1, 2]] = block[[2, 1]]
+            f[name][...] = block
+    with pytest.raises(pymr.SceneError, match=r"job.h5: row 3, column t: 0.001 is before the row before it"):
+        pymr.run(TANK, out, overrides={**over, "scene.t_end": 0.3}, restart=tmp_path / "job.ckpt")
+
+
 def test_a_restart_refuses_a_checkpoint_that_does_not_belong_to_its_scene(tmp_path):
     """A checkpoint carries the integrator settings, the model's fingerprint, pymr's version,
     its time and a checksum: a restart with other settings, of another scene of the same

@@ -9,7 +9,7 @@ module pymr_io_results_csv
   use pymr_env_text, only : itoa
   use pymr_env_text_file, only : sync_file, rename_file, file_size, check_size
   use pymr_io_results_output, only : pymr_version, header_line, row_width, row_values
-  use pymr_io_results_file, only : results_file, check_kept_values
+  use pymr_io_results_file, only : results_file, check_kept_values, check_kept_times
   implicit none
   private
   public :: csv_writer
@@ -101,6 +101,7 @@ contains
     character(len=256) :: msg
     character(len=:), allocatable :: buf, source
     type(line_t), allocatable :: lines(:)
+    real(dp), allocatable :: times(:)
     logical :: exists
     keep = rows + 4
     self%path = path
@@ -135,10 +136,12 @@ contains
       call fatal_error(error, source // ': its columns are not the ones this run writes (&output quantities, or ' // &
         & 'the markers, differ from the checkpointed run''s): restart with the same ones'); return
     end if
+    allocate(times(rows))
     do k = 5, keep
-      call check_kept_line(source, k - 4, lines(k)%s, lines(4)%s, row_width(self%plan, d), error)
+      call check_kept_line(source, k - 4, lines(k)%s, lines(4)%s, row_width(self%plan, d), times(k - 4), error)
       if (allocated(error)) return
     end do
+    call check_kept_times(source, times, error); if (allocated(error)) return
     open(newunit=u, file=self%partial // '.tmp', status='replace', action='write', iostat=ios, iomsg=msg)
     do k = 1, keep
       if (ios == 0) write(u, '(a)', iostat=ios, iomsg=msg) lines(k)%s
@@ -162,21 +165,30 @@ contains
   end subroutine csv_reopen
 
   !> Row `row` of the results in `source`, kept by a restart, is what a run writes: `width`
-  !> finite numbers (the columns named in `header`), else the error names file and row.
-  subroutine check_kept_line(source, row, line, header, width, error)
+  !> finite numbers (the columns named in `header`), comma-separated, none empty (the
+  !> list-directed READ also takes blanks, '/', 'r*v' and empty fields); else the error names
+  !> file and row. `t`: its time.
+  subroutine check_kept_line(source, row, line, header, width, t, error)
     character(len=*), intent(in) :: source, line, header
     integer, intent(in) :: row, width
+    real(dp), intent(out) :: t
     type(error_type), allocatable, intent(out) :: error
+    !> What a number's text may hold (nan and inf are read, then refused as not finite).
+    character(len=*), parameter :: number_text = '0123456789.eE+-,nNaAiIfFtTyY'
     real(dp) :: values(width)
-    integer :: ios, fields
-    fields = count([(line(ios:ios) == ',', ios = 1, len(line))]) + 1
-    if (fields == width) read(line, *, iostat=ios) values
-    if (fields /= width .or. ios /= 0) then
+    integer :: ios, fields, i
+    fields = count([(line(i:i) == ',', i = 1, len(line))]) + 1
+    ios = 1
+    if (fields == width .and. verify(line, number_text) == 0 .and. index(',' // line // ',', ',,') == 0) &
+      & read(line, *, iostat=ios) values
+    t = 0.0_dp
+    if (ios /= 0) then
       call fatal_error(error, source // ': row ' // itoa(row) // ' is not a row of ' // itoa(width) // &
         & ' numbers (a run writes no other: the file was changed after the run): restart from the results the ' // &
         & 'run wrote'); return
     end if
     call check_kept_values(source, row, values, header, 1, error)
+    t = values(1)
   end subroutine check_kept_line
 
   !> The row's values and text, and the pending rows' buffer (at least one row).

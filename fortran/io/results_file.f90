@@ -6,12 +6,12 @@ module pymr_io_results_file
   use, intrinsic :: ieee_arithmetic, only : ieee_is_finite
   use pymr_env_kinds, only : dp
   use pymr_env_error, only : error_type, fatal_error
-  use pymr_env_text, only : itoa
+  use pymr_env_text, only : itoa, fmt
   use pymr_model_types, only : model_data
   use pymr_io_results_output, only : output_plan
   implicit none
   private
-  public :: results_file, check_kept_values
+  public :: results_file, check_kept_values, check_kept_times
 
   type, abstract :: results_file
     !> The results file, and the partial file written until the run is complete.
@@ -110,6 +110,21 @@ contains
       & ': not a finite number (a run writes none: the file was changed after the run): restart from the ' // &
       & 'results the run wrote')
   end subroutine check_kept_values
+
+  !> The times of the rows a restart keeps (from `source`) are in order, as a run writes
+  !> them (else the error names file and row).
+  subroutine check_kept_times(source, times, error)
+    character(len=*), intent(in) :: source
+    real(dp), intent(in) :: times(:)
+    type(error_type), allocatable, intent(out) :: error
+    integer :: k
+    if (size(times) < 2) return
+    k = findloc(times(2:) >= times(:size(times)-1), .false., 1)
+    if (k == 0) return
+    call fatal_error(error, source // ': row ' // itoa(k + 1) // ', column t: ' // fmt(times(k+1)) // ' is before ' // &
+      & 'the row before it (' // fmt(times(k)) // '; a run writes its rows in time: the file was changed after ' // &
+      & 'the run): restart from the results the run wrote')
+  end subroutine check_kept_times
 
   !> The k-th name of the comma-separated list `columns`.
   pure function column_name(columns, k) result(name)

@@ -12,6 +12,7 @@
 !> checkpoint counts, and a restart copies them into a new partial file.
 module pymr_io_results_hdf5
   use, intrinsic :: iso_c_binding, only : c_int, c_char, c_null_char
+  use, intrinsic :: ieee_arithmetic, only : ieee_is_finite
   use hdf5
   use pymr_env_kinds, only : dp
   use pymr_env_error, only : error_type, fatal_error, stat_solver
@@ -19,7 +20,7 @@ module pymr_io_results_hdf5
   use pymr_env_text_file, only : sync_file, rename_file, remove_file
   use pymr_model_types, only : model_data
   use pymr_io_results_output, only : pymr_version, output_plan, column_sink, walk_columns, header_line, row_width, row_values
-  use pymr_io_results_file, only : results_file, check_kept_values
+  use pymr_io_results_file, only : results_file, check_kept_values, check_kept_times
   implicit none
   private
   public :: hdf5_writer
@@ -469,6 +470,8 @@ contains
       if (err == 0 .and. have < rows) call fatal_error(error, source // ': has ' // itoa(have) // &
         & ' result rows, the checkpoint expects ' // itoa(rows) // ': the file belongs to another run')
       if (.not. allocated(error)) call check_kept_group(source, kept, k, rows, header_line(plan, d), error)
+      if (.not. allocated(error) .and. kept%group(k)%name == 'time') &
+        & call check_kept_times(source, kept%group(k)%block(1, :), error)
     end do
     call h5fclose_f(file, err)
   end subroutine read_kept_rows
@@ -484,8 +487,8 @@ contains
     associate(g => kept%group(k))
       do r = 1, rows
         do j = 1, g%n
-          call check_kept_values(source, r, g%block(j:j, r), columns, g%place(j), error)
-          if (allocated(error)) return
+          if (ieee_is_finite(g%block(j, r))) cycle
+          call check_kept_values(source, r, g%block(j:j, r), columns, g%place(j), error); return
         end do
       end do
     end associate
