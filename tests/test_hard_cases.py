@@ -185,7 +185,8 @@ def test_singular_mass_matrix_is_named_before_the_first_step(tmp_path):
 def test_a_scene_too_far_from_the_origin_to_resolve_its_inertia_is_refused(tmp_path):
     """The spatial inertias are assembled about the inertial origin: a 1 kg disc (I = 4e-5
     kg m^2 about its hinge) R from the origin carries m R^2 there, and what is left of its
-    own inertia after the cancellation holds about -log10(eps R^2 / I) digits. At R = 1 km
+    own inertia after the cancellation holds about -log10(eps m R^2 / I) digits (the bodies a
+    coordinate moves count, not the others). At R = 1 km
     (5.5e-6 of I) a constant 1e-3 N m turns it by T t^2 / (2 I) to 1e-5; at 10 km (5.5e-4)
     and at 1000 km (where the inertia came out 0 and the run was refused as a singular mass
     matrix of a body with mass and inertia) the scene is refused naming the coordinate and
@@ -207,6 +208,22 @@ def test_a_scene_too_far_from_the_origin_to_resolve_its_inertia_is_refused(tmp_p
                                                    r"coordinate pivot\.q moves an inertia of .*or the scene lies too "
                                                    r"far from the origin \(place it nearer\)"):
             pymr.run(scene, tmp_path / "x.csv", overrides={"joint[pivot].at": [r, 0.0, 0.0]})
+    # the roundoff is the bodies' a coordinate moves: a 0.1 kg gyro (I = 1e-4) at the origin
+    # beside a 1e5 kg body hinged 100 m out (m r^2 = 1e9) turns as alone (it was refused)
+    mixed = tmp_path / "mixed.nml"
+    mixed.write_text("""
+&scene t_end = 0.1, gravity = 0.0, 0.0, 0.0 /
+&integrator h_slow = 1.0e-3 /
+&effects joint_drives = .true. /
+&body name = 'ground', kind = 'ground' /
+&body name = 'ship', kind = 'rigid', mass = 1.0e5, inertia = 1.0e6, 1.0e6, 1.0e6, 0.0, 0.0, 0.0 /
+&body name = 'gyro', kind = 'rigid', mass = 0.1, inertia = 1.0e-4, 1.0e-4, 1.0e-4, 0.0, 0.0, 0.0 /
+&joint name = 'roll', kind = 'revolute', parent = 'ground', child = 'ship', at = 100.0, 0.0, 0.0 /
+&joint name = 'spin', kind = 'revolute', parent = 'ground', child = 'gyro' /
+&drive joint = 'spin', offset = 1.0e-3 /
+""")
+    res = pymr.run(mixed, tmp_path / "mixed.csv")
+    assert res["spin.q"][-1] == pytest.approx(1e-3 * 0.1**2 / (2 * 1e-4), rel=1e-9)
 
 
 # ------------------------------------------------------------------- 6. impulse

@@ -306,42 +306,65 @@ contains
   end subroutine check_mass_matrix
 
   !> Every coordinate moves an inertia that the assembly resolves: at least `resolved` times
-  !> the roundoff the bodies' inertia about the inertial origin leaves (origin_roundoff), so
-  !> that the mass matrix holds its 4 leading digits. A scene far from the origin fails here,
-  !> not as a singular mass matrix or with its inertias silently off.
+  !> the roundoff that the inertia about the inertial origin of the bodies it moves leaves
+  !> (subtree_roundoff), so that its diagonal entry holds 4 leading digits. A scene far from
+  !> the origin fails here, not as a singular mass matrix or with its inertias silently off.
+  !> A sliding (prismatic) column moves no inertia about the origin (its entry is a mass) and
+  !> is not checked; nor are the controllers' states, which belong to no body.
   subroutine check_resolved(model, where, error)
     type(model_t), intent(in) :: model
     character(len=*), intent(in) :: where
     type(error_type), allocatable, intent(out) :: error
     real(dp), parameter :: resolved = 1.0e4_dp
-    real(dp) :: e
-    integer :: i
-    e = origin_roundoff(model)
-    if (e == 0.0_dp) return     ! every body at the origin: the factorisation names a singular matrix
-    do i = 1, model%d%n
-      if (abs(model%wk%mm(i, i)) > resolved*e) cycle
-      call fatal_error(error, where // 'the mass matrix cannot be resolved at the initial state: coordinate ' // &
-        & trim(model%d%qname(i)) // ' moves an inertia of ' // fmt(model%wk%mm(i, i)) // ', less than 1e4 times ' // &
-        & 'the roundoff (' // fmt(e) // ') of the bodies'' inertia about the inertial origin, which pymr ' // &
-        & 'assembles about (m r^2 up to ' // fmt(e/epsilon(1.0_dp)) // ' kg m^2): either it moves (almost) no ' // &
-        & 'inertia (check the masses and inertias of the bodies it moves and the axes of its joint), or the ' // &
-        & 'scene lies too far from the origin (place it nearer)')
-      return
+    real(dp) :: e(model%d%nb)
+    integer :: b, i
+    e = subtree_roundoff(model)
+    do b = 2, model%d%nb
+      if (e(b) == 0.0_dp) cycle         ! nothing away from the origin: the factorisation judges
+      do i = model%d%c0(b), model%d%c0(b) + model%d%nc(b) - 1
+        if (all(model%wk%s(4:6, i) == 0.0_dp)) cycle
+        if (unresolved(model, i, resolved*e(b), where, error)) return
+      end do
+      do i = model%d%a0(b), model%d%a0(b) + model%d%nm(b) - 1
+        if (unresolved(model, i, resolved*e(b), where, error)) return
+      end do
     end do
   end subroutine check_resolved
 
-  !> Roundoff of the mass matrix's entries (kg m^2): the spatial inertias are taken about the
-  !> inertial origin, so a body of mass m at distance r carries m r^2 there, and its own
-  !> inertia is what is left after the cancellation (epsilon of the largest m r^2).
-  real(dp) function origin_roundoff(model) result(e)
+  !> Whether coordinate i's diagonal entry is at most `floor` (then the error says so, with
+  !> both causes it can have).
+  logical function unresolved(model, i, floor, where, error)
     type(model_t), intent(in) :: model
+    integer, intent(in) :: i
+    real(dp), intent(in) :: floor
+    character(len=*), intent(in) :: where
+    type(error_type), allocatable, intent(inout) :: error
+    unresolved = abs(model%wk%mm(i, i)) <= floor
+    if (.not. unresolved) return
+    call fatal_error(error, where // 'the mass matrix cannot be resolved at the initial state: coordinate ' // &
+      & trim(model%d%qname(i)) // ' moves an inertia of ' // fmt(model%wk%mm(i, i)) // ', within 1e4 times the ' // &
+      & 'roundoff (' // fmt(floor/1.0e4_dp) // ') of the inertia about the inertial origin of the bodies it ' // &
+      & 'moves, which pymr assembles about (their m r^2 up to ' // fmt(floor/1.0e4_dp/epsilon(1.0_dp)) // &
+      & ' kg m^2): either it moves (almost) no inertia (check the masses and inertias of the bodies it moves ' // &
+      & 'and the axes of its joint), or the scene lies too far from the origin (place it nearer)')
+  end function unresolved
+
+  !> Roundoff of the inertia about the inertial origin of each body and those beyond it
+  !> (kg m^2): a body of mass m at distance r carries m r^2 there, and its own inertia is
+  !> what is left after the cancellation, epsilon of the sum of those m r^2.
+  function subtree_roundoff(model) result(e)
+    type(model_t), intent(in) :: model
+    real(dp) :: e(model%d%nb)
     integer :: b
     e = 0.0_dp
     do b = 2, model%d%nb
-      e = max(e, model%d%mass(b)*sum(model%wk%pos(:, b)**2))
+      e(b) = model%d%mass(b)*sum(model%wk%pos(:, b)**2)
+    end do
+    do b = model%d%nb, 2, -1
+      if (model%d%parent(b) > 1) e(model%d%parent(b)) = e(model%d%parent(b)) + e(b)
     end do
     e = epsilon(1.0_dp)*e
-  end function origin_roundoff
+  end function subtree_roundoff
 
   !> Multirate runs: the growth per macro step of the stepper itself applied to the model
   !> linearised at the initial state (power iteration on its whole state). When its growth
