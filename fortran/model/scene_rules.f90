@@ -721,6 +721,8 @@ contains
     type(scene_t), intent(in) :: sc
     type(error_list), intent(inout) :: errs
     integer :: i
+    logical :: said
+    said = .false.
     do i = 1, size(sc%moving_loads)
       associate(ml => sc%moving_loads(i), o => sc%moving_loads(i)%origin)
         if (len_trim(ml%name) == 0) then
@@ -728,8 +730,7 @@ contains
         end if
         if (.not. travel_body(sc, errs, ml)) cycle
         if (.not. travel_items(sc, errs, ml)) cycle
-        if (i == 1 .and. forgotten(sc, sc%effects%moving_loads, 'moving_loads')) &
-          & call errs%add(o%where() // effect_not_on('the scene gives moving loads', 'moving_loads'))
+        call say_forgotten(errs, sc, sc%effects%moving_loads, 'moving_loads', o, 'the scene gives moving loads', said)
       end associate
     end do
   end subroutine check_moving_loads
@@ -800,12 +801,14 @@ contains
     type(scene_t), intent(in) :: sc
     type(error_list), intent(inout) :: errs
     integer :: i
+    logical :: said
+    said = .false.
     do i = 1, size(sc%drives)
       associate(dr => sc%drives(i))
         if (.not. joint_coordinate(sc, errs, dr%origin, dr%joint, dr%coordinate)) cycle
         if (.not. table_form(errs, dr%origin, dr%form, dr%file, [dr%amplitude, dr%frequency, dr%phase])) cycle
-        if (i == 1 .and. forgotten(sc, sc%effects%joint_drives, 'joint_drives')) &
-          & call errs%add(dr%origin%where() // effect_not_on('the scene gives drives', 'joint_drives'))
+        call say_forgotten(errs, sc, sc%effects%joint_drives, 'joint_drives', &
+          & dr%origin, 'the scene gives drives', said)
       end associate
     end do
   end subroutine check_drives
@@ -815,11 +818,13 @@ contains
     type(scene_t), intent(in) :: sc
     type(error_list), intent(inout) :: errs
     integer :: i
+    logical :: said
+    said = .false.
     do i = 1, size(sc%springs)
       associate(sp => sc%springs(i))
         if (.not. joint_coordinate(sc, errs, sp%origin, sp%joint, sp%coordinate)) cycle
-        if (i == 1 .and. forgotten(sc, sc%effects%joint_springs, 'joint_springs')) &
-          & call errs%add(sp%origin%where() // effect_not_on('the scene gives springs', 'joint_springs'))
+        call say_forgotten(errs, sc, sc%effects%joint_springs, 'joint_springs', &
+          & sp%origin, 'the scene gives springs', said)
       end associate
     end do
   end subroutine check_springs
@@ -830,6 +835,8 @@ contains
     type(scene_t), intent(in) :: sc
     type(error_list), intent(inout) :: errs
     integer :: i, j
+    logical :: said
+    said = .false.
     each_motions: do i = 1, size(sc%motions)
       associate(mo => sc%motions(i))
         if (.not. joint_coordinate(sc, errs, mo%origin, mo%joint, mo%coordinate)) cycle each_motions
@@ -846,8 +853,8 @@ contains
           call errs%add(mo%origin%where('ramp_time') // ": missing (form 'spinup' needs the ramp time, s)")
           cycle each_motions
         end if
-        if (i == 1 .and. forgotten(sc, sc%effects%base_motion, 'base_motion')) &
-          & call errs%add(mo%origin%where() // effect_not_on('the scene prescribes motion', 'base_motion'))
+        call say_forgotten(errs, sc, sc%effects%base_motion, 'base_motion', &
+          & mo%origin, 'the scene prescribes motion', said)
       end associate
     end do each_motions
   end subroutine check_motions
@@ -903,6 +910,8 @@ contains
     type(scene_t), intent(in) :: sc
     type(error_list), intent(inout) :: errs
     integer :: i
+    logical :: said
+    said = .false.
     do i = 1, size(sc%loads)
       associate(ld => sc%loads(i))
         if (.not. any(sc%markers%name == ld%marker)) then
@@ -914,8 +923,7 @@ contains
             & 'frame)'); cycle
         end if
         if (.not. load_form_items(errs, ld)) cycle
-        if (i == 1 .and. forgotten(sc, sc%effects%firing_load, 'firing_load')) &
-          & call errs%add(ld%origin%where() // effect_not_on('the scene gives loads', 'firing_load'))
+        call say_forgotten(errs, sc, sc%effects%firing_load, 'firing_load', ld%origin, 'the scene gives loads', said)
       end associate
     end do
   end subroutine check_loads
@@ -987,6 +995,8 @@ contains
     type(scene_t), intent(in) :: sc
     type(error_list), intent(inout) :: errs
     integer :: i
+    logical :: said
+    said = .false.
     do i = 1, size(sc%forces)
       associate(fe => sc%forces(i), o => sc%forces(i)%origin)
         if (len_trim(fe%name) == 0) then
@@ -997,8 +1007,8 @@ contains
         end if
         if (.not. force_markers(sc, errs, fe%origin, fe%marker_i, fe%marker_j)) cycle
         if (.not. force_values(errs, fe)) cycle
-        if (i == 1 .and. forgotten(sc, sc%effects%force_elements, 'force_elements')) &
-          & call errs%add(o%where() // effect_not_on('the scene gives force elements', 'force_elements'))
+        call say_forgotten(errs, sc, sc%effects%force_elements, 'force_elements', &
+          & o, 'the scene gives force elements', said)
       end associate
     end do
   end subroutine check_forces
@@ -1009,6 +1019,8 @@ contains
     type(scene_t), intent(in) :: sc
     type(error_list), intent(inout) :: errs
     integer :: i
+    logical :: said
+    said = .false.
     do i = 1, size(sc%controls)
       associate(ct => sc%controls(i), o => sc%controls(i)%origin)
         if (len_trim(ct%name) == 0) then
@@ -1020,8 +1032,7 @@ contains
         if (ct%kp == 0.0_dp .and. ct%ki == 0.0_dp .and. ct%kd == 0.0_dp) then
           call errs%add(o%where('kp') // ': kp, ki and kd are all 0 (give the gains of the controller)'); cycle
         end if
-        if (i == 1 .and. forgotten(sc, sc%effects%controls, 'controls')) &
-          & call errs%add(o%where() // effect_not_on('the scene gives controllers', 'controls'))
+        call say_forgotten(errs, sc, sc%effects%controls, 'controls', o, 'the scene gives controllers', said)
       end associate
     end do
   end subroutine check_controls
@@ -1171,8 +1182,22 @@ contains
     ok = .true.
   end function table_spring
 
-  !> An effect whose data the scene gives is off without being turned off on purpose (said
-  !> at the first group of the kind: one fault, one line).
+  !> The error that an effect whose data the scene gives (`what`, at group origin `o`) is off
+  !> without being turned off on purpose: said once per kind of group, at the first group that
+  !> reaches the check (`said` keeps that it was; one fault, one line).
+  subroutine say_forgotten(errs, sc, on, effect, o, what, said)
+    type(error_list), intent(inout) :: errs
+    type(scene_t), intent(in) :: sc
+    logical, intent(in) :: on
+    character(len=*), intent(in) :: effect, what
+    type(origin_t), intent(in) :: o
+    logical, intent(inout) :: said
+    if (said .or. .not. forgotten(sc, on, effect)) return
+    call errs%add(o%where() // effect_not_on(what, effect))
+    said = .true.
+  end subroutine say_forgotten
+
+  !> An effect whose data the scene gives is off without being turned off on purpose.
   logical function forgotten(sc, on, effect)
     type(scene_t), intent(in) :: sc
     logical, intent(in) :: on
