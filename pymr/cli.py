@@ -466,9 +466,9 @@ def main(argv: list[str] | None = None) -> int:
         return 0 if exc.code in (0, None) else 1
     try:
         return args.func(args)
-    except BrokenPipeError:            # the reader of the output went away (`| head`): stop quietly
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())   # nor fail flushing at exit
-        return 0
+    except BrokenPipeError:            # the reader of the output went away (`| head`): stop quietly,
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())   # nor fail flushing at exit,
+        return 1                       # and not as a success: the command did not finish its work
     except PymrError as exc:
         for line in str(exc).splitlines() or [""]:
             print(f"pymr: error: {line}", file=sys.stderr)

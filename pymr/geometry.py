@@ -203,8 +203,10 @@ def motion(res: Results | str | os.PathLike, scene=None, exaggerate: float = 1.0
         markers = _markers(model, t, q, qd, float(exaggerate))      # every marker of the scene
     drawn = Motion(t=t, bodies=bodies, joints=joints, markers=markers, exaggerate=float(exaggerate))
     if not all((np.abs(x) <= np.finfo(np.float32).max).all() for x in drawn.bounds()):   # nan fails too
-        raise GeometryError(f"exaggerate: {exaggerate!r} scales the deflections beyond what a drawing holds "
-                            f"(single precision, {np.finfo(np.float32).max:.1e} m): take a smaller scale")
+        held = f"beyond what a drawing holds (single precision, {np.finfo(np.float32).max:.1e} m)"
+        if float(exaggerate) <= 1.0:
+            raise GeometryError(f"{res.path}: the run's positions lie {held}: it cannot be drawn")
+        raise GeometryError(f"exaggerate: {exaggerate!r} scales the deflections {held}: take a smaller scale")
     return drawn
 
 

@@ -66,8 +66,10 @@ def _same(a: Path, b: Path) -> bool:
     return bool(_core.pymr_same_file(os.fspath(a), os.fspath(b)))
 
 
-def _folder_of(text: str, option: str) -> Path:
-    """The folder an output path goes in, which must be there and writable."""
+def _folder_of(text: str, option: str, beside: bool = True) -> Path:
+    """The folder an output path goes in, which must be there and writable; with `beside`
+    (a file, or a folder replaced whole, written as a temporary one beside it) the name must
+    leave room for the temporary one's."""
     path = Path(text)
     parent = path.parent
     shown = str(parent) if str(parent) != "." else "."
@@ -78,14 +80,14 @@ def _folder_of(text: str, option: str) -> Path:
     if not os.access(parent, os.W_OK | os.X_OK):
         raise OutputError(f"{option} {text}: cannot write in the folder {shown} (permission denied)")
     room = _name_max(parent) - TEMPORARY_NAME
-    if len(os.fsencode(path.name)) > room:
+    if beside and len(os.fsencode(path.name)) > room:
         raise OutputError(f"{option} {text}: a name of {len(os.fsencode(path.name))} bytes; the folder takes "
                           f"names of {room + TEMPORARY_NAME}, and pymr writes a temporary file beside it: "
                           f"take at most {room}")
     return parent
 
 
-#: Bytes a temporary file's name adds to its output's (".NAME.PID.tmp", ".NAME.tmp-XXXXXXXX").
+#: Bytes a temporary file's name adds to its output's (NAME.PID.tmp, .NAME.PID.tmp.png, .NAME.tmp-XXXXXXXX).
 TEMPORARY_NAME = 24
 
 

@@ -54,7 +54,7 @@ import numpy as np
 
 from .api import PymrError, SceneError, run, write_file
 from .errors import OutputError, ResultsError
-from .outputs import _folder_of, check_output
+from .outputs import _folder_of, _is_dir, check_output
 from .results import load_results
 from .scene import Scene
 
@@ -457,8 +457,10 @@ def make_folder(folder: Path, what: str) -> None:
     """`folder` made unless it is there, in a folder that must be there (as for every pymr
     output: a mistyped path made folders wherever it pointed); a file in its place, or a
     folder that cannot be made, is a SweepError naming `what` it is for."""
+    if _is_dir(folder):
+        return
     try:
-        _folder_of(os.fspath(folder), what)
+        _folder_of(os.fspath(folder), what, beside=False)
     except OutputError as exc:
         raise SweepError(str(exc)) from None
     try:

@@ -96,12 +96,12 @@ contains
     integer, intent(in) :: nargs
     character(len=*), intent(in) :: option, what
     character(len=:), allocatable :: v
-    character(len=*), parameter :: options = ' -o --output --set --restart --progress -q --quiet --version -h --help '
+    character(len=*), parameter :: options(10) = [character(len=9) :: '-o', '--output', '--set', '--restart', &
+      & '--progress', '-q', '--quiet', '--version', '-h', '--help']
     if (i == nargs) call usage_error(option // ' needs ' // what)
     i = i + 1; v = get_arg(i)
-    if (len(v) > 0) then
-      if (index(options, ' ' // v // ' ') > 0) call usage_error(option // ' needs ' // what // ' (got the option ' // &
-        & v // ')')
+    if (len(v) > 0 .and. len(v) <= len(options)) then
+      if (any(options == v)) call usage_error(option // ' needs ' // what // ' (got the option ' // v // ')')
     end if
   end function option_value
 
