@@ -171,15 +171,28 @@ def _resolved_scene_file(text: str) -> Path:
 
 
 def check_geometry(res: Results, model: Model, path, q: np.ndarray, qd: np.ndarray) -> None:
-    """The model's markers at (up to 20 of) the results' states equal the run's marker columns."""
+    """The model's markers at (up to 20 of) the results' states equal the run's marker columns,
+    to 1e-9 of their size, or to what the digits the CSV was written with leave (&output
+    precision p: its coordinates and markers are rounded to 10^(1-p), 1e-3 at p = 6)."""
     rows = np.unique(np.linspace(0, len(res.t) - 1, min(20, len(res.t))).round().astype(int))
+    tol = max(1e-9, 10.0 ** (3 - _written_digits(res)))
     for m in res.markers:
         written = res.marker(m)[0][rows]
         again = model.marker(m, res.t[rows], q[rows], qd[rows])
-        if np.abs(again - written).max() > 1e-9 * max(1.0, np.abs(written).max()):
+        if np.abs(again - written).max() > tol * max(1.0, np.abs(written).max()):
             raise GeometryError(f"{res.path}: {path} is not the scene of this run (its marker {m!r} is elsewhere at "
                                 "the run's coordinates: the run may have had --set overrides); give the resolved "
                                 "scene with --scene (pymr scene SCENE --set ... > resolved.nml)")
+
+
+def _written_digits(res: Results) -> int:
+    """Significant digits of the results' numbers: the run's &output precision for a CSV
+    (from the resolved scene its statistics hold), 17 for HDF5 (every bit) or when not said."""
+    import re
+    if Path(str(res.path)).suffix.lower() in (".h5", ".hdf5"):
+        return 17
+    found = re.search(r"\bprecision\s*=\s*(\d+)", str(res.stats.get("resolved_scene", "")))
+    return int(found.group(1)) if found else 17
 
 
 def motion(res: Results | str | os.PathLike, scene=None, exaggerate: float = 1.0, every: int = 1,

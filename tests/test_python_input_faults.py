@@ -797,3 +797,18 @@ def test_rows_that_precision_writes_with_one_time_are_read(tmp_path):
                                                              "integrator.h_fast": 1e-5,
                                                              "output.quantities": ["coordinates"]})
     assert (res.t[-5:] == 1.0).all() and (np.diff(res.t) >= 0).all()
+
+
+@pytest.mark.parametrize("digits", [6, 8])
+def test_a_run_written_with_few_digits_is_drawn(tmp_path, digits):
+    """The drawing checks that the scene's markers at the written coordinates are the written
+    markers: to 1e-9 it refused a run's own CSV written at &output precision 6 to 8 (as of
+    another scene); the check now allows what those digits leave (10^(3 - precision)). A
+    scene whose geometry differs is still refused."""
+    scene = ROOT / "input" / "tank_gun_turret.nml"
+    pymr.run(scene, tmp_path / "r.csv", overrides={"scene.t_end": 0.05, "output.precision": digits})
+    assert cli("export", tmp_path / "r.csv", "--vtk", tmp_path / "vtk").returncode == 0
+    other = tmp_path / "other.nml"
+    other.write_text(scene.read_text().replace("at = 5.3, 0.0, 0.0", "at = 5.2, 0.0, 0.0"))
+    refused(cli("export", tmp_path / "r.csv", "--vtk", tmp_path / "vtk2", "--scene", other),
+            "is not the scene of this run (its marker 'muzzle' is elsewhere")
