@@ -465,10 +465,18 @@ def main(argv: list[str] | None = None) -> int:
     except SystemExit as exc:          # argparse: a bad command line is bad input, status 1
         return 0 if exc.code in (0, None) else 1
     try:
-        return args.func(args)
+        status = args.func(args)
+        sys.stdout.flush()             # a full disk under the output is seen here, not at exit
+        return status
     except BrokenPipeError:            # the reader of the output went away (`| head`): stop quietly,
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())   # nor fail flushing at exit,
         return 1                       # and not as a success: the command did not finish its work
+    except OSError as exc:             # the standard output refused (a full disk); or a file pymr
+        if exc.filename is None:       # reads or writes without naming the fault in its own words
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        where = exc.filename if exc.filename is not None else "the standard output"
+        print(f"pymr: error: {where}: {exc.strerror or exc}", file=sys.stderr)
+        return 1
     except PymrError as exc:
         for line in str(exc).splitlines() or [""]:
             print(f"pymr: error: {line}", file=sys.stderr)

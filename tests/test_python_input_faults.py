@@ -812,3 +812,14 @@ def test_a_run_written_with_few_digits_is_drawn(tmp_path, digits):
     other.write_text(scene.read_text().replace("at = 5.3, 0.0, 0.0", "at = 5.2, 0.0, 0.0"))
     refused(cli("export", tmp_path / "r.csv", "--vtk", tmp_path / "vtk2", "--scene", other),
             "is not the scene of this run (its marker 'muzzle' is elsewhere")
+
+
+@pytest.mark.parametrize("args", [("scene", PENDULUM), ("scene", "--schema"),
+                                  ("modes", ROOT / "input" / "tank_gun_turret.nml")], ids=["scene", "schema", "modes"])
+def test_an_output_the_disk_refuses_is_one_line(args):
+    """The standard output on a full device (/dev/full): one line naming it and the system's
+    reason, exit 1 (each was a 12-line OSError traceback)."""
+    with open("/dev/full", "w") as full:
+        r = subprocess.run([sys.executable, "-m", "pymr", *map(str, args)], stdout=full, stderr=subprocess.PIPE,
+                           text=True, cwd=tempfile.gettempdir(), timeout=120, stdin=subprocess.DEVNULL)
+    assert r.returncode == 1 and r.stderr == "pymr: error: the standard output: No space left on device\n", r.stderr
