@@ -178,6 +178,28 @@ def test_a_restart_refuses_hdf5_rows_out_of_time_order(tmp_path):
         pymr.run(TANK, out, overrides={**over, "scene.t_end": 0.3}, restart=tmp_path / "job.ckpt")
 
 
+@pytest.mark.parametrize("extra", [1, -1])
+def test_a_restart_refuses_an_hdf5_dataset_of_other_width(tmp_path, extra):
+    """A dataset rewritten with a column more (its first 6 of 7 columns were kept, shifted:
+    exit 0) or one fewer ('cannot read the results') is refused naming the dataset and both
+    widths."""
+    import h5py
+    out = tmp_path / "job.h5"
+    over = {"scene.t_end": 0.25, "output.checkpoint_dt": 0.1, "output.format": "hdf5"}
+    pymr.run(TANK, out, overrides=over)
+    with h5py.File(out, "r+") as f:
+        block, attrs = f["markers"][...], dict(f["markers"].attrs)
+        del f["markers"]
+        block = np.hstack([np.full((block.shape[0], 1), 7.0), block]) if extra > 0 else block[:, 1:]
+        data = f.create_dataset("markers", data=block, maxshape=(None, block.shape[1]), chunks=True)
+        for key, value in attrs.items():
+            data.attrs[key] = value
+        width = block.shape[1]
+    with pytest.raises(pymr.SceneError, match=rf"job.h5: its dataset markers holds {width} columns, the run writes "
+                                              rf"{width - extra} \(the file was changed after the run\)"):
+        pymr.run(TANK, out, overrides={**over, "scene.t_end": 0.3}, restart=tmp_path / "job.ckpt")
+
+
 def test_a_restart_refuses_a_checkpoint_that_does_not_belong_to_its_scene(tmp_path):
     """A checkpoint carries the integrator settings, the model's fingerprint, pymr's version,
     its time and a checksum: a restart with other settings, of another scene of the same

@@ -452,7 +452,7 @@ contains
     type(group_sink), intent(out) :: kept
     type(error_type), allocatable, intent(out) :: error
     integer(hid_t) :: file
-    integer :: k, err, have
+    integer :: k, err, have, width
     file = h5f_open(source // c_null_char, ior(acc_rdonly, acc_swmr_read), H5P_DEFAULT_F)
     if (file < 0) then
       call fatal_error(error, source // ': cannot read the results (not an HDF5 file, or damaged)'); return
@@ -465,7 +465,12 @@ contains
     do k = 1, kept%n_groups
       if (allocated(error)) exit
       allocate(kept%group(k)%block(kept%group(k)%n, rows))
-      call read_rows(file, kept%group(k), rows, have, err)
+      call read_rows(file, kept%group(k), rows, have, width, err)
+      if (err == 0 .and. width /= kept%group(k)%n) then
+        call fatal_error(error, source // ': its dataset ' // kept%group(k)%name // ' holds ' // itoa(width) // &
+          & ' columns, the run writes ' // itoa(kept%group(k)%n) // ' (the file was changed after the run): ' // &
+          & 'restart from the results the run wrote'); exit
+      end if
       if (err /= 0) call fatal_error(error, source // ': cannot read the results (' // kept%group(k)%name // ')')
       if (err == 0 .and. have < rows) call fatal_error(error, source // ': has ' // itoa(have) // &
         & ' result rows, the checkpoint expects ' // itoa(rows) // ': the file belongs to another run')
@@ -495,12 +500,12 @@ contains
   end subroutine check_kept_group
 
   !> The first `rows` rows of group g's dataset in `file` into g%block (`have`: the rows
-  !> the dataset holds).
-  subroutine read_rows(file, g, rows, have, err)
+  !> the dataset holds, `width` its columns; none are read unless it has g%n).
+  subroutine read_rows(file, g, rows, have, width, err)
     integer(hid_t), intent(in) :: file
     type(column_group), intent(inout) :: g
     integer, intent(in) :: rows
-    integer, intent(out) :: have, err
+    integer, intent(out) :: have, width, err
     integer(hid_t) :: dataset, file_space, memory_space
     integer(hsize_t) :: dims(2), maxdims(2), start(2), count(2)
     integer :: rank, e
@@ -510,7 +515,9 @@ contains
     call h5dget_space_f(dataset, file_space, err)
     if (err == 0) call h5sget_simple_extent_dims_f(file_space, dims(1:rank), maxdims(1:rank), e)
     have = int(dims(rank))
-    if (err == 0 .and. have >= rows .and. rows > 0) then
+    width = 1
+    if (rank == 2) width = int(dims(1))
+    if (err == 0 .and. have >= rows .and. rows > 0 .and. width == g%n) then
       start = 0; count = [int(g%n, hsize_t), int(rows, hsize_t)]
       if (rank == 1) count(1) = count(2)
       call h5sselect_hyperslab_f(file_space, H5S_SELECT_SET_F, start(1:rank), count(1:rank), err)

@@ -342,7 +342,7 @@ contains
         end select
       end associate
     end do each_bodies
-    if (ng == 0) then
+    if (ng == 0 .and. all(len_trim(sc%bodies%kind) > 0)) then    ! else a kind missing may be the ground's
       call errs%add(sc%file // ": &body: no body has kind = 'ground' (the fixed base of the tree)"); return
     end if
     if (size(sc%bodies) < 2) then
@@ -435,6 +435,8 @@ contains
     type(error_list), intent(inout) :: errs
     type(error_type), allocatable :: error
     integer :: i, ip, ic, k
+    logical :: said
+    said = .false.
     each_joints: do i = 1, size(sc%joints)
       associate(jt => sc%joints(i))
         if (len_trim(jt%name) == 0) then
@@ -467,8 +469,10 @@ contains
             & 'this scene has no joint that closes a loop'); cycle each_joints
         end if
         if (jt%settle .and. sc%scene%start /= 'static') then
-          call errs%add(jt%origin%where('settle') // ": joints settle only in a static start (&scene start = " // &
-            & "'static')"); cycle each_joints
+          ! said once, at the first such joint: the start is the one fault
+          if (.not. said) call errs%add(jt%origin%where('settle') // ": joints settle only in a static start " // &
+            & "(&scene start = 'static')")
+          said = .true.; cycle each_joints
         end if
         ip = body_index(sc, jt%parent); ic = body_index(sc, jt%child)
         if (ip == 0) then
@@ -756,6 +760,7 @@ contains
         call errs%add(o%where('body') // ": '" // trim(ml%body) // "' is a modal-file body, whose shapes " // &
           & "between its nodes are not known: a moving load travels along a body of kind 'beam'"); return
       end if
+      if (len_trim(sc%bodies(b)%kind) == 0) return     ! its missing kind is the body's own error
       if (sc%bodies(b)%kind /= 'beam') then
         call errs%add(o%where('body') // ": '" // trim(ml%body) // "' is not a flexible body (kind '" // &
           & trim(sc%bodies(b)%kind) // "'): a moving load travels along a body of kind 'beam'"); return
@@ -969,7 +974,9 @@ contains
   subroutine check_stiffening(sc, errs)
     type(scene_t), intent(in) :: sc
     type(error_list), intent(inout) :: errs
-    if (sc%effects%geometric_stiffening .and. .not. any(sc%bodies%kind == 'beam')) &
+    ! a body whose kind is missing (its own error) may be the beam
+    if (sc%effects%geometric_stiffening .and. .not. any(sc%bodies%kind == 'beam') .and. &
+      & all(len_trim(sc%bodies%kind) > 0)) &
       & call errs%add(sc%effects%origin%where('geometric_stiffening') // ': the scene has no beam (only built-in ' // &
       & "beams, kind = 'beam', carry a geometric stiffness)")
   end subroutine check_stiffening
