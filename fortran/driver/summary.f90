@@ -97,13 +97,14 @@ contains
     call forward_kinematics(model%d, model%wk, x(1:n), x(n+1:))
     do i = 1, min(model%d%markers%n, max_summary_markers)
       call marker_motion(model%d, model%wk, i, x(1:n), x(n+1:), r, v)
-      ! fixed digits for ordinary values; exponents when a run went far off (a diverging model)
-      if (maxval(abs([r, v])) < 1.0e5_dp) then
+      ! fixed digits for ordinary values (f12.6 keeps a blank before -999.999999); exponents of
+      ! three digits, with their E, for a scene far out or a run gone far off
+      if (maxval(abs([r, v])) < 1.0e3_dp) then
         write(buf, '(a,3f12.6,a,3f12.6,a)') 'final ' // trim(model%d%markers%name(i)) // ': position', r, &
           & ' m, velocity', v, ' m/s'
       else
-        write(buf, '(a,3es12.4,a,3es12.4,a)') 'final ' // trim(model%d%markers%name(i)) // ': position', r, &
-          & ' m, velocity', v, ' m/s'
+        write(buf, '(a,3(1x,es12.4e3),a,3(1x,es12.4e3),a)') 'final ' // trim(model%d%markers%name(i)) // &
+          & ': position', r, ' m, velocity', v, ' m/s'
       end if
       s = s // trim(buf) // new_line('a')
     end do
