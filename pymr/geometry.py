@@ -187,12 +187,13 @@ def check_geometry(res: Results, model: Model, path, q: np.ndarray, qd: np.ndarr
 
 def _written_digits(res: Results) -> int:
     """Significant digits of the results' numbers: the run's &output precision for a CSV
-    (from the resolved scene its statistics hold), 17 for HDF5 (every bit) or when not said."""
-    import re
-    if Path(str(res.path)).suffix.lower() in (".h5", ".hdf5"):
+    (the item of the resolved scene its statistics hold, read by the kernel), 17 for HDF5
+    (every bit) or when the statistics hold no scene."""
+    text = res.stats.get("resolved_scene")
+    if Path(str(res.path)).suffix.lower() in (".h5", ".hdf5") or not isinstance(text, str) or not text:
         return 17
-    found = re.search(r"\bprecision\s*=\s*(\d+)", str(res.stats.get("resolved_scene", "")))
-    return int(found.group(1)) if found else 17
+    from .scene import Scene
+    return int(Scene(_resolved_scene_file(text))["output.precision"])
 
 
 def motion(res: Results | str | os.PathLike, scene=None, exaggerate: float = 1.0, every: int = 1,

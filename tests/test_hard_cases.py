@@ -182,6 +182,14 @@ def test_singular_mass_matrix_is_named_before_the_first_step(tmp_path):
         pymr.run(scene, tmp_path / "g.csv", overrides={"body[bob].mass": 0.0})
 
 
+#: The head of the far-from-the-origin scenes: 0.1 s under a constant drive, no gravity.
+DRIVEN = """&scene t_end = 0.1, gravity = 0.0, 0.0, 0.0 /
+&integrator h_slow = 1.0e-3 /
+&effects joint_drives = .true. /
+&body name = 'ground', kind = 'ground' /
+"""
+
+
 def test_a_scene_too_far_from_the_origin_to_resolve_its_inertia_is_refused(tmp_path):
     """The spatial inertias are assembled about the inertial origin: a 1 kg disc (I = 4e-5
     kg m^2 about its hinge) R from the origin carries m R^2 there, and what is left of its
@@ -192,11 +200,7 @@ def test_a_scene_too_far_from_the_origin_to_resolve_its_inertia_is_refused(tmp_p
     matrix of a body with mass and inertia) the scene is refused naming the coordinate and
     the cause; at 100 km it ran with the inertia 5 % off."""
     scene = tmp_path / "far.nml"
-    scene.write_text("""
-&scene t_end = 0.1, gravity = 0.0, 0.0, 0.0 /
-&integrator h_slow = 1.0e-3 /
-&effects joint_drives = .true. /
-&body name = 'ground', kind = 'ground' /
+    scene.write_text(DRIVEN + """
 &body name = 'disc', kind = 'rigid', mass = 1.0, inertia = 4.0e-5, 4.0e-5, 4.0e-5, 0.0, 0.0, 0.0 /
 &joint name = 'pivot', kind = 'revolute', parent = 'ground', child = 'disc', at = 1.0e3, 0.0, 0.0 /
 &drive joint = 'pivot', offset = 1.0e-3 /
@@ -211,11 +215,7 @@ def test_a_scene_too_far_from_the_origin_to_resolve_its_inertia_is_refused(tmp_p
     # the roundoff is the bodies' a coordinate moves: a 0.1 kg gyro (I = 1e-4) at the origin
     # beside a 1e5 kg body hinged 100 m out (m r^2 = 1e9) turns as alone (it was refused)
     mixed = tmp_path / "mixed.nml"
-    mixed.write_text("""
-&scene t_end = 0.1, gravity = 0.0, 0.0, 0.0 /
-&integrator h_slow = 1.0e-3 /
-&effects joint_drives = .true. /
-&body name = 'ground', kind = 'ground' /
+    mixed.write_text(DRIVEN + """
 &body name = 'ship', kind = 'rigid', mass = 1.0e5, inertia = 1.0e6, 1.0e6, 1.0e6, 0.0, 0.0, 0.0 /
 &body name = 'gyro', kind = 'rigid', mass = 0.1, inertia = 1.0e-4, 1.0e-4, 1.0e-4, 0.0, 0.0, 0.0 /
 &joint name = 'roll', kind = 'revolute', parent = 'ground', child = 'ship', at = 100.0, 0.0, 0.0 /
