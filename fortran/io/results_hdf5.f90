@@ -453,12 +453,14 @@ contains
     type(error_type), allocatable, intent(out) :: error
     integer(hid_t) :: file
     integer :: k, err, have, width
+    character(len=:), allocatable :: columns
     file = h5f_open(source // c_null_char, ior(acc_rdonly, acc_swmr_read), H5P_DEFAULT_F)
     if (file < 0) then
       call fatal_error(error, source // ': cannot read the results (not an HDF5 file, or damaged)'); return
     end if
     call walk_columns(plan, d, kept)
-    if (get_text(file, 'column_order') /= header_line(plan, d)) then
+    columns = header_line(plan, d)
+    if (get_text(file, 'column_order') /= columns) then
       call fatal_error(error, source // ': its columns are not the ones this run writes (&output quantities, or ' // &
         & 'the markers, differ from the checkpointed run''s): restart with the same ones')
     end if
@@ -474,7 +476,7 @@ contains
       if (err /= 0) call fatal_error(error, source // ': cannot read the results (' // kept%group(k)%name // ')')
       if (err == 0 .and. have < rows) call fatal_error(error, source // ': has ' // itoa(have) // &
         & ' result rows, the checkpoint expects ' // itoa(rows) // ': the file belongs to another run')
-      if (.not. allocated(error)) call check_kept_group(source, kept, k, rows, header_line(plan, d), error)
+      if (.not. allocated(error)) call check_kept_group(source, kept, k, rows, columns, error)
       if (.not. allocated(error) .and. kept%group(k)%name == 'time') &
         & call check_kept_times(source, kept%group(k)%block(1, :), error)
     end do
