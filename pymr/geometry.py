@@ -193,7 +193,10 @@ def _written_digits(res: Results) -> int:
     if Path(str(res.path)).suffix.lower() in (".h5", ".hdf5") or not isinstance(text, str) or not text:
         return 17
     from .scene import Scene
-    return int(Scene(_resolved_scene_file(text))["output.precision"])
+    try:
+        return int(Scene(_resolved_scene_file(text))["output.precision"])
+    except PymrError:          # a scene the kernel no longer reads (the drawing's own scene says why)
+        return 17
 
 
 def motion(res: Results | str | os.PathLike, scene=None, exaggerate: float = 1.0, every: int = 1,

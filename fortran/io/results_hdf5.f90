@@ -511,7 +511,7 @@ contains
     integer(hid_t) :: dataset, file_space, memory_space
     integer(hsize_t) :: dims(2), maxdims(2), start(2), count(2)
     integer :: rank, e
-    have = 0
+    have = 0; width = 0
     rank = merge(1, 2, g%name == 'time')
     call h5dopen_f(file, g%name, dataset, err); if (err /= 0) return
     call h5dget_space_f(dataset, file_space, err)
