@@ -32,6 +32,9 @@ module pymr_driver_preflight
   !> step whose growth factor per step is above 1 only by roundoff-sized amounts (an
   !> undamped mode on the edge) passes; a real instability multiplies it by far more.
   real(dp), parameter :: run_growth = 10.0_dp
+  !> A mass-matrix diagonal entry must exceed this many times the roundoff of the inertia
+  !> about the origin of the bodies its coordinate moves (check_resolved): 4 digits.
+  real(dp), parameter :: resolved = 1.0e4_dp
 
   !> Steppers whose whole state has at most this many components get the spectral radius
   !> of their macro-step map from its matrix (LAPACK dgeev); larger ones by power iteration
@@ -315,7 +318,6 @@ contains
     type(model_t), intent(in) :: model
     character(len=*), intent(in) :: where
     type(error_type), allocatable, intent(out) :: error
-    real(dp), parameter :: resolved = 1.0e4_dp
     real(dp) :: e(model%d%nb)
     integer :: b, i
     e = subtree_roundoff(model)
@@ -323,28 +325,28 @@ contains
       if (e(b) == 0.0_dp) cycle         ! nothing away from the origin: the factorisation judges
       do i = model%d%c0(b), model%d%c0(b) + model%d%nc(b) - 1
         if (all(model%wk%s(4:6, i) == 0.0_dp)) cycle
-        if (unresolved(model, i, resolved*e(b), where, error)) return
+        if (unresolved(model, i, e(b), where, error)) return
       end do
       do i = model%d%a0(b), model%d%a0(b) + model%d%nm(b) - 1
-        if (unresolved(model, i, resolved*e(b), where, error)) return
+        if (unresolved(model, i, e(b), where, error)) return
       end do
     end do
   end subroutine check_resolved
 
-  !> Whether coordinate i's diagonal entry is at most `floor` (then the error says so, with
-  !> both causes it can have).
-  logical function unresolved(model, i, floor, where, error)
+  !> Whether coordinate i's diagonal entry is within `resolved` times the roundoff e of the
+  !> bodies it moves (then the error says so, with both causes it can have).
+  logical function unresolved(model, i, e, where, error)
     type(model_t), intent(in) :: model
     integer, intent(in) :: i
-    real(dp), intent(in) :: floor
+    real(dp), intent(in) :: e
     character(len=*), intent(in) :: where
     type(error_type), allocatable, intent(inout) :: error
-    unresolved = abs(model%wk%mm(i, i)) <= floor
+    unresolved = abs(model%wk%mm(i, i)) <= resolved*e
     if (.not. unresolved) return
     call fatal_error(error, where // 'the mass matrix cannot be resolved at the initial state: coordinate ' // &
-      & trim(model%d%qname(i)) // ' moves an inertia of ' // fmt(model%wk%mm(i, i)) // ', within 1e4 times the ' // &
-      & 'roundoff (' // fmt(floor/1.0e4_dp) // ') of the inertia about the inertial origin of the bodies it ' // &
-      & 'moves, which pymr assembles about (their m r^2 up to ' // fmt(floor/1.0e4_dp/epsilon(1.0_dp)) // &
+      & trim(model%d%qname(i)) // ' moves an inertia of ' // fmt(model%wk%mm(i, i)) // ', within ' // &
+      & fmt(resolved) // ' times the roundoff (' // fmt(e) // ') of the inertia about the inertial origin of ' // &
+      & 'the bodies it moves, which pymr assembles about (their m r^2 up to ' // fmt(e/epsilon(1.0_dp)) // &
       & ' kg m^2): either it moves (almost) no inertia (check the masses and inertias of the bodies it moves ' // &
       & 'and the axes of its joint), or the scene lies too far from the origin (place it nearer)')
   end function unresolved
