@@ -71,6 +71,23 @@ def test_an_output_that_would_overwrite_the_input_is_refused(tmp_path, mrsim):
     assert not (tmp_path / "out.json").exists()
 
 
+@pytest.mark.parametrize("where", ["-o", "file"])
+def test_standard_output_is_no_results_file(tmp_path, mrsim, where):
+    """'-' is standard output to most tools; the run stages its results and their statistics
+    as files, so `-o -` wrote files named '-' and '-.json' with exit 0. Refused in one line,
+    from the command line or from &output file, and nothing is written."""
+    scene = tmp_path / "s.nml"
+    scene.write_text(PENDULUM.replace("&output dt", "&output file = '-', dt") if where == "file" else PENDULUM)
+    args = ["s.nml", "-o", "-"] if where == "-o" else ["s.nml"]
+    r = run_mrsim(mrsim, args, tmp_path)
+    assert r.returncode == 1 and r.stderr.count("\n") == 1 and r.stdout == "", r.stderr
+    line = scene.read_text().splitlines().index("&output file = '-', dt = 0.01 /") + 1 if where == "file" else 0
+    place = "s.nml: output '-'" if where == "-o" else f"s.nml:{line}: &output: file: '-'"
+    assert r.stderr.strip() == (f"mrsim: error: {place}: the results go to a file (with their statistics beside it), "
+                                "not to standard output; name a file"), r.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.nml"]
+
+
 @pytest.mark.parametrize("table", ["ballistics.txt", "breech_force.txt"])
 def test_an_output_over_any_table_of_the_scene_is_refused(tmp_path, mrsim, table):
     """Every file the scene reads is kept from the results: a &moving_load's and a &load's

@@ -52,6 +52,7 @@ contains
     !> The scene's inputs (list_inputs).
     type(scene_files), intent(in) :: inputs
     type(error_type), allocatable, intent(out) :: error
+    if (standard_output(sc, path, error)) return
     if (wrong_extension(sc, path, error)) return
     if (absolute_path(json_path(path)) == absolute_path(path)) then
       call fatal_error(error, sc%file // ': output ' // path // ': the results and their statistics would both ' // &
@@ -186,6 +187,23 @@ contains
     files = [character(len=path_len) :: path, json_path(path), path // '.partial', path // '.partial.tmp', &
       & path // '.tmp', path // '.lock', json_path(path) // '.tmp', json_path(path) // '.partial']
   end function results_files
+
+  !> Is `path` '-', standard output in most tools? The run writes its results to a file
+  !> (staged and renamed, with its statistics beside it), so '-' would be a file named '-'.
+  logical function standard_output(sc, path, error)
+    type(scene_t), intent(in) :: sc
+    character(len=*), intent(in) :: path
+    type(error_type), allocatable, intent(inout) :: error
+    standard_output = path == '-'
+    if (.not. standard_output) return
+    if (len_trim(sc%output%file) > 0 .and. path == trim(sc%output%file)) then
+      call fatal_error(error, sc%output%origin%where('file') // ": '-': the results go to a file (with their " // &
+        & 'statistics beside it), not to standard output; name a file')
+    else
+      call fatal_error(error, sc%file // ": output '-': the results go to a file (with their statistics " // &
+        & 'beside it), not to standard output; name a file')
+    end if
+  end function standard_output
 
   !> Does the results file's extension contradict &output format (a .h5 or .hdf5 file is
   !> HDF5, any other text)? Then the error says what to change.
