@@ -175,7 +175,9 @@ def test_singular_mass_matrix_is_named_before_the_first_step(tmp_path):
 &body name = 'bob', kind = 'rigid', mass = 1.0, inertia = 0.1, 0.2, 0.3, 0.0, 0.0, 0.0 /
 &joint name = 'ball', kind = 'spherical', parent = 'ground', child = 'bob', q0 = 0.0, 1.5707963267948966, 0.0 /
 """)
-    with pytest.raises(pymr.SceneError, match=r"gimbal.nml: the mass matrix is singular at the initial state: "
+    # the message starts at the joint that gives the coordinate (its line, group and name)
+    with pytest.raises(pymr.SceneError, match=r"gimbal.nml:6: &joint 'ball': the mass matrix is singular at the "
+                                               r"initial state: "
                                                r"coordinate ball\.q3 \(leading minor 3\)"):
         pymr.run(scene, tmp_path / "g.csv")
     with pytest.raises(pymr.SceneError, match=r"gimbal.nml: --set body\[bob\].mass=0.0: &body 'bob': mass: must be in \[1e-12, 1e\+12\], got 0"):
@@ -208,7 +210,8 @@ def test_a_scene_too_far_from_the_origin_to_resolve_its_inertia_is_refused(tmp_p
     res = pymr.run(scene, tmp_path / "far.csv")
     assert res["pivot.q"][-1] == pytest.approx(1e-3 * 0.1**2 / (2 * 4e-5), rel=1e-5)
     for r in (1e4, 1e5, 1e6):
-        with pytest.raises(pymr.SceneError, match=r"far.nml: the mass matrix cannot be resolved at the initial state: "
+        with pytest.raises(pymr.SceneError, match=r"far.nml:7: &joint 'pivot': the mass matrix cannot be resolved at "
+                                                   r"the initial state: "
                                                    r"coordinate pivot\.q moves an inertia of .*or the scene lies too "
                                                    r"far from the origin \(place it nearer\)"):
             pymr.run(scene, tmp_path / "x.csv", overrides={"joint[pivot].at": [r, 0.0, 0.0]})

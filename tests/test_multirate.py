@@ -94,7 +94,7 @@ def test_effective_mass_matrix_failure_is_named(tmp_path):
     with pytest.raises(pymr.SceneError) as exc:
         pymr.run(scene, tmp_path / "x.csv")
     msg = str(exc.value)
-    assert msg.startswith(f"{scene}: the mass matrix is singular at the initial state: coordinate roll.q "
+    assert msg.startswith(f"{scene}:7: &joint 'roll': the mass matrix is singular at the initial state: coordinate roll.q "
                           "(leading minor 1) moves no inertia")
     assert "\n" not in msg
 

@@ -20,6 +20,8 @@ module pymr_driver_preflight
   use pymr_integrator_response, only : response_integrator
   use pymr_env_text, only : itoa, fmt
   use pymr_env_item_table, only : origin_t
+  use pymr_model_scene, only : scene_t
+  use pymr_model_types, only : model_data
   use pymr_driver_linearise, only : linear_state
   use pymr_driver_normal_modes, only : normal_modes, top_frequency, modes_bytes
   implicit none
@@ -273,10 +275,10 @@ contains
   !> The mass matrix at the initial state must be positive definite: a body without mass
   !> or inertia at the end of a chain, or joint axes that leave a motion without inertia,
   !> make it singular. The error names the first such coordinate.
-  subroutine check_mass_matrix(model, x, where, error)
+  subroutine check_mass_matrix(sc, model, x, error)
+    type(scene_t), intent(in) :: sc
     type(model_t), intent(inout) :: model
     real(dp), intent(in) :: x(:)
-    character(len=*), intent(in) :: where
     type(error_type), allocatable, intent(out) :: error
     integer :: n, minor
     real(dp), allocatable :: l(:, :)
@@ -286,7 +288,7 @@ contains
     counters = model%counters()
     call model%terms(0.0_dp, x(1:n), x(n+1:2*n))
     call model%set_counters(counters)
-    call check_resolved(model, where, error); if (allocated(error)) return
+    call check_resolved(sc, model, error); if (allocated(error)) return
     l = model%wk%mm
     call potrf(l, 'the mass matrix', error, minor)
     if (.not. allocated(error)) then
@@ -298,15 +300,39 @@ contains
       call fatal_error(error, '')
     end if
     if (minor > 0) then
-      error%message = where // 'the mass matrix is singular at the initial state: coordinate ' // &
+      error%message = coordinate_place(sc, model%d, minor) // 'the mass matrix is singular at the initial ' // &
+        & 'state: coordinate ' // &
         & trim(model%d%qname(minor)) // ' (leading minor ' // itoa(minor) // ') moves no inertia that the ' // &
         & 'coordinates before it do not already move (or almost none): check the masses and inertias of the ' // &
         & 'bodies it moves, the axes of its joint, and the singular angles of spherical and free joints'
       error%stat = stat_input
     else
-      error%message = where // error%message
+      error%message = sc%file // ': ' // error%message
     end if
   end subroutine check_mass_matrix
+
+  !> Prefix of a message about coordinate i: the line and group of the &joint that gives it
+  !> ("file:12: &joint 'elevation': "), of the flexible &body that gives a modal one, else the
+  !> scene file's name (a controller's state).
+  function coordinate_place(sc, d, i) result(s)
+    type(scene_t), intent(in) :: sc
+    type(model_data), intent(in) :: d
+    integer, intent(in) :: i
+    character(len=:), allocatable :: s
+    integer :: b, k
+    s = sc%file // ': '
+    b = d%cbody(i)
+    if (b == 0) return
+    if (i > d%nj) then
+      do k = 1, size(sc%bodies)
+        if (sc%bodies(k)%name == d%body_name(b)) s = sc%bodies(k)%origin%where() // ': '
+      end do
+    else
+      do k = 1, size(sc%joints)
+        if (sc%joints(k)%name == d%joint_name(b)) s = sc%joints(k)%origin%where() // ': '
+      end do
+    end if
+  end function coordinate_place
 
   !> Every coordinate moves an inertia that the assembly resolves: at least `resolved` times
   !> the roundoff that the inertia about the inertial origin of the bodies it moves leaves
@@ -314,9 +340,9 @@ contains
   !> the origin fails here, not as a singular mass matrix or with its inertias silently off.
   !> A sliding (prismatic) column moves no inertia about the origin (its entry is a mass) and
   !> is not checked; nor are the controllers' states, which belong to no body.
-  subroutine check_resolved(model, where, error)
+  subroutine check_resolved(sc, model, error)
+    type(scene_t), intent(in) :: sc
     type(model_t), intent(in) :: model
-    character(len=*), intent(in) :: where
     type(error_type), allocatable, intent(out) :: error
     real(dp) :: e(model%d%nb)
     integer :: b, i
@@ -325,10 +351,10 @@ contains
       if (e(b) == 0.0_dp) cycle         ! nothing away from the origin: the factorisation judges
       do i = model%d%c0(b), model%d%c0(b) + model%d%nc(b) - 1
         if (all(model%wk%s(4:6, i) == 0.0_dp)) cycle
-        if (unresolved(model, i, e(b), where, error)) return
+        if (unresolved(model, i, e(b), coordinate_place(sc, model%d, i), error)) return
       end do
       do i = model%d%a0(b), model%d%a0(b) + model%d%nm(b) - 1
-        if (unresolved(model, i, e(b), where, error)) return
+        if (unresolved(model, i, e(b), coordinate_place(sc, model%d, i), error)) return
       end do
     end do
   end subroutine check_resolved

@@ -218,7 +218,7 @@ contains
     call check_output_size(self%sc, self%model, self%out, self%dt_out, error); if (allocated(error)) return
     call self%out%open(self%path, self%model%d, error)
     if (allocated(error)) return
-    call check_mass_matrix(self%model, self%x, self%file // ': ', error)
+    call check_mass_matrix(self%sc, self%model, self%x, error)
     if (.not. allocated(error)) call self%put_row(0.0_dp, self%work_step, error)
     self%stats%rows = 1
     if (allocated(error)) then
