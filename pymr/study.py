@@ -183,8 +183,10 @@ class Study:
         # common output times for every run (dense output between steps): every 40 h0, at
         # most about 2000 of them
         self.dt = max(40 * self.h0, self.t_end / 2000)
-        self.grid = np.arange(0.0, self.t_end + 0.5 * self.dt, self.dt)
-        self.grid = self.grid[self.grid <= self.t_end + 1e-12]
+        # k dt for every k with k dt <= t_end, as the kernel writes its rows (np.arange's
+        # float steps gave a time past t_end, or one time too many, for some t_end)
+        n = int(np.floor(self.t_end / self.dt + 1e-9))
+        self.grid = np.minimum(np.arange(n + 1) * self.dt, self.t_end)
         self.cases: list[Case] = []
         self.weight: dict[str, float] = {}
         self.c_fast: dict[str, float] = {}
@@ -217,7 +219,7 @@ class Study:
         # undamped stiff modes would floor the reference (stiff barrel: 5e-10 m without it)
         res = self._pymr({"integrator.method": "single", "integrator.adaptive": True, "integrator.rtol": 1e-11,
                           "integrator.atol": 1e-13, "integrator.h_max": self.h0 / 10})
-        self.ref = res.marker(self.marker)[0]
+        self.ref = self._on_grid(res.t, res.marker(self.marker)[0])
         from scipy.integrate import solve_ivp
         with Model(self.scene) as model:
             sol = solve_ivp(model.rhs, (0.0, self.t_end), self.x0, method="DOP853", t_eval=self.grid, rtol=1e-12,
@@ -236,13 +238,17 @@ class Study:
         with tempfile.TemporaryDirectory(prefix="pymr-study-") as tmp:
             return run(self.scene, Path(tmp) / "run.csv", overrides=over)
 
-    def _error(self, t: np.ndarray, pos: np.ndarray) -> float:
+    def _on_grid(self, t: np.ndarray, pos: np.ndarray) -> np.ndarray:
+        """The rows of `pos` (at times `t`) at the study's common output times, in their order."""
         idx = np.searchsorted(self.grid, t - 1e-9)
         keep = (idx < len(self.grid)) & (np.abs(self.grid[np.minimum(idx, len(self.grid) - 1)] - t) < 1e-9)
-        if keep.sum() != len(self.grid):
+        if keep.sum() != len(self.grid) or len(np.unique(idx[keep])) != len(self.grid):
             raise SolverError(f"the run wrote rows at {int(keep.sum())} of the study's {len(self.grid)} common "
-                            "output times")
-        return float(np.linalg.norm(pos[keep] - self.ref[idx[keep]], axis=1).max())
+                              "output times")
+        return pos[keep]
+
+    def _error(self, t: np.ndarray, pos: np.ndarray) -> float:
+        return float(np.linalg.norm(self._on_grid(t, pos) - self.ref, axis=1).max())
 
     @staticmethod
     def _refusal(case: Case, exc: PymrError) -> None:
@@ -805,4 +811,5 @@ def check_study_prefix(scene, output: str | os.PathLike | None) -> Path:
 
 def study_files(prefix: Path) -> tuple[Path, Path, Path]:
     """The files a study with output prefix `prefix` writes: its table, figure and step histories."""
-    return prefix.with_suffix(".csv"), prefix.with_suffix(".png"), prefix.with_name(prefix.name + "_history.csv")
+    # the names follow the whole prefix: a dot in it ("t_0.05") is no suffix to replace
+    return tuple(prefix.with_name(prefix.name + end) for end in (".csv", ".png", "_history.csv"))

@@ -280,6 +280,31 @@ def test_quick_study_end_to_end(tmp_path, capsys):
     assert all(1 <= int(r["order"]) <= 12 for r in hist)
 
 
+@pytest.mark.parametrize("t_end", [0.05, 0.3, 0.7])
+def test_the_common_grid_is_the_kernel_s_rows_for_any_t_end(tmp_path, t_end):
+    """The common output times are k dt up to t_end, the times the kernel writes its rows at
+    (output.dt = dt). np.arange's float steps gave one time too many at t_end 0.05 (the
+    reference's rows and DOP853's did not match: a traceback) and a time past t_end at 0.7
+    (solve_ivp refused it)."""
+    scene = tmp_path / "tank.nml"
+    scene.write_text(TANK.read_text().replace("t_end = 1.0", f"t_end = {t_end}"))
+    s = Study(scene, "muzzle", quick=True, progress=None)
+    assert s.grid[-1] <= t_end and t_end - s.grid[-1] < s.dt
+    assert np.allclose(s.grid, s.dt * np.arange(len(s.grid)), rtol=0, atol=1e-12)
+    res = pymr.run(scene, overrides={"output.dt": s.dt})
+    assert s._on_grid(res.t, res.marker("muzzle")[0]).shape == (len(s.grid), 3)
+    if t_end == 0.05:
+        s.reference()
+        assert s.ref.shape == (len(s.grid), 3) and s.ref_check < 1e-10
+
+
+def test_the_files_follow_a_prefix_with_a_dot(tmp_path):
+    """A prefix such as t_0.05 names every file: the table and figure were t_0.csv and t_0.png."""
+    from pymr.study import study_files
+    names = [p.name for p in study_files(tmp_path / "t_0.05")]
+    assert names == ["t_0.05.csv", "t_0.05.png", "t_0.05_history.csv"]
+
+
 def test_a_refused_fixed_step_family_gets_a_case_at_its_largest_stable_step(tmp_path):
     """The stiff barrel's top mode refuses the step 7.07e-5 s; the refusal names the largest
     stable step (6.74e-5 s), and the family gets one case at 0.995 of it, which the
