@@ -11,6 +11,7 @@ import numpy as np
 
 from .api import PymrError, SceneError, SolverError, run, write_file
 from ._timing import MAX_REPEATS
+from .sweep import MAX_WORKERS
 from .outputs import check_output
 
 
@@ -412,7 +413,7 @@ def _add_sweep(sub) -> None:
                    "output folder is relative to the working folder (default: the sweep file's stem)")
     w.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask scheduler (e.g. from dask-jobqueue on "
                    "SLURM or PBS); default: a LocalCluster on this machine")
-    w.add_argument("--workers", type=_count_of("workers"), default=2, help="LocalCluster worker processes (default 2)")
+    w.add_argument("--workers", type=_count_of("workers", most=MAX_WORKERS), default=2, help="LocalCluster worker processes (default 2)")
     w.add_argument("--emit-slurm", metavar="DIR", help="write the case namelists and a SLURM job-array script "
                    "running mrsim per case to DIR instead of running")
     w.add_argument("--collect", metavar="DIR", help="after the SLURM job array ran: the summary (DIR/summary.csv) "

@@ -80,6 +80,11 @@ class Sweep:
         return [dict(zip(keys, values)) for values in itertools.product(*(self.grid[k] for k in keys))]
 
 
+#: Worker processes of a LocalCluster at most: each is a Python process on this machine
+#: (2**64 of them were started until the machine ran out of memory).
+MAX_WORKERS = 256
+
+
 def load_sweep(path: str | os.PathLike) -> Sweep:
     path = Path(path)
     try:
@@ -98,6 +103,10 @@ def load_sweep(path: str | os.PathLike) -> Sweep:
     for k, v in grid.items():
         if not isinstance(v, list) or not v:
             raise SweepError(f"{path}: [grid] {k}: must be a non-empty list of values")
+    both = sorted({k.strip().lower() for k in grid} & {k.strip().lower() for k in spec.get("fixed", {})})
+    if both:
+        raise SweepError(f"{path}: [fixed] {both[0]}: also a [grid] parameter (one value would be dropped): "
+                         "keep it in one table")
     metric = spec.get("metric", "")
     if metric and not re.fullmatch(r"(deviation|final|max_abs):[\w.\[\]]+", metric):
         raise SweepError(f"{path}: metric: {metric!r} is not 'deviation:MARKER', 'final:COLUMN' or 'max_abs:COLUMN'")
@@ -391,8 +400,8 @@ def run_sweep(sw: Sweep, scheduler: str | None = None, workers: int = 2) -> list
     except ImportError:
         raise SweepError("pymr sweep runs its cases on Dask, which is not installed: "
                          "pip install 'dask[distributed]' (or write SLURM files with --emit-slurm)") from None
-    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-        raise SweepError(f"workers: a whole number of worker processes, at least 1, got {workers!r}")
+    if isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= MAX_WORKERS:
+        raise SweepError(f"workers: a whole number of worker processes from 1 to {MAX_WORKERS}, got {workers!r}")
     if scheduler is not None:
         _check_address(scheduler)
     make_folder(sw.output, "output")

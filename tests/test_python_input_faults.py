@@ -751,6 +751,17 @@ def test_repeats_beyond_what_can_end_are_refused(command):
         Study(PENDULUM, repeats=1001)
 
 
+def test_workers_beyond_one_machine_are_refused(tmp_path):
+    """--workers 1e20 started worker processes until the machine ran out of memory (killed,
+    exit 137): at most 256 processes of a LocalCluster."""
+    r = cli("sweep", ROOT / "input" / "tank_sweep.toml", "--workers", "99999999999999999999")
+    assert r.returncode == 1 and "--workers: '99999999999999999999': a whole number of workers, at most 256" \
+        in r.stderr and r.stderr.count("\n") == 1, r.stderr
+    from pymr.sweep import load_sweep, run_sweep, SweepError
+    with pytest.raises(SweepError, match=r"workers: a whole number of worker processes from 1 to 256, got 257"):
+        run_sweep(load_sweep(ROOT / "input" / "tank_sweep.toml"), workers=257)
+
+
 def test_every_beyond_the_rows_takes_the_first_row(runs, tmp_path):
     """--every 2**63 (beyond numpy's int64) was an IndexError traceback in view and export;
     now the first row alone is drawn."""

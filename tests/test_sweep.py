@@ -180,6 +180,9 @@ def test_emitted_slurm_cases_run_by_mrsim_equal_the_override_runs(tmp_path, mrsi
     ('scene = "{scene}"\nmetric = 7\n[grid]\n"integrator.h_slow" = [1e-4]\n',
      r"metric: must be a string such as 'final:COLUMN', got 7$"),
     ('scene = "{scene}"\nfixed = 5\n[grid]\n"integrator.h_slow" = [1e-4]\n', r"fixed: must be a table \(\[fixed\]\), got 5$"),
+    # a parameter in both tables ran with the grid's values, the fixed one dropped silently
+    ('scene = "{scene}"\n[grid]\n"integrator.h_slow" = [1e-4]\n[fixed]\n"integrator.h_slow" = 2e-4\n',
+     r"\[fixed\] integrator.h_slow: also a \[grid\] parameter \(one value would be dropped\): keep it in one table$"),
 ])
 def test_bad_sweep_files_are_one_line_errors(tmp_path, text, message):
     toml = tmp_path / "s.toml"
