@@ -183,11 +183,12 @@ def factor(kii: sp.spmatrix, p: Plan, what: str, show: bool):
         return solve
 
 
-def fixed_interface_modes(kii, mii, solve, nf: int, show: bool) -> tuple[np.ndarray, np.ndarray]:
+def fixed_interface_modes(kii, mii, solve, nf: int, with_mass: int, show: bool) -> tuple[np.ndarray, np.ndarray]:
     """The lowest `nf` eigenpairs of K_ii v = lambda M_ii v (ARPACK, shift-invert at 0, to
-    machine precision): lambda ascending and v mass-normalised."""
+    machine precision): lambda ascending and v mass-normalised. Its basis holds at most
+    `with_mass` vectors (the DOFs with mass span the Krylov space)."""
     n = kii.shape[0]
-    ncv = min(n - 1, max(2 * nf + 1, 20))
+    ncv = min(n - 1, with_mass, max(2 * nf + 1, 20))
     with Ticker(f"eigensolve ({nf} modes)", show, unit=" solves") as tick:
         def apply(b):
             tick.step()
@@ -270,7 +271,10 @@ def interior_modes(kii, mii, kib, modes, messages, show: bool, memory_limit, bac
     with_mass = massive_dofs(mii)
     if modes is not None and modes > with_mass:
         raise ImportInputError(messages["count"].format(with_mass))
-    if modes is None or 2 * modes + 1 > n:                 # ARPACK needs a basis of 2 modes + 1 < n
+    # ARPACK needs a basis of 2 modes + 1 vectors, and in shift-invert mode its Krylov space
+    # lies in K^-1 M's range: massless DOFs (the small beam's torsion) leave fewer than n, and
+    # 10 modes of 24 DOFs with 20 massive failed ("could not build an Arnoldi factorization")
+    if modes is None or 2 * modes + 1 > with_mass:
         if n > DENSE_LIMIT:
             raise ImportInputError(f"--modes {'all' if modes is None else modes}: the interior has {n} DOFs; "
                                    f"all modes are solved dense up to {DENSE_LIMIT}: ask for fewer")
@@ -287,7 +291,7 @@ def interior_modes(kii, mii, kib, modes, messages, show: bool, memory_limit, bac
     psi = -np.asarray(solve(kib.toarray()) if nb else np.zeros((n, 0))).reshape(n, nb)
     if modes == 0:
         return np.zeros(0), np.zeros((n, 0)), psi, p
-    lam, phi = fixed_interface_modes(kii, mii, solve, modes, show)
+    lam, phi = fixed_interface_modes(kii, mii, solve, modes, with_mass, show)
     if not (np.all(np.isfinite(lam)) and lam.min() > 0 and lam.max() < 1e13 * lam.min()):
         raise ImportInputError(messages["count"].format(int(np.count_nonzero(np.isfinite(lam) & (lam > 0)))))
     return lam, phi, psi, p

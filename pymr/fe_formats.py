@@ -386,9 +386,7 @@ def read_nodes(path: str | os.PathLike) -> tuple[list[int], np.ndarray]:
     elif path.suffix.lower() in (".cdb", ".rst"):
         ids, xyz = _ansys_nodes(path)
     elif path.suffix.lower() in NASTRAN_BULK:
-        grids = read_bulk(path).nodes
-        ids = sorted(grids)
-        xyz = [list(grids[n].get_position()) for n in ids]
+        ids, xyz = _nastran_nodes(path)
     else:
         ids, xyz = _csv_nodes(path)
     if not ids:
@@ -399,6 +397,20 @@ def read_nodes(path: str | os.PathLike) -> tuple[list[int], np.ndarray]:
             raise ImportInputError(f"{path}: node {nid} is given twice")
         seen.add(nid)
     return ids, np.asarray(xyz, dtype=float).reshape(-1, 3)
+
+
+def _nastran_nodes(path: Path):
+    """The GRID cards of Nastran bulk data, in the basic system (each in its CP system)."""
+    grids = read_bulk(path).nodes
+    ids, xyz = [], []
+    for nid in sorted(grids):
+        try:
+            x = list(grids[nid].get_position())
+        except (AttributeError, KeyError, RuntimeError):   # pyNastran: a CP system (or one it refers to) not defined
+            raise ImportInputError(f"{path}: GRID {nid}: its coordinate system CP = {grids[nid].cp} (or one it is "
+                                   "defined in) is not in the bulk data") from None
+        _add_node(ids, xyz, nid, x, f"{path}: GRID card")
+    return ids, xyz
 
 
 def _csv_nodes(path: Path):

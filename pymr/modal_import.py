@@ -112,7 +112,12 @@ def modal_import(mass: str | os.PathLike, stiffness: str | os.PathLike, nodes: s
     u = red.modes
     origin = xyz[index[interface[0]]]
     s = xyz - origin
-    mass_, first, w, exact = inertia_invariants(mm, dof, s, u, ids, mpath)
+    with np.errstate(over="ignore", invalid="ignore"):
+        mass_, first, w, exact = inertia_invariants(mm, dof, s, u, ids, mpath)
+    if not all(np.isfinite(a).all() for a in (mass_, first, w)):
+        far = np.abs(s).max()
+        raise ImportInputError(f"{npath}: the nodes lie up to {far:.3g} from node {interface[0]}, and the body's "
+                               "inertia about it overflows: check the nodes' units")
     pts = [index[n] for n in attach + boundary_nodes]
     nm = u.shape[1]
     psi, phi = np.zeros((len(pts), 3, nm)), np.zeros((len(pts), 3, nm))
@@ -182,10 +187,12 @@ def _node_ids(name: str, value) -> list[int]:
 #: The smallest memory limit (GB) taken: one kilobyte. Below it no reduction fits, and the
 #: limit was most likely given in another unit (it is in GB: 8 for 8 GB).
 LEAST_MEMORY_GB = 1e-6
+#: The largest (GB): an exabyte. 1e300 GB overflowed the byte count (a traceback).
+MOST_MEMORY_GB = 1e9
 
 
 def _memory_limit(value) -> int | None:
-    """`memory_limit` in GB (positive, at least LEAST_MEMORY_GB) as bytes, or None for what
+    """`memory_limit` in GB (from LEAST_MEMORY_GB to MOST_MEMORY_GB) as bytes, or None for what
     the machine has."""
     if value is None:
         return None
@@ -195,6 +202,9 @@ def _memory_limit(value) -> int | None:
     if value < LEAST_MEMORY_GB:
         raise ImportInputError(f"memory_limit={value!r}: below {LEAST_MEMORY_GB:g} GB (one kilobyte), in which no "
                                "reduction fits: the limit is in GB (8 for 8 GB)")
+    if value > MOST_MEMORY_GB:
+        raise ImportInputError(f"memory_limit={value!r}: above {MOST_MEMORY_GB:g} GB, beyond any machine: the limit "
+                               "is in GB (8 for 8 GB)")
     return int(float(value) * 1e9)
 
 

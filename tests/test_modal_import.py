@@ -10,6 +10,7 @@
 """
 from __future__ import annotations
 
+import importlib.util
 import re
 from pathlib import Path
 
@@ -434,13 +435,43 @@ def test_bad_inputs_name_the_file_and_the_fault(small, capsys):
         (swap("--nodes", tmp / "nodes_dup.csv") + ["--interface", "1"], r"nodes_dup\.csv: node 3 is given twice"),
         (base + ["--interface", "1", "--dof-map", str(tmp / "map.txt")], r"map\.txt: line 30: node 77 is not in"),
         (base + ["--interface", "1", "--modes", "99"], r"--modes 99: the inner DOFs have only 20 modes with mass"),
+        # the inertia about node 1 overflowed: NaN and inf in the .modal file, exit 0
+        (swap("--nodes", tmp / "nodes_far.csv") + ["--interface", "1"],
+         r"nodes_far\.csv: the nodes lie up to 2e\+300 from node 1, and the body's inertia about it overflows"),
+        # an overflow of the byte count (a traceback)
+        (base + ["--interface", "1", "--memory-limit", "1e300"], r"memory_limit=1e\+300: above 1e\+09 GB"),
     ]
+    (tmp / "nodes_far.csv").write_text("".join(f"{int(r[0])}, {float(r[1]) * 1e300!r}, {float(r[2])!r}, {float(r[3])!r}\n" for r in nodes))
+    if importlib.util.find_spec("pyNastran") is not None:     # .ci/setup installs it
+        grids = [f"GRID,{int(r[0])},,{float(r[1])!r},{float(r[2])!r},{float(r[3])!r}\n" for r in nodes]
+        (tmp / "nan.bdf").write_text("".join(grids[:-1]) + grids[-1].replace(f"{float(nodes[-1][1])!r}", "nan", 1))
+        (tmp / "cp.bdf").write_text(grids[0] + grids[1].replace(",,", ",7,", 1) + "".join(grids[2:]))
+        cases += [
+            # NaN coordinates of GRID cards reached the .modal file with exit 0
+            (swap("--nodes", tmp / "nan.bdf") + ["--interface", "1"], r"nan\.bdf: GRID card: node 5: coordinates "
+                                                                       r"not finite"),
+            # a coordinate system not defined was an AttributeError traceback inside pyNastran
+            (swap("--nodes", tmp / "cp.bdf") + ["--interface", "1"],
+             r"cp\.bdf: GRID 2: its coordinate system CP = 7 \(or one it is defined in\) is not in the bulk data"),
+        ]
     for args, fault in cases:
         rc, err = _cli(capsys, *args)
         assert rc == 1, (args, err)
         assert "Traceback" not in err
         lines = err.strip().splitlines()
         assert len(lines) == 1 and re.match(r"pymr: error: .*" + fault, lines[0]), (fault, err)
+
+
+def test_a_count_of_modes_beyond_the_massive_dofs_basis_is_solved_dense(small):
+    """The small beam has 24 interior DOFs, 20 of them with mass (no torsion mass). The
+    default 10 modes asked ARPACK for a basis of 21 vectors, more than the 20 its
+    shift-invert Krylov space holds: "could not build an Arnoldi factorization", exit 2, for
+    a valid model. Now such a count is solved dense: the 10 lowest of all the modes."""
+    tmp, k, m, nodes = small
+    mp, kp, npath = write_fe(tmp, k, m, nodes)
+    ten = pymr.modal_import(mp, kp, npath, [1], modes=10)
+    every = pymr.modal_import(mp, kp, npath, [1], modes=None)
+    np.testing.assert_allclose(ten.frequencies_hz, np.sort(every.frequencies_hz)[:10], rtol=1e-10)
 
 
 def test_cli_writes_a_file_the_kernel_reads(small, capsys):
