@@ -149,6 +149,9 @@ def _states(q, qd) -> tuple[np.ndarray, np.ndarray]:
     a NaN state would come back as NaN, or be blamed on the mass matrix or on LAPACK)."""
     q = _array("q", q)
     qd = _array("qd", qd)
+    if q.ndim >= 1 and q.shape[-1] == 0:
+        # f2py takes no empty array (a bare ValueError); no scene's state is empty
+        raise SceneError(f"q: a state of no coordinates (shape {q.shape}): a state holds the scene's coordinates")
     if q.shape != qd.shape:
         raise SceneError(f"qd: shape {qd.shape} differs from q's {q.shape}")
     _finite("q", q)

@@ -429,6 +429,30 @@ def test_zero_states_are_refused(call):
         call()
 
 
+@pytest.mark.parametrize("call", [
+    lambda: pymr.model_terms(PENDULUM, np.zeros(0), np.zeros(0)),
+    lambda: pymr.model_energy(PENDULUM, np.zeros(0), np.zeros(0)),
+    lambda: pymr.modes(PENDULUM, np.zeros(0), np.zeros(0)),
+    lambda: pymr.force_response(PENDULUM, np.zeros(0), np.zeros(0)),
+    lambda: pymr.model_accelerations(PENDULUM, 0.0, np.zeros((1, 0)), np.zeros((1, 0))),
+], ids=["model_terms", "model_energy", "modes", "force_response", "model_accelerations"])
+def test_a_state_of_no_coordinates_is_refused(call):
+    """A state of shape (0,) reached f2py, whose ValueError ("unexpected array size") was the
+    answer; a state of the wrong non-zero length was already a SceneError."""
+    with pytest.raises(pymr.SceneError, match=r"^q: a state of no coordinates \(shape \((0,|1, 0)\)\)"):
+        call()
+
+
+def test_energy_of_a_state_beyond_the_model_s_terms_is_an_error():
+    """model_energy at q = 1e300 returned NaN and inf with no error, where model_terms and
+    modes at that state raise SolverError."""
+    with pytest.raises(pymr.SolverError, match=r"^state 2: the energy is not finite \(kinetic .*\): the state "
+                                               r"overflows the model's terms$"):
+        pymr.model_energy(PENDULUM, np.array([[0.1], [1e300]]), np.array([[0.0], [1e300]]))
+    ke, pe = pymr.model_energy(PENDULUM, np.array([0.1]), np.array([2.0]))
+    assert np.isfinite(ke).all() and np.isfinite(pe).all()
+
+
 def test_none_is_no_time():
     """t=None became NaN in numpy and was refused as 'nan is not a finite time'."""
     with pytest.raises(pymr.ArgumentTypeError, match=r"^t: a time or an array of times \(s\), got None$"):

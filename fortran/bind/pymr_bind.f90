@@ -199,7 +199,8 @@ end subroutine pymr_loop_rows
 
 !> Kinetic and potential energy (J) for m states q(n,m), qd(n,m) of an open model.
 subroutine pymr_model_energy(handle, n, m, q, qd, kinetic, potential, stat, message, detail)
-  use pymr_env_error, only : error_type
+  use pymr_env_error, only : error_type, fatal_error, stat_solver
+  use pymr_env_text, only : itoa, fmt
   use pymr_bind_support, only : report
   use pymr_bind_models, only : scratch
   use pymr_model, only : model_t
@@ -221,6 +222,13 @@ subroutine pymr_model_energy(handle, n, m, q, qd, kinetic, potential, stat, mess
   if (stat /= 0) return
   do k = 1, m
     call model%energy(q(:, k), qd(:, k), kinetic(k), potential(k))
+    ! a state too large for the model's terms: NaN or inf came back with no error
+    if (.not. (abs(kinetic(k)) <= huge(1.0d0) .and. abs(potential(k)) <= huge(1.0d0))) then
+      call fatal_error(error, 'state ' // itoa(k) // ': the energy is not finite (kinetic ' // fmt(kinetic(k)) // &
+        & ', potential ' // fmt(potential(k)) // '): the state overflows the model''s terms', stat_solver)
+      call report(error, stat, message, detail)
+      return
+    end if
   end do
 end subroutine pymr_model_energy
 
