@@ -348,6 +348,7 @@ def checked(path: Path, columns: list[str], data: np.ndarray, stats: dict, meta:
     it has rows, every value is finite (a run writes none that is not) and its statistics
     (read from `where`) are whole: the fields pymr reads of their types, the column
     metadata one entry per column, and a complete run's row count the file's."""
+    check_columns(path, columns)
     check_rows(path, data, columns)
     _check_stats(stats, columns, where)
     rows = stats.get("rows")
@@ -357,6 +358,20 @@ def checked(path: Path, columns: list[str], data: np.ndarray, stats: dict, meta:
         raise ResultsError(f"{path}: {data.shape[0]} row{'s' if data.shape[0] != 1 else ''} of the {rows} the run "
                            f"wrote ({fault})")
     return Results(columns=columns, data=data, stats=stats, meta=meta, path=str(path))
+
+
+def check_columns(where, columns: list[str]) -> None:
+    """Column names as a run writes them: each given once, none empty, no blanks around one
+    (a ResultsError naming `where` and the column otherwise: a repeated name hid a column)."""
+    seen = set()
+    for k, name in enumerate(columns):
+        if not name or name != name.strip():
+            raise ResultsError(f"{where}: column {k + 1}: {name!r} is no column name (a run writes none: the file "
+                               "was changed)")
+        if name in seen:
+            raise ResultsError(f"{where}: column {k + 1}: {name!r} is named twice (a run writes each column once: "
+                               "the file was changed)")
+        seen.add(name)
 
 
 def check_rows(where, data: np.ndarray, columns: list[str]) -> None:

@@ -823,6 +823,24 @@ def test_results_whose_times_do_not_increase_are_refused(runs, tmp_path, fmt):
     refused(cli("export", path, "--vtk", tmp_path / "vtk"), "row 3, column t: 0.01 is before")
 
 
+@pytest.mark.parametrize("edit, fault", [
+    (lambda h: h[:-1] + [h[-2]], r"column 9: 'tip.vy' is named twice"),
+    (lambda h: h[:1] + [" " + h[1]] + h[2:], r"column 2: ' pivot.q' is no column name"),
+    (lambda h: h[:1] + [""] + h[2:], r"column 2: '' is no column name"),
+])
+def test_a_header_that_hides_a_column_is_refused(runs, tmp_path, edit, fault):
+    """With no statistics beside it a CSV whose header named a column twice was read: the
+    name gave one of the two columns, and to_xarray dropped the other. Blank or padded names
+    were taken too."""
+    lines = (runs / "pend.csv").read_text().splitlines(keepends=True)
+    head = next(i for i, t in enumerate(lines) if t.startswith("t,"))
+    lines[head] = ",".join(edit(lines[head].strip().split(","))) + "\n"
+    path = tmp_path / "cols.csv"
+    path.write_text("".join(lines))
+    with pytest.raises(pymr.ResultsError, match=rf"cols\.csv: {fault} \(a run writes"):
+        pymr.load_results(path)
+
+
 def test_rows_that_precision_writes_with_one_time_are_read(tmp_path):
     """At &output precision 6, times 1e-5 apart just past 1 s are written alike
     (1.00000e+000 for 1.000001 ... 1.000004): the results the run wrote are read (the
