@@ -55,6 +55,26 @@ def test_restarted_run_equals_the_uninterrupted_one(tmp_path, method):
     assert res.stats["effects"]["gravity"]["evaluations"] == full.stats["effects"]["gravity"]["evaluations"]
 
 
+@pytest.mark.parametrize("dt", [3e-3, 2e-2])
+def test_a_restart_with_another_output_interval_writes_its_rows_on_it(tmp_path, dt):
+    """A restart may change &output dt: the rows after the checkpoint follow the new interval.
+    They were timed by the old row count times the new dt (a row at 0.126 s after one at
+    0.4 s, with the values of 0.126 s's neighbour, exit 0; with a longer dt the rows from 0.4
+    to 0.8 s were missing). Fixed steps: the rows after the checkpoint equal those of a run
+    at the new interval from the start."""
+    over = {"scene.t_end": 0.5, "output.dt": 1e-2, "output.checkpoint_dt": 0.2}
+    pymr.run(TANK, tmp_path / "job.csv", overrides=over)
+    new = {**over, "scene.t_end": 1.0, "output.dt": dt}
+    res = pymr.run(TANK, tmp_path / "job.csv", overrides=new, restart=tmp_path / "job.ckpt")
+    whole = pymr.run(TANK, tmp_path / "whole.csv", overrides={**new, "output.checkpoint_dt": 0.0})
+    assert (np.diff(res.t) > 0).all() and res.t[-1] == pytest.approx(1.0)
+    before = res.t <= 0.4 + 1e-9
+    assert np.allclose(res.t[before], np.arange(41) * 1e-2, rtol=0, atol=1e-12)
+    after = res.data[~before]
+    assert np.array_equal(after[:, 0], whole.t[whole.t > 0.4 + 1e-9])
+    assert np.abs(after - whole.data[whole.t > 0.4 + 1e-9]).max() <= 1e-10 * np.abs(whole.data).max()
+
+
 def test_mrsim_and_pymr_restart_from_the_command_line(tmp_path, mrsim):
     scene = tmp_path / "tank.nml"
     scene.write_text(TANK.read_text().replace("t_end = 1.0", "t_end = 0.3").replace(

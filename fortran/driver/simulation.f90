@@ -296,6 +296,12 @@ contains
     end if
     self%stats%rows = prog%rows; self%k_out = prog%k_out; self%t_next = prog%t_next; self%work_step = prog%work
     self%t_step = self%st%time()
+    ! another &output dt: the rows after the checkpoint follow the new interval (the next row
+    ! numbered on the old one was timed k dt_new, before the rows kept)
+    if (self%dt_out > 0.0_dp .and. abs(self%t_next - self%k_out*self%dt_out) > self%eps) then
+      self%k_out = floor((self%t_step + self%eps)/self%dt_out) + 1
+      self%t_next = self%k_out*self%dt_out
+    end if
     self%clock%cpu0 = self%clock%cpu0 - prog%cpu_s
   end subroutine resume
 
