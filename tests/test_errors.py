@@ -524,6 +524,43 @@ def test_mrsim_solver_failure_exit_2(mrsim, tmp_path):
     check_single_line(r.stderr, "mrsim: error: ")
 
 
+#: A sliding block on a spring of omega = 100 rad/s at h = 1e-2 s (omega h = 1, beyond the
+#: step's stability limit 0.43), the pre-flight check off: the motion grows 1.4x a step.
+DIVERGING = """&scene title = 'diverging', t_end = 100 /
+&integrator method = 'single', h_slow = 1.0e-2, stability_check = .false. /
+&effects joint_springs = .true. /
+&body name = 'ground', kind = 'ground' /
+&body name = 'blk', kind = 'rigid', mass = 1.0, inertia = 1, 1, 1, 0, 0, 0 /
+&joint name = 'slide', kind = 'prismatic', parent = 'ground', child = 'blk', axis = 1, 0, 0, q0 = 1.0 /
+&spring joint = 'slide', stiffness = 1.0e4 /
+&output dt = 0.01, quantities = 'coordinates' QUANTITIES /
+"""
+
+
+@pytest.mark.parametrize("energy", [True, False])
+def test_a_motion_that_grows_beyond_the_numbers_fails_naming_it(mrsim, tmp_path, energy):
+    """With the energy columns the spring's energy overflowed first: its rows held inf and
+    NaN, with exit 0. Without them the state overflowed and the run blamed the mass matrix
+    ("not positive definite: the articulated inertia of coordinate slide.q is          NaN").
+    Each is now exit 2 naming the time and what overflowed, and no row holds a number
+    that is not finite."""
+    (tmp_path / "d.nml").write_text(DIVERGING.replace(" QUANTITIES", ", 'energy'" if energy else ""))
+    r = run_mrsim(mrsim, ["d.nml", "-o", "out.csv"], tmp_path)
+    assert r.returncode == 2, r.stderr
+    check_single_line(r.stderr, "mrsim: error: ")
+    if energy:
+        assert re.fullmatch(r"mrsim: error: d\.nml: at t = 4\.\d+ s: the results' column energy\.springs is Inf, not "
+                            r"a finite number: the motion has grown beyond what can be written \(an unstable step, "
+                            r"or a force that grows without bound\)\n", r.stderr), r.stderr
+    else:
+        assert re.fullmatch(r"mrsim: error: d\.nml: at t = \S+ s: the motion has grown beyond the numbers: the "
+                            r"articulated inertia of coordinate slide\.q is NaN \(an unstable step, or a force that "
+                            r"grows without bound\)\n", r.stderr), r.stderr
+    rows = [line for line in (tmp_path / "out.csv.partial").read_text().splitlines() if line[:1].isdigit()]
+    assert len(rows) > 400 and not any(w in line.lower() for line in rows for w in ("inf", "nan"))
+    assert not (tmp_path / "out.csv").exists()
+
+
 def test_run_solver_failure_raises_solver_error(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     (tmp_path / "underflow.nml").write_text(UNDERFLOW)

@@ -3,7 +3,8 @@
 !> computed. Evaluations made for the output are not counted as the integrator's.
 module pymr_driver_output_quantities
   use pymr_env_kinds, only : dp
-  use pymr_env_error, only : error_type
+  use pymr_env_error, only : error_type, fatal_error, stat_solver
+  use pymr_env_text, only : fmt
   use pymr_model, only : model_t, model_counters
   use pymr_model_types, only : model_data, model_work
   use pymr_model_kinematics, only : forward_kinematics, marker_motion, marker_acceleration, marker_rotation
@@ -13,8 +14,8 @@ module pymr_driver_output_quantities
   use pymr_model_effect, only : effect_powers, effect_powers_qdd, effects_need_qdd, power_motion
   use pymr_model_spatial, only : quaternion
   use pymr_integrator_stepper, only : stepper_t
-  use pymr_io_results_output, only : output_plan, n_energy, n_work
-  use pymr_io_results_file, only : results_file
+  use pymr_io_results_output, only : output_plan, n_energy, n_work, row_width, row_values, header_line
+  use pymr_io_results_file, only : results_file, column_name
   implicit none
   private
   public :: write_output_row, work_at
@@ -37,8 +38,29 @@ contains
     call imposed_state(model, t, q, qd, qe, qde)
     call output_values(out%plan, model, t, qe, qde, work, extra, error)
     if (allocated(error)) return
+    call check_row_finite(out%plan, model%d, t, qe, qde, extra, error); if (allocated(error)) return
     call out%write_row(model%d, t, qe, qde, extra)
   end subroutine write_output_row
+
+  !> A run writes finite numbers only: a value that overflowed (an energy column of a motion
+  !> that grows beyond bounds while its state is still finite) fails the run at its row's
+  !> time, naming the column, before the row is written.
+  subroutine check_row_finite(plan, d, t, q, qd, extra, error)
+    type(output_plan), intent(in) :: plan
+    type(model_data), intent(in) :: d
+    real(dp), intent(in) :: t, q(:), qd(:), extra(:)
+    type(error_type), allocatable, intent(out) :: error
+    real(dp), allocatable :: row(:)
+    integer :: k
+    if (all(abs(extra) <= huge(1.0_dp)) .and. (.not. plan%coordinates .or. &
+      & (all(abs(q) <= huge(1.0_dp)) .and. all(abs(qd) <= huge(1.0_dp))))) return
+    allocate(row(row_width(plan, d)))
+    call row_values(plan, d, t, q, qd, extra, row)
+    k = findloc(abs(row) <= huge(1.0_dp), .false., 1)
+    call fatal_error(error, 'at t = ' // fmt(t) // ' s: the results'' column ' // &
+      & column_name(header_line(plan, d), k) // ' is ' // fmt(row(k)) // ', not a finite number: the motion ' // &
+      & 'has grown beyond what can be written (an unstable step, or a force that grows without bound)', stat_solver)
+  end subroutine check_row_finite
 
   !> The state with the prescribed coordinates on their functions.
   subroutine imposed_state(model, t, q, qd, qe, qde)

@@ -11,7 +11,7 @@ module pymr_io_results_file
   use pymr_io_results_output, only : output_plan
   implicit none
   private
-  public :: results_file, check_kept_values, check_kept_times
+  public :: results_file, check_kept_values, check_kept_times, column_name
 
   type, abstract :: results_file
     !> The results file, and the partial file written until the run is complete.

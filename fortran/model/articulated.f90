@@ -27,6 +27,7 @@
 module pymr_model_articulated
   use pymr_env_kinds, only : dp
   use pymr_env_error, only : error_type, fatal_error, stat_solver
+  use pymr_env_text, only : fmt
   use pymr_env_lapack, only : potrf, potrs
   use pymr_model_types, only : model_data, model_work
   implicit none
@@ -134,9 +135,14 @@ contains
           cycle
         end if
         dd = dot_product(u, wk%s(:, k))
-        if (.not. dd > 0.0_dp) then
+        if (dd /= dd) then
+          ! NaN: the state (a position, a rate) overflowed before the inertia was formed
+          call fatal_error(error, 'the motion has grown beyond the numbers: the articulated inertia of coordinate ' // &
+            & trim(d%qname(k)) // ' is NaN (an unstable step, or a force that grows without bound)', stat_solver)
+          return
+        else if (.not. dd > 0.0_dp) then
           call fatal_error(error, 'the mass matrix is not positive definite: the articulated inertia of ' // &
-            & 'coordinate ' // trim(d%qname(k)) // ' is ' // trim(real_text(dd)), stat_solver); return
+            & 'coordinate ' // trim(d%qname(k)) // ' is ' // fmt(dd), stat_solver); return
         end if
         r = wk%tau(k) - dot_product(wk%s(:, k), pa)
         v = u/dd
@@ -182,11 +188,5 @@ contains
       call potrs(wk%ab%kaa(1:m, 1:m, b), add, 'K_aa', e)
     end associate
   end subroutine body_acceleration
-
-  pure function real_text(x) result(s)
-    real(dp), intent(in) :: x
-    character(len=24) :: s
-    write(s, '(es12.5)') x
-  end function real_text
 
 end module pymr_model_articulated
