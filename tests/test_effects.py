@@ -162,6 +162,34 @@ def test_prescribed_joint_follows_its_function_to_roundoff(tmp_path):
     assert stats_effects(res)["base_motion"]["evaluations"] == res.stats["rhs_full"]
 
 
+def test_the_summary_s_final_markers_are_the_results_last_row(tmp_path):
+    """A motion faster than the step resolves (ramp 1e-4 s, steps of 1e-3 s): the results
+    write the prescribed angle and rate exactly (Kane's spin-up), and so does the summary's
+    final line now. It took the integrated coordinate: the tip at (0, -1) while the last row
+    said (0.0499, -0.9988)."""
+    scene = write(tmp_path, "fast.nml", PENDULUM_SPIN)
+    res = pymr.run(scene)
+    theta, rate = spinup(res.t[-1:], 1.0, 1e-4)
+    assert res["pivot.q"][-1] == pytest.approx(theta[0], rel=1e-13)
+    line = next(x for x in res.summary.splitlines() if x.startswith("final tip:"))
+    numbers = [float(w) for w in line.replace(",", " ").split() if w[0] in "-0123456789"]
+    last = [res[c][-1] for c in ("tip.x", "tip.y", "tip.z", "tip.vx", "tip.vy", "tip.vz")]
+    assert numbers == pytest.approx(last, abs=1e-6)
+    assert numbers[:2] == pytest.approx([np.sin(theta[0]), -np.cos(theta[0])], abs=1e-6)
+
+
+PENDULUM_SPIN = """&scene title = 'spin-up faster than the step', t_end = 0.05 /
+&integrator method = 'single', h_slow = 1e-3 /
+&effects base_motion = .true. /
+&body name = 'ground', kind = 'ground' /
+&body name = 'bob', kind = 'rigid', mass = 1.0, com = 0.0, -1.0, 0.0, inertia = 4e-5, 4e-5, 4e-5, 0.0, 0.0, 0.0 /
+&joint name = 'pivot', kind = 'revolute', parent = 'ground', child = 'bob', axis = 0, 0, 1 /
+&motion joint = 'pivot', form = 'spinup', rate = 1.0, ramp_time = 1e-4 /
+&marker name = 'tip', body = 'bob', at = 0.0, -1.0, 0.0 /
+&output dt = 0.01 /
+"""
+
+
 # ---------------------------------------------------------- geometric stiffening
 
 def modal_frequencies_squared(scene: Path, t: float) -> np.ndarray:

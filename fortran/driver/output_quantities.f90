@@ -18,7 +18,7 @@ module pymr_driver_output_quantities
   use pymr_io_results_file, only : results_file, column_name
   implicit none
   private
-  public :: write_output_row, work_at
+  public :: write_output_row, work_at, imposed_state
 
   !> Gauss-Legendre nodes (on [-1, 1]) and weights of the work integrals over a step:
   !> exact for polynomials of degree 5, beyond the dense output's order.

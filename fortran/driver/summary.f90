@@ -11,6 +11,7 @@ module pymr_driver_summary
   use pymr_io_results_output, only : run_stats, json_path
   use pymr_driver_stepper_setup, only : method_label
   use pymr_driver_moving_load_exits, only : exits_text
+  use pymr_driver_output_quantities, only : imposed_state
   implicit none
   private
   public :: summary_text
@@ -57,7 +58,7 @@ contains
         if (len(warning) > 0) s = s // new_line('a') // 'warning: ' // warning
       end do
     end if
-    s = s // new_line('a') // exits_text(model, sc%scene%t_end) // markers_text(model, x)
+    s = s // new_line('a') // exits_text(model, sc%scene%t_end) // markers_text(model, sc%scene%t_end, x)
     s = s // 'results: ' // path // ', ' // json_path(path)
   end function summary_text
 
@@ -83,20 +84,21 @@ contains
     end if
   end function loops_text
 
-  !> The final position and velocity of the first max_summary_markers markers at state x,
-  !> a line each.
-  function markers_text(model, x) result(s)
+  !> The final position and velocity of the first max_summary_markers markers at state x
+  !> at time t (prescribed coordinates on their functions, as the results' rows), a line each.
+  function markers_text(model, t, x) result(s)
     type(model_t), intent(inout) :: model
-    real(dp), intent(in) :: x(:)
+    real(dp), intent(in) :: t, x(:)
     character(len=:), allocatable :: s
     character(len=256) :: buf
-    real(dp) :: r(3), v(3)
+    real(dp) :: r(3), v(3), q(model%d%n), qd(model%d%n)
     integer :: i, n
     n = model%d%n
     s = ''
-    call forward_kinematics(model%d, model%wk, x(1:n), x(n+1:))
+    call imposed_state(model, t, x(1:n), x(n+1:), q, qd)
+    call forward_kinematics(model%d, model%wk, q, qd)
     do i = 1, min(model%d%markers%n, max_summary_markers)
-      call marker_motion(model%d, model%wk, i, x(1:n), x(n+1:), r, v)
+      call marker_motion(model%d, model%wk, i, q, qd, r, v)
       ! fixed digits for ordinary values (f12.6 keeps a blank before -999.999999); exponents of
       ! three digits, with their E, for a scene far out or a run gone far off
       if (maxval(abs([r, v])) < 1.0e3_dp) then
