@@ -121,6 +121,20 @@ def test_a_checkpoint_file_over_the_scene_or_the_results_is_refused(tmp_path, mr
     assert scene.read_bytes() == before and not (tmp_path / "s.csv").exists()
 
 
+def test_results_named_as_their_own_default_checkpoint_are_refused(tmp_path, mrsim):
+    """-o run.ckpt with checkpoints on: the default checkpoint beside the results is
+    run.ckpt, the results file itself. The run ended with exit 0 and the checkpoints lost
+    under the results ("not a pymr checkpoint" on restart); the same clash written as
+    checkpoint_file was already refused."""
+    (tmp_path / "s.nml").write_text(PENDULUM)
+    r = run_mrsim(mrsim, ["s.nml", "-o", "run.ckpt", "--set", "output.checkpoint_dt=0.01"], tmp_path)
+    assert r.returncode == 1 and r.stderr.count("\n") == 1, r.stderr
+    assert r.stderr.strip() == ("mrsim: error: s.nml: output run.ckpt: its checkpoint run.ckpt: would overwrite the "
+                                "results (run.ckpt); choose another results file, or a checkpoint_file in &output"), \
+        r.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.nml"]
+
+
 def test_no_file_the_run_writes_through_replaces_an_input(tmp_path, mrsim):
     """The run writes its results through OUT.partial, OUT.lock and staging files: a scene
     named r.csv.partial was deleted by a successful run to r.csv, and a checkpoint_file

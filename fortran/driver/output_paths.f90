@@ -84,6 +84,9 @@ contains
     if (len_trim(sc%output%checkpoint_file) == 0) then
       if (replaces(sc, checkpoint_default(path), 'output ' // path // ': its checkpoint ' // checkpoint_default(path), &
         & 'another results file, or a checkpoint_file in &output', error)) return
+      ! -o run.ckpt: the checkpoint beside the results is the results file itself
+      if (collides(path, checkpoint_default(path), sc%file // ': output ' // path // ': its checkpoint ' // &
+        & checkpoint_default(path), inputs, error, 'another results file, or a checkpoint_file in &output')) return
       return
     end if
     file = trim(sc%output%checkpoint_file); label = sc%output%origin%where('checkpoint_file')
@@ -135,10 +138,12 @@ contains
 
   !> Would the checkpoint `file` (or its staging file) replace what the run reads (`inputs`),
   !> or a file the run to `path` writes? `label` is the item's place.
-  logical function collides(path, file, label, inputs, error)
+  logical function collides(path, file, label, inputs, error, advice)
     character(len=*), intent(in) :: path, file, label
     type(scene_files), intent(in) :: inputs
     type(error_type), allocatable, intent(inout) :: error
+    !> What to choose instead (default: another checkpoint file).
+    character(len=*), intent(in), optional :: advice
     character(len=:), allocatable :: what
     character(len=path_len), allocatable :: files(:)
     character(len=path_len) :: mine(2)
@@ -158,7 +163,12 @@ contains
       end do
     end do
     collides = len(what) > 0
-    if (collides) call fatal_error(error, label // ': would overwrite ' // what // '; choose another checkpoint file')
+    if (.not. collides) return
+    if (present(advice)) then
+      call fatal_error(error, label // ': would overwrite ' // what // '; choose ' // advice)
+    else
+      call fatal_error(error, label // ': would overwrite ' // what // '; choose another checkpoint file')
+    end if
   end function collides
 
   !> Is the folder that `file` would be written in missing? Found before the run starts;
