@@ -305,6 +305,8 @@ TABLE_CORRUPTIONS = [
     ("comma_alone", TABLE.replace("0.5, 2.0", ","), "line 3: a comma with no value beside it (an empty value): ,"),
     ("subnormal", TABLE.replace("0.5, 2.0", "0.5, 1e-310"),
      "line 3: the value 1e-310 is below the smallest normal number (2.22507e-308): give 0 or a larger magnitude"),
+    ("rounding_to_zero", TABLE.replace("0.5, 2.0", "0.5, 1e-400"),
+     "line 3: the value 1e-400 is below the smallest normal number (2.22507e-308): give 0 or a larger magnitude"),
 ]
 
 

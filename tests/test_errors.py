@@ -230,6 +230,11 @@ CASES = [
     # a number below the smallest normal one (it made a spin-up's acceleration infinite)
     Case("subnormal_value", BASE, ("&body", "'bob'", "mass", "'4.9e-324' is below the smallest normal number"),
          sets=("body[bob].mass=4.9e-324",)),
+    # one that rounds to 0 was taken as 0, silently (q0 = 1e-400 started at 0)
+    Case("value_rounding_to_zero", BASE, ("&joint", "'pivot'", "q0", "'1e-400' is below the smallest normal number"),
+         sets=("joint[pivot].q0=1e-400",)),
+    Case("digits_rounding_to_zero", replaced("mass = 1.0", "mass = 0." + "0" * 400 + "1"),
+         ("&body", "'bob'", "mass", "is below the smallest normal number")),
     # a repeat N*VALUE of text (a marker was named "'tip'" with its quotes)
     Case("repeat_of_text", replaced("&marker name = 'tip'", "&marker name = 1*'tip'"),
          ("&marker", "name", "cannot read 1*'tip' (a repeat N*VALUE is of numbers or logicals: give text once)")),

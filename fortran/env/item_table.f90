@@ -324,8 +324,8 @@ contains
     if (x /= x .or. abs(x) > huge(x)) then
       call fatal_error(error, '''' // tok%text // ''' is not a finite number'); return
     end if
-    if (len(below_normal(x)) > 0) then
-      call fatal_error(error, '''' // tok%text // ''' ' // below_normal(x)); return
+    if (len(below_normal(x, tok%text)) > 0) then
+      call fatal_error(error, '''' // tok%text // ''' ' // below_normal(x, tok%text)); return
     end if
     call check_range(it, x, error); if (allocated(error)) return
     it%r(k) = x

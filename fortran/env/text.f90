@@ -71,15 +71,21 @@ contains
     end do
   end function lower
 
-  !> '' for 0 and a normal number; for one below the smallest normal number (subnormal),
-  !> what a reader says of it: 'is below the smallest normal number (2.22507e-308): give 0 or
-  !> a larger magnitude' (no input means one: it makes a quotient overflow).
-  function below_normal(x) result(s)
+  !> '' for 0 and a normal number; for one below the smallest normal number (subnormal, or
+  !> a text such as 1e-400 whose digits are not 0 read as 0), what a reader says of it: 'is
+  !> below the smallest normal number (2.22507e-308): give 0 or a larger magnitude' (no input
+  !> means one: it makes a quotient overflow, or the 0 it became is not what was written).
+  function below_normal(x, text) result(s)
     real(dp), intent(in) :: x
+    !> The number as written.
+    character(len=*), intent(in) :: text
     character(len=:), allocatable :: s
+    integer :: e
     s = ''
-    if (x /= 0.0_dp .and. abs(x) < tiny(x)) s = 'is below the smallest normal number (' // fmt(tiny(x)) // &
-      & '): give 0 or a larger magnitude'
+    e = scan(text, 'eEdD') - 1
+    if (e < 0) e = len(text)
+    if ((x /= 0.0_dp .and. abs(x) < tiny(x)) .or. (x == 0.0_dp .and. scan(text(1:e), '123456789') > 0)) &
+      & s = 'is below the smallest normal number (' // fmt(tiny(1.0_dp)) // '): give 0 or a larger magnitude'
   end function below_normal
 
   !> A real for messages as a person writes it, at most 6 significant digits: 0.01, 2.5,

@@ -123,8 +123,8 @@ contains
     call number_text(word, x, ok)
     if (.not. ok .or. x /= x .or. abs(x) > huge(1.0_dp)) then
       why = 'not a number'
-    else if (len(below_normal(x)) > 0) then
-      why = 'the ' // name // ' ' // word // ' ' // below_normal(x)
+    else if (len(below_normal(x, word)) > 0) then
+      why = 'the ' // name // ' ' // word // ' ' // below_normal(x, word)
     else if (abs(x) > limit) then
       why = 'the ' // name // ' ' // fmt(x) // ' is beyond +-' // fmt(limit)
     end if
