@@ -245,6 +245,19 @@ def test_mrsim_accepts_bare_words(mrsim_cmd, pendulum, text):
     assert (pendulum.parent / "out.csv").exists()
 
 
+@pytest.mark.parametrize("word", ["R&D", "b$b"])
+def test_a_bare_word_may_hold_an_ampersand_or_a_dollar(mrsim_cmd, pendulum, word):
+    """A bare word with '&' or '$' inside was read as a group's start when the items were
+    counted: "more items than the group has '=' signs", with no item named (the same word
+    as the group's last item was read). A group starts only after a separator."""
+    text = pendulum.read_text()
+    assert "title = 'simple pendulum, 1 rad'\n  t_end" in text       # the title is not the group's last item
+    pendulum.write_text(text.replace("title = 'simple pendulum, 1 rad'", f"title = {word}"))
+    r = run_mrsim(mrsim_cmd, [pendulum.name, "-o", "out.csv", "--set", "scene.t_end=0.05"], pendulum.parent)
+    assert r.returncode == 0, f"exit status {r.returncode}, stderr:\n{r.stderr}"
+    assert r.stdout.startswith(f"scene: {word}\n")
+
+
 @pytest.mark.parametrize("fault", SCENE_PARAMS)
 def test_scene_refuses_bad_item(pendulum, monkeypatch, fault):
     monkeypatch.chdir(pendulum.parent)

@@ -83,8 +83,8 @@ contains
     end do
   end subroutine parse_namelist
 
-  !> Number of '=' outside quotes from text(i:) to the next '/' or '&' outside quotes: a bound
-  !> on the number of items of the group starting there.
+  !> Number of '=' outside quotes from text(i:) to the next '/' or group start ('&' or '$'
+  !> after a separator) outside quotes: a bound on the number of items of the group there.
   pure integer function count_equals(text, i) result(n)
     character(len=*), intent(in) :: text
     integer, intent(in) :: i
@@ -98,7 +98,11 @@ contains
         select case (text(j:j))
         case ('''', '"'); q = text(j:j)
         case ('='); n = n + 1
-        case ('/', '&', '$'); exit
+        case ('/'); exit
+        case ('&', '$')
+          ! a group starts only where a value could (R&D is one bare word, as the reader has it)
+          if (j == i) exit
+          if (index(' ,' // achar(9) // achar(10) // achar(13), text(j-1:j-1)) > 0) exit
         case ('!')
           do while (j < len(text))
             if (text(j+1:j+1) == achar(10)) exit
