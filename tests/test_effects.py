@@ -539,6 +539,13 @@ def test_bad_motion_table_names_the_motion_group(tmp_path):
     with pytest.raises(pymr.SceneError, match=r"rail.nml:8: &motion #1: file: '.*m.txt' line 3: times "
                                                r"must increase, but t = 0.5 follows t = 1"):
         pymr.run(scene)
+    # rows 1e-200 apart (times that increase, values finite) make the spline's slopes
+    # overflow: a failed run "at t = 0 s: dptsv: ..." (exit 2) before; bad input now
+    (tmp_path / "m.txt").write_text("0 0\n1e-200 1\n1 1\n")
+    with pytest.raises(pymr.SceneError, match=r"rail.nml:8: &motion #1: file: the spline through the table cannot "
+                                               r"be formed: its slope changes by -1e\+200 at the time 1e-200 \(the "
+                                               r"rows there are 1e-200 and 1 apart\): give rows farther apart in time$"):
+        pymr.run(scene)
 
 
 def cantilever_slope(n: int, x, length: float, rho_a: float):

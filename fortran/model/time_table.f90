@@ -5,7 +5,8 @@
 !> continued by its end segments' lines, with the exact integral of that line for its energy.
 module pymr_model_time_table
   use pymr_env_kinds, only : dp
-  use pymr_env_error, only : error_type
+  use pymr_env_error, only : error_type, fatal_error, stat_input
+  use pymr_env_text, only : fmt
   use pymr_env_lapack, only : ptsv
   implicit none
   private
@@ -100,6 +101,13 @@ contains
     do i = 2, n - 1
       r(i - 1) = 6.0_dp*((tb%y(i + 1) - tb%y(i))/h(i) - (tb%y(i) - tb%y(i - 1))/h(i - 1))
     end do
+    ! times so close that the slopes beside them overflow LAPACK: the table's fault
+    i = maxloc(abs(r), 1) + 1
+    if (.not. abs(r(i - 1)) <= 1.0e150_dp) then
+      call fatal_error(error, what // ': the spline through the table cannot be formed: its slope changes by ' // &
+        & fmt(r(i - 1)/6.0_dp) // ' at the time ' // fmt(tb%t(i)) // ' (the rows there are ' // fmt(h(i - 1)) // &
+        & ' and ' // fmt(h(i)) // ' apart): give rows farther apart in time', stat_input); return
+    end if
     call ptsv(dg, e, r, 'the spline of ' // what, error)
     if (allocated(error)) return
     tb%y2(2:n - 1) = r
