@@ -150,6 +150,9 @@ CASES = [
          ("cycle",), pattern=r"&(body|joint) '(a|b|ab|ba)'"),
     Case("self_joint", BASE + revolute("self", "bob", "bob"),
          ("&joint", "'self'", "'bob'", "itself")),
+    # made by a --set of the parent: the --set is named, not the file's child line
+    Case("self_joint_by_set", BASE, ("--set joint[pivot].parent=bob: &joint 'pivot': parent: the joint joins body "
+                                     "'bob' to itself",), sets=("joint[pivot].parent=bob",)),
     # 7. bad joint kind
     Case("bad_joint_kind", replaced("kind = 'revolute'", "kind = 'hinge'"),
          ("&joint", "'pivot'", "kind", "'hinge'")),

@@ -486,8 +486,10 @@ contains
           cycle each_joints
         end if
         if (ip == ic) then
-          call errs%add(sc%joints(i)%origin%where('child') // ": the joint joins body '" // trim(jt%child) // &
-            & "' to itself (a cycle)"); cycle each_joints
+          ! the item a --set changed, when one did: the other is as the file gave it
+          call errs%add(sc%joints(i)%origin%where(trim(merge('parent', 'child ', &
+            & sc%joints(i)%origin%line_of('parent') < 0 .and. sc%joints(i)%origin%line_of('child') >= 0))) // &
+            & ": the joint joins body '" // trim(jt%child) // "' to itself (a cycle)"); cycle each_joints
         end if
         if (sc%bodies(ic)%kind == 'ground') then
           call errs%add(sc%joints(i)%origin%where('child') // ": '" // trim(jt%child) // &
