@@ -196,6 +196,10 @@ SET_FAULTS = [
              r": &integrator: rtol: must be in \[2.22045e-14, 1\], got 1e-300$"),
     SetFault("title_too_long", "scene.title=" + "x" * 300, "scene.title", "x" * 300,
              r": &scene: title: the text is longer than 256 characters$"),
+    # the limit is in bytes: 200 letters of two bytes were "longer than 256 characters"
+    SetFault("title_too_long_utf8", "scene.title=" + "\u00e9" * 200, "scene.title", "\u00e9" * 200,
+             r": &scene: title: the text is longer than 256 bytes of UTF-8 \(400 bytes: a letter beyond ASCII takes "
+             r"2 to 4\)$"),
     SetFault("duplicate_body_name", "body[bob].name=ground", "body[bob].name", "ground",
              r": &body 'bob': name: used by another &body too \(line \d+\)$"),
     SetFault("subscript", "body[bob].mass(1)=1", "body[bob].mass(1)", 1.0,

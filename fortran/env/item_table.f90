@@ -376,6 +376,7 @@ contains
     type(token_t), intent(in) :: tok
     type(error_type), allocatable, intent(out) :: error
     character(len=:), allocatable :: v
+    integer :: j
     v = tok%text
     if (len(it%choices) > 0) then
       v = lower(v)
@@ -391,7 +392,12 @@ contains
       v = trim(it%s) // ' ' // v
     end if
     if (len(v) > len(it%s)) then
-      call fatal_error(error, 'the text is longer than ' // itoa(len(it%s)) // ' characters'); return
+      ! the limit is in bytes: a letter beyond ASCII takes 2 to 4 of them in UTF-8
+      if (all([(iachar(v(j:j)) < 128, j = 1, len(v))])) then
+        call fatal_error(error, 'the text is longer than ' // itoa(len(it%s)) // ' characters'); return
+      end if
+      call fatal_error(error, 'the text is longer than ' // itoa(len(it%s)) // ' bytes of UTF-8 (' // itoa(len(v)) // &
+        & ' bytes: a letter beyond ASCII takes 2 to 4)'); return
     end if
     if (index(v, achar(10)) > 0 .or. index(v, achar(13)) > 0) then
       call fatal_error(error, 'the text spans lines'); return
