@@ -37,6 +37,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterable, Mapping, Sequence, Union
 
+import numpy as np
+
 from ._args import _names, _shown
 from .api import PymrError, write_file
 from .errors import ArgumentTypeError, ResultsError
@@ -345,6 +347,21 @@ def _run_styles(n: int) -> tuple[list[str], list[str], list[float]]:
             [max(2.0 - 0.4 * k, 0.8) for k in range(n)])
 
 
+#: The largest magnitude a plot's axes scale: matplotlib's ticks overflow near 1e308
+#: (numpy warnings on stderr, with exit 0).
+PLOT_MAX = 1e300
+
+
+def _plotted(res: Results, col: str) -> np.ndarray:
+    """Column `col` of a run, to be drawn: a PlotError when it holds a value beyond PLOT_MAX."""
+    v = res[col]
+    if not (np.abs(v) <= PLOT_MAX).all():
+        big = float(v[np.argmax(np.abs(v))])
+        raise PlotError(f"{res.path or 'the results'}: column {col} holds {big:.3g}, beyond what a plot's axes "
+                        f"scale (+-{PLOT_MAX:.0e}): leave the column out")
+    return v
+
+
 def _draw_rows(fig, rows: list[Row], runs: list[Results], labels: list[str]) -> None:
     """The default figure: one axes per column, every run overlaid, one legend of the runs."""
     from matplotlib.gridspec import GridSpec
@@ -355,7 +372,7 @@ def _draw_rows(fig, rows: list[Row], runs: list[Results], labels: list[str]) -> 
         for j, col in enumerate(row.columns):
             ax = fig.add_subplot(grid[i, j * span:(j + 1) * span])
             for k, (res, label) in enumerate(zip(runs, labels)):
-                ax.plot(res.t, res[col], styles[k], color=colours[k], label=label, lw=widths[k])
+                ax.plot(res.t, _plotted(res, col), styles[k], color=colours[k], label=label, lw=widths[k])
             ax.set_title(col)
             ax.set_xlabel("t (s)")
             ax.set_ylabel(row.ylabel)
@@ -379,7 +396,7 @@ def _draw_panels(fig, panels: list[Panel], runs: list[Results], labels: list[str
         for j, col in enumerate(panel.columns):
             for k, (res, label) in enumerate(zip(runs, labels)):
                 name = col if len(runs) == 1 else f"{col} ({label})"
-                ax.plot(res.t, res[col], styles[k], color=f"C{j % 10}", label=name, lw=widths[k])
+                ax.plot(res.t, _plotted(res, col), styles[k], color=f"C{j % 10}", label=name, lw=widths[k])
         ax.set_title(", ".join(panel.columns) if len(panel.columns) <= 3 else
                      f"{panel.columns[0]} ... {panel.columns[-1]}")
         ax.set_xlabel("t (s)")

@@ -106,6 +106,13 @@ class Results:
         for name in ("stats", "meta"):
             if not isinstance(getattr(self, name), dict):
                 raise ArgumentTypeError(f"{name}: a dict, got {_shown(getattr(self, name))}")
+        if self.path is not None and not isinstance(self.path, (str, os.PathLike)):
+            raise ArgumentTypeError(f"path: the results file's path (str), or None, got {_shown(self.path)}")
+        self.path = None if self.path is None else os.fspath(self.path)
+        if not isinstance(self.summary, str):
+            raise ArgumentTypeError(f"summary: a text (str), got {_shown(self.summary)}")
+        check_columns("columns", self.columns)
+        check_rows("data", self.data, self.columns)
 
     def __getitem__(self, name: str) -> np.ndarray:
         if _key("name", name) not in self.columns:

@@ -201,3 +201,21 @@ def test_api_errors(tank, double_pendulum):
     with pytest.raises(PlotError, match=r"dp\.csv: no marker 'muzzle'"):
         plot_results([s_csv, double_pendulum[0]])
     assert issubclass(PlotError, pymr.PymrError)
+
+
+def test_a_value_beyond_what_the_axes_scale_is_refused_naming_the_column(double_pendulum, tmp_path):
+    """A column holding 1e308 (finite, so the results are read) was drawn with numpy's
+    overflow warnings from matplotlib's ticks on stderr and exit 0; animate and view refused
+    it. The column is named; with it left out the figure is drawn; 1e300 is drawn."""
+    import copy
+    _, res = double_pendulum
+    big = copy.deepcopy(res)
+    col = big.columns.index("tip.x")
+    big.data[5, col] = 1e308
+    with pytest.raises(PlotError, match=r"column tip\.x holds 1e\+308, beyond what a plot's axes scale \(\+-1e\+300\)"):
+        plot_results([big], tmp_path / "p.png")
+    assert not (tmp_path / "p.png").exists()
+    plot_results([big], tmp_path / "q.png", columns=["tip.y"])
+    big.data[5, col] = 1e300
+    plot_results([big], tmp_path / "r.png")
+    assert (tmp_path / "q.png").read_bytes()[:8] == PNG == (tmp_path / "r.png").read_bytes()[:8]

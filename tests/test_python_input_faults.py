@@ -876,3 +876,18 @@ def test_an_output_the_disk_refuses_is_one_line(args):
         r = subprocess.run([sys.executable, "-m", "pymr", *map(str, args)], stdout=full, stderr=subprocess.PIPE,
                            text=True, cwd=tempfile.gettempdir(), timeout=120, stdin=subprocess.DEVNULL)
     assert r.returncode == 1 and r.stderr == "pymr: error: the standard output: No space left on device\n", r.stderr
+
+
+@pytest.mark.parametrize("fields, error, message", [
+    (dict(path=5), pymr.ArgumentTypeError, r"^path: the results file's path \(str\), or None, got int 5"),
+    (dict(summary=5), pymr.ArgumentTypeError, r"^summary: a text \(str\), got int 5"),
+    (dict(data=[[0.0, None]]), pymr.ResultsError, r"^data: row 1, column x: nan is not a finite number"),
+    (dict(columns=["t", "t"]), pymr.ResultsError, r"^columns: column 2: 't' is named twice"),
+])
+def test_results_made_by_hand_are_checked_as_a_file_s(fields, error, message):
+    """A Results made by hand took path=5 and summary=5, turned None into NaN, and took a
+    column twice, each to fail later where used; the docs say it is checked as a file is."""
+    base = dict(columns=["t", "x"], data=[[0.0, 1.0]])
+    with pytest.raises(error, match=message):
+        pymr.Results(**{**base, **fields})
+    assert pymr.Results(**base, path=Path("r.csv")).path == "r.csv"
