@@ -251,7 +251,10 @@ def export_vtk(results: Results | str | os.PathLike, folder, scene=None, every: 
                           "(pip install meshio)") from None
     mo = motion(res, scene, exaggerate=exaggerate, every=every, frames=frames)
     name = Path(res.path).stem if res.path else "motion"
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-", dir=out.parent))
+    try:
+        tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-", dir=out.parent))
+    except OSError as exc:          # a folder that takes no new entry (/proc): named, not the staging name
+        raise OutputError(f"{option} {out}: cannot write in its folder {out.parent} ({exc.strerror or exc})") from None
     try:
         umask = os.umask(0)
         os.umask(umask)

@@ -144,7 +144,13 @@ def scene_of(res: Results, scene=None):
             raise GeometryError("scene: an empty file name (leave it out for the scene the results name)")
         path = Path(text)
     elif res.stats.get("resolved_scene"):
-        return _resolved_scene_file(res.stats["resolved_scene"])
+        path = _resolved_scene_file(res.stats["resolved_scene"])
+        try:
+            Scene(path)
+        except PymrError as exc:     # its messages would name the temporary file, not the statistics
+            where = f"{Path(str(res.path)).with_suffix('.json')}: resolved_scene"
+            raise GeometryError(str(exc).replace(str(path), where) + " (give the scene with --scene)") from None
+        return path
     elif res.stats.get("scene"):
         path = Path(res.stats["scene"])
     else:

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import subprocess
 import tempfile
 import sys
@@ -891,3 +892,19 @@ def test_results_made_by_hand_are_checked_as_a_file_s(fields, error, message):
     with pytest.raises(error, match=message):
         pymr.Results(**{**base, **fields})
     assert pymr.Results(**base, path=Path("r.csv")).path == "r.csv"
+
+
+def test_messages_name_the_user_s_files_not_pymr_s_temporary_ones(runs, tmp_path):
+    """A statistics file whose resolved scene the kernel refuses was named as the temporary
+    file pymr wrote it to (/tmp/pymr-scene-.../resolved.nml:1); an export folder whose parent
+    takes no new entry was named by its staging name (/proc/.xx.tmp-...)."""
+    shutil.copy(runs / "pend.csv", tmp_path / "g.csv")
+    stats = json.loads((runs / "pend.json").read_text())
+    stats["resolved_scene"] = "&scene garbage"
+    (tmp_path / "g.json").write_text(json.dumps(stats))
+    r = cli("animate", tmp_path / "g.csv", "-o", tmp_path / "a.png")
+    refused(r, f"{tmp_path / 'g.json'}: resolved_scene:1: &scene: garbage: expected '=' after the item name")
+    assert "pymr-scene-" not in r.stderr and not (tmp_path / "a.png").exists()
+    r = cli("export", runs / "pend.csv", "--vtk", "/proc/pymr_export")
+    refused(r, "--vtk /proc/pymr_export: cannot write in its folder /proc (")
+    assert ".tmp-" not in r.stderr
