@@ -553,12 +553,30 @@ def read_body(mpath: Path, kpath: Path, npath: Path, dofs_per_node, dof_map, mas
         labels, mm, kk = on_common_rows(m_labels, mm, k_labels, kk)
     elif mm.shape != kk.shape:
         raise ImportInputError(f"{kpath}: {kk.shape[0]} rows, but {mpath} has {mm.shape[0]}")
+    check_scale(mm, mpath)
+    check_scale(kk, kpath)
     check_symmetric(mm, mpath)
     check_symmetric(kk, kpath)
     mm, kk = (0.5 * (mm + mm.T)).tocsr(), (0.5 * (kk + kk.T)).tocsr()
     check_mass(mm, mpath)
     dof = dof_layout(ids, mm.shape[0], mpath, npath, dofs_per_node, dof_map, labels)
     return ids, xyz, mm, kk, dof
+
+
+#: The largest entry of a mass or stiffness matrix lies within these (SI units: a steel
+#: mesh's K reaches 1e12, a gram's mass 1e-3): beyond, the reduction's products overflow or
+#: underflow (LAPACK printed its own error and ARPACK gave another body on each run).
+MATRIX_SCALE = (1e-150, 1e150)
+
+
+def check_scale(a: sp.spmatrix, path: Path) -> None:
+    """The matrix's largest entry within MATRIX_SCALE (an ImportInputError naming the file
+    otherwise)."""
+    big = float(abs(a).max()) if a.nnz else 0.0
+    low, high = MATRIX_SCALE
+    if big != 0.0 and not low <= big <= high:           # a zero matrix: the mass and stiffness checks say
+        raise ImportInputError(f"{path}: its largest entry is {big:.3g}, outside [{low:g}, {high:g}] where the "
+                               "reduction keeps its digits: check the matrix's units")
 
 
 def check_free_body(kk: sp.spmatrix, dof: np.ndarray, ids: list, kpath: Path, clamped: np.ndarray) -> None:

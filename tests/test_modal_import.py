@@ -438,9 +438,16 @@ def test_bad_inputs_name_the_file_and_the_fault(small, capsys):
         # the inertia about node 1 overflowed: NaN and inf in the .modal file, exit 0
         (swap("--nodes", tmp / "nodes_far.csv") + ["--interface", "1"],
          r"nodes_far\.csv: the nodes lie up to 2e\+300 from node 1, and the body's inertia about it overflows"),
+        # matrices in units far from SI: LAPACK's own error text on stdout, or another body each run
+        (swap("--stiffness", tmp / "k_tiny.mtx") + ["--interface", "1"],
+         r"k_tiny\.mtx: its largest entry is [0-9.]+e-19\d, outside \[1e-150, 1e\+150\] where the reduction keeps its "
+         r"digits: check the matrix's units"),
+        (swap("--mass", tmp / "m_huge.mtx") + ["--interface", "1"], r"m_huge\.mtx: its largest entry is [0-9.]+e\+30\d"),
         # an overflow of the byte count (a traceback)
         (base + ["--interface", "1", "--memory-limit", "1e300"], r"memory_limit=1e\+300: above 1e\+09 GB"),
     ]
+    scipy.io.mmwrite(tmp / "k_tiny.mtx", scipy.sparse.coo_matrix(k * 1e-200))
+    scipy.io.mmwrite(tmp / "m_huge.mtx", scipy.sparse.coo_matrix(m * 1e300))
     (tmp / "nodes_far.csv").write_text("".join(f"{int(r[0])}, {float(r[1]) * 1e300!r}, {float(r[2])!r}, {float(r[3])!r}\n" for r in nodes))
     if importlib.util.find_spec("pyNastran") is not None:     # .ci/setup installs it
         grids = [f"GRID,{int(r[0])},,{float(r[1])!r},{float(r[2])!r},{float(r[3])!r}\n" for r in nodes]
