@@ -99,7 +99,6 @@ def modal_import(mass: str | os.PathLike, stiffness: str | os.PathLike, nodes: s
     # scipy loads here, not with pymr (a run's process needs it not)
     from .craig_bampton import reduce
     from .fe_formats import check_free_body, read_body
-    from .fe_invariants import inertia_invariants
     ids, xyz, mm, kk, dof = read_body(mpath, kpath, npath, dofs_per_node, dof_map, mass_name, stiffness_name)
     ids, xyz, dof, attach, boundary_nodes = attachment(ids, xyz, dof, interface, clamp, npath)
     index = {nid: n for n, nid in enumerate(ids)}
@@ -112,12 +111,7 @@ def modal_import(mass: str | os.PathLike, stiffness: str | os.PathLike, nodes: s
     u = red.modes
     origin = xyz[index[interface[0]]]
     s = xyz - origin
-    with np.errstate(over="ignore", invalid="ignore"):
-        mass_, first, w, exact = inertia_invariants(mm, dof, s, u, ids, mpath)
-    if not all(np.isfinite(a).all() for a in (mass_, first, w)):
-        far = np.abs(s).max()
-        raise ImportInputError(f"{npath}: the nodes lie up to {far:.3g} from node {interface[0]}, and the body's "
-                               "inertia about it overflows: check the nodes' units")
+    mass_, first, w, exact = finite_invariants(mm, dof, s, u, ids, mpath, npath, interface[0])
     pts = [index[n] for n in attach + boundary_nodes]
     nm = u.shape[1]
     psi, phi = np.zeros((len(pts), 3, nm)), np.zeros((len(pts), 3, nm))
@@ -130,6 +124,18 @@ def modal_import(mass: str | os.PathLike, stiffness: str | os.PathLike, nodes: s
     if output is not None:
         write_modal_v2(output, body, title or f"imported from {mpath.name}, {kpath.name}, {npath.name}")
     return body
+
+
+def finite_invariants(mm, dof, s, u, ids, mpath, npath, origin: int):
+    """inertia_invariants of the body with nodes at s from node `origin`: an ImportInputError
+    when they overflow (nodes far out in the units they are given in)."""
+    from .fe_invariants import inertia_invariants
+    with np.errstate(over="ignore", invalid="ignore"):
+        mass_, first, w, exact = inertia_invariants(mm, dof, s, u, ids, mpath)
+    if not all(np.isfinite(a).all() for a in (mass_, first, w)):
+        raise ImportInputError(f"{npath}: the nodes lie up to {np.abs(s).max():.3g} from node {origin}, and the "
+                               "body's inertia about it overflows: check the nodes' units")
+    return mass_, first, w, exact
 
 
 def attachment(ids, xyz, dof, interface, clamp, npath):
