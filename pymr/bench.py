@@ -323,6 +323,12 @@ def main(what: str, repeats: int | None = None, json_path: str | None = None,
         if json_path:
             write_file(json_path, json.dumps({"blas": loaded_lapack(), "rows": rows}, indent=2), "figures")
         return 0
+    if what == "auto":
+        rows = bench_auto(repeats=repeats or 5)
+        print_auto(rows, repeats or 5)
+        if json_path:
+            write_file(json_path, json.dumps(rows, indent=2), "figures")
+        return 0
     if what == "table1":
         # runs of 5-30 ms are noisy on a shared machine: 21 interleaved repeats by default
         rows = bench_table1(repeats=max(repeats or 21, 5))
@@ -718,3 +724,65 @@ def print_modal_import(rows: list[dict]) -> None:
             gap = np.max(np.abs(np.asarray(f[:len(d)]) - d) / d)
             print(f"{'':>6} {'':>8} dense eigh of the same interior: f1 {d[0]:.9f}, f2 {d[1]:.9f} Hz; largest "
                   f"relative difference over 20 modes {gap:.2e}")
+
+
+#: ``bench auto``: method 'auto' against each of its candidates run directly, adaptive, at
+#: the scene's own tolerances.
+AUTO_METHODS = {
+    "auto": {"integrator.method": "auto"},
+    "single-rate": {"integrator.method": "single"},
+    "exponential": {"integrator.method": "multirate", "integrator.coupling": "exponential"},
+    "response": {"integrator.method": "multirate", "integrator.coupling": "response"},
+}
+
+
+def shipped_scenes() -> list[Path]:
+    """The scenes of input/ and input/hard/ (the first folder of INPUT_FOLDERS that has them)."""
+    for base in INPUT_FOLDERS:
+        if base.is_dir():
+            return sorted(base.glob("*.nml")) + sorted((base / "hard").glob("*.nml"))
+    raise SceneError("input/ not found: this installation of pymr has no shipped scenes (reinstall it)")
+
+
+def bench_auto(repeats: int = 5) -> list[dict]:
+    """Each shipped scene run adaptive at its own tolerances by method 'auto' and by each
+    candidate directly (a method the scene refuses is None): the median of each one's CPU
+    (its run's own clock, the probes included for 'auto') over `repeats` runs interleaved
+    over the scene's methods in a seeded random order, what 'auto' chose, and 'auto' over the
+    fastest candidate."""
+    from .api import PymrError, run
+    rows = []
+    with tempfile.TemporaryDirectory(prefix="pymr-auto-") as tmp:
+        for scene in shipped_scenes():
+            cpu: dict[str, list | None] = {name: [] for name in AUTO_METHODS}
+            chosen = ""
+            for r in range(repeats):
+                for name, over in shuffled(list(AUTO_METHODS.items()), r):
+                    if cpu[name] is None:
+                        continue
+                    try:
+                        res = run(scene, Path(tmp) / "run.csv", overrides={**over, "integrator.adaptive": True})
+                    except PymrError:
+                        cpu[name] = None          # refused (no modal coordinates, a flexible loop) or failed
+                        continue
+                    cpu[name].append(res.stats["cpu_time_s"])
+                    if name == "auto":
+                        chosen = res.stats.get("method_choice", {}).get("chosen", "")
+            ms = {name: None if not v else 1e3 * statistics.median(v) for name, v in cpu.items()}
+            fastest = min((v for k, v in ms.items() if k != "auto" and v is not None), default=None)
+            rows.append({"scene": str(scene.relative_to(scene.parents[1] if scene.parent.name == "hard"
+                                                        else scene.parent)),
+                         "chosen": chosen, **{f"{k}_ms": v for k, v in ms.items()},
+                         "auto_over_fastest": None if fastest is None or ms["auto"] is None else ms["auto"] / fastest})
+    return rows
+
+
+def print_auto(rows: list[dict], repeats: int) -> None:
+    print("pymr bench auto: each shipped scene adaptive at its own tolerances; median CPU (ms, the run's own clock, "
+          f"the probes included for 'auto') of {repeats} runs interleaved in a seeded random order")
+    names = list(AUTO_METHODS)
+    print(f"{'scene':<30} {'auto chose':<26} " + " ".join(f"{n:>12}" for n in names) + f" {'auto/fastest':>13}")
+    for r in rows:
+        cells = " ".join(f"{'-':>12}" if r[f'{n}_ms'] is None else f"{r[f'{n}_ms']:>12.2f}" for n in names)
+        ratio = "-" if r["auto_over_fastest"] is None else f"{r['auto_over_fastest']:.2f}"
+        print(f"{r['scene']:<30} {r['chosen']:<26} {cells} {ratio:>13}")

@@ -324,7 +324,7 @@ def _add_bench(sub) -> None:
     """The `pymr bench` subcommand and its options."""
     b = sub.add_parser("bench", help="benchmarks that print figures")
     b.add_argument("what", choices=["rhs", "chain", "lapack", "table1", "effects", "spacecraft", "output",
-                                    "modal-import"],
+                                    "modal-import", "auto"],
                    help="rhs: cost of one model evaluation vs chain length; chain: the serial chain of N "
                         "rods, N = 5 to 200, by both forward-dynamics paths and (when installed) Pinocchio; lapack: the "
                         "work pymr hands LAPACK, timed with the LAPACK loaded; "
@@ -332,12 +332,13 @@ def _add_bench(sub) -> None:
                         "of one tank evaluation with each effect on and off; spacecraft: the flexible spacecraft, "
                         "single-rate against multirate; output: what writing a row at every step costs, as CSV "
                         "and as HDF5; modal-import: Craig-Bampton reduction of 3-D frames and solid blocks of 10k, "
-                        "100k and 300k DOFs (time, peak memory, frequencies; a dense reduction beside it at 3k)")
+                        "100k and 300k DOFs (time, peak memory, frequencies; a dense reduction beside it at 3k); "
+                        "auto: method 'auto' against each candidate run directly on every shipped scene")
     b.add_argument("--pinocchio-cpp", metavar="EXE",
                    help="chain: also time Pinocchio compiled, by this build of docs/pinocchio_chain.cpp")
     b.add_argument("--repeats", type=_count_of("repeats", most=MAX_REPEATS), default=None,
                    help="timing repeats, median reported (default 7 for rhs, chain and effects, 5 for lapack, "
-                        "spacecraft and output, 21 for table1, which takes at least 5)")
+                        "spacecraft, output and auto, 21 for table1, which takes at least 5)")
     b.add_argument("--json", help="also write the figures to this JSON file")
     b.add_argument("--sizes", type=int, nargs="+", metavar="DOFS",
                    help="modal-import: the models' DOF counts (default 10000 100000 300000)")

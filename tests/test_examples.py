@@ -73,6 +73,7 @@ ADJUST = {
     "pymr bench chain": (["--repeats", "1"], "timing repeats (30 s with the default 7)"),
     "pymr bench spacecraft": (["--repeats", "1"], "timing repeats (30 s with the default 5)"),
     "pymr bench output": (["--repeats", "1"], "timing repeats (23 s with the default 5)"),
+    "pymr bench auto": (["--repeats", "1"], "timing repeats (40 s with the default 5)"),
     "pymr bench table1": (["--repeats", "5"], "timing repeats (table1 takes at least 5; 21 by default)"),
     "pymr bench modal-import": (["--sizes", "2000"], "the 300k-DOF models take minutes (hours with reference BLAS); "
                                                       "the same code at one small size"),
