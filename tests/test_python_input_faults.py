@@ -908,3 +908,16 @@ def test_messages_name_the_user_s_files_not_pymr_s_temporary_ones(runs, tmp_path
     r = cli("export", runs / "pend.csv", "--vtk", "/proc/pymr_export")
     refused(r, "--vtk /proc/pymr_export: cannot write in its folder /proc (")
     assert ".tmp-" not in r.stderr
+
+
+def test_a_write_never_replaces_a_device_or_a_fifo(tmp_path):
+    """Scene.write('/dev/null') renamed its file over the device: /dev/null became a regular
+    file holding the scene (the command-line writers refused it). write_file, which every
+    writer uses, now refuses a target that is not a regular file."""
+    import stat
+    fifo = tmp_path / "pipe"
+    os.mkfifo(fifo)
+    with pytest.raises(pymr.OutputError, match=r"pipe: cannot write the resolved scene \(not a regular file: a FIFO, "
+                                               r"a device or a socket\)$"):
+        pymr.Scene(PENDULUM).write(fifo)
+    assert stat.S_ISFIFO(fifo.stat().st_mode)
