@@ -330,6 +330,13 @@ def collect(sw: Sweep, folder: str | os.PathLike) -> list[dict]:
     if not (folder / "sweep.slurm").exists():
         raise SweepError(f"--collect {folder}: no sweep.slurm here (emit the cases with --emit-slurm first)")
     check_output(folder / "summary.csv", "sweep's summary", option="--collect")
+    try:
+        emitted = (folder / "cases.csv").read_bytes().decode()
+    except (OSError, UnicodeDecodeError):
+        emitted = None
+    if emitted != cases_text(sw):
+        raise SweepError(f"--collect {folder}: its cases.csv is not this sweep's cases ({sw.path.name}): collect "
+                         "with the sweep file its cases were emitted from")
     ref = reference_positions(sw, folder)
     names = reference_names(sw)
     rows = []
@@ -359,6 +366,9 @@ def collect_case(folder: Path, name: str, metric: str, reference) -> dict:
     short = _incomplete(res, out)
     if short:
         return {"status": f"failed: incomplete results: {short}"}
+    other = _other_scene(res, out, folder / f"{name}.nml")
+    if other:
+        return {"status": f"failed: {other}"}
     value, status = case_metric(res, metric, reference)
     return {"metric": value, "cpu_time_s": float(res.stats.get("cpu_time_s", math.nan)),
             "status": "failed: " + status.removeprefix("error: ") if status != "ok" else "ok"}
@@ -373,6 +383,19 @@ def _incomplete(res, out: Path) -> str:
         return f"{out}: no statistics file {out.with_suffix('.json').name} beside it"
     if stats.get("status") != "complete":
         return f"{out}: its statistics say status {stats.get('status')!r}, not 'complete'"
+    return ""
+
+
+def _other_scene(res, out: Path, namelist: Path) -> str:
+    """Why a case's results are not of its namelist ('' when they are): results an earlier
+    sweep emitted into the same folder left there, whose scene fingerprint is another's."""
+    try:
+        mine = Scene(namelist).fingerprint
+    except (PymrError, OSError) as exc:
+        return f"{namelist}: cannot read the case's namelist ({exc})"
+    if res.stats.get("scene_fingerprint") != mine:
+        return (f"{out}: the results are of another scene than {namelist.name} (an earlier sweep's, left in the "
+                "folder?): run the case again")
     return ""
 
 
@@ -502,6 +525,16 @@ def case_namelist(base: Path, overrides: dict, dest: Path) -> None:
     write_file(dest, f"! {dest.name}: {base.name} with {overrides}\n" + text, "case namelist")
 
 
+def cases_text(sw: Sweep) -> str:
+    """The sweep's cases.csv: each case's name and parameters."""
+    fh = io.StringIO(newline="")
+    w = csv.DictWriter(fh, fieldnames=["case", *sw.grid])
+    w.writeheader()
+    for i, case in enumerate(sw.cases):
+        w.writerow({"case": case_name(i), **case})
+    return fh.getvalue()
+
+
 def emit_slurm(sw: Sweep, folder: str | os.PathLike, time_limit: str = "01:00:00") -> Path:
     """Case namelists and a SLURM job-array script running mrsim per case, in `folder`. The
     script names the mrsim of this installation by its absolute path (a compute node need
@@ -513,12 +546,7 @@ def emit_slurm(sw: Sweep, folder: str | os.PathLike, time_limit: str = "01:00:00
     cases = sw.cases
     for i, case in enumerate(cases):
         case_namelist(sw.scene, {**sw.fixed, **case}, folder / f"{case_name(i)}.nml")
-    fh = io.StringIO(newline="")
-    w = csv.DictWriter(fh, fieldnames=["case", *sw.grid])
-    w.writeheader()
-    for i, case in enumerate(cases):
-        w.writerow({"case": case_name(i), **case})
-    write_file(folder / "cases.csv", fh.getvalue(), "list of cases")
+    write_file(folder / "cases.csv", cases_text(sw), "list of cases")
     script = write_file(folder / "sweep.slurm", f"""#!/bin/bash
 # SLURM job array for the sweep {sw.path.name}: one task per case namelist.
 # Submit from this folder: sbatch sweep.slurm   (results: caseNNNN.csv and .json here)

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import pymr
-from pymr.sweep import SweepError, emit_slurm, load_sweep, run_sweep
+from pymr.sweep import SweepError, collect, emit_slurm, load_sweep, run_sweep
 
 ROOT = Path(__file__).resolve().parent.parent
 TANK = ROOT / "input" / "tank_gun_turret.nml"
@@ -330,6 +330,34 @@ metric = "final:elevation.q"
                         r"was cut\)", status[3]), status[3]
     assert status[4] == "not run"
     assert status[5].startswith("not finished: case0005.csv.partial")
+
+
+def test_collect_takes_no_results_of_another_emission(tmp_path, mrsim):
+    """A second sweep emitted into a folder holding the first one's results was collected
+    from them: both cases 'ok' with the second sweep's parameters and the first one's
+    metrics. A case's results must be of its namelist (their scene fingerprints), and the
+    folder's cases those of the sweep file collecting them."""
+    (tmp_path / "p.nml").write_text(PENDULUM)
+    text = 'scene = "p.nml"\nmetric = "final:pivot.q"\n[grid]\n"joint[pivot].q0" = [{}]\n[fixed]\n"scene.t_end" = 0.1\n'
+    (tmp_path / "a.toml").write_text(text.format("0.5, 0.6"))
+    (tmp_path / "b.toml").write_text(text.format("0.7, 0.8"))
+    folder = tmp_path / "runs"
+    emit_slurm(load_sweep(tmp_path / "a.toml"), folder)
+    for i in range(2):
+        r = subprocess.run([mrsim, f"case{i:04d}.nml", "-o", f"case{i:04d}.csv", "--quiet"], cwd=folder,
+                           capture_output=True, text=True)
+        assert r.returncode == 0, r.stderr
+    emit_slurm(load_sweep(tmp_path / "b.toml"), folder)
+    rows = collect(load_sweep(tmp_path / "b.toml"), folder)
+    assert all(re.fullmatch(rf"failed: .*case000{i}\.csv: the results are of another scene than case000{i}\.nml "
+                            r"\(an earlier sweep's, left in the folder\?\): run the case again", row["status"])
+               for i, row in enumerate(rows)), [row["status"] for row in rows]
+    with pytest.raises(SweepError, match=r"--collect .*runs: its cases.csv is not this sweep's cases \(a\.toml\)"):
+        collect(load_sweep(tmp_path / "a.toml"), folder)
+    r = subprocess.run([mrsim, "case0000.nml", "-o", "case0000.csv", "--quiet"], cwd=folder, capture_output=True)
+    row = collect(load_sweep(tmp_path / "b.toml"), folder)[0]
+    assert row["status"] == "ok" and row["metric"] == pytest.approx(pymr.run(
+        tmp_path / "p.nml", overrides={"joint[pivot].q0": 0.7, "scene.t_end": 0.1})["pivot.q"][-1], rel=1e-12)
 
 
 def test_each_case_s_reference_shares_its_physics(tmp_path, monkeypatch):
