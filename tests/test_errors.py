@@ -230,6 +230,9 @@ CASES = [
     # names head the results' columns
     Case("name_with_comma", BASE.replace("'pivot'", "'pi,vot'"),
          ("&joint", "name", "may not hold a comma")),
+    # a leading blank ran, and its column ' tip.x' was then refused where the results are read
+    Case("name_with_leading_blank", BASE.replace("&marker name = 'tip'", "&marker name = ' tip'"),
+         ("&marker", "name", "may not begin with a blank")),
     # a number below the smallest normal one (it made a spin-up's acceleration infinite)
     Case("subnormal_value", BASE, ("&body", "'bob'", "mass", "'4.9e-324' is below the smallest normal number"),
          sets=("body[bob].mass=4.9e-324",)),

@@ -115,13 +115,19 @@ contains
   end subroutine check_unique_names
 
   !> Names head the results' columns ("gun.a1", "muzzle.x"): no comma (it would split a CSV
-  !> column), no double quote and no control character.
+  !> column), no double quote, no control character and no leading blank.
   subroutine check_name_characters(names, origins, errs)
     character(len=*), intent(in) :: names(:)
     type(origin_t), intent(in) :: origins(:)
     type(error_list), intent(inout) :: errs
     integer :: k, c
     do k = 1, size(names)
+      if (len_trim(names(k)) > 0 .and. names(k)(1:1) == ' ') then
+        ! a column ' lead.x' is read back as no column of the run's (names are trimmed)
+        call errs%add(origins(k)%where('name') // ': may not begin with a blank (names head the results'' ' // &
+          & 'columns)')
+        cycle
+      end if
       do c = 1, len_trim(names(k))
         if (names(k)(c:c) == ',' .or. names(k)(c:c) == '"' .or. iachar(names(k)(c:c)) < 32 .or. &
           & iachar(names(k)(c:c)) == 127) then
