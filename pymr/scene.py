@@ -94,6 +94,20 @@ class Scene(SceneSource):
             self._overrides = text.split("\n")
         self._check()
 
+    def __copy__(self) -> "Scene":
+        """An independent scene: its own overrides, its own file for a text built or edited
+        in Python, no model shared (copy.copy shared the overrides list: setting an item of
+        the copy changed what the original ran)."""
+        new = Scene.__new__(Scene)
+        new.__dict__.update(self.__dict__)
+        new._overrides, new._model, new._tmp, new._batch = list(self._overrides), None, None, False
+        if self._text is not None:
+            new._set_text(self._text)
+        return new
+
+    def __deepcopy__(self, memo) -> "Scene":
+        return self.__copy__()
+
     # ------------------------------------------------------------- building
 
     def add(self, group: str, **items: object) -> "Scene":

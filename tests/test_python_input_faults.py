@@ -921,3 +921,20 @@ def test_a_write_never_replaces_a_device_or_a_fifo(tmp_path):
                                                r"a device or a socket\)$"):
         pymr.Scene(PENDULUM).write(fifo)
     assert stat.S_ISFIFO(fifo.stat().st_mode)
+
+
+@pytest.mark.parametrize("how", ["copy", "deepcopy"])
+def test_a_copied_scene_is_independent_of_its_original(tmp_path, how):
+    """copy.copy(scene) shared the overrides list: an item set on the copy changed what the
+    original ran (from q0 = 0.3), while the original's resolved text still said 1. A scene
+    built in Python shared its file too."""
+    import copy
+    a = pymr.Scene(PENDULUM, overrides={"scene.t_end": 0.01})
+    b = getattr(copy, how)(a)
+    b["joint[pivot].q0"] = 0.3
+    assert a["joint[pivot].q0"] == [1] and b["joint[pivot].q0"] == [0.3]
+    assert pymr.run(a)["pivot.q"][0] == 1.0 and pymr.run(b)["pivot.q"][0] == 0.3
+    built = pymr.Scene(PENDULUM).add("marker", name="m2", body="bob")      # its text held in Python
+    other = getattr(copy, how)(built)
+    other["scene.t_end"] = 0.2
+    assert built["scene.t_end"] == 10.0 and other["scene.t_end"] == 0.2 and built.path != other.path
