@@ -228,6 +228,8 @@ def nml_value(v: object, name: str = "value") -> str:
     a list (tuple, 1-D array) of them. Anything else (None, bytes, a nested list) is an
     :class:`ArgumentTypeError` naming `name`: bytes are refused, not decoded or written as
     their repr ``b'...'`` (the text an item holds is a str; decode bytes first)."""
+    if isinstance(v, np.ndarray) and v.ndim == 0:   # np.array(2.0): its one value (len() fails on it)
+        v = v[()]
     if isinstance(v, (bool, np.bool_)):
         return ".true." if v else ".false."
     if isinstance(v, str):

@@ -938,3 +938,15 @@ def test_a_copied_scene_is_independent_of_its_original(tmp_path, how):
     other = getattr(copy, how)(built)
     other["scene.t_end"] = 0.2
     assert built["scene.t_end"] == 10.0 and other["scene.t_end"] == 0.2 and built.path != other.path
+
+
+def test_a_zero_dimensional_array_is_its_one_value():
+    """np.array(0.5) as a value raised a bare TypeError (len() of unsized object) in
+    Scene.__setitem__, Scene.add and every overrides mapping; it is its one value."""
+    s = pymr.Scene(PENDULUM)
+    s["scene.t_end"] = np.array(0.05)
+    assert s["scene.t_end"] == 0.05
+    res = pymr.run(PENDULUM, overrides={"scene.t_end": np.array(0.05), "joint[pivot].q0": np.array([0.2])})
+    assert res.t[-1] == pytest.approx(0.05) and res["pivot.q"][0] == 0.2
+    with pytest.raises(pymr.ArgumentTypeError, match=r"^scene.t_end: a number, a bool, a text \(str\) or a list"):
+        s["scene.t_end"] = np.array(None)
