@@ -171,7 +171,7 @@ def recorded(out: Path, option: str = "--vtk") -> list[str]:
         names = [*index["files"], index["collection"], INDEX]
         if not all(isinstance(n, str) and n == Path(n).name and n not in ("", ".", "..") for n in names):
             raise ValueError("a file name that is not a name in the folder")
-    except (OSError, ValueError, KeyError, TypeError) as exc:
+    except (OSError, ValueError, KeyError, TypeError, RecursionError) as exc:
         raise OutputError(f"{option} {out}: its {INDEX} is damaged ({' '.join(str(exc).split())}), so no file in it "
                           "is known to be an earlier export's: nothing was removed; choose a new or empty folder") \
             from None

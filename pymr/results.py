@@ -500,7 +500,7 @@ def parse_stats(text: str, where: str) -> dict:
     ResultsError naming `where` when they are not a JSON object."""
     try:
         stats = json.loads(text)
-    except ValueError as exc:
+    except (ValueError, RecursionError) as exc:         # RecursionError: nesting no run writes
         raise ResultsError(f"{where}: not a pymr statistics file ({' '.join(str(exc).split())})") from None
     if not isinstance(stats, dict):
         raise ResultsError(f"{where}: not a pymr statistics file (not a JSON object)")

@@ -404,7 +404,7 @@ def _partial_error(partial: Path) -> str:
     import json
     try:
         error = json.loads(partial.read_text()).get("error", "")
-    except (OSError, ValueError, AttributeError):
+    except (OSError, ValueError, AttributeError, RecursionError):
         error = ""
     return " ".join(str(error).split()) or f"see {partial.name}"
 

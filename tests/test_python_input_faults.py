@@ -950,3 +950,13 @@ def test_a_zero_dimensional_array_is_its_one_value():
     assert res.t[-1] == pytest.approx(0.05) and res["pivot.q"][0] == 0.2
     with pytest.raises(pymr.ArgumentTypeError, match=r"^scene.t_end: a number, a bool, a text \(str\) or a list"):
         s["scene.t_end"] = np.array(None)
+
+
+def test_statistics_nested_beyond_python_s_recursion_are_refused(runs, tmp_path):
+    """A statistics file of 100000 nested lists made load_results raise a bare RecursionError
+    (plot and view printed its 38-line traceback)."""
+    shutil.copy(runs / "pend.csv", tmp_path / "n.csv")
+    (tmp_path / "n.json").write_text("[" * 100000 + "]" * 100000)
+    with pytest.raises(pymr.ResultsError, match=r"n\.json: not a pymr statistics file \(maximum recursion depth"):
+        pymr.load_results(tmp_path / "n.csv")
+    refused(cli("plot", tmp_path / "n.csv", "-o", tmp_path / "p.png"), "n.json: not a pymr statistics file")
