@@ -283,6 +283,19 @@ def test_shot_exit_is_at_the_travel_laws_time_with_the_markers_state_there(tmp_p
     assert "shot exit at t = " in res.summary
 
 
+def test_the_exit_state_of_any_size_is_valid_json(tmp_path):
+    """A 1e-200 N force leaves velocities of 1e-204 at the exit: the statistics wrote them
+    as 6.76546752407431037-204 (es25.17 drops the E of a three-digit exponent), which no
+    JSON reader takes, with exit 0. The state is written exactly, as the rows are."""
+    res = cantilever(tmp_path, "tiny.nml", "force = 0.0, 1.0e-200, 0.0, s0 = 0.5, speed = 50.0, start = 0.01",
+                     t_end=0.05, dt=1e-5)
+    stats = res.stats                       # read from the run's JSON (it failed to parse)
+    tip = stats["moving_loads"][0]["markers_at_exit"]["tip"]
+    k = int(np.argmin(np.abs(res.t - stats["moving_loads"][0]["t_exit"])))
+    assert 0 < abs(tip["velocity"][1]) < 1e-190
+    assert tip["velocity"][1] == pytest.approx(res["tip.vy"][k], rel=1e-6)
+
+
 def test_a_load_that_has_not_reached_the_end_has_no_exit(tmp_path):
     res = cantilever(tmp_path, "short.nml", "mass = 20.0, s0 = 0.5, speed = 50.0", t_end=0.02)
     [shot] = res.stats["moving_loads"]

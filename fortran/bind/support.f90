@@ -22,7 +22,7 @@ contains
     if (.not. allocated(error)) return
     stat = error%stat; message = printable(error%message, len(message))
     if (.not. present(detail)) return
-    write(step, '(es25.17)') error%stable_step
+    write(step, '(es25.17e3)') error%stable_step
     write(ratio, '(i0)') error%stable_ratio
     detail = 'kind=' // error_kind(error) // achar(30) // 'group=' // text(error%group) // achar(30) // &
       & 'item=' // text(error%item) // achar(30) // 'stable_step=' // trim(adjustl(step)) // achar(30) // &

@@ -4,7 +4,7 @@
 !> effect_moving_load.f90 record_exit). The summary and the JSON report them.
 module pymr_driver_moving_load_exits
   use pymr_env_kinds, only : dp
-  use pymr_env_text, only : fmt, json_escape
+  use pymr_env_text, only : fmt, json_escape, exact_text
   use pymr_model, only : model_t
   use pymr_model_effect_moving_load, only : moving_load_effect, exit_time, record_exit
   use pymr_integrator_stepper, only : stepper_t
@@ -119,13 +119,12 @@ contains
     if (len(items) > 0) s = '  "moving_loads": [' // items // '],' // new_line('a')
   end function exits_json
 
-  !> A number as JSON (17 significant digits).
+  !> A number as JSON, exactly (es25.17 dropped the E of a three-digit exponent: 6.7-204,
+  !> which no JSON reader takes).
   function num(v) result(s)
     real(dp), intent(in) :: v
     character(len=:), allocatable :: s
-    character(len=32) :: buf
-    write(buf, '(es25.17)') v
-    s = trim(adjustl(buf))
+    s = exact_text(v)
   end function num
 
   !> A 3-vector as a JSON array.
@@ -140,7 +139,7 @@ contains
     real(dp), intent(in) :: v(3)
     character(len=:), allocatable :: s
     character(len=48) :: buf
-    write(buf, '(3es13.5)') v
+    write(buf, '(3es13.5e3)') v
     s = '(' // trim(adjustl(buf)) // ')'
   end function vec
 end module pymr_driver_moving_load_exits
