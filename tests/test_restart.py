@@ -75,6 +75,32 @@ def test_a_restart_with_another_output_interval_writes_its_rows_on_it(tmp_path, 
     assert np.abs(after - whole.data[whole.t > 0.4 + 1e-9]).max() <= 1e-10 * np.abs(whole.data).max()
 
 
+@pytest.mark.parametrize("fmt", ["csv", "hdf5"])
+@pytest.mark.parametrize("other", ["output interval", "physics"])
+def test_a_restart_refuses_the_results_of_another_run(tmp_path, fmt, other):
+    """A restart kept its rows from whatever results file was there: the complete results
+    of a run at another output interval (8.9 s of rows lost, exit 0) or of other physics (a
+    jump in pivot.q at the checkpoint, exit 0), where its own file was lost. The checkpoint
+    records the last row the results held; the kept file's row there must be it. The file is
+    left as it was."""
+    scene = ROOT / "input" / "pendulum.nml"
+    out = tmp_path / f"job.{'h5' if fmt == 'hdf5' else 'csv'}"
+    base = {"output.checkpoint_dt": 1.0, "output.format": fmt, "scene.t_end": 3.0}
+    theirs = {**base, **({"output.dt": 0.001} if other == "output interval" else {"joint[pivot].q0": 0.5})}
+    pymr.run(scene, out, overrides=theirs)                  # another run's complete results
+    before = out.read_bytes()
+    pymr.run(scene, tmp_path / "mine.csv", overrides={**base, "output.format": "csv"})
+    shutil.copy(tmp_path / "mine.ckpt", tmp_path / "job.ckpt")
+    if fmt == "hdf5":                                     # the checkpoint of an HDF5 run
+        pymr.run(scene, tmp_path / "mine.h5", overrides=base)
+        shutil.copy(tmp_path / "mine.ckpt", tmp_path / "job.ckpt")
+    column = "t" if other == "output interval" else "pivot.q"
+    with pytest.raises(pymr.SceneError, match=rf"job\.(csv|h5): row 201, column {column} is .*, where the "
+                                               r"checkpointed run wrote .*: the file is another run's results"):
+        pymr.run(scene, out, overrides={**base, "scene.t_end": 4.0}, restart=tmp_path / "job.ckpt")
+    assert out.read_bytes() == before
+
+
 def test_mrsim_and_pymr_restart_from_the_command_line(tmp_path, mrsim):
     scene = tmp_path / "tank.nml"
     scene.write_text(TANK.read_text().replace("t_end = 1.0", "t_end = 0.3").replace(

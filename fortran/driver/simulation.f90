@@ -288,7 +288,7 @@ contains
     type(run_progress) :: prog
     call read_checkpoint(restart, self%st, self%model, prog, self%settings, self%fingerprint, &
       & self%sc%scene%t_end, error)
-    if (.not. allocated(error)) call self%out%reopen(self%path, self%model%d, prog%rows, error)
+    if (.not. allocated(error)) call self%out%reopen(self%path, self%model%d, prog%rows, prog%last_row, error)
     if (allocated(error)) then
       call self%out%close()
       call self%name_file(error)
@@ -417,7 +417,7 @@ contains
     call self%out%flush_rows()
     if (self%out%ios /= 0) return
     prog = run_progress(rows=self%stats%rows, k_out=self%k_out, t_next=self%t_next, cpu_s=self%clock%cpu_s(), &
-      & t_checkpoint=self%st%time(), work=self%work_step)
+      & t_checkpoint=self%st%time(), work=self%work_step, last_row=self%out%row)
     call write_checkpoint(self%ckpt_path, self%st, self%model, prog, self%settings, self%fingerprint, error)
     if (allocated(error)) return
     self%t_ckpt = next_checkpoint(self%sc, self%st%time())

@@ -26,7 +26,7 @@ module pymr_io_checkpoint
   !> 6: the stepper's state written as its state vector and its record (state_record);
   !> 7: the 'response' and 'exponential' steppers named apart (a run of method 'auto'
   !> continues with the one that wrote it).
-  integer, parameter :: version = 8
+  integer, parameter :: version = 9
 
   !> What a checkpoint's header says: pymr's version, the model's size, the stepper's name,
   !> the time, the integrator settings and the model's fingerprint.
@@ -44,6 +44,8 @@ module pymr_io_checkpoint
     real(dp) :: t_next = 0.0_dp, cpu_s = 0.0_dp, t_checkpoint = 0.0_dp
     !> The works of the energy columns integrated so far (J).
     real(dp) :: work(n_work) = 0.0_dp
+    !> The last row the results hold (a restart checks the kept file's against it).
+    real(dp), allocatable :: last_row(:)
   end type run_progress
 
 contains
@@ -71,7 +73,8 @@ contains
     name = st%name(); ver = pymr_version
     write(u, iostat=ios) tag, version, ver, model%d%n, model%d%nj, name, st%time(), len(settings), settings, &
       & fingerprint_field(fingerprint)
-    if (ios == 0) write(u, iostat=ios) prog%rows, prog%k_out, prog%t_next, prog%cpu_s, prog%t_checkpoint, prog%work
+    if (ios == 0) write(u, iostat=ios) prog%rows, prog%k_out, prog%t_next, prog%cpu_s, prog%t_checkpoint, prog%work, &
+      & size(prog%last_row), prog%last_row
     if (ios == 0) call st%save(u, ios)
     if (ios == 0) call model%save_run(u, ios)
     if (ios /= 0) then
@@ -115,7 +118,7 @@ contains
     real(dp), intent(in) :: t_end
     type(error_type), allocatable, intent(out) :: error
     type(checkpoint_header) :: hd
-    integer :: u, ios
+    integer :: u, ios, n_last
     character(len=256) :: msg
     call verify_file(path, error); if (allocated(error)) return
     open(newunit=u, file=path, access='stream', form='unformatted', status='old', action='read', iostat=ios, &
@@ -128,7 +131,12 @@ contains
     if (allocated(error)) then
       close(u); return
     end if
-    read(u, iostat=ios) prog%rows, prog%k_out, prog%t_next, prog%cpu_s, prog%t_checkpoint, prog%work
+    read(u, iostat=ios) prog%rows, prog%k_out, prog%t_next, prog%cpu_s, prog%t_checkpoint, prog%work, n_last
+    if (ios == 0 .and. (n_last < 0 .or. n_last > huge(1)/8)) ios = 1
+    if (ios == 0) then
+      allocate(prog%last_row(n_last))
+      read(u, iostat=ios) prog%last_row
+    end if
     if (ios == 0) call st%load(u, ios)
     if (ios == 0) call model%load_run(u, ios)
     close(u)

@@ -9,7 +9,7 @@ module pymr_io_results_csv
   use pymr_env_text, only : itoa
   use pymr_env_text_file, only : sync_file, rename_file, file_size, check_size
   use pymr_io_results_output, only : pymr_version, header_line, row_width, row_values
-  use pymr_io_results_file, only : results_file, check_kept_values, check_kept_times
+  use pymr_io_results_file, only : results_file, check_kept_values, check_kept_times, check_kept_last
   implicit none
   private
   public :: csv_writer
@@ -29,7 +29,6 @@ module pymr_io_results_csv
     !> size on disk is compared with what was written, every `check_rows` rows and at the end.
     integer(int64) :: written = 0
     integer :: unchecked = 0
-    real(dp), allocatable :: row(:)
     character(len=:), allocatable :: line
     !> Rows formatted and not yet handed to the runtime: pending(1:n_pending), each ended
     !> by a newline, written in one WRITE when the next would not fit (a formatted WRITE
@@ -91,17 +90,18 @@ contains
   !> checkpointed run wrote (its partial file if it was stopped, else its complete file),
   !> written whole to a new partial file that then replaces the old one, and append. The
   !> source stays intact until its replacement is complete.
-  subroutine csv_reopen(self, path, d, rows, error)
+  subroutine csv_reopen(self, path, d, rows, last, error)
     class(csv_writer), intent(inout) :: self
     character(len=*), intent(in) :: path
     type(model_data), intent(in) :: d
     integer, intent(in) :: rows
+    real(dp), intent(in) :: last(:)
     type(error_type), allocatable, intent(out) :: error
     integer :: u, ios, k, keep
     character(len=256) :: msg
     character(len=:), allocatable :: buf, source
     type(line_t), allocatable :: lines(:)
-    real(dp), allocatable :: times(:)
+    real(dp), allocatable :: times(:), values(:)
     logical :: exists
     keep = rows + 4
     self%path = path
@@ -136,12 +136,14 @@ contains
       call fatal_error(error, source // ': its columns are not the ones this run writes (&output quantities, or ' // &
         & 'the markers, differ from the checkpointed run''s): restart with the same ones'); return
     end if
-    allocate(times(rows))
+    allocate(times(rows), values(row_width(self%plan, d)))
     do k = 5, keep
-      call check_kept_line(source, k - 4, lines(k)%s, lines(4)%s, row_width(self%plan, d), times(k - 4), error)
+      call check_kept_line(source, k - 4, lines(k)%s, lines(4)%s, values, error)
       if (allocated(error)) return
+      times(k - 4) = values(1)
     end do
     call check_kept_times(source, times, error); if (allocated(error)) return
+    call check_kept_last(source, rows, values, last, self%digits, lines(4)%s, error); if (allocated(error)) return
     open(newunit=u, file=self%partial // '.tmp', status='replace', action='write', iostat=ios, iomsg=msg)
     do k = 1, keep
       if (ios == 0) write(u, '(a)', iostat=ios, iomsg=msg) lines(k)%s
@@ -162,33 +164,33 @@ contains
     self%opened = .true.
     self%written = file_size(self%partial)
     call allocate_row(self, d)
+    self%row = values
   end subroutine csv_reopen
 
-  !> Row `row` of the results in `source`, kept by a restart, is what a run writes: `width`
-  !> finite numbers (the columns named in `header`), comma-separated, none empty (the
-  !> list-directed READ also takes blanks, '/', 'r*v' and empty fields); else the error names
-  !> file and row. `t`: its time.
-  subroutine check_kept_line(source, row, line, header, width, t, error)
+  !> Row `row` of the results in `source`, kept by a restart, is what a run writes:
+  !> size(values) finite numbers (the columns named in `header`), comma-separated, none empty
+  !> (the list-directed READ also takes blanks, '/', 'r*v' and empty fields); else the error
+  !> names file and row. `values`: the row's numbers.
+  subroutine check_kept_line(source, row, line, header, values, error)
     character(len=*), intent(in) :: source, line, header
-    integer, intent(in) :: row, width
-    real(dp), intent(out) :: t
+    integer, intent(in) :: row
+    real(dp), intent(out) :: values(:)
     type(error_type), allocatable, intent(out) :: error
     !> What a number's text may hold (nan and inf are read, then refused as not finite).
     character(len=*), parameter :: number_text = '0123456789.eE+-,nNaAiIfFtTyY'
-    real(dp) :: values(width)
-    integer :: ios, fields, i
+    integer :: ios, fields, i, width
+    width = size(values)
     fields = count([(line(i:i) == ',', i = 1, len(line))]) + 1
     ios = 1
+    values = 0.0_dp
     if (fields == width .and. verify(line, number_text) == 0 .and. index(',' // line // ',', ',,') == 0) &
       & read(line, *, iostat=ios) values
-    t = 0.0_dp
     if (ios /= 0) then
       call fatal_error(error, source // ': row ' // itoa(row) // ' is not a row of ' // itoa(width) // &
         & ' numbers (a run writes no other: the file was changed after the run): restart from the results the ' // &
         & 'run wrote'); return
     end if
     call check_kept_values(source, row, values, header, 1, error)
-    t = values(1)
   end subroutine check_kept_line
 
   !> The row's values and text, and the pending rows' buffer (at least one row).

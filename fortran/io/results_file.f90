@@ -11,7 +11,7 @@ module pymr_io_results_file
   use pymr_io_results_output, only : output_plan
   implicit none
   private
-  public :: results_file, check_kept_values, check_kept_times, column_name
+  public :: results_file, check_kept_values, check_kept_times, check_kept_last, column_name
 
   type, abstract :: results_file
     !> The results file, and the partial file written until the run is complete.
@@ -25,6 +25,9 @@ module pymr_io_results_file
     type(output_plan) :: plan
     !> Significant digits per value (&output precision; a text format's).
     integer :: digits = 17
+    !> The last row written (after reopen: the last row kept), which a checkpoint records
+    !> so that a restart can tell the checkpointed run's results from another run's file.
+    real(dp), allocatable :: row(:)
     !> What the run is: its title and method, the scene's fingerprint, the resolved scene
     !> and the integrator settings as JSON members (a format that holds them writes them).
     character(len=:), allocatable :: title, method, fingerprint, scene_text, settings
@@ -50,13 +53,15 @@ module pymr_io_results_file
     end subroutine file_open
 
     !> Restart: a new PATH.partial holding the first `rows` rows of the checkpointed run's
-    !> (its partial file if it was stopped, else its complete file), then append.
-    subroutine file_reopen(self, path, d, rows, error)
-      import :: results_file, model_data, error_type
+    !> (its partial file if it was stopped, else its complete file), then append. `last`:
+    !> row `rows` as that run wrote it (check_kept_last).
+    subroutine file_reopen(self, path, d, rows, last, error)
+      import :: results_file, model_data, error_type, dp
       class(results_file), intent(inout) :: self
       character(len=*), intent(in) :: path
       type(model_data), intent(in) :: d
       integer, intent(in) :: rows
+      real(dp), intent(in) :: last(:)
       type(error_type), allocatable, intent(out) :: error
     end subroutine file_reopen
 
@@ -125,6 +130,26 @@ contains
       & 'the row before it (' // fmt(times(k)) // '; a run writes its rows in time: the file was changed after ' // &
       & 'the run): restart from the results the run wrote')
   end subroutine check_kept_times
+
+  !> Row `row` of `source`, the last a restart keeps (`values`, read at `digits` significant
+  !> digits), is the row the checkpointed run wrote there (`last`): a results file of another
+  !> run (another output interval, other physics, an older complete file where the partial
+  !> one was lost) would be continued as this run's. The error names file, row and column.
+  subroutine check_kept_last(source, row, values, last, digits, columns, error)
+    character(len=*), intent(in) :: source, columns
+    integer, intent(in) :: row, digits
+    real(dp), intent(in) :: values(:), last(:)
+    type(error_type), allocatable, intent(out) :: error
+    integer :: k
+    real(dp) :: tol
+    tol = 10.0_dp**(1 - min(max(digits, 1), 17))
+    do k = 1, min(size(values), size(last))
+      if (abs(values(k) - last(k)) <= tol*max(abs(values(k)), abs(last(k)))) cycle
+      call fatal_error(error, source // ': row ' // itoa(row) // ', column ' // column_name(columns, k) // ' is ' // &
+        & fmt(values(k)) // ', where the checkpointed run wrote ' // fmt(last(k)) // ': the file is another ' // &
+        & 'run''s results; restart from the results the checkpointed run wrote'); return
+    end do
+  end subroutine check_kept_last
 
   !> The k-th name of the comma-separated list `columns`.
   pure function column_name(columns, k) result(name)

@@ -20,7 +20,7 @@ module pymr_io_results_hdf5
   use pymr_env_text_file, only : sync_file, rename_file, remove_file
   use pymr_model_types, only : model_data
   use pymr_io_results_output, only : pymr_version, output_plan, column_sink, walk_columns, header_line, row_width, row_values
-  use pymr_io_results_file, only : results_file, check_kept_values, check_kept_times
+  use pymr_io_results_file, only : results_file, check_kept_values, check_kept_times, check_kept_last
   implicit none
   private
   public :: hdf5_writer
@@ -67,7 +67,6 @@ module pymr_io_results_hdf5
     type(group_sink) :: groups
     !> Rows in the file, rows waiting in the blocks, and rows a block holds.
     integer :: rows_written = 0, rows_waiting = 0, block_rows = 0
-    real(dp), allocatable :: row(:)
   contains
     procedure :: open => h5_open
     procedure :: reopen => h5_reopen
@@ -389,14 +388,17 @@ contains
   !> Restart: the first `rows` rows of the checkpointed run's file (its partial file if it
   !> was stopped, else its complete file) copied into a new file, which replaces the partial
   !> file once on disk; rows are then appended to it.
-  subroutine h5_reopen(self, path, d, rows, error)
+  subroutine h5_reopen(self, path, d, rows, last, error)
     class(hdf5_writer), intent(inout) :: self
     character(len=*), intent(in) :: path
     type(model_data), intent(in) :: d
     integer, intent(in) :: rows
+    real(dp), intent(in) :: last(:)
     type(error_type), allocatable, intent(out) :: error
     type(group_sink) :: kept
     character(len=:), allocatable :: source
+    real(dp), allocatable :: values(:)
+    integer :: k
     self%path = path
     self%partial = path // '.partial'
     source = self%partial
@@ -407,7 +409,14 @@ contains
     end if
     call start_library(error); if (allocated(error)) return
     call read_kept_rows(source, self%plan, d, rows, kept, error); if (allocated(error)) return
+    allocate(values(row_width(self%plan, d)))
+    do k = 1, kept%n_groups
+      values(kept%group(k)%place(1:kept%group(k)%n)) = kept%group(k)%block(:, rows)
+    end do
+    call check_kept_last(source, rows, values, last, self%digits, header_line(self%plan, d), error)
+    if (allocated(error)) return
     call self%create(self%partial // '.tmp', d, error); if (allocated(error)) return
+    self%row = values
     call self%write_kept(kept, rows)
     call self%flush_rows()
     if (self%ios /= 0) then
