@@ -148,6 +148,27 @@ def test_a_barrel_deflecting_beyond_a_tenth_of_its_length_is_warned_about(tmp_pa
     assert "deflection_stop" in stop.stderr
 
 
+@pytest.mark.parametrize("fmt", ["csv", "hdf5"])
+def test_a_run_stopped_by_its_deflection_counts_the_row_it_stopped_at(tmp_path, mrsim, fmt):
+    """The spin-up beam without geometric stiffening deflects past a tenth of its size at
+    6.79 s; with deflection_stop the run fails there, the row of that time in its partial
+    file, which its statistics counted one short of (679 of 680 rows)."""
+    out = tmp_path / ("d.h5" if fmt == "hdf5" else "d.csv")
+    r = mrsim_run(mrsim, ROOT / "input" / "hard" / "spinup_beam.nml", out, "effects.geometric_stiffening=.false.",
+                  "scene.deflection_stop=.true.", f"output.format='{fmt}'")
+    assert r.returncode == 2 and "at t = 6.79 s: body 'beam' deflects" in r.stderr, r.stderr
+    stats = json.loads((tmp_path / "d.json.partial").read_text())
+    if fmt == "csv":
+        rows = [line for line in (tmp_path / "d.csv.partial").read_text().splitlines() if line[:1].isdigit()]
+        last = float(rows[-1].split(",")[0])
+    else:
+        import h5py
+        with h5py.File(tmp_path / "d.h5.partial", "r") as f:
+            times = f["time"][:, 0] if f["time"].ndim == 2 else f["time"][:]
+        rows, last = times, float(times[-1])
+    assert stats["rows"] == len(rows) == 680 and last == pytest.approx(6.79)
+
+
 def test_the_shipped_scenes_stay_within_linear_deflection(tmp_path, mrsim):
     """The tank's barrel deflects millimetres: no warning."""
     assert mrsim_run(mrsim, TANK, tmp_path / "t.csv").returncode == 0

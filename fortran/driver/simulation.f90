@@ -220,7 +220,6 @@ contains
     if (allocated(error)) return
     call check_mass_matrix(self%sc, self%model, self%x, error)
     if (.not. allocated(error)) call self%put_row(0.0_dp, self%work_step, error)
-    self%stats%rows = 1
     if (allocated(error)) then
       call self%out%discard(); return
     end if
@@ -274,7 +273,6 @@ contains
     do k = 1, self%probed%nr
       self%x = self%probed%rows(:, k)
       call self%put_row(k*self%dt_out, self%work_step, error); if (allocated(error)) return
-      self%stats%rows = self%stats%rows + 1
       self%k_out = self%k_out + 1; self%t_next = self%k_out*self%dt_out
     end do
   end subroutine continue_probe
@@ -377,7 +375,6 @@ contains
         call work_at(self%out%plan, self%st, self%model, self%t_step, self%work_step, self%t_next, work, error)
         if (allocated(error)) return
         call self%put_row(self%t_next, work, error); if (allocated(error)) return
-        self%stats%rows = self%stats%rows + 1
         self%k_out = self%k_out + 1; self%t_next = self%k_out*self%dt_out
       end do
     end if
@@ -390,12 +387,12 @@ contains
     if (self%dt_out <= 0.0_dp .and. t > self%t_first_row + self%eps .and. t < t_end - self%eps) then
       call self%st%value_at(t, self%x)
       call self%put_row(t, self%work_step, error); if (allocated(error)) return
-      self%stats%rows = self%stats%rows + 1
     end if
     call note_exits(self%model, self%st, t0, t, t_end)
   end subroutine put_rows_reached
 
-  !> Write the row of the state x at time t, and watch the flexible bodies' deflection there.
+  !> Write the row of the state x at time t (counted once written: a deflection that stops
+  !> the run there leaves it in the partial file), and watch the flexible bodies' deflection.
   subroutine put_row(self, t, row_work, error)
     class(simulation_t), intent(inout) :: self
     real(dp), intent(in) :: t, row_work(:)
@@ -404,6 +401,7 @@ contains
     n = self%model%d%n
     call write_output_row(self%out, self%model, t, self%x(1:n), self%x(n+1:), row_work, error)
     if (allocated(error)) return
+    self%stats%rows = self%stats%rows + 1
     call watch_deflection(self%sc, self%model, t, self%x(1:n), self%stats, error)
   end subroutine put_row
 
@@ -454,7 +452,6 @@ contains
     if (self%dt_out <= 0.0_dp .or. abs(self%t_next - self%dt_out - t_end) > self%eps) then
       call work_at(self%out%plan, self%st, self%model, self%t_step, self%work_step, t_end, work, error)
       if (.not. allocated(error)) call self%put_row(t_end, work, error)
-      self%stats%rows = self%stats%rows + 1
     end if
   end subroutine put_last_row
 
