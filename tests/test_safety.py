@@ -539,3 +539,23 @@ def test_marker_shapes_names_shapes_of_the_wrong_shape():
             pymr.marker_shapes(scene, ["tip"], [0.1], [0.0], shapes)
     moves = pymr.marker_shapes(scene, ["tip"], [0.1], [0.0], np.ones((1, 1)))
     assert moves["tip"].shape == (3, 1) and np.isfinite(moves["tip"]).all()
+
+
+def test_a_run_failing_in_its_start_keeps_its_partial_files_not_an_earlier_run_s(tmp_path, mrsim):
+    """A fixed-step run whose start-up steps failed (a 1e12 N m/rad spring at 1e6 rad/s)
+    removed its partial file as a refused run does, and left an earlier failed run's
+    OUT.json.partial describing rows no longer there. Now it is a failed run: its partial
+    file holds its first row and its statistics say so."""
+    sets = ["effects.joint_springs=.true.", "spring[traverse].stiffness=1e12", "integrator.stability_check=.false.",
+            "output.dt=0"]
+    scene = ROOT / "input" / "tank_effects.nml"
+    first = run_mrsim(mrsim, [str(scene), "-o", "f.csv", *[a for s in sets + ["joint[traverse].qd0=1"]
+                                                           for a in ("--set", s)]], tmp_path)
+    assert first.returncode == 2 and json.loads((tmp_path / "f.json.partial").read_text())["rows"] > 10
+    r = run_mrsim(mrsim, [str(scene), "-o", "f.csv", *[a for s in sets + ["joint[traverse].qd0=1e6"]
+                                                       for a in ("--set", s)]], tmp_path)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "at t = 2.00000E-04 s: " in r.stderr, r.stderr
+    stats = json.loads((tmp_path / "f.json.partial").read_text())
+    rows = [line for line in (tmp_path / "f.csv.partial").read_text().splitlines() if line[:1].isdigit()]
+    assert stats["status"] == "failed" and stats["rows"] == len(rows) == 1
+    assert stats["overrides"][-1] == "joint[traverse].qd0=1e6" and not (tmp_path / "f.csv").exists()

@@ -218,6 +218,8 @@ contains
     call check_output_size(self%sc, self%model, self%out, self%dt_out, error); if (allocated(error)) return
     call self%out%open(self%path, self%model%d, error)
     if (allocated(error)) return
+    ! an earlier failed run's statistics describe the partial file this run replaces
+    call remove_file(json_path(self%path) // '.partial')
     call check_mass_matrix(self%sc, self%model, self%x, error)
     if (.not. allocated(error)) call self%put_row(0.0_dp, self%work_step, error)
     if (allocated(error)) then
@@ -243,8 +245,12 @@ contains
       call self%st%start(self%model, 0.0_dp, self%x, self%h0, error)
     end if
     if (allocated(error)) then
-      call self%out%discard()
       call self%name_file(error)
+      if (error%stat /= stat_solver) then
+        call self%out%discard(); return
+      end if
+      ! the start's steps failed: a failed run, whose rows so far its partial files keep
+      call self%finish(error)
     end if
   end subroutine begin_new
 
