@@ -301,3 +301,20 @@ def test_adaptive_steps_stay_within_the_top_mode_s_stability_limit(tmp_path):
     assert loose.stats["rejected_steps"] < 0.01 * loose.stats["steps_slow"]
     limit = 0.9 * imaginary_limit() / (2 * np.pi * 1015.0)
     assert loose.stats["h_last"] <= limit * 1.01
+
+
+@pytest.mark.parametrize("coupling", ["full", "exponential", "response"])
+def test_adaptive_multirate_steps_never_fall_below_h_min(tmp_path, coupling):
+    """The tank driven at 1 MHz under 1e6 m/s^2 of gravity: every adaptive coupling fails
+    with a step size underflow, and before that takes no step below h_min = 1e-9 s. 'full'
+    and 'exponential' shrank their accepted steps past h_min (to 0 under 'full': rows with
+    one time and two states); only a rejected step was checked."""
+    over = {"effects.gravity": True, "effects.joint_drives": True, "scene.gravity": [1e6, 1e6, 1e6],
+            "drive[traverse].frequency": 1e6, "integrator.method": "multirate", "integrator.adaptive": True,
+            "integrator.coupling": coupling, "integrator.h_min": 1e-9, "output.dt": 0.0}
+    out = tmp_path / "s.csv"
+    with pytest.raises(pymr.SolverError, match=r"step size underflow at t = .* below h_min\)"):
+        pymr.run(ROOT / "input" / "tank_effects.nml", out, overrides=over)
+    lines = (tmp_path / "s.csv.partial").read_text().splitlines()
+    t = np.array([float(x.split(",")[0]) for x in lines if x[:1].isdigit()])
+    assert len(t) > 50 and np.diff(t).min() >= 1e-9 * (1 - 1e-6)

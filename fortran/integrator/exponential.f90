@@ -20,7 +20,8 @@ module pymr_integrator_exponential
   use pymr_env_kinds, only : dp
   use pymr_env_error, only : error_type, fatal_error
   use pymr_integrator_ode, only : ode_system, partitioned_system
-  use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps, state_record, project_step, step_underflow
+  use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps, state_record, project_step, step_underflow, &
+    & least_step
   use pymr_integrator_abm, only : check_finite
   use pymr_integrator_control, only : step_control, error_weights, wrms_norm
   use pymr_integrator_modal_flow, only : modal_flow_t, flow_rows_t, taylor_weights, n_coef, n_phi
@@ -258,7 +259,7 @@ contains
           if (.not. err <= huge(1.0_dp)) err = huge(1.0_dp)
           if (err > 1.0_dp) then
             self%h = hs*self%ctl%ratio(err, .false.); self%rejected = self%rejected + 1
-            if (self%h < self%ctl%h_min) then
+            if (self%h < least_step(self%ctl%h_min, t0)) then
               call step_underflow(error, t0, 'step', self%h); return
             end if
             cycle
@@ -274,7 +275,9 @@ contains
       call self%flow%rows_form(wk%eta0, wk%beta, hs, self%last%rows)
       self%x = wk%xc; self%t = tn; self%steps = self%steps + 1
       call push_evaluation(self, tn, wk%f(n+1:), wk%y, wk%rnew, wk%pnew)
-      if (self%adaptive) self%h = min(hs*self%ctl%ratio(err, .true.), self%ctl%h_max)
+      ! an accepted step's successor no less than the least step (its error test fails there)
+      if (self%adaptive) self%h = max(min(hs*self%ctl%ratio(err, .true.), self%ctl%h_max), &
+        & least_step(self%ctl%h_min, tn))
     end associate
     class default
       call fatal_error(error, "the 'exponential' coupling needs a system partitioned into slow and fast coordinates")

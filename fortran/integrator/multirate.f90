@@ -12,7 +12,8 @@ module pymr_integrator_multirate
   use pymr_env_kinds, only : dp
   use pymr_env_error, only : error_type, fatal_error
   use pymr_integrator_ode, only : ode_system, partitioned_system
-  use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps, state_record, project_step, projection_eta, step_underflow
+  use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps, state_record, project_step, projection_eta, step_underflow, &
+    & least_step
   use pymr_integrator_nordsieck, only : nq, nordsieck_predict, nordsieck_correct, nordsieck_value, &
     & nordsieck_from_history, nordsieck_rescale, corrector_l
   use pymr_integrator_abm, only : rk4_step, check_finite, pece_step
@@ -318,7 +319,7 @@ contains
       end if
       self%cnt%rejected = self%cnt%rejected + 1
       call choose_ratio(self, hs_new, hf_new, k_new)
-      if (hf_new < self%ctl%h_min) then
+      if (hf_new < least_step(self%ctl%h_min, self%t)) then
         call step_underflow(error, self%t, 'fast step', hf_new); return
       end if
       ! back to the start of the macro step, with the arrays' own scaling
@@ -327,8 +328,9 @@ contains
       call rescale_steps(self, hs_new, hf_new, k_new)
     end do
     call finish_macro_step(self)
-    hs_new = min(self%hs*self%ctl%ratio(err_s, .true.), self%ctl%h_max)
-    hf_new = min(self%hf*self%ctl%ratio(err_f, .true.), self%hf_max)
+    ! an accepted step's successor no less than the least step (its error test fails there)
+    hf_new = max(min(self%hf*self%ctl%ratio(err_f, .true.), self%hf_max), least_step(self%ctl%h_min, self%t))
+    hs_new = max(min(self%hs*self%ctl%ratio(err_s, .true.), self%ctl%h_max), hf_new)
     call choose_ratio(self, hs_new, hf_new, k_new)
     if (hs_new /= self%hs .or. k_new /= self%k) call rescale_steps(self, hs_new, hf_new, k_new)
   end subroutine mr_step

@@ -14,6 +14,7 @@ module pymr_integrator_stepper
   implicit none
   private
   public :: stepper_t, landing_ratio, step_counts, pece_steps, state_record, project_step, step_underflow
+  public :: least_step
 
   !> A step whose projection onto the system's constraints fails is redone with its step
   !> times projection_eta, at most max_projection_fails times in one step (adaptive steppers;
@@ -191,6 +192,13 @@ contains
     if (fails > 0) error%message = error%message // ' (the step redone ' // itoa(fails) // ' times smaller)'
     call prefix_error(error, 'at t = ' // fmt(t) // ' s')
   end subroutine project_step
+
+  !> The least step an adaptive stepper takes at time t: h_min, and no less than the time's
+  !> resolution (100 eps |t|: a smaller step leaves t where it was).
+  pure real(dp) function least_step(h_min, t) result(h)
+    real(dp), intent(in) :: h_min, t
+    h = max(h_min, 100.0_dp*epsilon(1.0_dp)*abs(t))
+  end function least_step
 
   !> The failure of a step (what: 'step' or 'fast step') of h below h_min at time t.
   subroutine step_underflow(error, t, what, h)
