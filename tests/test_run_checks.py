@@ -353,3 +353,26 @@ def test_modes_the_memory_check_lets_through_finish(tmp_path):
         extra = int(used + need) + 4 * 2**20
     assert answers[-1][0] == "ok" and int(answers[-1][1]) > 0, answers
     assert [a[0] for a in answers[:-1]] == ["refused"] * (len(answers) - 1), answers
+
+
+def test_max_bytes_holds_for_rows_every_step_and_on_restart(tmp_path, mrsim):
+    """&output max_bytes refused a fixed-step run's results before it ran, but an adaptive
+    run writing a row every step (no row count known before) wrote 810 kB under
+    max_bytes = 1000, and a restart to a longer t_end ran past the limit that refused the
+    same run from the start. Now the first fails when its rows reach the limit (exit 2), and
+    the second is refused as the fresh run is."""
+    r = mrsim_run(mrsim, PENDULUM, tmp_path / "b.csv", "integrator.adaptive=.true.", "output.dt=0",
+                  "output.max_bytes=1000")
+    assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
+    assert re.search(r": at t = \S+ s: the results reach max_bytes = 1000 \(\d+ rows, one every step\): give "
+                     r"&output dt, or raise max_bytes$", r.stderr.strip()), r.stderr
+    assert not (tmp_path / "b.csv").exists()
+    sets = ("output.checkpoint_dt=2", "output.max_bytes=300000")
+    assert mrsim_run(mrsim, PENDULUM, tmp_path / "c.csv", *sets).returncode == 0
+    before = (tmp_path / "c.csv").read_bytes()
+    for restart in ([], ["--restart", str(tmp_path / "c.ckpt")]):
+        r = subprocess.run([mrsim, str(PENDULUM), "-o", str(tmp_path / "c.csv"), "--quiet", *restart,
+                            *[a for s in (*sets, "scene.t_end=20") for a in ("--set", s)]],
+                           capture_output=True, text=True, timeout=120)
+        assert r.returncode == 1 and "&output: dt: the results would take about" in r.stderr, r.stderr
+        assert (tmp_path / "c.csv").read_bytes() == before

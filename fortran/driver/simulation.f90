@@ -29,7 +29,7 @@ module pymr_driver_simulation
   use pymr_driver_load_model, only : load_model
   use pymr_driver_output_paths, only : default_output, check_output_path, checkpoint_default, inputs_digest, &
     & scene_files, list_inputs
-  use pymr_driver_output_size, only : check_output_size
+  use pymr_driver_output_size, only : check_output_size, check_rows_written
   use pymr_driver_starting_state, only : starting_state
   use pymr_driver_deflection_watch, only : watch_deflection
   use pymr_driver_progress, only : run_clock
@@ -290,6 +290,7 @@ contains
     character(len=*), intent(in) :: restart
     type(error_type), allocatable, intent(out) :: error
     type(run_progress) :: prog
+    call check_output_size(self%sc, self%model, self%out, self%dt_out, error); if (allocated(error)) return
     call read_checkpoint(restart, self%st, self%model, prog, self%settings, self%fingerprint, &
       & self%sc%scene%t_end, error)
     if (.not. allocated(error)) call self%out%reopen(self%path, self%model%d, prog%rows, prog%last_row, error)
@@ -393,6 +394,7 @@ contains
     if (self%dt_out <= 0.0_dp .and. t > self%t_first_row + self%eps .and. t < t_end - self%eps) then
       call self%st%value_at(t, self%x)
       call self%put_row(t, self%work_step, error); if (allocated(error)) return
+      call check_rows_written(self%sc, self%model, self%out, self%stats%rows, t, error); if (allocated(error)) return
     end if
     call note_exits(self%model, self%st, t0, t, t_end)
   end subroutine put_rows_reached

@@ -421,7 +421,8 @@ contains
       & 'csv only: hdf5 keeps every bit)', &
       & ge=6, le=17)
     call t%add('max_bytes', g%max_bytes, 'bytes', 'largest results file a run may write: a run whose output ' // &
-      & 'would exceed it is refused', ge=1.0e3_dp, le=1.0e15_dp)
+      & 'would exceed it is refused (a restart too); an adaptive run writing a row every step fails when its ' // &
+      & 'rows reach it', ge=1.0e3_dp, le=1.0e15_dp)
     call t%add('quantities', g%quantities, "the groups of columns written: 'coordinates' (joint and modal " // &
       & "coordinates and rates), 'markers' (position and velocity of each marker), 'marker_accelerations', " // &
       & "'marker_orientations' (quaternion w, x, y, z of each marker's frame), 'reactions' (each joint's force " // &
