@@ -276,22 +276,7 @@ def main(what: str, repeats: int | None = None, json_path: str | None = None,
             write_file(json_path, json.dumps(rows, indent=2), "figures")
         return 0
     if what == "rhs":
-        repeats = repeats or 7
-        rows = bench_rhs(repeats=repeats) + bench_scenes(repeats=repeats)
-        print(f"pymr bench rhs: median CPU time of one model evaluation ({repeats} repeats)")
-        print(f"{'scene':>12} {'bodies':>7} {'coords':>7} {'median us':>11} {'us/body':>9} {'growth':>8}")
-        prev = None
-        for r in rows:
-            growth = ""
-            if prev is not None and r["scene"].startswith("chain-"):
-                # exponent p in cost ~ bodies^p between consecutive sizes
-                growth = "n^%.2f" % (np.log(r["median_us"] / prev["median_us"]) / np.log(r["bodies"] / prev["bodies"]))
-            print(f"{r['scene']:>12} {r['bodies']:>7} {r['coordinates']:>7} {r['median_us']:>11.2f} "
-                  f"{r['median_us'] / r['bodies']:>9.3f} {growth:>8}")
-            prev = r
-        tank = bench_tank_run()
-        print(f"tank 1 s single-rate run (h = 1e-4 s, {tank['steps']} steps, {tank['rhs_full']} evaluations): "
-              f"median CPU {tank['median_cpu_s']:.3f} s")
+        rows, tank = print_rhs(repeats or 7)
         if json_path:
             write_file(json_path, json.dumps({"evaluations": rows, "tank_run": tank}, indent=2), "figures")
         return 0
@@ -338,6 +323,27 @@ def main(what: str, repeats: int | None = None, json_path: str | None = None,
         print(f"written: {path}")
         return 0
     raise ValueError(what)
+
+
+def print_rhs(repeats: int) -> tuple[list[dict], dict]:
+    """``bench rhs``: one evaluation of the chains and the shipped scenes, and the tank's 1 s
+    run, printed; returns their figures."""
+    rows = bench_rhs(repeats=repeats) + bench_scenes(repeats=repeats)
+    print(f"pymr bench rhs: median CPU time of one model evaluation ({repeats} repeats)")
+    print(f"{'scene':>12} {'bodies':>7} {'coords':>7} {'median us':>11} {'us/body':>9} {'growth':>8}")
+    prev = None
+    for r in rows:
+        growth = ""
+        if prev is not None and r["scene"].startswith("chain-"):
+            # exponent p in cost ~ bodies^p between consecutive sizes
+            growth = "n^%.2f" % (np.log(r["median_us"] / prev["median_us"]) / np.log(r["bodies"] / prev["bodies"]))
+        print(f"{r['scene']:>12} {r['bodies']:>7} {r['coordinates']:>7} {r['median_us']:>11.2f} "
+              f"{r['median_us'] / r['bodies']:>9.3f} {growth:>8}")
+        prev = r
+    tank = bench_tank_run()
+    print(f"tank 1 s single-rate run (h = 1e-4 s, {tank['steps']} steps, {tank['rhs_full']} evaluations): "
+          f"median CPU {tank['median_cpu_s']:.3f} s")
+    return rows, tank
 
 
 #: The effects ``bench effects`` times, each turned on alone (``input/tank_effects.nml`` gives

@@ -101,6 +101,22 @@ def test_a_restart_refuses_the_results_of_another_run(tmp_path, fmt, other):
     assert out.read_bytes() == before
 
 
+def test_a_restart_keeps_the_run_s_warnings(tmp_path):
+    """The spin-up beam without geometric stiffening deflects past a tenth of its size at
+    6.79 s, a warning said once. Restarted from its checkpoint at 9 s the run warned again,
+    at 9.01 s with another deflection (the warnings were not in the checkpoint); now its
+    statistics and summary say what the uninterrupted run's do."""
+    scene = ROOT / "input" / "hard" / "spinup_beam.nml"
+    over = {"effects.geometric_stiffening": False, "output.checkpoint_dt": 1.0}
+    whole = pymr.run(scene, tmp_path / "whole.csv", overrides=over)
+    assert len(whole.stats["warnings"]) == 1 and whole.stats["warnings"][0].startswith("at t = 6.79 s: body 'beam'")
+    pymr.run(scene, tmp_path / "job.csv", overrides={**over, "scene.t_end": 10.0})
+    res = pymr.run(scene, tmp_path / "job.csv", overrides=over, restart=tmp_path / "job.ckpt")
+    assert res.stats["warnings"] == whole.stats["warnings"]
+    assert [x for x in res.summary.splitlines() if x.startswith("warning")] == \
+        [x for x in whole.summary.splitlines() if x.startswith("warning")]
+
+
 def test_mrsim_and_pymr_restart_from_the_command_line(tmp_path, mrsim):
     scene = tmp_path / "tank.nml"
     scene.write_text(TANK.read_text().replace("t_end = 1.0", "t_end = 0.3").replace(

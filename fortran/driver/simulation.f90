@@ -300,6 +300,7 @@ contains
       return
     end if
     self%stats%rows = prog%rows; self%k_out = prog%k_out; self%t_next = prog%t_next; self%work_step = prog%work
+    if (len(prog%warnings) > 0) self%stats%warnings = prog%warnings
     self%t_step = self%st%time()
     ! another &output dt: the rows after the checkpoint follow the new interval (the next row
     ! numbered on the old one was timed k dt_new, before the rows kept)
@@ -423,7 +424,8 @@ contains
     call self%out%flush_rows()
     if (self%out%ios /= 0) return
     prog = run_progress(rows=self%stats%rows, k_out=self%k_out, t_next=self%t_next, cpu_s=self%clock%cpu_s(), &
-      & t_checkpoint=self%st%time(), work=self%work_step, last_row=self%out%row)
+      & t_checkpoint=self%st%time(), work=self%work_step, last_row=self%out%row, warnings='')
+    if (allocated(self%stats%warnings)) prog%warnings = self%stats%warnings
     call write_checkpoint(self%ckpt_path, self%st, self%model, prog, self%settings, self%fingerprint, error)
     if (allocated(error)) return
     self%t_ckpt = next_checkpoint(self%sc, self%st%time())

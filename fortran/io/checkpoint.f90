@@ -46,6 +46,8 @@ module pymr_io_checkpoint
     real(dp) :: work(n_work) = 0.0_dp
     !> The last row the results hold (a restart checks the kept file's against it).
     real(dp), allocatable :: last_row(:)
+    !> The run's warnings so far (a restart keeps them: each is said once, at its time).
+    character(len=:), allocatable :: warnings
   end type run_progress
 
 contains
@@ -74,7 +76,7 @@ contains
     write(u, iostat=ios) tag, version, ver, model%d%n, model%d%nj, name, st%time(), len(settings), settings, &
       & fingerprint_field(fingerprint)
     if (ios == 0) write(u, iostat=ios) prog%rows, prog%k_out, prog%t_next, prog%cpu_s, prog%t_checkpoint, prog%work, &
-      & size(prog%last_row), prog%last_row
+      & size(prog%last_row), prog%last_row, len(prog%warnings), prog%warnings
     if (ios == 0) call st%save(u, ios)
     if (ios == 0) call model%save_run(u, ios)
     if (ios /= 0) then
@@ -135,7 +137,12 @@ contains
     if (ios == 0 .and. (n_last < 0 .or. n_last > huge(1)/8)) ios = 1
     if (ios == 0) then
       allocate(prog%last_row(n_last))
-      read(u, iostat=ios) prog%last_row
+      read(u, iostat=ios) prog%last_row, n_last
+    end if
+    if (ios == 0 .and. (n_last < 0 .or. n_last > 100000000)) ios = 1
+    if (ios == 0) then
+      allocate(character(len=n_last) :: prog%warnings)
+      read(u, iostat=ios) prog%warnings
     end if
     if (ios == 0) call st%load(u, ios)
     if (ios == 0) call model%load_run(u, ios)
