@@ -395,6 +395,10 @@ def write_modal_file(scene: str | os.PathLike, body: str, path: str | os.PathLik
     body, path = _name("body", body), _path("path", path, OutputError)
     if not path:
         raise OutputError("path: an empty file name for the modal file")
+    # an output fault (no folder, a folder, the scene itself) is an OutputError, as for every writer
+    from .outputs import check_output
+    check_output(path, "modal file", option="path", example=f"{body}.modal", if_left_out=None, scene=scene,
+                 overrides=overrides)
     with model_of(scene, where) as handle:
         stat, msg, detail = _core.pymr_write_modal(handle, body, path)
     _raise(stat, msg, detail)

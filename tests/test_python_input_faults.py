@@ -960,3 +960,18 @@ def test_statistics_nested_beyond_python_s_recursion_are_refused(runs, tmp_path)
     with pytest.raises(pymr.ResultsError, match=r"n\.json: not a pymr statistics file \(maximum recursion depth"):
         pymr.load_results(tmp_path / "n.csv")
     refused(cli("plot", tmp_path / "n.csv", "-o", tmp_path / "p.png"), "n.json: not a pymr statistics file")
+
+
+@pytest.mark.parametrize("path, message", [
+    ("nope/x.modal", r"^path nope/x\.modal: the folder nope is not there \(make it first\)$"),
+    (".", r"^path \.: is a folder, not a file: give a file name for the modal file"),
+])
+def test_write_modal_file_output_faults_are_output_errors(tmp_path, monkeypatch, path, message):
+    """write_modal_file raised SceneError for an output fault, one of its messages holding
+    the Fortran runtime's text ("Cannot open file 'nope/x.modal.tmp'"); it checks its path as
+    every writer does (pymr modal-file did, before the call)."""
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(pymr.OutputError, match=message):
+        pymr.write_modal_file(ROOT / "input" / "tank_gun_turret.nml", "gun", path)
+    pymr.write_modal_file(ROOT / "input" / "tank_gun_turret.nml", "gun", "gun.modal")
+    assert "pymr-modal" in (tmp_path / "gun.modal").read_text()
