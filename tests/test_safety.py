@@ -475,13 +475,15 @@ def test_a_modal_file_never_overwrites_the_scene_and_is_written_whole(tmp_path, 
         r = subprocess.run(["pymr", "modal-file", "chain.nml", "link1", "-o", out], cwd=tmp_path, capture_output=True,
                            text=True, timeout=60)
         assert r.returncode == 1, r.stderr
-        assert r.stderr == (f"pymr: error: chain.nml: {out}: would overwrite the scene (chain.nml); "
+        assert r.stderr == (f"pymr: error: -o {out}: would overwrite the scene (chain.nml); "
                             "choose another modal file\n")
         assert scene.read_bytes() == before
     (tmp_path / "folder").mkdir()
     monkeypatch.chdir(tmp_path)
-    with pytest.raises(pymr.SceneError, match=r"^folder: cannot write: it is a directory$"):
+    with pytest.raises(pymr.OutputError, match=r"^path folder: is a folder, not a file"):
         pymr.write_modal_file(scene, "link1", "folder")
+    with pytest.raises(pymr.OutputError, match=r"^path chain.nml: would overwrite the scene \(.*chain.nml\)"):
+        pymr.write_modal_file(scene, "link1", "chain.nml")
     pymr.write_modal_file(scene, "link1", tmp_path / "link1.modal")
     assert (tmp_path / "link1.modal").read_text().splitlines()[2] == "pymr-modal 1"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["chain.nml", "folder", "link1.modal"]
