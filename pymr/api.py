@@ -80,6 +80,10 @@ def _results_suffix(scene: str, text: str) -> str:
     return ".h5" if stat == 0 and "hdf5" in _text(value) else ".csv"
 
 
+#: How the progress bar shows the simulated time and t_end (4 significant digits).
+_SHOWN = ".4g"
+
+
 def _run_kernel(scene: str, text: str, out: str, ckpt: str, progress: bool | None):
     """pymr_run_scene, with a progress bar on a terminal (or when asked). The bar appears
     once the kernel has started stepping and knows its t_end (not 't = 0 of 1 s' before),
@@ -97,7 +101,7 @@ def _run_kernel(scene: str, text: str, out: str, ckpt: str, progress: bool | Non
     def open_bar(t: float, t_end: float, draw: bool = True):
         return tqdm(total=float(t_end), initial=float(t), unit="s", desc=f"pymr {Path(scene).name}", file=sys.stderr,
                     delay=0 if draw else float("inf"),
-                    bar_format="{desc}: {percentage:3.0f}%|{bar}| t = {n:.4g} of {total:.4g} s "
+                    bar_format=f"{{desc}}: {{percentage:3.0f}}%|{{bar}}| t = {{n:{_SHOWN}}} of {{total:{_SHOWN}}} s "
                                "[{elapsed}<{remaining}]")
     try:
         while worker.is_alive():
@@ -106,7 +110,9 @@ def _run_kernel(scene: str, text: str, out: str, ckpt: str, progress: bool | Non
             if running and t_end > 0:
                 if bar is None:
                     bar = open_bar(t, t_end)
-                elif float(t) != bar.n:
+                elif format(float(t), _SHOWN) != format(bar.n, _SHOWN):
+                    # redrawn when the time it shows changes: no line repeats the one before it
+                    # in a job's log when the kernel advanced less than the digits show
                     bar.n = float(t)
                     bar.refresh()
         t, t_end, _ = _core.pymr_progress()
