@@ -92,7 +92,7 @@ contains
     file = trim(sc%output%checkpoint_file); label = sc%output%origin%where('checkpoint_file')
     if (replaces(sc, file, label, 'another checkpoint file', error)) return
     if (no_folder(file, label, 'a checkpoint_file', error)) return
-    if (collides(path, file, label, inputs, error)) return
+    if (collides(path, file, label, inputs, error, 'another checkpoint file')) return
   end subroutine check_checkpoint_path
 
   !> Neither the results nor any file the run writes through (results_files, and the default
@@ -142,8 +142,8 @@ contains
     character(len=*), intent(in) :: path, file, label
     type(scene_files), intent(in) :: inputs
     type(error_type), allocatable, intent(inout) :: error
-    !> What to choose instead (default: another checkpoint file).
-    character(len=*), intent(in), optional :: advice
+    !> What to choose instead ('another checkpoint file').
+    character(len=*), intent(in) :: advice
     character(len=:), allocatable :: what
     character(len=path_len), allocatable :: files(:)
     character(len=path_len) :: mine(2)
@@ -163,12 +163,7 @@ contains
       end do
     end do
     collides = len(what) > 0
-    if (.not. collides) return
-    if (present(advice)) then
-      call fatal_error(error, label // ': would overwrite ' // what // '; choose ' // advice)
-    else
-      call fatal_error(error, label // ': would overwrite ' // what // '; choose another checkpoint file')
-    end if
+    if (collides) call fatal_error(error, label // ': would overwrite ' // what // '; choose ' // advice)
   end function collides
 
   !> Is the folder that `file` would be written in missing? Found before the run starts;

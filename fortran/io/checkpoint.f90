@@ -25,7 +25,9 @@ module pymr_io_checkpoint
   character(len=8), parameter :: tag = 'PYMRCKPT'
   !> 6: the stepper's state written as its state vector and its record (state_record);
   !> 7: the 'response' and 'exponential' steppers named apart (a run of method 'auto'
-  !> continues with the one that wrote it).
+  !> continues with the one that wrote it); 8: the 'response' macro step's surrogate
+  !> correction kept for its dense output; 9: the results' last row (a restart checks the
+  !> kept file against it) and the run's warnings.
   integer, parameter :: version = 9
 
   !> What a checkpoint's header says: pymr's version, the model's size, the stepper's name,
