@@ -16,7 +16,7 @@ module pymr_driver_simulation
   use pymr_model_scene, only : scene_t
   use pymr_model, only : model_t
   use pymr_model_sensors, only : sensors_of
-  use pymr_integrator_stepper, only : stepper_t, step_counts
+  use pymr_integrator_stepper, only : stepper_t, step_counts, counts_with
   use pymr_io_namelist_input, only : text_fingerprint, checkpoint_identity, resolved_texts
   use pymr_io_results_output, only : json_path, write_json, run_stats, output_plan_of, n_work
   use pymr_io_results_file, only : results_file
@@ -49,8 +49,12 @@ module pymr_driver_simulation
     type(scene_t) :: sc
     type(model_t) :: model
     class(stepper_t), allocatable :: st
-    !> Method 'auto': the chosen method's probe, which the run continues when it can.
+    !> Method 'auto': the choice, reviewed as the run goes, and the chosen method's probe,
+    !> which the run continues when it can; the step counts of the methods that ran before
+    !> the one running.
+    type(method_choice_t) :: choice
     type(probe_run), allocatable :: probed
+    type(step_counts) :: carried
     class(results_file), allocatable :: out
     type(run_stats) :: stats
     type(run_clock) :: clock
@@ -84,7 +88,7 @@ module pymr_driver_simulation
     procedure :: finish => simulation_finish
     procedure :: summary => simulation_summary
     procedure :: close => simulation_close
-    procedure, private :: choose_format, choose_method
+    procedure, private :: choose_format, choose_method, review_method
     procedure, private :: begin_new, resume, continues_probe, continue_probe
     procedure, private :: put_row, put_rows_reached, put_last_row, checkpoint_if_due, start_again
     procedure :: name_file
@@ -154,19 +158,38 @@ contains
     class(simulation_t), intent(inout) :: self
     character(len=*), intent(in) :: restart
     type(error_type), allocatable, intent(out) :: error
-    type(method_choice_t) :: choice
     if (len_trim(restart) > 0) then
-      call method_of_checkpoint(self%sc, restart, choice, error)
+      call method_of_checkpoint(self%sc, restart, self%choice, error)
       if (allocated(error)) then
         call self%name_file(error); return
       end if
     else
-      call choose_by_probe(self%sc, self%model, self%x, choice)
-      call choice%take_chosen(self%probed)
+      call choose_by_probe(self%sc, self%model, self%x, self%choice)
+      call self%choice%take_chosen(self%probed)
     end if
-    self%stats%choice_line = choice%summary()
-    self%stats%choice_report = choice%json()
+    self%stats%choice_line = self%choice%summary()
+    self%stats%choice_report = self%choice%json()
   end subroutine choose_method
+
+  !> Method 'auto' at the end of a review window: the choice reviewed (method_choice.f90);
+  !> when another method takes over, its stepper starts where the run stands (the rows up
+  !> to there are written), and the counts of the one that stops are carried.
+  subroutine review_method(self, error)
+    class(simulation_t), intent(inout) :: self
+    type(error_type), allocatable, intent(out) :: error
+    logical :: switched
+    real(dp) :: t
+    call self%choice%review(self%sc, self%model, self%st, switched)
+    self%stats%choice_line = self%choice%summary()
+    self%stats%choice_report = self%choice%json()
+    if (.not. switched) return
+    self%carried = counts_with(self%carried, self%st%counts())
+    t = self%st%time()
+    call self%st%value_at(t, self%x)
+    deallocate(self%st)
+    call make_stepper(self%sc, self%model, self%x, self%st, self%h0, error); if (allocated(error)) return
+    call self%st%start(self%model, t, self%x, self%h0, error)
+  end subroutine review_method
 
   !> The results file of &output format, what it writes (the plan of &output quantities)
   !> and what the run is.
@@ -301,6 +324,8 @@ contains
     end if
     self%stats%rows = prog%rows; self%k_out = prog%k_out; self%t_next = prog%t_next; self%work_step = prog%work
     if (len(prog%warnings) > 0) self%stats%warnings = prog%warnings
+    self%carried = step_counts(steps_slow=prog%carried(1), steps_fast=prog%carried(2), rejected=prog%carried(3), &
+      & evals_fast=prog%carried(4))
     self%t_step = self%st%time()
     ! another &output dt: the rows after the checkpoint follow the new interval (the next row
     ! numbered on the old one was timed k dt_new, before the rows kept)
@@ -322,7 +347,7 @@ contains
     t_stop = next_exit(self%model, self%st%time())
     call self%st%stop_at(t_stop)
     call self%st%advance(self%model, error); if (allocated(error)) return
-    done = self%st%counts()
+    done = counts_with(self%carried, self%st%counts())
     if (done%steps_fast > self%sc%integrator%max_steps) then
       call fatal_error(error, 'at t = ' // fmt(self%st%time()) // ' s: the run took more than max_steps = ' // &
         & itoa(self%sc%integrator%max_steps) // ' steps (&integrator max_steps lifts the limit)', stat_solver)
@@ -352,12 +377,23 @@ contains
     class(simulation_t), intent(inout) :: self
     real(dp), intent(in) :: t
     type(error_type), allocatable, intent(out) :: error
+    real(dp) :: t0
+    logical :: timed
     do
       if (.not. self%reached_written) then
+        ! method 'auto' reviews its choice by the CPU its steps take, the output's left out
+        ! (method_choice.f90)
+        timed = .false.
+        if (self%choice%t_probe > 0.0_dp) timed = self%choice%times_output()
+        if (timed) t0 = thread_cpu_time()
         call self%put_rows_reached(error); if (allocated(error)) return
+        if (timed) self%choice%output = self%choice%output + (thread_cpu_time() - t0)
         self%reached_written = .true.
       end if
       if (self%st%time() >= t - self%eps) return
+      if (self%choice%review_due(self%st%time(), self%sc%scene%t_end)) then
+        call self%review_method(error); if (allocated(error)) return
+      end if
       call self%checkpoint_if_due(error); if (allocated(error)) return
       if (self%out%ios /= 0) then
         call fatal_error(error, 'at t = ' // fmt(self%st%time()) // ' s: ' // self%out%partial // ': cannot ' // &
@@ -424,7 +460,8 @@ contains
     call self%out%flush_rows()
     if (self%out%ios /= 0) return
     prog = run_progress(rows=self%stats%rows, k_out=self%k_out, t_next=self%t_next, cpu_s=self%clock%cpu_s(), &
-      & t_checkpoint=self%st%time(), work=self%work_step, last_row=self%out%row, warnings='')
+      & t_checkpoint=self%st%time(), work=self%work_step, last_row=self%out%row, warnings='', &
+      & carried=[self%carried%steps_slow, self%carried%steps_fast, self%carried%rejected, self%carried%evals_fast])
     if (allocated(self%stats%warnings)) prog%warnings = self%stats%warnings
     call write_checkpoint(self%ckpt_path, self%st, self%model, prog, self%settings, self%fingerprint, error)
     if (allocated(error)) return
@@ -447,7 +484,7 @@ contains
     call self%clock%run_ends(.not. allocated(error), self%eps)
     if (.not. allocated(error)) call self%put_last_row(error)
     call self%clock%stop(self%stats%cpu_time_s, self%stats%wall_time_s)
-    call fill_stats(self%st, self%model, self%stats)
+    call fill_stats(counts_with(self%carried, self%st%counts()), self%model, self%stats)
     self%stats%effects_report = exits_json(self%model)
     call self%write_results(error)
   end subroutine simulation_finish
@@ -494,13 +531,11 @@ contains
       & self%path // ' is the new results)'
   end subroutine write_results
 
-  !> Step and evaluation counts of a run: steps from the stepper, evaluations from the model.
-  subroutine fill_stats(st, model, stats)
-    class(stepper_t), intent(in) :: st
+  !> Step and evaluation counts of a run: steps c from its steppers, evaluations from the model.
+  subroutine fill_stats(c, model, stats)
+    type(step_counts), intent(in) :: c
     type(model_t), intent(in) :: model
     type(run_stats), intent(inout) :: stats
-    type(step_counts) :: c
-    c = st%counts()
     stats%steps_slow = c%steps_slow; stats%steps_fast = c%steps_fast
     stats%rejected_steps = c%rejected; stats%h_last = c%h_last; stats%ratio_last = c%ratio
     stats%rhs_full = model%wk%count%evals

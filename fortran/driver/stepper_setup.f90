@@ -45,8 +45,12 @@ contains
       return
     end if
     if (trim(sc%integrator%method) == 'multirate') then
-      call make_multirate(sc, model, x, ctl, st, h0, error)
-    else if (sc%integrator%formula == 'adams') then
+      call make_multirate(sc, model, x, ctl, st, h0, error); return
+    end if
+    ! a single-rate stepper evaluates the whole model (method 'auto' may hand it over from
+    ! a multirate one, which partitioned it)
+    call model%end_partition()
+    if (sc%integrator%formula == 'adams') then
       allocate(adams)
       h0 = sc%integrator%h_slow
       call adams%init(size(x), sc%integrator%order, ctl, sc%integrator%corrector == 'newton', h0)

@@ -14,7 +14,7 @@ module pymr_integrator_stepper
   implicit none
   private
   public :: stepper_t, landing_ratio, step_counts, pece_steps, state_record, project_step, step_underflow
-  public :: least_step
+  public :: least_step, counts_with
 
   !> A step whose projection onto the system's constraints fails is redone with its step
   !> times projection_eta, at most max_projection_fails times in one step (adaptive steppers;
@@ -168,6 +168,18 @@ module pymr_integrator_stepper
   end interface
 
 contains
+
+  !> The counts of a run whose stepper `now` took over from earlier ones (counts `before`):
+  !> steps, rejections and evaluations added; the last step and ratio the stepper's now.
+  pure function counts_with(before, now) result(c)
+    type(step_counts), intent(in) :: before, now
+    type(step_counts) :: c
+    c = now
+    c%steps_slow = before%steps_slow + now%steps_slow
+    c%steps_fast = before%steps_fast + now%steps_fast
+    c%rejected = before%rejected + now%rejected
+    c%evals_fast = before%evals_fast + now%evals_fast
+  end function counts_with
 
   !> Project the state x a step reached at t onto the system's constraints (sys%project),
   !> inside the stepper's advance once the step passed its error test. When that fails, an

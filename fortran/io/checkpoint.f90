@@ -27,8 +27,9 @@ module pymr_io_checkpoint
   !> 7: the 'response' and 'exponential' steppers named apart (a run of method 'auto'
   !> continues with the one that wrote it); 8: the 'response' macro step's surrogate
   !> correction kept for its dense output; 9: the results' last row (a restart checks the
-  !> kept file against it) and the run's warnings.
-  integer, parameter :: version = 9
+  !> kept file against it) and the run's warnings; 10: the step counts of the methods
+  !> that ran before the stepper written (method 'auto' reviewed).
+  integer, parameter :: version = 10
 
   !> What a checkpoint's header says: pymr's version, the model's size, the stepper's name,
   !> the time, the integrator settings and the model's fingerprint.
@@ -46,6 +47,9 @@ module pymr_io_checkpoint
     real(dp) :: t_next = 0.0_dp, cpu_s = 0.0_dp, t_checkpoint = 0.0_dp
     !> The works of the energy columns integrated so far (J).
     real(dp) :: work(n_work) = 0.0_dp
+    !> The accepted slow and fast steps, rejections and stepper-made fast evaluations of the
+    !> methods that ran before the stepper written (method 'auto' switches, method_choice.f90).
+    integer :: carried(4) = 0
     !> The last row the results hold (a restart checks the kept file's against it).
     real(dp), allocatable :: last_row(:)
     !> The run's warnings so far (a restart keeps them: each is said once, at its time).
@@ -78,6 +82,7 @@ contains
     write(u, iostat=ios) tag, version, ver, model%d%n, model%d%nj, name, st%time(), len(settings), settings, &
       & fingerprint_field(fingerprint)
     if (ios == 0) write(u, iostat=ios) prog%rows, prog%k_out, prog%t_next, prog%cpu_s, prog%t_checkpoint, prog%work, &
+      & prog%carried, &
       & size(prog%last_row), prog%last_row, len(prog%warnings), prog%warnings
     if (ios == 0) call st%save(u, ios)
     if (ios == 0) call model%save_run(u, ios)
@@ -135,7 +140,7 @@ contains
     if (allocated(error)) then
       close(u); return
     end if
-    read(u, iostat=ios) prog%rows, prog%k_out, prog%t_next, prog%cpu_s, prog%t_checkpoint, prog%work, n_last
+    read(u, iostat=ios) prog%rows, prog%k_out, prog%t_next, prog%cpu_s, prog%t_checkpoint, prog%work, prog%carried, n_last
     if (ios == 0 .and. (n_last < 0 .or. n_last > huge(1)/8)) ios = 1
     if (ios == 0) then
       allocate(prog%last_row(n_last))

@@ -57,6 +57,7 @@ module pymr_model
     procedure :: fast_rhs => model_fast_rhs
     procedure :: force_response => model_force_response
     procedure :: init_partition => model_init_partition
+    procedure :: end_partition => model_end_partition
     procedure :: save_run => model_save_run
     procedure :: load_run => model_load_run
     procedure :: use_articulated => model_use_articulated
@@ -363,8 +364,7 @@ contains
     class(model_t), intent(inout) :: self
     integer :: ns, nf, b
     ns = self%d%nj; nf = self%d%n - ns
-    if (allocated(self%lff)) deallocate(self%lff, self%le, self%mfs, self%xfs, self%yf, self%kf, self%df, &
-      & self%qw, self%qdw, self%mffinv, self%xsw, self%xfw, self%fsw, self%ffw)
+    call self%end_partition()
     allocate(self%lff(nf, nf), self%le(ns, ns), self%mfs(nf, ns), self%xfs(nf, ns), self%yf(nf), &
       & self%kf(nf), self%df(nf), self%qw(ns + nf), self%qdw(ns + nf), self%mffinv(nf, nf), &
       & self%xsw(2*ns), self%xfw(2*nf), self%fsw(2*ns), self%ffw(2*nf))
@@ -377,6 +377,16 @@ contains
     end do
     call modal_stiffness_damping(self%d, self%effects, self%kf, self%df)
   end subroutine model_init_partition
+
+  !> The model whole again (a single-rate stepper taking over from a multirate one): eval
+  !> solves M qdd = P at once, and the multirate terms go.
+  subroutine model_end_partition(self)
+    class(model_t), intent(inout) :: self
+    if (allocated(self%lff)) deallocate(self%lff, self%le, self%mfs, self%xfs, self%yf, self%kf, self%df, &
+      & self%qw, self%qdw, self%mffinv, self%xsw, self%xfw, self%fsw, self%ffw)
+    self%partitioned = .false.
+    self%mff_factored = .false.
+  end subroutine model_end_partition
 
   !> Per fast (modal) coordinate: modal stiffness omega^2 and damping (2 zeta omega + ...;
   !> 0 when modal_damping is off): the fast forces kf a + df ad linear in the fast state.
