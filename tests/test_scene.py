@@ -259,6 +259,23 @@ def test_readme_scene_reference_is_the_schema():
         "regenerate it as docs/development.md says"
 
 
+def test_a_name_several_groups_share_reads_their_value_only_when_they_agree():
+    """tank_firing's six &motion of joint 'suspension' (lines 27-32): an override sets all
+    six, so a read of the same address gives their one value when they agree (form,
+    frequency after an override) and is refused, naming two that differ and their lines,
+    when they do not (amplitude 0 on line 27 against 0.03 on line 28)."""
+    scene = pymr.Scene(ROOT / "input" / "tank_firing.nml")
+    assert scene["motion[suspension].form"] == "sine"
+    with pytest.raises(pymr.SceneError) as exc:
+        scene["motion[suspension].amplitude"]
+    assert str(exc.value) == ("motion[suspension].amplitude: 6 &motion groups have joint 'suspension' and their "
+                              "amplitude differs (0 in &motion #1 at line 27, 0.03 in &motion #2 at line 28): a read "
+                              "gives one value (an override sets them all)")
+    scene["motion[suspension].amplitude"] = 0.05
+    assert scene["motion[suspension].amplitude"] == 0.05
+    assert scene.resolved().count("amplitude = 0.05") == 6
+
+
 def test_readme_scene_reference_has_every_group_and_item_once():
     """Read back apart from the generator: docs/scenes.md's tables name the kernel's groups, in
     its order, each with its items and their type, default, range and unit."""

@@ -342,7 +342,9 @@ contains
   end function address_label
 
   !> The value text of the item at `address` (GROUP.ITEM or GROUP[NAME].ITEM) of a read
-  !> scene, as the resolved scene writes it ('' if the item holds no value).
+  !> scene, as the resolved scene writes it ('' if the item holds no value). A name that
+  !> several groups share (the six &motion of one joint) gives their value when they agree,
+  !> and is refused when they differ: an override sets them all, a read cannot give one.
   subroutine item_value(sc, address, text, error)
     type(scene_t), target, intent(inout) :: sc
     character(len=*), intent(in) :: address
@@ -350,8 +352,10 @@ contains
     type(error_type), allocatable, intent(out) :: error
     type(override_t) :: ov
     type(item_table) :: t
-    integer :: k, j
+    character(len=:), allocatable :: first, value
+    integer :: k, j, k1
     call parse_address(address, ov, error); if (allocated(error)) return
+    k1 = 0
     do k = 1, group_count(sc, trim(ov%group))
       if (len_trim(ov%sel) > 0) then
         if (.not. selected(sc, trim(ov%group), k, ov%sel)) cycle
@@ -361,11 +365,60 @@ contains
       if (j == 0) then
         call unknown_item(address // ': &' // trim(ov%group), ov%item, t, error); return
       end if
-      text = value_text(t%items(j)); return
+      value = value_text(t%items(j))
+      if (k1 == 0) then
+        first = value; k1 = k
+      else if (value /= first) then
+        call differing_values(sc, address, ov, k1, first, k, value, error); return
+      end if
     end do
+    if (k1 > 0) then
+      text = first; return
+    end if
     call fatal_error(error, address // ': no &' // trim(ov%group) // ' group with ' // &
       & naming_item(trim(ov%group)) // ' ''' // trim(ov%sel) // '''')
   end subroutine item_value
+
+  !> The refusal of a read whose address names groups k1 and k (and maybe more) holding
+  !> other values (a and b) of its item.
+  subroutine differing_values(sc, address, ov, k1, a, k, b, error)
+    type(scene_t), target, intent(inout) :: sc
+    character(len=*), intent(in) :: address, a, b
+    type(override_t), intent(in) :: ov
+    integer, intent(in) :: k1, k
+    type(error_type), allocatable, intent(out) :: error
+    type(origin_t), pointer :: o1, o2
+    o1 => group_origin(sc, trim(ov%group), k1)
+    o2 => group_origin(sc, trim(ov%group), k)
+    call fatal_error(error, address // ': ' // itoa(named_count(sc, ov)) // ' &' // trim(ov%group) // &
+      & ' groups have ' // naming_item(trim(ov%group)) // ' ''' // trim(ov%sel) // ''' and their ' // trim(ov%item) // &
+      & ' differs (' // show(a) // ' in ' // o1%label // at_line(o1%line) // ', ' // show(b) // ' in ' // o2%label // &
+      & at_line(o2%line) // '): a read gives one value (an override sets them all)')
+  contains
+    function show(v) result(r)
+      character(len=*), intent(in) :: v
+      character(len=:), allocatable :: r
+      r = v
+      if (len(v) == 0) r = 'none'
+    end function show
+    function at_line(line) result(r)
+      integer, intent(in) :: line
+      character(len=:), allocatable :: r
+      r = ''
+      if (line > 0) r = ' at line ' // itoa(line)
+    end function at_line
+  end subroutine differing_values
+
+  !> How many groups the selector of ov names.
+  integer function named_count(sc, ov) result(n)
+    type(scene_t), target, intent(inout) :: sc
+    type(override_t), intent(in) :: ov
+    integer :: k
+    n = 0
+    do k = 1, group_count(sc, trim(ov%group))
+      if (selected(sc, trim(ov%group), k, ov%sel)) n = n + 1
+    end do
+  end function named_count
 
   !> Set one override on every occurrence of its group that its selector names.
   subroutine apply_override(sc, ov, error)
