@@ -122,6 +122,11 @@ class Results:
     def __contains__(self, name: str) -> bool:
         return _key("name", name) in self.columns
 
+    def __iter__(self):
+        """The column names, as `in` and ``res[name]`` take them (iteration fell back to
+        ``res[0]``, refused as "a name (str), got int 0")."""
+        return iter(self.columns)
+
     @property
     def t(self) -> np.ndarray:
         return self["t"]

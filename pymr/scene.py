@@ -75,6 +75,7 @@ class Scene(SceneSource):
                  overrides: Mapping[str, object] | Iterable[str] | None = None) -> None:
         self._overrides: list[str] = []
         self._resolved: str | None = None      # the kernel's text for the current overrides
+        self._stamp: tuple | None = None       # the scene file as it was read for it (_file_stamp)
         self._model: tuple | None = None       # the open model: (handle, its closer, what it was built from)
         self._text: str | None = None          # the scene's text once built or edited in Python
         self._tmp = None                       # the private folder of that text's file
@@ -202,6 +203,20 @@ class Scene(SceneSource):
         _raise(stat, msg, detail)
         return parse_value(_text(value), _is_list(address))
 
+    def __contains__(self, address: str) -> bool:
+        """Whether ``scene[address]`` reads a value (``'body[gun].mass' in scene``): False for
+        an unknown group, item or name, and for a name several groups share whose values
+        differ."""
+        try:
+            self[address]
+        except SceneError:
+            return False
+        return True
+
+    def __iter__(self):
+        raise TypeError("a Scene is not iterable: read an item by its address, scene['group.item'], "
+                        "and see every group and item in pymr.schema() or scene.resolved()")
+
     def __setitem__(self, address: str, value: object) -> None:
         # one override, its value checked and written by the API's one conversion
         address = _name("address", address)
@@ -224,8 +239,9 @@ class Scene(SceneSource):
 
     def model_handle(self) -> int:
         """The handle of the kernel's model of this scene as it now is, opened at the first
-        call and kept until the scene is set or collected (or its path, or the working folder
-        a relative path is read from, changed)."""
+        call and kept until the scene is set or collected (or its path, its file on disk, or
+        the working folder a relative path is read from, changed)."""
+        self._follow_file()
         where = self.kernel_scene()
         key = (where, None if self.path.is_absolute() else os.getcwd())
         if self._model is not None and (not self._model[1].alive or self._model[2] != key):
@@ -261,7 +277,9 @@ class Scene(SceneSource):
         """The scene with every default filled in and every override applied, checked by
         building its model, and a last comment line with its fingerprint. With
         ``absolute_paths`` the files it names are written absolute (for a copy elsewhere).
-        The text is the kernel's reading of the file when the Scene was made or last set."""
+        The text is the kernel's reading of the file as it is now: a file changed since the
+        last reading is read again."""
+        self._follow_file()
         if _flag("absolute_paths", absolute_paths) or self._resolved is None:
             if self._text is not None and not self._whole:   # a draft: the kernel's reason, by the scene's name
                 _edited_text(self._text, self._home, "", "", whole=True)
@@ -280,8 +298,24 @@ class Scene(SceneSource):
     def _check(self) -> None:
         self._close_model()
         self._resolved = None
+        self._stamp = self._file_stamp()
         if self._whole:                        # a draft is not a scene yet
             self._resolved = _kernel_text(str(self.path), self.overrides, 0)
+
+    def _file_stamp(self) -> tuple | None:
+        """The scene file's identity and change time (None when it cannot be read: the
+        kernel then says why)."""
+        try:
+            st = os.stat(self.path)
+        except OSError:
+            return None
+        return (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns)
+
+    def _follow_file(self) -> None:
+        """A scene file changed on disk since it was read (its resolved text, fingerprint
+        and model were its older text's) is read again."""
+        if self._text is None and self._file_stamp() != self._stamp:
+            self._check()
 
     def __repr__(self) -> str:
         if self._text is not None:

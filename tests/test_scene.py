@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 import re
 import shutil
 import subprocess
@@ -257,6 +258,42 @@ def test_readme_scene_reference_is_the_schema():
     assert m, "docs/scenes.md has no generated scene reference"
     assert m.group(1) == schema_markdown(), "docs/scenes.md's scene reference differs from `pymr scene --schema`: " \
         "regenerate it as docs/development.md says"
+
+
+def test_a_scene_file_changed_on_disk_is_read_again(tmp_path):
+    """A Scene made from a file, the file then rewritten (t_end 1 -> 0.5, the gun's modes_y 2
+    -> 1): its resolved text, fingerprint and model are the new file's, as a Scene made
+    afresh from it gives them and as run() reads it; they were the old text's."""
+    path = tmp_path / "tank.nml"
+    text = (ROOT / "input" / "tank_gun_turret.nml").read_text()
+    path.write_text(text)
+    scene = pymr.Scene(path)
+    old_size = pymr.model_size(scene)
+    old_print = scene.fingerprint
+    new_text = re.sub(r"t_end\s*=\s*[0-9.]+", "t_end = 0.5", text, count=1).replace("modes_y = 2, modes_z = 2", "modes_y = 1, modes_z = 2", 1)
+    assert new_text != text
+    path.write_text(new_text)
+    st = path.stat()
+    os.utime(path, ns=(st.st_atime_ns, st.st_mtime_ns + 1_000_000_000))    # a clock that did not move
+    fresh = pymr.Scene(path)
+    assert scene.fingerprint == fresh.fingerprint != old_print
+    assert scene["scene.t_end"] == 0.5 and "t_end = 0.5" in scene.resolved()
+    assert pymr.model_size(scene) == pymr.model_size(fresh) != old_size
+
+
+def test_in_and_iteration_say_what_a_scene_and_results_hold(tmp_path):
+    """`in` on a Scene is whether an address reads a value; iterating a Scene is refused in
+    one line saying how items are read (both fell back to scene[0], "a name (str), got int
+    0"). Iterating Results gives its column names, as `in` and res[name] take them."""
+    scene = pymr.Scene(ROOT / "input" / "tank_firing.nml")
+    assert "scene.t_end" in scene and "body[gun].mass" in scene and "motion[suspension].form" in scene
+    assert "x" not in scene and "body[nope].mass" not in scene and "body[gun].masss" not in scene
+    assert "motion[suspension].amplitude" not in scene          # six groups, values differ
+    with pytest.raises(TypeError, match=r"^a Scene is not iterable: read an item by its address"):
+        list(scene)
+    res = pymr.run(scene, tmp_path / "r.csv", overrides={"scene.t_end": 0.01})
+    assert list(res) == res.columns and all(name in res for name in res)
+    assert all(np.array_equal(res[name], res.data[:, k]) for k, name in enumerate(res))
 
 
 def test_a_name_several_groups_share_reads_their_value_only_when_they_agree():
