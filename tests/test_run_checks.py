@@ -376,3 +376,25 @@ def test_max_bytes_holds_for_rows_every_step_and_on_restart(tmp_path, mrsim):
                            capture_output=True, text=True, timeout=120)
         assert r.returncode == 1 and "&output: dt: the results would take about" in r.stderr, r.stderr
         assert (tmp_path / "c.csv").read_bytes() == before
+
+
+@pytest.mark.parametrize("sets, named", [
+    ({"integrator.rtol": 1e-3}, "rtol"),
+    ({"integrator.rtol": 1e-3, "integrator.atol": 1e-6, "integrator.h_min": 1e-9}, "rtol, atol, h_min"),
+    ({}, None),
+    ({"integrator.rtol": 1e-3, "integrator.adaptive": True}, None),
+])
+def test_tolerances_a_fixed_step_run_does_not_use_are_said(tmp_path, sets, named):
+    """The pendulum at fixed steps with adaptive-only items given: the run goes on (a study
+    sets adaptive = .false. on scenes that give their tolerances) and is the same run as
+    without them, and its summary and JSON warn, naming them; none without them or when the
+    steps are adaptive."""
+    res = pymr.run(PENDULUM, tmp_path / "p.csv", overrides=sets)
+    warnings = res.stats["warnings"]
+    if named is None:
+        assert warnings == [] and "warning" not in res.summary
+        return
+    assert warnings == [f"&integrator {named}: given, but fixed steps (adaptive = .false.) do not use them"]
+    assert f"warning: {warnings[0]}" in res.summary
+    plain = pymr.run(PENDULUM, tmp_path / "q.csv")
+    assert np.array_equal(res.data, plain.data)

@@ -23,7 +23,7 @@ module pymr_driver_simulation
   use pymr_io_results_csv, only : csv_writer
   use pymr_io_results_hdf5, only : hdf5_writer
   use pymr_io_checkpoint, only : run_progress, write_checkpoint, read_checkpoint
-  use pymr_driver_stepper_setup, only : make_stepper, stepper_label, method_label
+  use pymr_driver_stepper_setup, only : make_stepper, stepper_label, method_label, unused_adaptive_items
   use pymr_driver_output_quantities, only : write_output_row, work_at
   use pymr_driver_preflight, only : check_step_stability, check_mass_matrix
   use pymr_driver_load_model, only : load_model
@@ -237,7 +237,7 @@ contains
   subroutine begin_new(self, error)
     class(simulation_t), intent(inout) :: self
     type(error_type), allocatable, intent(out) :: error
-    character(len=:), allocatable :: note
+    character(len=:), allocatable :: note, unused
     call check_output_size(self%sc, self%model, self%out, self%dt_out, error); if (allocated(error)) return
     call self%out%open(self%path, self%model%d, error)
     if (allocated(error)) return
@@ -248,6 +248,8 @@ contains
     if (allocated(error)) then
       call self%out%discard(); return
     end if
+    unused = unused_adaptive_items(self%sc)
+    if (len(unused) > 0) call self%stats%add_warning(unused)
     if (.not. self%sc%integrator%adaptive .and. self%sc%integrator%stability_check) then
       self%stats%preflight_cpu_s = thread_cpu_time()
       call check_step_stability(self%model, self%x, self%st, stepper_label(self%sc), self%sc%scene%t_end, &

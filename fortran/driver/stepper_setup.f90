@@ -18,7 +18,7 @@ module pymr_driver_stepper_setup
   use pymr_env_text, only : itoa
   implicit none
   private
-  public :: make_stepper, stepper_label, method_label
+  public :: make_stepper, stepper_label, method_label, unused_adaptive_items
 
 contains
 
@@ -64,6 +64,26 @@ contains
       call move_alloc(abm, st)
     end if
   end subroutine make_stepper
+
+  !> A note naming the &integrator items the scene (or a --set) gives that a fixed-step run
+  !> does not use ("rtol, atol"), '' when none or when the steps are adaptive: the run goes
+  !> on (a study sets adaptive = .false. on a scene that gives its tolerances), and says so.
+  function unused_adaptive_items(sc) result(note)
+    type(scene_t), intent(in) :: sc
+    character(len=:), allocatable :: note
+    character(len=10), parameter :: items(6) = [character(len=10) :: 'rtol', 'atol', 'h_min', 'h_max', &
+      & 'error_norm', 'k_max']
+    integer :: i
+    note = ''
+    if (sc%integrator%adaptive) return
+    do i = 1, size(items)
+      if (.not. sc%integrator%origin%given(trim(items(i)))) cycle
+      if (len(note) > 0) note = note // ', '
+      note = note // trim(items(i))
+    end do
+    if (len(note) > 0) note = '&integrator ' // note // ': given, but fixed steps (adaptive = .false.) do not ' // &
+      & 'use them'
+  end function unused_adaptive_items
 
   !> The angular frequency of each coordinate for error_norm = 'amplitude': a modal
   !> coordinate's from its modal stiffness (the flexible body's omega^2: its modes are
