@@ -199,6 +199,7 @@ class Scene(SceneSource):
     # ------------------------------------------------------------------ items
 
     def __getitem__(self, address: str) -> object:
+        self._require_whole()
         value, stat, msg, detail = _core.pymr_scene_item(str(self.path), self.overrides, _name("address", address))
         _raise(stat, msg, detail)
         return parse_value(_text(value), _is_list(address))
@@ -234,8 +235,15 @@ class Scene(SceneSource):
 
     def kernel_scene(self) -> tuple[str, str]:
         """The scene file and its overrides, as every function that takes a scene hands them
-        to the kernel."""
+        to the kernel (a draft is refused first)."""
+        self._require_whole()
         return str(self.path), self.overrides
+
+    def _require_whole(self) -> None:
+        """A draft is no scene yet: refused with the kernel's reason, by the scene's name
+        (its messages named pymr's private file of its text)."""
+        if self._text is not None and not self._whole:
+            _edited_text(self._text, self._home, "", "", whole=True)
 
     def model_handle(self) -> int:
         """The handle of the kernel's model of this scene as it now is, opened at the first
@@ -281,8 +289,7 @@ class Scene(SceneSource):
         last reading is read again."""
         self._follow_file()
         if _flag("absolute_paths", absolute_paths) or self._resolved is None:
-            if self._text is not None and not self._whole:   # a draft: the kernel's reason, by the scene's name
-                _edited_text(self._text, self._home, "", "", whole=True)
+            self._require_whole()
             return _kernel_text(str(self.path), self.overrides, 2 if absolute_paths else 0)
         return self._resolved
 

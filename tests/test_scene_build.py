@@ -202,11 +202,19 @@ def test_edits_that_only_make_a_scene_together_are_refused_together():
 
 def test_a_draft_is_refused_whole_until_it_is_a_scene():
     """A new scene's groups are checked as they come; the whole scene waits for a ground,
-    a body and its joint: until then resolved() and run raise the kernel's reason."""
+    a body and its joint: until then resolved(), item reads, run and the model functions
+    raise the kernel's reason, naming the scene as built in Python."""
     scene = pymr.Scene()
     scene.add("scene", t_end=1.0).add("integrator", h_slow=1.0e-3).add("body", name="ground", kind="ground")
     with pytest.raises(pymr.SceneError, match="<scene built in Python>: &body: .*only the ground"):
         scene.resolved()
+    # every use of the draft names it so, not pymr's private file of its text
+    for use in (lambda: scene["scene.t_end"], lambda: pymr.run(scene), lambda: pymr.model_size(scene),
+                lambda: scene.fingerprint):
+        with pytest.raises(pymr.SceneError) as exc:
+            use()
+        assert "<scene built in Python>: &body: " in str(exc.value) and "pymr-scene-" not in str(exc.value)
+    assert "scene.t_end" not in scene
     assert repr(scene) == "<Scene built in Python: 3 groups, a draft>"
     with pytest.raises(pymr.SceneError, match="mass: must be in"):
         scene.add("body", name="arm", kind="rigid", mass=-1.0)
