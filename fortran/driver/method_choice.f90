@@ -143,6 +143,7 @@ module pymr_driver_method_choice
     procedure :: review
     procedure, private :: restart_window
     procedure :: times_output
+    procedure :: reviewing
   end type method_choice_t
 
 contains
@@ -261,7 +262,7 @@ contains
     character(len=*), intent(out) :: failure
     type(error_type), allocatable :: error
     type(scene_t) :: trial
-    real(dp) :: cpu0, cpu_go, cpu, h0, t
+    real(dp) :: cpu0, cpu, h0, t
     integer :: k_row, steps, j
     type(step_counts) :: done
     failure = ''
@@ -275,8 +276,7 @@ contains
     if (dt_rows > 0.0_dp) run%nr = 0
     call make_stepper(trial, run%model, x, run%st, h0, error)
     if (.not. allocated(error)) call run%st%start(run%model, t0, x, h0, error)
-    cpu_go = thread_cpu_time()
-    run%making = cpu_go - cpu0
+    run%making = thread_cpu_time() - cpu0
     k_row = 1; steps = 0; j = 1
     do while (.not. allocated(error))
       t = run%st%time() - t0
@@ -284,13 +284,13 @@ contains
         & run, k_row)
       cpu = thread_cpu_time() - cpu0
       do while (j <= n_pace .and. t >= j*t_len/n_pace)
-        run%pace(j) = cpu + cpu0 - cpu_go; j = j + 1
+        run%pace(j) = cpu - run%making; j = j + 1
       end do
       if (run%cpu_half < 0.0_dp .and. t >= 0.5_dp*t_len) then
         run%cpu_half = cpu; run%t_half = t
       end if
       if (t >= t_len) exit
-      if (cpu + cpu0 - cpu_go > cap .or. (steps >= far_steps .and. (cpu + cpu0 - cpu_go)/far_margin > &
+      if (cpu - run%making > cap .or. (steps >= far_steps .and. (cpu - run%making)/far_margin > &
         & pace(pace_index(t, t_len))) .or. (t >= 0.25_dp*t_len .and. cpu > most*t)) then
         failure = 'stopped at t = ' // fmt(run%st%time()) // ' s: slower than the fastest probe'
         run%cpu = cpu; run%t_run = t
@@ -376,15 +376,23 @@ contains
     end if
   end function cpu_rate
 
-  !> Whether the run, its stepper at time t, is at the end of a review window (none without
-  !> probes; the first call from t_open on opens the first window).
+  !> Whether a review may still come: the choice was probed (not a restart's, nor a scene
+  !> with one candidate) and reviews are left.
+  pure logical function reviewing(self)
+    class(method_choice_t), intent(in) :: self
+    reviewing = self%t_probe > 0.0_dp .and. self%reviews < max_reviews
+  end function reviewing
+
+  !> Whether the run, its stepper at time t, is at the end of a review window (none when no
+  !> review may come; the first call from t_open on opens the first window).
   logical function review_due(self, t, t_end) result(due)
     class(method_choice_t), intent(inout) :: self
     real(dp), intent(in) :: t, t_end
     due = .false.
-    if (self%t_probe <= 0.0_dp) return
+    if (.not. self%reviewing()) return
     if (self%t_window < 0.0_dp) then
-      if (t >= self%t_open) self%t_window = t
+      if (t < self%t_open) return
+      self%t_window = t
       call self%restart_window(); return
     end if
     due = t >= self%t_window + review_share*t_end
@@ -430,7 +438,7 @@ contains
       self%base_rate = rate
     else
       self%dear = merge(self%dear + 1, 0, rate > max(review_margin, switch_gain*self%lead)*self%base_rate)
-      if (self%dear >= dear_windows .and. self%reviews < max_reviews .and. pays(self, rate, sc%scene%t_end - st%time())) &
+      if (self%dear >= dear_windows .and. pays(self, rate, sc%scene%t_end - st%time())) &
         & call probe_again(self, sc, model, st, rate, switched)
     end if
     ! the next window starts after the review's probes, after the start's steps when another

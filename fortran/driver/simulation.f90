@@ -326,8 +326,7 @@ contains
     end if
     self%stats%rows = prog%rows; self%k_out = prog%k_out; self%t_next = prog%t_next; self%work_step = prog%work
     if (len(prog%warnings) > 0) self%stats%warnings = prog%warnings
-    self%carried = step_counts(steps_slow=prog%carried(1), steps_fast=prog%carried(2), rejected=prog%carried(3), &
-      & evals_fast=prog%carried(4))
+    self%carried = prog%carried
     self%t_step = self%st%time()
     ! another &output dt: the rows after the checkpoint follow the new interval (the next row
     ! numbered on the old one was timed k dt_new, before the rows kept)
@@ -386,7 +385,7 @@ contains
         ! method 'auto' reviews its choice by the CPU its steps take, the output's left out
         ! (method_choice.f90)
         timed = .false.
-        if (self%choice%t_probe > 0.0_dp) timed = self%choice%times_output()
+        if (self%choice%reviewing()) timed = self%choice%times_output()
         if (timed) t0 = thread_cpu_time()
         call self%put_rows_reached(error); if (allocated(error)) return
         if (timed) self%choice%output = self%choice%output + (thread_cpu_time() - t0)
@@ -463,7 +462,7 @@ contains
     if (self%out%ios /= 0) return
     prog = run_progress(rows=self%stats%rows, k_out=self%k_out, t_next=self%t_next, cpu_s=self%clock%cpu_s(), &
       & t_checkpoint=self%st%time(), work=self%work_step, last_row=self%out%row, warnings='', &
-      & carried=[self%carried%steps_slow, self%carried%steps_fast, self%carried%rejected, self%carried%evals_fast])
+      & carried=self%carried)
     if (allocated(self%stats%warnings)) prog%warnings = self%stats%warnings
     call write_checkpoint(self%ckpt_path, self%st, self%model, prog, self%settings, self%fingerprint, error)
     if (allocated(error)) return

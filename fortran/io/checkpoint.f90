@@ -13,7 +13,7 @@ module pymr_io_checkpoint
   use pymr_env_text_file, only : rename_file, sync_file, check_size, not_regular, check_header_count
   use pymr_env_kinds, only : dp
   use pymr_env_error, only : error_type, fatal_error, stat_solver
-  use pymr_integrator_stepper, only : stepper_t
+  use pymr_integrator_stepper, only : stepper_t, step_counts
   use pymr_model, only : model_t
   use pymr_env_text, only : itoa, fmt
   use pymr_io_sha256, only : sha256_hex
@@ -49,7 +49,7 @@ module pymr_io_checkpoint
     real(dp) :: work(n_work) = 0.0_dp
     !> The accepted slow and fast steps, rejections and stepper-made fast evaluations of the
     !> methods that ran before the stepper written (method 'auto' switches, method_choice.f90).
-    integer :: carried(4) = 0
+    type(step_counts) :: carried
     !> The last row the results hold (a restart checks the kept file's against it).
     real(dp), allocatable :: last_row(:)
     !> The run's warnings so far (a restart keeps them: each is said once, at its time).
@@ -82,7 +82,7 @@ contains
     write(u, iostat=ios) tag, version, ver, model%d%n, model%d%nj, name, st%time(), len(settings), settings, &
       & fingerprint_field(fingerprint)
     if (ios == 0) write(u, iostat=ios) prog%rows, prog%k_out, prog%t_next, prog%cpu_s, prog%t_checkpoint, prog%work, &
-      & prog%carried, &
+      & prog%carried%steps_slow, prog%carried%steps_fast, prog%carried%rejected, prog%carried%evals_fast, &
       & size(prog%last_row), prog%last_row, len(prog%warnings), prog%warnings
     if (ios == 0) call st%save(u, ios)
     if (ios == 0) call model%save_run(u, ios)
@@ -140,7 +140,8 @@ contains
     if (allocated(error)) then
       close(u); return
     end if
-    read(u, iostat=ios) prog%rows, prog%k_out, prog%t_next, prog%cpu_s, prog%t_checkpoint, prog%work, prog%carried, n_last
+    read(u, iostat=ios) prog%rows, prog%k_out, prog%t_next, prog%cpu_s, prog%t_checkpoint, prog%work, &
+      & prog%carried%steps_slow, prog%carried%steps_fast, prog%carried%rejected, prog%carried%evals_fast, n_last
     if (ios == 0 .and. (n_last < 0 .or. n_last > huge(1)/8)) ios = 1
     if (ios == 0) then
       allocate(prog%last_row(n_last))
