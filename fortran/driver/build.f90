@@ -243,11 +243,12 @@ contains
       allocate(d%body_name(nb), d%joint_name(nb), d%parent(nb), d%c0(nb), d%nc(nb), d%mass(nb), d%com(3, nb), &
         & d%inertia(3, 3, nb), d%at(3, nb), d%prim(n), d%cbody(n), d%cgrp(n), d%axis(3, n), d%qname(n), &
         & d%qdname(n), d%flexible(nb), d%nm(nb), d%a0(nb), d%flex(nb), wk%fwork(nb), d%bshape(nb), d%mnodes(nb), &
-        & d%att_psi(3, mx, nb), d%att_phi(3, mx, nb), wk%cm(6, mx, nb), wk%mva(6, mx, nb), wk%wam(mx, nb))
+        & d%att_psi(3, mx, nb), d%att_phi(3, mx, nb), wk%cm(6, mx, nb), wk%mva(6, mx, nb), wk%wam(mx, nb), &
+        & wk%kam(mx, nb))
     end associate
     d%parent = 0; d%c0 = 1; d%nc = 0; d%mass = 0.0_dp; d%com = 0.0_dp; d%inertia = 0.0_dp; d%at = 0.0_dp
     d%joint_name = ''; d%flexible = .false.; d%nm = 0; d%a0 = d%n + 1
-    d%att_psi = 0.0_dp; d%att_phi = 0.0_dp; wk%cm = 0.0_dp; wk%mva = 0.0_dp; wk%wam = 0.0_dp
+    d%att_psi = 0.0_dp; d%att_phi = 0.0_dp; wk%cm = 0.0_dp; wk%mva = 0.0_dp; wk%wam = 0.0_dp; wk%kam = 0.0_dp
   end subroutine allocate_tree
 
   !> The bodies on or below a flexible body, and the parent's mode shapes at each joint

@@ -40,6 +40,7 @@ contains
         call flex_body_terms(d%flex(b), wk%fwork(b), wk%rot(:, :, b), wk%pos(:, b), wk%vel(:, b), wk%acc(:, b), &
           & q(d%a0(b):d%a0(b) + m - 1), qd(d%a0(b):d%a0(b) + m - 1), wk%i6(:, :, b), wk%mva(:, 1:m, b), &
           & wk%w(:, b), wk%wam(1:m, b), modal_only, d%deformed_moments)
+        wk%kam(1:m, b) = 0.0_dp
         cycle
       end if
       r = wk%rot(:, :, b); ib = d%inertia(:, :, b); c = d%com(:, b)

@@ -63,6 +63,7 @@ contains
       associate(a => q(d%a0(b):d%a0(b) + m - 1))
         do k = 1, m
           wk%wam(k, b) = wk%wam(k, b) + c1*dot_product(d%flex(b)%kg1(:, k), a) + c2*dot_product(d%flex(b)%kg2(:, k), a)
+          wk%kam(k, b) = wk%kam(k, b) + c1*d%flex(b)%kg1(k, k) + c2*d%flex(b)%kg2(k, k)
         end do
       end associate
     end do
@@ -90,6 +91,7 @@ contains
       associate(a => q(d%a0(b):d%a0(b) + m - 1))
         do k = 1, m
           wk%wam(k, b) = wk%wam(k, b) + tension*dot_product(self%kgc(k, 1:m, c), a)
+          wk%kam(k, b) = wk%kam(k, b) + tension*self%kgc(k, k, c)
         end do
       end associate
     end do

@@ -525,7 +525,22 @@ contains
       call constrain_response(self%d, self%wk, g, error); if (allocated(error)) return
     end if
     kf = self%kf; df = self%df
+    call add_state_stiffness(self%d, self%wk, kf)
   end subroutine model_force_response
+
+  !> kf plus the diagonal of the modal stiffness the evaluated state adds (wk%kam).
+  pure subroutine add_state_stiffness(d, wk, kf)
+    type(model_data), intent(in) :: d
+    type(model_work), intent(in) :: wk
+    real(dp), intent(inout) :: kf(:)
+    integer :: b, m, f0
+    do b = 2, d%nb
+      m = d%nm(b)
+      if (m == 0) cycle
+      f0 = d%a0(b) - d%nj
+      kf(f0:f0 + m - 1) = kf(f0:f0 + m - 1) + wk%kam(1:m, b)
+    end do
+  end subroutine add_state_stiffness
 
   !> After a failed call: the error names the time (for the run's message).
   subroutine add_time(error, t)

@@ -145,6 +145,10 @@ module pymr_model_types
     real(dp), allocatable :: cm(:, :, :)
     !> Flexible bodies' coupling columns (6, mmax, nb) and modal bias forces (mmax, nb).
     real(dp), allocatable :: mva(:, :, :), wam(:, :)
+    !> The diagonal of the modal stiffness the state adds to omega^2 (geometric stiffening;
+    !> mmax, nb): zeroed with the body terms, set in the load stages, and frozen with omega^2
+    !> in the fast response (model_force_response).
+    real(dp), allocatable :: kam(:, :)
     !> Modal mass that loads travelling on flexible bodies add to their constant modal mass
     !> (mmax, mmax, nb; set in the load stage; unallocated when no effect adds any).
     real(dp), allocatable :: maa(:, :, :)
