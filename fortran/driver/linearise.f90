@@ -14,8 +14,8 @@ module pymr_driver_linearise
 contains
 
   !> The model linearised at (t, x = [q; qd]): M (symmetrised), K = -dP/dq and C = -dP/dqd
-  !> by central differences with increments 1e-6 max(1, |x_j|). Its evaluations do not count
-  !> as the run's.
+  !> by central differences with increments 1e-6 max(1, |x_j|); the model is left evaluated
+  !> at x. Its evaluations do not count as the run's.
   subroutine linearise(model, t, x, m, k, c, n_columns)
     type(model_t), intent(inout) :: model
     real(dp), intent(in) :: t, x(:)
@@ -47,6 +47,7 @@ contains
       qd(j) = x(n + j)
       c(:, j) = -(pp - pm)/(2.0_dp*del)
     end do
+    call model%terms(t, q, qd)     ! left evaluated at x (model%fast_forces reads it)
     call model%set_counters(counters)
   end subroutine linearise
 

@@ -12,7 +12,7 @@ module pymr_driver_preflight
   use pymr_env_kinds, only : dp, pi
   use pymr_env_error, only : error_type, fatal_error, stat_input, set_fault
   use pymr_env_lapack, only : potrf, potrs, geev_real, factor_inverse
-  use pymr_model, only : model_t, modal_stiffness_damping, model_counters
+  use pymr_model, only : model_t, model_counters
   use pymr_model_loops, only : independent_rows, loop_jacobian, constrain_inverse
   use pymr_integrator_stability, only : pece_growth, pece_limit, imaginary_axis_limit
   use pymr_integrator_ode, only : partitioned_system
@@ -224,7 +224,7 @@ contains
     integer :: n, ns, i
     n = size(m, 1); ns = model%d%nj
     allocate(kf(n - ns), df(n - ns))
-    call modal_stiffness_damping(model%d, model%effects, kf, df)
+    call model%fast_forces(kf, df)
     rk = k; rc = c
     do i = ns + 1, n
       rk(i, i) = rk(i, i) - kf(i - ns)
@@ -519,7 +519,7 @@ contains
     l = m(ns+1:, ns+1:)
     call potrf(l, 'M_ff at the initial state', error); if (allocated(error)) return
     call factor_inverse(l, mffinv, 'M_ff', error); if (allocated(error)) return
-    call modal_stiffness_damping(model%d, model%effects, sys%kf, sys%df)
+    call model%fast_forces(sys%kf, sys%df)
     tfs = 0.0_dp
     if (model%d%cuts%n_rows > 0) then
       call loop_jacobian(model%d, model%wk, x(1:n), g, error); if (allocated(error)) return

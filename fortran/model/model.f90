@@ -32,8 +32,6 @@ module pymr_model
     !> Multirate work: Cholesky factors of M_ff and M_e, M_fs, M_ff^-1 M_fs, M_ff^-1 Q_f and
     !> M_ff^-1 (held when M_ff is constant; the 'response' coupling's g uses it).
     real(dp), allocatable :: lff(:, :), le(:, :), mfs(:, :), xfs(:, :), yf(:), mffinv(:, :)
-    !> Modal stiffness omega^2 and damping 2 zeta omega (0 when the effect is off) per fast coordinate.
-    real(dp), allocatable :: kf(:), df(:)
     !> Full coordinates and rates assembled from the slow and fast states.
     real(dp), allocatable :: qw(:), qdw(:)
     !> Once partitioned (multirate), eval solves through the Schur complement too.
@@ -56,6 +54,7 @@ module pymr_model
     procedure :: sync_rhs => model_sync_rhs
     procedure :: fast_rhs => model_fast_rhs
     procedure :: force_response => model_force_response
+    procedure :: fast_forces => model_fast_forces
     procedure :: init_partition => model_init_partition
     procedure :: end_partition => model_end_partition
     procedure :: save_run => model_save_run
@@ -359,14 +358,14 @@ contains
     model_n_fast = self%d%n - self%d%nj
   end function model_n_fast
 
-  !> Allocate the multirate work arrays and the per-coordinate modal stiffness and damping.
+  !> Allocate the multirate work arrays.
   subroutine model_init_partition(self)
     class(model_t), intent(inout) :: self
     integer :: ns, nf, b
     ns = self%d%nj; nf = self%d%n - ns
     call self%end_partition()
     allocate(self%lff(nf, nf), self%le(ns, ns), self%mfs(nf, ns), self%xfs(nf, ns), self%yf(nf), &
-      & self%kf(nf), self%df(nf), self%qw(ns + nf), self%qdw(ns + nf), self%mffinv(nf, nf), &
+      & self%qw(ns + nf), self%qdw(ns + nf), self%mffinv(nf, nf), &
       & self%xsw(2*ns), self%xfw(2*nf), self%fsw(2*ns), self%ffw(2*nf))
     self%partitioned = .true.
     ! a moving mass changes the modal block as it travels
@@ -375,14 +374,13 @@ contains
     do b = 2, self%d%nb
       if (self%d%flexible(b) .and. self%d%child_ptr(b + 1) > self%d%child_ptr(b)) self%mff_fixed = .false.
     end do
-    call modal_stiffness_damping(self%d, self%effects, self%kf, self%df)
   end subroutine model_init_partition
 
   !> The model whole again (a single-rate stepper taking over from a multirate one): eval
   !> solves M qdd = P at once, and the multirate terms go.
   subroutine model_end_partition(self)
     class(model_t), intent(inout) :: self
-    if (allocated(self%lff)) deallocate(self%lff, self%le, self%mfs, self%xfs, self%yf, self%kf, self%df, &
+    if (allocated(self%lff)) deallocate(self%lff, self%le, self%mfs, self%xfs, self%yf, &
       & self%qw, self%qdw, self%mffinv, self%xsw, self%xfw, self%fsw, self%ffw)
     self%partitioned = .false.
     self%mff_factored = .false.
@@ -524,9 +522,18 @@ contains
     if (self%d%cuts%n_rows > 0) then
       call constrain_response(self%d, self%wk, g, error); if (allocated(error)) return
     end if
-    kf = self%kf; df = self%df
-    call add_state_stiffness(self%d, self%wk, kf)
+    call self%fast_forces(kf, df)
   end subroutine model_force_response
+
+  !> The stiffness kf and damping df per fast coordinate of the fast forces kf a + df ad
+  !> that the fast response freezes, at the last evaluated state: omega^2 plus the diagonal
+  !> of the geometric stiffness the state adds (wk%kam), and the modal damping.
+  subroutine model_fast_forces(self, kf, df)
+    class(model_t), intent(in) :: self
+    real(dp), intent(out) :: kf(:), df(:)
+    call modal_stiffness_damping(self%d, self%effects, kf, df)
+    call add_state_stiffness(self%d, self%wk, kf)
+  end subroutine model_fast_forces
 
   !> kf plus the diagonal of the modal stiffness the evaluated state adds (wk%kam).
   pure subroutine add_state_stiffness(d, wk, kf)
