@@ -236,7 +236,8 @@ def model_terms(scene: str | os.PathLike, q, qd, t: float = 0.0, overrides=None)
 def force_response(scene: str | os.PathLike, q, qd, t: float = 0.0, overrides=None):
     """The 'response' coupling's terms at (t, q, qd): ``g = M^-1 E`` (shape (n, nf)), the
     response of every acceleration to a unit force on each modal coordinate, and the modal
-    stiffness ``kf`` and damping ``df`` (shape (nf,)) of the fast forces ``kf a + df ad``."""
+    stiffness ``kf`` and damping ``df`` (shape (nf,)) of the fast forces ``kf a + df ad``:
+    ``kf`` is omega^2 plus the diagonal of the geometric stiffness the state adds."""
     where = _scene_and_overrides(scene, overrides)
     t = _time(t)
     q, qd = _one_state(q, qd)
