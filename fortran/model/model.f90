@@ -388,10 +388,12 @@ contains
 
   !> Per fast (modal) coordinate: modal stiffness omega^2 and damping (2 zeta omega + ...;
   !> 0 when modal_damping is off): the fast forces kf a + df ad linear in the fast state.
-  subroutine modal_stiffness_damping(d, effects, kf, df)
+  !> With kam (model_work's, mmax x nb), kf adds the stiffness a state adds on the diagonal.
+  subroutine modal_stiffness_damping(d, effects, kf, df, kam)
     type(model_data), intent(in) :: d
     type(effect_slot), intent(in) :: effects(:)
     real(dp), intent(out) :: kf(:), df(:)
+    real(dp), intent(in), optional :: kam(:, :)
     integer :: b, m, f0
     kf = 0.0_dp; df = 0.0_dp
     do b = 2, d%nb
@@ -399,6 +401,7 @@ contains
       if (m == 0) cycle
       f0 = d%a0(b) - d%nj
       kf(f0:f0 + m - 1) = d%flex(b)%omega2
+      if (present(kam)) kf(f0:f0 + m - 1) = kf(f0:f0 + m - 1) + kam(1:m, b)
     end do
     call effect_fast_damping(effects, d, df)
   end subroutine modal_stiffness_damping
@@ -531,23 +534,8 @@ contains
   subroutine model_fast_forces(self, kf, df)
     class(model_t), intent(in) :: self
     real(dp), intent(out) :: kf(:), df(:)
-    call modal_stiffness_damping(self%d, self%effects, kf, df)
-    call add_state_stiffness(self%d, self%wk, kf)
+    call modal_stiffness_damping(self%d, self%effects, kf, df, self%wk%kam)
   end subroutine model_fast_forces
-
-  !> kf plus the diagonal of the modal stiffness the evaluated state adds (wk%kam).
-  pure subroutine add_state_stiffness(d, wk, kf)
-    type(model_data), intent(in) :: d
-    type(model_work), intent(in) :: wk
-    real(dp), intent(inout) :: kf(:)
-    integer :: b, m, f0
-    do b = 2, d%nb
-      m = d%nm(b)
-      if (m == 0) cycle
-      f0 = d%a0(b) - d%nj
-      kf(f0:f0 + m - 1) = kf(f0:f0 + m - 1) + wk%kam(1:m, b)
-    end do
-  end subroutine add_state_stiffness
 
   !> After a failed call: the error names the time (for the run's message).
   subroutine add_time(error, t)
