@@ -388,7 +388,9 @@ contains
 
   !> Per fast (modal) coordinate: modal stiffness omega^2 and damping (2 zeta omega + ...;
   !> 0 when modal_damping is off): the fast forces kf a + df ad linear in the fast state.
-  !> With kam (model_work's, mmax x nb), kf adds the stiffness a state adds on the diagonal.
+  !> With kam (model_work's, mmax x nb), kf adds the stiffness a state's tension adds on the
+  !> diagonal; a compression's softening is left out (it stays with the rest of the forces:
+  !> a beam loaded past buckling has modes with no stiffness to vibrate with).
   subroutine modal_stiffness_damping(d, effects, kf, df, kam)
     type(model_data), intent(in) :: d
     type(effect_slot), intent(in) :: effects(:)
@@ -401,7 +403,7 @@ contains
       if (m == 0) cycle
       f0 = d%a0(b) - d%nj
       kf(f0:f0 + m - 1) = d%flex(b)%omega2
-      if (present(kam)) kf(f0:f0 + m - 1) = kf(f0:f0 + m - 1) + kam(1:m, b)
+      if (present(kam)) kf(f0:f0 + m - 1) = kf(f0:f0 + m - 1) + max(kam(1:m, b), 0.0_dp)
     end do
     call effect_fast_damping(effects, d, df)
   end subroutine modal_stiffness_damping
@@ -530,7 +532,7 @@ contains
 
   !> The stiffness kf and damping df per fast coordinate of the fast forces kf a + df ad
   !> that the fast response freezes, at the last evaluated state: omega^2 plus the diagonal
-  !> of the geometric stiffness the state adds (wk%kam), and the modal damping.
+  !> of the geometric stiffness the state's tension adds (wk%kam), and the modal damping.
   subroutine model_fast_forces(self, kf, df)
     class(model_t), intent(in) :: self
     real(dp), intent(out) :: kf(:), df(:)
