@@ -33,8 +33,6 @@ contains
     q = x(1:n); qd = x(n+1:2*n)
     allocate(k(n, n), c(n, n), pp(n), pm(n))
     k = 0.0_dp; c = 0.0_dp
-    call model%terms(t, q, qd)
-    m = 0.5_dp*(model%wk%mm + transpose(model%wk%mm))
     do j = 1, nc
       del = 1.0e-6_dp*max(1.0_dp, abs(q(j)))
       q(j) = x(j) + del; call model%forces(t, q, qd, pp)
@@ -47,7 +45,9 @@ contains
       qd(j) = x(n + j)
       c(:, j) = -(pp - pm)/(2.0_dp*del)
     end do
-    call model%terms(t, q, qd)     ! left evaluated at x (model%fast_forces reads it)
+    ! last, so that the model is left evaluated at x (model%fast_forces reads it)
+    call model%terms(t, q, qd)
+    m = 0.5_dp*(model%wk%mm + transpose(model%wk%mm))
     call model%set_counters(counters)
   end subroutine linearise
 
