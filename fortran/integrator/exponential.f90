@@ -414,8 +414,9 @@ contains
     c%rejected = self%rejected; c%h_last = self%last%h; c%ratio = 1
   end function ex_counts
 
-  !> The modal stiffness and damping move by their exact flow; the rest of the model (its
-  !> joints' vibrations, the stiffness the motion adds) is carried by the polynomial over
+  !> The modal stiffness and damping (with a tension's stiffening on the diagonal) move by
+  !> their exact flow; the rest of the model (its joints' vibrations, the rest of the
+  !> stiffness the motion adds) is carried by the polynomial over
   !> the step H, whose stability the pre-flight check judges by the ABM formula's.
   pure function ex_steps(self) result(s)
     class(exponential_integrator), intent(in) :: self
