@@ -395,16 +395,18 @@ def model_energy(scene: str | os.PathLike, q, qd, overrides=None) -> tuple[np.nd
     return ke, pe
 
 
-def write_modal_file(scene: str | os.PathLike, body: str, path: str | os.PathLike, overrides=None) -> None:
+def write_modal_file(scene: str | os.PathLike, body: str, path: str | os.PathLike, overrides=None, *,
+                     _option: str = "path") -> None:
     """Write the modes of beam ``body`` of a scene to a modal data file, which a
     ``kind='modal'`` body can read back (``modal_file=...``)."""
     where = _scene_and_overrides(scene, overrides)
-    body, path = _name("body", body), _path("path", path, OutputError)
+    body, path = _name("body", body), _path(_option, path, OutputError)
     if not path:
-        raise OutputError("path: an empty file name for the modal file")
-    # an output fault (no folder, a folder, the scene itself) is an OutputError, as for every writer
+        raise OutputError(f"{_option}: an empty file name for the modal file")
+    # an output fault (no folder, a folder, the scene itself) is an OutputError, as for every writer;
+    # `_option` names the argument in its message (the command line's -o)
     from .outputs import check_output
-    check_output(path, "modal file", option="path", example=f"{body}.modal", if_left_out=None, scene=scene,
+    check_output(path, "modal file", option=_option, example=f"{body}.modal", if_left_out=None, scene=scene,
                  overrides=overrides)
     with model_of(scene, where) as handle:
         stat, msg, detail = _core.pymr_write_modal(handle, body, path)

@@ -54,10 +54,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
 def _cmd_modal_file(args: argparse.Namespace) -> int:
     from .api import write_modal_file
-    # an output over the scene or a file it reads is refused here, naming -o (the call names path)
-    check_output(args.output, "modal file", example=f"{args.body}.modal", if_left_out=None, scene=args.scene,
-                 overrides=args.set or None)
-    write_modal_file(args.scene, args.body, args.output, overrides=args.set or None)
+    write_modal_file(args.scene, args.body, args.output, overrides=args.set or None, _option="-o")
     if not args.quiet:
         print(f"wrote the modes of beam {args.body!r} to {args.output}")
     return 0
