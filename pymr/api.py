@@ -395,18 +395,21 @@ def model_energy(scene: str | os.PathLike, q, qd, overrides=None) -> tuple[np.nd
     return ke, pe
 
 
-def write_modal_file(scene: str | os.PathLike, body: str, path: str | os.PathLike, overrides=None, *,
-                     _option: str = "path") -> None:
+def write_modal_file(scene: str | os.PathLike, body: str, path: str | os.PathLike, overrides=None) -> None:
     """Write the modes of beam ``body`` of a scene to a modal data file, which a
     ``kind='modal'`` body can read back (``modal_file=...``)."""
+    _write_modal_file(scene, body, path, overrides, "path")
+
+
+def _write_modal_file(scene, body, path, overrides, option: str) -> None:
+    """write_modal_file, its messages naming the output `option` (`pymr modal-file`: -o)."""
     where = _scene_and_overrides(scene, overrides)
-    body, path = _name("body", body), _path(_option, path, OutputError)
+    body, path = _name("body", body), _path(option, path, OutputError)
     if not path:
-        raise OutputError(f"{_option}: an empty file name for the modal file")
-    # an output fault (no folder, a folder, the scene itself) is an OutputError, as for every writer;
-    # `_option` names the argument in its message (the command line's -o)
+        raise OutputError(f"{option}: an empty file name for the modal file")
+    # an output fault (no folder, a folder, the scene itself) is an OutputError, as for every writer
     from .outputs import check_output
-    check_output(path, "modal file", option=_option, example=f"{body}.modal", if_left_out=None, scene=scene,
+    check_output(path, "modal file", option=option, example=f"{body}.modal", if_left_out=None, scene=scene,
                  overrides=overrides)
     with model_of(scene, where) as handle:
         stat, msg, detail = _core.pymr_write_modal(handle, body, path)

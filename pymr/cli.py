@@ -53,8 +53,8 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
 
 def _cmd_modal_file(args: argparse.Namespace) -> int:
-    from .api import write_modal_file
-    write_modal_file(args.scene, args.body, args.output, overrides=args.set or None, _option="-o")
+    from .api import _write_modal_file
+    _write_modal_file(args.scene, args.body, args.output, args.set or None, "-o")
     if not args.quiet:
         print(f"wrote the modes of beam {args.body!r} to {args.output}")
     return 0

@@ -15,7 +15,7 @@ module pymr_bind_models
   use pymr_model, only : model_t
   implicit none
   private
-  public :: open_model_t, open_models, open_flags, check_handle, check_handle_n, open_slot, close_slot, scratch, live_model
+  public :: open_model_t, open_models, open_flags, check_handle, check_handle_n, check_handle_count, open_slot, close_slot, scratch, live_model
 
   !> One open model: its scene, the model as built, and the copy Python's evaluations drive
   !> (all unallocated in a free slot).
@@ -49,6 +49,26 @@ contains
     if (allocated(error)) return
     if (open_models(handle)%built%d%n /= n) call fatal_error(error, 'q has the wrong length')
   end subroutine check_handle_n
+
+  !> check_handle_n, and an error unless `given` (the caller's count `name`) is the open
+  !> model's number of `what`: 'bodies', 'joints' (the loops' cut joints included) or
+  !> 'markers'.
+  subroutine check_handle_count(handle, n, name, what, given, error)
+    integer, intent(in) :: handle, n, given
+    character(*), intent(in) :: name, what
+    type(error_type), allocatable, intent(out) :: error
+    integer :: count
+    call check_handle_n(handle, n, error)
+    if (allocated(error)) return
+    associate (d => open_models(handle)%built%d)
+      select case (what)
+      case ('bodies'); count = d%nb
+      case ('joints'); count = d%nb - 1 + d%cuts%n
+      case default; count = d%markers%n
+      end select
+    end associate
+    if (given /= count) call fatal_error(error, name // ' is not the number of ' // what)
+  end subroutine check_handle_count
 
   !> A copy of the model of `handle` as built, for one call of a model function (with
   !> check_handle_n's errors; `n` absent: any number of coordinates).

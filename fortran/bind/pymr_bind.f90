@@ -562,9 +562,9 @@ end subroutine pymr_step_history
 !> Every body's frame (inertial origin pos(3, b, k) and its parent's index parent(b), 0 for
 !> the ground) of an open model at m states (t(m), q(n,m), qd(n,m)), for drawing.
 subroutine pymr_model_frames(handle, n, m, nb, t, q, qd, pos, parent, stat, message, detail)
-  use pymr_env_error, only : error_type, fatal_error
+  use pymr_env_error, only : error_type
   use pymr_bind_support, only : report
-  use pymr_bind_models, only : open_models, check_handle_n, live_model
+  use pymr_bind_models, only : check_handle_count, live_model
   use pymr_model, only : model_t
   use pymr_model_kinematics, only : forward_kinematics
   implicit none
@@ -580,12 +580,7 @@ subroutine pymr_model_frames(handle, n, m, nb, t, q, qd, pos, parent, stat, mess
   type(model_t), pointer :: model
   integer :: k
   pos = 0.0d0; parent = 0
-  call check_handle_n(handle, n, error)
-  if (.not. allocated(error)) then
-    if (open_models(handle)%built%d%nb /= nb) then
-      call fatal_error(error, 'nb is not the number of bodies')
-    end if
-  end if
+  call check_handle_count(handle, n, 'nb', 'bodies', nb, error)
   call report(error, stat, message, detail)
   if (stat /= 0) return
   model => live_model(handle)
@@ -701,9 +696,9 @@ end subroutine pymr_model_coordinate_name
 !> of an open model at m states (t(m), q(n,m), qd(n,m)), the flexible bodies' modal
 !> coordinates scaled by `exaggerate` (1: as they are), for drawing.
 subroutine pymr_model_poses(handle, n, m, nb, t, q, qd, exaggerate, pos, rot, stat, message, detail)
-  use pymr_env_error, only : error_type, fatal_error
+  use pymr_env_error, only : error_type
   use pymr_bind_support, only : report
-  use pymr_bind_models, only : open_models, check_handle_n, live_model
+  use pymr_bind_models, only : check_handle_count, live_model
   use pymr_bind_drawing, only : scaled_kinematics
   use pymr_model, only : model_t
   implicit none
@@ -719,12 +714,7 @@ subroutine pymr_model_poses(handle, n, m, nb, t, q, qd, exaggerate, pos, rot, st
   type(model_t), pointer :: model
   integer :: k
   pos = 0.0d0; rot = 0.0d0
-  call check_handle_n(handle, n, error)
-  if (.not. allocated(error)) then
-    if (open_models(handle)%built%d%nb /= nb) then
-      call fatal_error(error, 'nb is not the number of bodies')
-    end if
-  end if
+  call check_handle_count(handle, n, 'nb', 'bodies', nb, error)
   call report(error, stat, message, detail)
   if (stat /= 0) return
   model => live_model(handle)
@@ -858,9 +848,9 @@ end subroutine pymr_model_joint_info
 !> with none; pymr_model_joint_info's order, nj of them) of an open model at m states, the
 !> modal coordinates scaled by `exaggerate`.
 subroutine pymr_model_joints(handle, n, m, nj, t, q, qd, exaggerate, pos, axis, stat, message, detail)
-  use pymr_env_error, only : error_type, fatal_error
+  use pymr_env_error, only : error_type
   use pymr_bind_support, only : report
-  use pymr_bind_models, only : open_models, check_handle_n, live_model
+  use pymr_bind_models, only : check_handle_count, live_model
   use pymr_bind_drawing, only : scaled_kinematics, joint_place
   use pymr_model, only : model_t
   implicit none
@@ -876,12 +866,7 @@ subroutine pymr_model_joints(handle, n, m, nj, t, q, qd, exaggerate, pos, axis, 
   type(model_t), pointer :: model
   integer :: k, j
   pos = 0.0d0; axis = 0.0d0
-  call check_handle_n(handle, n, error)
-  if (.not. allocated(error)) then
-    if (open_models(handle)%built%d%nb - 1 + open_models(handle)%built%d%cuts%n /= nj) then
-      call fatal_error(error, 'nj is not the number of joints')
-    end if
-  end if
+  call check_handle_count(handle, n, 'nj', 'joints', nj, error)
   call report(error, stat, message, detail)
   if (stat /= 0) return
   model => live_model(handle)
@@ -896,9 +881,9 @@ end subroutine pymr_model_joints
 !> Every marker's inertial place pos(3, k, i) (nmk markers, the scene's order) of an open
 !> model at m states, the modal coordinates scaled by `exaggerate`.
 subroutine pymr_model_markers(handle, n, m, nmk, t, q, qd, exaggerate, pos, stat, message, detail)
-  use pymr_env_error, only : error_type, fatal_error
+  use pymr_env_error, only : error_type
   use pymr_bind_support, only : report
-  use pymr_bind_models, only : open_models, check_handle_n, live_model
+  use pymr_bind_models, only : check_handle_count, live_model
   use pymr_bind_drawing, only : scaled_kinematics
   use pymr_model, only : model_t
   use pymr_model_kinematics, only : marker_motion
@@ -916,12 +901,7 @@ subroutine pymr_model_markers(handle, n, m, nmk, t, q, qd, exaggerate, pos, stat
   double precision :: v(3)
   integer :: k, i
   pos = 0.0d0
-  call check_handle_n(handle, n, error)
-  if (.not. allocated(error)) then
-    if (open_models(handle)%built%d%markers%n /= nmk) then
-      call fatal_error(error, 'nmk is not the number of markers')
-    end if
-  end if
+  call check_handle_count(handle, n, 'nmk', 'markers', nmk, error)
   call report(error, stat, message, detail)
   if (stat /= 0) return
   model => live_model(handle)
