@@ -67,12 +67,10 @@ def write_file(path: str | os.PathLike, data: str | bytes, what: str) -> Path:
         folder = False
     if folder or not path.name:              # '.', '..', '/': no file name to write (or rename) to
         raise OutputError(f"{path}: cannot write the {what} (it is a directory)")
-    try:
-        special = path.exists() and not path.is_file()
-    except OSError:
-        special = False
-    if special:                              # the rename would replace /dev/null itself
-        raise OutputError(f"{path}: cannot write the {what} (not a regular file: a FIFO, a device or a socket)")
+    from .outputs import not_replaceable
+    why = not_replaceable(path)              # the rename would replace /dev/null, or a link, itself
+    if why:
+        raise OutputError(f"{path}: cannot write the {what}: {why}")
     tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
     try:
         with open(tmp, "wb") as fh:

@@ -16,7 +16,8 @@ A file output is refused when it is
 - a name that is only a suffix (``.png``, a hidden file with no name) when suffixes are given;
 - in a folder that is not there, is not a folder, or cannot be written;
 - an existing path that is not a regular file (a FIFO, a device: the final rename would
-  replace ``/dev/null`` with a file);
+  replace ``/dev/null`` with a file), or a symbolic link (the rename would replace the link,
+  not the file it points to; ``/dev/stdout`` is one);
 - of a format the command cannot write (``suffixes``);
 - one of the command's inputs (``inputs``), or the scene or a file the scene reads
   (``scene``: the kernel's own rule, :func:`pymr.api.check_not_input`).
@@ -57,6 +58,21 @@ def _exists(path: Path) -> bool:
         return os.path.lexists(path)
     except (OSError, ValueError):
         return False
+
+
+def not_replaceable(path: Path) -> str:
+    """Why an output written whole beside `path` and renamed over it cannot be put there (the
+    kernel's not_replaceable): a symbolic link, which the rename would replace, or an
+    existing path that is no regular file; '' where it can."""
+    try:
+        if path.is_symlink():
+            return ("it is a symbolic link, which the finished file, renamed into place, would replace (not the "
+                    "file it points to)")
+        if _exists(path) and not path.is_file():
+            return "not a regular file (a FIFO, a device or a socket)"
+    except (OSError, ValueError):    # a name too long: the write says so
+        pass
+    return ""
 
 
 def _same(a: Path, b: Path) -> bool:
@@ -130,9 +146,9 @@ def check_output(path, what: str, *, option: str = "-o", example: str | None = N
         if suffix not in suffixes:
             raise OutputError(f"{option} {text}: {suffix} is not a format of the {what} (one of {allowed})")
     _folder_of(text, option)
-    if _exists(out) and not out.is_file():
-        raise OutputError(f"{option} {text}: not a regular file (a FIFO, a device or a socket); choose another "
-                          f"{what}")
+    why = not_replaceable(out)
+    if why:
+        raise OutputError(f"{option} {text}: {why}; choose another {what}")
     for source in inputs:
         if source is not None and _same(out, Path(source)):
             raise OutputError(f"{option} {text}: would overwrite the input {source}; choose another {what}")

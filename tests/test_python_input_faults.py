@@ -917,7 +917,7 @@ def test_a_write_never_replaces_a_device_or_a_fifo(tmp_path):
     import stat
     fifo = tmp_path / "pipe"
     os.mkfifo(fifo)
-    with pytest.raises(pymr.OutputError, match=r"pipe: cannot write the resolved scene \(not a regular file: a FIFO, "
+    with pytest.raises(pymr.OutputError, match=r"pipe: cannot write the resolved scene: not a regular file \(a FIFO, "
                                                r"a device or a socket\)$"):
         pymr.Scene(PENDULUM).write(fifo)
     assert stat.S_ISFIFO(fifo.stat().st_mode)

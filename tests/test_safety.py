@@ -370,6 +370,54 @@ def test_an_output_that_is_no_regular_file_is_refused_before_the_run(tmp_path, m
         assert sorted(p.name for p in tmp_path.iterdir()) == before
 
 
+LINK = "it is a symbolic link, which the finished file, renamed into place, would replace (not the file it points to)"
+
+
+def test_an_output_that_is_a_symbolic_link_is_refused_and_kept(tmp_path, mrsim, monkeypatch):
+    """Every file is written whole beside its place and renamed over it, and a rename replaces
+    a link, not the file it points to: -o link.csv left link.csv a plain file and its target
+    as it was, and with stdout sent to a file `mrsim -o /dev/stdout` replaced /dev/stdout (a
+    link) and exited 0 (found by fuzzing). A link is refused like a device, before the run,
+    and it and its target are left as they were."""
+    import os
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "p.nml").write_text(PENDULUM)
+    for name in ("target.csv", "target.json", "target.ckpt"):
+        (tmp_path / name).write_text("earlier\n")
+    for link, target in (("link.csv", "target.csv"), ("stats.json", "target.json"), ("run.ckpt", "target.ckpt"),
+                         ("ckpt", "target.ckpt")):
+        os.symlink(target, tmp_path / link)
+    before = {p.name: (p.is_symlink(), p.read_text()) for p in tmp_path.iterdir()}
+    for args, message in (
+            (["-o", "link.csv"], f"p.nml: output link.csv: {LINK}; choose another results file"),
+            (["-o", "stats.csv"], f"p.nml: output stats.csv: its statistics stats.json: {LINK}; "
+                                  "choose another results file"),
+            (["-o", "run.csv", "--set", "output.checkpoint_dt=0.01"],
+             f"p.nml: output run.csv: its checkpoint run.ckpt: {LINK}; choose another results file, "
+             "or a checkpoint_file in &output"),
+            (["-o", "out.csv", "--set", "output.checkpoint_dt=0.01", "--set", "output.checkpoint_file=ckpt"],
+             f"p.nml: --set output.checkpoint_file=ckpt: &output: checkpoint_file: {LINK}; "
+             "choose another checkpoint file")):
+        r = run_mrsim(mrsim, ["p.nml", *args], tmp_path)
+        assert r.returncode == 1 and r.stderr == "mrsim: error: " + message + "\n", r.stderr
+        with pytest.raises(pymr.SceneError, match="^" + re.escape(message) + "$"):
+            pymr.run("p.nml", args[1], overrides=args[3::2] or None)
+        assert {p.name: (p.is_symlink(), p.read_text()) for p in tmp_path.iterdir()} == before
+    # the Python writers: a scene written out, and the command line's own outputs
+    with pytest.raises(pymr.OutputError, match="^" + re.escape(f"link.csv: cannot write the resolved scene: {LINK}")):
+        pymr.Scene("p.nml").write("link.csv")
+    r = subprocess.run([sys.executable, "-m", "pymr", "modal-file", "p.nml", "bob", "-o", "link.csv"], cwd=tmp_path,
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 1 and r.stderr == f"pymr: error: -o link.csv: {LINK}; choose another modal file\n", r.stderr
+    assert {p.name: (p.is_symlink(), p.read_text()) for p in tmp_path.iterdir()} == before
+    # /dev/stdout is a link too; with stdout sent to a file the device check alone let it through
+    with open(tmp_path / "so.txt", "w") as out:
+        r = subprocess.run([str(mrsim), "p.nml", "-o", "/dev/stdout"], cwd=tmp_path, stdout=out, stderr=subprocess.PIPE,
+                           text=True, timeout=120)
+    assert r.returncode == 1 and r.stderr.startswith("mrsim: error: p.nml: output /dev/stdout: it is a symbolic link")
+    assert os.path.islink("/dev/stdout") and not os.path.exists("/dev/stdout.json")
+
+
 def _file_size_limit(limit: int):
     """preexec_fn: files may not grow beyond `limit` bytes, and writing past it fails with
     EFBIG instead of killing the process (SIGXFSZ ignored): a full disk, as the run sees it."""

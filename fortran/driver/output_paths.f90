@@ -7,7 +7,7 @@ module pymr_driver_output_paths
   use pymr_model_scene, only : scene_t, group_names, group_count, describe_group, item_applies, group_origin
   use pymr_env_item_table, only : item_table, origin_t
   use pymr_io_results_output, only : json_path
-  use pymr_env_text_file, only : absolute_path, scene_relative, not_regular, missing_folder, same_file, read_text_file
+  use pymr_env_text_file, only : absolute_path, scene_relative, not_replaceable, missing_folder, same_file, read_text_file
   use pymr_io_sha256, only : sha256_hex
   implicit none
   private
@@ -121,18 +121,18 @@ contains
     end do
   end subroutine check_inputs_kept
 
-  !> Is `file` there and no regular file, that the run's file would replace? `label` names
+  !> Is `file` there and no regular file (or a link), that the run's file would replace? `label` names
   !> it in the message (after the scene's name unless it is an item's place), `advice` what to choose.
   logical function replaces(sc, file, label, advice, error)
     type(scene_t), intent(in) :: sc
     character(len=*), intent(in) :: file, label, advice
     type(error_type), allocatable, intent(inout) :: error
-    replaces = len(not_regular(file)) > 0
+    replaces = len(not_replaceable(file)) > 0
     if (.not. replaces) return
     if (index(label, sc%file) == 1) then
-      call fatal_error(error, label // ': ' // not_regular(file) // '; choose ' // advice)
+      call fatal_error(error, label // ': ' // not_replaceable(file) // '; choose ' // advice)
     else
-      call fatal_error(error, sc%file // ': ' // label // ': ' // not_regular(file) // '; choose ' // advice)
+      call fatal_error(error, sc%file // ': ' // label // ': ' // not_replaceable(file) // '; choose ' // advice)
     end if
   end function replaces
 

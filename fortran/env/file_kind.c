@@ -1,4 +1,5 @@
-/* What Fortran cannot ask about files: for pymr_io_text_file's not_regular and same_file. */
+/* What Fortran cannot ask about files: for pymr_env_text_file's not_regular, not_replaceable and
+   same_file. */
 #include <sys/stat.h>
 
 /* 0: no such file (or it cannot be seen), 1: a regular file, 2: a directory, 3: anything
@@ -10,6 +11,13 @@ int pymr_file_kind(const char *path)
     if (S_ISREG(s.st_mode)) return 1;
     if (S_ISDIR(s.st_mode)) return 2;
     return 3;
+}
+
+/* 1: path itself is a symbolic link (not followed), 0: anything else or nothing. */
+int pymr_is_link(const char *path)
+{
+    struct stat s;
+    return lstat(path, &s) == 0 && S_ISLNK(s.st_mode);
 }
 
 /* 1: a and b are one file on the disk (the same device and inode; links followed), 0: two

@@ -10,7 +10,7 @@ module pymr_env_text_file
   implicit none
   private
   public :: write_text_file, stage_text_file, commit_staged, rename_file, sync_file, check_size, file_size, &
-    & scene_relative, absolute_path, acquire_lock, release_lock, not_regular, missing_folder, remove_file, &
+    & scene_relative, absolute_path, acquire_lock, release_lock, not_regular, not_replaceable, missing_folder, remove_file, &
     & read_text_file, check_header_count, same_file
 
   interface
@@ -55,6 +55,11 @@ module pymr_env_text_file
       character(kind=c_char), intent(in) :: path(*)
       integer(c_int) :: kind
     end function c_file_kind
+    function c_is_link(path) bind(c, name='pymr_is_link') result(link)
+      import :: c_char, c_int
+      character(kind=c_char), intent(in) :: path(*)
+      integer(c_int) :: link
+    end function c_is_link
     function c_same_file(a, b) bind(c, name='pymr_same_file') result(same)
       import :: c_char, c_int
       character(kind=c_char), intent(in) :: a(*), b(*)
@@ -96,8 +101,8 @@ contains
     type(error_type), allocatable, intent(out) :: error
     integer :: u, ios
     character(len=256) :: msg
-    if (len(not_regular(path)) > 0) then
-      call fatal_error(error, path // ': cannot write: ' // not_regular(path)); return
+    if (len(not_replaceable(path)) > 0) then
+      call fatal_error(error, path // ': cannot write: ' // not_replaceable(path)); return
     end if
     open(newunit=u, file=path // '.tmp', access='stream', form='unformatted', status='replace', action='write', &
       & iostat=ios, iomsg=msg)
@@ -270,6 +275,20 @@ contains
       why = ''
     end select
   end function not_regular
+
+  !> Why an output written whole beside `path` and renamed over it cannot be put there:
+  !> not_regular's reasons, and a symbolic link, which the rename would replace (its target
+  !> left as it was); '' where it can.
+  function not_replaceable(path) result(why)
+    character(len=*), intent(in) :: path
+    character(len=:), allocatable :: why
+    if (c_is_link(path // c_null_char) == 1) then
+      why = 'it is a symbolic link, which the finished file, renamed into place, would replace (not the file ' // &
+        & 'it points to)'
+    else
+      why = not_regular(path)
+    end if
+  end function not_replaceable
 
   !> Make the kernel write a closed file's data to the disk (fsync).
   subroutine sync_file(path, error)
