@@ -61,18 +61,12 @@ def _exists(path: Path) -> bool:
 
 
 def not_replaceable(path: Path) -> str:
-    """Why an output written whole beside `path` and renamed over it cannot be put there (the
-    kernel's not_replaceable): a symbolic link, which the rename would replace, or an
-    existing path that is no regular file; '' where it can."""
-    try:
-        if path.is_symlink():
-            return ("it is a symbolic link, which the finished file, renamed into place, would replace (not the "
-                    "file it points to)")
-        if _exists(path) and not path.is_file():
-            return "not a regular file (a FIFO, a device or a socket)"
-    except (OSError, ValueError):    # a name too long: the write says so
-        pass
-    return ""
+    """Why an output written whole beside `path` and renamed over it cannot be put there,
+    by the kernel's rule (not_replaceable): a directory, a FIFO or a device, or a symbolic
+    link, which the rename would replace; '' where it can."""
+    from . import _kernel as _core
+    from ._args import _text
+    return _text(_core.pymr_not_replaceable(os.fsencode(path)))
 
 
 def _same(a: Path, b: Path) -> bool:

@@ -641,6 +641,17 @@ subroutine pymr_same_file(a, b, same)
   same = merge(1, 0, same_file(a, b))
 end subroutine pymr_same_file
 
+!> Why an output written whole beside `path` and renamed over it cannot be put there (the
+!> kernel's not_replaceable: a directory, a FIFO or a device, a symbolic link); '' where it
+!> can: the rule for the outputs Python writes.
+subroutine pymr_not_replaceable(path, why)
+  use pymr_env_text_file, only : not_replaceable
+  implicit none
+  character(len=*), intent(in) :: path
+  character(len=512), intent(out) :: why
+  why = not_replaceable(path)
+end subroutine pymr_not_replaceable
+
 !> The state an open model's run starts from, x = [q; qd] (n coordinates), as the run's
 !> first row has it (the initial values, the loops assembled, a static start settled),
 !> without running.
