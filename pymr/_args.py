@@ -215,6 +215,9 @@ def format_overrides(overrides: Mapping[str, object] | Iterable[str] | None, nam
         if not item.strip():
             # an unset shell variable: refused as mrsim refuses it, not skipped
             raise SceneError("--set needs GROUP.ITEM=VALUE (got an empty one)")
+        if "\0" in item:
+            # the binding passes the text as C does, up to its first NUL: what follows was lost
+            raise SceneError(f"--set {item!r}: a NUL character in an override")
         if "\n" in item or "\r" in item:
             # the kernel reads one override a line: a line break would make two of one
             raise SceneError(f"--set {item!r}: a line break in an override (one GROUP.ITEM=VALUE, on one line)")

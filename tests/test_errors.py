@@ -708,3 +708,24 @@ def test_an_override_with_a_line_break_is_refused_not_split(tmp_path, mrsim, mon
     with pytest.raises(pymr.SceneError, match=r"a line break in an override"):
         pymr.Scene("base.nml", {"scene.title": "a\nb"})
     assert pymr.run("base.nml", overrides="scene.t_end=0.01").t[-1] == pytest.approx(0.01)
+
+
+def test_an_override_is_one_line_whatever_it_holds(tmp_path, mrsim, monkeypatch):
+    """A ';' split an override in two, inside quotes too: --set "scene.title='a;b'" was
+    refused naming '--set b'' (a fragment never typed), and a scene whose title held a ';'
+    could not be set again from Python. A NUL in a Python override ended the text the kernel
+    saw: every override after it was dropped silently (found by fuzzing)."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "base.nml").write_text(BASE)
+    r = run_mrsim(mrsim, ["base.nml", "-o", "out.csv", "--set", "scene.title='a;b'", "--set", "scene.t_end=0.01"],
+                  tmp_path)
+    assert r.returncode == 0 and "scene: a;b" in r.stdout, r.stderr
+    res = pymr.load_results("out.csv")
+    assert res.title == "a;b" and res.t[-1] == pytest.approx(0.01)
+    assert pymr.run("base.nml", overrides={"scene.title": "x;y", "scene.t_end": 0.01}).title == "x;y"
+    r = run_mrsim(mrsim, ["base.nml", "-o", "out2.csv", "--set", "scene.t_end=0.01;2"], tmp_path)
+    assert r.returncode == 1 and r.stderr.endswith(": --set scene.t_end=0.01;2: &scene: t_end: '0.01;2' is not a "
+                                                   "number\n"), r.stderr
+    for overrides in (["scene.t_end=0.05\0", "scene.t_end=0.01"], {"scene.title": "a\0b"}):
+        with pytest.raises(pymr.SceneError, match=r"^--set .*: a NUL character in an override$"):
+            pymr.run("base.nml", overrides=overrides)

@@ -248,7 +248,9 @@ contains
 
   ! ------------------------------------------------------------------------ overrides
 
-  !> Split "a.b=1; c[x].d=2" into entries, each parsed by the value parser of the files.
+  !> Split the override text, one GROUP.ITEM=VALUE a line (mrsim's --set, Python's list), into
+  !> entries, each parsed by the value parser of the files; a ';' is part of its line's value
+  !> (a title 'a;b').
   subroutine parse_overrides(text, ovs, error)
     character(len=*), intent(in) :: text
     type(override_t), allocatable, intent(out) :: ovs(:)
@@ -259,7 +261,7 @@ contains
     i0 = 1; n = len(text)
     do i = 1, n + 1
       if (i <= n) then
-        if (text(i:i) /= ';' .and. text(i:i) /= achar(10)) cycle
+        if (text(i:i) /= achar(10)) cycle
       end if
       entry = trim(adjustl(text(i0:i-1)))
       i0 = i + 1
