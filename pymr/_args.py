@@ -148,11 +148,14 @@ def _path(name: str, value, error: type[PymrError] = SceneError) -> str:
 
 
 def _name(name: str, value) -> str:
-    """A name argument (a marker's, a body's, an item's address): text, not empty."""
+    """A name argument (a marker's, a body's, an item's address): text, not empty, and with
+    no NUL (the binding passes text as C does, up to its first NUL: 'gun\\0x' was 'gun')."""
     if not isinstance(value, str):
         raise ArgumentTypeError(f"{name}: a name (str), got {_shown(value)}")
     if not value.strip():
         raise SceneError(f"{name}: an empty name")
+    if "\0" in value:
+        raise SceneError(f"{name}: {value!r}: a name cannot hold a NUL character")
     return value
 
 

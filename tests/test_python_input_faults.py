@@ -21,6 +21,7 @@ import pymr.plot
 
 ROOT = Path(__file__).resolve().parent.parent
 PENDULUM = ROOT / "input" / "pendulum.nml"
+TANK = ROOT / "input" / "tank_gun_turret.nml"
 
 
 def cli(*args, cwd=None, timeout=120):
@@ -385,7 +386,13 @@ def test_run_keeps_a_scene_built_inline_alive_for_the_call():
     (lambda d: pymr.Scene("p\0.nml"), pymr.SceneError, r"^path: 'p\\x00.nml': a file path cannot hold"),
     (lambda d: pymr.Scene(PENDULUM).write(d / "s\0.nml"), pymr.OutputError, r"^path: '.*s\\x00.nml': a file path"),
     (lambda d: pymr.write_modal_file(PENDULUM, "bob", "m\0.modal"), pymr.OutputError, r"^path: 'm\\x00.modal': "),
-], ids=["run_output", "run_scene", "restart", "load_results", "scene", "scene_write", "write_modal_file"])
+    # a name: 'gun\0x' was 'gun', whose modes were written (found by fuzzing)
+    (lambda d: pymr.write_modal_file(TANK, "gun\0x", d / "g.modal"), pymr.SceneError,
+     r"^body: 'gun\\x00x': a name cannot hold a NUL character$"),
+    (lambda d: pymr.run(PENDULUM, d / "r.csv", ["scene.t_end=0.05\0", "scene.t_end=0.01"]), pymr.SceneError,
+     r"^--set 'scene.t_end=0.05\\x00': a NUL character in an override$"),
+], ids=["run_output", "run_scene", "restart", "load_results", "scene", "scene_write", "write_modal_file", "body",
+        "override"])
 def test_a_path_with_a_nul_character_is_refused_naming_the_argument(tmp_path, call, error, message):
     """A NUL ended the kernel's text early (another file read or written) or gave Python's
     ValueError: refused before anything is read or written."""
