@@ -67,3 +67,26 @@ def test_settings_keep_their_values(tmp_path):
         "corrector": "newton", "dynamics": "auto", "k_max": 50}
     text = (tmp_path / "p.json").read_text()
     assert '"h_slow": 0.1000000000E-2' in text and '"stability_check": true' in text
+
+
+def test_statistics_of_a_scene_named_in_bytes_that_are_not_utf8_stay_json(tmp_path, mrsim):
+    """A scene file named in Latin-1 (b'p\\xff\\xc3\\xa9.nml') put its name's raw bytes in
+    OUT.json, which was then no UTF-8 JSON: `pymr run` failed after the run, and every reader
+    of the results refused them (found by fuzzing). A byte that is no part of a valid UTF-8
+    character is written as Python's surrogateescape \\uDCXX, so the JSON loads and
+    os.fsencode gives the file's name back, byte for byte."""
+    import os
+    import subprocess
+    name = b"p\xff\xc3\xa9\xc0\xaf\xc2\x85.nml"        # a stray byte, e acute, an overlong '/', U+0085
+    scene = os.path.join(os.fsencode(tmp_path), name)
+    with open(scene, "wb") as fh:
+        fh.write((ROOT / "input" / "pendulum.nml").read_bytes())
+    r = subprocess.run([str(mrsim), scene, "-o", "out.csv", "--set", "scene.t_end=0.02", "-q"], cwd=tmp_path,
+                       capture_output=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    text = (tmp_path / "out.json").read_bytes().decode("utf-8")     # strict: the JSON is UTF-8
+    stats = json.loads(text)
+    assert os.fsencode(stats["scene"]) == scene
+    assert 'p\\uDCFF\u00e9\\uDCC0\\uDCAF\\uDCC2\\uDC85.nml"' in text
+    res = pymr.load_results(tmp_path / "out.csv")
+    assert res.t[-1] == pytest.approx(0.02) and os.fsencode(res.stats["scene"]) == scene

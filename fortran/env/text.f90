@@ -393,43 +393,52 @@ contains
       end if
     end do
   end subroutine split_words
-  !> A JSON string's content: backslashes and quotes escaped, control characters as \uXXXX.
+  !> A JSON string's content: backslashes and quotes escaped, control characters as \uXXXX,
+  !> and a byte that is no part of a valid UTF-8 sequence (a path's Latin-1 name) as the lone
+  !> surrogate \uDCXX of Python's surrogateescape, so that the JSON stays UTF-8 and Python's
+  !> os.fsencode gives the byte back.
   function json_escape(s) result(r)
     character(len=*), intent(in) :: s
     character(len=:), allocatable :: r
-    character(len=16), parameter :: hex = '0123456789ABCDEF'
-    integer :: i, k, c, n
+    integer :: i, k, used, pass
+    character(len=6) :: piece
     ! one pass to size the text, one to fill it: no text grown a character at a time
     k = 0
-    do i = 1, len(s)
-      k = k + escaped_length(s(i:i))
-    end do
-    allocate(character(len=k) :: r)
-    k = 0
-    do i = 1, len(s)
-      c = iachar(s(i:i))
-      n = escaped_length(s(i:i))
-      select case (n)
-      case (2)
-        r(k+1:k+2) = '\' // s(i:i)
-      case (6)
-        r(k+1:k+6) = '\u00' // hex(c/16+1:c/16+1) // hex(mod(c, 16)+1:mod(c, 16)+1)
-      case default
-        r(k+1:k+1) = s(i:i)
-      end select
-      k = k + n
+    do pass = 1, 2
+      if (pass == 2) allocate(character(len=k) :: r)
+      i = 1; k = 0
+      do while (i <= len(s))
+        call escaped_piece(s, i, piece, used)
+        if (used == 0) then
+          used = char_length(s, i)
+          if (pass == 2) r(k+1:k+used) = s(i:i+used-1)
+          k = k + used; i = i + used
+        else
+          if (pass == 2) r(k+1:k+used) = piece(1:used)
+          k = k + used; i = i + 1
+        end if
+      end do
     end do
   end function json_escape
 
-  !> Length of the character ch in a JSON string: 2 for a backslash or a quote (escaped), 6
-  !> for a control character (\uXXXX), 1 else.
-  pure integer function escaped_length(ch) result(n)
-    character, intent(in) :: ch
-    n = 1
-    if (ch == '\' .or. ch == '"') then
-      n = 2
-    else if (iachar(ch) < 32 .or. iachar(ch) == 127) then
-      n = 6
+  !> The escape of s(i:i) in a JSON string, `used` characters of `piece`: 2 for a backslash
+  !> or a quote, 6 for a control character (\u00XX) or a byte that starts no character
+  !> char_length accepts (\uDCXX, the byte itself to os.fsencode); used = 0 where the
+  !> character (its whole UTF-8 sequence) is kept.
+  pure subroutine escaped_piece(s, i, piece, used)
+    character(len=*), intent(in) :: s
+    integer, intent(in) :: i
+    character(len=6), intent(out) :: piece
+    integer, intent(out) :: used
+    character(len=16), parameter :: hex = '0123456789ABCDEF'
+    integer :: c
+    c = iachar(s(i:i)); used = 0; piece = ''
+    if (s(i:i) == '\' .or. s(i:i) == '"') then
+      piece = '\' // s(i:i); used = 2
+    else if (c < 32 .or. c == 127) then
+      piece = '\u00' // hex(c/16+1:c/16+1) // hex(mod(c, 16)+1:mod(c, 16)+1); used = 6
+    else if (char_length(s, i) == 0) then
+      piece = '\uDC' // hex(c/16+1:c/16+1) // hex(mod(c, 16)+1:mod(c, 16)+1); used = 6
     end if
-  end function escaped_length
+  end subroutine escaped_piece
 end module pymr_env_text
