@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import argparse
+import errno
 import os
 import sys
 
@@ -459,7 +460,21 @@ def _add_view(sub) -> None:
     v.set_defaults(func=_cmd_view)
 
 
+class _ClosedOutput:
+    """The standard output of a process started with it closed (``>&-``: sys.stdout is None):
+    a write fails as a closed file does (``mrsim`` too), so a summary printed there is an
+    error (exit 1), not lost with exit 0; ``-q`` writes nothing and succeeds."""
+
+    def write(self, text: str) -> int:
+        raise OSError(errno.EBADF, os.strerror(errno.EBADF))
+
+    def flush(self) -> None:
+        pass
+
+
 def main(argv: list[str] | None = None) -> int:
+    if sys.stdout is None:
+        sys.stdout = _ClosedOutput()
     try:
         args = build_parser().parse_args(argv)
     except SystemExit as exc:          # argparse: a bad command line is bad input, status 1
@@ -472,8 +487,8 @@ def main(argv: list[str] | None = None) -> int:
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())   # nor fail flushing at exit,
         return 1                       # and not as a success: the command did not finish its work
     except OSError as exc:             # the standard output refused (a full disk); or a file pymr
-        if exc.filename is None:       # reads or writes without naming the fault in its own words
-            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        if exc.filename is None and not isinstance(sys.stdout, _ClosedOutput):   # reads or writes without
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())       # naming the fault in its words
         where = exc.filename if exc.filename is not None else "the standard output"
         print(f"pymr: error: {where}: {exc.strerror or exc}", file=sys.stderr)
         return 1

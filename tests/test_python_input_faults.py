@@ -886,6 +886,29 @@ def test_an_output_the_disk_refuses_is_one_line(args):
     assert r.returncode == 1 and r.stderr == "pymr: error: the standard output: No space left on device\n", r.stderr
 
 
+@pytest.mark.parametrize("output", ["full", "closed"])
+def test_a_run_whose_summary_is_lost_is_no_success(tmp_path, mrsim, output):
+    """mrsim > /dev/full, or with its standard output closed (>&-), exited 0 with the summary
+    lost (gfortran's standard output reports no failed write), and `pymr run >&-` failed in
+    a traceback (sys.stdout is None). Both now exit 1 in one line naming the standard output;
+    the results are complete. With -q nothing is written, and the run succeeds."""
+    def launch(command, quiet):
+        args = [*command, str(PENDULUM), "-o", str(tmp_path / "r.csv"), "--set", "scene.t_end=0.02"] + \
+               (["-q"] if quiet else [])
+        with open("/dev/full", "w") as full:
+            return subprocess.run(args, stdout=full if output == "full" else None, stderr=subprocess.PIPE, text=True,
+                                  cwd=tmp_path, timeout=120, stdin=subprocess.DEVNULL,
+                                  preexec_fn=None if output == "full" else (lambda: os.close(1)))
+    reason = "No space left on device" if output == "full" else "Bad file descriptor"
+    for name, command in (("mrsim", [str(mrsim)]), ("pymr", [sys.executable, "-m", "pymr", "run"])):
+        r = launch(command, quiet=False)
+        assert r.returncode == 1, (name, r.stderr)
+        assert r.stderr.startswith(f"{name}: error: the standard output: {reason}") and r.stderr.count("\n") == 1, \
+            r.stderr
+        assert pymr.load_results(tmp_path / "r.csv").t[-1] == pytest.approx(0.02)
+        assert launch(command, quiet=True).returncode == 0
+
+
 @pytest.mark.parametrize("fields, error, message", [
     (dict(path=5), pymr.ArgumentTypeError, r"^path: the results file's path \(str\), or None, got int 5"),
     (dict(summary=5), pymr.ArgumentTypeError, r"^summary: a text \(str\), got int 5"),

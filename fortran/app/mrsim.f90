@@ -9,6 +9,7 @@ program mrsim
   use, intrinsic :: iso_c_binding, only : c_int, c_funptr, c_intptr_t
   use pymr_env_error, only : error_type
   use pymr_env_text, only : printable
+  use pymr_env_text_file, only : write_standard_output
   use pymr_driver_run, only : run_scene
   use pymr_io_results_output, only : pymr_version
   implicit none
@@ -39,9 +40,21 @@ program mrsim
     if (error%stat == 1) stop 1, quiet=.true.
     stop 2, quiet=.true.
   end if
-  if (.not. quiet) write(output_unit, '(a)') summary
+  if (.not. quiet) call print_summary(summary)
 
 contains
+
+  !> The summary on the standard output, checked: one that cannot take it (a full disk,
+  !> `> /dev/full`, a closed output) is an error (exit 1, as `pymr run`), not a success with
+  !> the summary lost. The results are complete on the disk by then.
+  subroutine print_summary(text)
+    character(len=*), intent(in) :: text
+    type(error_type), allocatable :: error
+    call write_standard_output(text, error)
+    if (.not. allocated(error)) return
+    call print_error_lines(error%message // ': the summary is lost; the results are complete')
+    stop 1, quiet=.true.
+  end subroutine print_summary
 
   !> The command line: the scene, -o, --set, --restart, --progress, --quiet (--version and
   !> --help answer and stop; a bad argument stops with status 1).

@@ -1,6 +1,9 @@
-/* What Fortran cannot ask about files: for pymr_env_text_file's not_regular, not_replaceable and
-   same_file. */
+/* What Fortran cannot ask about files, or do with them: for pymr_env_text_file's not_regular,
+   not_replaceable, same_file and write_standard_output. */
+#include <errno.h>
+#include <string.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 /* 0: no such file (or it cannot be seen), 1: a regular file, 2: a directory, 3: anything
    else (a FIFO, a socket, a device). Symbolic links are followed. */
@@ -27,4 +30,24 @@ int pymr_same_file(const char *a, const char *b)
     struct stat sa, sb;
     if (stat(a, &sa) != 0 || stat(b, &sb) != 0) return -1;
     return sa.st_dev == sb.st_dev && sa.st_ino == sb.st_ino;
+}
+
+/* Write n bytes of buf to the standard output (file descriptor 1), all of them (a write
+   interrupted or cut short goes on). 0 when done; else -1 with the reason in why (at most
+   whylen - 1 bytes, NUL-ended): gfortran's preconnected unit reports no failed write or
+   flush, so a summary sent to a full disk or a closed output was lost with exit 0. */
+int pymr_write_stdout(const char *buf, size_t n, char *why, size_t whylen)
+{
+    size_t done = 0;
+    while (done < n) {
+        ssize_t k = write(1, buf + done, n - done);
+        if (k < 0 && errno == EINTR) continue;
+        if (k <= 0) {
+            strncpy(why, k < 0 ? strerror(errno) : "nothing written", whylen - 1);
+            why[whylen - 1] = '\0';
+            return -1;
+        }
+        done += (size_t)k;
+    }
+    return 0;
 }

@@ -11,7 +11,7 @@ module pymr_env_text_file
   private
   public :: write_text_file, stage_text_file, commit_staged, rename_file, sync_file, check_size, file_size, &
     & scene_relative, absolute_path, acquire_lock, release_lock, not_regular, not_replaceable, missing_folder, remove_file, &
-    & read_text_file, check_header_count, same_file
+    & read_text_file, check_header_count, same_file, write_standard_output
 
   interface
     function c_rename(old, new) bind(c, name='rename') result(r)
@@ -60,6 +60,13 @@ module pymr_env_text_file
       character(kind=c_char), intent(in) :: path(*)
       integer(c_int) :: link
     end function c_is_link
+    function c_write_stdout(buf, n, why, whylen) bind(c, name='pymr_write_stdout') result(r)
+      import :: c_char, c_int, c_size_t
+      character(kind=c_char), intent(in) :: buf(*)
+      integer(c_size_t), value :: n, whylen
+      character(kind=c_char), intent(out) :: why(*)
+      integer(c_int) :: r
+    end function c_write_stdout
     function c_same_file(a, b) bind(c, name='pymr_same_file') result(same)
       import :: c_char, c_int
       character(kind=c_char), intent(in) :: a(*), b(*)
@@ -289,6 +296,25 @@ contains
       why = not_regular(path)
     end if
   end function not_replaceable
+
+  !> `text` and a line end on the standard output, every byte of it checked: an error (stat 1)
+  !> naming the reason when the output does not take it (a full disk, a closed output).
+  !> Nothing may be pending on the Fortran unit of the standard output.
+  subroutine write_standard_output(text, error)
+    character(len=*), intent(in) :: text
+    type(error_type), allocatable, intent(out) :: error
+    character(kind=c_char) :: why(256)
+    character(len=256) :: reason
+    integer :: i
+    why = c_null_char
+    if (c_write_stdout(text // new_line('a'), int(len(text) + 1, c_size_t), why, int(size(why), c_size_t)) == 0) return
+    reason = ''
+    do i = 1, size(why)
+      if (why(i) == c_null_char) exit
+      reason(i:i) = why(i)
+    end do
+    call fatal_error(error, 'the standard output: ' // trim(reason))
+  end subroutine write_standard_output
 
   !> Make the kernel write a closed file's data to the disk (fsync).
   subroutine sync_file(path, error)
