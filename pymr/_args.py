@@ -159,11 +159,16 @@ def _name(name: str, value) -> str:
     return value
 
 
+def _scalar_array(value) -> bool:
+    """A 0-d numpy array: Iterable by its type, yet iterating it fails (no list of anything)."""
+    return isinstance(value, np.ndarray) and value.ndim == 0
+
+
 def _names(name: str, value) -> list[str]:
     """Names: one str (one name, not its characters) or an iterable of str."""
     if isinstance(value, str):
         return [value]
-    if isinstance(value, (bytes, Mapping)) or not isinstance(value, Iterable):
+    if isinstance(value, (bytes, Mapping)) or not isinstance(value, Iterable) or _scalar_array(value):
         raise ArgumentTypeError(f"{name}: a name or a list of names (str), got {_shown(value)}")
     items = list(value)
     for k, item in enumerate(items):
@@ -205,7 +210,8 @@ def format_overrides(overrides: Mapping[str, object] | Iterable[str] | None, nam
             items.append(f"{k}={nml_value(v, f'{name}[{k!r}]')}")
     elif isinstance(overrides, str):
         items = [overrides]        # one override (iterating it gave one per character)
-    elif isinstance(overrides, (bytes, bytearray, set, frozenset)) or not isinstance(overrides, Iterable):
+    elif isinstance(overrides, (bytes, bytearray, set, frozenset)) or not isinstance(overrides, Iterable) \
+            or _scalar_array(overrides):
         # a set has no order, and a later override must win over an earlier one
         raise ArgumentTypeError(f"{name}: a mapping {{'GROUP.ITEM': value}} or a list of 'GROUP.ITEM=VALUE' "
                                 f"texts, got {_shown(overrides)}")

@@ -39,7 +39,7 @@ from typing import Iterable, Mapping, Sequence, Union
 
 import numpy as np
 
-from ._args import _names, _shown
+from ._args import _names, _scalar_array, _shown
 from .api import PymrError, write_file
 from .errors import ArgumentTypeError, ResultsError
 from .outputs import check_output
@@ -299,6 +299,8 @@ def plot_results(runs: Sequence[RunLike], output: str | os.PathLike | None = Non
     if labels is not None:
         labels = [labels] if isinstance(labels, str) else _texts("labels", labels)
     runs = load_runs(runs)
+    if columns is not None and not columns:
+        raise PlotError("columns: none given; give at least one column name or pattern (e.g. 'muzzle.*')")
     if columns is not None and (markers is not None or joints is not None):
         raise PlotError("columns draw the chosen columns alone: give markers and joints as columns too "
                         "(e.g. 'muzzle.*', 'elevation.q')")
@@ -330,7 +332,7 @@ def plot_results(runs: Sequence[RunLike], output: str | os.PathLike | None = Non
 
 def _texts(name: str, value) -> list[str]:
     """A list of texts (str), each of any content (a label may be empty)."""
-    if isinstance(value, (bytes, Mapping)) or not isinstance(value, Iterable):
+    if isinstance(value, (bytes, Mapping)) or not isinstance(value, Iterable) or _scalar_array(value):
         raise ArgumentTypeError(f"{name}: a list of texts (str), got {_shown(value)}")
     items = list(value)
     for k, item in enumerate(items):
@@ -412,7 +414,7 @@ def _write_figure(fig, output: Path) -> None:
     image = io.BytesIO()
     try:
         fig.savefig(image, dpi=100, format=output.suffix.lstrip(".").lower())
-    except (OSError, ValueError) as exc:
+    except (OSError, ValueError, RuntimeError) as exc:   # RuntimeError: a format's tool is missing (.pgf: xelatex)
         raise PlotError(f"{output}: cannot draw the figure ({' '.join(str(exc).split())})") from None
     write_file(output, image.getvalue(), "figure")
 

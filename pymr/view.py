@@ -21,6 +21,7 @@ from typing import Sequence
 
 import numpy as np
 
+from ._args import _names
 from .api import write_file
 from .outputs import check_output
 from .plot import STILL, PlotError, column_panels, match_columns, unit_scale
@@ -397,6 +398,7 @@ def view(results: Results | str | os.PathLike, output: str | os.PathLike, scene=
     except ImportError:
         raise PlotError("pymr view needs plotly, which is not installed (pip install plotly)") from None
     res = results if isinstance(results, Results) else load_results(results)
+    columns = None if columns is None else _names("columns", columns)
     check_options(every, frames, exaggerate)
     out = check_output(output, "view", option=option, suffixes=[".html", ".htm"],
                        example=(Path(res.path).stem if res.path else "view") + ".html",

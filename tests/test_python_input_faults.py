@@ -1005,3 +1005,52 @@ def test_write_modal_file_output_faults_are_output_errors(tmp_path, monkeypatch,
         pymr.write_modal_file(ROOT / "input" / "tank_gun_turret.nml", "gun", path)
     pymr.write_modal_file(ROOT / "input" / "tank_gun_turret.nml", "gun", "gun.modal")
     assert "pymr-modal" in (tmp_path / "gun.modal").read_text()
+
+
+@pytest.mark.parametrize("call, error, message", [
+    (lambda d, r: pymr.run(PENDULUM, None, np.array("scene.t_end=0.05")), pymr.ArgumentTypeError,
+     r"^overrides: a mapping .* got ndarray"),
+    (lambda d, r: _plot().plot_results(r, markers=np.array("tip")), pymr.ArgumentTypeError,
+     r"^markers: a name or a list of names \(str\), got ndarray"),
+    (lambda d, r: _plot().plot_results(r, labels=np.array("a")), pymr.ArgumentTypeError,
+     r"^labels: a list of texts \(str\), got ndarray"),
+    (lambda d, r: _plot().plot_results(r, columns=[]), pymr.PlotError, r"^columns: none given"),
+    (lambda d, r: _view().view(r, d / "v.html", columns=5), pymr.ArgumentTypeError,
+     r"^columns: a name or a list of names \(str\), got int 5$"),
+    (lambda d, r: _view().view(r, d / "v.html", columns={}), pymr.ArgumentTypeError,
+     r"^columns: a name or a list of names \(str\), got dict"),
+], ids=["overrides_0d", "markers_0d", "labels_0d", "columns_empty", "view_columns_int", "view_columns_dict"])
+def test_list_arguments_that_are_no_lists_are_refused_naming_them(tmp_path, call, error, message):
+    """A 0-d numpy array passed the Iterable check and failed in iteration (a bare TypeError),
+    plot_results(columns=[]) divided by zero, and view(columns=5) failed inside the page's
+    making, view(columns={}) was taken as no columns (found by fuzzing)."""
+    res = pymr.run(PENDULUM, tmp_path / "r.csv", overrides={"scene.t_end": 0.05})
+    with pytest.raises(error, match=message):
+        call(tmp_path, res)
+    assert not (tmp_path / "v.html").exists()
+
+
+def _plot():
+    import pymr.plot
+    return pymr.plot
+
+
+def _view():
+    import pymr.view
+    return pymr.view
+
+
+def test_a_figure_format_whose_tool_is_missing_is_one_line(tmp_path):
+    """`pymr plot -o fig.pgf` without xelatex ended in a RuntimeError traceback, though .pgf
+    is one of the formats pymr offers (found by fuzzing): one line, exit 1, no file. With
+    xelatex the figure is written."""
+    import shutil
+    pymr.run(PENDULUM, tmp_path / "r.csv", overrides={"scene.t_end": 0.05})
+    r = subprocess.run([sys.executable, "-m", "pymr", "plot", "r.csv", "-o", "fig.pgf"], cwd=tmp_path,
+                       capture_output=True, text=True, timeout=300, env={**os.environ, "MPLBACKEND": "Agg"})
+    if shutil.which("xelatex") is None:
+        assert r.returncode == 1 and r.stderr.startswith("pymr: error: fig.pgf: cannot draw the figure ('xelatex' "
+                                                         "not found") and r.stderr.count("\n") == 1, r.stderr
+        assert not (tmp_path / "fig.pgf").exists()
+    else:
+        assert r.returncode == 0 and (tmp_path / "fig.pgf").stat().st_size > 0
