@@ -181,7 +181,10 @@ def _real(name: str, value) -> float:
     range (the caller judges it); an ArgumentTypeError naming `name` otherwise."""
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
         raise ArgumentTypeError(f"{name}: a number, got {_shown(value)}")
-    return float(value)
+    try:
+        return float(value)
+    except OverflowError:        # an int past the largest float (10**400): as large as a float goes
+        return float("inf") if value > 0 else float("-inf")
 
 
 def _flag(name: str, value, none: bool = False) -> bool | None:

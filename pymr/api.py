@@ -209,6 +209,8 @@ def _time(t, name: str = "t") -> float:
         value = float(t)
     except (TypeError, ValueError):
         raise ArgumentTypeError(f"{name}: a time in seconds, got {_short(t)}") from None
+    except OverflowError:        # an int past the largest float (10**400)
+        value = float("inf")
     if not np.isfinite(value):
         raise SceneError(f"{name}: {value} is not a finite time")
     return value

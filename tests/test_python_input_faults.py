@@ -1054,3 +1054,14 @@ def test_a_figure_format_whose_tool_is_missing_is_one_line(tmp_path):
         assert not (tmp_path / "fig.pgf").exists()
     else:
         assert r.returncode == 0 and (tmp_path / "fig.pgf").stat().st_size > 0
+
+
+def test_an_int_past_the_largest_float_is_a_time_too_large_not_an_overflow():
+    """t=10**400 raised Python's bare OverflowError from float() (found by fuzzing): it is the
+    same SceneError as an infinite time, naming t."""
+    q, qd = np.array([1.0]), np.array([0.0])
+    for t in (10**400, -10**400):
+        with pytest.raises(pymr.SceneError, match=r"^t: -?inf is not a finite time$"):
+            pymr.model_terms(PENDULUM, q, qd, t=t)
+    with pytest.raises(pymr.SceneError, match=r"^t: inf is not a finite time$"):
+        pymr.Model(PENDULUM).rhs(10**400, np.array([1.0, 0.0]))
