@@ -15,7 +15,7 @@ from typing import Iterable, Iterator, Mapping
 from . import _kernel as _core
 from ._args import (SceneSource, _flag, _name, _path, _raise, _text, format_overrides, nml_value, open_model,
                     write_file)
-from .errors import SceneError
+from .errors import OutputError, SceneError
 
 
 class Scene(SceneSource):
@@ -299,8 +299,13 @@ class Scene(SceneSource):
         return self.resolved().rstrip("\n").rsplit("\n", 1)[-1].removeprefix("! fingerprint ")
 
     def write(self, path: str | os.PathLike, absolute_paths: bool = False) -> Path:
-        """Write the resolved scene to `path` (a complete scene file)."""
-        return write_file(path, self.resolved(absolute_paths), "resolved scene")
+        """Write the resolved scene to `path` (a complete scene file). Not over the scene's
+        own file, nor a file it reads (an :class:`OutputError`, as every writer of pymr
+        refuses them): its comments and layout would be lost; write a new file."""
+        text = self.resolved(absolute_paths)
+        from .outputs import check_output
+        check_output(_path("path", path, OutputError), "scene file", option="path", if_left_out=None, scene=self)
+        return write_file(path, text, "resolved scene")
 
     def _check(self) -> None:
         self._close_model()

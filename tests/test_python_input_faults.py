@@ -947,8 +947,8 @@ def test_a_write_never_replaces_a_device_or_a_fifo(tmp_path):
     import stat
     fifo = tmp_path / "pipe"
     os.mkfifo(fifo)
-    with pytest.raises(pymr.OutputError, match=r"pipe: cannot write the resolved scene: it is not a regular file \(a "
-                                               r"FIFO, a socket or a device\)$"):
+    with pytest.raises(pymr.OutputError, match=r"pipe: it is not a regular file \(a FIFO, a socket or a device\); "
+                                               r"choose another scene file$"):
         pymr.Scene(PENDULUM).write(fifo)
     assert stat.S_ISFIFO(fifo.stat().st_mode)
 

@@ -189,3 +189,26 @@ def test_a_relative_scene_follows_the_working_folder(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path / "b")
     m_b = pymr.model_terms(scene, q, qd)[0][0, 0]
     assert m_b - m_a == pytest.approx(1000.0 * 0.3**2, rel=1e-12)
+
+
+def test_a_scene_is_not_written_over_its_own_file_or_what_it_reads(tmp_path):
+    """Scene.write over the scene's own file replaced it with the resolved text, its comments
+    and layout lost, where every other writer refuses an output over the scene or a file it
+    reads (found by fuzzing). Refused, naming the path, the file left as it was; a new file
+    is written and reads back as the same scene."""
+    import shutil
+    source = os.path.join(HERE, "..", "input")
+    shutil.copy(os.path.join(source, "tank_on_the_move.nml"), tmp_path / "t.nml")
+    shutil.copytree(os.path.join(source, "tank_on_the_move"), tmp_path / "tank_on_the_move")
+    scene = pymr.Scene(tmp_path / "t.nml")
+    scene["scene.t_end"] = 0.1
+    before = (tmp_path / "t.nml").read_text()
+    table = next(p for p in (tmp_path / "tank_on_the_move").iterdir())
+    table_before = table.read_bytes()
+    with pytest.raises(pymr.OutputError, match=r"^path .*t\.nml: would overwrite the scene"):
+        scene.write(tmp_path / "t.nml")
+    with pytest.raises(pymr.OutputError, match=r"^path .*: would overwrite "):
+        scene.write(table)
+    assert (tmp_path / "t.nml").read_text() == before and table.read_bytes() == table_before
+    scene.write(tmp_path / "new.nml")
+    assert pymr.Scene(tmp_path / "new.nml").fingerprint == scene.fingerprint
