@@ -7,6 +7,7 @@ from __future__ import annotations
 import contextlib
 import functools
 import os
+import re
 import tempfile
 import weakref
 from pathlib import Path
@@ -16,6 +17,14 @@ from . import _kernel as _core
 from ._args import (SceneSource, _flag, _name, _path, _raise, _text, format_overrides, nml_value, open_model,
                     write_file)
 from .errors import OutputError, SceneError
+
+
+def _word(what: str, name: str) -> str:
+    """A group's or an item's name as the namelist writes it: letters, digits and '_', from a
+    letter (a SceneError naming it otherwise: 't_end = 1\\n/\\n&integrator' added a group)."""
+    if not re.fullmatch(r"[A-Za-z][A-Za-z0-9_]*", name):
+        raise SceneError(f"{what} {name!r}: not a name (letters, digits and '_', from a letter)")
+    return name
 
 
 class Scene(SceneSource):
@@ -114,8 +123,8 @@ class Scene(SceneSource):
     def add(self, group: str, **items: object) -> "Scene":
         """Add one `group` (``'body'``, ``'joint'``, ``'marker'``, ``'output'`` ...) with
         its `items`, converted as :meth:`__setitem__` converts a value."""
-        group = _name("group", group)
-        lines = "".join(f"  {k} = {nml_value(v, f'{group}.{k}')}\n" for k, v in items.items())
+        group = _word("group", _name("group", group))
+        lines = "".join(f"  {_word('item', k)} = {nml_value(v, f'{group}.{k}')}\n" for k, v in items.items())
         return self._edit(f"&{group}\n{lines}/\n")
 
     def remove(self, group: str, name: str | None = None) -> "Scene":

@@ -212,3 +212,19 @@ def test_a_scene_is_not_written_over_its_own_file_or_what_it_reads(tmp_path):
     assert (tmp_path / "t.nml").read_text() == before and table.read_bytes() == table_before
     scene.write(tmp_path / "new.nml")
     assert pymr.Scene(tmp_path / "new.nml").fingerprint == scene.fingerprint
+
+
+@pytest.mark.parametrize("group, items, what", [
+    ("marker", {"t_end = 1.0\n/\n&integrator\n method": "'x'"}, "item"),
+    ("marker\n/\n&output", {"name": "m2"}, "group"),
+    ("marker", {"": 1}, "item"),
+])
+def test_added_groups_and_items_are_names_not_text(group, items, what):
+    """Scene.add wrote each item's name into the namelist text as given, so a name holding a
+    line break and '/' added a group of its own (found by fuzzing). A group's or an item's
+    name is letters, digits and '_', from a letter; the scene is unchanged."""
+    scene = pymr.Scene(TANK)
+    before = scene.fingerprint
+    with pytest.raises(pymr.SceneError, match=rf"^{what} .*: not a name \(letters, digits and '_', from a letter\)$"):
+        scene.add(group, **items)
+    assert scene.fingerprint == before
