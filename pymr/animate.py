@@ -325,6 +325,11 @@ def animate(results: Results | str | os.PathLike, output: str | os.PathLike, sce
     if at is not None:
         _time(at, "at")
     out = check_animation_path(output, option, res, scene)
+    still = out.suffix.lower() == ".png"
+    if at is not None and not still:
+        raise AnimateError(f"at: the time of a still (.png); {option} {out} is an animation of the whole run")
+    if orbit and still:
+        raise AnimateError(f"orbit: turns the camera over an animation; {option} {out} is a still (.png)")
     d = drawing(res, scene, view=view, exaggerate=exaggerate, frames=frames, orbit=orbit)
     # written beside it under a temporary name (of the same suffix: the writers go by it),
     # then renamed over it: an earlier animation survives a failed write

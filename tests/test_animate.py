@@ -155,3 +155,16 @@ def test_results_without_coordinates_are_refused(tmp_path):
     r = subprocess.run(["pymr", "animate", str(out)], capture_output=True, text=True, timeout=120)
     assert r.returncode == 1 and r.stderr.count("\n") == 1
     assert "hold 0 of the scene's 6 coordinates" in r.stderr and "'coordinates'" in r.stderr
+
+
+def test_options_the_output_does_not_use_are_refused(tank_results, tmp_path):
+    """--at with an animation and --orbit with a still were ignored silently (found by
+    fuzzing): a user asking for a frame at 0.2 s got the whole run. Refused in one line,
+    exit 1, nothing written."""
+    for args, message in ((["-o", str(tmp_path / "a.gif"), "--at", "0.2"],
+                           "pymr: error: at: the time of a still (.png); -o "),
+                          (["-o", str(tmp_path / "a.png"), "--orbit"],
+                           "pymr: error: orbit: turns the camera over an animation; -o ")):
+        r = subprocess.run(["pymr", "animate", tank_results.path, *args], capture_output=True, text=True, timeout=120)
+        assert r.returncode == 1 and r.stderr.startswith(message) and r.stderr.count("\n") == 1, r.stderr
+    assert not any(tmp_path.iterdir())
