@@ -190,9 +190,26 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
                       collect_from=args.collect)
 
 
+class _Once(argparse.Action):
+    """An option of one value, refused when given twice (argparse kept the last: `-o a.csv -o
+    b.csv` wrote b.csv with no word, as mrsim now refuses too)."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        if getattr(namespace, self.dest, None) is not self.default:
+            parser.error(f"{option_string}: given twice ({getattr(namespace, self.dest)} before)")
+        setattr(namespace, self.dest, values)
+
+
 class _Parser(argparse.ArgumentParser):
     """argparse with pymr's one-line errors: 'pymr: error: run: MESSAGE', exit status 1 (argparse
-    prints its usage block first, several lines, and exits 2, the status of a failed run)."""
+    prints its usage block first, several lines, and exits 2, the status of a failed run). An
+    option of one value is refused when given twice (_Once)."""
+
+    def add_argument(self, *args, **kwargs):
+        if args and args[0].startswith("-") and kwargs.get("action", "store") == "store" \
+                and kwargs.get("nargs") is None:
+            kwargs["action"] = _Once
+        return super().add_argument(*args, **kwargs)
 
     def error(self, message: str):
         command = self.prog.removeprefix("pymr").strip()

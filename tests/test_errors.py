@@ -729,3 +729,22 @@ def test_an_override_is_one_line_whatever_it_holds(tmp_path, mrsim, monkeypatch)
     for overrides in (["scene.t_end=0.05\0", "scene.t_end=0.01"], {"scene.title": "a\0b"}):
         with pytest.raises(pymr.SceneError, match=r"^--set .*: a NUL character in an override$"):
             pymr.run("base.nml", overrides=overrides)
+
+
+def test_an_option_of_one_value_given_twice_is_refused(tmp_path, mrsim, monkeypatch):
+    """`mrsim -o a.csv -o b.csv` and `pymr run` alike wrote b.csv with no word of a.csv (the
+    last one won; found by fuzzing). Refused in one line, exit 1, nothing written; options
+    that gather (--set) still take many."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "base.nml").write_text(BASE)
+    r = run_mrsim(mrsim, ["base.nml", "-o", "a.csv", "-o", "b.csv"], tmp_path)
+    assert r.returncode == 1 and r.stderr == "mrsim: error: -o: the results file is given twice (a.csv before)\n"
+    r = run_mrsim(mrsim, ["base.nml", "--restart", "a.ckpt", "--restart", "b.ckpt"], tmp_path)
+    assert r.returncode == 1 and r.stderr == "mrsim: error: --restart: the checkpoint is given twice (a.ckpt before)\n"
+    r = subprocess.run([sys.executable, "-m", "pymr", "run", "base.nml", "-o", "a.csv", "--output", "b.csv"],
+                       cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert r.returncode == 1 and r.stderr == ("pymr: error: run: --output: given twice (a.csv before) "
+                                              "(pymr run --help)\n"), r.stderr
+    assert not any(p.suffix == ".csv" for p in tmp_path.iterdir())
+    r = run_mrsim(mrsim, ["base.nml", "-o", "c.csv", "--set", "scene.t_end=0.5", "--set", "scene.t_end=0.01"], tmp_path)
+    assert r.returncode == 0 and pymr.load_results("c.csv").t[-1] == pytest.approx(0.01)

@@ -75,6 +75,7 @@ contains
           & // '[--progress] [--quiet] | --version'
         stop
       case ('-o', '--output')
+        if (len(out) > 0) call usage_error(arg // ': the results file is given twice (' // out // ' before)')
         out = option_value(i, nargs, arg, 'a file name')
         if (len(out) == 0) call usage_error(arg // ' needs a file name (got an empty one)')
       case ('--set')
@@ -85,6 +86,7 @@ contains
           & ': a line break in an override (one GROUP.ITEM=VALUE, on one line)')
         overrides = overrides // arg // achar(10)
       case ('--restart')
+        if (len(restart) > 0) call usage_error(arg // ': the checkpoint is given twice (' // restart // ' before)')
         restart = option_value(i, nargs, arg, 'a checkpoint file')
         ! an empty name (an unset shell variable) would run from the start instead
         if (len(restart) == 0) call usage_error('--restart needs a checkpoint file (got an empty name)')
