@@ -154,7 +154,8 @@ def scene_of(res: Results, scene=None):
     elif res.stats.get("scene"):
         path = Path(res.stats["scene"])
     else:
-        raise GeometryError(f"{res.path}: the results name no scene (no statistics file beside them): give --scene")
+        why = "their statistics name none" if res.stats else "no statistics file beside them"
+        raise GeometryError(f"{res.path}: the results name no scene ({why}): give --scene")
     if not path.exists():
         raise GeometryError(f"{res.path}: the scene {path} is not there: give --scene")
     return path

@@ -483,6 +483,8 @@ def _row_fault(path: Path, skip: int, header: list[str]) -> str:
                 return f"line {number} holds {len(values)} values, the header names {len(header)} columns"
             for name, value in zip(header, values):
                 try:
+                    if "_" in value:         # float() takes Python's digit groups (1_0); numpy does not
+                        raise ValueError
                     float(value)
                 except ValueError:
                     return f"line {number}, column {name}: {_short(value.strip())} is not a number"

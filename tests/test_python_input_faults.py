@@ -1065,3 +1065,17 @@ def test_an_int_past_the_largest_float_is_a_time_too_large_not_an_overflow():
             pymr.model_terms(PENDULUM, q, qd, t=t)
     with pytest.raises(pymr.SceneError, match=r"^t: inf is not a finite time$"):
         pymr.Model(PENDULUM).rhs(10**400, np.array([1.0, 0.0]))
+
+
+def test_a_results_value_with_digit_groups_is_named(tmp_path):
+    """'1_0' in a results CSV was refused only as 'its rows are not numbers separated by
+    commas', with no line or column: Python's float() takes digit groups, numpy's reader
+    does not (found by fuzzing). The message names the line, the column and the value."""
+    res = pymr.run(PENDULUM, tmp_path / "r.csv", overrides={"scene.t_end": 0.05})
+    lines = (tmp_path / "r.csv").read_text().splitlines(keepends=True)
+    first = next(k for k, line in enumerate(lines) if line[0].isdigit())
+    lines[first] = "1_0" + lines[first][1:]
+    (tmp_path / "r.csv").write_text("".join(lines))
+    with pytest.raises(pymr.ResultsError, match=rf"line {first + 1}, column t: '1_0.*' is not a number\)$"):
+        pymr.load_results(tmp_path / "r.csv")
+    assert res.t[0] == 0.0
