@@ -7,7 +7,6 @@ from __future__ import annotations
 import contextlib
 import functools
 import os
-import re
 import tempfile
 import weakref
 from pathlib import Path
@@ -22,7 +21,8 @@ from .errors import OutputError, SceneError
 def _word(what: str, name: str) -> str:
     """A group's or an item's name as the namelist writes it: letters, digits and '_', from a
     letter (a SceneError naming it otherwise: 't_end = 1\\n/\\n&integrator' added a group)."""
-    if not re.fullmatch(r"[A-Za-z][A-Za-z0-9_]*", name):
+    if not (name[:1].isascii() and name[:1].isalpha() and all(c.isascii() and (c.isalnum() or c == "_")
+                                                              for c in name)):
         raise SceneError(f"{what} {name!r}: not a name (letters, digits and '_', from a letter)")
     return name
 

@@ -371,13 +371,14 @@ INPUTS = [("mass matrix", "m.mtx"), ("stiffness matrix", "k.mtx"), ("nodes file"
 @pytest.mark.parametrize("spelling", ["same", "dot", "dotdot", "link"])
 def test_modal_import_never_writes_over_its_input(fe, what, name, spelling):
     """-o naming one of modal-import's own input files, by any spelling (./m.mtx, a path
-    through .., a symbolic link to it) replaced it with exit 0; now the kernel's same_file
-    refuses it before any work, from the command line (exit 1, one line) and from
-    pymr.modal_import(output=...) (ImportInputError), and the input is unchanged."""
+    through .., a link to it) replaced it with exit 0; now the kernel's same_file refuses it
+    before any work, from the command line (exit 1, one line) and from
+    pymr.modal_import(output=...) (ImportInputError), and the input is unchanged. The link
+    is a hard one: any symbolic link is refused as one (test_safety)."""
     dof = ["--dof-map", "map.txt"] if name == "map.txt" else []
     out = {"same": name, "dot": f"./{name}", "dotdot": f"../{fe.name}/{name}", "link": "link"}[spelling]
     if spelling == "link":
-        os.symlink(name, fe / "link")
+        os.link(fe / name, fe / "link")
     before = (fe / name).read_bytes()
     shown = str(Path(out))
     r = pymr_cli("modal-import", *BASE, *dof, "-o", out, cwd=fe)
@@ -530,9 +531,10 @@ def test_a_checkpoint_s_saved_scene_length_is_held_against_its_size(tmp_path):
 def test_an_output_is_held_against_the_inputs_as_a_file_not_as_a_spelling(tmp_path, mrsim, spelling):
     """The kernel's scene_input compared absolute paths, so `-o ../DIR/p.nml` was not the
     scene p.nml and the results replaced it; same_file compares the files on the disk (the
-    rule modal-import's -o uses through the binding too)."""
+    rule modal-import's -o uses through the binding too). The link is a hard one: any
+    symbolic link is refused as one (test_safety)."""
     (tmp_path / "p.nml").write_text((ROOT / "input" / "pendulum.nml").read_text())
-    os.symlink("p.nml", tmp_path / "link.nml")
+    os.link(tmp_path / "p.nml", tmp_path / "link.nml")
     before = (tmp_path / "p.nml").read_bytes()
     out = spelling.format(folder=tmp_path.name)
     r = subprocess.run([mrsim, "p.nml", "-o", out], cwd=tmp_path, capture_output=True, text=True, timeout=60)
