@@ -85,6 +85,20 @@ ADJUST = {
         (["--quick", "--repeats", "1"], "the full study takes 6 min"),
 }
 
+def adjusted(script: str, extra: list[str]) -> str:
+    """`script` with ADJUST's options: an option it gives already takes the new value in its
+    place (pymr refuses an option of one value given twice), the others are appended."""
+    words, added, i = script.split(" "), [], 0
+    while i < len(extra):
+        option, value = extra[i], extra[i + 1] if i + 1 < len(extra) and not extra[i + 1].startswith("--") else None
+        if value is not None and option in words:
+            words[words.index(option) + 1] = value
+        else:
+            added += [option] + ([value] if value is not None else [])
+        i += 1 if value is None else 2
+    return " ".join(words + added)
+
+
 #: Scene copies run over a shorter time for the studies of ADJUST (a study has no --set).
 SHORTER = {
     "pymr study input/tank_gun_turret.nml --marker muzzle -o docs/tank_study": ("input/tank_gun_turret.nml", 0.1),
@@ -322,7 +336,7 @@ def test_example_runs_as_printed(example, work):
         text = (folder / scene).read_text()
         (folder / scene).write_text(re.sub(r"(?m)^(\s*t_end\s*=\s*)\S+", rf"\g<1>{t_end}", text, count=1))
     if script in ADJUST:
-        script = script + " " + " ".join(ADJUST[script][0])
+        script = adjusted(script, ADJUST[script][0])
     if example.lang == "python":
         r = subprocess.run([sys.executable, "-c", "import pymr\n" + script], cwd=folder, env=env, capture_output=True,
                            text=True, timeout=300, stdin=subprocess.DEVNULL)
