@@ -90,3 +90,14 @@ def test_statistics_of_a_scene_named_in_bytes_that_are_not_utf8_stay_json(tmp_pa
     assert 'p\\uDCFF\u00e9\\uDCC0\\uDCAF\\uDCC2\\uDC85.nml"' in text
     res = pymr.load_results(tmp_path / "out.csv")
     assert res.t[-1] == pytest.approx(0.02) and os.fsencode(res.stats["scene"]) == scene
+
+
+@pytest.mark.parametrize("h_max", [1e9, 100.0, 123456789.0, 0.5])
+def test_a_setting_of_ten_whole_digits_is_json(tmp_path, h_max):
+    """h_max = 1e9, its largest value, was written "1000000000." (Fortran's g0 form), which
+    no JSON reader takes: mrsim exited 0 and every reader refused the results (found by
+    fuzzing). The statistics load, and give the value back."""
+    res = pymr.run(ROOT / "input" / "pendulum.nml", tmp_path / "r.csv",
+                   overrides={"scene.t_end": 0.02, "integrator.adaptive": True, "integrator.h_max": h_max})
+    stats = json.loads((tmp_path / "r.json").read_text())
+    assert stats["integrator"]["h_max"] == h_max and res.stats["integrator"]["h_max"] == h_max

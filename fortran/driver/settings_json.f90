@@ -52,7 +52,7 @@ contains
     end select
   end function json_value
 
-  !> A real in JSON: ten significant digits, null when unset.
+  !> A real in JSON: ten significant digits (a number JSON takes), null when unset.
   function json_real(x) result(s)
     real(dp), intent(in) :: x
     character(len=:), allocatable :: s
@@ -62,6 +62,8 @@ contains
     end if
     write(buf, '(g0.10)') x
     s = trim(buf)
+    ! g0 writes a whole number of ten digits as "1000000000.", which JSON does not take
+    if (s(len(s):len(s)) == '.') s = s // '0'
   end function json_real
 
 end module pymr_driver_settings_json
