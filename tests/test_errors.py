@@ -748,3 +748,22 @@ def test_an_option_of_one_value_given_twice_is_refused(tmp_path, mrsim, monkeypa
     assert not any(p.suffix == ".csv" for p in tmp_path.iterdir())
     r = run_mrsim(mrsim, ["base.nml", "-o", "c.csv", "--set", "scene.t_end=0.5", "--set", "scene.t_end=0.01"], tmp_path)
     assert r.returncode == 0 and pymr.load_results("c.csv").t[-1] == pytest.approx(0.01)
+
+
+def test_a_fixed_macro_step_past_the_run_or_the_memory_is_refused(tmp_path, mrsim):
+    """A fixed multirate macro step holds the dense output of its k = h_slow/h_fast fast
+    steps and takes them all: h_slow = 1000 s on a 0.05 s run allocated 83 GB and died in
+    gfortran's runtime (18 lines, a backtrace), or ran for minutes far past t_end (found by
+    fuzzing). A macro step longer than the run is bad input (exit 1); one whose buffer the
+    process cannot hold is refused before the run by the memory check (exit 2), one line
+    each."""
+    chain = str(Path(__file__).resolve().parent.parent / "input" / "flexible_chain.nml")
+    common = ["--set", "integrator.method=multirate", "--set", "integrator.h_slow=1000"]
+    r = run_mrsim(mrsim, [chain, "-o", "a.csv", *common, "--set", "integrator.h_fast=1e-5", "--set",
+                          "scene.t_end=0.05"], tmp_path)
+    assert r.returncode == 1 and r.stderr.endswith("&integrator: h_slow: a fixed macro step h_slow = 1000 s is longer "
+                                                   "than the run (t_end = 0.05 s): take h_slow <= t_end\n"), r.stderr
+    r = run_mrsim(mrsim, [chain, "-o", "b.csv", *common, "--set", "integrator.h_fast=1e-6", "--set",
+                          "scene.t_end=1000", "--set", "integrator.max_steps=2000000000"], tmp_path)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "this process may still take" in r.stderr, r.stderr
+    assert not list(tmp_path.glob("*.csv*"))

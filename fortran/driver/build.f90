@@ -304,7 +304,8 @@ contains
   !> fixed steps, the linearised model (2n x 2n, its eigenvectors, and for multirate the
   !> macro step's own linearisation); 'auto', a copy of the model per probe, the probe kept
   !> and the one running (single-rate alone, with no probe, without both joint and modal
-  !> coordinates). The modal flow's words go with the nf modal coordinates' nf^2.
+  !> coordinates). The modal flow's words go with the nf modal coordinates' nf^2. A fixed
+  !> multirate step ('response', 'full') also holds its k fast steps' dense output.
   pure real(dp) function run_bytes(integ, n, nf)
     type(integrator_spec), intent(in) :: integ
     integer, intent(in) :: n, nf
@@ -330,7 +331,17 @@ contains
       if (checked) words = 22.0_dp
     end select
     run_bytes = 8.0_dp*words*real(n, dp)**2
+    ! a fixed macro step's dense output holds its k fast steps' arrays (10 n words each)
+    if (trim(integ%method) == 'multirate' .and. integ%coupling /= 'exponential' .and. .not. integ%adaptive) &
+      & run_bytes = run_bytes + 80.0_dp*real(n, dp)*fixed_ratio(integ)
   end function run_bytes
+
+  !> k = h_slow/h_fast of a fixed-step multirate run (1 where a step is unset).
+  pure real(dp) function fixed_ratio(integ)
+    type(integrator_spec), intent(in) :: integ
+    fixed_ratio = 1.0_dp
+    if (integ%h_fast > 0.0_dp .and. integ%h_slow > 0.0_dp) fixed_ratio = max(1.0_dp, integ%h_slow/integ%h_fast)
+  end function fixed_ratio
 
   !> The loop-closing joints (closes_loop) and their constraint rows (model/loops.f90); a
   !> cut joint's point on a flexible body takes the body's mode shapes there (flexible_point).

@@ -207,6 +207,11 @@ contains
       n0 = errs%n
       call check_method_steps(sc, nint(r), w(step_item), errs)
       if (errs%n > n0) return
+      if (trim(s%method) == 'multirate' .and. .not. s%adaptive .and. nint(r) > 1 .and. hs > sc%scene%t_end) then
+        ! its k fast steps would all be taken (and held) far past the end
+        call errs%add(w(step_item) // ': a fixed macro step h_slow = ' // fmt(hs) // ' s is longer than the run ' // &
+          & '(t_end = ' // fmt(sc%scene%t_end) // ' s): take h_slow <= t_end'); return
+      end if
       if (trim(s%method) == 'multirate') then
         if (s%n_corrector /= 1) then
           call errs%add(w('n_corrector') // ": multirate uses PECE (n_corrector = 1)"); return
