@@ -101,3 +101,13 @@ def test_a_setting_of_ten_whole_digits_is_json(tmp_path, h_max):
                    overrides={"scene.t_end": 0.02, "integrator.adaptive": True, "integrator.h_max": h_max})
     stats = json.loads((tmp_path / "r.json").read_text())
     assert stats["integrator"]["h_max"] == h_max and res.stats["integrator"]["h_max"] == h_max
+
+
+def test_statistics_with_three_digit_exponents_are_json(tmp_path):
+    """A static start's last change of 1e-200 and more was written by the Fortran format
+    es12.5 as "3.41774-301", with no E (a three-digit exponent), which no JSON reader takes:
+    mrsim exited 0 and pymr run failed after the run (found by fuzzing). The statistics load."""
+    res = pymr.run(ROOT / "input" / "tank_hold.nml", tmp_path / "r.csv",
+                   overrides={"scene.t_end": 0.01, "scene.gravity": [0.0, -1.0e-200, 0.0], "scene.start": "static"})
+    stats = json.loads((tmp_path / "r.json").read_text())
+    assert 0.0 <= stats["static_start"]["last_change"] < 1e-150 and res.stats["static_start"] == stats["static_start"]

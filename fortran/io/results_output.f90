@@ -407,7 +407,7 @@ contains
     call put('  "resolved_scene": "' // json_escape(scene_text) // '",')
     json = json // counts_json(st, d, wk) // effects_json(wk)
     if (st%static_settled >= 0) then
-      write(buf, '(a,i0,a,i0,a,es12.5,a)') '  "static_start": {"coordinates_settled": ', st%static_settled, &
+      write(buf, '(a,i0,a,i0,a,es13.5e3,a)') '  "static_start": {"coordinates_settled": ', st%static_settled, &
         & ', "newton_iterations": ', st%static_iterations, ', "last_change": ', st%static_change, '},'
       call put(trim(buf))
     end if
@@ -470,7 +470,7 @@ contains
       write(buf, '(a,i0,a,i0,a,i0,a,i0,a)') '  "loops": {"closing_joints": ', d%cuts%n, ', "free_closing_joints": ', &
         & count(d%cuts%kind == cut_free), ', "constraint_rows": ', d%cuts%n_rows, ', "redundant_rows": ', wk%loops%n_redundant, ','
       call put(trim(buf))
-      write(buf, '(a,es12.5,a,es12.5,a,es12.5,a)') '    "assembly_change_q": ', wk%loops%assembly_dq, &
+      write(buf, '(a,es13.5e3,a,es13.5e3,a,es13.5e3,a)') '    "assembly_change_q": ', wk%loops%assembly_dq, &
         & ', "assembly_change_qd": ', wk%loops%assembly_dqd, ', "closure_drift": ', wk%loops%closure_drift, '},'
       call put(trim(buf))
     end if
