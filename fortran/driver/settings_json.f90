@@ -3,7 +3,7 @@
 module pymr_driver_settings_json
   use pymr_env_kinds, only : dp
   use pymr_env_item_table, only : item_table, item_t, t_real, t_integer, t_logical, t_string, is_unset
-  use pymr_env_text, only : itoa, json_escape
+  use pymr_env_text, only : itoa, json_escape, json_number
   use pymr_model_scene, only : scene_t, describe_group
   implicit none
   private
@@ -52,7 +52,7 @@ contains
     end select
   end function json_value
 
-  !> A real in JSON: ten significant digits (a number JSON takes), null when unset.
+  !> A real in JSON: ten significant digits, null when unset.
   function json_real(x) result(s)
     real(dp), intent(in) :: x
     character(len=:), allocatable :: s
@@ -60,10 +60,7 @@ contains
     if (is_unset(x)) then
       s = 'null'; return
     end if
-    write(buf, '(g0.10)') x
-    s = trim(buf)
-    ! g0 writes a whole number of ten digits as "1000000000.", which JSON does not take
-    if (s(len(s):len(s)) == '.') s = s // '0'
+    s = json_number(x, 10)
   end function json_real
 
 end module pymr_driver_settings_json

@@ -8,7 +8,7 @@ module pymr_env_text
   private
   public :: itoa, lower, fmt, decimal_text, exact_text, char_length, printable
   public :: number_text, count_text, split_words, next_text_line
-  public :: json_escape, below_normal
+  public :: json_escape, json_number, below_normal
 
   !> Integer (default or 64-bit) to text without blanks.
   interface itoa
@@ -393,6 +393,21 @@ contains
       end if
     end do
   end subroutine split_words
+  !> A finite real as a JSON number in `digits` significant digits (Fortran's g0 form,
+  !> which keeps the exponent's E at any width; a whole number that fills the digits,
+  !> "1000000000.", gets its 0: JSON takes no bare point).
+  function json_number(x, digits) result(s)
+    real(dp), intent(in) :: x
+    integer, intent(in) :: digits
+    character(len=:), allocatable :: s
+    character(len=48) :: buf
+    character(len=8) :: form
+    write(form, '(a,i0,a)') '(g0.', digits, ')'
+    write(buf, form) x
+    s = trim(buf)
+    if (s(len(s):len(s)) == '.') s = s // '0'
+  end function json_number
+
   !> A JSON string's content: backslashes and quotes escaped, control characters as \uXXXX,
   !> and a byte that is no part of a valid UTF-8 sequence (a path's Latin-1 name) as the lone
   !> surrogate \uDCXX of Python's surrogateescape, so that the JSON stays UTF-8 and Python's

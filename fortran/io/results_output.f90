@@ -7,7 +7,7 @@ module pymr_io_results_output
   use pymr_env_error, only : error_type
   use pymr_model_types, only : model_data, model_work, cut_free, prim_revolute
   use pymr_model_sensors, only : sensor_set, sensor_width, sensor_distance
-  use pymr_env_text, only : json_escape, itoa, next_text_line
+  use pymr_env_text, only : json_escape, json_number, itoa, next_text_line
   use pymr_env_text_file, only : write_text_file, stage_text_file
   implicit none
   private
@@ -394,12 +394,11 @@ contains
     real(dp), intent(in) :: t_reached
     type(error_type), allocatable, intent(out) :: error
     character(len=:), allocatable :: json
-    character(len=128) :: buf
     json = '{' // new_line('a')
     call put('  "version": "' // pymr_version // '",')
     call put('  "status": "' // status // '",')
     if (len(failure) > 0) call put('  "error": "' // json_escape(failure) // '",')
-    write(buf, '(a,g0.17,a)') '  "t_reached": ', t_reached, ','; call put(trim(buf))
+    call put('  "t_reached": ' // json_number(t_reached, 17) // ',')
     call put('  "scene": "' // json_escape(scene_file) // '",')
     call put('  "title": "' // json_escape(trim(title)) // '",')
     call put('  "scene_fingerprint": "' // fingerprint // '",')
@@ -407,9 +406,8 @@ contains
     call put('  "resolved_scene": "' // json_escape(scene_text) // '",')
     json = json // counts_json(st, d, wk) // effects_json(wk)
     if (st%static_settled >= 0) then
-      write(buf, '(a,i0,a,i0,a,es13.5e3,a)') '  "static_start": {"coordinates_settled": ', st%static_settled, &
-        & ', "newton_iterations": ', st%static_iterations, ', "last_change": ', st%static_change, '},'
-      call put(trim(buf))
+      call put('  "static_start": {"coordinates_settled": ' // itoa(st%static_settled) // ', "newton_iterations": ' &
+        & // itoa(st%static_iterations) // ', "last_change": ' // json_number(st%static_change, 6) // '},')
     end if
     if (allocated(st%effects_report)) json = json // st%effects_report
     if (allocated(st%choice_report)) json = json // st%choice_report
@@ -454,15 +452,15 @@ contains
     character(len=:), allocatable :: text
     character(len=160) :: buf
     text = ''
-    write(buf, '(a,g0.10,a)') '  "cpu_time_s": ', st%cpu_time_s, ','; call put(trim(buf))
-    write(buf, '(a,g0.10,a)') '  "wall_time_s": ', st%wall_time_s, ','; call put(trim(buf))
-    write(buf, '(a,g0.10,a)') '  "preflight_cpu_s": ', st%preflight_cpu_s, ','; call put(trim(buf))
+    call put('  "cpu_time_s": ' // json_number(st%cpu_time_s, 10) // ',')
+    call put('  "wall_time_s": ' // json_number(st%wall_time_s, 10) // ',')
+    call put('  "preflight_cpu_s": ' // json_number(st%preflight_cpu_s, 10) // ',')
     write(buf, '(a,i0,a)') '  "steps_slow": ', st%steps_slow, ','; call put(trim(buf))
     write(buf, '(a,i0,a)') '  "steps_fast": ', st%steps_fast, ','; call put(trim(buf))
     write(buf, '(a,i0,a)') '  "rhs_full": ', st%rhs_full, ','; call put(trim(buf))
     write(buf, '(a,i0,a)') '  "rhs_fast": ', st%rhs_fast, ','; call put(trim(buf))
     write(buf, '(a,i0,a)') '  "rejected_steps": ', st%rejected_steps, ','; call put(trim(buf))
-    write(buf, '(a,g0.10,a)') '  "h_last": ', st%h_last, ','; call put(trim(buf))
+    call put('  "h_last": ' // json_number(st%h_last, 10) // ',')
     write(buf, '(a,i0,a)') '  "step_ratio_last": ', st%ratio_last, ','; call put(trim(buf))
     write(buf, '(a,i0,a)') '  "rows": ', st%rows, ','; call put(trim(buf))
     write(buf, '(a,i0,a)') '  "n_coordinates": ', d%n, ','; call put(trim(buf))
@@ -470,9 +468,8 @@ contains
       write(buf, '(a,i0,a,i0,a,i0,a,i0,a)') '  "loops": {"closing_joints": ', d%cuts%n, ', "free_closing_joints": ', &
         & count(d%cuts%kind == cut_free), ', "constraint_rows": ', d%cuts%n_rows, ', "redundant_rows": ', wk%loops%n_redundant, ','
       call put(trim(buf))
-      write(buf, '(a,es13.5e3,a,es13.5e3,a,es13.5e3,a)') '    "assembly_change_q": ', wk%loops%assembly_dq, &
-        & ', "assembly_change_qd": ', wk%loops%assembly_dqd, ', "closure_drift": ', wk%loops%closure_drift, '},'
-      call put(trim(buf))
+      call put('    "assembly_change_q": ' // json_number(wk%loops%assembly_dq, 6) // ', "assembly_change_qd": ' // &
+        & json_number(wk%loops%assembly_dqd, 6) // ', "closure_drift": ' // json_number(wk%loops%closure_drift, 6) // '},')
     end if
   contains
     subroutine put(line)
@@ -485,7 +482,6 @@ contains
   function effects_json(wk) result(text)
     type(model_work), intent(in) :: wk
     character(len=:), allocatable :: text
-    character(len=128) :: buf
     integer :: i
     real(dp) :: cpu
     text = '  "effects": {'
@@ -493,8 +489,8 @@ contains
       if (text(len(text):len(text)) /= '{') text = text // ', '
       cpu = 0.0_dp
       if (wk%count%effect_timed(i) > 0) cpu = wk%count%effect_cpu(i)*real(wk%count%effect_evals(i), dp)/real(wk%count%effect_timed(i), dp)
-      write(buf, '(a,i0,a,es12.5,a)') '": {"evaluations": ', wk%count%effect_evals(i), ', "cpu_time_s": ', cpu, '}'
-      text = text // '"' // trim(wk%count%effect_name(i)) // trim(buf)
+      text = text // '"' // trim(wk%count%effect_name(i)) // '": {"evaluations": ' // itoa(wk%count%effect_evals(i)) // &
+        & ', "cpu_time_s": ' // json_number(cpu, 6) // '}'
     end do
     text = text // '},' // new_line('a')
   end function effects_json
