@@ -195,8 +195,10 @@ class _Once(argparse.Action):
     b.csv` wrote b.csv with no word, as mrsim now refuses too)."""
 
     def __call__(self, parser, namespace, values, option_string=None):
-        if getattr(namespace, self.dest, None) is not self.default:
+        given = f"_given_{self.dest}"        # by a mark, not by the value (a default's equal may be given)
+        if getattr(namespace, given, False):
             parser.error(f"{option_string}: given twice ({getattr(namespace, self.dest)} before)")
+        setattr(namespace, given, True)
         setattr(namespace, self.dest, values)
 
 

@@ -746,6 +746,11 @@ def test_an_option_of_one_value_given_twice_is_refused(tmp_path, mrsim, monkeypa
     assert r.returncode == 1 and r.stderr == ("pymr: error: run: --output: given twice (a.csv before) "
                                               "(pymr run --help)\n"), r.stderr
     assert not any(p.suffix == ".csv" for p in tmp_path.iterdir())
+    # given twice with the default's value too (--workers defaults to 2)
+    r = subprocess.run([sys.executable, "-m", "pymr", "sweep", "s.toml", "--workers", "2", "--workers", "2"],
+                       cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert r.returncode == 1 and r.stderr == ("pymr: error: sweep: --workers: given twice (2 before) "
+                                              "(pymr sweep --help)\n"), r.stderr
     r = run_mrsim(mrsim, ["base.nml", "-o", "c.csv", "--set", "scene.t_end=0.5", "--set", "scene.t_end=0.01"], tmp_path)
     assert r.returncode == 0 and pymr.load_results("c.csv").t[-1] == pytest.approx(0.01)
 
