@@ -178,6 +178,18 @@ def test_the_summary_s_final_markers_are_the_results_last_row(tmp_path):
     assert numbers[:2] == pytest.approx([np.sin(theta[0]), -np.cos(theta[0])], abs=1e-6)
 
 
+@pytest.mark.parametrize("ramp", [2.3e-308, 3.4e-308, 1e-300])
+def test_a_spin_up_shorter_than_any_step_is_a_step_in_rate(tmp_path, ramp):
+    """A ramp time near the smallest normal number: the angle is rate (t - T/2) = rate t
+    from the first step on. 2 pi/T overflowed below 3.5e-308, and the run failed at t = 0
+    with a NaN angle."""
+    scene = write(tmp_path, "fast.nml", PENDULUM_SPIN.replace("ramp_time = 1e-4", f"ramp_time = {ramp!r}"))
+    res = pymr.run(scene)
+    assert res["pivot.q"][0] == 0.0
+    assert res["pivot.q"][1:] == pytest.approx(res.t[1:], rel=1e-13)
+    assert np.all(res["pivot.qd"][1:] == 1.0)
+
+
 PENDULUM_SPIN = """&scene title = 'spin-up faster than the step', t_end = 0.05 /
 &integrator method = 'single', h_slow = 1e-3 /
 &effects base_motion = .true. /

@@ -63,18 +63,20 @@ contains
   end subroutine motion_at
 
   !> theta = (rate/T)[t^2/2 + (T/2 pi)^2 (cos(2 pi t/T) - 1)] up to the ramp time T, then
-  !> a constant rate.
+  !> a constant rate. Written in the ramp's fraction s = t/T, so that no T, however short,
+  !> overflows a frequency 2 pi/T.
   pure subroutine spinup_at(mo, t, f, fd, fdd)
     type(prescribed_motion), intent(in) :: mo
     real(dp), intent(in) :: t
     real(dp), intent(out) :: f, fd, fdd
-    real(dp) :: w, c
+    real(dp) :: s, a
     if (t <= mo%ramp_time) then
-      w = 2.0_dp*pi/mo%ramp_time
-      c = mo%rate/mo%ramp_time
-      f = mo%offset + c*(0.5_dp*t**2 + (cos(w*t) - 1.0_dp)/w**2)
-      fd = c*(t - sin(w*t)/w)
-      fdd = c*(1.0_dp - cos(w*t))
+      s = t/mo%ramp_time
+      a = 2.0_dp*pi*s
+      f = mo%offset + mo%rate*mo%ramp_time*(0.5_dp*s**2 + (cos(a) - 1.0_dp)/(2.0_dp*pi)**2)
+      fd = mo%rate*(s - sin(a)/(2.0_dp*pi))
+      fdd = 0.0_dp
+      if (mo%rate /= 0.0_dp .and. cos(a) < 1.0_dp) fdd = (mo%rate/mo%ramp_time)*(1.0_dp - cos(a))
     else
       f = mo%offset + mo%rate*(t - 0.5_dp*mo%ramp_time)
       fd = mo%rate
