@@ -313,6 +313,24 @@ def test_a_name_several_groups_share_reads_their_value_only_when_they_agree():
     assert scene.resolved().count("amplitude = 0.05") == 6
 
 
+def test_one_fault_an_override_gives_several_groups_is_one_line(tmp_path, mrsim):
+    """'rate' is an item of form 'spinup' only: set on the six sine &motion of joint
+    'suspension', it is one fault, told once with the count of the other groups (it was six
+    lines, one per group); two faults of one scene stay two lines."""
+    scene = ROOT / "input" / "tank_firing.nml"
+    r = subprocess.run([mrsim, scene, "--set", "motion[suspension].rate=1", "-o", tmp_path / "r.csv"],
+                       capture_output=True, text=True)
+    assert r.returncode == 1 and r.stdout == ""
+    assert r.stderr.splitlines() == [f"mrsim: error: {scene}: --set motion[suspension].rate=1: &motion #1: rate: "
+                                     "only form 'spinup' uses it (form is 'sine') (the same in 5 more groups)"]
+    r = subprocess.run([mrsim, scene, "--set", "motion[suspension].rate=1", "--set", "body[gun].rayleigh_alpha=0.5",
+                        "-o", tmp_path / "r.csv"], capture_output=True, text=True)
+    lines = r.stderr.splitlines()
+    assert r.returncode == 1 and len(lines) == 2
+    assert lines[0].endswith("(the same in 5 more groups)") and "rayleigh_alpha" in lines[1]
+    assert not (tmp_path / "r.csv").exists()
+
+
 def test_readme_scene_reference_has_every_group_and_item_once():
     """Read back apart from the generator: docs/scenes.md's tables name the kernel's groups, in
     its order, each with its items and their type, default, range and unit."""

@@ -46,10 +46,18 @@ module pymr_env_error
   !> Most errors one check of a scene reports (it goes on after each, to show them together).
   integer, parameter :: max_errors = 10
 
-  !> Errors gathered by a check that goes on after each: one message line per error.
+  !> One message of an error_list, and how many more groups gave the same one.
+  type :: listed_error
+    character(len=:), allocatable :: message, key
+    integer :: repeats = 0
+  end type listed_error
+
+  !> Errors gathered by a check that goes on after each: one message line per error. One
+  !> --set can reach several groups (the six &motion of a 6-DOF joint); the same fault in
+  !> each of them is one line, which counts the others.
   type :: error_list
     integer :: n = 0
-    character(len=:), allocatable :: text
+    type(listed_error), allocatable :: errors(:)
   contains
     procedure :: add => list_add
     procedure :: take => list_take
@@ -57,18 +65,40 @@ module pymr_env_error
 
 contains
 
-  !> Add one error's message (the first max_errors are kept, the rest counted).
+  !> Add one error's message (the first max_errors are kept, the rest counted). A message
+  !> that differs from a kept one only in its groups' numbers ("&motion #3") adds to that
+  !> one's repeats.
   pure subroutine list_add(self, message)
     class(error_list), intent(inout) :: self
     character(len=*), intent(in) :: message
+    character(len=:), allocatable :: key
+    integer :: k
+    if (.not. allocated(self%errors)) allocate(self%errors(0))
+    key = without_group_numbers(message)
+    do k = 1, size(self%errors)
+      if (self%errors(k)%key == key) then
+        self%errors(k)%repeats = self%errors(k)%repeats + 1; return
+      end if
+    end do
     self%n = self%n + 1
     if (self%n > max_errors) return
-    if (allocated(self%text)) then
-      self%text = self%text // new_line('a') // message
-    else
-      self%text = message
-    end if
+    self%errors = [self%errors, listed_error(message, key)]
   end subroutine list_add
+
+  !> `message` with the digits after each '#' left out.
+  pure function without_group_numbers(message) result(key)
+    character(len=*), intent(in) :: message
+    character(len=:), allocatable :: key
+    integer :: i
+    logical :: number
+    key = ''
+    number = .false.
+    do i = 1, len(message)
+      number = (number .or. message(max(i - 1, 1):max(i - 1, 1)) == '#' .and. i > 1) &
+        & .and. index('0123456789', message(i:i)) > 0
+      if (.not. number) key = key // message(i:i)
+    end do
+  end function without_group_numbers
 
   !> The gathered errors as one error (one line each; a last line counts those left out),
   !> or none.
@@ -76,9 +106,18 @@ contains
     class(error_list), intent(in) :: self
     type(error_type), allocatable, intent(out) :: error
     character(len=12) :: buf
+    integer :: k
     if (self%n == 0) return
     allocate(error)
-    error%message = self%text
+    error%message = ''
+    do k = 1, size(self%errors)
+      if (k > 1) error%message = error%message // new_line('a')
+      error%message = error%message // self%errors(k)%message
+      if (self%errors(k)%repeats > 0) then
+        write(buf, '(i0)') self%errors(k)%repeats
+        error%message = error%message // ' (the same in ' // trim(buf) // ' more groups)'
+      end if
+    end do
     if (self%n > max_errors) then
       write(buf, '(i0)') self%n - max_errors
       error%message = error%message // new_line('a') // '(and ' // trim(buf) // ' more errors)'
