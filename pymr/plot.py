@@ -29,10 +29,13 @@ a range of values below 2 :data:`STILL` ``scale`` is drawn as their middle +- :d
 """
 from __future__ import annotations
 
+import contextlib
 import difflib
 import fnmatch
 import io
+import logging
 import os
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterable, Mapping, Sequence, Union
@@ -349,6 +352,10 @@ def _run_styles(n: int) -> tuple[list[str], list[str], list[float]]:
             [max(2.0 - 0.4 * k, 0.8) for k in range(n)])
 
 
+#: The grid's grey: matplotlib's grid grey at 0.3 opacity on white, drawn opaque (PostScript
+#: has no transparency and warned of it on every figure).
+GRID_GREY = "0.907"
+
 #: The largest magnitude a plot's axes scale: matplotlib's ticks overflow near 1e308
 #: (numpy warnings on stderr, with exit 0).
 PLOT_MAX = 1e300
@@ -378,13 +385,13 @@ def _draw_rows(fig, rows: list[Row], runs: list[Results], labels: list[str]) -> 
             ax.set_title(col)
             ax.set_xlabel("t (s)")
             ax.set_ylabel(row.ylabel)
-            ax.grid(True, alpha=0.3)
+            ax.grid(True, color=GRID_GREY)
             _keep_range(ax, runs, [col])
     handles, names = fig.axes[0].get_legend_handles_labels()
     try:
-        fig.legend(handles, names, loc="outside lower center", ncol=min(len(runs), 4), fontsize=9)
+        fig.legend(handles, names, loc="outside lower center", ncol=min(len(runs), 4), fontsize=9, framealpha=1)
     except ValueError:                               # matplotlib < 3.7: no "outside" placement
-        fig.legend(handles, names, loc="lower center", ncol=min(len(runs), 4), fontsize=9)
+        fig.legend(handles, names, loc="lower center", ncol=min(len(runs), 4), fontsize=9, framealpha=1)
 
 
 def _draw_panels(fig, panels: list[Panel], runs: list[Results], labels: list[str]) -> None:
@@ -403,8 +410,8 @@ def _draw_panels(fig, panels: list[Panel], runs: list[Results], labels: list[str
                      f"{panel.columns[0]} ... {panel.columns[-1]}")
         ax.set_xlabel("t (s)")
         ax.set_ylabel(panel.ylabel)
-        ax.grid(True, alpha=0.3)
-        ax.legend(fontsize=8)
+        ax.grid(True, color=GRID_GREY)
+        ax.legend(fontsize=8, framealpha=1)
         _keep_range(ax, runs, panel.columns)
 
 
@@ -440,6 +447,24 @@ def check_figure_path(output, option: str, runs: Sequence[RunLike]) -> Path:
                         example=Path(first).stem + ".png" if first else "fig.png")
 
 
+@contextlib.contextmanager
+def _matplotlib_silenced(quiet: bool):
+    """With `quiet`, matplotlib's warnings and log lines (a missing glyph, a backend's
+    limits) left unprinted: ``-q`` prints nothing on success. Errors still raise."""
+    if not quiet:
+        yield
+        return
+    log = logging.getLogger("matplotlib")
+    level = log.level
+    log.setLevel(logging.ERROR)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            yield
+    finally:
+        log.setLevel(level)
+
+
 def main(csvs: Sequence[str], output: str | None = None, markers: Sequence[str] | None = None,
          joints: Sequence[str] | None = None, labels: Sequence[str] | None = None,
          title: str | None = None, quiet: bool = False, columns: Sequence[str] | None = None) -> int:
@@ -449,7 +474,8 @@ def main(csvs: Sequence[str], output: str | None = None, markers: Sequence[str] 
         out = check_figure_path(Path(Path(csvs[0]).stem + ".png"), "the default figure (-o to choose)", csvs)
     else:
         out = check_figure_path(output, "-o", csvs)
-    fig = plot_results(csvs, out, markers=markers, joints=joints, labels=labels, title=title, columns=columns)
+    with _matplotlib_silenced(quiet):
+        fig = plot_results(csvs, out, markers=markers, joints=joints, labels=labels, title=title, columns=columns)
     if not quiet:
         print(f"wrote {out}: {len(csvs)} run{'s' if len(csvs) != 1 else ''}, {len(fig.axes)} panels")
     return 0

@@ -3,6 +3,8 @@ velocity and modal coordinates, the paper's Figs. 5-7; a pendulum's markers and 
 name), the legend names each run, the PNG is written, and bad input is one line, exit 1."""
 from __future__ import annotations
 
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -127,6 +129,21 @@ def test_cli_tank(tank, tmp_path, monkeypatch, capsys):
     assert (tmp_path / "single.png").read_bytes()[:8] == PNG
     assert capsys.readouterr().out == ""
     assert legend_labels(figures[1])[0] == "single fixed h=1.000E-04"
+
+
+@pytest.mark.parametrize("suffix", [".eps", ".ps"])
+def test_a_postscript_figure_prints_nothing_but_its_line(double_pendulum, tmp_path, suffix):
+    """PostScript has no transparency: a grid or legend drawn at 0.3 or 0.8 opacity made
+    matplotlib warn on stderr at every figure, and '-q' let it through. The figure is drawn
+    opaque now; its grid is matplotlib's grey at 0.3 opacity on white (0.907)."""
+    csv, _ = double_pendulum
+    out = tmp_path / f"fig{suffix}"
+    for quiet, said in ((["-q"], ""), ([], f"wrote {out}: 1 run, ")):
+        r = subprocess.run([sys.executable, "-m", "pymr", "plot", str(csv), "-o", str(out), *quiet],
+                           capture_output=True, text=True, cwd=tmp_path)
+        assert (r.returncode, r.stderr) == (0, "") and r.stdout.startswith(said)
+        assert out.read_bytes()[:4] in (b"%!PS", b"\xc5\xd0\xd3\xc6")
+    assert float(pymr.plot.GRID_GREY) == pytest.approx(1 - 0.3 * (1 - 0xb0 / 255), abs=1e-3)
 
 
 def test_other_scene_markers_and_joints(double_pendulum, tmp_path):
