@@ -96,7 +96,9 @@ def _columns_in_order(h5py, f, order: list[str], path: Path) -> np.ndarray:
     arrays = {}
     for name, dataset in f.items():
         if not isinstance(dataset, h5py.Dataset):
-            raise fault(f"{name!r} is a group, not a dataset of columns")
+            what = ("a group" if isinstance(dataset, h5py.Group) else
+                    "a link to nothing" if dataset is None else "a named datatype")
+            raise fault(f"{name!r} is {what}, not a dataset of columns")
         if "columns" not in dataset.attrs:
             raise fault(f"dataset {name!r} has no attribute 'columns'")
         for k, column in enumerate(np.atleast_1d(dataset.attrs["columns"])):

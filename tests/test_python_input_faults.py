@@ -126,6 +126,11 @@ def _h5_copy(runs, tmp_path, change) -> Path:
     return path
 
 
+def _h5py():
+    import h5py
+    return h5py
+
+
 def _set_value(f, value):
     data = f["markers"][()]
     data[3, 1] = value
@@ -141,7 +146,10 @@ def _set_value(f, value):
     (lambda f: _set_value(f, np.inf), r"h\.h5: row 4, column tip\.y: inf is not a finite number"),
     (lambda f: f.attrs.__delitem__("column_order"), r"h\.h5: not a pymr HDF5 results file \(no attribute "
                                                     r"'column_order'\)$"),
-], ids=["statistics_not_json", "statistics_not_object", "nan", "inf", "no_column_order"])
+    (lambda f: f.__setitem__("extra", _h5py().SoftLink("/nowhere")), r"h\.h5: not a pymr HDF5 results file "
+                                                                    r"\('extra' is a link to nothing, not a dataset"),
+    (lambda f: f.create_group("extra"), r"h\.h5: not a pymr HDF5 results file \('extra' is a group, not a dataset"),
+], ids=["statistics_not_json", "statistics_not_object", "nan", "inf", "no_column_order", "dangling_link", "group"])
 def test_a_damaged_hdf5_results_file_is_one_results_error(runs, tmp_path, change, message):
     """The statistics attribute gave JSONDecodeError or AttributeError tracebacks, NaN and
     Inf were loaded silently (and crashed pymr plot): each is now refused as the CSV's are."""
