@@ -31,27 +31,25 @@ class Column:
 COLUMN_FIELDS = ("name", "group", "owner", "quantity", "unit")
 
 
-def column_table(meta, columns: list[str], where: str) -> list[Column]:
+def column_table(meta, columns: list[str], where: str, why: str = "the file was changed") -> list[Column]:
     """OUT.json's "columns" (`meta`) as one :class:`Column` per column of `columns`, checked:
     an object of the five lists of COLUMN_FIELDS, each of one text per column, the names
-    those of `columns`. A damaged or hand-edited one is a ResultsError naming `where` and
-    the fault (it gave TypeError or KeyError tracebacks where it was used)."""
+    those of `columns`. A damaged or hand-edited one is a ResultsError naming `where`, the
+    fault and `why` (it gave TypeError or KeyError tracebacks where it was used)."""
     if not isinstance(meta, dict):
-        raise ResultsError(f'{where}: "columns" is not an object of the lists {", ".join(COLUMN_FIELDS)} '
-                           "(the file was changed)")
+        raise ResultsError(f'{where}: "columns" is not an object of the lists {", ".join(COLUMN_FIELDS)} ({why})')
     for key in COLUMN_FIELDS:
         if key not in meta:
-            raise ResultsError(f'{where}: "columns" has no list "{key}" (the file was changed)')
+            raise ResultsError(f'{where}: "columns" has no list "{key}" ({why})')
         values = meta[key]
         if not isinstance(values, list) or not all(isinstance(v, str) for v in values):
-            raise ResultsError(f'{where}: "columns" "{key}" is not a list of texts, one per column (the file was '
-                               "changed)")
+            raise ResultsError(f'{where}: "columns" "{key}" is not a list of texts, one per column ({why})')
         if len(values) != len(columns):
             raise ResultsError(f'{where}: "columns" "{key}" has {len(values)} entries for the {len(columns)} '
-                               "columns of the results (the file was changed, or is another run's)")
+                               f"columns of the results ({why}, or they are another run's)")
     if meta["name"] != list(columns):
-        raise ResultsError(f'{where}: "columns" "name" does not match the results\' columns (the file was changed, '
-                           "or is another run's)")
+        raise ResultsError(f'{where}: "columns" "name" does not match the results\' columns ({why}, or they are '
+                           "another run's)")
     return [Column(*fields) for fields in zip(*(meta[k] for k in COLUMN_FIELDS))]
 
 
@@ -106,6 +104,7 @@ class Results:
         for name in ("stats", "meta"):
             if not isinstance(getattr(self, name), dict):
                 raise ArgumentTypeError(f"{name}: a dict, got {_shown(getattr(self, name))}")
+        _check_stats(self.stats, self.columns, "stats", "given by hand")
         if self.path is not None and not isinstance(self.path, (str, os.PathLike)):
             raise ArgumentTypeError(f"path: the results file's path (str), or None, got {_shown(self.path)}")
         self.path = None if self.path is None else os.fspath(self.path)
@@ -411,16 +410,16 @@ STATS_FIELDS = {"status": (str, "a text"), "scene": (str, "a text (the scene fil
                 "rows": (int, "a whole number"), "cpu_time_s": ((int, float), "a number of seconds")}
 
 
-def _check_stats(stats: dict, columns: list[str], where: str) -> None:
+def _check_stats(stats: dict, columns: list[str], where: str, why: str = "the file was changed") -> None:
     """The statistics' fields that pymr reads are of their types (a ResultsError naming
-    `where` and the field otherwise)."""
+    `where`, the field and `why` otherwise)."""
     for key, (kind, what) in STATS_FIELDS.items():
         value = stats.get(key)
         if key in stats and (not isinstance(value, kind) or isinstance(value, bool)):
             from ._args import _shown
-            raise ResultsError(f'{where}: "{key}" is {_shown(value)}, not {what} (the file was changed)')
+            raise ResultsError(f'{where}: "{key}" is {_shown(value)}, not {what} ({why})')
     if "columns" in stats:
-        column_table(stats["columns"], columns, where)
+        column_table(stats["columns"], columns, where, why)
 
 
 def _check_file(path: Path) -> None:

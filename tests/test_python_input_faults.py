@@ -922,6 +922,11 @@ def test_a_run_whose_summary_is_lost_is_no_success(tmp_path, mrsim, output):
     (dict(summary=5), pymr.ArgumentTypeError, r"^summary: a text \(str\), got int 5"),
     (dict(data=[[0.0, None]]), pymr.ResultsError, r"^data: row 1, column x: nan is not a finite number"),
     (dict(columns=["t", "t"]), pymr.ResultsError, r"^columns: column 2: 't' is named twice"),
+    (dict(stats={"title": 5}), pymr.ResultsError, r'^stats: "title" is int 5, not a text \(given by hand\)$'),
+    (dict(stats={"rows": "1"}), pymr.ResultsError, r'^stats: "rows" is str \'1\', not a whole number'),
+    (dict(stats={"columns": {"name": ["t"]}}), pymr.ResultsError, r'^stats: "columns" "name" has 1 entries for the 2 '
+                                                                  r"columns of the results \(given by hand, or they are "
+                                                                  r"another run's\)$"),
 ])
 def test_results_made_by_hand_are_checked_as_a_file_s(fields, error, message):
     """A Results made by hand took path=5 and summary=5, turned None into NaN, and took a
