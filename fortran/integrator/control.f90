@@ -3,7 +3,7 @@ module pymr_integrator_control
   use pymr_env_kinds, only : dp
   implicit none
   private
-  public :: step_control, error_weights, wrms_norm
+  public :: step_control, error_weights, wrms_norm, error_envelope
 
   !> Settings of the adaptive step-size controller.
   type :: step_control
@@ -22,7 +22,39 @@ module pymr_integrator_control
     procedure :: ratio => control_ratio
   end type step_control
 
+  !> The last accepted step's error estimate and step, for the next step's size. An
+  !> estimate measured at one point of the step (the end of a multirate macro step, the
+  !> difference of an exponential step's predictor and corrector) swings with the phase of
+  !> the vibrations there: on the tank the 'response' macro step's went from 0.01 to 0.8 in
+  !> consecutive steps of one length. A step grown on a low sample alone was rejected
+  !> (docs/method.md sections 4.2 and 4.3).
+  type :: error_envelope
+    real(dp) :: err = 0.0_dp, h = 0.0_dp
+  contains
+    procedure :: of => envelope_of
+    procedure :: forget => envelope_forget
+  end type error_envelope
+
 contains
+
+  !> The error an accepted step of h (estimate err, O(h^order)) sizes its successor by: the
+  !> larger of err and the last accepted step's, scaled to h as h^order. err and h are kept
+  !> for the next.
+  function envelope_of(self, err, h, order) result(e)
+    class(error_envelope), intent(inout) :: self
+    real(dp), intent(in) :: err, h
+    integer, intent(in) :: order
+    real(dp) :: e
+    e = err
+    if (self%h > 0.0_dp) e = max(err, self%err*(h/self%h)**order)
+    self%err = err; self%h = h
+  end function envelope_of
+
+  !> No step is known (a start).
+  pure subroutine envelope_forget(self)
+    class(error_envelope), intent(inout) :: self
+    self%err = 0.0_dp; self%h = 0.0_dp
+  end subroutine envelope_forget
 
   !> Error weights w_i = 1 / (rtol |x_i| + atol) of a state x = [q; qd]. With ctl%omega
   !> (error_norm = 'amplitude') a coordinate of frequency omega > 0 is weighted by its

@@ -23,7 +23,7 @@ module pymr_integrator_exponential
   use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps, state_record, project_step, step_underflow, &
     & least_step
   use pymr_integrator_abm, only : check_finite
-  use pymr_integrator_control, only : step_control, error_weights, wrms_norm
+  use pymr_integrator_control, only : step_control, error_weights, wrms_norm, error_envelope
   use pymr_integrator_modal_flow, only : modal_flow_t, flow_rows_t, taylor_weights, n_coef, n_phi
   implicit none
   private
@@ -34,6 +34,8 @@ module pymr_integrator_exponential
   !> Local error of the corrected step, from the difference of corrector and predictor
   !> (Milne's estimate for the order-4 Adams pair, |C_AM|/(C_AB - C_AM) = 19/270).
   real(dp), parameter :: milne = 19.0_dp/270.0_dp
+  !> Order in h of that local error (the order-4 pair's: h^5).
+  integer, parameter :: local_order = 5
   !> The response is frozen again when h^2 |Delta(g K)| + h |Delta(g D)| exceeds this.
   real(dp), parameter :: drift_limit = 0.5_dp
   !> Adaptive runs: steps in a row that may break down and be retried smaller.
@@ -74,6 +76,8 @@ module pymr_integrator_exponential
     type(modal_flow_t) :: flow
     type(flow_history_t) :: hist
     type(flow_step_t) :: last
+    !> The last accepted step's error estimate and step (adaptive).
+    type(error_envelope) :: last_error
     !> Accepted and rejected steps, renewals of the frozen response.
     integer :: steps = 0, rejected = 0, renewals = 0
     !> The flow's coefficients for a step of tau_phi (kept while steps and flow stay).
@@ -136,6 +140,7 @@ contains
       self%wk%rnew = self%flow%remainder(f(self%n+1:), self%wk%y); self%wk%pnew = self%flow%project(self%wk%rnew)
       call push_evaluation(self, t0, f(self%n+1:), self%wk%y, self%wk%rnew, self%wk%pnew)
       self%t = t0; self%t0 = t0; self%x = x0
+      call self%last_error%forget()
       self%last%t = t0; self%last%h = 0.0_dp; self%last%x = x0
       self%last%eta = self%flow%modal_state(x0)
       self%last%beta = (0.0_dp, 0.0_dp); self%last%cs = 0.0_dp
@@ -276,7 +281,8 @@ contains
       self%x = wk%xc; self%t = tn; self%steps = self%steps + 1
       call push_evaluation(self, tn, wk%f(n+1:), wk%y, wk%rnew, wk%pnew)
       ! an accepted step's successor no less than the least step (its error test fails there)
-      if (self%adaptive) self%h = max(min(hs*self%ctl%ratio(err, .true.), self%ctl%h_max), &
+      if (self%adaptive) self%h = max(min(hs*self%ctl%ratio(self%last_error%of(err, hs, local_order), .true.), &
+        & self%ctl%h_max), &
         & least_step(self%ctl%h_min, tn))
     end associate
     class default
@@ -405,6 +411,7 @@ contains
       call self%flow%rows_form(self%last%eta, self%last%beta, self%last%h, self%last%rows)
     end if
     call rec%item(self%steps); call rec%item(self%rejected); call rec%item(self%renewals)
+    call rec%item(self%last_error%err); call rec%item(self%last_error%h)
   end subroutine ex_record
 
   pure function ex_counts(self) result(c)

@@ -33,7 +33,7 @@ module pymr_integrator_response
   use pymr_integrator_nordsieck, only : nq, corrector_l, nordsieck_predict, nordsieck_correct, nordsieck_rescale, &
     & nordsieck_value
   use pymr_integrator_abm, only : abm_integrator, check_finite
-  use pymr_integrator_control, only : step_control, error_weights, wrms_norm
+  use pymr_integrator_control, only : step_control, error_weights, wrms_norm, error_envelope
   implicit none
   private
   public :: response_integrator, extrapolation_weights
@@ -100,6 +100,8 @@ module pymr_integrator_response
     !> Adaptive control of both steps (ctl%h_max bounds the fast step).
     logical :: adaptive = .false.
     type(step_control) :: ctl
+    !> The last accepted macro step's surrogate error and length.
+    type(error_envelope) :: last_macro
     !> Counters.
     type(response_counts_t) :: cnt
     !> Work arrays.
@@ -170,6 +172,7 @@ contains
       self%z = boot%z; self%t = boot%t; self%h = booted%h_last; self%t0 = t0
       self%zbuf(:, :, 1) = self%z; self%kb = 1; self%corrected = .false.; self%t_macro = self%t - self%h; self%hb = self%h
       self%cnt%steps_fast = 2; self%cnt%steps_slow = 0
+      call self%last_macro%forget()
       self%kn = self%k
       if (self%k > 2 .and. .not. self%adaptive) self%kn = self%k - 2
     class default
@@ -393,18 +396,21 @@ contains
   end subroutine commit_evaluation
 
   !> New fast step and ratio from the errors of a macro step (accepted or not): the fast
-  !> step from the corrector's estimate, the macro step from the surrogate's, k = H/h
+  !> step from the corrector's estimate, the macro step from the surrogate's (after an
+  !> accepted step, the envelope of its and the last one's: error_envelope), k = H/h
   !> within [1, k_max]. The array is rescaled to the new fast step.
   subroutine resize_steps(self, err_f, err_s, accepted, error)
     class(response_integrator), intent(inout) :: self
     real(dp), intent(in) :: err_f, err_s
     logical, intent(in) :: accepted
     type(error_type), allocatable, intent(out) :: error
-    real(dp) :: h_new, hm_new
+    real(dp) :: h_new, hm_new, e_s
     h_new = self%h*self%ctl%ratio(err_f, accepted .or. err_f <= 1.0_dp)
     if (.not. accepted .and. err_f <= 1.0_dp) h_new = min(h_new, self%h)
     h_new = min(h_new, self%ctl%h_max)
-    hm_new = self%kn*self%h*self%ctl%ratio(err_s, accepted .or. err_s <= 1.0_dp, surrogate_order)
+    e_s = err_s
+    if (accepted) e_s = self%last_macro%of(err_s, self%kn*self%h, surrogate_order)
+    hm_new = self%kn*self%h*self%ctl%ratio(e_s, accepted .or. err_s <= 1.0_dp, surrogate_order)
     if (.not. accepted .and. err_s <= 1.0_dp) hm_new = min(hm_new, self%kn*self%h)
     if (h_new < self%ctl%h_min) then
       call step_underflow(error, self%t, 'fast step', h_new); return
@@ -471,6 +477,7 @@ contains
     call rec%item(self%hist%kf); call rec%item(self%hist%df)
     call rec%item(self%cnt%steps_slow); call rec%item(self%cnt%steps_fast); call rec%item(self%cnt%rejected)
     call rec%item(self%cnt%evals_surrogate)
+    call rec%item(self%last_macro%err); call rec%item(self%last_macro%h)
   end subroutine rs_record
 
   pure function rs_counts(self) result(c)
