@@ -68,9 +68,9 @@ def test_adaptive_full_coupling_meets_its_tolerance_on_a_loop(coupler, rtol):
 @pytest.mark.parametrize("rtol", [1e-4, 1e-6, 1e-8])
 def test_adaptive_response_meets_its_tolerance_on_a_flexible_loop(coupler, rtol):
     """Adaptive 'response' with its defaults: the loop through the flexible coupler sets
-    k_max to 8, and the crank angle ends within 2 rtol of the reference (measured 0.27, 0.63
-    and 0.60 rtol; 0.15-0.85 at 17 tolerances from 1e-4 to 1e-8, with and without glibc's
-    FMA and AVX2 paths). Each macro step takes the surrogate's error out of its state:
+    k_max to 8, and the crank angle ends within 2 rtol of the reference (measured 0.24, 0.45
+    and 0.51 rtol; 0.06-0.77 at 17 tolerances from 1e-4 to 1e-8 at commit 0ec126c, 0.04-0.85 without
+    glibc's FMA and AVX2 paths; at k_max = 50 0.05-1.91 and 0.06-1.67). Each macro step takes the surrogate's error out of its state:
     before, at k_max = 8 the same runs ended 1.35, 2.9 and 1.1 rtol away, and at k_max = 50
     14, 30 and 46 (now 0.02-2.3), the macro steps' errors adding up to a phase error of the
     crank (docs/scenes.md, "Loops in multirate runs"). A given k_max is kept."""
