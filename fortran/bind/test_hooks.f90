@@ -78,7 +78,7 @@ subroutine pymr_nordsieck_correct(n, zp, hf, z, g)
   double precision, intent(in) :: zp(n, 4), hf(n)
   double precision, intent(out) :: z(n, 4), g(n)
   !f2py integer intent(hide), depend(zp) :: n = shape(zp, 0)
-  call nordsieck_correct(zp, hf, z, g)
+  call nordsieck_correct(zp, 1.0d0, hf, z, g)
 end subroutine pymr_nordsieck_correct
 
 !> Step ratio of the default adaptive controller for a normalised error estimate `err`

@@ -177,7 +177,7 @@ contains
       err = 0.0_dp
       if (self%adaptive) then
         call error_weights(self%ctl, self%z(:, 0), self%w)
-        err = wrms_norm(corrector_l(0)*self%g, self%w)
+        err = abs(corrector_l(0))*wrms_norm(self%g, self%w)
       end if
       if (err <= 1.0_dp) then
         call check_finite(sys, tn, self%zn(:, 0), 'state', error); if (allocated(error)) return
@@ -254,7 +254,7 @@ contains
       call sys%eval(tn, x, f, error); evals = evals + 1
       if (allocated(error)) return
       call check_finite(sys, tn, f, 'derivative', error); if (allocated(error)) return
-      call nordsieck_correct(zp, h*f, zn, g)
+      call nordsieck_correct(zp, h, f, zn, g)
       x = zn(:, 0)
     end do
   end subroutine pece_step

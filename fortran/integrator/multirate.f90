@@ -383,13 +383,13 @@ contains
     call sys%sync_rhs(macro_end(self), self%wk%zp(:, 0), self%wk%wp(:, 0), self%wk%fs, self%wk%ff, error)
     self%cnt%evals_slow = self%cnt%evals_slow + 1
     if (allocated(error)) return
-    call nordsieck_correct(self%wk%zp, self%hs*self%wk%fs, self%wk%zn, self%wk%gs)
-    call nordsieck_correct(self%wk%wp, self%hf*self%wk%ff, self%wk%wn, self%wk%gf)
+    call nordsieck_correct(self%wk%zp, self%hs, self%wk%fs, self%wk%zn, self%wk%gs)
+    call nordsieck_correct(self%wk%wp, self%hf, self%wk%ff, self%wk%wn, self%wk%gf)
     call keep_fast_point(self, self%k, self%wk%wn(:, 0), self%wk%wn(:, 1)/self%hf)
     self%dense%tb = self%t; self%dense%hb = self%hf; self%dense%nb = self%k
     if (.not. self%adaptive) return
-    err_s = wrms_norm(corrector_l(0)*self%wk%gs, self%wk%ws)
-    err_f = max(err_f, wrms_norm(corrector_l(0)*self%wk%gf, self%wk%wf))
+    err_s = abs(corrector_l(0))*wrms_norm(self%wk%gs, self%wk%ws)
+    err_f = max(err_f, abs(corrector_l(0))*wrms_norm(self%wk%gf, self%wk%wf))
     if (self%k == 1) return
     ! Coupling error: the fast substeps used slow accelerations extrapolated from the slow
     ! array. Their error at the end of the macro step shows in the fast accelerations with
@@ -460,7 +460,7 @@ contains
       call slow_extrapolation(self%zs, self%hs, real(i, dp)/self%k, fast%xs, fast%acc)
       call pece_step(fast, self%t + i*self%hf, self%hf, 1, self%zf, self%wk%wp, self%wk%wn, self%wk%xf, self%wk%ff, &
         & self%wk%gf, self%cnt%evals_fast, error); if (allocated(error)) return
-      if (self%adaptive) err_f = max(err_f, wrms_norm(corrector_l(0)*self%wk%gf, self%wk%wf))
+      if (self%adaptive) err_f = max(err_f, abs(corrector_l(0))*wrms_norm(self%wk%gf, self%wk%wf))
       call keep_fast_point(self, i, self%wk%wn(:, 0), self%wk%wn(:, 1)/self%hf)
       self%zf = self%wk%wn
       self%cnt%steps_fast = self%cnt%steps_fast + 1

@@ -31,17 +31,18 @@ contains
   end subroutine nordsieck_predict
 
   !> Corrector: z = zp + l * g with g = h f - zp(:,1); returns g for error estimates.
-  pure subroutine nordsieck_correct(zp, hf, z, g)
+  pure subroutine nordsieck_correct(zp, h, f, z, g)
     !> Predicted Nordsieck array.
     real(dp), intent(in) :: zp(:, 0:)
-    !> Step size times the derivative evaluated at the latest iterate.
-    real(dp), intent(in) :: hf(:)
+    !> Step size, and the derivative evaluated at the latest iterate (apart: h*f passed as
+    !> one argument was a heap temporary at every step).
+    real(dp), intent(in) :: h, f(:)
     !> Corrected Nordsieck array.
     real(dp), intent(out) :: z(:, 0:)
     !> Correction g = h f - zp(:,1).
     real(dp), intent(out) :: g(:)
     integer :: j
-    g = hf - zp(:, 1)
+    g = h*f - zp(:, 1)
     do j = 0, nq
       z(:, j) = zp(:, j) + corrector_l(j)*g
     end do

@@ -263,13 +263,13 @@ contains
       else
         call surrogate(self, tn, self%wk%x, self%wk%f)
       end if
-      call nordsieck_correct(self%wk%zp, self%h*self%wk%f, self%z, self%wk%cor)
+      call nordsieck_correct(self%wk%zp, self%h, self%wk%f, self%z, self%wk%cor)
       self%t = tn
       self%zbuf(:, :, j) = self%z
       ! the fast steps' own error (the full step's correction also holds the surrogate's
       ! error, which err_s measures)
       if (self%adaptive .and. (j < self%kn .or. self%kn == 1 .or. self%hist%nh < n_hist)) &
-        & err_f = max(err_f, wrms_norm(corrector_l(0)*self%wk%cor, self%wk%w))
+        & err_f = max(err_f, abs(corrector_l(0))*wrms_norm(self%wk%cor, self%wk%w))
     end do
     self%kb = self%kn; self%hb = self%h
     self%cnt%steps_fast = self%cnt%steps_fast + self%kn
