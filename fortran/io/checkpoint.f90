@@ -28,8 +28,9 @@ module pymr_io_checkpoint
   !> continues with the one that wrote it); 8: the 'response' macro step's surrogate
   !> correction kept for its dense output; 9: the results' last row (a restart checks the
   !> kept file against it) and the run's warnings; 10: the step counts of the methods
-  !> that ran before the stepper written (method 'auto' reviewed); 11: the adaptive
-  !> 'response' macro step's last surrogate error and length.
+  !> that ran before the stepper written (method 'auto' reviewed); 11: the last accepted
+  !> step's error estimate and length of adaptive 'response' and 'exponential' (their
+  !> error envelope).
   integer, parameter :: version = 11
 
   !> What a checkpoint's header says: pymr's version, the model's size, the stepper's name,
