@@ -113,6 +113,18 @@ class Results:
         check_columns("columns", self.columns)
         check_rows("data", self.data, self.columns)
 
+    @classmethod
+    def _of_checked_file(cls, path: Path, columns: list[str], data: np.ndarray, stats: dict,
+                         meta: dict) -> "Results":
+        """The Results of a file that :func:`checked` has checked in the file's words, made
+        without __post_init__ (which would check every field again, in the words of Results
+        made by hand)."""
+        from ._args import _array
+        res = cls.__new__(cls)
+        res.columns, res.data, res.stats, res.meta = list(columns), _array("data", data), stats, meta
+        res.path, res.summary = str(path), ""
+        return res
+
     def __getitem__(self, name: str) -> np.ndarray:
         if _key("name", name) not in self.columns:
             raise _unknown("column", name, self.columns)
@@ -368,7 +380,7 @@ def checked(path: Path, columns: list[str], data: np.ndarray, stats: dict, meta:
         fault = "the file was cut" if data.shape[0] < rows else "the file was changed"
         raise ResultsError(f"{path}: {data.shape[0]} row{'s' if data.shape[0] != 1 else ''} of the {rows} the run "
                            f"wrote ({fault})")
-    return Results(columns=columns, data=data, stats=stats, meta=meta, path=str(path))
+    return Results._of_checked_file(path, columns, data, stats, meta)
 
 
 def check_columns(where, columns: list[str]) -> None:
