@@ -37,7 +37,7 @@ module pymr_integrator_response
   use pymr_integrator_control, only : step_control, error_weights, wrms_norm, error_envelope
   implicit none
   private
-  public :: response_integrator, extrapolation_weights
+  public :: response_integrator
 
   !> Full evaluations the surrogate extrapolates from (a cubic).
   integer, parameter :: n_hist = 4
@@ -63,6 +63,8 @@ module pymr_integrator_response
   type :: response_history_t
     integer :: nh = 0
     real(dp) :: th(n_hist) = 0.0_dp
+    !> The Lagrange weights' denominators, and the times they are for (history_weights).
+    real(dp) :: den(n_hist) = 0.0_dp, th_den(n_hist) = -huge(1.0_dp)
     real(dp), allocatable :: hq(:, :), hy(:, :), g(:, :), kf(:), df(:)
     real(dp) :: tp = 0.0_dp
     real(dp), allocatable :: qp(:), yp(:), gp(:, :)
@@ -76,7 +78,7 @@ module pymr_integrator_response
 
   !> Work arrays of a macro step.
   type :: response_work_t
-    real(dp), allocatable :: zp(:, :), z0(:, :), f(:), fs(:), x(:), cor(:), w(:), e(:), yhat(:), dforce(:)
+    real(dp), allocatable :: zp(:, :), z0(:, :), f(:), fs(:), x(:), cor(:), w(:), e(:), dforce(:)
     !> The surrogate's error coefficient d / P(t1) of the macro step being tried.
     real(dp), allocatable :: c(:)
   end type response_work_t
@@ -159,7 +161,6 @@ contains
     allocate(self%hist%hq(n, n_hist), self%hist%hy(2*nf, n_hist), self%hist%g(n, nf), self%hist%kf(nf), self%hist%df(nf))
     allocate(self%hist%qp(n), self%hist%yp(2*nf), self%hist%gp(n, nf))
     allocate(self%wk%f(2*n), self%wk%fs(2*n), self%wk%x(2*n), self%wk%cor(2*n), self%wk%w(2*n), self%wk%e(2*n), &
-      & self%wk%yhat(2*nf), &
       & self%wk%dforce(nf), self%d_c(n), self%wk%c(n), self%c_last(n))
   end subroutine rs_init
 
@@ -374,36 +375,66 @@ contains
     class(response_integrator), intent(inout) :: self
     real(dp), intent(in) :: t, x(:)
     real(dp), intent(out) :: f(:)
-    real(dp) :: wt(n_hist)
-    integer :: i, n, ns, nf
+    real(dp) :: wt(n_hist), acc
+    integer :: i, j, r, n, ns, nf
     n = self%n; ns = self%ns; nf = self%nf
-    call extrapolation_weights(self%hist%th, t, wt)
-    f(n+1:) = wt(1)*self%hist%hq(:, 1)
-    self%wk%yhat = wt(1)*self%hist%hy(:, 1)
-    do i = 2, n_hist
-      f(n+1:) = f(n+1:) + wt(i)*self%hist%hq(:, i)
-      self%wk%yhat = self%wk%yhat + wt(i)*self%hist%hy(:, i)
-    end do
-    self%wk%dforce = self%hist%kf*(x(ns+1:n) - self%wk%yhat(1:nf)) + self%hist%df*(x(n+ns+1:) - self%wk%yhat(nf+1:))
-    do i = 1, nf
-      f(n+1:) = f(n+1:) - self%hist%g(:, i)*self%wk%dforce(i)
-    end do
-    f(1:n) = x(n+1:)
+    call history_weights(self%hist, t, wt)
+    associate(hq => self%hist%hq, hy => self%hist%hy, g => self%hist%g, dfo => self%wk%dforce)
+      do i = 1, nf
+        acc = 0.0_dp
+        do j = 1, n_hist
+          acc = acc + wt(j)*hy(i, j)
+        end do
+        dfo(i) = self%hist%kf(i)*(x(ns+i) - acc)
+        acc = 0.0_dp
+        do j = 1, n_hist
+          acc = acc + wt(j)*hy(nf+i, j)
+        end do
+        dfo(i) = dfo(i) + self%hist%df(i)*(x(n+ns+i) - acc)
+      end do
+      do r = 1, n
+        acc = 0.0_dp
+        do j = 1, n_hist
+          acc = acc + wt(j)*hq(r, j)
+        end do
+        f(n+r) = acc
+      end do
+      do i = 1, nf
+        do r = 1, n
+          f(n+r) = f(n+r) - g(r, i)*dfo(i)
+        end do
+      end do
+    end associate
+    f(1:n) = x(n+1:2*n)
     self%cnt%evals_surrogate = self%cnt%evals_surrogate + 1
   end subroutine surrogate
 
-  !> Lagrange weights w_i(t) of the polynomial through the points th(i).
-  pure subroutine extrapolation_weights(th, t, w)
-    real(dp), intent(in) :: th(:), t
-    real(dp), intent(out) :: w(:)
+  !> Lagrange weights of the history's cubic at t: the denominators prod_{j /= i} (th(i) -
+  !> th(j)) are computed again only when the history's times changed.
+  subroutine history_weights(hist, t, w)
+    type(response_history_t), intent(inout) :: hist
+    real(dp), intent(in) :: t
+    real(dp), intent(out) :: w(n_hist)
+    real(dp) :: d(n_hist)
     integer :: i, j
-    do i = 1, size(th)
-      w(i) = 1.0_dp
-      do j = 1, size(th)
-        if (j /= i) w(i) = w(i)*(t - th(j))/(th(i) - th(j))
+    if (any(hist%th /= hist%th_den)) then
+      do i = 1, n_hist
+        hist%den(i) = 1.0_dp
+        do j = 1, n_hist
+          if (j /= i) hist%den(i) = hist%den(i)*(hist%th(i) - hist%th(j))
+        end do
+        hist%den(i) = 1.0_dp/hist%den(i)
+      end do
+      hist%th_den = hist%th
+    end if
+    d = t - hist%th
+    do i = 1, n_hist
+      w(i) = hist%den(i)
+      do j = 1, n_hist
+        if (j /= i) w(i) = w(i)*d(j)
       end do
     end do
-  end subroutine extrapolation_weights
+  end subroutine history_weights
 
   !> Keep the full evaluation f at (t, x) and the model's force response as pending.
   subroutine record_evaluation(self, sys, t, x, f, error)
