@@ -345,7 +345,8 @@ contains
     self%wk%e(1:n) = wx*d; self%wk%e(n+1:) = wv*d
     err = wrms_norm(self%wk%e, self%wk%w)
     if (.not. (self%correct .and. self%c_known)) return
-    self%wk%e(1:n) = wx*(d - p1*self%c_last); self%wk%e(n+1:) = wv*(d - p1*self%c_last)
+    self%wk%e(n+1:) = d - p1*self%c_last
+    self%wk%e(1:n) = wx*self%wk%e(n+1:); self%wk%e(n+1:) = wv*self%wk%e(n+1:)
     err = max(wrms_norm(self%wk%e, self%wk%w), credited_correction*err)
   end function macro_error
 
@@ -375,34 +376,20 @@ contains
     class(response_integrator), intent(inout) :: self
     real(dp), intent(in) :: t, x(:)
     real(dp), intent(out) :: f(:)
-    real(dp) :: wt(n_hist), acc
-    integer :: i, j, r, n, ns, nf
+    real(dp) :: wt(n_hist)
+    integer :: i, r, n, ns, nf
     n = self%n; ns = self%ns; nf = self%nf
     call history_weights(self%hist, t, wt)
     associate(hq => self%hist%hq, hy => self%hist%hy, g => self%hist%g, dfo => self%wk%dforce)
       do i = 1, nf
-        acc = 0.0_dp
-        do j = 1, n_hist
-          acc = acc + wt(j)*hy(i, j)
-        end do
-        dfo(i) = self%hist%kf(i)*(x(ns+i) - acc)
-        acc = 0.0_dp
-        do j = 1, n_hist
-          acc = acc + wt(j)*hy(nf+i, j)
-        end do
-        dfo(i) = dfo(i) + self%hist%df(i)*(x(n+ns+i) - acc)
+        dfo(i) = self%hist%kf(i)*(x(ns+i) - dot_product(wt, hy(i, :))) + &
+          & self%hist%df(i)*(x(n+ns+i) - dot_product(wt, hy(nf+i, :)))
       end do
       do r = 1, n
-        acc = 0.0_dp
-        do j = 1, n_hist
-          acc = acc + wt(j)*hq(r, j)
-        end do
-        f(n+r) = acc
+        f(n+r) = dot_product(wt, hq(r, :))
       end do
       do i = 1, nf
-        do r = 1, n
-          f(n+r) = f(n+r) - g(r, i)*dfo(i)
-        end do
+        f(n+1:2*n) = f(n+1:2*n) - g(:, i)*dfo(i)
       end do
     end associate
     f(1:n) = x(n+1:2*n)
