@@ -107,8 +107,10 @@ module pymr_integrator_response
     logical :: corrected = .false.
     real(dp) :: t_c = 0.0_dp, th_c(n_hist) = 0.0_dp
     real(dp), allocatable :: d_c(:)
-    !> The error model of the last accepted corrected macro step: its coefficient c = d / P(t1)
-    !> (the cubic's extrapolation error is c P(t)), when one is known.
+    !> The error model of the last accepted macro step, when it used the surrogate (k > 1):
+    !> its coefficient c = d / P(t1) (the cubic's extrapolation error is c P(t)). One kept
+    !> over single-step macro steps went stale: after tank_firing's recoil a c from inside
+    !> the pulse refused every later try.
     logical :: c_known = .false.
     real(dp), allocatable :: c_last(:)
     !> History of full evaluations.
@@ -246,9 +248,8 @@ contains
         end if
       end do
       call commit_evaluation(self)
-      if (self%corrected) then
-        self%c_last = self%wk%c; self%c_known = .true.
-      end if
+      self%c_known = self%corrected
+      if (self%corrected) self%c_last = self%wk%c
       self%cnt%steps_slow = self%cnt%steps_slow + 1
       self%kn = self%k
       if (self%adaptive) call resize_steps(self, err_f, err_s, filling, .true., error)
@@ -335,8 +336,8 @@ contains
   !> Weighted state error a macro step's correction leaves: the error of the part of d that
   !> the last accepted step's model c_last P(t1) did not predict, integrated as d is (on the
   !> tank d swings with the phase of the barrel's vibration and the two are alike; on the
-  !> flexible four-bar it is smooth, the model predicts it and the step may grow), and at
-  !> least credited_correction of the error before the correction.
+  !> flexible four-bar it is smooth, the model predicts it and the step may grow), at
+  !> least credited_correction of the error before the correction and at most that error.
   real(dp) function macro_error(self, d, p1, wx, wv) result(err)
     class(response_integrator), intent(inout) :: self
     real(dp), intent(in) :: d(:), p1, wx, wv
@@ -347,7 +348,7 @@ contains
     if (.not. (self%correct .and. self%c_known)) return
     self%wk%e(n+1:) = d - p1*self%c_last
     self%wk%e(1:n) = wx*self%wk%e(n+1:); self%wk%e(n+1:) = wv*self%wk%e(n+1:)
-    err = max(wrms_norm(self%wk%e, self%wk%w), credited_correction*err)
+    err = min(max(wrms_norm(self%wk%e, self%wk%w), credited_correction*err), err)
   end function macro_error
 
   !> Integrals over [t0, t] of the extrapolation error's growth P(s)/P(t1), P the product of
