@@ -68,13 +68,13 @@ def test_adaptive_full_coupling_meets_its_tolerance_on_a_loop(coupler, rtol):
 @pytest.mark.parametrize("rtol", [1e-4, 1e-6, 1e-8])
 def test_adaptive_response_meets_its_tolerance_on_a_flexible_loop(coupler, rtol):
     """Adaptive 'response' with its defaults: the loop through the flexible coupler sets
-    k_max to 8, and the crank angle ends within 2 rtol of the reference (measured 0.04, 0.06
-    and 0.24 rtol; 0.04-0.38 at 17 tolerances from 1e-4 to 1e-8 at commit ceb1e9a, 0.01-0.54
-    without glibc's FMA and AVX2 paths). Its macro step is sized by the error its correction
-    leaves, and the crank keeps every phase error, so an estimate that promised too much
-    shows here. At k_max = 50 the same runs end 0.05-1.70 rtol away (0.05-1.46), the error
-    at rtol 1e-8 moving by 0.6 rtol with the round-off of one change: too near 2 for a
-    default (docs/scenes.md, "Loops in multirate runs"). A given k_max is kept."""
+    k_max to 8, and the crank angle ends within 2 rtol of the reference (measured 0.08, 0.25
+    and 0.39 rtol; 0.08-0.72 at 17 tolerances from 1e-4 to 1e-8, 0.03-0.61 without glibc's
+    FMA and AVX2 paths). Its macro step is sized by the error its correction leaves, and
+    the crank keeps every phase error, so an estimate that promised too much shows here.
+    At k_max = 50 the same runs end 0.03-1.42 rtol away, but 0.03-2.22 without those paths:
+    too near 2 for a default (docs/scenes.md, "Loops in multirate runs"). A given k_max is
+    kept."""
     scene, ref, d = coupler
     res = pymr.run(scene, d / "r.csv", overrides=over(method="multirate", coupling="response", adaptive=True,
                                                       rtol=rtol, atol=rtol * 1e-2))

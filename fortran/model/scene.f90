@@ -23,9 +23,8 @@ module pymr_model_scene
   !> surrogate extrapolates; each macro step's error, as estimated and taken out, leaves a
   !> residual that adds up over the run to a phase error of the crank. On the flexible
   !> four-bar over rtol 1e-4 to 1e-8 (17 tolerances, with and without glibc's FMA/AVX2
-  !> paths) it ends 0.01-0.54 rtol away at k_max = 8 and 0.05-1.70 at 50, where the error
-  !> at rtol 1e-8 moved from 1.12 to 1.70 with a change of round-off alone: too near 2 to
-  !> hold on every machine (docs/scenes.md, "Loops in multirate runs").
+  !> paths) it ends 0.03-0.72 rtol away at k_max = 8 and 0.03-2.22 at 50, where the error
+  !> at rtol 1e-8 moves with round-off (docs/scenes.md, "Loops in multirate runs").
   integer, parameter :: k_max_flexible_loop = 8
 
   !> The groups of a scene file, in the order the resolved scene is written.
