@@ -210,7 +210,7 @@ contains
     type(error_type), allocatable, intent(out) :: error
     real(dp) :: err_f, err_s, t0, h0
     integer :: breakdowns, projection_fails
-    logical :: retry, filling
+    logical :: retry, filling, refused
     select type (sys)
     class is (partitioned_system)
       t0 = self%t; h0 = self%h
@@ -218,7 +218,7 @@ contains
         self%wk%z0 = self%z
         call error_weights(self%ctl, self%z(:, 0), self%wk%w)
       end if
-      breakdowns = 0; projection_fails = 0
+      breakdowns = 0; projection_fails = 0; refused = .false.
       do
         filling = self%hist%nh < n_hist
         call try_macro_step(self, sys, err_f, err_s, error)
@@ -244,7 +244,8 @@ contains
         if (retry) then
           call shrink_fast_step(self, error); if (allocated(error)) return
         else
-          call resize_steps(self, err_f, err_s, filling, .false., error); if (allocated(error)) return
+          refused = refused .or. err_s > 1.0_dp
+          call resize_steps(self, err_f, err_s, filling, .false., .false., error); if (allocated(error)) return
         end if
       end do
       call commit_evaluation(self)
@@ -252,7 +253,7 @@ contains
       if (self%corrected) self%c_last = self%wk%c
       self%cnt%steps_slow = self%cnt%steps_slow + 1
       self%kn = self%k
-      if (self%adaptive) call resize_steps(self, err_f, err_s, filling, .true., error)
+      if (self%adaptive) call resize_steps(self, err_f, err_s, filling, .true., refused, error)
     class default
       call fatal_error(error, "the 'response' coupling needs a system partitioned into slow and fast coordinates")
     end select
@@ -455,14 +456,15 @@ contains
   !> New fast step and ratio from the errors of a macro step (accepted or not): the fast
   !> step from the corrector's estimate, the macro step from the surrogate's (after an
   !> accepted step, the envelope of its and the last one's: error_envelope), k = H/h
-  !> within [1, k_max]. A macro step taken while the history was `filling` (no surrogate,
+  !> within [1, k_max]; after an accepted step that followed a refusal for err_s
+  !> (`refused`) the macro step does not grow. A macro step taken while the history was `filling` (no surrogate,
   !> no estimate of its error) keeps its ratio: grown on no estimate, the tank's start took
   !> k = 35 and the rate error of its first steps stayed in the turret's motion. The array
   !> is rescaled to the new fast step.
-  subroutine resize_steps(self, err_f, err_s, filling, accepted, error)
+  subroutine resize_steps(self, err_f, err_s, filling, accepted, refused, error)
     class(response_integrator), intent(inout) :: self
     real(dp), intent(in) :: err_f, err_s
-    logical, intent(in) :: filling, accepted
+    logical, intent(in) :: filling, accepted, refused
     type(error_type), allocatable, intent(out) :: error
     real(dp) :: h_new, hm_new, e_s
     h_new = self%h*self%ctl%ratio(err_f, accepted .or. err_f <= 1.0_dp)
@@ -471,7 +473,7 @@ contains
     e_s = err_s
     if (accepted) e_s = self%last_macro%of(err_s, self%kn*self%h, surrogate_order)
     hm_new = self%kn*self%h*self%ctl%ratio(e_s, accepted .or. err_s <= 1.0_dp, surrogate_order)
-    if (.not. accepted .and. err_s <= 1.0_dp) hm_new = min(hm_new, self%kn*self%h)
+    if ((.not. accepted .and. err_s <= 1.0_dp) .or. refused) hm_new = min(hm_new, self%kn*self%h)
     if (h_new < self%ctl%h_min) then
       call step_underflow(error, self%t, 'fast step', h_new); return
     end if
