@@ -24,9 +24,9 @@
 !> spin up, and the 'exponential' coupling renews its frozen response more often). Every
 !> `review_share` of the run the CPU per simulated second of the window just run is
 !> measured, less the CPU its rows' output took (one output call in `sampling` timed: their
-!> constant cost, the energy columns' works, would hide a method's growing one). The baseline
-!> is the cheapest window since the start or the last review; the first opens a probe's length
-!> after a start (its small steps left out). `dear_windows` windows in a
+!> constant cost, the energy columns' works, would hide a method's growing one). The
+!> baseline is the cheapest window since the start or the last review; the first opens a
+!> probe's length after a start (its small steps left out). `dear_windows` windows in a
 !> row dearer than the baseline by `review_margin`, and by `switch_gain` times the running
 !> method's lead (the next cheapest candidate's CPU rate over the running one's when last
 !> measured: the probes' mean rates at the start, a stopped probe's up to its stop), call a
@@ -115,8 +115,9 @@ module pymr_driver_method_choice
     !> The scene as asked (its own formula and order, for the single-rate candidate).
     type(integrator_spec) :: asked
     !> The review (none without probes): the current window's start (time; < 0: not yet), the
-    !> baseline CPU rate (the cheapest window's, s per simulated s; < 0: the next window gives it), the reviews
-    !> made, the method first chosen, and what the reviews found (summary text, JSON).
+    !> baseline CPU rate (the cheapest window's, s per simulated s; < 0: the next window
+    !> gives it), the reviews made, the method first chosen, and what the reviews found
+    !> (summary text, JSON).
     real(dp) :: t_window = -1.0_dp, base_rate = -1.0_dp
     !> The time from which the next first window opens: past a start's small steps, which
     !> the baseline would count (the probe's length after the start or a hand-over).
@@ -421,8 +422,8 @@ contains
   !> last review: on the flexible chain the first window, in the start's vibration, cost
   !> 1.4x the cheapest, and the review came at 1.18 s instead of 0.70 s), and the
   !> candidates probed again when dear_windows windows in a row are dearer than the
-  !> baseline by the threshold and the review pays. `switched`: another method takes over, set in sc (the caller
-  !> starts its stepper where st stands).
+  !> baseline by the threshold and the review pays. `switched`: another method takes
+  !> over, set in sc (the caller starts its stepper where st stands).
   subroutine review(self, sc, model, st, switched)
     class(method_choice_t), intent(inout) :: self
     type(scene_t), intent(inout) :: sc
