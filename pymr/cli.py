@@ -433,8 +433,8 @@ def _add_sweep(sub) -> None:
     w.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask scheduler (e.g. from dask-jobqueue on "
                    "SLURM or PBS); default: a LocalCluster on this machine")
     w.add_argument("--workers", type=_count_of("workers", most=MAX_WORKERS), default=2, help="LocalCluster worker processes (default 2)")
-    w.add_argument("--emit-slurm", metavar="DIR", help="write the case namelists and a SLURM job-array script "
-                   "running mrsim per case to DIR instead of running")
+    w.add_argument("--emit-slurm", metavar="DIR", help="write the case namelists (and the deviation metric's "
+                   "reference runs') and a SLURM job-array script running mrsim per namelist to DIR instead of running")
     w.add_argument("--collect", metavar="DIR", help="after the SLURM job array ran: the summary (DIR/summary.csv) "
                    "of the cases' results in DIR")
     w.set_defaults(func=_cmd_sweep)

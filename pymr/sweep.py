@@ -1,6 +1,7 @@
 """``pymr sweep SWEEP.toml``: a base scene and a parameter grid, expanded into cases, run on
 Dask and collected into one summary CSV; or, with ``--emit-slurm DIR``, written out as case
-namelists and a SLURM job-array script that runs ``mrsim`` per case.
+namelists (and the deviation metric's reference runs') and a SLURM job-array script that
+runs ``mrsim`` per namelist, whose results ``--collect DIR`` sums up.
 
 SWEEP.toml::
 
@@ -290,20 +291,6 @@ def reference_run(scene: str, overrides: dict, out: str, marker: str):
         return str(exc.args[0] if isinstance(exc, KeyError) else exc)
 
 
-def reference_positions(sw: Sweep, folder: Path | None = None) -> list | None:
-    """Each case's reference positions (or the error of its reference run), the references
-    run here one after another; None without the deviation metric."""
-    if not sw.metric.startswith("deviation:"):
-        return None
-    marker = sw.metric.split(":", 1)[1]
-    out: list = [None] * len(sw.cases)
-    for k, (over, cases) in enumerate(references(sw)):
-        pos = reference_run(str(sw.scene), over, str((folder or sw.output) / reference_file(k)), marker)
-        for i in cases:
-            out[i] = pos
-    return out
-
-
 def reference_names(sw: Sweep) -> list[str]:
     """Each case's reference file name ('' without the deviation metric)."""
     names = [""] * len(sw.cases)
@@ -324,8 +311,9 @@ def collect(sw: Sweep, folder: str | os.PathLike) -> list[dict]:
     complete results in `folder` give its metric and CPU time. A case is 'ok', 'failed: ...'
     (its run failed: its caseNNNN.json.partial holds the error; or its results cannot be
     read, a truncated file), 'not finished' (a caseNNNN.csv.partial without an error: still
-    running, or stopped by its time limit) or 'not run' (no files). The deviation metric's
-    references are run here. Writes folder/summary.csv."""
+    running, or stopped by its time limit, or its reference still running) or 'not run' (no
+    files). The deviation metric's references come from the job array's reference tasks
+    (collected_references). Writes folder/summary.csv."""
     folder = Path(folder)
     if not (folder / "sweep.slurm").exists():
         raise SweepError(f"--collect {folder}: no sweep.slurm here (emit the cases with --emit-slurm first)")
@@ -337,41 +325,100 @@ def collect(sw: Sweep, folder: str | os.PathLike) -> list[dict]:
     if emitted != cases_text(sw):
         raise SweepError(f"--collect {folder}: its cases.csv is not this sweep's cases ({sw.path.name}): collect "
                          "with the sweep file its cases were emitted from")
-    ref = reference_positions(sw, folder)
+    ref = collected_references(sw, folder)
     names = reference_names(sw)
     rows = []
     for i, case in enumerate(sw.cases):
         row = {"case": case_name(i), **case, "metric": math.nan, "cpu_time_s": math.nan, "reference": names[i]}
-        row.update(collect_case(folder, case_name(i), sw.metric, ref[i] if ref else None))
+        reference = ref[i] if ref else None
+        if isinstance(reference, ReferenceNotFinished):      # the case's own fault first
+            status = collected_results(folder, case_name(i))[1]
+            row["status"] = status if status != "ok" else f"not finished: its reference {reference}"
+        else:
+            row.update(collect_case(folder, case_name(i), sw.metric, reference))
         rows.append(row)
     write_summary(sw, rows, folder)
     return rows
 
 
+class ReferenceNotFinished(str):
+    """A reference run of the job array that has not finished (its text says which)."""
+
+
+def collected_references(sw: Sweep, folder: Path) -> list | None:
+    """Each case's reference for --collect (None without the deviation metric): the marker's
+    positions from the job array's referenceNNNN task; the error of a reference that failed
+    (a string); a ReferenceNotFinished while its task runs. A reference whose task has not
+    run, or a folder emitted before the job array ran the references (no referenceNNNN.nml),
+    is run here."""
+    if not sw.metric.startswith("deviation:"):
+        return None
+    marker = sw.metric.split(":", 1)[1]
+    out: list = [None] * len(sw.cases)
+    for k, (over, cases) in enumerate(references(sw)):
+        name = reference_file(k).removesuffix(".csv")
+        nml = folder / f"{name}.nml"
+        if nml.exists() and nml.read_text() != namelist_text(sw.scene, over, nml.name):
+            raise SweepError(f"--collect {folder}: its {nml.name} is not this sweep's reference ({sw.path.name}): "
+                             "emit the cases again with --emit-slurm")
+        res, status = collected_results(folder, name) if nml.exists() else (None, "not run")
+        if status == "ok":
+            pos = _marker_positions(res, marker)
+        elif status == "not run":
+            pos = reference_run(str(nml if nml.exists() else sw.scene), {} if nml.exists() else over,
+                                str(folder / reference_file(k)), marker)
+        elif status.startswith("not finished"):
+            pos = ReferenceNotFinished(f"{name} {status.removeprefix('not finished: ')}")
+        else:
+            pos = f"{name}: {status.removeprefix('failed: ')}"
+        for i in cases:
+            out[i] = pos
+    return out
+
+
+def _marker_positions(res, marker: str):
+    """A reference's marker positions, or why it has none (a string)."""
+    try:
+        return res.marker(marker)[0]
+    except KeyError as exc:
+        return str(exc.args[0])
+
+
 def collect_case(folder: Path, name: str, metric: str, reference) -> dict:
     """One case of --collect: its status, and its metric and CPU time when it is complete."""
+    res, status = collected_results(folder, name)
+    if status != "ok":
+        return {"status": status}
+    value, status = case_metric(res, metric, reference)
+    return {"metric": value, "cpu_time_s": float(res.stats.get("cpu_time_s", math.nan)),
+            "status": "failed: " + status.removeprefix("error: ") if status != "ok" else "ok"}
+
+
+def collected_results(folder: Path, name: str) -> tuple:
+    """A job array task's results (NAME.nml run into NAME.csv) and their status: 'ok' (the
+    results, complete and of NAME.nml), 'failed: ...' (the error its NAME.json.partial holds,
+    or results cut short or of another scene), 'not finished: ...' (a NAME.csv.partial and
+    no error: running, or stopped by its time limit) or 'not run' (no files)."""
     out = folder / f"{name}.csv"
     if not out.exists():
         partial = folder / f"{name}.json.partial"
         if partial.exists():
-            return {"status": f"failed: {_partial_error(partial)}"}
+            return None, f"failed: {_partial_error(partial)}"
         if (folder / f"{name}.csv.partial").exists():
-            return {"status": f"not finished: {name}.csv.partial without an error (running, or stopped by its time "
-                              "limit)"}
-        return {"status": "not run"}
+            return None, (f"not finished: {name}.csv.partial without an error (running, or stopped by its time "
+                          "limit)")
+        return None, "not run"
     try:
         res = load_results(out)
     except ResultsError as exc:
-        return {"status": f"failed: incomplete results: {exc}"}
+        return None, f"failed: incomplete results: {exc}"
     short = _incomplete(res, out)
     if short:
-        return {"status": f"failed: incomplete results: {short}"}
+        return None, f"failed: incomplete results: {short}"
     other = _other_scene(res, out, folder / f"{name}.nml")
     if other:
-        return {"status": f"failed: {other}"}
-    value, status = case_metric(res, metric, reference)
-    return {"metric": value, "cpu_time_s": float(res.stats.get("cpu_time_s", math.nan)),
-            "status": "failed: " + status.removeprefix("error: ") if status != "ok" else "ok"}
+        return None, f"failed: {other}"
+    return res, "ok"
 
 
 def _incomplete(res, out: Path) -> str:
@@ -516,13 +563,17 @@ def write_summary(sw: Sweep, rows: list[dict], folder: Path | None = None) -> Pa
 
 # ------------------------------------------------------------------------ SLURM
 
-def case_namelist(base: Path, overrides: dict, dest: Path) -> None:
-    """Write the base scene with the overrides applied and every default filled in (the
-    kernel's resolved scene), the files it names made absolute, and no &output file (mrsim
-    gets -o)."""
+def namelist_text(base: Path, overrides: dict, name: str) -> str:
+    """The namelist `name` of a job array task: the base scene with the overrides applied
+    and every default filled in (the kernel's resolved scene), the files it names made
+    absolute, and no &output file (mrsim gets -o)."""
     scene = Scene(base, {**overrides, "output.file": ""})
-    text = scene.resolved(absolute_paths=True)
-    write_file(dest, f"! {dest.name}: {base.name} with {overrides}\n" + text, "case namelist")
+    return f"! {name}: {base.name} with {overrides}\n" + scene.resolved(absolute_paths=True)
+
+
+def case_namelist(base: Path, overrides: dict, dest: Path) -> None:
+    """Write the namelist of a job array task (namelist_text) to dest."""
+    write_file(dest, namelist_text(base, overrides, dest.name), "case namelist")
 
 
 def cases_text(sw: Sweep) -> str:
@@ -536,9 +587,10 @@ def cases_text(sw: Sweep) -> str:
 
 
 def emit_slurm(sw: Sweep, folder: str | os.PathLike, time_limit: str = "01:00:00") -> Path:
-    """Case namelists and a SLURM job-array script running mrsim per case, in `folder`. The
-    script names the mrsim of this installation by its absolute path (a compute node need
-    not have it on its PATH); the environment variable PYMR_MRSIM overrides it."""
+    """Case namelists and a SLURM job-array script running mrsim per case, in `folder`; with
+    the deviation metric its reference runs too, as tasks after the cases' (referenceNNNN).
+    The script names the mrsim of this installation by its absolute path (a compute node
+    need not have it on its PATH); the environment variable PYMR_MRSIM overrides it."""
     from ._locate import mrsim_path
     exe = mrsim_path() or "mrsim"
     folder = Path(folder)
@@ -546,12 +598,16 @@ def emit_slurm(sw: Sweep, folder: str | os.PathLike, time_limit: str = "01:00:00
     cases = sw.cases
     for i, case in enumerate(cases):
         case_namelist(sw.scene, {**sw.fixed, **case}, folder / f"{case_name(i)}.nml")
+    refs = references(sw) if sw.metric.startswith("deviation:") else []
+    for k, (over, _) in enumerate(refs):
+        case_namelist(sw.scene, over, folder / reference_file(k).replace(".csv", ".nml"))
     write_file(folder / "cases.csv", cases_text(sw), "list of cases")
     script = write_file(folder / "sweep.slurm", f"""#!/bin/bash
-# SLURM job array for the sweep {sw.path.name}: one task per case namelist.
+# SLURM job array for the sweep {sw.path.name}: one task per case namelist (caseNNNN),
+# then one per reference run of the deviation metric (referenceNNNN, {len(refs)} here).
 # Submit from this folder: sbatch sweep.slurm   (results: caseNNNN.csv and .json here)
 #SBATCH --job-name=pymr-sweep
-#SBATCH --array=0-{len(cases) - 1}
+#SBATCH --array=0-{len(cases) + len(refs) - 1}
 #SBATCH --ntasks=1
 #SBATCH --cpus-per-task=1
 #SBATCH --time={time_limit}
@@ -561,7 +617,12 @@ set -euo pipefail
 # one CPU per task: no BLAS threads beside it
 export {' '.join(f'{name}=1' for name in BLAS_THREADS)}
 cd "${{SLURM_SUBMIT_DIR:-$(dirname "$0")}}"
-case=$(printf 'case%04d' "${{SLURM_ARRAY_TASK_ID}}")
+task="${{SLURM_ARRAY_TASK_ID}}"
+if [ "$task" -lt {len(cases)} ]; then
+  case=$(printf 'case%04d' "$task")
+else
+  case=$(printf 'reference%04d' "$((task - {len(cases)}))")
+fi
 MRSIM="${{PYMR_MRSIM:-{exe}}}"
 "$MRSIM" "$case.nml" -o "$case.csv" --quiet
 """, "SLURM script")

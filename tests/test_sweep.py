@@ -4,6 +4,7 @@ SLURM emission writes case namelists (the kernel's resolved scenes) whose mrsim 
 from __future__ import annotations
 
 import csv
+import os
 import re
 import subprocess
 from pathlib import Path
@@ -154,7 +155,10 @@ def test_emitted_slurm_cases_run_by_mrsim_equal_the_override_runs(tmp_path, mrsi
     sw = load_sweep(toml)
     script = emit_slurm(sw, tmp_path / "slurm")
     text = script.read_text()
-    assert "#SBATCH --array=0-7" in text and '"$MRSIM" "$case.nml" -o "$case.csv"' in text
+    # 8 cases, then 4 references (one per coupling and damping: [reference] sets h_slow)
+    assert "#SBATCH --array=0-11" in text and '"$MRSIM" "$case.nml" -o "$case.csv"' in text
+    assert sorted(p.name for p in (tmp_path / "slurm").glob("reference*.nml")) == [
+        f"reference{k:04d}.nml" for k in range(4)]
     # one CPU per task, and one BLAS thread in it
     assert "#SBATCH --cpus-per-task=1" in text
     assert "export OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 MKL_NUM_THREADS=1" in text
@@ -234,10 +238,66 @@ def test_a_slurm_sweep_is_collected_into_its_summary(tmp_path, mrsim):
     rows = list(csv.DictReader((folder / "summary.csv").open()))
     assert [row["status"] for row in rows].count("ok") == 2
     assert all(row["status"] == "not run" for i, row in enumerate(rows) if i not in (1, 6))
-    from pymr.sweep import reference_positions, run_case
-    ref = reference_positions(sw, tmp_path)
-    alone = run_case(str(TANK), {**sw.fixed, **sw.cases[6]}, str(tmp_path / "alone.csv"), sw.metric, ref[6])
+    from pymr.sweep import reference_run, references, run_case
+    over = next(over for over, cases in references(sw) if 6 in cases)
+    ref = reference_run(str(TANK), over, str(tmp_path / "ref.csv"), "muzzle")
+    alone = run_case(str(TANK), {**sw.fixed, **sw.cases[6]}, str(tmp_path / "alone.csv"), sw.metric, ref)
     assert float(rows[6]["metric"]) == pytest.approx(alone["metric"], rel=1e-12)
+
+
+def test_the_job_array_runs_the_references_and_collect_takes_them(tmp_path, monkeypatch, mrsim):
+    """With the deviation metric, --emit-slurm puts each reference run in the job array after
+    the cases (--collect ran them one after another where it was called, a cluster's login
+    node). Every task of the script run as SLURM would (SLURM_ARRAY_TASK_ID 0 to 5: four
+    cases, two references shared by the grid's q0 values): --collect runs nothing itself and
+    each deviation equals run_case's against the same reference run alone. A reference still
+    running leaves its cases 'not finished', a failed one fails them with its error, and one
+    whose task has not run is run by --collect as before."""
+    (tmp_path / "p.nml").write_text(PENDULUM)
+    (tmp_path / "s.toml").write_text('scene = "p.nml"\nmetric = "deviation:tip"\n[grid]\n'
+                                     '"joint[pivot].q0" = [0.5, 0.6]\n"integrator.h_slow" = [2e-3, 4e-3]\n'
+                                     '[fixed]\n"output.dt" = 0.01\n"body[bob].com" = [0.0, -1.0, 0.0]\n[reference]\n"integrator.h_slow" = 2.5e-4\n')
+    sw = load_sweep(tmp_path / "s.toml")
+    folder = tmp_path / "runs"
+    script = emit_slurm(sw, folder)
+    assert "#SBATCH --array=0-5" in script.read_text()
+    for task in range(6):
+        r = subprocess.run(["bash", str(script)], cwd=folder, capture_output=True, text=True,
+                           env={**os.environ, "SLURM_ARRAY_TASK_ID": str(task), "SLURM_SUBMIT_DIR": str(folder)})
+        assert r.returncode == 0, r.stderr
+    assert sorted(p.name for p in folder.glob("reference*.csv")) == ["reference0000.csv", "reference0001.csv"]
+    import pymr.sweep as sweep_module
+    def no_reference_here(*args):
+        raise AssertionError("--collect ran a reference itself")
+    monkeypatch.setattr(sweep_module, "reference_run", no_reference_here)
+    rows = collect(sw, folder)
+    assert [row["status"] for row in rows] == ["ok"] * 4
+    monkeypatch.undo()
+    from pymr.sweep import reference_run, references, run_case
+    for over, cases in references(sw):
+        ref = reference_run(str(tmp_path / "p.nml"), over, str(tmp_path / "ref.csv"), "tip")
+        for i in cases:
+            alone = run_case(str(tmp_path / "p.nml"), {**sw.fixed, **sw.cases[i]}, str(tmp_path / "alone.csv"),
+                             sw.metric, ref)
+            assert rows[i]["metric"] == pytest.approx(alone["metric"], rel=1e-12) and rows[i]["metric"] > 0
+    done = (folder / "reference0000.csv").read_text()
+    (folder / "reference0000.csv").unlink()
+    (folder / "reference0000.csv.partial").write_text(done[:200])
+    (folder / "summary.csv").unlink()
+    status = [row["status"] for row in collect(sw, folder)]
+    users = next(cases for over, cases in references(sw))
+    assert all(status[i].startswith("not finished: its reference reference0000 ") for i in users), status
+    assert all(status[i] == "ok" for i in range(4) if i not in users), status
+    (folder / "reference0000.json.partial").write_text('{"error": "at t = 0.1 s: the step broke down"}')
+    (folder / "summary.csv").unlink()
+    status = [row["status"] for row in collect(sw, folder)]
+    assert all(status[i] == "failed: the reference run failed: reference0000: at t = 0.1 s: the step broke down"
+               for i in users), status
+    for f in folder.glob("reference0000.*.partial"):
+        f.unlink()
+    (folder / "summary.csv").unlink()
+    rows = collect(sw, folder)
+    assert [row["status"] for row in rows] == ["ok"] * 4 and (folder / "reference0000.csv").exists()
 
 
 # ------------------------------------------------------------- issue 30: sweeps' rough edges
