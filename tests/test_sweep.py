@@ -252,7 +252,8 @@ def test_the_job_array_runs_the_references_and_collect_takes_them(tmp_path, monk
     cases, two references shared by the grid's q0 values): --collect runs nothing itself and
     each deviation equals run_case's against the same reference run alone. A reference still
     running leaves its cases 'not finished', a failed one fails them with its error, and one
-    whose task has not run is run by --collect as before."""
+    whose task has not run is run by --collect as before; a reference namelist of another
+    [reference] table is refused."""
     (tmp_path / "p.nml").write_text(PENDULUM)
     (tmp_path / "s.toml").write_text('scene = "p.nml"\nmetric = "deviation:tip"\n[grid]\n'
                                      '"joint[pivot].q0" = [0.5, 0.6]\n"integrator.h_slow" = [2e-3, 4e-3]\n'
@@ -298,6 +299,11 @@ def test_the_job_array_runs_the_references_and_collect_takes_them(tmp_path, monk
     (folder / "summary.csv").unlink()
     rows = collect(sw, folder)
     assert [row["status"] for row in rows] == ["ok"] * 4 and (folder / "reference0000.csv").exists()
+    # the sweep file's [reference] changed since the emission: its namelists are refused
+    (tmp_path / "s.toml").write_text((tmp_path / "s.toml").read_text().replace("2.5e-4", "5e-4"))
+    with pytest.raises(SweepError, match=r"--collect .*runs: its reference0000.nml is not this sweep's reference "
+                                         r"\(s\.toml\): emit the cases again with --emit-slurm$"):
+        collect(load_sweep(tmp_path / "s.toml"), folder)
 
 
 # ------------------------------------------------------------- issue 30: sweeps' rough edges
