@@ -193,8 +193,14 @@ def references(sw: Sweep) -> list[tuple[dict, list[int]]]:
     return list(out.values())
 
 
+def reference_name(k: int) -> str:
+    """The name of reference run k: its job array task's namelist and results are NAME.nml
+    and NAME.csv."""
+    return f"reference{k:04d}"
+
+
 def reference_file(k: int) -> str:
-    return f"reference{k:04d}.csv"
+    return f"{reference_name(k)}.csv"
 
 
 #: The groups whose items can change the columns of the results (the markers, joints,
@@ -318,11 +324,7 @@ def collect(sw: Sweep, folder: str | os.PathLike) -> list[dict]:
     if not (folder / "sweep.slurm").exists():
         raise SweepError(f"--collect {folder}: no sweep.slurm here (emit the cases with --emit-slurm first)")
     check_output(folder / "summary.csv", "sweep's summary", option="--collect")
-    try:
-        emitted = (folder / "cases.csv").read_bytes().decode()
-    except (OSError, UnicodeDecodeError):
-        emitted = None
-    if emitted != cases_text(sw):
+    if _text_of(folder / "cases.csv") != cases_text(sw):
         raise SweepError(f"--collect {folder}: its cases.csv is not this sweep's cases ({sw.path.name}): collect "
                          "with the sweep file its cases were emitted from")
     ref = collected_references(sw, folder)
@@ -356,9 +358,9 @@ def collected_references(sw: Sweep, folder: Path) -> list | None:
     marker = sw.metric.split(":", 1)[1]
     out: list = [None] * len(sw.cases)
     for k, (over, cases) in enumerate(references(sw)):
-        name = reference_file(k).removesuffix(".csv")
+        name = reference_name(k)
         nml = folder / f"{name}.nml"
-        if nml.exists() and nml.read_text() != namelist_text(sw.scene, over, nml.name):
+        if nml.exists() and _text_of(nml) != namelist_text(sw.scene, over, nml.name):
             raise SweepError(f"--collect {folder}: its {nml.name} is not this sweep's reference ({sw.path.name}): "
                              "emit the cases again with --emit-slurm")
         res, status = collected_results(folder, name) if nml.exists() else (None, "not run")
@@ -374,6 +376,14 @@ def collected_references(sw: Sweep, folder: Path) -> list | None:
         for i in cases:
             out[i] = pos
     return out
+
+
+def _text_of(path: Path) -> str | None:
+    """A file's text, or None when it cannot be read as text."""
+    try:
+        return path.read_bytes().decode()
+    except (OSError, UnicodeDecodeError):
+        return None
 
 
 def _marker_positions(res, marker: str):
@@ -600,7 +610,7 @@ def emit_slurm(sw: Sweep, folder: str | os.PathLike, time_limit: str = "01:00:00
         case_namelist(sw.scene, {**sw.fixed, **case}, folder / f"{case_name(i)}.nml")
     refs = references(sw) if sw.metric.startswith("deviation:") else []
     for k, (over, _) in enumerate(refs):
-        case_namelist(sw.scene, over, folder / reference_file(k).replace(".csv", ".nml"))
+        case_namelist(sw.scene, over, folder / f"{reference_name(k)}.nml")
     write_file(folder / "cases.csv", cases_text(sw), "list of cases")
     script = write_file(folder / "sweep.slurm", f"""#!/bin/bash
 # SLURM job array for the sweep {sw.path.name}: one task per case namelist (caseNNNN),
