@@ -292,9 +292,10 @@ def reference_run(scene: str, overrides: dict, out: str, marker: str):
     """One reference run: the marker's positions, or its error as a string (recorded by the
     cases that use it, not raised)."""
     try:
-        return run(scene, out, overrides=overrides, progress=False).marker(marker)[0]
-    except (PymrError, KeyError) as exc:
-        return str(exc.args[0] if isinstance(exc, KeyError) else exc)
+        res = run(scene, out, overrides=overrides, progress=False)
+    except PymrError as exc:
+        return str(exc)
+    return _marker_positions(res, marker)
 
 
 def reference_names(sw: Sweep) -> list[str]:
@@ -360,15 +361,16 @@ def collected_references(sw: Sweep, folder: Path) -> list | None:
     for k, (over, cases) in enumerate(references(sw)):
         name = reference_name(k)
         nml = folder / f"{name}.nml"
-        if nml.exists() and _text_of(nml) != namelist_text(sw.scene, over, nml.name):
+        emitted = nml.exists()        # not in a folder emitted before the array ran references
+        if emitted and _text_of(nml) != namelist_text(sw.scene, over, nml.name):
             raise SweepError(f"--collect {folder}: its {nml.name} is not this sweep's reference ({sw.path.name}): "
                              "emit the cases again with --emit-slurm")
-        res, status = collected_results(folder, name) if nml.exists() else (None, "not run")
+        res, status = collected_results(folder, name) if emitted else (None, "not run")
         if status == "ok":
             pos = _marker_positions(res, marker)
         elif status == "not run":
-            pos = reference_run(str(nml if nml.exists() else sw.scene), {} if nml.exists() else over,
-                                str(folder / reference_file(k)), marker)
+            scene, scene_over = (nml, {}) if emitted else (sw.scene, over)
+            pos = reference_run(str(scene), scene_over, str(folder / reference_file(k)), marker)
         elif status.startswith("not finished"):
             pos = ReferenceNotFinished(f"{name} {status.removeprefix('not finished: ')}")
         else:
