@@ -97,6 +97,15 @@ def overwritten_input(scene, path: str | os.PathLike, overrides=None) -> str:
     return _text(found)
 
 
+def canonical_address(address: str) -> str:
+    """The one spelling of the item an override address names, by the kernel's rule
+    (``Integrator.H_SLOW`` and ``integrator.h_slow``, ``body['gun'].mass`` and
+    ``body[gun].mass`` name one item); a SceneError for an address that is none."""
+    text, stat, msg, detail = _core.pymr_override_address(address)
+    _raise(stat, msg, detail)
+    return _text(text)
+
+
 def check_not_input(scene, path: str | os.PathLike, what: str, overrides=None) -> None:
     """`path`, an output, is none of the scene's inputs; else a SceneError."""
     found = overwritten_input(scene, path, overrides)

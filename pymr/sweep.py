@@ -53,6 +53,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ._args import canonical_address
 from .api import PymrError, SceneError, run, write_file
 from .errors import OutputError, ResultsError
 from .outputs import _folder_of, _is_dir, check_output
@@ -104,10 +105,7 @@ def load_sweep(path: str | os.PathLike) -> Sweep:
     for k, v in grid.items():
         if not isinstance(v, list) or not v:
             raise SweepError(f"{path}: [grid] {k}: must be a non-empty list of values")
-    both = sorted({k.strip().lower() for k in grid} & {k.strip().lower() for k in spec.get("fixed", {})})
-    if both:
-        raise SweepError(f"{path}: [fixed] {both[0]}: also a [grid] parameter (one value would be dropped): "
-                         "keep it in one table")
+    grid, fixed, reference = named_once(path, spec)
     metric = spec.get("metric", "")
     if metric and not re.fullmatch(r"(deviation|final|max_abs):[\w.\[\]]+", metric):
         raise SweepError(f"{path}: metric: {metric!r} is not 'deviation:MARKER', 'final:COLUMN' or 'max_abs:COLUMN'")
@@ -122,10 +120,38 @@ def load_sweep(path: str | os.PathLike) -> Sweep:
         raise SweepError(f"{path}: output: an empty folder name (leave it out for {path.stem}/ in the working folder)")
     # outputs are relative to the working folder, as every pymr output is (not to the TOML file)
     output = Path(spec.get("output", path.stem)).resolve()
-    sw = Sweep(path, scene, output, metric, grid, spec.get("fixed", {}), spec.get("reference", {}))
+    sw = Sweep(path, scene, output, metric, grid, fixed, reference)
     check_cases(sw)
     check_metric(sw)
     return sw
+
+
+def named_once(path: Path, spec: dict) -> tuple[dict, dict, dict]:
+    """The [grid], [fixed] and [reference] tables with each item named once (the kernel's
+    canonical_address: 'Integrator.H_SLOW' and 'integrator.h_slow' are one item). Two keys
+    of one table naming one item, or a [fixed] item also on the grid, are refused: one
+    value would be dropped (two spellings of a [grid] key ran every case with the last one
+    and labelled them with the first). A [reference] key takes the spelling the [grid] or
+    [fixed] table gave its item, so that it replaces the case's value. An address that is
+    none is left to check_cases, which names the case."""
+    tables, spelled = [], {}
+    for name in ("grid", "fixed", "reference"):
+        seen: dict[str, str] = {}
+        table = {}
+        for key, value in spec.get(name, {}).items():
+            try:
+                item = canonical_address(key)
+            except SceneError:
+                item = key
+            if item in seen:
+                raise SweepError(f"{path}: [{name}] {key!r} and {seen[item]!r} name one item ({item}): keep one")
+            seen[item] = key
+            if name == "fixed" and item in spelled:
+                raise SweepError(f"{path}: [fixed] {key}: also a [grid] parameter (one value would be dropped): "
+                                 "keep it in one table")
+            table[spelled.setdefault(item, key)] = value
+        tables.append(table)
+    return tables[0], tables[1], tables[2]
 
 
 def _sweep_text(path: Path) -> str:
@@ -324,7 +350,8 @@ def collect(sw: Sweep, folder: str | os.PathLike) -> list[dict]:
     folder = Path(folder)
     if not (folder / "sweep.slurm").exists():
         raise SweepError(f"--collect {folder}: no sweep.slurm here (emit the cases with --emit-slurm first)")
-    check_output(folder / "summary.csv", "sweep's summary", option="--collect")
+    check_output(folder / "summary.csv", "sweep's summary", option="--collect", inputs=[sw.path], scene=sw.scene,
+                 overrides=sw.fixed)
     if _text_of(folder / "cases.csv") != cases_text(sw):
         raise SweepError(f"--collect {folder}: its cases.csv is not this sweep's cases ({sw.path.name}): collect "
                          "with the sweep file its cases were emitted from")
@@ -487,7 +514,8 @@ def run_sweep(sw: Sweep, scheduler: str | None = None, workers: int = 2) -> list
     if scheduler is not None:
         _check_address(scheduler)
     make_folder(sw.output, "output")
-    summary = check_output(sw.output / "summary.csv", "sweep's summary", option=f"{sw.path}: output")
+    check_outputs(sw, sw.output, f"{sw.path}: output", emitting=False)
+    summary = sw.output / "summary.csv"
     cases = sw.cases
     cluster = None
     if scheduler is not None:
@@ -542,6 +570,21 @@ def _check_address(scheduler) -> None:
     except (ValueError, TypeError) as exc:
         raise SweepError(f"--scheduler {scheduler}: not the address of a Dask scheduler, such as tcp://HOST:8786 "
                          f"({' '.join(str(exc).split())})") from None
+
+
+def check_outputs(sw: Sweep, folder: Path, option: str, emitting: bool) -> None:
+    """Every file the sweep writes in `folder` (`emitting`: the job array's namelists and
+    script; else the results and the summary) checked before any is written, as every pymr
+    output is (check_output): none may be the sweep file, the base scene or a file a case's
+    scene reads (an emitted case0000.nml overwrote the base scene of that name)."""
+    refs = references(sw) if sw.metric.startswith("deviation:") else []
+    tasks = [(case_name(i), {**sw.fixed, **case}) for i, case in enumerate(sw.cases)]
+    tasks += [(reference_name(k), over) for k, (over, _) in enumerate(refs)]
+    shared = ("cases.csv", "sweep.slurm") if emitting else ("summary.csv",)
+    files = [(f"{name}{suffix}", over) for name, over in tasks for suffix in ((".nml", ".csv") if emitting else (".csv",))]
+    files += [(name, sw.fixed) for name in shared]
+    for name, over in files:
+        check_output(folder / name, "folder", option=option, inputs=[sw.path], scene=sw.scene, overrides=over)
 
 
 def make_folder(folder: Path, what: str) -> None:
@@ -607,6 +650,7 @@ def emit_slurm(sw: Sweep, folder: str | os.PathLike, time_limit: str = "01:00:00
     exe = mrsim_path() or "mrsim"
     folder = Path(folder)
     make_folder(folder, "--emit-slurm")
+    check_outputs(sw, folder, "--emit-slurm", emitting=True)
     cases = sw.cases
     for i, case in enumerate(cases):
         case_namelist(sw.scene, {**sw.fixed, **case}, folder / f"{case_name(i)}.nml")

@@ -187,6 +187,13 @@ def test_emitted_slurm_cases_run_by_mrsim_equal_the_override_runs(tmp_path, mrsi
     # a parameter in both tables ran with the grid's values, the fixed one dropped silently
     ('scene = "{scene}"\n[grid]\n"integrator.h_slow" = [1e-4]\n[fixed]\n"integrator.h_slow" = 2e-4\n',
      r"\[fixed\] integrator.h_slow: also a \[grid\] parameter \(one value would be dropped\): keep it in one table$"),
+    # two spellings of one item ran every case with the last value, labelled with the first
+    ('scene = "{scene}"\n[grid]\n"integrator.h_slow" = [1e-4, 2e-4]\n"Integrator.H_SLOW" = [3e-4]\n',
+     r"\[grid\] 'Integrator.H_SLOW' and 'integrator.h_slow' name one item \(integrator.h_slow\): keep one$"),
+    ('scene = "{scene}"\n[grid]\n"body[gun].n_elements" = [10]\n"body[\'gun\'].n_elements" = [20]\n',
+     r"\[grid\] \"body\['gun'\].n_elements\" and 'body\[gun\].n_elements' name one item \(body\[gun\].n_elements\)"),
+    ('scene = "{scene}"\n[grid]\n"integrator.h_slow" = [1e-4]\n[fixed]\n" Integrator . h_slow" = 2e-4\n',
+     r"\[fixed\]  Integrator . h_slow: also a \[grid\] parameter"),
 ])
 def test_bad_sweep_files_are_one_line_errors(tmp_path, text, message):
     toml = tmp_path / "s.toml"
@@ -194,6 +201,41 @@ def test_bad_sweep_files_are_one_line_errors(tmp_path, text, message):
     with pytest.raises(SweepError, match=message) as exc:
         load_sweep(toml)
     assert str(exc.value).startswith(str(toml)) and "\n" not in str(exc.value)
+
+
+def test_a_reference_key_replaces_the_case_s_value_however_spelled(tmp_path):
+    """[reference] "integrator.h_slow" replaces the case's "Integrator.H_SLOW" (it was kept
+    beside it, and the case's value, later in the overrides, won: the reference ran the
+    case's step and every deviation was 0)."""
+    (tmp_path / "p.nml").write_text(PENDULUM)
+    (tmp_path / "s.toml").write_text('scene = "p.nml"\nmetric = "deviation:tip"\n[grid]\n"Integrator.H_SLOW" = [1e-2, 2e-2]\n'
+                                     '[reference]\n"integrator.h_slow" = 1e-4\n')
+    from pymr.sweep import references
+    assert [over for over, _ in references(load_sweep(tmp_path / "s.toml"))] == [{"Integrator.H_SLOW": 1e-4}]
+
+
+def test_no_sweep_output_overwrites_an_input(tmp_path, monkeypatch):
+    """A sweep's outputs are refused before any is written when one would be an input: the
+    base scene named case0000.nml in the --emit-slurm folder was overwritten by the first
+    case's namelist, and a scene named summary.csv in the output folder by the summary (both
+    exit 0). The sweep file is an input too."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "em").mkdir()
+    (tmp_path / "em" / "case0000.nml").write_text(PENDULUM)
+    (tmp_path / "s.toml").write_text('scene = "em/case0000.nml"\n[grid]\n"integrator.h_slow" = [1e-3, 2e-3]\n')
+    with pytest.raises(pymr.OutputError, match=r"^--emit-slurm .*em/case0000.nml: would overwrite the scene .*; "
+                                               r"choose another folder$"):
+        emit_slurm(load_sweep(tmp_path / "s.toml"), tmp_path / "em")
+    assert [p.name for p in (tmp_path / "em").iterdir()] == ["case0000.nml"]
+    assert (tmp_path / "em" / "case0000.nml").read_text() == PENDULUM
+    (tmp_path / "summary.csv").write_text(PENDULUM)
+    (tmp_path / "t.toml").write_text('scene = "summary.csv"\noutput = "."\n[grid]\n"integrator.h_slow" = [1e-3]\n')
+    with pytest.raises(pymr.OutputError, match=r"t.toml: output .*summary.csv: would overwrite the scene"):
+        run_sweep(load_sweep(tmp_path / "t.toml"), workers=1)
+    assert (tmp_path / "summary.csv").read_text() == PENDULUM
+    (tmp_path / "cases.csv").write_text('scene = "em/case0000.nml"\n[grid]\n"integrator.h_slow" = [1e-3]\n')
+    with pytest.raises(pymr.OutputError, match=r"would overwrite the input .*cases.csv"):
+        emit_slurm(load_sweep(tmp_path / "cases.csv"), tmp_path)
 
 
 def test_sweep_command_exit_statuses(tmp_path):

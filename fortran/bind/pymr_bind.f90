@@ -501,6 +501,26 @@ subroutine pymr_scene_item(scene, overrides, address, value, stat, message, deta
   call report(error, stat, message, detail)
 end subroutine pymr_scene_item
 
+!> The one spelling of the item an override address names (canonical_address): sweeps
+!> find two keys of one item by it.
+subroutine pymr_override_address(address, canonical, stat, message, detail)
+  use pymr_env_error, only : error_type
+  use pymr_bind_support, only : report
+  use pymr_io_namelist_input, only : canonical_address
+  implicit none
+  character(len=*), intent(in) :: address
+  character(len=4096), intent(out) :: canonical
+  integer, intent(out) :: stat
+  character(len=8192), intent(out) :: message
+  character(len=4096), intent(out) :: detail
+  type(error_type), allocatable :: error
+  character(len=:), allocatable :: text
+  canonical = ''
+  call canonical_address(address, text, error)
+  if (.not. allocated(error)) canonical = text
+  call report(error, stat, message, detail)
+end subroutine pymr_override_address
+
 !> A scene edited in Python (pymr.Scene.add, remove): the scene in `text`, named `file` in
 !> messages and the base of its relative paths, read with `overrides` and written to `path`
 !> resolved (the single groups it gives only), with its files' paths absolute and no

@@ -16,7 +16,7 @@ module pymr_io_namelist_input
   implicit none
   private
   public :: read_scene, read_scene_text, resolved_text, resolved_texts, schema_text, scene_fingerprint, &
-    & text_fingerprint, item_value
+    & text_fingerprint, item_value, canonical_address
   public :: check_removal
   public :: checkpoint_identity
 
@@ -334,6 +334,21 @@ contains
     if (n < 2) return
     if ((name(1:1) == '''' .or. name(1:1) == '"') .and. name(n:n) == name(1:1)) s = name(2:n-1)
   end function unquoted
+
+  !> The one spelling of the item `address` names: GROUP.ITEM or GROUP[NAME].ITEM, group and
+  !> item in lower case, the name unquoted ('Integrator.H_SLOW' and "body['bob'].mass" name
+  !> integrator.h_slow and body[bob].mass). Two addresses name one item when their
+  !> spellings are equal.
+  subroutine canonical_address(address, text, error)
+    character(len=*), intent(in) :: address
+    character(len=:), allocatable, intent(out) :: text
+    type(error_type), allocatable, intent(out) :: error
+    type(override_t) :: ov
+    call parse_address(address, ov, error); if (allocated(error)) return
+    text = trim(ov%group)
+    if (len_trim(ov%sel) > 0) text = text // '[' // trim(ov%sel) // ']'
+    text = text // '.' // trim(ov%item)
+  end subroutine canonical_address
 
   !> "&body 'gun'" or "&integrator" for the group an address names.
   function address_label(ov) result(s)
