@@ -8,8 +8,11 @@ and a second run of the scene the statistics hold."""
 from __future__ import annotations
 
 import json
+import os
 import re
+import shutil
 import subprocess
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -55,6 +58,51 @@ def test_a_checkpoint_in_a_missing_folder_is_refused_before_the_run(tmp_path, mr
     out = tmp_path / "p.csv"
     r = mrsim_run(mrsim, PENDULUM, out, "output.checkpoint_dt=1", f"output.checkpoint_file='{where}'", cwd=tmp_path)
     check_refused_at_reading(r, out, "&output: checkpoint_file: the folder", "does not exist")
+
+
+def test_a_results_name_longer_than_the_file_system_takes_is_refused_before_the_run(tmp_path, mrsim):
+    """A results name whose run's files (X.csv.partial.tmp the longest, 12 bytes more) the
+    file system cannot name was blamed on its folder ("cannot write in its folder ."), and
+    one within 12 bytes of the limit ran but could not be restarted from its checkpoint
+    (a restart rewrites the rows through X.csv.partial.tmp): the longest name that runs is
+    the file system's NAME_MAX (os.pathconf) less 12 bytes, and one byte more is refused at
+    reading, naming the file and both lengths."""
+    most = os.pathconf(tmp_path, "PC_NAME_MAX")
+    fits = tmp_path / ("o" * (most - 12 - 4) + ".csv")
+    ok = mrsim_run(mrsim, PENDULUM, fits, "scene.t_end=0.01")
+    assert ok.returncode == 0 and fits.exists(), ok.stderr
+    over = tmp_path / ("p" * (most - 12 - 3) + ".csv")
+    r = mrsim_run(mrsim, PENDULUM, over, "scene.t_end=0.01")
+    check_refused_at_reading(r, over, f"the run's file {over}.partial.tmp: its name is {most + 1} bytes long, "
+                             f"longer than the {most} its file system takes; choose a shorter name")
+
+
+def test_a_checkpoint_folder_the_run_cannot_write_is_refused_before_the_run(tmp_path, mrsim):
+    """A checkpoint_file in a folder without write permission ran until its first checkpoint
+    and stopped there (exit 2, with the run-time library's message). It is refused at
+    reading now, as the results folder is. Root writes anywhere, so as root the run is that
+    of the user nobody (setpriv), in a folder it can reach."""
+    work = Path(tempfile.mkdtemp(prefix="pymr-ro-"))
+    try:
+        work.chmod(0o755)
+        shutil.copy(mrsim, work / "mrsim")
+        shutil.copy(PENDULUM, work / "p.nml")
+        (work / "ro").mkdir(mode=0o555)
+        (work / "ro").chmod(0o555)
+        (work / "out").mkdir(mode=0o777)
+        (work / "out").chmod(0o777)
+        user = ["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups"] if os.geteuid() == 0 else []
+        args = user + [str(work / "mrsim"), "p.nml", "-o", "out/p.csv", "--quiet", "--set", "output.checkpoint_dt=0.05",
+                       "--set", "scene.t_end=0.1"]
+        r = subprocess.run(args + ["--set", "output.checkpoint_file='ro/p.ckpt'"], cwd=work, capture_output=True,
+                           text=True, timeout=60)
+        check_refused_at_reading(r, work / "out" / "p.csv", "p.nml: --set output.checkpoint_file='ro/p.ckpt': "
+                                 "&output: checkpoint_file: cannot make files in its folder 'ro' (")
+        ok = subprocess.run(args + ["--set", "output.checkpoint_file='out/p.ckpt'"], cwd=work, capture_output=True,
+                            text=True, timeout=60)
+        assert ok.returncode == 0 and (work / "out" / "p.ckpt").exists(), ok.stderr
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
 
 
 def test_adaptive_rows_of_every_step_are_written_once_also_across_a_restart(tmp_path, mrsim):

@@ -7,7 +7,8 @@ module pymr_driver_output_paths
   use pymr_model_scene, only : scene_t, group_names, group_count, describe_group, item_applies, group_origin
   use pymr_env_item_table, only : item_table, origin_t
   use pymr_io_results_output, only : json_path
-  use pymr_env_text_file, only : absolute_path, scene_relative, not_replaceable, missing_folder, same_file, read_text_file
+  use pymr_env_text_file, only : absolute_path, scene_relative, not_replaceable, missing_folder, same_file, read_text_file, &
+    & unwritable_folder, name_too_long
   use pymr_io_sha256, only : sha256_hex
   implicit none
   private
@@ -62,8 +63,10 @@ contains
     if (replaces(sc, path, 'output ' // path, 'another results file', error)) return
     if (len_trim(sc%output%file) > 0 .and. path == trim(sc%output%file)) then
       if (no_folder(path, sc%output%origin%where('file'), 'a file', error)) return
+      if (cannot_make(results_files(path), sc%output%origin%where('file'), 'another file', error)) return
     else
       if (no_folder(path, sc%file // ': output ' // path, 'an output', error)) return
+      if (cannot_make(results_files(path), sc%file // ': output ' // path, 'another output', error)) return
     end if
     if (replaces(sc, json_path(path), 'output ' // path // ': its statistics ' // json_path(path), &
       & 'another results file', error)) return
@@ -80,6 +83,7 @@ contains
     type(scene_files), intent(in) :: inputs
     type(error_type), allocatable, intent(out) :: error
     character(len=:), allocatable :: file, label
+    character(len=path_len) :: staged(2)
     if (sc%output%checkpoint_dt <= 0.0_dp) return
     if (len_trim(sc%output%checkpoint_file) == 0) then
       if (replaces(sc, checkpoint_default(path), 'output ' // path // ': its checkpoint ' // checkpoint_default(path), &
@@ -92,6 +96,8 @@ contains
     file = trim(sc%output%checkpoint_file); label = sc%output%origin%where('checkpoint_file')
     if (replaces(sc, file, label, 'another checkpoint file', error)) return
     if (no_folder(file, label, 'a checkpoint_file', error)) return
+    staged(1) = file; staged(2) = file // '.tmp'
+    if (cannot_make(staged, label, 'another checkpoint_file', error)) return
     if (collides(path, file, label, inputs, error, 'another checkpoint file')) return
   end subroutine check_checkpoint_path
 
@@ -183,6 +189,30 @@ contains
         & 'or choose ' // choice // ' in a folder that does)')
     end if
   end function no_folder
+
+  !> Can the run make `files` (a file, then the files it writes it through) in their
+  !> folder, which is there? Found before the run starts: a checkpoint folder without write
+  !> permission failed at the first checkpoint (exit 2), and a results name longer than the
+  !> file system takes was blamed on its folder. `label` is the place of the item, `choice`
+  !> what to choose instead.
+  logical function cannot_make(files, label, choice, error)
+    character(len=*), intent(in) :: files(:), label, choice
+    type(error_type), allocatable, intent(inout) :: error
+    character(len=:), allocatable :: why
+    integer :: k
+    cannot_make = .true.
+    why = unwritable_folder(trim(files(1)))
+    if (len(why) > 0) then
+      call fatal_error(error, label // ': ' // why // '; choose ' // choice // ' or a folder it can write'); return
+    end if
+    do k = 1, size(files)
+      why = name_too_long(trim(files(k)))
+      if (len(why) == 0) cycle
+      if (k > 1) why = 'the run''s file ' // trim(files(k)) // ': ' // why
+      call fatal_error(error, label // ': ' // why // '; choose a shorter name'); return
+    end do
+    cannot_make = .false.
+  end function cannot_make
 
   !> The files a run to `path` writes: the results, their statistics, and the files it
   !> writes them through (the partial results and statistics, their staging files, the lock).

@@ -1,5 +1,5 @@
 /* What Fortran cannot ask about files, or do with them: for pymr_env_text_file's not_regular,
-   not_replaceable, same_file and write_standard_output. */
+   not_replaceable, same_file, unwritable_folder, longest_name and write_standard_output. */
 #include <errno.h>
 #include <string.h>
 #include <sys/stat.h>
@@ -50,4 +50,23 @@ int pymr_write_stdout(const char *buf, size_t n, char *why, size_t whylen)
         done += (size_t)k;
     }
     return 0;
+}
+
+/* 0 when the process may make files in the folder `dir` (write and search permission, a
+   file system mounted for writing); else -1 with the system's reason in why (at most
+   whylen - 1 bytes, NUL-ended). */
+int pymr_unwritable_folder(const char *dir, char *why, size_t whylen)
+{
+    if (access(dir, W_OK | X_OK) == 0) return 0;
+    strncpy(why, strerror(errno), whylen - 1);
+    why[whylen - 1] = '\0';
+    return -1;
+}
+
+/* The longest file name (one path component, in bytes) the file system of the folder `dir`
+   takes; 255 (Linux's NAME_MAX) when it does not say. */
+long pymr_longest_name(const char *dir)
+{
+    long n = pathconf(dir, _PC_NAME_MAX);
+    return n > 0 ? n : 255;
 }

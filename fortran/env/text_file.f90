@@ -11,7 +11,7 @@ module pymr_env_text_file
   private
   public :: write_text_file, stage_text_file, commit_staged, rename_file, sync_file, check_size, file_size, &
     & scene_relative, absolute_path, acquire_lock, release_lock, not_regular, not_replaceable, missing_folder, remove_file, &
-    & read_text_file, check_header_count, same_file, write_standard_output
+    & read_text_file, check_header_count, same_file, write_standard_output, unwritable_folder, name_too_long
 
   interface
     function c_rename(old, new) bind(c, name='rename') result(r)
@@ -67,6 +67,18 @@ module pymr_env_text_file
       character(kind=c_char), intent(out) :: why(*)
       integer(c_int) :: r
     end function c_write_stdout
+    function c_unwritable_folder(dir, why, whylen) bind(c, name='pymr_unwritable_folder') result(r)
+      import :: c_char, c_int, c_size_t
+      character(kind=c_char), intent(in) :: dir(*)
+      integer(c_size_t), value :: whylen
+      character(kind=c_char), intent(out) :: why(*)
+      integer(c_int) :: r
+    end function c_unwritable_folder
+    function c_longest_name(dir) bind(c, name='pymr_longest_name') result(n)
+      import :: c_char, c_long
+      character(kind=c_char), intent(in) :: dir(*)
+      integer(c_long) :: n
+    end function c_longest_name
     function c_same_file(a, b) bind(c, name='pymr_same_file') result(same)
       import :: c_char, c_int
       character(kind=c_char), intent(in) :: a(*), b(*)
@@ -137,6 +149,39 @@ contains
     folder = folder_of(path)
     if (c_file_kind(folder // c_null_char) == 2) folder = ''
   end function missing_folder
+
+  !> Why no file can be made beside `path` ("cannot make files in its folder 'F' (Permission
+  !> denied)"; its folder is there), or '' when one can.
+  function unwritable_folder(path) result(why)
+    character(len=*), intent(in) :: path
+    character(len=:), allocatable :: why
+    character(kind=c_char) :: buf(256)
+    integer :: k
+    why = ''
+    if (c_unwritable_folder(folder_of(path) // c_null_char, buf, size(buf, kind=c_size_t)) == 0) return
+    why = "cannot make files in its folder '" // folder_of(path) // "' ("
+    do k = 1, size(buf)
+      if (buf(k) == c_null_char) exit
+      why = why // buf(k)
+    end do
+    why = why // ')'
+  end function unwritable_folder
+
+  !> The name of `path` (its last component) when it is longer than its folder's file system
+  !> takes, with that length ('... is 304 bytes long, longer than the 255 ...'), else ''.
+  function name_too_long(path) result(why)
+    character(len=*), intent(in) :: path
+    character(len=:), allocatable :: why
+    integer :: n
+    integer(c_long) :: most
+    why = ''
+    n = len_trim(path) - index(trim(path), '/', back=.true.)
+    if (n <= 14) return                ! every file system takes 14 bytes (POSIX)
+    most = c_longest_name(folder_of(path) // c_null_char)
+    if (n <= most) return
+    why = 'its name is ' // itoa(n) // ' bytes long, longer than the ' // itoa(int(most)) // &
+      & ' its file system takes'
+  end function name_too_long
 
   !> The whole file as text; a UTF-8 byte-order mark, which some editors write at the start,
   !> reads as blanks (lines and columns stay those of the file).
