@@ -180,6 +180,15 @@ class Study:
         self.marker = marker
         self.h0 = float(self.scene["integrator.h_slow"])
         self.t_end = self._t_end()
+        if self.t_end < max(WEIGHT_RATIOS) * self.h0:
+            raise SceneError(f"{self.scene.path}: &scene: t_end: {self.t_end:g} s is shorter than {max(WEIGHT_RATIOS)} "
+                             f"steps of h_slow ({max(WEIGHT_RATIOS) * self.h0:g} s), the shortest run pymr study "
+                             "measures its methods' costs on: lengthen the run or shorten h_slow")
+        # every run writes its rows as CSV with the marker's columns, and no checkpoint,
+        # whatever the scene's &output says (an 'hdf5' scene was refused as taking no multirate run)
+        quantities = list(self.scene["output.quantities"])
+        self.outputs = {"output.format": "csv", "output.checkpoint_dt": 0.0,
+                        "output.quantities": quantities + ["markers"] * ("markers" not in quantities)}
         # common output times for every run (dense output between steps): every 40 h0, at
         # most about 2000 of them
         self.dt = max(40 * self.h0, self.t_end / 2000)
@@ -220,6 +229,9 @@ class Study:
         res = self._pymr({"integrator.method": "single", "integrator.adaptive": True, "integrator.rtol": 1e-11,
                           "integrator.atol": 1e-13, "integrator.h_max": self.h0 / 10})
         self.ref = self._on_grid(res.t, res.marker(self.marker)[0])
+        if not np.ptp(self.ref, axis=0).any():
+            raise SceneError(f"{self.scene.path}: marker {self.marker!r} does not move in the reference run, so every "
+                             "method's error at it is 0: choose a marker on a moving body")
         from scipy.integrate import solve_ivp
         with Model(self.scene) as model:
             sol = solve_ivp(model.rhs, (0.0, self.t_end), self.x0, method="DOP853", t_eval=self.grid, rtol=1e-12,
@@ -234,7 +246,7 @@ class Study:
     # ----------------------------------------------------------------- the methods
 
     def _pymr(self, over: dict):
-        over = {"output.dt": self.dt, **over}
+        over = {"output.dt": self.dt, **self.outputs, **over}
         with tempfile.TemporaryDirectory(prefix="pymr-study-") as tmp:
             return run(self.scene, Path(tmp) / "run.csv", overrides=over)
 

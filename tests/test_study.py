@@ -370,3 +370,36 @@ def test_a_scene_without_modal_coordinates_is_refused_before_the_reference(tmp_p
                                                r"slow \(joint\) and fast \(modal\) coordinates; this scene has 1 and 0"):
         Study(TANK.parent / "pendulum.nml", quick=True, progress=said.append)
     assert said == []
+
+
+def test_the_study_runs_whatever_the_scene_s_output_says(tmp_path):
+    """A scene writing HDF5 was refused as 'taking no multirate run' (the study's own
+    run.csv clashed with format 'hdf5'), and one whose &output quantities hold no markers
+    stopped with "no marker 'muzzle'": the study's runs write CSV with the marker's
+    columns. Their muzzle motion is the scene's own run's (the HDF5 file, read back)."""
+    scene = tmp_path / "tank.nml"
+    scene.write_text(TANK.read_text().replace("t_end = 1.0", "t_end = 0.05").replace(
+        "&output file = 'tank_gun_turret.csv', dt = 1.0e-3 /",
+        "&output file = 'tank.h5', format = 'hdf5', dt = 1.0e-3, quantities = 'coordinates' /"))
+    s = Study(scene, "muzzle", quick=True, progress=None)
+    res = s._pymr({})
+    own = pymr.run(scene, tmp_path / "own.h5", overrides={"output.dt": s.dt, "output.quantities": "markers"})
+    assert np.array_equal(res.marker("muzzle")[0], own.marker("muzzle")[0])
+    assert any(c.startswith("gun.") for c in res.columns)        # the scene's own quantities too
+
+
+@pytest.mark.parametrize("edit, message", [
+    # the study's cost runs take 10 steps of h_slow: a shorter run named a --set it made itself
+    (("t_end = 1.0", "t_end = 5e-4"), r"tank.nml: &scene: t_end: 0.0005 s is shorter than 10 steps of h_slow "
+                                       r"\(0.001 s\), the shortest run pymr study measures its methods' costs on"),
+    # a marker on the ground: every error 0, and matplotlib's warnings about log scales
+    (("&marker name = 'muzzle'", "&marker name = 'still', body = 'chassis' /\n&marker name = 'muzzle'"),
+     r"tank.nml: marker 'still' does not move in the reference run, so every method's error at it is 0"),
+])
+def test_a_study_that_could_measure_nothing_is_refused_in_one_line(tmp_path, edit, message):
+    scene = tmp_path / "tank.nml"
+    scene.write_text(TANK.read_text().replace("t_end = 1.0", "t_end = 0.05").replace(*edit)
+                     if edit[0] != "t_end = 1.0" else TANK.read_text().replace(*edit))
+    with pytest.raises(pymr.SceneError, match=message):
+        s = Study(scene, "still" if "still" in message else "muzzle", quick=True, progress=None)
+        s.reference()
