@@ -246,7 +246,12 @@ FORMAT2_CORRUPTIONS = [
      "line 11: second_moments: expected 0 1 and the 9 numbers of W(1:3, 1:3, 0, 1) row by row, 11 numbers, got 12"),
     ("words_after_invariants", FORMAT2.replace("invariants\n", "invariants 2\n"),
      "line 4: invariants: nothing may follow it on its line, got '2'"),
-    ("inf_mass", FORMAT2.replace("mass 2.0", "mass inf"), "line 5: mass: mass: inf is not a finite number"),
+    ("inf_mass", FORMAT2.replace("mass 2.0", "mass inf"), "line 5: mass: inf is not a finite number"),
+    # a wrong index with the right count was told as 'expected 1 and F(1:3, 1), 4 numbers, got 4'
+    ("wrong_index_in_first_moments", FORMAT2.replace("1 0 0 0\n", "0 0 0 0\n"),
+     "line 8: first_moments: expected the line of F(1:3, 1), which begins with 1, got '0' first"),
+    ("wrong_index_in_second_moments", FORMAT2.replace("0 1 0 0 0 0 0 0 0 0 0\n", "1 0 0 0 0 0 0 0 0 0 0\n"),
+     "line 11: second_moments: expected the line of W(1:3, 1:3, 0, 1), which begins with 0 1, got '1 0' first"),
     ("not_mass_normalised", FORMAT2.replace("1 1 1 0 0 0 0 0 0 0 0", "1 1 0.5 0 0 0 0 0 0 0 0"),
      "line 12: second_moments: the modes are not mass-normalised: W11+W22+W33 of modes 1 and 1 is 0.5, expected 1 "
      "(to 0.0001)"),

@@ -185,7 +185,11 @@ contains
     call r%key_line('first_moments'); if (allocated(r%error)) return
     do al = 0, r%m
       if (.not. r%data_line()) return
-      if (.not. r%count_word(idx, 1) .or. idx /= al .or. r%nw /= 4) then
+      if (.not. r%count_word(idx, 1) .or. idx /= al) then
+        call r%fail('first_moments: expected the line of F(1:3, ' // itoa(al) // '), which begins with ' // &
+          & itoa(al) // ', got ''' // r%word(1) // ''' first'); return
+      end if
+      if (r%nw /= 4) then
         call r%fail('first_moments: expected ' // itoa(al) // ' and F(1:3, ' // itoa(al) // '), 4 numbers, got ' // &
           & itoa(r%nw)); return
       end if
@@ -205,8 +209,13 @@ contains
     do al = 0, r%m
       do be = al, r%m
         if (.not. r%data_line()) return
-        if (.not. r%count_word(idx(1), 1) .or. .not. r%count_word(idx(2), 2) .or. idx(1) /= al .or. idx(2) /= be &
-          & .or. r%nw /= 11) then
+        if (.not. r%count_word(idx(1), 1) .or. .not. r%count_word(idx(2), 2) .or. idx(1) /= al .or. idx(2) /= be) &
+          & then
+          call r%fail('second_moments: expected the line of W(1:3, 1:3, ' // itoa(al) // ', ' // itoa(be) // &
+            & '), which begins with ' // itoa(al) // ' ' // itoa(be) // ', got ''' // &
+            & r%ln(r%wa(1):r%wb(min(2, r%nw))) // ''' first'); return
+        end if
+        if (r%nw /= 11) then
           call r%fail('second_moments: expected ' // itoa(al) // ' ' // itoa(be) // ' and the 9 numbers of W(1:3, ' // &
             & '1:3, ' // itoa(al) // ', ' // itoa(be) // ') row by row, 11 numbers, got ' // itoa(r%nw)); return
         end if
@@ -330,18 +339,19 @@ contains
     integer, intent(in), optional :: al, be
     integer :: k, a, b
     logical :: ok
+    character(len=:), allocatable :: entry
     a = 0; b = 0
     if (present(al)) a = al
     if (present(be)) b = be
     do k = 1, size(v)
+      entry = what
+      if (entry_name(kind, k, r%m, a, b) /= what) entry = what // ': ' // entry_name(kind, k, r%m, a, b)
       call number_text(r%word(k0 + k - 1), v(k), ok)
       if (.not. ok) then
-        call r%fail(what // ': ' // entry_name(kind, k, r%m, a, b) // ': ''' // r%word(k0 + k - 1) // &
-          & ''' is not a number'); return
+        call r%fail(entry // ': ''' // r%word(k0 + k - 1) // ''' is not a number'); return
       end if
       if (.not. ieee_is_finite(v(k))) then
-        call r%fail(what // ': ' // entry_name(kind, k, r%m, a, b) // ': ' // r%word(k0 + k - 1) // &
-          & ' is not a finite number'); return
+        call r%fail(entry // ': ' // r%word(k0 + k - 1) // ' is not a finite number'); return
       end if
     end do
   end subroutine reader_numbers
