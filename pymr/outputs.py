@@ -10,7 +10,8 @@ the last guard.
 
 A file output is refused when it is
 
-- an empty name, or not a file name at all;
+- an empty name, or not a file name at all, or ``-`` (standard output in many tools; the
+  kernel refuses it for its results too);
 - a folder (an existing one, ``.``, ``..``, or a name ending in ``/``): the message names a
   file in it that would do;
 - a name that is only a suffix (``.png``, a hidden file with no name) when suffixes are given;
@@ -124,6 +125,8 @@ def check_output(path, what: str, *, option: str = "-o", example: str | None = N
     the same rule); `if_left_out` says what leaving the option out gives (None: it is
     required), for the message on an empty name."""
     text = _text(path, option, what, if_left_out)
+    if text == "-":                     # standard output in many tools; here a file named '-'
+        raise OutputError(f"{option} -: pymr writes the {what} to a file, not to standard output; name a file")
     out = Path(text)
     ends_as_folder = text.endswith(("/", os.sep)) or out.name in ("", ".", "..") or text in (".", "..")
     if ends_as_folder or _is_dir(out):

@@ -61,6 +61,8 @@ BAD = {
     "file_as_folder": "base.nml/out.x",
     "empty": "",
     "fifo": "fifo",
+    # standard output in many tools: pymr bench --json - wrote a file named '-' (exit 0)
+    "stdout": "-",
 }
 
 
