@@ -373,7 +373,9 @@ def test_format_2_errors(tmp_path):
                         (good.replace("pymr-modal 2", "pymr-modal 3"), r"line 1: pymr-modal: expected the format "
                                                                        r"version 1 or 2"),
                         (good.replace("0 0 0 0 0 1 0 0 0 1", "0 0 0 1 0 1 0 0 0 1"), r"line 14: point 1: mass must be 0"),
-                        (good.replace("1 1 1 0 0", "1 0 1 0 0"), r"line 12: second_moments: expected 1 1"),
+                        (good.replace("1 1 1 0 0", "1 0 1 0 0"),
+                         r"line 12: second_moments: expected the line of W\(1:3, 1:3, 1, 1\), which begins with 1 1, "
+                         r"got .1 0. first"),
                         (good.replace("mass 2.0", "mass -2.0"), r"line 5: mass: expected a positive mass")]:
         (tmp_path / "b.modal").write_text(text)
         with pytest.raises(pymr.SceneError, match=r"&body 'b'.*b\.modal: " + fault):
