@@ -167,7 +167,7 @@ contains
       else if (trim(sc%integrator%method) == 'single') then
         buf = ' adaptive ' // trim(sc%integrator%formula) // trim(buf)
       else
-        buf = ' adaptive' // trim(buf)
+        buf = ' adaptive coupling=' // trim(sc%integrator%coupling) // trim(buf)
       end if
     else if (sc%integrator%method == 'multirate') then
       write(buf, '(a,es10.3,a,es10.3,a)') ' h_slow=', sc%integrator%h_slow, ' h_fast=', sc%integrator%h_fast, &
