@@ -205,12 +205,11 @@ class _Once(argparse.Action):
 class _Parser(argparse.ArgumentParser):
     """argparse with pymr's one-line errors: 'pymr: error: run: MESSAGE', exit status 1 (argparse
     prints its usage block first, several lines, and exits 2, the status of a failed run). An
-    option of one value is refused when given twice (_Once)."""
+    option that is not repeatable (not 'append' or 'extend') is refused when given twice (_Once)."""
 
     def add_argument(self, *args, **kwargs):
-        if args and args[0].startswith("-") and kwargs.get("action", "store") == "store" \
-                and kwargs.get("nargs") is None:
-            kwargs["action"] = _Once
+        if args and args[0].startswith("-") and kwargs.get("action", "store") == "store":
+            kwargs["action"] = _Once          # also one of several values (--labels A B): given again, the first went
         return super().add_argument(*args, **kwargs)
 
     def error(self, message: str):

@@ -751,6 +751,11 @@ def test_an_option_of_one_value_given_twice_is_refused(tmp_path, mrsim, monkeypa
                        cwd=tmp_path, capture_output=True, text=True, timeout=120)
     assert r.returncode == 1 and r.stderr == ("pymr: error: sweep: --workers: given twice (2 before) "
                                               "(pymr sweep --help)\n"), r.stderr
+    # an option of several values given again dropped the first silently (plot's --labels)
+    r = subprocess.run([sys.executable, "-m", "pymr", "plot", "x.csv", "--labels", "a", "--labels", "b"],
+                       cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert r.returncode == 1 and r.stderr == ("pymr: error: plot: --labels: given twice (['a'] before) "
+                                              "(pymr plot --help)\n"), r.stderr
     r = run_mrsim(mrsim, ["base.nml", "-o", "c.csv", "--set", "scene.t_end=0.5", "--set", "scene.t_end=0.01"], tmp_path)
     assert r.returncode == 0 and pymr.load_results("c.csv").t[-1] == pytest.approx(0.01)
 
