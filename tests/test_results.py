@@ -61,6 +61,20 @@ def test_csv_layout_and_json(tmp_path):
     assert stats["effects"]["gravity"]["evaluations"] == stats["rhs_full"]
 
 
+@pytest.mark.parametrize("method, coupling", [("multirate", "exponential"), ("multirate", "response"), ("auto", None)])
+def test_an_adaptive_multirate_run_names_its_coupling(method, coupling):
+    """The method line of an adaptive multirate run names its coupling (an adaptive
+    'response' and 'exponential' run printed the same line); a run of method 'auto' names
+    the one it chose, as its statistics record it."""
+    over = {"scene.t_end": 0.05, "integrator.method": method, "integrator.adaptive": True, "integrator.rtol": 1e-4}
+    if coupling:
+        over["integrator.coupling"] = coupling
+    res = pymr.run(ROOT / "input" / "tank_gun_turret.nml", overrides=over)
+    kind, name = (("multirate", coupling) if coupling else res.stats["method_choice"]["chosen"].split("'")[:2])
+    label = f"multirate adaptive coupling={name}" if kind.startswith("multirate") else f"single adaptive {name}"
+    assert res.method == f"{label} rtol= 1.00E-04 atol= 1.00E-08"   # the choice rests on measured CPU
+
+
 def test_results_names_meta_and_accessors(tmp_path):
     """Markers, joints and flexible bodies by name; the CSV's title and method; run(output=None)
     leaves no files."""
