@@ -246,6 +246,15 @@ def test_a_fixed_step_far_beyond_a_stiff_mode_is_told_in_numbers(tmp_path, mrsim
                   "body[gun].length=0.3", "marker[muzzle].at=0.3,0,0", "integrator.h_slow=1e-3")
     assert r.returncode == 1 and "*" not in r.stderr.replace("omega*h", ""), r.stderr
     assert "not stable for body 'gun', mode 6" in r.stderr and "omega*h = 1.07E+03" in r.stderr
+    # an integral gain of 1e12 on the pendulum (1 kg m^2 about its pivot): its closed loop's
+    # pole at 1e4 rad/s ((ki/I)^(1/3)), so omega*h = 10.0 at 1e-3 s, just below 10, which
+    # rounded to 10.000 and overflowed its five characters
+    scene = tmp_path / "c.nml"
+    scene.write_text(PENDULUM.read_text().replace("&effects", "&control name = 'c', joint = 'pivot', ki = 1.0e12 /\n&effects")
+                     .replace("gravity = .true.", "gravity = .true., controls = .true."))
+    r = mrsim_run(mrsim, scene, tmp_path / "c.csv")
+    assert r.returncode == 1 and "*" not in r.stderr.replace("omega*h", ""), r.stderr
+    assert "(1591.5 Hz, omega*h = 1.00E+01)" in r.stderr, r.stderr
 
 
 def test_modal_file_of_the_ground_says_it_is_not_a_beam(tmp_path):

@@ -139,7 +139,7 @@ contains
     h = merge(steps%h_modal, steps%h_joint, worst > model%d%nj)
     write(b1, '(es9.2)') h
     write(b2, '(f0.1)') abs(worst_lam)/(2.0_dp*pi)
-    if (abs(worst_lam)*h < 10.0_dp) then
+    if (abs(worst_lam)*h < 9.9995_dp) then         ! rounds to 10.000, six characters, at 9.9995
       write(b3, '(f5.3)') abs(worst_lam)*h
     else
       write(b3, '(es9.2)') abs(worst_lam)*h
