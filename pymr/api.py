@@ -344,15 +344,31 @@ def marker_shapes(scene, markers, q, qd, shapes, t: float = 0.0, overrides=None)
     return out
 
 
+#: Steps step_history makes room for at first (it doubles the room while the run needs more).
+HISTORY_ROOM = 100_000
+
+
 def step_history(scene: str | os.PathLike, overrides=None, max_steps: int = 200_000):
     """The run's own stepper from the initial state to t_end, without output: arrays of the
     time reached, the step taken and the method's order at each accepted step (entry 0 is
     the start: its step 0, its order the starting one). More than ``max_steps`` steps is an
     error."""
     where = _scene_and_overrides(scene, overrides)
-    nmax = _count("max_steps", max_steps) + 1
+    limit = _count("max_steps", max_steps)
+    # room for the steps, doubled (the run taken again) while the run needs more: arrays of
+    # max_steps entries made first took 16 GiB for max_steps = 2**31 - 2 (a numpy
+    # MemoryError, or the process killed)
+    room = min(limit, HISTORY_ROOM)
     with model_of(scene, where) as handle:
-        t, h, q, nh, stat, msg, detail = _core.pymr_step_history(handle, nmax)
+        while True:
+            try:
+                t, h, q, nh, stat, msg, detail = _core.pymr_step_history(handle, room + 1)
+            except MemoryError:
+                raise SolverError(f"max_steps: the history of {room + 1} steps needs {20 * (room + 1) / 2**30:.1f} "
+                                  "GiB, more than this process can take (give a smaller max_steps)") from None
+            if not (stat and int(nh) > room and room < limit):
+                break
+            room = min(2 * room, limit)
     if stat and int(nh) > max_steps:
         # the kernel's 'the run takes more than N steps' is about this argument: name it
         raise SolverError(f"max_steps: {_text(msg)} (give a larger max_steps)")

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import inspect
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -139,6 +140,10 @@ def test_the_cases_of_the_issue_raise_pymr_errors_naming_the_argument():
         pymr.Scene(5)
     with pytest.raises(pymr.ArgumentTypeError, match=r"^q: an array of real numbers, got str 'a'$"):
         pymr.modes(PENDULUM, "a", "b")
+    # None became NaN: 'q: nan is not a finite number' (found by the second bad-input audit)
+    for q in (None, [None]):
+        with pytest.raises(pymr.ArgumentTypeError, match=rf"^q: an array of real numbers, got \w+ {re.escape(repr(q))}$"):
+            pymr.model_terms(PENDULUM, q, [0.0])
     with pytest.raises(pymr.ArgumentTypeError, match=r"^overrides: a mapping .* got int 5$"):
         pymr.run(PENDULUM, overrides=5)
     with pytest.raises(pymr.ArgumentTypeError, match=r"^overrides\[1\]: an override 'GROUP.ITEM=VALUE' \(str\), "

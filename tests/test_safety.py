@@ -567,6 +567,24 @@ def test_step_history_takes_a_whole_count_of_steps(max_steps):
         pymr.step_history(ROOT / "input" / "pendulum.nml", max_steps=max_steps)
 
 
+def test_step_history_makes_room_as_the_run_needs_it(monkeypatch):
+    """step_history(max_steps=2**31 - 2) made arrays of that many entries first: numpy's
+    MemoryError under a 4 GB limit, the process killed without one (found by the second
+    bad-input audit). Its room now doubles while the run needs more: the largest count
+    gives the default's history, and so does a first room of 1000 steps (the run taken
+    again four times)."""
+    import pymr.api
+    scene = ROOT / "input" / "pendulum.nml"
+    want = pymr.step_history(scene)
+    assert len(want[0]) > 5000
+    for room in (pymr.api.HISTORY_ROOM, 1000):
+        monkeypatch.setattr(pymr.api, "HISTORY_ROOM", room)
+        got = pymr.step_history(scene, max_steps=2**31 - 2)
+        assert all(np.array_equal(a, b) for a, b in zip(got, want))
+    with pytest.raises(pymr.SolverError, match=r"^max_steps: the run takes more than 5000 steps"):
+        pymr.step_history(scene, max_steps=5000)
+
+
 def test_model_terms_that_overflow_are_a_solver_error_not_nan():
     """model_terms at velocities of 1e300 returned P = NaN with no word (found by fuzzing the
     API; the accelerations refuse the same state): the kernel checks M and P and names the
