@@ -8,7 +8,6 @@ tight single-rate run, the articulated path against the mass matrix's, a restart
 uninterrupted run, and bad input refused with one line. Scenes are written inline."""
 from __future__ import annotations
 
-import shutil
 from pathlib import Path
 
 import numpy as np
@@ -365,16 +364,26 @@ def test_a_restart_equals_the_uninterrupted_run(tmp_path, t_cut):
     (("s0 = 0.1, speed = 120.0", "form = 'table'"), r":\d+: &moving_load 'shot': file: missing"),
     (("moving_loads = .true., ", ""), r":\d+: &moving_load 'shot': the scene gives moving loads but &effects "
                                        "moving_loads is not on"),
+    # a load that has left by the run's start never acts; it was reported as not having left
+    # its body (found by the second bad-input audit): at the end when the run starts, at
+    # start + (L - s0)/speed = 0; before it, at -0.1 + 1.9/120 s; a table crossing before 0
+    (("s0 = 0.1", "s0 = 2.0"), r":\d+: &moving_load 'shot': start: the load leaves the beam 'beam' \(its end at 2 m\) "
+                               r"at t = 0 s, not after the run starts \(t = 0\): it would never act$"),
+    (("s0 = 0.1", "s0 = 0.1, start = -0.1"), r":\d+: &moving_load 'shot': start: the load leaves the beam 'beam' "
+                                             r"\(its end at 2 m\) at t = -0.0841667 s, not after the run starts"),
+    (("s0 = 0.1, speed = 120.0", "form = 'table', file = 'early.txt'"),
+     r":\d+: &moving_load 'shot': file: the load leaves the beam 'beam' \(its end at 2 m\) at t = -0.0\d+ s, not after"),
 ])
-def test_bad_moving_loads_are_refused_in_one_line(tmp_path, replace, expect):
+def test_bad_moving_loads_are_refused_in_one_line(tmp_path, mrsim, replace, expect):
     (tmp_path / "bad.txt").write_text("0.0 0.1\n0.02 0.5\n0.01 0.9\n")
     (tmp_path / "off.txt").write_text("0.0 3.0\n0.02 4.0\n")
+    (tmp_path / "early.txt").write_text("-0.02 1.8\n-0.01 2.1\n0.0 2.4\n")
     text = HUB.format(integrator="method = 'single', h_slow = 1.0e-4", t_end=0.01, output="")
     text = text.replace("&marker", "&body name = 'block', kind = 'rigid', mass = 1.0, inertia = 1, 1, 1, 0, 0, 0 /\n"
                         "&joint name = 'pin', kind = 'revolute', parent = 'ground', child = 'block' /\n&marker")
     assert replace[0] in text
     scene = write(tmp_path, "bad.nml", text.replace(*replace, 1))
-    check_refused_in_one_line(shutil.which("mrsim"), scene, expect)
+    check_refused_in_one_line(mrsim, scene, expect)
 
 
 def test_a_moving_mass_on_a_flexible_coupler_keeps_the_loop_closed_and_the_energy_balance(tmp_path):
@@ -404,7 +413,7 @@ def test_a_moving_mass_on_a_flexible_coupler_keeps_the_loop_closed_and_the_energ
         assert res.stats["moving_loads"][0]["t_exit"] == pytest.approx(0.5, rel=1e-14)
 
 
-def test_a_modal_file_body_is_refused_in_one_line(tmp_path):
+def test_a_modal_file_body_is_refused_in_one_line(tmp_path, mrsim):
     """A modal-file body keeps its shapes at its nodes only, not between them: refused."""
     text = HUB.format(integrator="method = 'single', h_slow = 1.0e-4", t_end=0.01, output="")
     beam = write(tmp_path, "beam.nml", text)
@@ -413,7 +422,7 @@ def test_a_modal_file_body_is_refused_in_one_line(tmp_path):
     end = text.index("/", start) + 1
     scene = write(tmp_path, "modal.nml", text[:start] + "&body name = 'beam', kind = 'modal', modal_file = 'b.modal' /"
                   + text[end:])
-    check_refused_in_one_line(shutil.which("mrsim"), scene, r":\d+: &moving_load 'shot': body: 'beam' is a "
+    check_refused_in_one_line(mrsim, scene, r":\d+: &moving_load 'shot': body: 'beam' is a "
                               "modal-file body, whose shapes between its nodes are not known")
 
 

@@ -25,7 +25,7 @@ module pymr_driver_build_effects
   use pymr_model_effect_deformation_inertia, only : deformation_effect_of
   use pymr_model_effect_force_elements, only : force_element, force_elements_effect_of, spring_damper, bushing
   use pymr_model_effect_controls, only : controller, controls_effect_of
-  use pymr_model_effect_moving_load, only : moving_load, moving_load_effect_of
+  use pymr_model_effect_moving_load, only : moving_load, moving_load_effect_of, exit_time
   use pymr_env_text, only : fmt
   implicit none
   private
@@ -262,14 +262,22 @@ contains
         ld%mass = ml%mass; ld%force = ml%force
         ld%start = ml%start; ld%s0 = ml%s0; ld%speed = ml%speed
         ld%tabulated = ml%form == 'table'
-        if (.not. ld%tabulated) cycle
-        call read_time_table(scene_relative(sc%file, trim(ml%file)), ml%origin%where('file'), [big_time, big_length], &
-          & ld%table%t, ld%table%y, error)
-        if (allocated(error)) return
-        call spline_setup(ld%table, ml%origin%where('file'), error); if (allocated(error)) return
-        if (ld%table%y(1) < 0.0_dp .or. ld%table%y(1) > ld%length) then
-          call fatal_error(error, ml%origin%where('file') // ': the first position, ' // fmt(ld%table%y(1)) // &
-            & " m, is off the beam '" // trim(ml%body) // "' (0 to its length, " // fmt(ld%length) // ' m)'); return
+        if (ld%tabulated) then
+          call read_time_table(scene_relative(sc%file, trim(ml%file)), ml%origin%where('file'), &
+            & [big_time, big_length], ld%table%t, ld%table%y, error)
+          if (allocated(error)) return
+          call spline_setup(ld%table, ml%origin%where('file'), error); if (allocated(error)) return
+          if (ld%table%y(1) < 0.0_dp .or. ld%table%y(1) > ld%length) then
+            call fatal_error(error, ml%origin%where('file') // ': the first position, ' // fmt(ld%table%y(1)) // &
+              & " m, is off the beam '" // trim(ml%body) // "' (0 to its length, " // fmt(ld%length) // ' m)'); return
+          end if
+        end if
+        ! a load that has left by the run's start never acts, and no step could note its exit
+        ! (it was reported as not having left its body)
+        if (exit_time(ld) <= 0.0_dp) then
+          call fatal_error(error, ml%origin%where(trim(merge('file ', 'start', ld%tabulated))) // &
+            & ": the load leaves the beam '" // trim(ml%body) // "' (its end at " // fmt(ld%length) // &
+            & ' m) at t = ' // fmt(exit_time(ld)) // ' s, not after the run starts (t = 0): it would never act'); return
         end if
       end associate
     end do
