@@ -306,7 +306,11 @@ def reduce(k, m, clamped: np.ndarray, boundary: np.ndarray, modes: int | None, k
     ndof = k.shape[0]
     free = np.setdiff1d(np.arange(ndof), clamped)
     inner = np.setdiff1d(free, boundary)
-    k, m = sp.csr_matrix(k), sp.csr_matrix(m)
+    # the reduction in units of each matrix's largest entry (powers of 2: exact); the modes and
+    # frequencies back in the matrices' own (ARPACK's start vector underflowed, 'starting
+    # vector is zero', for a mass matrix of 6e-139 that MATRIX_SCALE accepts)
+    cm, ck = unit_scale(m), unit_scale(k)
+    k, m = sp.csr_matrix(k) * ck, sp.csr_matrix(m) * cm
     kii, mii = k[inner][:, inner].tocsc(), m[inner][:, inner].tocsc()
     messages = {"inner": f"{kpath}: not positive definite with every interface node held ({attach}): a mechanism "
                          "or rigid motion of the inner nodes is left free",
@@ -335,7 +339,13 @@ def reduce(k, m, clamped: np.ndarray, boundary: np.ndarray, modes: int | None, k
     if nr == 0:
         raise ImportInputError(f"{kpath}: the reduced body has no mode with mass")
     full = np.zeros((ndof, nr))
-    full[order] = t @ (x[:, :nr] / np.sqrt(mur[:nr]))
+    full[order] = t @ (x[:, :nr] / np.sqrt(mur[:nr])) * np.sqrt(cm)
     counts = {"fixed_interface_modes": nf, "constraint_modes": len(boundary), "reduced_size": nf + len(boundary),
               "modes_written": nr}
-    return Reduction(np.sqrt(1.0 / mur[:nr]) / (2 * np.pi), signed(full), counts, p)
+    return Reduction(np.sqrt(cm / (ck * mur[:nr])) / (2 * np.pi), signed(full), counts, p)
+
+
+def unit_scale(a) -> float:
+    """The power of 2 that brings the largest entry of `a` into [0.5, 1) (1 for a zero matrix)."""
+    big = float(abs(a).max()) if a.nnz else 0.0
+    return 2.0 ** -np.frexp(big)[1] if big > 0.0 else 1.0

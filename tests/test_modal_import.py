@@ -188,6 +188,26 @@ def test_beam_from_matrices_has_the_builtin_frequencies(barrel):
     np.testing.assert_allclose(u.T @ k @ u, np.diag((2 * np.pi * body.frequencies_hz) ** 2), rtol=1e-9, atol=1e-6)
 
 
+@pytest.mark.parametrize("scale_m, scale_k", [(1e-140, 1.0), (1e140, 1e-140), (2.0**-100, 2.0**60)])
+def test_the_reduction_holds_its_digits_over_the_matrices_units(barrel, tmp_path, scale_m, scale_k):
+    """Matrices in any units MATRIX_SCALE takes: M c and K d give the frequencies times
+    sqrt(d / c), to rounding, and shapes normalised to the scaled mass matrix with the scaled
+    stiffness omega^2 (the beam's bending pairs are double eigenvalues: their shapes are any
+    basis of their plane). A mass matrix of 6e-139 failed in ARPACK ('starting vector is
+    zero', exit 2; found by the second bad-input audit): the reduction now runs in units of
+    each matrix's largest entry."""
+    tmp, (mp, kp, npath) = barrel
+    ref = pymr.modal_import(mp, kp, npath, [1, 21], modes=6, keep=4)
+    k, m, nodes = beam_matrices(L, E, RHO, AREA, I2, I2, 20)
+    mp2, kp2, np2 = write_fe(tmp_path, k * scale_k, m * scale_m, nodes)
+    body = pymr.modal_import(mp2, kp2, np2, [1, 21], modes=6, keep=4)
+    np.testing.assert_allclose(body.frequencies_hz, ref.frequencies_hz * np.sqrt(scale_k / scale_m), rtol=1e-9)
+    u = body.shapes
+    np.testing.assert_allclose(u.T @ (m * scale_m) @ u, np.eye(4), atol=1e-10)
+    np.testing.assert_allclose(u.T @ (k * scale_k) @ u, np.diag((2 * np.pi * body.frequencies_hz) ** 2), rtol=1e-9,
+                               atol=1e-9 * (2 * np.pi * body.frequencies_hz.max()) ** 2)
+
+
 def test_beam_with_a_tip_interface_converges_to_the_cantilever(barrel):
     """With the muzzle node as a second interface, its 6 constraint modes join the
     fixed-interface (clamped-clamped) modes: the reduced body's lowest 4 frequencies approach
