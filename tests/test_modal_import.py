@@ -194,8 +194,8 @@ def test_the_reduction_holds_its_digits_over_the_matrices_units(barrel, tmp_path
     sqrt(d / c), to rounding, and shapes normalised to the scaled mass matrix with the scaled
     stiffness omega^2 (the beam's bending pairs are double eigenvalues: their shapes are any
     basis of their plane). A mass matrix of 6e-139 failed in ARPACK ('starting vector is
-    zero', exit 2; found by the second bad-input audit): the reduction now runs in units of
-    each matrix's largest entry."""
+    zero', exit 2; found by the second bad-input audit): a matrix whose largest entry is
+    beyond 1e+-50 is now taken in units of that entry."""
     tmp, (mp, kp, npath) = barrel
     ref = pymr.modal_import(mp, kp, npath, [1, 21], modes=6, keep=4)
     k, m, nodes = beam_matrices(L, E, RHO, AREA, I2, I2, 20)
