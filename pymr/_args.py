@@ -288,8 +288,6 @@ def _array(name: str, value) -> np.ndarray:
     try:
         a = np.asarray(value)
         if a.dtype.kind == "O":
-            if any(v is None for v in a.ravel()):      # None became NaN: 'q: nan is not a finite number'
-                raise TypeError
             a = a.astype(float)
     except (TypeError, ValueError, OverflowError):
         raise ArgumentTypeError(f"{name}: an array of real numbers, got {_shown(value)}") from None

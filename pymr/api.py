@@ -19,7 +19,7 @@ except ImportError:
 from .errors import (ArgumentTypeError, OutputError, PymrError, ResultsError, ResultsKeyError,  # noqa: F401
                      SceneError, SolverError)
 from .results import Results, load_results
-from ._args import (_array, _flag, _name, _names, _path, _raise, _scene_and_overrides, _short, _text,  # noqa: F401
+from ._args import (_array, _flag, _name, _names, _path, _raise, _scene_and_overrides, _short, _shown, _text,  # noqa: F401
                     check_not_input, format_overrides, model_of, nml_value, write_file)
 
 
@@ -152,7 +152,11 @@ def initial_state(scene: str | os.PathLike, overrides=None) -> tuple[np.ndarray,
 
 def _states(q, qd) -> tuple[np.ndarray, np.ndarray]:
     """q and qd as finite float arrays of one shape (a SceneError naming q or qd otherwise:
-    a NaN state would come back as NaN, or be blamed on the mass matrix or on LAPACK)."""
+    a NaN state would come back as NaN, or be blamed on the mass matrix or on LAPACK). None
+    is no number (numpy made it NaN: 'q: nan is not a finite number')."""
+    for name, value in (("q", q), ("qd", qd)):
+        if any(v is None for v in np.asarray(value, dtype=object).ravel()):
+            raise ArgumentTypeError(f"{name}: an array of real numbers, got {_shown(value)}")
     q = _array("q", q)
     qd = _array("qd", qd)
     if q.ndim >= 1 and q.shape[-1] == 0:
