@@ -63,6 +63,9 @@ def run(scene, output: str | os.PathLike | None = None,
             stat, msg, detail, summary, _ = _run_kernel(scene, text, out, ckpt, progress)
             _raise(stat, msg, detail)
             res = load_results(out)
+        # its 'results:' line named the files just removed
+        summary = "\n".join(line if not line.startswith("results: ") else "results: not kept (output=None)"
+                             for line in _text(summary).splitlines())
     else:
         out = output
         stat, msg, detail, summary, _ = _run_kernel(scene, text, out, ckpt, progress)

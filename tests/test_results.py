@@ -111,6 +111,8 @@ def test_results_names_meta_and_accessors(tmp_path):
     assert q.shape[1] == 6 and np.array_equal(qd[:, 5], chain["j1.qd6"])
     assert chain.joint_columns("j1") == [f"j1.q{i}" for i in range(1, 7)]
     assert not Path(chain.path).exists()          # output=None: the files are gone
+    # and the summary does not name them (its 'results:' line named the removed folder)
+    assert chain.summary.splitlines()[-1] == "results: not kept (output=None)"
 
 
 EXTREME = [1.2345678901234567e-150, -9.8765432109876543e-150, 5.0e-140, 2.5e-300, 7.0e-99, 1.0e-100,
