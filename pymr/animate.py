@@ -31,10 +31,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ._args import _flag, _real, _shown
+from ._args import _flag, _shown
 from .api import _time
 from .errors import ArgumentTypeError
-from .geometry import BodyTrack, GeometryError, Motion, motion, scene_of
+from .geometry import BodyTrack, GeometryError, Motion, deflection_scale, motion, scene_of
 from .outputs import check_output
 from .results import Results, load_results
 
@@ -270,13 +270,13 @@ LEAST_FRAMES = 2
 
 def check_drawing(view, exaggerate, frames, orbit) -> None:
     """The drawing's options, each checked alone and named: `view` a text, `exaggerate`
-    None or a number above 0, `frames` a whole number of at least LEAST_FRAMES, `orbit` a
+    None or a scale from 0 (deflection_scale), `frames` a whole number of at least LEAST_FRAMES, `orbit` a
     bool (a wrong type is an ArgumentTypeError; they were TypeErrors and AttributeErrors
     from inside, and frames and exaggerate shared one message)."""
     if not isinstance(view, str):
         raise ArgumentTypeError(f"view: a named view or 'ELEV,AZIM' (str), got {_shown(view)}")
-    if exaggerate is not None and not 0 < _real("exaggerate", exaggerate) < np.inf:
-        raise AnimateError(f"exaggerate: a scale of the deflections, a finite number above 0, got {exaggerate!r}")
+    if exaggerate is not None:
+        deflection_scale(exaggerate)
     _whole("frames", frames, LEAST_FRAMES, " (one frame is a still: write a .png)")
     _flag("orbit", orbit)
 
@@ -322,8 +322,8 @@ def animate(results: Results | str | os.PathLike, output: str | os.PathLike, sce
     res = results if isinstance(results, Results) else load_results(results)
     check_drawing(view, exaggerate, frames, orbit)       # the options before any work
     _whole("fps", fps, 1)
-    if at is not None:
-        _time(at, "at")
+    if at is not None and not res.t[0] <= _time(at, "at") <= res.t[-1]:
+        raise AnimateError(f"at: {at:g} s is outside the run's results, {res.t[0]:g} to {res.t[-1]:g} s")
     out = check_animation_path(output, option, res, scene)
     still = out.suffix.lower() == ".png"
     if at is not None and not still:

@@ -389,7 +389,7 @@ def _add_animate(sub) -> None:
     an.add_argument("--orbit", action="store_true", help="turn the camera once round the vertical axis over the run")
     an.add_argument("--exaggerate", type=float, default=None, help="scale of the deflections drawn (default: the "
                     "largest shows as 5%% of the mechanism's size, at least 1)")
-    an.add_argument("--at", type=_seconds, default=None, help="a .png still's time (s; default: the last frame)")
+    an.add_argument("--at", type=_seconds, default=None, help="a .png still's time (s, within the results; default: the last frame)")
     an.add_argument("--fps", type=_count_of("frames per second"), default=25, help="frames per second")
     an.add_argument("--frames", type=_count_of("frames", LEAST_FRAMES), default=200,
                     help=f"most frames (evenly spaced output rows; at least {LEAST_FRAMES})")

@@ -206,13 +206,21 @@ def _written_digits(res: Results) -> int:
         return 17
 
 
+def deflection_scale(exaggerate) -> float:
+    """The scale the deflections are drawn at: a finite number from 0 (0 draws the flexible
+    bodies undeformed); else an error naming it. The one rule of every drawing command."""
+    if not 0 <= _real("exaggerate", exaggerate) < np.inf:
+        raise GeometryError(f"exaggerate: a scale of the deflections, a finite number from 0 (0 draws the bodies "
+                            f"undeformed), got {exaggerate!r}")
+    return float(exaggerate)
+
+
 def motion(res: Results | str | os.PathLike, scene=None, exaggerate: float = 1.0, every: int = 1,
            frames: int | None = None) -> Motion:
     """The mechanism's geometry at the results' output rows. every: take every k-th row;
     frames: at most this many rows, evenly spread (both optional)."""
     res = res if isinstance(res, Results) else load_results(res)
-    if not 0 <= _real("exaggerate", exaggerate) < np.inf:
-        raise GeometryError(f"exaggerate: a finite number from 0, got {exaggerate!r}")
+    exaggerate = deflection_scale(exaggerate)
     rows = rows_of(len(res.t), every, frames)
     source = scene_of(res, scene)
     q_all, qd_all = res.coordinates()

@@ -376,13 +376,13 @@ def page(motion, res: Results, columns: Sequence[str] | None = None, every: int 
 
 
 def check_options(every: int, frames: int, exaggerate: float) -> None:
-    """--every and --frames whole numbers of at least 1, --exaggerate a finite number above
-    0; else a PlotError naming the option."""
+    """--every and --frames whole numbers of at least 1 (else a PlotError naming the option),
+    --exaggerate a scale from 0 (deflection_scale)."""
+    from .geometry import deflection_scale
     for option, value, least in (("--every", every, 1), ("--frames", frames, 1)):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < least:
             raise PlotError(f"{option} {value!r}: a whole number, at least {least}")
-    if not isinstance(exaggerate, (int, float, np.floating)) or not 0 < exaggerate < np.inf:
-        raise PlotError(f"--exaggerate {exaggerate!r}: a scale of the deflections, a finite number above 0")
+    deflection_scale(exaggerate)
 
 
 def view(results: Results | str | os.PathLike, output: str | os.PathLike, scene=None,

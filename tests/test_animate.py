@@ -37,7 +37,7 @@ def test_drawn_points_are_the_run_s_kinematics(tank_results):
     """At true scale the muzzle dot and the barrel's drawn end are the run's muzzle column
     (to 1e-9 m) at every frame; the default scale draws the largest deflection as 5 % of the
     mechanism's size (two digits), and the muzzle then sits off its undeformed place by that
-    factor times its deflection."""
+    factor times its deflection; at scale 0 it is the undeformed place."""
     d = drawing(tank_results, exaggerate=1.0, frames=31)
     muzzle = tank_results.marker("muzzle")[0]
     for i in range(0, 31, 5):
@@ -54,6 +54,9 @@ def test_drawn_points_are_the_run_s_kinematics(tank_results):
     rigid = motion(tank_results, exaggerate=0.0).markers["muzzle"]
     auto.draw(30)
     assert np.abs(drawn(auto.dots["muzzle"])[0] - (rigid[30] + x * (muzzle[30] - rigid[30]))).max() < 1e-3 * deflection
+    undeformed = drawing(tank_results, exaggerate=0.0, frames=31)    # scale 0: the rigid muzzle (was refused)
+    undeformed.draw(30)
+    assert np.abs(drawn(undeformed.dots["muzzle"])[0] - rigid[30]).max() < 1e-9
 
 
 def test_the_mechanism_fills_the_frame(tank_results):

@@ -574,8 +574,8 @@ def test_plot_results_refuses_results_without_rows_or_with_nan(runs, tmp_path, c
     (dict(view=5), pymr.ArgumentTypeError, r"^view: a named view or 'ELEV,AZIM' \(str\), got int 5$"),
     (dict(orbit="yes"), pymr.ArgumentTypeError, r"^orbit: True or False, got str 'yes'$"),
     (dict(frames=1), pymr.PymrError, r"^frames: at least 2, got 1 \(one frame is a still: write a .png\)$"),
-    (dict(exaggerate=-1.0), pymr.PymrError, r"^exaggerate: a scale of the deflections, a finite number above 0, "
-                                            r"got -1.0$"),
+    (dict(exaggerate=-1.0), pymr.PymrError, r"^exaggerate: a scale of the deflections, a finite number from 0 "
+                                            r"\(0 draws the bodies undeformed\), got -1.0$"),
     (dict(scene=""), pymr.PymrError, r"^scene: an empty file name \(leave it out for the scene the results name\)$"),
     (dict(scene=5), pymr.ArgumentTypeError, r"^scene: a file path \(str or os.PathLike\), got int 5$"),
 ], ids=["exaggerate_str", "fps_str", "frames_str", "at_str", "view_int", "orbit_str", "frames_1", "exaggerate_neg",
@@ -606,6 +606,28 @@ def test_an_empty_scene_option_is_refused(runs, tmp_path, command):
     name, *rest = command
     refused(cli(name, runs / "pend.csv", "--scene", "", *rest, cwd=tmp_path), "scene: an empty file name")
     assert list(tmp_path.iterdir()) == []
+
+
+SCALE_RULE = "exaggerate: a scale of the deflections, a finite number from 0 (0 draws the bodies undeformed), got "
+
+
+@pytest.mark.parametrize("command", [["animate", "-o", "a.png"], ["view", "-o", "v.html"], ["export", "--vtk", "x"]])
+@pytest.mark.parametrize("scale", ["-1", "nan", "inf"])
+def test_every_drawing_command_has_one_rule_for_the_scale(runs, tmp_path, command, scale):
+    """view and animate refused --exaggerate 0, which export and pymr.geometry.motion draw
+    undeformed, and the three said a bad scale three ways."""
+    name, *rest = command
+    refused(cli(name, runs / "pend.csv", "--exaggerate", scale, *rest, cwd=tmp_path), SCALE_RULE + repr(float(scale)))
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("at", ["-0.5", "1e9"])
+def test_a_still_outside_the_run_is_refused(runs, tmp_path, at):
+    """--at before the first row or after the last drew the first or the last frame, exit 0."""
+    t = pymr.load_results(runs / "pend.csv").t
+    refused(cli("animate", runs / "pend.csv", "--at", at, "-o", tmp_path / "a.png"),
+            f"at: {float(at):g} s is outside the run's results, {t[0]:g} to {t[-1]:g} s")
+    assert not (tmp_path / "a.png").exists()
 
 
 def test_animate_frames_one_is_refused_by_the_command_line(runs, tmp_path):
