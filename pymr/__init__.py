@@ -12,6 +12,7 @@ from .api import (PymrError, SceneError, ArgumentTypeError, SolverError, OutputE
 
 from .scene import Scene, schema
 from .modal_import import modal_import, ModalBody
+from .errors import PymrWarning
 from .plot import PlotError
 from .sweep import SweepError
 
@@ -19,6 +20,6 @@ __version__ = "0.1.0"
 
 __all__ = ["PymrError", "SceneError", "ArgumentTypeError", "SolverError", "OutputError", "ResultsError", "ResultsKeyError", "Results", "load_results", "run",
            "model_terms", "model_accelerations", "step_history", "marker_shapes", "model_energy", "model_size", "write_modal_file", "loop_rows",
-           "modal_import", "ModalBody",
+           "modal_import", "ModalBody", "PymrWarning",
            "Model", "force_response", "modes", "Modes", "PlotError", "SweepError", "Scene", "schema",
            "__version__"]

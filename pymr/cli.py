@@ -7,6 +7,7 @@ import argparse
 import errno
 import os
 import sys
+import warnings
 
 import numpy as np
 
@@ -62,15 +63,20 @@ def _cmd_modal_file(args: argparse.Namespace) -> int:
 
 
 def _cmd_modal_import(args: argparse.Namespace) -> int:
+    from .errors import PymrWarning
     from .modal_import import modal_import
     from .outputs import check_output
     check_output(args.output, "modal data file", example="body.modal", if_left_out=None)
     modes = None if args.modes == "all" else _count("--modes", args.modes)
-    body = modal_import(args.mass, args.stiffness, args.nodes, args.interface, args.output,
-                        dofs_per_node=args.dofs_per_node, dof_map=args.dof_map,
-                        modes=modes, keep=args.keep, clamp=args.clamp or (), mass_name=args.mass_name,
-                        stiffness_name=args.stiffness_name, memory_limit=args.memory_limit,
-                        progress=not args.quiet and sys.stderr.isatty())
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", PymrWarning)        # the body's own list, printed below
+        body = modal_import(args.mass, args.stiffness, args.nodes, args.interface, args.output,
+                            dofs_per_node=args.dofs_per_node, dof_map=args.dof_map,
+                            modes=modes, keep=args.keep, clamp=args.clamp or (), mass_name=args.mass_name,
+                            stiffness_name=args.stiffness_name, memory_limit=args.memory_limit,
+                            progress=not args.quiet and sys.stderr.isatty())
+    for doubt in body.warnings:                              # -q keeps them: they are about the body written
+        print(f"pymr: warning: {doubt}", file=sys.stderr)
     if not args.quiet:
         k = body.kept
         print(f"wrote {args.output}: {k['modes_written']} modes of the Craig-Bampton body ({k['fixed_interface_modes']} "

@@ -44,6 +44,12 @@ class PymrError(RuntimeError):
         return error
 
 
+class PymrWarning(UserWarning):
+    """What pymr doubts but does not refuse (``pymr modal-import``: a stiffness that resists
+    a rigid motion of the nodes). The command line prints it as one ``pymr: warning:`` line
+    on stderr."""
+
+
 class SceneError(PymrError, ValueError):
     """Bad input: the scene file, a group or an item, or an argument of a pymr function is
     wrong (mrsim exit status 1). The message names the file, group and item, or the argument."""

@@ -16,15 +16,41 @@ def rigid_modes(dof: np.ndarray, s: np.ndarray, ndof: int) -> np.ndarray:
     """Rigid-body motions (ndof, 6): translations along x, y, z, then small rotations about
     the body axes through the origin (u = theta x s at a node, its rotations theta)."""
     r = np.zeros((ndof, 6))
+    moves = dof[:, :3] >= 0                    # a DOF the layout leaves out (-1) moves no row
     for c in range(3):
         e = np.eye(3)[c]
-        r[dof[:, c], c] = 1.0
+        r[dof[moves[:, c], c], c] = 1.0
         rot = np.cross(e, s)                   # (nodes, 3)
         for i in range(3):
-            r[dof[:, i], 3 + c] = rot[:, i]
+            r[dof[moves[:, i], i], 3 + c] = rot[moves[:, i], i]
         has = dof[:, 3 + c] >= 0
         r[dof[has, 3 + c], 3 + c] = 1.0
     return r
+
+
+#: The stiffness's largest response to a rigid motion of the nodes (rigid_response) above
+#: which modal-import warns. Measured: an elastic body's is its rounding, 1e-16 (1e-13 for
+#: nodes 1000 lengths from the origin), 2e-5 for a K written with 5 digits (Nastran's short
+#: fields); nodes or a DOF layout that are not the matrices' (a beam along x given nodes
+#: along y, two DOFs swapped) give 1.
+RIGID_RESPONSE_LIMIT = 1e-3
+RIGID_MOTIONS = ("translation along x", "translation along y", "translation along z", "rotation about x",
+                 "rotation about y", "rotation about z")
+
+
+def rigid_response(k: sp.spmatrix, dof: np.ndarray, xyz: np.ndarray) -> tuple[float, str]:
+    """How far K holds the rigid-body motions r of the nodes (about their centroid): the
+    largest, over the rows i and the six motions, of |(K r)_i| / (|K_i| |r|)_i (the sum of
+    the row's terms' sizes: 1 where nothing cancels), and which motion gives it. An elastic
+    body's K r is 0 to the rounding of its rows; Nastran's GROUNDCHECK makes the same test."""
+    r = rigid_modes(dof, xyz - xyz.mean(axis=0), k.shape[0])
+    a = sp.csr_matrix(k)
+    a = sp.diags(1.0 / np.maximum(abs(a).max(axis=1).toarray().ravel(), np.finfo(float).tiny)) @ a   # rows to 1
+    with np.errstate(invalid="ignore", divide="ignore"):
+        response = np.abs(a @ r) / (abs(a) @ np.abs(r))
+    response = np.nan_to_num(response, nan=0.0).max(axis=0)    # a row the motion leaves still: 0/0
+    worst = int(np.argmax(response))
+    return float(response[worst]), RIGID_MOTIONS[worst]
 
 
 def direction_groups(m: sp.spmatrix, dof: np.ndarray, ids: list, path: Path) -> np.ndarray:

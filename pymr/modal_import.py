@@ -21,6 +21,7 @@ interface nodes with their mode shapes at zero mass.
 from __future__ import annotations
 
 import os
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -28,7 +29,7 @@ import numpy as np
 
 from . import _kernel as _core
 from .api import write_file
-from .errors import ImportInputError
+from .errors import ImportInputError, PymrWarning
 from .outputs import check_output
 
 
@@ -47,6 +48,7 @@ class ModalBody:
     origin: np.ndarray                    # the origin node's mesh coordinates
     exact: str = ""                       # what the invariants' structure allowed (see inertia_invariants)
     kept: dict = field(default_factory=dict)   # counts: fixed-interface modes, constraint modes, reduced size
+    warnings: list = field(default_factory=list)   # what the import doubts (rigid_motion_warning), one line each
 
 
 def modal_import(mass: str | os.PathLike, stiffness: str | os.PathLike, nodes: str | os.PathLike,
@@ -106,6 +108,7 @@ def modal_import(mass: str | os.PathLike, stiffness: str | os.PathLike, nodes: s
     what = "node " + ", ".join(str(n) for n in attach) + " clamped"
     clamped = rows([index[n] for n in attach])
     check_free_body(kk, dof, ids, kpath, clamped)
+    doubts = rigid_motion_warning(kk, dof, xyz, kpath)
     red = reduce(kk, mm, clamped, rows([index[n] for n in boundary_nodes]), modes, keep, kpath, what, show=progress,
                  memory_limit=limit)
     u = red.modes
@@ -120,10 +123,30 @@ def modal_import(mass: str | os.PathLike, stiffness: str | os.PathLike, nodes: s
         if (dof[n, 3:] >= 0).all():
             phi[p] = u[dof[n, 3:]]
     body = ModalBody(red.frequencies_hz, u, mass_, first, w, [ids[n] for n in pts], s[pts], psi, phi, origin, exact,
-                     red.counts)
+                     red.counts, doubts)
+    for doubt in doubts:
+        warnings.warn(doubt, PymrWarning, stacklevel=2)
     if output is not None:
         write_modal_v2(output, body, title or f"imported from {mpath.name}, {kpath.name}, {npath.name}")
     return body
+
+
+def rigid_motion_warning(kk, dof, xyz, kpath) -> list[str]:
+    """The warning when K resists a rigid motion of the nodes (fe_invariants.rigid_response):
+    the nodes or the DOF layout are likely not the matrices', which gives a wrong body with
+    no error (a beam's nodes along y for a K along x: a negative second moment of mass).
+    Springs between nodes apart, or to the ground, do it too, and may be meant: a warning,
+    as Nastran's GROUNDCHECK gives. None for a K with rows constrained in the FE code (all
+    clamped, check_free_body): their couplings are gone, and the test with them."""
+    from .fe_invariants import RIGID_RESPONSE_LIMIT, rigid_response
+    if not (kk.diagonal() > 0).all():
+        return []
+    response, motion = rigid_response(kk, dof, xyz)
+    if not response > RIGID_RESPONSE_LIMIT:
+        return []
+    return [f"{kpath}: the stiffness resists a rigid {motion} of the nodes (|K r| reaches {response:.2g} of "
+            "|K| |r| in a row, an elastic body's is its rounding): check that the nodes and the DOF layout are the "
+            "matrices' (springs between nodes apart, or to the ground, also do this)"]
 
 
 def finite_invariants(mm, dof, s, u, ids, mpath, npath, origin: int):

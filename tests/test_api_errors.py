@@ -80,7 +80,7 @@ CALLS = {
 # public names that are not functions of scenes and states: exceptions, result types, and
 # modal_import (its arguments are checked in modal_import.py, tested with it)
 NOT_CALLED = {"PymrError", "SceneError", "ArgumentTypeError", "SolverError", "OutputError", "ResultsError",
-              "ResultsKeyError", "PlotError", "SweepError", "Results", "ModalBody", "Modes", "modal_import", "__version__"}
+              "ResultsKeyError", "PlotError", "SweepError", "PymrWarning", "Results", "ModalBody", "Modes", "modal_import", "__version__"}
 
 
 def test_every_public_function_is_fuzzed():

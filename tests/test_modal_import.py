@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import importlib.util
 import re
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -522,3 +523,45 @@ def test_cli_writes_a_file_the_kernel_reads(small, capsys):
     b = pymr.modal_import(tmp / "mp.mtx", tmp / "kp.mtx", npath, [1, 5], modes=None, dof_map=tmp / "map.txt")
     np.testing.assert_allclose(b.frequencies_hz, a.frequencies_hz, rtol=1e-10)
     np.testing.assert_allclose(b.second, a.second, atol=1e-9 * np.abs(a.second).max())
+
+
+def test_nodes_or_dofs_that_are_not_the_matrices_are_warned(tmp_path, capsys):
+    """A beam's matrices along x with its nodes given along y, or with one node's two
+    bending rotations swapped in both matrices (a wrong DOF layout), were imported without a
+    word: the first body's second moment of mass has a negative diagonal, which no body has.
+    The stiffness of the right nodes holds the six rigid motions to its rounding (under 1e-12
+    of |K| |r| in every row; 2e-5 with K in 5 digits); the wrong ones leave a row with nothing
+    cancelled (1): one PymrWarning, and on the command line one 'pymr: warning:' line, exit 0,
+    even with -q."""
+    from pymr.fe_invariants import rigid_response
+    k, m, nodes = beam_matrices(2.0, 2e11, 7800.0, 1e-3, 1e-7, 2e-7, 10)
+    dof = np.arange(k.shape[0]).reshape(-1, 6)
+    five = np.vectorize(lambda x: float(f"{x:.4e}"))(k)            # K as 5-digit fields write it
+    assert 1e-6 < rigid_response(scipy.sparse.csr_matrix(five), dof, nodes[:, 1:])[0] < 1e-4
+    swapped = np.arange(k.shape[0])
+    swapped[[28, 29]] = swapped[[29, 28]]             # node 5's theta_y and theta_z
+    along_y = nodes[:, [0, 2, 1, 3]]
+    for name, (kk, mm, nn) in {"right": (k, m, nodes), "along_y": (k, m, along_y),
+                               "swapped": (k[swapped][:, swapped], m[swapped][:, swapped], nodes)}.items():
+        folder = tmp_path / name
+        folder.mkdir()
+        mp, kp, npath = write_fe(folder, kk, mm, nn)
+        response = rigid_response(scipy.sparse.csr_matrix(kk), dof, nn[:, 1:])[0]
+        assert response < 1e-12 if name == "right" else response == pytest.approx(1.0, abs=1e-12)
+        with warnings.catch_warnings(record=True) as seen:
+            warnings.simplefilter("always")
+            body = pymr.modal_import(mp, kp, npath, [1], modes=4)
+        doubts = [str(w.message) for w in seen if issubclass(w.category, pymr.PymrWarning)]
+        assert doubts == body.warnings and len(doubts) == (name != "right"), doubts
+        if name == "right":
+            assert np.linalg.eigvalsh(body.second[:, :, 0, 0]).min() > -1e-9 * body.second[0, 0, 0, 0]
+            continue
+        assert re.fullmatch(rf"{re.escape(str(kp))}: the stiffness resists a rigid rotation about [xyz] of the nodes "
+                            r"\(\|K r\| reaches 1 of \|K\| \|r\| in a row, an elastic body's is its rounding\): check "
+                            r"that the nodes and the DOF layout are the matrices' \(.*\)", doubts[0]), doubts[0]
+        if name == "along_y":
+            assert np.diag(body.second[:, :, 0, 0]).min() < 0
+        assert main(["modal-import", "--mass", str(mp), "--stiffness", str(kp), "--nodes", str(npath),
+                     "--interface", "1", "-o", str(folder / "b.modal"), "-q"]) == 0
+        err = capsys.readouterr().err
+        assert err == f"pymr: warning: {doubts[0]}\n" and (folder / "b.modal").stat().st_size > 0
