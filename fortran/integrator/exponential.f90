@@ -219,7 +219,7 @@ contains
     type(error_type), allocatable, intent(out) :: error
     real(dp) :: t0, tn, hs, err
     integer :: breakdowns, fails
-    logical :: retry
+    logical :: retry, full
     select type (sys)
     class is (partitioned_system)
     associate(wk => self%wk, n => self%n)
@@ -279,11 +279,11 @@ contains
       self%last%beta = wk%beta; self%last%cs = wk%cs
       call self%flow%rows_form(wk%eta0, wk%beta, hs, self%last%rows)
       self%x = wk%xc; self%t = tn; self%steps = self%steps + 1
+      full = self%hist%nh == n_hist
       call push_evaluation(self, tn, wk%f(n+1:), wk%y, wk%rnew, wk%pnew)
       ! an accepted step's successor no less than the least step (its error test fails there)
-      if (self%adaptive) self%h = max(min(hs*self%ctl%ratio(self%last_error%of(err, hs, local_order), .true.), &
-        & self%ctl%h_max), &
-        & least_step(self%ctl%h_min, tn))
+      if (self%adaptive) self%h = max(min(hs*self%ctl%ratio(self%last_error%of(err, hs, local_order, keep=full), &
+        & .true.), self%ctl%h_max), least_step(self%ctl%h_min, tn))
     end associate
     class default
       call fatal_error(error, "the 'exponential' coupling needs a system partitioned into slow and fast coordinates")
@@ -411,7 +411,7 @@ contains
       call self%flow%rows_form(self%last%eta, self%last%beta, self%last%h, self%last%rows)
     end if
     call rec%item(self%steps); call rec%item(self%rejected); call rec%item(self%renewals)
-    call rec%item(self%last_error%err); call rec%item(self%last_error%h)
+    call rec%item(self%last_error%err); call rec%item(self%last_error%h); call rec%item(self%last_error%n)
   end subroutine ex_record
 
   pure function ex_counts(self) result(c)

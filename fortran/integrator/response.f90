@@ -540,7 +540,7 @@ contains
     call rec%item(self%hist%kf); call rec%item(self%hist%df)
     call rec%item(self%cnt%steps_slow); call rec%item(self%cnt%steps_fast); call rec%item(self%cnt%rejected)
     call rec%item(self%cnt%evals_surrogate)
-    call rec%item(self%last_macro%err); call rec%item(self%last_macro%h)
+    call rec%item(self%last_macro%err); call rec%item(self%last_macro%h); call rec%item(self%last_macro%n)
     call rec%item(self%c_known); call rec%item(self%c_last)
   end subroutine rs_record
 

@@ -30,8 +30,9 @@ module pymr_io_checkpoint
   !> kept file against it) and the run's warnings; 10: the step counts of the methods
   !> that ran before the stepper written (method 'auto' reviewed); 11: the last accepted
   !> step's error estimate and length of adaptive 'response' and 'exponential' (their
-  !> error envelope); 12: the error model of the last accepted 'response' macro step.
-  integer, parameter :: version = 12
+  !> error envelope); 12: the error model of the last accepted 'response' macro step; 13: the
+  !> error envelope of the last eight accepted steps.
+  integer, parameter :: version = 13
 
   !> What a checkpoint's header says: pymr's version, the model's size, the stepper's name,
   !> the time, the integrator settings and the model's fingerprint.

@@ -16,16 +16,7 @@ module pymr_model_scene
   public :: max_modes_input, big_length, big_force, big_time
   public :: joint_ndof, unset, group_names, single_groups, repeated_groups, describe_group, group_origin, group_count
   public :: naming_item, complete_scene, body_items, item_applies, output_quantities, beam_mode_count
-  public :: closes_loop, flexible_loop, k_max_flexible_loop, body_index, control_count
-
-  !> Default k_max of adaptive 'response' runs whose closed loops pass through a flexible
-  !> body. The loop's fast modes move its joints through the constraint forces, which the
-  !> surrogate extrapolates; each macro step's error, as estimated and taken out, leaves a
-  !> residual that adds up over the run to a phase error of the crank. On the flexible
-  !> four-bar over rtol 1e-4 to 1e-8 (17 tolerances, with and without glibc's FMA/AVX2
-  !> paths) it ends 0.03-0.72 rtol away at k_max = 8 and 0.03-2.22 at 50, where the error
-  !> at rtol 1e-8 moves with round-off (docs/scenes.md, "Loops in multirate runs").
-  integer, parameter :: k_max_flexible_loop = 8
+  public :: closes_loop, flexible_loop, body_index, control_count
 
   !> The groups of a scene file, in the order the resolved scene is written.
   character(len=*), parameter :: group_names = &
@@ -58,8 +49,7 @@ module pymr_model_scene
     real(dp) :: h_min = 0.0_dp, h_max = 0.0_dp
     !> Corrector evaluations per step (1 = PECE).
     integer :: n_corrector = 1
-    !> Adaptive multirate: the largest step ratio H/h the controller may choose (with the
-    !> 'response' coupling and a closed loop through a flexible body: k_max_flexible_loop).
+    !> Adaptive multirate: the largest step ratio H/h the controller may choose.
     integer :: k_max = 50
     !> How adaptive steps weigh a modal coordinate's error: 'state' (its position and rate
     !> apart) or 'amplitude' (both as the mode's amplitude).
@@ -375,8 +365,7 @@ contains
       & "factor M, O(n^3)) or 'auto' (articulated without flexible bodies, and with them from 12 " // &
       & "joint coordinates on: where it is the faster; " // &
       & "multirate and the pre-flight check always use M)", choices='auto articulated mass_matrix')
-    call t%add('k_max', g%k_max, '-', "largest step ratio H/h of adaptive multirate (default 8 with the " // &
-      & "'response' coupling when a closed loop passes through a flexible body)", ge=1, le=100000)
+    call t%add('k_max', g%k_max, '-', "largest step ratio H/h of adaptive multirate", ge=1, le=100000)
     call t%add('error_norm', g%error_norm, "how adaptive steps weigh the local error of a modal coordinate: " // &
       & "'state' its position and rate apart (each against rtol |x| + atol), 'amplitude' both as the mode's " // &
       & "amplitude A = sqrt(a^2 + (ad/omega)^2) (the position against rtol A + atol, the rate against omega " // &
@@ -690,10 +679,6 @@ contains
     end if
     ! the paper's formula is of order 4 (a scene written back states it)
     if (sc%integrator%formula == 'abm4' .and. .not. sc%integrator%origin%given('order')) sc%integrator%order = 4
-    if ((sc%integrator%coupling == 'response' .or. sc%integrator%method == 'auto') .and. &
-      & .not. sc%integrator%origin%given('k_max')) then
-      if (flexible_loop(sc)) sc%integrator%k_max = k_max_flexible_loop
-    end if
   end subroutine complete_scene
 
   !> Index of the body called `name`, 0 if none.
