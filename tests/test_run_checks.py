@@ -320,6 +320,25 @@ def test_a_model_too_large_for_the_memory_fails_in_one_line(tmp_path, mrsim):
     assert not (tmp_path / "beams.csv").exists()
 
 
+def test_a_beam_whose_quadrature_exceeds_the_memory_fails_in_one_line(tmp_path, mrsim):
+    """A ring-section beam of 5000 elements and 50 modes of each of its four kinds has 4
+    Gauss points of 4 section points per element, 80,000 points, each with 3 x 200 mode
+    shapes and 4 more numbers: 8 x 80,000 x 604 bytes = 0.38656 GB, built before any matrix
+    the run's memory check counts (202 coordinates). Under a 300 MiB address-space limit
+    that allocation ended in the compiler's runtime message and backtrace (exit 1), or a
+    segmentation fault; now one line naming the body and both figures, exit 2."""
+    scene = tmp_path / "long.nml"
+    scene.write_text(beam_chain(1, 2, "method = 'single', adaptive = .true., h_slow = 1e-4").replace(
+        "n_elements = 40, modes_y = 1, modes_z = 1",
+        "n_elements = 5000, modes_y = 50, modes_z = 50, modes_x = 50, modes_t = 50, shear_modulus = 8e10"))
+    assert "modes_t = 50" in scene.read_text()
+    r = run_under_limit(mrsim, scene, tmp_path / "long.csv", 300 * 2**20)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "Error termination" not in r.stderr, r.stderr
+    assert f"beam 'b0': its 80000 quadrature points of 200 modes need about {8 * 80000 * 604 / 1e9:g} GB, more " \
+           "than the " in r.stderr, r.stderr
+    assert not (tmp_path / "long.csv").exists()
+
+
 @pytest.mark.parametrize("integrator", [
     "method = 'single', formula = 'abm4', adaptive = .false., h_slow = 1e-7",
     "method = 'single', formula = 'abm4', adaptive = .false., h_slow = 1e-7, stability_check = .false.",

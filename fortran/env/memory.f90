@@ -7,7 +7,7 @@ module pymr_env_memory
   use pymr_env_text, only : itoa, fmt
   implicit none
   private
-  public :: memory_limit, check_room, refuse_room
+  public :: memory_limit, check_room, refuse_room, check_bytes, refuse_bytes
 
   interface
     function c_memory_limit() bind(c, name='pymr_memory_limit') result(bytes)
@@ -44,8 +44,28 @@ contains
     integer, intent(in) :: n
     real(dp), intent(in) :: need, room
     type(error_type), allocatable, intent(out) :: error
-    call fatal_error(error, 'the model has ' // itoa(n) // ' coordinates: its dense matrices need about ' // &
-      & fmt(need/1.0e9_dp) // ' GB, more than the ' // fmt(room/1.0e9_dp) // &
-      & ' GB this process may still take (the machine''s memory, or its ulimit -v)', stat_solver)
+    call refuse_bytes('the model has ' // itoa(n) // ' coordinates: its dense matrices', need, room, error)
   end subroutine refuse_room
+
+  !> Arrays of `need` bytes that `what` names (a body's quadrature): refused (refuse_bytes)
+  !> when that is more than the process may still take, before they are allocated.
+  subroutine check_bytes(what, need, error)
+    character(len=*), intent(in) :: what
+    real(dp), intent(in) :: need
+    type(error_type), allocatable, intent(out) :: error
+    real(dp) :: room
+    room = memory_limit()
+    if (need > room) call refuse_bytes(what, need, room, error)
+  end subroutine check_bytes
+
+  !> The one line (exit 2) of arrays (`what` names them) too large for the memory: both
+  !> figures, in GB.
+  subroutine refuse_bytes(what, need, room, error)
+    character(len=*), intent(in) :: what
+    real(dp), intent(in) :: need, room
+    type(error_type), allocatable, intent(out) :: error
+    call fatal_error(error, what // ' need about ' // fmt(need/1.0e9_dp) // ' GB, more than the ' // &
+      & fmt(room/1.0e9_dp) // ' GB this process may still take (the machine''s memory, or its ulimit -v)', &
+      & stat_solver)
+  end subroutine refuse_bytes
 end module pymr_env_memory

@@ -14,6 +14,8 @@ module pymr_model_beam_modes
   use pymr_env_kinds, only : dp, pi
   use pymr_env_error, only : error_type
   use pymr_env_lapack, only : sygvd, band_solve
+  use pymr_env_memory, only : check_bytes, refuse_bytes, memory_limit
+  use pymr_env_text, only : itoa
   use pymr_model_flexbody, only : flex_data, flex_invariants, point_shapes
   implicit none
   private
@@ -96,8 +98,9 @@ contains
     type(error_type), allocatable, intent(out) :: error
     real(dp), allocatable :: lam_y(:), lam_z(:), lam_x(:), lam_t(:), s(:, :), mp(:), psi(:, :, :)
     real(dp) :: le, xi, mg, off(3, 4), psi_axis(3, my + mz + mx + mt), phi(3, my + mz + mx + mt), rot_y, rot_z
-    integer :: np, el, g, k, c, m, per
+    integer :: np, el, g, k, c, m, per, stat
     logical :: ring
+    character(len=:), allocatable :: what_points
     bs%length = length; bs%ne = ne; bs%my = my; bs%mz = mz; bs%mx = mx; bs%mt = mt
     le = length/ne
     ring = mt > 0
@@ -126,7 +129,14 @@ contains
       off(3, 3) = sqrt(2*sec%iy/sec%area); off(3, 4) = -off(3, 3)
     end if
     np = 4*ne*per
-    allocate(s(3, np), mp(np), psi(3, m, np))
+    ! the quadrature's shapes grow as elements times modes (5000 elements of 200 modes on a
+    ! ring section: 0.38 GB): refused in one line, not in the compiler's runtime message
+    what_points = what // ': its ' // itoa(np) // ' quadrature points of ' // itoa(m) // ' modes'
+    call check_bytes(what_points, 8.0_dp*np*(3.0_dp*m + 4.0_dp), error); if (allocated(error)) return
+    allocate(s(3, np), mp(np), psi(3, m, np), stat=stat)
+    if (stat /= 0) then
+      call refuse_bytes(what_points, 8.0_dp*np*(3.0_dp*m + 4.0_dp), memory_limit(), error); return
+    end if
     s = 0.0_dp; psi = 0.0_dp
     do el = 1, ne
       do g = 1, 4
