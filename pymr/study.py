@@ -331,16 +331,22 @@ class Study:
                 self._pymr(single)                           # also the warm-up (caches, first touch)
                 break
             except PymrError as exc:
+                if exc.kind == "solver":                     # a run that fails: no weight, the study goes on
+                    self.say(f"measured weight w: not measured: the fixed single-rate run at h = {h0:g} s failed "
+                             f"({exc}): the multirate cases have no equivalents")
+                    self.weight = {c: math.nan for c in COUPLINGS}
+                    self.c_fast, self.weight_ratio = dict(self.weight), {}
+                    return
                 if exc.kind not in REFUSALS or h0 < 1e-3 * self.h0:
                     raise
                 h0 /= 2
         multi = {}
         for coupling in COUPLINGS:                          # the largest ratio the pre-flight check passes
-            for k in WEIGHT_RATIOS:
+            for k in WEIGHT_RATIOS:                          # (and runs to the end)
                 try:
                     self._pymr(self._multirate(coupling, k, h0))
                 except PymrError as exc:
-                    if exc.kind not in REFUSALS:
+                    if exc.kind not in REFUSALS + ("solver",):
                         raise
                     continue
                 multi[coupling] = k
@@ -368,7 +374,8 @@ class Study:
         ratios = ", ".join(map(str, WEIGHT_RATIOS))
         parts = [f"'{c}' {self.weight[c]:.3f} (c_fast {self.c_fast[c] * 1e6:.3f} us at k = {self.weight_ratio[c]})"
                  if math.isfinite(self.weight.get(c, math.nan)) else
-                 f"'{c}' not measured (the pre-flight check refused k = {ratios}: its cases have no equivalents)"
+                 f"'{c}' not measured (at k = {ratios} the pre-flight check refused the run or it failed: its cases "
+                 "have no equivalents)"
                  for c in COUPLINGS]
         return (f"measured weight w = c_fast / c_full of a fast-only evaluation (c_full {self.c_full * 1e6:.3f} us "
                 f"per single-rate step): " + ", ".join(parts))

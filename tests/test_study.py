@@ -229,7 +229,7 @@ def test_a_coupling_whose_weight_was_not_measured_leaves_its_equivalents_empty(t
         {"response": 10}
     text = s.weights_text()
     assert "'response' 0.250 (c_fast 1.500 us at k = 10)" in text
-    assert "'full' not measured (the pre-flight check refused k = 10, 5, 2: its cases have no equivalents)" in text
+    assert "'full' not measured (at k = 10, 5, 2 the pre-flight check refused the run or it failed: its cases have no equivalents)" in text
     s.cases = [Case("full fixed k=5", "h_fast=2.5e-05", error_m=2.8e-3, cpu_s=5e-3, rhs_full=10, rhs_fast=20, runs=1),
                Case("response fixed k=5", "h_fast=2.5e-05", error_m=2.8e-3, cpu_s=5e-3, rhs_full=10, rhs_fast=20,
                     equivalents=10 + 0.25 * 20, runs=1)]
@@ -403,3 +403,31 @@ def test_a_study_that_could_measure_nothing_is_refused_in_one_line(tmp_path, edi
     with pytest.raises(pymr.SceneError, match=message):
         s = Study(scene, "still" if "still" in message else "muzzle", quick=True, progress=None)
         s.reference()
+
+
+def test_a_calibration_run_that_fails_leaves_its_weight_unmeasured(tmp_path, capsys):
+    """The tank fired with a 3e9 N pulse (t_end 0.6 s): the muzzle moves so far that fixed
+    steps lose the mass matrix's definiteness after the shot, among them the runs the study
+    measures its weights with. The study exited 2 with no file written. Now a calibration
+    run that fails leaves its coupling's weight unmeasured (its cases without equivalents),
+    every failed case is a row of the CSV with the run's own error (the same as pymr.run
+    raises), and the study writes its files, exit 0."""
+    from pymr import study as study_mod
+    scene = tmp_path / "fired.nml"
+    text = (TANK.parent / "tank_firing.nml").read_text()
+    scene.write_text(text.replace("peak = 1.0e6", "peak = 3.0e9").replace("t_end = 1.0", "t_end = 0.6"))
+    assert "peak = 3.0e9" in scene.read_text() and "t_end = 0.6" in scene.read_text()
+    assert study_mod.main(str(scene), "muzzle", output=str(tmp_path / "s"), quick=True, repeats=1) == 0
+    out = capsys.readouterr().out
+    assert "'response' not measured (at k = 10, 5, 2 the pre-flight check refused the run or it failed" in out
+    rows = list(csv.DictReader(open(tmp_path / "s.csv")))
+    failed = [r for r in rows if r["status"].startswith("failed: ")]
+    assert failed and all(r["equivalents"] in ("", "nan") for r in rows if r["method"].startswith("response"))
+    first = failed[0]
+    assert first["method"] == "single fixed"
+    h = float(first["setting"].removeprefix("h="))
+    with pytest.raises(pymr.SolverError) as exc:
+        pymr.run(scene, tmp_path / "one.csv", overrides={"integrator.method": "single", "integrator.adaptive": False,
+                                                          "integrator.h_slow": h, "integrator.h_fast": h})
+    assert first["status"] == f"failed: {exc.value}"
+    assert all((tmp_path / f"s{suffix}").stat().st_size > 0 for suffix in (".csv", ".png", "_history.csv"))
