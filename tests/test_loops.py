@@ -920,3 +920,17 @@ def test_a_planar_loop_on_a_turning_table_keeps_its_rows(tmp_path):
     for r in (four, res, other):
         e = r["energy.total"]
         assert np.abs(e - e[0] - r["energy.motion_work"]).max() < 1e-8 * np.abs(r["energy.motion_work"]).max()
+
+
+def test_loop_rows_of_a_state_beyond_the_model_s_terms_are_an_error(tmp_path):
+    """loop_rows at rates of 1e200 returned gamma = NaN with no error, where
+    model_accelerations at that state raises SolverError. At an ordinary state its rows
+    stay finite, gamma = -Gdot qd quadratic in qd (doubling qd quadruples it, to 1e-12)."""
+    scene = tmp_path / "fb.nml"
+    scene.write_text(fourbar_scene(1.0, 2.0))
+    q = np.array([1.0, -0.6464848191068708, -2.1465396845740505])
+    with pytest.raises(pymr.SolverError, match=r"^the loops' rows are not finite at this state: it overflows the "
+                                               r"model's terms$"):
+        pymr.loop_rows(scene, q, np.full(3, 1e200))
+    one, two = (pymr.loop_rows(scene, q, s * np.ones(3))[2] for s in (1.0, 2.0))
+    assert np.isfinite(one).all() and np.abs(two - 4 * one).max() < 1e-12 * np.abs(one).max()

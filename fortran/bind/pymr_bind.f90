@@ -169,7 +169,7 @@ end subroutine pymr_model_accelerations
 !> loop_rows): residual phi(nr), Jacobian g(nr, n) and gam(nr) = -Gdot qd of every cut
 !> joint, nr of them (the arrays are nrmax long; call with nrmax = 0 to learn nr).
 subroutine pymr_loop_rows(handle, n, nrmax, q, qd, nr, phi, g, gam, stat, message, detail)
-  use pymr_env_error, only : error_type
+  use pymr_env_error, only : error_type, fatal_error, stat_solver
   use pymr_bind_support, only : report
   use pymr_bind_models, only : scratch
   use pymr_model, only : model_t
@@ -195,6 +195,13 @@ subroutine pymr_loop_rows(handle, n, nrmax, q, qd, nr, phi, g, gam, stat, messag
   call forward_kinematics(model%d, model%wk, q, qd)
   call loop_rows(model%d, model%wk)
   phi(1:nr) = model%wk%loops%residual; g(1:nr, :) = model%wk%loops%jac; gam(1:nr) = model%wk%loops%gamma
+  ! a state too large for the loops' terms (rates of 1e200): NaN came back with no error
+  if (.not. (all(abs(phi(1:nr)) <= huge(1.0d0)) .and. all(abs(g(1:nr, :)) <= huge(1.0d0)) .and. &
+    & all(abs(gam(1:nr)) <= huge(1.0d0)))) then
+    call fatal_error(error, 'the loops'' rows are not finite at this state: it overflows the model''s terms', &
+      & stat_solver)
+    call report(error, stat, message, detail)
+  end if
 end subroutine pymr_loop_rows
 
 !> Kinetic and potential energy (J) for m states q(n,m), qd(n,m) of an open model.
