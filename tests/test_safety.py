@@ -370,6 +370,29 @@ def test_an_output_that_is_no_regular_file_is_refused_before_the_run(tmp_path, m
         assert sorted(p.name for p in tmp_path.iterdir()) == before
 
 
+def test_results_of_the_other_format_keep_their_statistics(tmp_path, mrsim, monkeypatch):
+    """OUT.csv and OUT.h5 share the statistics file OUT.json: a run to out.h5 replaced the
+    statistics of a complete out.csv, which then no longer loaded ('1001 rows of the 501
+    the run wrote'; found by an audit of kills). Refused before the run, one line, for
+    either format; out.csv and its statistics stay as they were and still load, and a run
+    to out.csv itself goes on replacing them."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "p.nml").write_text(PENDULUM)
+    first = pymr.run("p.nml", "out.csv")
+    kept = {name: (tmp_path / name).read_bytes() for name in ("out.csv", "out.json")}
+    for name in ("out.h5", "out.hdf5"):
+        message = (f"p.nml: output {name}: its statistics out.json are those of out.csv, which would no longer "
+                   "load: give another name, or remove out.csv")
+        r = run_mrsim(mrsim, ["p.nml", "-o", name, "--set", "output.format='hdf5'"], tmp_path)
+        assert r.returncode == 1 and r.stderr == "mrsim: error: " + message + "\n", r.stderr
+        with pytest.raises(pymr.SceneError, match="^" + re.escape(message) + "$"):
+            pymr.run("p.nml", name, overrides={"output.format": "hdf5"})
+    assert {name: (tmp_path / name).read_bytes() for name in kept} == kept
+    assert np.array_equal(pymr.load_results("out.csv").data, first.data)
+    assert run_mrsim(mrsim, ["p.nml", "-o", "out.csv", "--set", "scene.t_end=0.5"], tmp_path).returncode == 0
+    assert pymr.load_results("out.csv").t[-1] == 0.5
+
+
 LINK = "it is a symbolic link, which the finished file, renamed into place, would replace (not the file it points to)"
 
 

@@ -70,9 +70,37 @@ contains
     end if
     if (replaces(sc, json_path(path), 'output ' // path // ': its statistics ' // json_path(path), &
       & 'another results file', error)) return
+    if (shares_statistics(sc, path, error)) return
     call check_checkpoint_path(sc, path, inputs, error); if (allocated(error)) return
     call check_inputs_kept(sc, path, inputs, error)
   end subroutine check_output_path
+
+  !> OUT.csv and OUT.h5 (.hdf5) keep their statistics in the same OUT.json: a run to one of
+  !> them while the other is there with its statistics would replace those, and the other,
+  !> intact, would no longer load. Refused, naming both.
+  logical function shares_statistics(sc, path, error)
+    type(scene_t), intent(in) :: sc
+    character(len=*), intent(in) :: path
+    type(error_type), allocatable, intent(inout) :: error
+    character(len=*), parameter :: suffixes(3) = [character(len=5) :: '.csv', '.h5', '.hdf5']
+    character(len=:), allocatable :: json, stem, other
+    logical :: there
+    integer :: i
+    shares_statistics = .false.
+    json = json_path(path)
+    inquire(file=json, exist=there)
+    if (.not. there) return
+    stem = json(1:len(json) - len('.json'))
+    do i = 1, size(suffixes)
+      other = stem // trim(suffixes(i))
+      if (absolute_path(other) == absolute_path(path)) cycle
+      inquire(file=other, exist=there)
+      if (.not. there) cycle
+      call fatal_error(error, sc%file // ': output ' // path // ': its statistics ' // json // ' are those of ' // &
+        & other // ', which would no longer load: give another name, or remove ' // other)
+      shares_statistics = .true.; return
+    end do
+  end function shares_statistics
 
   !> The checkpoint file (&output checkpoint_file, else beside the results) of a run that
   !> writes checkpoints: a regular file or none, in a folder, over no input (`inputs`) nor
