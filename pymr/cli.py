@@ -496,6 +496,14 @@ class _ClosedOutput:
         pass
 
 
+class _Terminated(Exception):
+    """SIGTERM, raised in the main thread as Ctrl-C raises KeyboardInterrupt."""
+
+
+def _on_sigterm(signum, frame):
+    raise _Terminated
+
+
 def main(argv: list[str] | None = None) -> int:
     if sys.stdout is None:
         sys.stdout = _ClosedOutput()
@@ -503,10 +511,20 @@ def main(argv: list[str] | None = None) -> int:
         args = build_parser().parse_args(argv)
     except SystemExit as exc:          # argparse: a bad command line is bad input, status 1
         return 0 if exc.code in (0, None) else 1
+    import signal
+    try:                               # SIGTERM ended the process with no line (a run's kernel
+        before = signal.signal(signal.SIGTERM, _on_sigterm)    # catches it itself: the run stops)
+    except ValueError:                 # not the main thread: left as it is
+        before = None
     try:
         status = args.func(args)
         sys.stdout.flush()             # a full disk under the output is seen here, not at exit
         return status
+    except (KeyboardInterrupt, _Terminated) as exc:   # a traceback of 9-74 lines: one line, a failure
+        name = "SIGINT" if isinstance(exc, KeyboardInterrupt) else "SIGTERM"
+        print(f"pymr: error: stopped by {name} (a file it was writing is not in place; an earlier one is kept)",
+              file=sys.stderr)
+        return 2
     except BrokenPipeError:            # the reader of the output went away (`| head`): stop quietly,
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())   # nor fail flushing at exit,
         return 1                       # and not as a success: the command did not finish its work
@@ -520,6 +538,9 @@ def main(argv: list[str] | None = None) -> int:
         for line in str(exc).splitlines() or [""]:
             print(f"pymr: error: {line}", file=sys.stderr)
         return 2 if isinstance(exc, SolverError) else 1      # a failed run, else bad input
+    finally:
+        if before is not None:
+            signal.signal(signal.SIGTERM, before)
 
 
 if __name__ == "__main__":

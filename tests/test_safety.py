@@ -7,8 +7,10 @@ from __future__ import annotations
 import json
 import re
 import shutil
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -18,6 +20,7 @@ import pymr
 from pymr import _testhooks
 
 ROOT = Path(__file__).resolve().parent.parent
+TANK = ROOT / "input" / "tank_gun_turret.nml"
 PENDULUM = (ROOT / "input" / "pendulum.nml").read_text().replace(
     "&output file = 'pendulum.csv', dt = 0.01 /", "&output dt = 0.01 /").replace("t_end = 10.0", "t_end = 0.05")
 
@@ -650,3 +653,58 @@ def test_a_run_failing_in_its_start_keeps_its_partial_files_not_an_earlier_run_s
     rows = [line for line in (tmp_path / "f.csv.partial").read_text().splitlines() if line[:1].isdigit()]
     assert stats["status"] == "failed" and stats["rows"] == len(rows) == 1
     assert stats["overrides"][-1] == "joint[traverse].qd0=1e6" and not (tmp_path / "f.csv").exists()
+
+
+@pytest.mark.parametrize("program", ["mrsim", "pymr run"])
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_an_interrupted_run_stops_in_one_line_and_keeps_the_earlier_results(tmp_path, mrsim, program, sig):
+    """Ctrl-C (SIGINT) or SIGTERM during a run. pymr run went on to the run's end, replaced
+    the earlier results and only then printed a KeyboardInterrupt traceback; mrsim died with
+    no line, its lock left behind (found by an audit of kills). Now the run stops after the
+    step it is in, as a failed run: exit 2, one line naming the time and the signal, the
+    earlier complete results byte for byte as they were, the rows so far in the partial
+    file (every one a row of the same run as the complete one, to its time), no lock left."""
+    scene = tmp_path / "tank.nml"
+    scene.write_text(TANK.read_text())
+    out = tmp_path / "out.csv"
+    pymr.run(scene, out, overrides={"scene.t_end": 0.2})
+    kept = {p.name: p.read_bytes() for p in (out, tmp_path / "out.json")}
+    command = [mrsim] if program == "mrsim" else [sys.executable, "-m", "pymr", "run"]
+    p = subprocess.Popen([*command, str(scene), "-o", str(out), "-q", "--set", "scene.t_end=1e4"], cwd=tmp_path,
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    partial = tmp_path / "out.csv.partial"
+    deadline = time.monotonic() + 60
+    while not (partial.exists() and partial.stat().st_size > 100_000) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    p.send_signal(sig)
+    _, err = p.communicate(timeout=60)
+    name = {signal.SIGINT: "SIGINT", signal.SIGTERM: "SIGTERM"}[sig]
+    assert p.returncode == 2 and err.count("\n") == 1 and "Traceback" not in err, (p.returncode, err)
+    assert re.search(rf"error: {re.escape(str(scene))}: at t = \S+ s: stopped by {name} \(the rows so far are kept "
+                     r"in the partial results file\)$", err.strip()), err
+    assert {name_: (tmp_path / name_).read_bytes() for name_ in kept} == kept
+    assert not (tmp_path / "out.csv.lock").exists()
+    rows = np.loadtxt(partial, delimiter=",", comments="#", skiprows=4)
+    t_stop = float(re.search(r"at t = (\S+) s", err).group(1))
+    assert rows[-1, 0] <= t_stop and np.array_equal(rows[:len(pymr.load_results(out).t)], pymr.load_results(out).data)
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_an_interrupted_command_says_so_in_one_line(tmp_path, sig):
+    """Ctrl-C to any pymr command printed a KeyboardInterrupt traceback of 9-74 lines, and
+    SIGTERM ended it with no line at all (found by an audit of kills). pymr animate of 200
+    frames (about 20 s) stopped after 2 s: one line naming the signal, exit 2, no animation
+    in place and the earlier one kept."""
+    out = tmp_path / "t.csv"
+    pymr.run(TANK, out, overrides={"scene.t_end": 0.3})
+    gif = tmp_path / "t.gif"
+    gif.write_bytes(b"GIF89a earlier")
+    p = subprocess.Popen([sys.executable, "-m", "pymr", "animate", str(out), "-o", str(gif)], cwd=tmp_path,
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    time.sleep(2.0)
+    p.send_signal(sig)
+    _, err = p.communicate(timeout=60)
+    name = {signal.SIGINT: "SIGINT", signal.SIGTERM: "SIGTERM"}[sig]
+    assert p.returncode == 2 and err == (f"pymr: error: stopped by {name} (a file it was writing is not in place; "
+                                         "an earlier one is kept)\n"), (p.returncode, err)
+    assert gif.read_bytes() == b"GIF89a earlier"

@@ -3,6 +3,7 @@
 !> (pymr_driver_simulation) and the modules it uses, each named for its job.
 module pymr_driver_run
   use pymr_env_error, only : error_type
+  use pymr_env_interrupt, only : catch_interrupts, release_interrupts
   use pymr_driver_simulation, only : simulation_t
   use pymr_driver_load_model, only : load_model
   use pymr_driver_output_paths, only : scene_input, default_output
@@ -39,6 +40,7 @@ contains
     if (present(restart)) from = restart
     lines = .false.
     if (present(progress_lines)) lines = progress_lines
+    call catch_interrupts()                     ! SIGINT, SIGTERM: the run stops after its step
     call sim%open(file, overrides, out, len_trim(from) > 0, lines, error)
     if (.not. allocated(error)) call sim%initial_state(from, error)
     if (.not. allocated(error)) call sim%start(from, error)
@@ -53,5 +55,6 @@ contains
       written = sim%path
     end if
     call sim%close()
+    call release_interrupts()
   end subroutine run_scene
 end module pymr_driver_run

@@ -33,6 +33,7 @@ module pymr_driver_simulation
   use pymr_driver_starting_state, only : starting_state
   use pymr_driver_deflection_watch, only : watch_deflection
   use pymr_driver_progress, only : run_clock
+  use pymr_env_interrupt, only : check_interrupt
   use pymr_driver_settings_json, only : settings_json
   use pymr_driver_summary, only : summary_text
   use pymr_driver_method_choice, only : choose_by_probe => choose_method, method_of_checkpoint, method_choice_t, &
@@ -356,6 +357,7 @@ contains
     t_stop = next_exit(self%model, self%st%time())
     call self%st%stop_at(t_stop)
     call self%st%advance(self%model, error); if (allocated(error)) return
+    call check_interrupt(self%st%time(), error); if (allocated(error)) return
     done = counts_with(self%carried, self%st%counts())
     if (done%steps_fast > self%sc%integrator%max_steps) then
       call fatal_error(error, 'at t = ' // fmt(self%st%time()) // ' s: the run took more than max_steps = ' // &
