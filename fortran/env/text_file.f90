@@ -35,21 +35,24 @@ module pymr_env_text_file
       integer(c_int), value :: fd
       integer(c_int) :: r
     end function c_close
-    function c_getpid() bind(c, name='getpid') result(pid)
-      import :: c_int
-      integer(c_int) :: pid
-    end function c_getpid
     function c_lseek(fd, offset, whence) bind(c, name='lseek') result(r)
       import :: c_int, c_long
       integer(c_int), value :: fd, whence
       integer(c_long), value :: offset
       integer(c_long) :: r
     end function c_lseek
-    function c_kill(pid, sig) bind(c, name='kill') result(r)
-      import :: c_int
-      integer(c_int), value :: pid, sig
+    function c_lock_take(path, holder, reason, nreason) bind(c, name='pymr_lock_take') result(r)
+      import :: c_char, c_int
+      character(kind=c_char), intent(in) :: path(*)
+      integer(c_int), intent(out) :: holder
+      character(kind=c_char), intent(out) :: reason(*)
+      integer(c_int), value :: nreason
       integer(c_int) :: r
-    end function c_kill
+    end function c_lock_take
+    subroutine c_lock_release(path) bind(c, name='pymr_lock_release')
+      import :: c_char
+      character(kind=c_char), intent(in) :: path(*)
+    end subroutine c_lock_release
     function c_file_kind(path) bind(c, name='pymr_file_kind') result(kind)
       import :: c_char, c_int
       character(kind=c_char), intent(in) :: path(*)
@@ -425,42 +428,26 @@ contains
     if (len(r) == 0) r = trim(msg)
   end function system_reason
 
-  !> Take PATH.lock for this process: refused while another living process holds it (a
-  !> lock left by a killed run is taken over).
+  !> Take PATH.lock for this process (env/lock.c: an flock the system releases when the
+  !> process ends): refused while another process holds it; a lock left by a killed run is
+  !> free.
   subroutine acquire_lock(path, error)
     character(len=*), intent(in) :: path
     type(error_type), allocatable, intent(out) :: error
-    integer :: u, ios, attempt, pid
-    logical :: held
-    character(len=256) :: msg
-    do attempt = 1, 2
-      open(newunit=u, file=path // '.lock', status='new', action='write', iostat=ios, iomsg=msg)
-      if (ios == 0) then
-        write(u, '(i0)', iostat=ios) c_getpid()
-        close(u)
-        return
-      end if
-      inquire(file=path // '.lock', exist=held)
-      if (.not. held) then
-        ! no lock there, and none can be made: the folder is missing or not writable
-        call fatal_error(error, path // ': cannot write in its folder ' // folder_of(path) // ' (' // &
-          & system_reason(msg) // '): the results could not be written'); return
-      end if
-      pid = 0
-      open(newunit=u, file=path // '.lock', status='old', action='read', iostat=ios)
-      if (ios == 0) then
-        read(u, *, iostat=ios) pid
-        close(u)
-      end if
-      if (pid > 0) then
-        if (c_kill(int(pid, c_int), 0_c_int) == 0) then
-          call fatal_error(error, path // ': another run (process ' // itoa(pid) // ') is writing these ' // &
-            & 'results; wait for it or choose another output'); return
-        end if
-      end if
-      call release_lock(path)          ! left by a run that no longer lives
-    end do
-    call fatal_error(error, path // ': cannot take the lock ' // path // '.lock')
+    integer(c_int) :: holder, r
+    character(kind=c_char, len=256) :: reason
+    r = c_lock_take(path // '.lock' // c_null_char, holder, reason, int(len(reason), c_int))
+    select case (r)
+    case (0)
+      return
+    case (1)
+      call fatal_error(error, path // ': another run (process ' // itoa(int(holder)) // ') is writing these ' // &
+        & 'results; wait for it or choose another output')
+    case default
+      ! no lock can be made: the folder is missing or not writable
+      call fatal_error(error, path // ': cannot write in its folder ' // folder_of(path) // ' (' // &
+        & reason(1:max(index(reason, c_null_char) - 1, 0)) // '): the results could not be written')
+    end select
   end subroutine acquire_lock
 
   !> The folder part of a path ('.' for a bare file name).
@@ -478,12 +465,10 @@ contains
     end if
   end function folder_of
 
-  !> Remove PATH.lock.
+  !> Release PATH.lock, if this process holds it (the file removed).
   subroutine release_lock(path)
     character(len=*), intent(in) :: path
-    integer :: u, ios
-    open(newunit=u, file=path // '.lock', status='old', iostat=ios)
-    if (ios == 0) close(u, status='delete', iostat=ios)
+    call c_lock_release(path // '.lock' // c_null_char)
   end subroutine release_lock
 
   !> Move `old` over `new` (atomic on one file system).
