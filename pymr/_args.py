@@ -87,6 +87,31 @@ def write_file(path: str | os.PathLike, data: str | bytes, what: str) -> Path:
     return path
 
 
+def sync_to_disk(path: str | os.PathLike) -> None:
+    """Flush a file, or a folder's entries (the renames in it), to the disk (fsync): a
+    complete file renamed into place is then on the disk before its name is."""
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def exchange_paths(a: Path, b: Path) -> bool:
+    """Swap two existing paths (folders) in one step (Linux renameat2 RENAME_EXCHANGE): a
+    process killed at any moment leaves each name holding one of the two. False where the
+    system or file system does not do it (the caller then renames one at a time)."""
+    import ctypes
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        renameat2 = libc.renameat2
+    except (OSError, AttributeError):
+        return False
+    at_fdcwd, rename_exchange = -100, 2
+    renameat2.argtypes = [ctypes.c_int, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_uint]
+    return renameat2(at_fdcwd, os.fsencode(a), at_fdcwd, os.fsencode(b), rename_exchange) == 0
+
+
 def overwritten_input(scene, path: str | os.PathLike, overrides=None) -> str:
     """The scene's input (the scene, a modal or table file) that `path`, an output, would
     overwrite, by the kernel's rule (which the results and modal files obey too); '' for

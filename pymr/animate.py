@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._args import _flag, _shown
+from ._args import _flag, _shown, sync_to_disk
 from .api import _time
 from .errors import ArgumentTypeError
 from .geometry import BodyTrack, GeometryError, Motion, deflection_scale, motion, scene_of
@@ -336,6 +336,7 @@ def animate(results: Results | str | os.PathLike, output: str | os.PathLike, sce
     tmp = out.with_name(f".{out.stem}.{os.getpid()}.tmp{out.suffix}")
     try:
         _write(d, tmp, fps, at)
+        sync_to_disk(tmp)                                 # on the disk before its name is
         os.replace(tmp, out)
     except (OSError, ValueError, RuntimeError) as exc:
         raise AnimateError(f"{out}: cannot write the animation ({' '.join(str(exc).split())})") from None

@@ -43,6 +43,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ._args import exchange_paths, sync_to_disk
 from .errors import OutputError
 from .geometry import BodyTrack, Motion, motion
 from .outputs import _folder_of
@@ -195,20 +196,27 @@ def _write_pvd(path: Path, times, files) -> None:
 
 
 def _swap_in(tmp: Path, out: Path, earlier: list[str]) -> None:
-    """Rename the complete export `tmp` to `out`; an earlier export at `out` is moved aside
-    first (moved back if the rename fails), and then only its files `earlier` (those its
-    index records, :func:`recorded`) are removed, and its folder if that leaves it empty:
-    a file put there meanwhile is left in the folder aside."""
-    old = None
-    if os.path.lexists(out):
-        old = out.with_name(f".{out.name}.old-{os.getpid()}")
-        os.rename(out, old)
-    try:
-        os.rename(tmp, out)
-    except OSError:
+    """Rename the complete export `tmp` (flushed to the disk) to `out`. An earlier export at
+    `out` is exchanged with it in one step where the system can (a kill between moving it
+    aside and renaming the new one in left no `out`), else moved aside first (moved back if
+    the rename fails); then only its files `earlier` (those its index records,
+    :func:`recorded`) are removed, and its folder if that leaves it empty: a file put there
+    meanwhile is left in the folder aside."""
+    for entry in [*tmp.iterdir(), tmp]:           # on the disk before any name points to them
+        sync_to_disk(entry)
+    old = out.with_name(f".{out.name}.old-{os.getpid()}") if os.path.lexists(out) else None
+    if old is not None and exchange_paths(tmp, out):     # one step: DIR holds an export throughout
+        os.rename(tmp, old)                               # the earlier one, aside
+    else:
         if old is not None:
-            os.rename(old, out)
-        raise
+            os.rename(out, old)
+        try:
+            os.rename(tmp, out)
+        except OSError:
+            if old is not None:
+                os.rename(old, out)
+            raise
+    sync_to_disk(out.parent)
     if old is not None:
         for name in earlier:
             (old / name).unlink(missing_ok=True)

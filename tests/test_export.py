@@ -136,3 +136,26 @@ def test_an_earlier_export_survives_a_failed_or_refused_one(runs, tmp_path, monk
     for bad in (["--vtk", "."], ["--vtk", str(tmp_path / "none" / "x")], ["--vtk", str(tmp_path / "cli" / "tank.pvd")]):
         r = subprocess.run(["pymr", "export", tank.path, *bad], capture_output=True, text=True, timeout=60)
         assert r.returncode == 1 and r.stderr.count("\n") == 1, r.stderr
+
+
+def test_a_kill_while_the_new_export_moves_in_leaves_one_in_place(runs, tmp_path, monkeypatch):
+    """The earlier export was renamed aside, then the new one in: killed between the two,
+    DIR was gone and the earlier export only in a hidden folder (found by an audit of
+    kills). The two are now exchanged in one step (renameat2): the process 'killed' at its
+    next rename leaves DIR holding the new export whole, every file its .pvd names there."""
+    tank = runs[0]
+    out = tmp_path / "vtk"
+    export.export_vtk(tank, out, frames=4)
+
+    class Killed(BaseException):
+        pass
+
+    def killed(*a):
+        raise Killed
+
+    monkeypatch.setattr(export.os, "rename", killed)
+    with pytest.raises(Killed):
+        export.export_vtk(tank, out, frames=6)
+    monkeypatch.undo()
+    steps = collection(next(out.glob("*.pvd")))
+    assert len(steps) == 6 and all(f.exists() for _, f in steps)
