@@ -363,7 +363,25 @@ def load_results(csv_path: str | os.PathLike) -> Results:
     if data.shape[0] and data.shape[1] != len(header):
         raise ResultsError(f"{path}: not a pymr result file ({_row_fault(path, skip, header)})")
     jpath = path.with_suffix(".json")
-    return checked(path, header, data, _read_stats(jpath), meta, str(jpath))
+    res = checked(path, header, data, _read_stats(jpath), meta, str(jpath))
+    _check_pairing(path, res.stats, jpath)
+    return res
+
+
+def _check_pairing(path: Path, stats: dict, jpath: Path) -> None:
+    """The statistics of a complete run name its results file's size and last row: a file
+    of other bytes is another run's (a kill between the renames of the two, or a results
+    file copied over another's), which loaded as one run when the row counts agreed."""
+    if stats.get("status") != "complete" or "results_bytes" not in stats:
+        return                             # a failed run's, or statistics written before pymr kept these
+    size = path.stat().st_size
+    with open(path, "rb") as fh:
+        fh.seek(max(size - 65536, 0))
+        last = fh.read().rstrip(b"\n").rsplit(b"\n", 1)[-1].decode("ascii", "replace")
+    if size != stats["results_bytes"] or ("last_row" in stats and last != stats["last_row"]):
+        raise ResultsError(f"{path}: {jpath.name} describes another run's results ({stats['results_bytes']} bytes, "
+                           f"this file {size}, and another last row): the two were not written together (a run "
+                           "killed between them, or a file copied over the other)")
 
 
 def checked(path: Path, columns: list[str], data: np.ndarray, stats: dict, meta: dict, where: str) -> Results:
@@ -419,7 +437,8 @@ def check_rows(where, data: np.ndarray, columns: list[str]) -> None:
 STATS_FIELDS = {"status": (str, "a text"), "scene": (str, "a text (the scene file)"),
                 "resolved_scene": (str, "a text (the scene as the run read it)"),
                 "scene_fingerprint": (str, "a text"), "title": (str, "a text"),
-                "rows": (int, "a whole number"), "cpu_time_s": ((int, float), "a number of seconds")}
+                "rows": (int, "a whole number"), "cpu_time_s": ((int, float), "a number of seconds"),
+                "results_bytes": (int, "a whole number of bytes"), "last_row": (str, "a text (a row)")}
 
 
 def _check_stats(stats: dict, columns: list[str], where: str, why: str = "the file was changed") -> None:

@@ -92,8 +92,8 @@ def test_a_restart_refuses_the_results_of_another_run(tmp_path, fmt, other):
     pymr.run(scene, tmp_path / "mine.csv", overrides={**base, "output.format": "csv"})
     shutil.copy(tmp_path / "mine.ckpt", tmp_path / "job.ckpt")
     if fmt == "hdf5":                                     # the checkpoint of an HDF5 run
-        pymr.run(scene, tmp_path / "mine.h5", overrides=base)
-        shutil.copy(tmp_path / "mine.ckpt", tmp_path / "job.ckpt")
+        pymr.run(scene, tmp_path / "mine_h5.h5", overrides=base)
+        shutil.copy(tmp_path / "mine_h5.ckpt", tmp_path / "job.ckpt")
     column = "t" if other == "output interval" else "pivot.q"
     with pytest.raises(pymr.SceneError, match=rf"job\.(csv|h5): row 201, column {column} is .*, where the "
                                                r"checkpointed run wrote .*: the file is another run's results"):

@@ -26,13 +26,14 @@ def run(mrsim, args, cwd, **kw):
 
 
 def both_formats(mrsim, scene, tmp_path, *sets):
-    """The same run written as CSV and as HDF5."""
+    """The same run written as CSV and as HDF5 (of two names: out.csv and out.h5 would share
+    out.json, which a run refuses)."""
     over = [a for s in sets for a in ("--set", s)]
-    for out in ("out.csv", "out.h5"):
+    for out in ("out.csv", "out_h5.h5"):
         fmt = "hdf5" if out.endswith(".h5") else "csv"
         r = run(mrsim, [scene, "-o", out, "--quiet", "--set", f"output.format={fmt}", *over], tmp_path)
         assert r.returncode == 0, r.stderr
-    return pymr.load_results(tmp_path / "out.csv"), pymr.load_results(tmp_path / "out.h5")
+    return pymr.load_results(tmp_path / "out.csv"), pymr.load_results(tmp_path / "out_h5.h5")
 
 
 @pytest.mark.parametrize("scene, sets", [
@@ -76,7 +77,7 @@ def test_h5py_alone_reads_the_file(mrsim, tmp_path):
     description (fingerprint, resolved scene, settings, statistics); the datasets are
     chunked and compressed."""
     csv, h5 = both_formats(mrsim, ROOT / "input" / "tank_gun_turret.nml", tmp_path, f"output.quantities={ALL}")
-    r = subprocess.run([sys.executable, "-c", READER, tmp_path / "out.h5", tmp_path / "cols.npy"],
+    r = subprocess.run([sys.executable, "-c", READER, tmp_path / "out_h5.h5", tmp_path / "cols.npy"],
                        capture_output=True, text=True, timeout=60, cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     seen = json.loads(r.stdout)
@@ -84,9 +85,11 @@ def test_h5py_alone_reads_the_file(mrsim, tmp_path):
     assert np.array_equal(np.load(tmp_path / "cols.npy"), csv.data)
     assert seen["units"] == {c.name: c.unit for c in csv.column_info}
     assert seen["status"] == "complete"
-    assert seen["fingerprint"] == seen["stats_fingerprint"] == csv.stats["scene_fingerprint"]
-    assert seen["scene"] == csv.stats["resolved_scene"]
-    assert seen["integrator"] == csv.stats["integrator"]
+    # the run's own statistics beside it (out.json was the CSV run's until a run refused to share it)
+    own = json.loads((tmp_path / "out_h5.json").read_text())
+    assert seen["fingerprint"] == seen["stats_fingerprint"] == own["scene_fingerprint"] == h5.stats["scene_fingerprint"]
+    assert seen["scene"] == own["resolved_scene"]
+    assert seen["integrator"] == own["integrator"]
     assert seen["compression"] == "gzip" and seen["chunks"][0] >= 16
 
 

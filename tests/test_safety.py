@@ -736,3 +736,28 @@ def test_a_dead_run_s_lock_is_taken_over_by_one_run_only(tmp_path, mrsim):
         got = pymr.load_results(tmp_path / "out.csv").data
         assert any(np.array_equal(got, w) for w in want.values())
         assert not (tmp_path / "out.csv.lock").exists()
+
+
+def test_results_and_statistics_of_different_runs_are_not_loaded_as_one(tmp_path, mrsim):
+    """A kill between the renames of OUT.csv and OUT.json left the new rows beside the old
+    statistics: with as many rows they loaded as one run, the statistics describing the
+    other (found by an audit of kills, strace killing the second rename). The statistics
+    now name the file's size and last row: two runs of one length that differ in their
+    start are told apart, either way round, and each file still loads with its own."""
+    (tmp_path / "p.nml").write_text(PENDULUM)
+    for name, q0 in (("a", "1.0"), ("b", "0.5")):
+        r = run_mrsim(mrsim, ["p.nml", "-o", f"{name}.csv", "-q", "--set", f"joint[pivot].q0={q0}"], tmp_path)
+        assert r.returncode == 0, r.stderr
+    a, b = (pymr.load_results(tmp_path / f"{n}.csv") for n in "ab")
+    assert len(a.t) == len(b.t) and not np.array_equal(a.data, b.data)
+    stats = json.loads((tmp_path / "a.json").read_text())
+    assert stats["results_bytes"] == (tmp_path / "a.csv").stat().st_size
+    assert stats["last_row"] == (tmp_path / "a.csv").read_text().splitlines()[-1]
+    for rows, statistics in (("b", "a"), ("a", "b")):
+        mixed = tmp_path / f"{rows}_with_{statistics}.csv"
+        shutil.copy(tmp_path / f"{rows}.csv", mixed)
+        shutil.copy(tmp_path / f"{statistics}.json", mixed.with_suffix(".json"))
+        with pytest.raises(pymr.ResultsError, match=rf"^{re.escape(str(mixed))}: {mixed.stem}\.json describes "
+                                                    r"another run's results \(\d+ bytes, this file \d+, and another "
+                                                    r"last row\): the two were not written together"):
+            pymr.load_results(mixed)

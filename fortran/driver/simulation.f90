@@ -524,7 +524,8 @@ contains
     character(len=:), allocatable :: statistics
     if (.not. allocated(error)) call write_json(json_path(self%path), self%file, self%sc%scene%title, &
       & self%scene_id, settings_json(self%sc), self%model%d, self%model%wk, self%stats, 'complete', '', &
-      & self%sc%scene%t_end, error, self%overrides, self%scene_text, self%out%plan, staged=.true., text=statistics)
+      & self%sc%scene%t_end, error, self%overrides, self%scene_text, self%out%plan, staged=.true., text=statistics, &
+      & pairing=self%out%pairing())
     if (.not. allocated(error)) then
       call self%out%finish(statistics, error)
       if (allocated(error)) call remove_file(json_path(self%path) // '.tmp')

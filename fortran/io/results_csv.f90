@@ -43,6 +43,7 @@ module pymr_io_results_csv
     procedure :: finish => csv_finish
     procedure :: discard => csv_discard
     procedure :: flush_rows => csv_flush_rows
+    procedure :: pairing => csv_pairing
   end type csv_writer
 
   !> Rows between checks of the file's size against the bytes written.
@@ -273,6 +274,20 @@ contains
     if (self%opened) close(self%unit, status='delete', iostat=ios)
     self%opened = .false.
   end subroutine csv_discard
+
+  !> The complete file's size and its last row, for the statistics: a kill between the
+  !> renames of the results and of their statistics left new results beside old statistics
+  !> (or the reverse), which loaded as one run when their row counts agreed. A reader
+  !> compares both with the file.
+  function csv_pairing(self) result(members)
+    class(csv_writer), intent(in) :: self
+    character(len=:), allocatable :: members
+    integer :: k
+    members = '  "results_bytes": ' // itoa(self%written) // ',' // new_line('a')
+    if (.not. allocated(self%line)) return
+    k = index(self%line, new_line('a'))
+    if (k > 1) members = members // '  "last_row": "' // self%line(1:k-1) // '",' // new_line('a')
+  end function csv_pairing
 
   !> The run ended well: close (checked), flush to the disk, and put the complete file in place.
   subroutine csv_finish(self, statistics, error)

@@ -33,6 +33,7 @@ module pymr_io_results_file
     character(len=:), allocatable :: title, method, fingerprint, scene_text, settings
   contains
     procedure :: describe => file_describe
+    procedure :: pairing => file_pairing
     procedure(file_open), deferred :: open
     procedure(file_reopen), deferred :: reopen
     procedure(file_write_row), deferred :: write_row
@@ -99,6 +100,14 @@ contains
     self%title = trim(title); self%method = trim(method); self%fingerprint = fingerprint
     self%scene_text = scene_text; self%settings = settings
   end subroutine file_describe
+
+  !> JSON members (each a line, with its comma) that tie the statistics to the results file
+  !> they were written with ('': a format that keeps them inside the file).
+  function file_pairing(self) result(members)
+    class(results_file), intent(in) :: self
+    character(len=:), allocatable :: members
+    members = ''
+  end function file_pairing
 
   !> Values a restart keeps (row `row` of `source`, the columns named by `column` from its
   !> first, comma-separated) are finite: a run writes no other, so a row that holds one was

@@ -374,7 +374,7 @@ contains
   !> renamed): `status` 'complete' or 'failed', with the failure's message and the time
   !> reached, and the metadata of the columns of `plan`.
   subroutine write_json(path, scene_file, title, fingerprint, settings, d, wk, st, status, failure, t_reached, error, &
-    & overrides, scene_text, plan, staged, text)
+    & overrides, scene_text, plan, staged, text, pairing)
     !> fingerprint: 'sha256:...' of the resolved scene (pymr scene prints it).
     character(len=*), intent(in) :: path, scene_file, title, fingerprint, status, failure
     !> The run's --set overrides (one a line) and its resolved scene (every item, files
@@ -386,6 +386,8 @@ contains
     logical, intent(in), optional :: staged
     !> The JSON text written, for a results format that keeps it with the rows.
     character(len=:), allocatable, intent(out), optional :: text
+    !> Members tying the statistics to their results file (results_file%pairing).
+    character(len=*), intent(in), optional :: pairing
     !> Integrator settings, already as JSON members ("\"method\": \"single\", ...").
     character(len=*), intent(in) :: settings
     type(model_data), intent(in) :: d
@@ -402,6 +404,7 @@ contains
     call put('  "scene": "' // json_escape(scene_file) // '",')
     call put('  "title": "' // json_escape(trim(title)) // '",')
     call put('  "scene_fingerprint": "' // fingerprint // '",')
+    if (present(pairing)) json = json // pairing
     call put('  "overrides": [' // json_lines(overrides) // '],')
     call put('  "resolved_scene": "' // json_escape(scene_text) // '",')
     json = json // counts_json(st, d, wk) // effects_json(wk)
