@@ -474,3 +474,26 @@ def test_tolerances_a_fixed_step_run_does_not_use_are_said(tmp_path, sets, named
     assert f"warning: {warnings[0]}" in res.summary
     plain = pymr.run(PENDULUM, tmp_path / "q.csv")
     assert np.array_equal(res.data, plain.data)
+
+
+def test_a_table_past_4_gib_is_refused_not_read_in_part(tmp_path, mrsim):
+    """A table file of 2^32 + 18 bytes (sparse: its rows, NULs in a comment line, a last
+    row) was read as its first 18 bytes, the size held in a 32-bit integer: the terrain's
+    last row dropped, exit 0; between 2 and 4 GiB it was 'not a regular file' (found by an
+    audit of the files scenes read). Now one line naming the file, its size and the limit,
+    exit 1."""
+    shutil.copytree(ROOT / "input" / "tank_on_the_move", tmp_path / "tank_on_the_move")
+    shutil.copy(ROOT / "input" / "tank_on_the_move.nml", tmp_path / "tom.nml")
+    table = tmp_path / "tank_on_the_move" / "terrain_front.txt"
+    rows = table.read_bytes().rstrip(b"\n").split(b"\n")
+    head, tail = b"\n".join(rows[:-1]) + b"\n#", b"\n" + rows[-1] + b"\n"
+    for size in (2**32 + len(head) + len(tail), 2**31 + 100):
+        with open(table, "wb") as fh:
+            fh.write(head)
+            fh.seek(size - len(tail))
+            fh.write(tail)
+        r = subprocess.run([mrsim, "tom.nml", "-o", "t.csv", "-q"], cwd=tmp_path, capture_output=True, text=True,
+                           timeout=120)
+        assert r.returncode == 1 and r.stderr.count("\n") == 1, r.stderr
+        assert (f"file: tank_on_the_move/terrain_front.txt: cannot read: it holds {size} bytes, more than the "
+                "2147483647 a text file pymr reads may hold") in r.stderr, r.stderr

@@ -192,7 +192,8 @@ contains
     character(len=*), intent(in) :: file
     character(len=:), allocatable, intent(out) :: text
     type(error_type), allocatable, intent(out) :: error
-    integer :: u, ios, sz
+    integer :: u, ios
+    integer(int64) :: sz
     character(len=256) :: msg
     logical :: exists
     if (len_trim(file) == 0) then
@@ -214,6 +215,13 @@ contains
     if (sz < 0) then
       close(u)
       call fatal_error(error, file // ': cannot read: not a regular file'); return
+    end if
+    ! its size in a default integer wrapped past 4 GiB: a table read as its first
+    ! (size mod 2^32) bytes, exit 0; between 2 and 4 GiB 'not a regular file'
+    if (sz > huge(1)) then
+      close(u)
+      call fatal_error(error, file // ': cannot read: it holds ' // itoa(sz) // ' bytes, more than the ' // &
+        & itoa(huge(1)) // ' a text file pymr reads may hold'); return
     end if
     allocate(character(len=sz) :: text)
     if (sz > 0) read(u, iostat=ios, iomsg=msg) text
