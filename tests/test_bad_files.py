@@ -255,6 +255,13 @@ FORMAT2_CORRUPTIONS = [
     ("not_mass_normalised", FORMAT2.replace("1 1 1 0 0 0 0 0 0 0 0", "1 1 0.5 0 0 0 0 0 0 0 0"),
      "line 12: second_moments: the modes are not mass-normalised: W11+W22+W33 of modes 1 and 1 is 0.5, expected 1 "
      "(to 0.0001)"),
+    # W(:,:,0,0) with W(2,1) alone set ran with exit 0 and an inertia no symmetric W gives
+    ("w00_not_symmetric", FORMAT2.replace("0 0 1 0 0 0 0 0 0 0 0", "0 0 1 0 0 0.4 1 0 0 0 1"),
+     "line 10: second_moments: W(1:3, 1:3, 0, 0) is not symmetric: W(1, 2) = 0, W(2, 1) = 0.4 (a column's second "
+     "moment with itself is)"),
+    # 1e-300 Hz passed as positive, and its (2 pi f)^2 was 0: a free mode (the barrel's muzzle ended 9 m away)
+    ("frequency_underflows", FORMAT2.replace("frequencies_hz 5.0", "frequencies_hz 1e-300"),
+     "line 3: frequencies_hz: frequency 1: 1e-300 Hz is too small (its (2 pi f)^2 underflows)"),
     ("second_moments_beyond_the_file", "pymr-modal 2\nmodes 1000\nfrequencies_hz" + " 1" * 1000 +
      "\ninvariants\nmass 2.0\nfirst_moments\n", "line 2: modes 1000: 501501 second_moments lines of 11 numbers "
      "cannot be in this file ({size} bytes)"),

@@ -142,6 +142,11 @@ contains
         call r%fail('frequencies_hz: frequency ' // itoa(p) // ': ' // r%word(p + 1) // ' Hz is too large (its ' // &
           & '(2 pi f)^2 overflows)'); return
       end if
+      ! 1e-300 Hz passed as positive, and its stiffness (2 pi f)^2 was 0: a free mode
+      if ((2.0_dp*pi*f(p))**2 < tiny(1.0_dp)) then
+        call r%fail('frequencies_hz: frequency ' // itoa(p) // ': ' // r%word(p + 1) // ' Hz is too small (its ' // &
+          & '(2 pi f)^2 underflows)'); return
+      end if
     end do
   end subroutine read_header
 
@@ -220,12 +225,32 @@ contains
             & '1:3, ' // itoa(al) // ', ' // itoa(be) // ') row by row, 11 numbers, got ' // itoa(r%nw)); return
         end if
         call r%numbers(3, v9, 'second_moments', 'W', al, be); if (allocated(r%error)) return
+        if (al == be) call check_symmetric_block(r, v9, al); if (allocated(r%error)) return
         w(:, :, al, be) = transpose(reshape(v9, [3, 3]))
         w(:, :, be, al) = reshape(v9, [3, 3])
         r%wline(al, be) = r%line; r%wline(be, al) = r%line
       end do
     end do
   end subroutine read_second_moments
+
+  !> W(1:3, 1:3, al, al) (v9 row by row) is int rho Z Z^T of one column: symmetric, to 1e-9
+  !> of its largest entry. A file with W(2, 1, 0, 0) alone set ran with exit 0 and another
+  !> inertia than any symmetric one.
+  subroutine check_symmetric_block(r, v9, al)
+    type(modal_reader), intent(inout) :: r
+    real(dp), intent(in) :: v9(9)
+    integer, intent(in) :: al
+    integer :: i, j
+    do i = 1, 3
+      do j = i + 1, 3
+        if (abs(v9(3*(i - 1) + j) - v9(3*(j - 1) + i)) <= 1.0e-9_dp*maxval(abs(v9))) cycle
+        call r%fail('second_moments: W(1:3, 1:3, ' // itoa(al) // ', ' // itoa(al) // ') is not symmetric: W(' // &
+          & itoa(i) // ', ' // itoa(j) // ') = ' // r%word(2 + 3*(i - 1) + j) // ', W(' // itoa(j) // ', ' // &
+          & itoa(i) // ') = ' // r%word(2 + 3*(j - 1) + i) // ' (a column''s second moment with itself is)')
+        return
+      end do
+    end do
+  end subroutine check_symmetric_block
 
   !> The points block: each point's position, mass mp and mode shapes; nothing may follow it.
   subroutine read_points(r, nodes, mp)
