@@ -34,9 +34,7 @@ contains
     integer, intent(in) :: n
     real(dp), intent(in) :: need
     type(error_type), allocatable, intent(out) :: error
-    real(dp) :: room
-    room = memory_limit()
-    if (need > room) call refuse_room(n, need, room, error)
+    call check_bytes(dense_matrices(n), need, error)
   end subroutine check_room
 
   !> The one line (exit 2) of a model too large for the memory: both figures, in GB.
@@ -44,8 +42,15 @@ contains
     integer, intent(in) :: n
     real(dp), intent(in) :: need, room
     type(error_type), allocatable, intent(out) :: error
-    call refuse_bytes('the model has ' // itoa(n) // ' coordinates: its dense matrices', need, room, error)
+    call refuse_bytes(dense_matrices(n), need, room, error)
   end subroutine refuse_room
+
+  !> What a model's dense matrices are called in the messages.
+  function dense_matrices(n) result(what)
+    integer, intent(in) :: n
+    character(len=:), allocatable :: what
+    what = 'the model has ' // itoa(n) // ' coordinates: its dense matrices'
+  end function dense_matrices
 
   !> Arrays of `need` bytes that `what` names (a body's quadrature): refused (refuse_bytes)
   !> when that is more than the process may still take, before they are allocated.
