@@ -16,13 +16,12 @@ def rigid_modes(dof: np.ndarray, s: np.ndarray, ndof: int) -> np.ndarray:
     """Rigid-body motions (ndof, 6): translations along x, y, z, then small rotations about
     the body axes through the origin (u = theta x s at a node, its rotations theta)."""
     r = np.zeros((ndof, 6))
-    moves = dof[:, :3] >= 0                    # a DOF the layout leaves out (-1) moves no row
     for c in range(3):
         e = np.eye(3)[c]
-        r[dof[moves[:, c], c], c] = 1.0
+        r[dof[:, c], c] = 1.0
         rot = np.cross(e, s)                   # (nodes, 3)
         for i in range(3):
-            r[dof[moves[:, i], i], 3 + c] = rot[moves[:, i], i]
+            r[dof[:, i], 3 + c] = rot[:, i]
         has = dof[:, 3 + c] >= 0
         r[dof[has, 3 + c], 3 + c] = 1.0
     return r

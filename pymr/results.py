@@ -364,21 +364,24 @@ def load_results(csv_path: str | os.PathLike) -> Results:
         raise ResultsError(f"{path}: not a pymr result file ({_row_fault(path, skip, header)})")
     jpath = path.with_suffix(".json")
     res = checked(path, header, data, _read_stats(jpath), meta, str(jpath))
-    _check_pairing(path, res.stats, jpath)
+    _check_pairing(path, res.stats, data[-1], jpath)
     return res
 
 
-def _check_pairing(path: Path, stats: dict, jpath: Path) -> None:
+def _check_pairing(path: Path, stats: dict, last: np.ndarray, jpath: Path) -> None:
     """The statistics of a complete run name its results file's size and last row: a file
     of other bytes is another run's (a kill between the renames of the two, or a results
-    file copied over another's), which loaded as one run when the row counts agreed."""
+    file copied over another's), which loaded as one run when the row counts agreed. The
+    row is compared as read (`last`, the file's last row): one text gives one number."""
     if stats.get("status") != "complete" or "results_bytes" not in stats:
         return                             # a failed run's, or statistics written before pymr kept these
     size = path.stat().st_size
-    with open(path, "rb") as fh:
-        fh.seek(max(size - 65536, 0))
-        last = fh.read().rstrip(b"\n").rsplit(b"\n", 1)[-1].decode("ascii", "replace")
-    if size != stats["results_bytes"] or ("last_row" in stats and last != stats["last_row"]):
+    try:
+        same_row = "last_row" not in stats or np.array_equal(
+            np.array(stats["last_row"].split(","), dtype=float), last)
+    except ValueError:                     # not a row of numbers: not this file's
+        same_row = False
+    if size != stats["results_bytes"] or not same_row:
         raise ResultsError(f"{path}: {jpath.name} describes another run's results ({stats['results_bytes']} bytes, "
                            f"this file {size}, and another last row): the two were not written together (a run "
                            "killed between them, or a file copied over the other)")
