@@ -173,6 +173,10 @@ MODAL_CORRUPTIONS = [
     ("modes_not_orthogonal", lambda t: edit_lines(t, mix_modes),
      "line 6: points: the modes are not mass-normalised: the sum of mass psi_1.psi_2 over the points is 0.01, "
      "expected 0 (to 0.0001)"),
+    ("point_beyond_the_bound_on_lengths", lambda t: set_word(t, 9, 1, "2e6"),
+     "line 9: point 3: x: must be in [-1e+6, 1e+6] m, got 2e6"),
+    ("masses_below_a_body_s", lambda t: edit_lines(t, lambda v: v[:3] + [v[3] * 1e-300] + v[4:]),
+     "line 6: points: their masses sum to 1.111e-297 kg; a body's mass must be in [1e-12, 1e+12] kg"),
     ("more_modes_than_masses_can_carry", lambda t: "\n".join(t.replace("points 101", "points 1").splitlines()[:7]) + "\n",
      "line 4: modes: 4 modes, but 1 point carries mass: at most 3 modes a point can be mass-normalised"),
 ]
@@ -262,6 +266,23 @@ FORMAT2_CORRUPTIONS = [
     # 1e-300 Hz passed as positive, and its (2 pi f)^2 was 0: a free mode (the barrel's muzzle ended 9 m away)
     ("frequency_underflows", FORMAT2.replace("frequencies_hz 5.0", "frequencies_hz 1e-300"),
      "line 3: frequencies_hz: frequency 1: 1e-300 Hz is too small (its (2 pi f)^2 underflows)"),
+    # moments no mass distribution has ran with exit 0 (the joint saw a positive inertia), or
+    # failed at t = 0 with exit 2; a mass of 1e-300 kg failed at t = 0 with a NaN mass matrix
+    ("mass_below_a_body_s", FORMAT2.replace("mass 2.0", "mass 1e-300"),
+     "line 5: mass: must be in [1e-12, 1e+12] kg, got 1e-300"),
+    ("point_beyond_the_bound_on_lengths", FORMAT2.replace("points 1\n0 0 0", "points 1\n0 -1e100 0"),
+     "line 14: point 1: y: must be in [-1e+6, 1e+6] m, got -1e100"),
+    ("central_inertia_negative", FORMAT2.replace("0 1 0 0\n1 0", "0 3 0 0\n1 0"),
+     "line 10: second_moments: W(1:3, 1:3, 0, 0), with F(1:3, 0) and the mass, gives an inertia about the centre "
+     "of mass with a negative principal moment (-3.5 kg m^2): no mass distribution has it"),
+    ("w00_negative", FORMAT2.replace("0 0 1 0 0 0 0 0 0 0 0", "0 0 -1 0 0 0 0 0 0 0 0"),
+     "line 10: second_moments: W(1:3, 1:3, 0, 0), with F(1:3, 0) and the mass, gives an inertia about the centre "
+     "of mass with a negative principal moment (-1.5 kg m^2): no mass distribution has it"),
+    # |F(1, 1)|^2 = 25 > m W(1, 1, 1, 1) = 2: a mode that carries more momentum than the body
+    ("modal_first_moment_beyond_the_mass", FORMAT2.replace("1 0 0 0\nsecond", "1 5 0 0\nsecond"),
+     "line 4: invariants: the mass matrix of the body's rigid motions and modes is not positive semi-definite: "
+     "no mass distribution has these first and second moments (the first moments F(1:3, 1:) or the second "
+     "moments W(1:3, 1:3, 0, 1:) too large for the modes' masses)"),
     ("second_moments_beyond_the_file", "pymr-modal 2\nmodes 1000\nfrequencies_hz" + " 1" * 1000 +
      "\ninvariants\nmass 2.0\nfirst_moments\n", "line 2: modes 1000: 501501 second_moments lines of 11 numbers "
      "cannot be in this file ({size} bytes)"),

@@ -5,7 +5,8 @@ module pymr_driver_build
   use pymr_env_kinds, only : dp, name_len, pi
   use pymr_env_error, only : error_type, fatal_error
   use pymr_model_scene, only : scene_t, integrator_spec, body_spec, joint_spec, joint_ndof, unset, beam_mode_count, control_count
-  use pymr_model_scene_rules, only : check_scene, body_index, inertia_matrix, closes_loop
+  use pymr_model_scene_rules, only : check_scene, body_index, closes_loop
+  use pymr_model_inertia, only : inertia_matrix
   use pymr_model_types, only : model_data, model_work, prim_revolute, prim_prismatic, &
     & cut_fixed, cut_revolute, cut_spherical, cut_prismatic, cut_free, cut_cylindrical, cut_universal, cut_planar
   use pymr_model_beam_modes, only : build_beam, beam_section, beam_point_shapes

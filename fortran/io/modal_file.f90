@@ -27,6 +27,9 @@ module pymr_io_modal_file
   use pymr_env_error, only : error_type, fatal_error
   use pymr_model_flexbody, only : flex_data, flex_invariants, flex_from_moments, modal_nodes
   use pymr_model_beam_modes, only : beam_shape, beam_point_shapes
+  use pymr_model_scene, only : big_length, big_mass, small_mass
+  use pymr_model_inertia, only : eig3
+  use pymr_env_lapack, only : potrf
   use pymr_env_text, only : itoa, fmt, number_text, count_text, split_words, next_text_line
   use pymr_env_text_file, only : not_regular, write_text_file, read_text_file, check_header_count
   implicit none
@@ -46,8 +49,8 @@ module pymr_io_modal_file
     character(len=:), allocatable :: path, text, ln
     integer, allocatable :: wa(:), wb(:)
     integer :: pos = 1, line = 0, nw = 0
-    !> Format version, number of modes, the lines of 'modes' and 'points'.
-    integer :: version = 0, m = 0, modes_line = 0, points_line = 0
+    !> Format version, number of modes, the lines of 'modes', 'points', 'invariants' and 'mass'.
+    integer :: version = 0, m = 0, modes_line = 0, points_line = 0, invariants_line = 0, mass_line = 0
     !> Whether an invariants block is given, and the line of each pair of its second moments.
     logical :: given = .false.
     integer, allocatable :: wline(:, :)
@@ -160,10 +163,12 @@ contains
     integer :: m
     m = r%m
     call r%key_line('invariants'); if (allocated(r%error)) return
+    r%invariants_line = r%line
     if (r%nw /= 1) then
       call r%fail('invariants: nothing may follow it on its line, got ' // r%rest()); return
     end if
     call r%key_line('mass'); if (allocated(r%error)) return
+    r%mass_line = r%line
     if (r%nw /= 2) then
       call r%fail('mass: expected a positive mass, got ' // r%rest()); return
     end if
@@ -171,6 +176,9 @@ contains
     mass = v1(1)
     if (.not. (mass > 0.0_dp)) then
       call r%fail('mass: expected a positive mass'); return
+    end if
+    if (.not. body_mass(mass)) then
+      call r%fail('mass: must be in ' // mass_range() // ', got ' // r%word(2)); return
     end if
     ! (m+1)(m+2)/2 lines of 11 numbers: checked before W's 72 (m+1)^2 bytes are allocated
     call check_header_count(r%path, 'line ' // itoa(r%modes_line) // ': modes ' // itoa(m), &
@@ -286,6 +294,7 @@ contains
       if (r%given .and. row(4) /= 0.0_dp) then
         call r%fail('point ' // itoa(p) // ': mass must be 0 (the invariants block gives the body''s inertia)'); return
       end if
+      call check_position(r, p, row(1:3)); if (allocated(r%error)) return
       nodes%x(:, p) = row(1:3); mp(p) = row(4)
       nodes%psi(:, :, p) = reshape(row(5:4 + 3*m), [3, m])
       nodes%phi(:, :, p) = reshape(row(5 + 3*m:4 + 6*m), [3, m])
@@ -304,12 +313,17 @@ contains
     character(len=:), allocatable :: path
     integer :: m
     if (r%given) then
-      call flex_from_moments(mass, first, w, fd); return
+      call flex_from_moments(mass, first, w, fd)
+      call check_moments(r, fd); return
     end if
     path = r%path; m = r%m
     if (.not. (sum(mp) > 0.0_dp)) then
       call fatal_error(r%error, path // ': line ' // itoa(r%points_line) // ': points: the points carry no mass')
       return
+    end if
+    if (.not. body_mass(sum(mp))) then
+      call fatal_error(r%error, path // ': line ' // itoa(r%points_line) // ': points: their masses sum to ' // &
+        & fmt(sum(mp)) // ' kg; a body''s mass must be in ' // mass_range()); return
     end if
     ! sum m_p Psi_p^T Psi_p has rank 3 per point at most: more modes cannot be mass-normalised
     ! (and so the second moments W, (m+1)^2 blocks, stay within the file's size)
@@ -324,6 +338,117 @@ contains
         & 'overflows (a mass or a position too large)')
     end if
   end subroutine body_invariants
+
+  !> Whether `mass` (kg) is a body's: within the bounds of a rigid body's &body mass.
+  elemental logical function body_mass(mass)
+    real(dp), intent(in) :: mass
+    body_mass = mass >= small_mass .and. mass <= big_mass
+  end function body_mass
+
+  !> Those bounds, as messages give them: '[1e-12, 1e+12] kg'.
+  function mass_range() result(s)
+    character(len=:), allocatable :: s
+    s = '[' // fmt(small_mass) // ', ' // fmt(big_mass) // '] kg'
+  end function mass_range
+
+  !> Point p's position x (m, the body frame) within the scene's bound on lengths.
+  subroutine check_position(r, p, x)
+    type(modal_reader), intent(inout) :: r
+    integer, intent(in) :: p
+    real(dp), intent(in) :: x(3)
+    integer :: i
+    do i = 1, 3
+      if (abs(x(i)) <= big_length) cycle
+      call r%fail('point ' // itoa(p) // ': ' // 'xyz'(i:i) // ': must be in [' // fmt(-big_length) // ', ' // &
+        & fmt(big_length) // '] m, got ' // r%word(i)); return
+    end do
+  end subroutine check_position
+
+  !> An invariants block must hold the moments of some mass distribution (those of mass
+  !> points always do): the undeformed body's mass matrix (its rigid motions and modes,
+  !> mass_matrix) positive semi-definite, to what rounding the file's numbers to
+  !> normalised_tol moves it. Its rigid block first: the inertia about the centre of mass.
+  !> (Not the triangle inequality of that inertia: finite-element models with a torsional
+  !> rotary inertia alone break it by design.)
+  subroutine check_moments(r, fd)
+    type(modal_reader), intent(inout) :: r
+    type(flex_data), intent(in) :: fd
+    real(dp), allocatable :: mb(:, :)
+    real(dp) :: s(3), jc(3, 3), e(3)
+    integer :: i
+    mb = mass_matrix(fd)
+    if (.not. semi_definite(mb(1:6, 1:6))) then
+      s = fd%first(:, 0)
+      jc = mb(4:6, 4:6) + spread(s, 2, 3)*spread(s, 1, 3)/fd%mass
+      do i = 1, 3
+        jc(i, i) = jc(i, i) - dot_product(s, s)/fd%mass
+      end do
+      call eig3(jc, e)
+      call r%fail('second_moments: W(1:3, 1:3, 0, 0), with F(1:3, 0) and the mass, gives an inertia about the ' // &
+        & 'centre of mass with a negative principal moment (' // fmt(minval(e)) // ' kg m^2): no mass ' // &
+        & 'distribution has it', r%wline(0, 0)); return
+    end if
+    if (.not. semi_definite(mb)) call r%fail('invariants: the mass matrix of the body''s rigid motions and ' // &
+      & 'modes is not positive semi-definite: no mass distribution has these first and second moments (the ' // &
+      & 'first moments F(1:3, 1:) or the second moments W(1:3, 1:3, 0, 1:) too large for the modes'' masses)', &
+      & r%invariants_line)
+  end subroutine check_moments
+
+  !> The undeformed body's mass matrix in its frame, rows [v; w; modal rates]: the kinetic
+  !> energy of the origin's velocity v, the angular velocity w and the modal rates ad.
+  function mass_matrix(fd) result(mb)
+    type(flex_data), intent(in) :: fd
+    real(dp) :: mb(6 + fd%m, 6 + fd%m), s(3), wk(3, 3)
+    integer :: i, k
+    mb = 0.0_dp
+    s = fd%first(:, 0)
+    do i = 1, 3
+      mb(i, i) = fd%mass
+    end do
+    mb(1:3, 4:6) = reshape([0.0_dp, -s(3), s(2), s(3), 0.0_dp, -s(1), -s(2), s(1), 0.0_dp], [3, 3])
+    mb(4:6, 1:3) = transpose(mb(1:3, 4:6))
+    wk = fd%w(:, :, 0, 0)
+    mb(4:6, 4:6) = -wk
+    do i = 1, 3
+      mb(3 + i, 3 + i) = mb(3 + i, 3 + i) + wk(1, 1) + wk(2, 2) + wk(3, 3)
+    end do
+    do k = 1, fd%m
+      wk = fd%w(:, :, 0, k)
+      mb(1:3, 6 + k) = fd%first(:, k)
+      mb(4:6, 6 + k) = [wk(2, 3) - wk(3, 2), wk(3, 1) - wk(1, 3), wk(1, 2) - wk(2, 1)]
+      mb(6 + k, 1:6) = mb(1:6, 6 + k)
+    end do
+    mb(7:, 7:) = fd%mmm
+  end function mass_matrix
+
+  !> Whether the symmetric a is positive semi-definite to normalised_tol per entry of its
+  !> form scaled to a unit diagonal: that form plus n normalised_tol I (the most such
+  !> entries' errors move its eigenvalues, Gershgorin) has a Cholesky factor. A zero
+  !> diagonal keeps its row as it is.
+  logical function semi_definite(a)
+    real(dp), intent(in) :: a(:, :)
+    real(dp) :: b(size(a, 1), size(a, 1)), d(size(a, 1))
+    type(error_type), allocatable :: error
+    integer :: i, n
+    n = size(a, 1)
+    d = 1.0_dp
+    where (diag(a) > 0.0_dp) d = 1.0_dp/sqrt(diag(a))
+    b = a*spread(d, 1, n)*spread(d, 2, n)
+    do i = 1, n
+      b(i, i) = b(i, i) + n*normalised_tol
+    end do
+    call potrf(b, 'the scaled mass matrix', error)
+    semi_definite = .not. allocated(error)
+  end function semi_definite
+
+  pure function diag(a) result(d)
+    real(dp), intent(in) :: a(:, :)
+    real(dp) :: d(size(a, 1))
+    integer :: i
+    do i = 1, size(a, 1)
+      d(i) = a(i, i)
+    end do
+  end function diag
 
   !> The modal mass matrix (the traces of W's modal blocks: sum m_p Psi_p^T Psi_p over the
   !> points, or from the invariants block) must be the identity to normalised_tol.

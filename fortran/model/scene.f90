@@ -13,7 +13,7 @@ module pymr_model_scene
   public :: scene_t, body_spec, joint_spec, drive_spec, marker_spec, integrator_spec, effects_spec
   public :: spring_spec, motion_spec, load_spec, force_spec, control_spec, moving_load_spec, output_spec, scene_spec
   public :: sensor_spec, sensor_items
-  public :: max_modes_input, big_length, big_force, big_time
+  public :: max_modes_input, big_length, big_force, big_time, big_mass, small_mass
   public :: joint_ndof, unset, group_names, single_groups, repeated_groups, describe_group, group_origin, group_count
   public :: naming_item, complete_scene, body_items, item_applies, output_quantities, beam_mode_count
   public :: closes_loop, flexible_loop, body_index, control_count
@@ -29,8 +29,10 @@ module pymr_model_scene
   character(len=*), parameter :: output_quantities = &
     & 'coordinates markers marker_accelerations marker_orientations reactions energy'
 
-  !> Bounds that keep every physical value far from overflow in the model's arithmetic.
+  !> Bounds that keep every physical value far from overflow in the model's arithmetic; the
+  !> least mass of a body (kg).
   real(dp), parameter :: big_length = 1.0e6_dp, big_force = 1.0e12_dp, big_mass = 1.0e12_dp
+  real(dp), parameter :: small_mass = 1.0e-12_dp
   !> Largest time (s) an item or a table's time column may give.
   real(dp), parameter :: big_time = 1.0e9_dp
   !> Most per-mode values an item such as modal_damping can hold.
@@ -426,7 +428,7 @@ contains
     call t%add('name', g%name, 'name of the body, unique among the bodies (required)')
     call t%add('kind', g%kind, "'ground' (the fixed base), 'rigid', 'beam' (built-in Euler-Bernoulli beam " // &
       & "along x) or 'modal' (modes from a file) (required)", choices='ground rigid beam modal')
-    call t%add('mass', g%mass, 'kg', 'mass of a rigid body (required for rigid)', ge=1.0e-12_dp, le=big_mass)
+    call t%add('mass', g%mass, 'kg', 'mass of a rigid body (required for rigid)', ge=small_mass, le=big_mass)
     call t%add('com', g%com, 'm', 'centre of mass of a rigid body in its frame', ge=-big_length, le=big_length)
     call t%add('inertia', g%inertia, 'kg m^2', 'inertia about the centre of mass in body axes: Ixx Iyy Izz ' // &
       & 'Ixy Ixz Iyz (required for rigid)', ge=-1.0e15_dp, le=1.0e15_dp)
