@@ -60,6 +60,40 @@ def write_file(path: str | os.PathLike, data: str | bytes, what: str) -> Path:
     """Write `data` to `path` whole or not at all: a temporary file beside it, flushed to
     the disk (fsync), then renamed over it, so an earlier complete file survives a failed
     write. A failure is an :class:`OutputError` naming the file and `what` it was to hold."""
+    return write_files([(path, data, what)])[0]
+
+
+def write_files(items) -> list[Path]:
+    """Write each (path, data, what) of `items` as :func:`write_file` does, every file
+    complete on the disk before the first is renamed into place: a run killed while it
+    writes leaves the earlier set whole (a study's table, figure and histories were
+    replaced one at a time, each after seconds of plotting). A failure removes the
+    temporary files written so far."""
+    paths = [_writable(path, what) for path, _, what in items]
+    temps = []
+    try:
+        for path, (_, data, what) in zip(paths, items):
+            tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
+            temps.append(tmp)
+            _write_synced(tmp, data.encode() if isinstance(data, str) else data, path, what)
+        for path, tmp, (_, _, what) in zip(paths, temps, items):
+            try:
+                os.replace(tmp, path)
+            except OSError as exc:
+                raise OutputError(f"{path}: cannot write the {what} ({exc.strerror or exc})") from None
+    except OutputError:
+        for tmp in temps:
+            try:
+                tmp.unlink(missing_ok=True)
+            except OSError:          # a read-only folder refuses the unlink too: nothing was written
+                pass
+        raise
+    return paths
+
+
+def _writable(path, what: str) -> Path:
+    """`path` as a file pymr may write the `what` to (not a folder, /dev/null or a link
+    to it), or an OutputError."""
     path = Path(_path("path", path, OutputError))
     try:
         folder = path.is_dir()
@@ -71,20 +105,18 @@ def write_file(path: str | os.PathLike, data: str | bytes, what: str) -> Path:
     why = not_replaceable(path)              # the rename would replace /dev/null, or a link, itself
     if why:
         raise OutputError(f"{path}: cannot write the {what}: {why}")
-    tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
+    return path
+
+
+def _write_synced(tmp: Path, data: bytes, path: Path, what: str) -> None:
+    """`data` written to `tmp` and flushed to the disk; an OutputError naming `path`."""
     try:
         with open(tmp, "wb") as fh:
-            fh.write(data.encode() if isinstance(data, str) else data)
+            fh.write(data)
             fh.flush()
             os.fsync(fh.fileno())
-        os.replace(tmp, path)
     except OSError as exc:
-        try:
-            tmp.unlink(missing_ok=True)
-        except OSError:              # a read-only folder refuses the unlink too: nothing was written
-            pass
         raise OutputError(f"{path}: cannot write the {what} ({exc.strerror or exc})") from None
-    return path
 
 
 def sync_to_disk(path: str | os.PathLike) -> None:

@@ -39,6 +39,7 @@ from pathlib import Path
 import numpy as np
 
 from .api import Model, PymrError, SceneError, SolverError, initial_state, run, write_file
+from ._args import write_files
 from ._timing import MAX_REPEATS, shuffled
 from .outputs import check_output
 from .scene import Scene
@@ -550,6 +551,10 @@ class Study:
     # ---------------------------------------------------------------- reporting
 
     def write_csv(self, path: Path) -> None:
+        write_file(path, self.csv_text(), "study's table")
+
+    def csv_text(self) -> str:
+        """The study's table: a row per case."""
         fh = io.StringIO(newline="")
         w = csv.DictWriter(fh, fieldnames=list(asdict(self.cases[0])))
         w.writeheader()
@@ -558,7 +563,7 @@ class Study:
             if c.status == "ok" and math.isnan(c.equivalents):
                 row["equivalents"] = ""          # a coupling whose weight was not measured (weights_text)
             w.writerow(row)
-        write_file(path, fh.getvalue(), "study's table")
+        return fh.getvalue()
 
     def best_at(self, error: float) -> dict[str, Case]:
         """Per method family (the method without its step ratio), the fastest case (by median
@@ -688,14 +693,15 @@ class Study:
         return "\n".join(lines)
 
     @staticmethod
-    def write_histories(hist: dict, path: Path) -> None:
+    def histories_text(hist: dict) -> str:
+        """The step histories' table: a row per accepted step of each tolerance."""
         fh = io.StringIO(newline="")
         w = csv.writer(fh)
         w.writerow(["rtol", "t", "h", "order"])
         for rtol, (t, h, q) in hist.items():
             for row in zip(t[1:], h[1:], q[1:]):
                 w.writerow([f"{rtol:.1e}", f"{row[0]:.10e}", f"{row[1]:.6e}", int(row[2])])
-        write_file(path, fh.getvalue(), "step histories")
+        return fh.getvalue()
 
     def refused(self) -> list[Case]:
         """The fixed-step multirate cases the pre-flight stability check refused."""
@@ -720,9 +726,16 @@ class Study:
                 for (method, kind, reason), settings in groups.items()]
 
     def plot(self, path: Path) -> str:
-        """The figure: error against median CPU time and against full-evaluation
-        equivalents. A case that is not a point (refused, failed, skipped) is counted in its
-        method's legend entry and named in a note under the axes, which this returns."""
+        """The figure (:meth:`figure`) written to `path`; returns its note."""
+        note, image = self.figure(Path(path).suffix.lstrip(".") or "png")
+        write_file(path, image, "study's figure")
+        return note
+
+    def figure(self, kind: str = "png") -> tuple[str, bytes]:
+        """The figure in the format `kind`: error against median CPU time and against
+        full-evaluation equivalents. A case that is not a point (refused, failed, skipped) is
+        counted in its method's legend entry and named in a note under the axes, which this
+        returns with the image."""
         import matplotlib
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
@@ -771,10 +784,9 @@ class Study:
             fig.text(0.01, 0.01, wrapped, fontsize=7, va="bottom", ha="left", color="firebrick")
         fig.tight_layout(rect=(0, extra / (6.2 + extra) + (0.02 if note else 0.0), 1, 1))
         image = io.BytesIO()
-        fig.savefig(image, dpi=110, format=Path(path).suffix.lstrip(".") or "png")
+        fig.savefig(image, dpi=110, format=kind)
         plt.close(fig)
-        write_file(path, image.getvalue(), "study's figure")
-        return note
+        return note, image.getvalue()
 
     def table(self) -> str:
         lines = [f"{'method':<30} {'setting':<16} {'error (m)':>10} {'CPU (s)':>9} {'full evals':>10} "
@@ -806,9 +818,10 @@ def main(scene: str, marker: str | None = None, output: str | None = None, quick
     hist = study.histories()
     print(study.history_text(hist))
     table, figure, history = study_files(prefix)
-    study.write_csv(table)
-    study.write_histories(hist, history)
-    study.plot(figure)
+    # the three files in place together (each written whole before any replaces its earlier one)
+    write_files([(table, study.csv_text(), "study's table"),
+                 (figure, study.figure(figure.suffix.lstrip("."))[1], "study's figure"),
+                 (history, study.histories_text(hist), "step histories")])
     print(f"written: {table}, {figure}, {history}")
     return 0
 

@@ -53,7 +53,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._args import canonical_address
+from ._args import canonical_address, sync_to_disk
 from .api import PymrError, SceneError, run, write_file
 from .errors import OutputError, ResultsError
 from .outputs import _folder_of, _is_dir, check_output
@@ -355,6 +355,7 @@ def collect(sw: Sweep, folder: str | os.PathLike) -> list[dict]:
     if _text_of(folder / "cases.csv") != cases_text(sw):
         raise SweepError(f"--collect {folder}: its cases.csv is not this sweep's cases ({sw.path.name}): collect "
                          "with the sweep file its cases were emitted from")
+    check_case_namelists(sw, folder)
     ref = collected_references(sw, folder)
     names = reference_names(sw)
     rows = []
@@ -369,6 +370,17 @@ def collect(sw: Sweep, folder: str | os.PathLike) -> list[dict]:
         rows.append(row)
     write_summary(sw, rows, folder)
     return rows
+
+
+def check_case_namelists(sw: Sweep, folder: Path) -> None:
+    """Each caseNNNN.nml in `folder` must be this sweep's case as --emit-slurm writes it: an
+    --emit-slurm killed over an earlier sweep's folder left the new cases' namelists beside
+    the old ones and the old cases.csv, and the job array ran the mix."""
+    for i, case in enumerate(sw.cases):
+        nml = folder / f"{case_name(i)}.nml"
+        if _text_of(nml) != namelist_text(sw.scene, {**sw.fixed, **case}, nml.name):
+            raise SweepError(f"--collect {folder}: its {nml.name} is not this sweep's case {case_name(i)} "
+                             f"({sw.path.name}): emit the cases again with --emit-slurm")
 
 
 class ReferenceNotFinished(str):
@@ -516,6 +528,7 @@ def run_sweep(sw: Sweep, scheduler: str | None = None, workers: int = 2) -> list
     make_folder(sw.output, "output")
     check_outputs(sw, sw.output, f"{sw.path}: output", emitting=False)
     summary = sw.output / "summary.csv"
+    retire_summary(sw.output)
     cases = sw.cases
     cluster = None
     if scheduler is not None:
@@ -580,7 +593,7 @@ def check_outputs(sw: Sweep, folder: Path, option: str, emitting: bool) -> None:
     refs = references(sw) if sw.metric.startswith("deviation:") else []
     tasks = [(case_name(i), {**sw.fixed, **case}) for i, case in enumerate(sw.cases)]
     tasks += [(reference_name(k), over) for k, (over, _) in enumerate(refs)]
-    shared = ("cases.csv", "sweep.slurm") if emitting else ("summary.csv",)
+    shared = (("cases.csv", "sweep.slurm") if emitting else ("summary.csv",)) + ("summary.previous.csv",)
     files = [(f"{name}{suffix}", over) for name, over in tasks for suffix in ((".nml", ".csv") if emitting else (".csv",))]
     files += [(name, sw.fixed) for name in shared]
     for k, (name, over) in enumerate(files):
@@ -604,6 +617,22 @@ def make_folder(folder: Path, what: str) -> None:
         folder.mkdir(exist_ok=True)
     except OSError as exc:
         raise SweepError(f"{folder}: cannot make the {what} folder ({exc.strerror or exc})") from None
+
+
+def retire_summary(folder: Path) -> None:
+    """An earlier summary.csv in `folder` renamed summary.previous.csv before a sweep replaces
+    the case files it sums up: a sweep killed on its way left the old summary beside new
+    results, read as theirs. The new summary is written when every case has run (or been
+    collected)."""
+    old = folder / "summary.csv"
+    if not old.exists():
+        return
+    try:
+        os.replace(old, folder / "summary.previous.csv")
+        sync_to_disk(folder)
+    except OSError as exc:
+        raise SweepError(f"{old}: cannot rename the earlier summary to summary.previous.csv before the cases "
+                         f"replace its results ({exc.strerror or exc})") from None
 
 
 def write_summary(sw: Sweep, rows: list[dict], folder: Path | None = None) -> Path:
@@ -654,6 +683,7 @@ def emit_slurm(sw: Sweep, folder: str | os.PathLike, time_limit: str = "01:00:00
     folder = Path(folder)
     make_folder(folder, "--emit-slurm")
     check_outputs(sw, folder, "--emit-slurm", emitting=True)
+    retire_summary(folder)
     cases = sw.cases
     for i, case in enumerate(cases):
         case_namelist(sw.scene, {**sw.fixed, **case}, folder / f"{case_name(i)}.nml")

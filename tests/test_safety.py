@@ -761,3 +761,31 @@ def test_results_and_statistics_of_different_runs_are_not_loaded_as_one(tmp_path
                                                     r"another run's results \(\d+ bytes, this file \d+, and another "
                                                     r"last row\): the two were not written together"):
             pymr.load_results(mixed)
+
+
+def test_a_set_of_files_is_put_in_place_only_when_each_is_written_whole(tmp_path, monkeypatch):
+    """write_files (a study's table, figure and step histories): a write failing at the
+    second file leaves the three earlier files byte for byte and no temporary file; a
+    complete write replaces all three. Before, the table was replaced, then seconds of
+    plotting, then the figure: a kill between left a new table beside an old figure."""
+    from pymr import _args
+    paths = [tmp_path / name for name in ("s.csv", "s.png", "s_history.csv")]
+    for p in paths:
+        p.write_text(f"earlier {p.name}\n")
+    calls = []
+    synced = _args._write_synced
+
+    def fails_at_second(tmp, data, path, what):
+        calls.append(path.name)
+        if len(calls) == 2:
+            raise pymr.OutputError(f"{path}: cannot write the {what} (No space left on device)")
+        synced(tmp, data, path, what)
+    monkeypatch.setattr(_args, "_write_synced", fails_at_second)
+    with pytest.raises(pymr.OutputError, match=r"s\.png: cannot write the figure \(No space left on device\)"):
+        _args.write_files([(p, f"new {p.name}\n", w) for p, w in zip(paths, ("table", "figure", "histories"))])
+    assert [p.read_text() for p in paths] == [f"earlier {p.name}\n" for p in paths]
+    assert sorted(os.listdir(tmp_path)) == sorted(p.name for p in paths)
+    monkeypatch.setattr(_args, "_write_synced", synced)
+    _args.write_files([(p, f"new {p.name}\n", "file") for p in paths])
+    assert [p.read_text() for p in paths] == [f"new {p.name}\n" for p in paths]
+    assert sorted(os.listdir(tmp_path)) == sorted(p.name for p in paths)

@@ -81,12 +81,17 @@ metric = "final:elevation.q"
 def test_a_failing_case_is_recorded_and_the_others_run(tmp_path, monkeypatch):
     """A case whose run breaks down (multirate k = 50 with the stability check off: the
     linearised macro step grows by 1.42 per step) is recorded with its error; the others run
-    and equal the same overrides run alone."""
+    and equal the same overrides run alone. An earlier summary in the folder is renamed
+    summary.previous.csv before the cases replace its results."""
     monkeypatch.chdir(tmp_path)
     toml = tmp_path / "bad.toml"
     toml.write_text(FAILING_CASE.format(scene=TANK, top="", extra=""))
+    (tmp_path / "bad").mkdir()
+    (tmp_path / "bad" / "summary.csv").write_text("an earlier sweep's summary\n")
     rows = run_sweep(load_sweep(toml), workers=2)
     assert (tmp_path / "bad" / "summary.csv").exists()       # the default output: the stem, here
+    # the earlier summary, whose cases this sweep replaced, is kept under another name
+    assert (tmp_path / "bad" / "summary.previous.csv").read_text() == "an earlier sweep's summary\n"
     # the run breaks down where its values first leave LAPACK's range (which matrix: roundoff)
     assert rows[0]["status"].startswith("error: ") and re.search(r"at t = .* s: .*(M_e|M_ff|mass matrix)",
                                                                   rows[0]["status"])
@@ -539,3 +544,43 @@ def test_a_sweep_s_output_is_relative_to_the_working_folder(tmp_path, monkeypatc
     with pytest.raises(pymr.OutputError, match=r"a.toml: output .*a/summary.csv: is a folder, not a file"):
         run_sweep(a, workers=1)
     assert list((tmp_path / "work" / "a").iterdir()) == [tmp_path / "work" / "a" / "summary.csv"]
+
+
+def test_a_killed_emission_over_an_earlier_sweep_is_not_collected(tmp_path, monkeypatch, mrsim):
+    """--emit-slurm of b.toml killed after its first namelist, over a folder a.toml was
+    emitted into, left case0000.nml of b beside a's case0001.nml and cases.csv; the job
+    array then ran the mix and --collect of a.toml summed it up as a's. --collect now holds
+    each case's namelist against the sweep file's case, and refuses the mix naming it. The
+    earlier summary.csv is renamed summary.previous.csv when the emission starts (its cases
+    are about to be replaced), with its rows as they were."""
+    import pymr.sweep as sweep_module
+    (tmp_path / "p.nml").write_text(PENDULUM)
+    text = 'scene = "p.nml"\nmetric = "final:pivot.q"\n[grid]\n"joint[pivot].q0" = [{}]\n[fixed]\n"scene.t_end" = 0.1\n'
+    (tmp_path / "a.toml").write_text(text.format("0.5, 0.6"))
+    (tmp_path / "b.toml").write_text(text.format("0.7, 0.8"))
+    folder = tmp_path / "runs"
+    a = load_sweep(tmp_path / "a.toml")
+    emit_slurm(a, folder)
+    for i in range(2):
+        r = subprocess.run([mrsim, f"case{i:04d}.nml", "-o", f"case{i:04d}.csv", "--quiet"], cwd=folder,
+                           capture_output=True, text=True)
+        assert r.returncode == 0, r.stderr
+    rows = collect(a, folder)
+    assert [row["status"] for row in rows] == ["ok", "ok"]
+    summary = (folder / "summary.csv").read_text()
+    written = sweep_module.case_namelist
+
+    def killed_after_one(base, overrides, dest):
+        written(base, overrides, dest)
+        raise KeyboardInterrupt
+    monkeypatch.setattr(sweep_module, "case_namelist", killed_after_one)
+    with pytest.raises(KeyboardInterrupt):
+        emit_slurm(load_sweep(tmp_path / "b.toml"), folder)
+    assert not (folder / "summary.csv").exists() and (folder / "summary.previous.csv").read_text() == summary
+    assert "q0 = 0.7" in (folder / "case0000.nml").read_text().replace("q0 = 0.70", "q0 = 0.7")
+    with pytest.raises(SweepError, match=r"--collect .*runs: its case0000\.nml is not this sweep's case case0000 "
+                                         r"\(a\.toml\): emit the cases again with --emit-slurm"):
+        collect(a, folder)
+    monkeypatch.setattr(sweep_module, "case_namelist", written)
+    emit_slurm(a, folder)
+    assert [row["status"] for row in collect(a, folder)] == ["ok", "ok"]
