@@ -218,6 +218,8 @@ def _node_ids(name: str, value) -> list[int]:
 LEAST_MEMORY_GB = 1e-6
 #: The largest (GB): an exabyte. 1e300 GB overflowed the byte count (a traceback).
 MOST_MEMORY_GB = 1e9
+#: The smallest normal double: a value below it is written as 0 (the kernel refuses it).
+TINY = float(np.finfo(float).tiny)
 
 
 def _memory_limit(value) -> int | None:
@@ -261,7 +263,8 @@ def _counts(dofs_per_node, dof_map, modes, keep) -> None:
 def write_modal_v2(path: str | os.PathLike, body: ModalBody, title: str) -> None:
     """The body as a modal file of format 2 (its invariants block, points of zero mass)."""
     nm = len(body.frequencies_hz)
-    g = lambda v: " ".join(f"{x:.17e}" for x in np.ravel(v))
+    # below the smallest normal number as 0: the kernel refuses such a value as written
+    g = lambda v: " ".join(f"{x if abs(x) >= TINY else 0.0:.17e}" for x in np.ravel(v))
     out = [f"# {title}",
            f"# Craig-Bampton: {body.kept['fixed_interface_modes']} fixed-interface modes, "
            f"{body.kept['constraint_modes']} constraint modes; {nm} modes of the reduced body written",

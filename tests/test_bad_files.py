@@ -177,6 +177,12 @@ MODAL_CORRUPTIONS = [
      "line 9: point 3: x: must be in [-1e+6, 1e+6] m, got 2e6"),
     ("masses_below_a_body_s", lambda t: edit_lines(t, lambda v: v[:3] + [v[3] * 1e-300] + v[4:]),
      "line 6: points: their masses sum to 1.111e-297 kg; a body's mass must be in [1e-12, 1e+12] kg"),
+    ("word_of_a_megabyte", lambda t: set_word(t, 7, 2, "x" * 10**6),
+     "line 7: " + ("point 1: y: '" + "x" * 10**6)[:500] + f" ... ({10**6 + 30} characters)"),
+    # 1e-400 read as 0, as Fortran reads it: refused as the scene's values and tables are
+    ("below_the_smallest_normal_number", lambda t: set_word(t, 7, 5, "1e-400"),
+     "line 7: point 1: psi_x of mode 1: the value 1e-400 is below the smallest normal number (2.22507e-308): "
+     "give 0 or a larger magnitude"),
     ("more_modes_than_masses_can_carry", lambda t: "\n".join(t.replace("points 101", "points 1").splitlines()[:7]) + "\n",
      "line 4: modes: 4 modes, but 1 point carries mass: at most 3 modes a point can be mass-normalised"),
 ]
@@ -340,6 +346,10 @@ TABLE_CORRUPTIONS = [
      "line 3: the value 1e-310 is below the smallest normal number (2.22507e-308): give 0 or a larger magnitude"),
     ("rounding_to_zero", TABLE.replace("0.5, 2.0", "0.5, 1e-400"),
      "line 3: the value 1e-400 is below the smallest normal number (2.22507e-308): give 0 or a larger magnitude"),
+    # a line of a megabyte was echoed whole: its first 500 bytes and its length now
+    ("line_of_a_megabyte", TABLE.replace("0.5, 2.0", "0.5 " + "1" * 10**6),
+     "line 3: " + ("expected two finite numbers (time, value), got: 0.5 " + "1" * 10**6)[:500]
+     + f" ... ({52 + 10**6} characters)"),
 ]
 
 

@@ -6,9 +6,12 @@ module pymr_env_text
   use, intrinsic :: iso_fortran_env, only : int64
   implicit none
   private
-  public :: itoa, lower, fmt, decimal_text, exact_text, char_length, printable
+  public :: itoa, lower, fmt, decimal_text, exact_text, char_length, printable, excerpt, max_shown
   public :: number_text, count_text, split_words, next_text_line
   public :: json_escape, json_number, below_normal
+
+  !> Most bytes of a message that quotes a line of a data file (excerpt).
+  integer, parameter :: max_shown = 500
 
   !> Integer (default or 64-bit) to text without blanks.
   interface itoa
@@ -284,6 +287,16 @@ contains
     end do
     s = s(1:m)
   end function printable
+
+  !> A message that quotes a file's text, cut to its first `most` bytes (printable) and
+  !> the count of its characters when longer: a table line of 1 MB was echoed whole.
+  function excerpt(message, most) result(s)
+    character(len=*), intent(in) :: message
+    integer, intent(in) :: most
+    character(len=:), allocatable :: s
+    s = message
+    if (len(message) > most) s = printable(message, most) // ' ... (' // itoa(len(message)) // ' characters)'
+  end function excerpt
 
   !> A number as pymr reads it from any text (a scene's values, modal and table files):
   !> [sign] digits [. digits] [(e|d) [sign] digits], or nan, inf, infinity (read, then

@@ -30,7 +30,8 @@ module pymr_io_modal_file
   use pymr_model_scene, only : big_length, big_mass, small_mass
   use pymr_model_inertia, only : eig3
   use pymr_env_lapack, only : potrf
-  use pymr_env_text, only : itoa, fmt, number_text, count_text, split_words, next_text_line
+  use pymr_env_text, only : itoa, fmt, number_text, count_text, split_words, next_text_line, excerpt, max_shown, &
+    & below_normal
   use pymr_env_text_file, only : not_regular, write_text_file, read_text_file, check_header_count
   implicit none
   private
@@ -503,6 +504,10 @@ contains
       if (.not. ieee_is_finite(v(k))) then
         call r%fail(entry // ': ' // r%word(k0 + k - 1) // ' is not a finite number'); return
       end if
+      if (len(below_normal(v(k), r%word(k0 + k - 1))) > 0) then
+        call r%fail(entry // ': the value ' // r%word(k0 + k - 1) // ' ' // below_normal(v(k), r%word(k0 + k - 1)))
+        return
+      end if
     end do
   end subroutine reader_numbers
 
@@ -592,7 +597,7 @@ contains
     integer :: l
     l = r%line
     if (present(at)) l = at
-    call fatal_error(r%error, r%path // ': line ' // itoa(l) // ': ' // why)
+    call fatal_error(r%error, r%path // ': line ' // itoa(l) // ': ' // excerpt(why, max_shown))
   end subroutine reader_fail
 
   !> Entry k of a modal file's line of `kind` ('point', 'frequency', 'F', 'W' of the modes
@@ -660,7 +665,8 @@ contains
     character(len=*), intent(in) :: lead
     character(len=:), allocatable :: line
     character(len=25*size(v) + 1) :: buf
-    write(buf, '(*(es24.16e3,:,1x))') v
+    ! below the smallest normal number as 0: the reader refuses such a value as written
+    write(buf, '(*(es24.16e3,:,1x))') merge(v, 0.0_dp, abs(v) >= tiny(v))
     line = lead // trim(buf) // new_line('a')
   end function values_line
 end module pymr_io_modal_file

@@ -6,7 +6,7 @@
 module pymr_io_table_file
   use pymr_env_kinds, only : dp
   use pymr_env_error, only : error_type, fatal_error
-  use pymr_env_text, only : itoa, fmt, number_text, split_words, next_text_line, below_normal
+  use pymr_env_text, only : itoa, fmt, number_text, split_words, next_text_line, below_normal, excerpt, max_shown
   use pymr_env_text_file, only : not_regular, read_text_file
   implicit none
   private
@@ -92,7 +92,7 @@ contains
 
     subroutine fail(why)
       character(len=*), intent(in) :: why
-      call fatal_error(error, what // ": '" // path // "' line " // itoa(line) // ': ' // why)
+      call fatal_error(error, what // ": '" // path // "' line " // itoa(line) // ': ' // excerpt(why, max_shown))
     end subroutine fail
   end subroutine read_time_table
 
