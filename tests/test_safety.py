@@ -323,10 +323,13 @@ def test_an_output_folder_that_cannot_be_written_is_refused_before_the_run(tmp_p
 def test_files_to_read_that_are_no_regular_files_are_refused_without_waiting(tmp_path, mrsim):
     """A scene, a table file or a checkpoint that is a FIFO would hold the read until
     something writes to it (mrsim hung); a directory cannot be read either. Exit 1 at once,
-    one line naming the file and what it is."""
+    one line naming the file and what it is. A loop of symbolic links and a link to nothing
+    were 'not found', and said nothing of the link."""
     import os
     os.mkfifo(tmp_path / "fifo")
     (tmp_path / "folder").mkdir()
+    os.symlink("loop", tmp_path / "loop")
+    os.symlink("nothing", tmp_path / "dangling")
     scene = tmp_path / "p.nml"
     scene.write_text(PENDULUM)
     table = tmp_path / "t.nml"
@@ -336,7 +339,11 @@ def test_files_to_read_that_are_no_regular_files_are_refused_without_waiting(tmp
     for args, message in ((["fifo"], "fifo: cannot read: " + fifo),
                           (["folder"], "folder: cannot read: it is a directory"),
                           (["t.nml"], "t.nml:28: &drive #1: file: 'fifo' cannot be read: " + fifo),
-                          (["p.nml", "--restart", "fifo"], "p.nml: fifo: cannot read the checkpoint: " + fifo)):
+                          (["p.nml", "--restart", "fifo"], "p.nml: fifo: cannot read the checkpoint: " + fifo),
+                          (["loop"], "loop: cannot read: it is a loop of symbolic links"),
+                          (["dangling"], "dangling: cannot read: it is a symbolic link to nothing"),
+                          (["p.nml", "--restart", "loop"],
+                           "p.nml: loop: cannot read the checkpoint: it is a loop of symbolic links")):
         r = subprocess.run([mrsim, *args, "-o", "out.csv"], cwd=tmp_path, capture_output=True, text=True, timeout=20)
         assert r.returncode == 1 and r.stderr.count("\n") == 1, r.stderr
         assert r.stderr == "mrsim: error: " + message + "\n"

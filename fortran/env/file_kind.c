@@ -5,12 +5,18 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-/* 0: no such file (or it cannot be seen), 1: a regular file, 2: a directory, 3: anything
-   else (a FIFO, a socket, a device). Symbolic links are followed. */
+/* 0: no such file, 1: a regular file, 2: a directory, 3: anything else (a FIFO, a socket,
+   a device), 4: a loop of symbolic links, 5: a symbolic link to nothing, 6: a folder on the
+   way that may not be searched. Symbolic links are followed. */
 int pymr_file_kind(const char *path)
 {
     struct stat s;
-    if (stat(path, &s) != 0) return 0;
+    if (stat(path, &s) != 0) {
+        if (errno == ELOOP) return 4;
+        if (errno == EACCES) return 6;
+        if (lstat(path, &s) == 0 && S_ISLNK(s.st_mode)) return 5;
+        return 0;
+    }
     if (S_ISREG(s.st_mode)) return 1;
     if (S_ISDIR(s.st_mode)) return 2;
     return 3;

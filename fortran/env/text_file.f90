@@ -199,12 +199,12 @@ contains
     if (len_trim(file) == 0) then
       call fatal_error(error, 'no scene file given (its path is empty)'); return
     end if
+    if (len(not_regular(file)) > 0) then
+      call fatal_error(error, file // ': cannot read: ' // not_regular(file)); return
+    end if
     inquire(file=file, exist=exists)
     if (.not. exists) then
       call fatal_error(error, file // ': file not found'); return
-    end if
-    if (len(not_regular(file)) > 0) then
-      call fatal_error(error, file // ': cannot read: ' // not_regular(file)); return
     end if
     open(newunit=u, file=file, access='stream', form='unformatted', status='old', action='read', &
       & iostat=ios, iomsg=msg)
@@ -334,6 +334,12 @@ contains
       why = 'it is a directory'
     case (3)
       why = 'it is not a regular file (a FIFO, a socket or a device)'
+    case (4)
+      why = 'it is a loop of symbolic links'
+    case (5)
+      why = 'it is a symbolic link to nothing'
+    case (6)
+      why = 'a folder on its path may not be searched (permission denied)'
     case default
       why = ''
     end select

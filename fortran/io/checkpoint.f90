@@ -187,12 +187,12 @@ contains
     character(len=:), allocatable :: bytes
     logical :: exists
     integer :: ios
+    if (len(not_regular(path)) > 0) then
+      call fatal_error(error, path // ': cannot read the checkpoint: ' // not_regular(path)); return
+    end if
     inquire(file=path, exist=exists)
     if (.not. exists) then
       call fatal_error(error, path // ': checkpoint not found'); return
-    end if
-    if (len(not_regular(path)) > 0) then
-      call fatal_error(error, path // ': cannot read the checkpoint: ' // not_regular(path)); return
     end if
     call read_bytes(path, bytes, ios)
     if (ios /= 0) then

@@ -85,12 +85,12 @@ contains
     real(dp), allocatable :: f(:), mp(:), first(:, :), w(:, :, :, :)
     real(dp) :: mass
     logical :: exists
+    if (len(not_regular(path)) > 0) then
+      call fatal_error(error, path // ': cannot open: ' // not_regular(path)); return
+    end if
     inquire(file=path, exist=exists)
     if (.not. exists) then
       call fatal_error(error, path // ': modal file not found'); return
-    end if
-    if (len(not_regular(path)) > 0) then
-      call fatal_error(error, path // ': cannot open: ' // not_regular(path)); return
     end if
     r%path = path
     call read_text_file(path, r%text, error); if (allocated(error)) return

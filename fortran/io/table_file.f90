@@ -37,12 +37,12 @@ contains
     first = cols(1:index(cols, ',') - 1)
     first_symbol = first
     if (first == 'time') first_symbol = 't'
+    if (len(not_regular(path)) > 0) then
+      call fatal_error(error, what // ": '" // path // "' cannot be read: " // not_regular(path)); return
+    end if
     inquire(file=path, exist=exists)
     if (.not. exists) then
       call fatal_error(error, what // ": '" // path // "' not found"); return
-    end if
-    if (len(not_regular(path)) > 0) then
-      call fatal_error(error, what // ": '" // path // "' cannot be read: " // not_regular(path)); return
     end if
     call read_text_file(path, text, error)
     if (allocated(error)) then
