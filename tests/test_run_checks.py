@@ -497,3 +497,47 @@ def test_a_table_past_4_gib_is_refused_not_read_in_part(tmp_path, mrsim):
         assert r.returncode == 1 and r.stderr.count("\n") == 1, r.stderr
         assert (f"file: tank_on_the_move/terrain_front.txt: cannot read: it holds {size} bytes, more than the "
                 "2147483647 a text file pymr reads may hold") in r.stderr, r.stderr
+
+
+FAR = """! a block pushed along x by a constant force, an arm hinged on it
+&scene title = 'far', t_end = {t_end}, gravity = 0.0, -9.81, 0.0 /
+&integrator method = 'single', h_slow = 1.0e-3, adaptive = .true. /
+&effects gravity = .true., joint_drives = .true. /
+&body name = 'ground', kind = 'ground' /
+&body name = 'block', kind = 'rigid', mass = 1.0, inertia = 1.0e-2, 1.0e-2, 1.0e-2, 0.0, 0.0, 0.0 /
+{arm}
+&joint name = 'slide', kind = 'prismatic', parent = 'ground', child = 'block', axis = 1.0, 0.0, 0.0 /
+&drive joint = 'slide', offset = 1.0e6 /
+&output dt = 0.01 /
+"""
+ARM = """&body name = 'arm', kind = 'rigid', mass = 1.0, com = 0.5, 0.0, 0.0, inertia = 1.0e-3, 0.1, 0.1, 0.0, 0.0, 0.0 /
+&joint name = 'hinge', kind = 'revolute', parent = 'block', child = 'arm', axis = 0.0, 0.0, 1.0, q0 = -1.0 /"""
+
+
+def test_a_joint_turning_bodies_far_from_the_origin_stops_the_run_before_its_digits_go(tmp_path, mrsim):
+    """The recursive algorithms sum inertias about the origin: a joint turning bodies of
+    sum m |x|^2 = S keeps epsilon S / J fewer of its inertia J about its axis (the arm's
+    0.35 kg m^2 about the hinge). A run went on at 1e7 m with exit 0 and errors in its
+    accelerations, then failed as 'articulated inertia 0'. It now stops (exit 2, one line
+    naming the time, the joint and the distance) where epsilon S / J reaches 1e-6: at
+    sqrt(1e-6 J / (epsilon m)) = 39.7 km. The estimate against a second evaluation: this
+    scene's accelerations do not depend on x, and the model's right-hand side at that x
+    differs from the one at x = 0 by less than 1e-6 (measured 7.8e-7). A block sliding alone
+    loses nothing: it runs to 5e7 m, as x = F t^2 / (2 m) gives it."""
+    (tmp_path / "far.nml").write_text(FAR.format(t_end=2.0, arm=ARM))
+    r = subprocess.run([mrsim, "far.nml", "-o", "far.csv"], cwd=tmp_path, capture_output=True, text=True, timeout=60)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
+    m = re.fullmatch(r"mrsim: error: far\.nml: at t = ([0-9.e+-]+) s: hinge\.q turns bodies ([0-9.e+-]+) m from the "
+                     r"origin, where the inertias about the origin that the recursive algorithms sum keep fewer than 6 "
+                     r"digits of its inertia about its axis \(0\.35 kg m\^2; the sum of m \|x\|\^2 is [0-9.e+-]+ kg "
+                     r"m\^2\)\. Place the origin \(the ground's frame\) nearer the motion\n", r.stderr)
+    assert m, r.stderr
+    x_stop = np.sqrt(1e-6 * 0.35 / np.finfo(float).eps)
+    assert x_stop <= float(m.group(2)) <= 1.05 * x_stop
+    model = pymr.Model(tmp_path / "far.nml")
+    near = model.rhs(0.0, np.array([0.0, 0.5, 0.0, 2.0]))
+    far = model.rhs(0.0, np.array([x_stop, 0.5, 0.0, 2.0]))
+    assert np.max(np.abs(far[2:] - near[2:]) / np.abs(near[2:])) < 1e-6
+    (tmp_path / "alone.nml").write_text(FAR.format(t_end=10.0, arm=""))
+    res = pymr.run(tmp_path / "alone.nml")
+    assert res["slide.q"][-1] == pytest.approx(1e6 * 10.0**2 / 2, rel=1e-10)

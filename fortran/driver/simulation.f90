@@ -32,6 +32,7 @@ module pymr_driver_simulation
   use pymr_driver_output_size, only : check_output_size, check_rows_written
   use pymr_driver_starting_state, only : starting_state
   use pymr_driver_deflection_watch, only : watch_deflection
+  use pymr_driver_distance_watch, only : distance_watch
   use pymr_driver_progress, only : run_clock
   use pymr_env_interrupt, only : check_interrupt
   use pymr_driver_settings_json, only : settings_json
@@ -55,6 +56,8 @@ module pymr_driver_simulation
     !> the one running.
     type(method_choice_t) :: choice
     type(probe_run), allocatable :: probed
+    !> The watch on how far the bodies have gone from the origin.
+    type(distance_watch) :: distance
     type(step_counts) :: carried
     class(results_file), allocatable :: out
     type(run_stats) :: stats
@@ -445,6 +448,7 @@ contains
       call check_rows_written(self%sc, self%model, self%out, self%stats%rows, t, error); if (allocated(error)) return
     end if
     call note_exits(self%model, self%st, t0, t, t_end)
+    call self%distance%after_step(self%model, t, error)
   end subroutine put_rows_reached
 
   !> Write the row of the state x at time t (counted once written: a deflection that stops
