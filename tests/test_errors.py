@@ -572,6 +572,37 @@ def test_a_motion_that_grows_beyond_the_numbers_fails_naming_it(mrsim, tmp_path,
     assert not (tmp_path / "out.csv").exists()
 
 
+GROWING = """&scene title = 'growing', t_end = 0.05, gravity = 0.0, -9.81, 0.0 /
+&integrator method = 'single', h_slow = 1.0e-3, stability_check = .false. /
+&effects firing_load = .true. /
+&body name = 'ground', kind = 'ground' /
+&body name = 'block', kind = 'rigid', mass = 1.0, inertia = 1.0e-2, 1.0e-2, 1.0e-2, 0.0, 0.0, 0.0 /
+&body name = 'arm', kind = 'rigid', mass = 1.0, com = 0.5, 0.0, 0.0, inertia = 1.0e-3, 0.1, 0.1, 0.0, 0.0, 0.0 /
+&joint name = 'slide', kind = 'prismatic', parent = 'ground', child = 'block', axis = 1.0, 0.0, 0.0 /
+&joint name = 'hinge', kind = 'revolute', parent = 'block', child = 'arm', axis = 0.0, 0.0, 1.0 /
+&marker name = 'tip', body = 'arm', at = 1.0, 0.0, 0.0 /
+&load marker = 'tip', direction = 0.0, 1.0, 0.0, frame = 'inertial', form = 'sine', amplitude = 1.0e12, frequency = {f} /
+&output dt = 1.0e-3 /
+"""
+
+
+def test_a_motion_flung_beyond_the_bound_on_lengths_fails_naming_the_growth(mrsim, tmp_path):
+    """A load of 1e12 N on the arm's tip flings the block 4e10 m in a step: the hinge's
+    articulated inertia, summed about the origin, is lost in rounding, and the run blamed the
+    mass matrix ('not positive definite: the articulated inertia of coordinate hinge.q is
+    -163448'). It now says the motion has grown beyond the numbers, naming the coordinate
+    and the distance, beyond the scene's bound on lengths (1e6 m), where the check applies."""
+    (tmp_path / "g.nml").write_text(GROWING.format(f=1234.0))
+    r = run_mrsim(mrsim, ["g.nml", "-o", "out.csv"], tmp_path)
+    assert r.returncode == 2, r.stderr
+    check_single_line(r.stderr, "mrsim: error: ")
+    assert re.fullmatch(r"mrsim: error: g\.nml: at t = 1\.00000E-03 s: the motion has grown beyond the numbers: "
+                        r"coordinate hinge\.q moves bodies [0-9.]+e\+(\d+) m from the origin, where its articulated "
+                        r"inertia \(\S+\) is lost in rounding \(an unstable step, or a force that grows without "
+                        r"bound\)\n", r.stderr), r.stderr
+    assert int(re.search(r"e\+(\d+) m from", r.stderr).group(1)) >= 6
+
+
 def test_run_solver_failure_raises_solver_error(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     (tmp_path / "underflow.nml").write_text(UNDERFLOW)

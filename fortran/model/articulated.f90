@@ -30,6 +30,7 @@ module pymr_model_articulated
   use pymr_env_text, only : fmt
   use pymr_env_lapack, only : potrf, potrs
   use pymr_model_types, only : model_data, model_work
+  use pymr_model_scene, only : big_length
   implicit none
   private
   public :: articulated_accelerations
@@ -140,6 +141,11 @@ contains
           call fatal_error(error, 'the motion has grown beyond the numbers: the articulated inertia of coordinate ' // &
             & trim(d%qname(k)) // ' is NaN (an unstable step, or a force that grows without bound)', stat_solver)
           return
+        else if (lost_in_rounding(dd, wk%s(:, k), ia)) then
+          call fatal_error(error, 'the motion has grown beyond the numbers: coordinate ' // trim(d%qname(k)) // &
+            & ' moves bodies ' // fmt(norm2(wk%s(1:3, k))) // ' m from the origin, where its articulated inertia (' // &
+            & fmt(dd) // ') is lost in rounding (an unstable step, or a force that grows without bound)', stat_solver)
+          return
         else if (.not. dd > 0.0_dp) then
           call fatal_error(error, 'the mass matrix is not positive definite: the articulated inertia of ' // &
             & 'coordinate ' // trim(d%qname(k)) // ' is ' // fmt(dd), stat_solver); return
@@ -157,6 +163,19 @@ contains
       end do
     end associate
   end subroutine through_joint
+
+  !> Whether the articulated inertia dd = s . IA s of a turning joint whose axis is beyond the
+  !> bound on lengths from the origin is within the rounding of its terms
+  !> (100 times epsilon the sum of |IA_ij s_i s_j|): the state has grown so far (a body at
+  !> 1e20 m after an unstable step) that the inertia is lost, which read as 'not positive
+  !> definite: ... is 0'. Nearer the origin a zero is the mass matrix's own fault (an axis
+  !> with no inertia about it).
+  pure logical function lost_in_rounding(dd, s, ia) result(lost)
+    real(dp), intent(in) :: dd, s(6), ia(6, 6)
+    real(dp) :: terms
+    terms = dot_product(abs(s), matmul(abs(ia), abs(s)))
+    lost = norm2(s(1:3)) > big_length .and. abs(dd) <= 100.0_dp*epsilon(1.0_dp)*terms
+  end function lost_in_rounding
 
   !> Forward pass at body b: its coordinates' accelerations, from the parent's side, the
   !> part of its spatial acceleration linear in qdd, and (flexible) its modal accelerations.
