@@ -6,7 +6,7 @@ module pymr_driver_moving_load_exits
   use pymr_env_kinds, only : dp
   use pymr_env_text, only : fmt, json_escape, exact_text
   use pymr_model, only : model_t
-  use pymr_model_effect_moving_load, only : moving_load_effect, exit_time, record_exit
+  use pymr_model_effect_moving_load, only : moving_load_effect, record_exit
   use pymr_integrator_stepper, only : stepper_t
   implicit none
   private
@@ -27,7 +27,7 @@ contains
       type is (moving_load_effect)
         do k = 1, size(e%loads)
           if (e%exits(k)%exited) cycle
-          te = exit_time(e%loads(k))
+          te = e%loads(k)%t_exit
           if (.not. (te > t0 .and. te <= min(t1, t_end))) cycle
           call st%value_at(te, x)
           if (model%d%n_prescribed > 0) then
