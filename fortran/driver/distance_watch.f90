@@ -1,12 +1,14 @@
-!> The watch on how far the bodies go from the inertial origin during a run.
+!> How far from the inertial origin a scene's bodies may be: the rule, checked at the
+!> initial state by the pre-flight check (preflight.f90, check_resolved) and during the run
+!> by the watch here.
 !>
-!> The recursive algorithms (model/articulated.f90, model/assembly.f90) take the bodies'
-!> inertias about the inertial origin: their entries grow as the sum S of m |x|^2 over the
-!> bodies a joint turns (x each centre of mass), and the joint's inertia about its axis, J,
-!> comes out of their differences. It then keeps epsilon S / J of itself fewer: a block
-!> pushed to 1e7 m with an arm of 0.35 kg m^2 about its hinge (epsilon S / J = 0.06) ran
-!> with 3 % error in its accelerations and exit 0, then failed as 'articulated inertia 0'.
-!> Joints that slide lose nothing that way (their inertia is the mass).
+!> The recursive algorithms take the bodies' inertias about the inertial origin: a body of
+!> mass m at distance r carries m r^2 there, and a coordinate's inertia is what is left of
+!> the bodies it moves after the cancellation, with the roundoff epsilon sum m r^2
+!> (subtree_roundoff). It must exceed `resolved` times that roundoff (4 digits). A block
+!> pushed to 1e7 m with an arm of 0.35 kg m^2 about its hinge ran with exit 0 and its
+!> accelerations off by 4e-4, then failed as 'articulated inertia 0'. Joints that slide lose
+!> nothing that way (their inertia is the mass) and are not checked.
 module pymr_driver_distance_watch
   use pymr_env_kinds, only : dp
   use pymr_env_error, only : error_type, fatal_error, stat_solver
@@ -16,16 +18,18 @@ module pymr_driver_distance_watch
   use pymr_model_spatial, only : cross
   implicit none
   private
+  public :: resolved, subtree_roundoff
 
-  !> The share of a joint's inertia about its axis that may be lost: a run stops before it
-  !> keeps fewer than 6 significant digits.
-  real(dp), parameter :: most_lost = 1.0e-6_dp
+  !> A coordinate's inertia must exceed this many times the roundoff of the inertia about
+  !> the origin of the bodies it moves: 4 digits.
+  real(dp), parameter :: resolved = 1.0e4_dp
 
   !> The watch: the distance from the origin (the farthest body origin) beyond which the
-  !> joints are checked again. Set by each check where they would lose a hundredth of
-  !> most_lost, their loss growing as the distance squared (a change of pose that cuts a
-  !> joint's inertia a hundredfold at the same distance is not seen). A check after every
-  !> step cost a quarter of a tank's run, one at every row 4 %.
+  !> turning joints are checked again. Set by each check to a tenth of the distance where
+  !> the bodies of each joint, all at it, would meet the rule (sqrt(J / (resolved epsilon
+  !> M)), M their mass): below, the roundoff is a hundredth of the rule's margin (a change
+  !> of pose that cuts a joint's inertia a hundredfold is not seen until the next check). A
+  !> check after every step cost a quarter of a tank's run, one at every row 4 %.
   type, public :: distance_watch
     real(dp) :: x_check = -1.0_dp
   contains
@@ -33,13 +37,31 @@ module pymr_driver_distance_watch
     procedure, private :: check_joints
   end type distance_watch
 
-  !> What a joint turns (a body and the bodies after it): mass, centre of mass, inertia
-  !> about it (inertial axes) and the sum S of m |x|^2 over the bodies.
+  !> What a joint turns (a body and the bodies after it): mass, centre of mass and inertia
+  !> about it (inertial axes).
   type :: composite
-    real(dp) :: m = 0.0_dp, x(3) = 0.0_dp, j(3, 3) = 0.0_dp, s = 0.0_dp
+    real(dp) :: m = 0.0_dp, x(3) = 0.0_dp, j(3, 3) = 0.0_dp
   end type composite
 
 contains
+
+  !> Roundoff of the inertia about the inertial origin of each body and those beyond it
+  !> (kg m^2), at the model's last evaluated poses: a body of mass m whose origin is at
+  !> distance r carries m r^2 there, and its own inertia is what is left after the
+  !> cancellation, epsilon of the sum of those m r^2.
+  function subtree_roundoff(model) result(e)
+    type(model_t), intent(in) :: model
+    real(dp) :: e(model%d%nb)
+    integer :: b
+    e = 0.0_dp
+    do b = 2, model%d%nb
+      e(b) = model%d%mass(b)*sum(model%wk%pos(:, b)**2)
+    end do
+    do b = model%d%nb, 2, -1
+      if (model%d%parent(b) > 1) e(model%d%parent(b)) = e(model%d%parent(b)) + e(b)
+    end do
+    e = epsilon(1.0_dp)*e
+  end function subtree_roundoff
 
   !> After a step to time t: the joints checked when a body has gone beyond x_check.
   subroutine after_step(self, model, t, error)
@@ -50,18 +72,19 @@ contains
     if (farthest(model) > self%x_check) call self%check_joints(model, t, error)
   end subroutine after_step
 
-  !> The joints at the model's last evaluated state (its work's poses and axes) at time t:
-  !> a failed run when one that turns has lost more than most_lost of its inertia; else
-  !> x_check set from the most any has lost.
+  !> The turning joints at the model's last evaluated state (its work's poses and axes) at
+  !> time t: a failed run when one's inertia about its axis is within `resolved` times the
+  !> roundoff of the bodies it moves; else x_check set.
   subroutine check_joints(self, model, t, error)
     class(distance_watch), intent(inout) :: self
     type(model_t), intent(in) :: model
     real(dp), intent(in) :: t
     type(error_type), allocatable, intent(out) :: error
     type(composite) :: c(model%d%nb)
-    real(dp) :: u(3), p0(3), jaxis, lost, most
+    real(dp) :: e(model%d%nb), u(3), p0(3), jaxis
     integer :: b, k
-    most = 0.0_dp
+    e = subtree_roundoff(model)
+    self%x_check = huge(1.0_dp)
     do b = model%d%nb, 2, -1
       c(b) = combined(c(b), own(model, b))
       if (model%d%parent(b) > 1) c(model%d%parent(b)) = combined(c(model%d%parent(b)), c(b))
@@ -73,19 +96,16 @@ contains
         p0 = cross(u, model%wk%s(1:3, k))              ! the axis's point nearest the origin
         jaxis = dot_product(u, matmul(c(b)%j, u)) + c(b)%m*sum(cross(u, c(b)%x - p0)**2)
         if (.not. (jaxis > 0.0_dp)) cycle
-        lost = epsilon(1.0_dp)*c(b)%s/jaxis
-        most = max(most, lost)
-        if (lost <= most_lost) cycle
-        call fatal_error(error, 'at t = ' // fmt(t) // ' s: ' // trim(model%d%qname(k)) // ' turns bodies ' // &
-          & fmt(sqrt(c(b)%s/c(b)%m)) // ' m from the origin, where the inertias about the origin that the ' // &
-          & 'recursive algorithms sum keep fewer than 6 digits of its inertia about its axis (' // fmt(jaxis) // &
-          & ' kg m^2; the sum of m |x|^2 is ' // fmt(c(b)%s) // ' kg m^2). Place the origin (the ground''s ' // &
-          & 'frame) nearer the motion', stat_solver)
+        self%x_check = min(self%x_check, 0.1_dp*sqrt(jaxis/(resolved*epsilon(1.0_dp)*c(b)%m)))
+        if (jaxis > resolved*e(b)) cycle
+        call fatal_error(error, 'at t = ' // fmt(t) // ' s: coordinate ' // trim(model%d%qname(k)) // &
+          & ' moves an inertia of ' // fmt(jaxis) // ' kg m^2, within ' // fmt(resolved) // ' times the ' // &
+          & 'roundoff (' // fmt(e(b)) // ') of the inertia about the inertial origin of the bodies it moves, ' // &
+          & 'which pymr assembles about (their m r^2 up to ' // fmt(e(b)/epsilon(1.0_dp)) // ' kg m^2): the ' // &
+          & 'motion has gone too far from the origin (place the origin nearer)', stat_solver)
         return
       end do
     end do
-    self%x_check = huge(1.0_dp)
-    if (most > 0.0_dp) self%x_check = farthest(model)*sqrt(0.01_dp*most_lost/most)
   end subroutine check_joints
 
   !> The farthest body origin from the inertial origin at the last evaluated state (m).
@@ -121,7 +141,6 @@ contains
       c%x = model%wk%pos(:, b) + matmul(r, com)
       c%j = matmul(r, matmul(jc, transpose(r)))
     end associate
-    c%s = c%m*dot_product(c%x, c%x)
   end function own
 
   !> Two composites as one: the inertias moved to the common centre of mass (parallel axes;
@@ -135,7 +154,6 @@ contains
     c%m = a%m + b%m
     c%x = a%x + (b%m/c%m)*(b%x - a%x)
     c%j = a%j + shifted(a%m, a%x - c%x) + b%j + shifted(b%m, b%x - c%x)
-    c%s = a%s + b%s
   end function combined
 
   !> The inertia of a point mass m at offset d: m (|d|^2 I - d d^T).

@@ -24,6 +24,7 @@ module pymr_driver_preflight
   use pymr_model_types, only : model_data
   use pymr_driver_linearise, only : linear_state
   use pymr_driver_normal_modes, only : normal_modes, top_frequency, modes_bytes
+  use pymr_driver_distance_watch, only : resolved, subtree_roundoff
   implicit none
   private
   public :: check_step_stability, check_mass_matrix
@@ -34,9 +35,6 @@ module pymr_driver_preflight
   !> step whose growth factor per step is above 1 only by roundoff-sized amounts (an
   !> undamped mode on the edge) passes; a real instability multiplies it by far more.
   real(dp), parameter :: run_growth = 10.0_dp
-  !> A mass-matrix diagonal entry must exceed this many times the roundoff of the inertia
-  !> about the origin of the bodies its coordinate moves (check_resolved): 4 digits.
-  real(dp), parameter :: resolved = 1.0e4_dp
 
   !> Steppers whose whole state has at most this many components get the spectral radius
   !> of their macro-step map from its matrix (LAPACK dgeev); larger ones by power iteration
@@ -336,7 +334,8 @@ contains
 
   !> Every coordinate moves an inertia that the assembly resolves: at least `resolved` times
   !> the roundoff that the inertia about the inertial origin of the bodies it moves leaves
-  !> (subtree_roundoff), so that its diagonal entry holds 4 leading digits. A scene far from
+  !> (subtree_roundoff; the rule of distance_watch.f90, which holds it during the run), so
+  !> that its diagonal entry holds 4 leading digits. A scene far from
   !> the origin fails here, not as a singular mass matrix or with its inertias silently off.
   !> A sliding (prismatic) column moves no inertia about the origin (its entry is a mass) and
   !> is not checked; nor are the controllers' states, which belong to no body.
@@ -376,23 +375,6 @@ contains
       & ' kg m^2): either it moves (almost) no inertia (check the masses and inertias of the bodies it moves ' // &
       & 'and the axes of its joint), or the scene lies too far from the origin (place it nearer)')
   end function unresolved
-
-  !> Roundoff of the inertia about the inertial origin of each body and those beyond it
-  !> (kg m^2): a body of mass m at distance r carries m r^2 there, and its own inertia is
-  !> what is left after the cancellation, epsilon of the sum of those m r^2.
-  function subtree_roundoff(model) result(e)
-    type(model_t), intent(in) :: model
-    real(dp) :: e(model%d%nb)
-    integer :: b
-    e = 0.0_dp
-    do b = 2, model%d%nb
-      e(b) = model%d%mass(b)*sum(model%wk%pos(:, b)**2)
-    end do
-    do b = model%d%nb, 2, -1
-      if (model%d%parent(b) > 1) e(model%d%parent(b)) = e(model%d%parent(b)) + e(b)
-    end do
-    e = epsilon(1.0_dp)*e
-  end function subtree_roundoff
 
   !> Multirate runs: the growth per macro step of the stepper itself applied to the model
   !> linearised at the initial state (power iteration on its whole state). When its growth
