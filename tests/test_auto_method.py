@@ -21,17 +21,13 @@ PENDULUM = ROOT / "input" / "pendulum.nml"
 CHAIN = ROOT / "input" / "flexible_chain.nml"
 TANK = ROOT / "input" / "tank_gun_turret.nml"
 AUTO = {"integrator.method": "auto", "integrator.adaptive": True}
-#: the explicit settings of each label the choice reports (a scene that gives no error_norm
-#: runs its candidates with 'amplitude', unless a loop closes through a flexible body)
+#: the explicit settings of each label the choice reports
 METHOD_OF = {
-    "single-rate 'adams'": {"integrator.method": "single", "integrator.adaptive": True,
-                            "integrator.error_norm": "amplitude"},
+    "single-rate 'adams'": {"integrator.method": "single", "integrator.adaptive": True},
     "multirate 'exponential'": {"integrator.method": "multirate", "integrator.coupling": "exponential",
-                                "integrator.adaptive": True, "integrator.formula": "abm4",
-                                "integrator.error_norm": "amplitude"},
+                                "integrator.adaptive": True, "integrator.formula": "abm4"},
     "multirate 'response'": {"integrator.method": "multirate", "integrator.coupling": "response",
-                             "integrator.adaptive": True, "integrator.formula": "abm4",
-                             "integrator.error_norm": "amplitude"},
+                             "integrator.adaptive": True, "integrator.formula": "abm4"},
 }
 COUNTS = ("steps_slow", "steps_fast", "rhs_full", "rhs_fast", "rejected_steps", "rows")
 
@@ -75,15 +71,10 @@ def test_the_run_is_the_chosen_method_s_run_and_the_choice_is_reported(tmp_path,
     assert all(c["failure"].startswith("stopped at t = ") for c in choice["candidates"] if c not in finished)
     assert auto.stats["integrator"]["method"] == "multirate"
     assert auto.stats["integrator"]["coupling"] == "exponential"
-    assert auto.stats["integrator"]["error_norm"] == "amplitude"
     _same_run(auto, pymr.run(SPACECRAFT, tmp_path / "direct.csv", overrides={
         **METHOD_OF[choice["chosen"]], "scene.t_end": 0.5, "output.quantities": quantities}))
     line = next(s for s in auto.summary.splitlines() if s.startswith("auto: "))
-    assert line.startswith("auto: multirate 'exponential', error_norm 'amplitude' (least predicted CPU; probes from 0 "
-                           "to 0.015 s:")
-    given = pymr.run(SPACECRAFT, tmp_path / "given.csv", overrides={**over, "integrator.error_norm": "state"})
-    assert given.stats["integrator"]["error_norm"] == "state"      # a norm the scene gives is kept
-    assert "error_norm 'state' (" in given.summary
+    assert line.startswith("auto: multirate 'exponential' (least predicted CPU; probes from 0 to 0.015 s:")
     assert all(label in line for label in labels)
 
 
@@ -95,9 +86,7 @@ def test_a_loop_through_a_flexible_body_leaves_exponential_out(tmp_path):
     auto = pymr.run(scene, tmp_path / "auto.csv", overrides=over)
     choice = auto.stats["method_choice"]
     assert sorted(c["method"] for c in choice["candidates"]) == ["multirate 'response'", "single-rate 'adams'"]
-    assert auto.stats["integrator"]["error_norm"] == "state"       # 'amplitude' does not take the loop
-    direct = {**METHOD_OF[choice["chosen"]], "scene.t_end": 0.2, "integrator.rtol": 1e-6,
-              "integrator.error_norm": "state"}
+    direct = {**METHOD_OF[choice["chosen"]], "scene.t_end": 0.2, "integrator.rtol": 1e-6}
     if choice["chosen"] == "multirate 'response'":
         direct["integrator.k_max"] = auto.stats["integrator"]["k_max"]
     run = pymr.run(scene, tmp_path / "direct.csv", overrides=direct)

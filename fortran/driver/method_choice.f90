@@ -158,7 +158,7 @@ contains
     real(dp), intent(in) :: x(:)
     type(method_choice_t), intent(out) :: choice
     integer :: i
-    choice%asked = asked_of(sc)
+    choice%asked = sc%integrator
     ! the multirate couplings first: where they pay, their probes are short and stop the rest
     if (model%n_fast() > 0 .and. model%n_slow() > 0) then
       if (.not. flexible_loop(sc)) call add_candidate(choice, sc, 2)
@@ -186,18 +186,6 @@ contains
     choice%lead = lead_of(choice%mean(1:choice%n), choice%chosen)
     call set_method(sc, choice%asked, choice%method(choice%chosen))
   end subroutine choose_method
-
-  !> The integrator settings the candidates run with: the scene's, with error_norm
-  !> 'amplitude' when the scene gives none and its modes allow it (no closed loop through
-  !> a flexible body). 'state' holds a mode's coordinate to atol where it passes 0, which
-  !> at loose tolerances bounds the steps whatever rtol asks: on the tank 'auto' took 1.3-1.6
-  !> times the CPU of 'amplitude' at the same error, 1e-5 to 1e-8 m of muzzle motion.
-  function asked_of(sc) result(asked)
-    type(scene_t), intent(in) :: sc
-    type(integrator_spec) :: asked
-    asked = sc%integrator
-    if (.not. sc%integrator%origin%given('error_norm') .and. .not. flexible_loop(sc)) asked%error_norm = 'amplitude'
-  end function asked_of
 
   !> Method `method` of the scene sc (set_method's numbers) as the next candidate, with its
   !> label ("single-rate 'adams'", "multirate 'exponential'").
@@ -648,21 +636,19 @@ contains
       return
     end select
     choice%chosen = 1; choice%first = 1
-    choice%asked = asked_of(sc)
+    choice%asked = sc%integrator
     call set_method(sc, choice%asked, choice%method(1))
     choice%reason = 'the method the checkpoint was written with'
   end subroutine method_of_checkpoint
 
-  !> One line for the run's summary: "auto: multirate 'exponential', error_norm 'amplitude'
-  !> (least CPU over the probe, 0 to 0.05 s: single-rate 'adams' 4.1 ms, ...; at t = 0.7 s
-  !> its CPU rate was 1.52x its cheapest window's, probes: ..., single-rate 'adams' took
-  !> over)".
+  !> One line for the run's summary: "auto: multirate 'exponential' (least CPU over the
+  !> probe, 0 to 0.05 s: single-rate 'adams' 4.1 ms, ...; at t = 0.7 s its CPU rate was
+  !> 1.52x its cheapest window's, probes: ..., single-rate 'adams' took over)".
   function choice_summary(self) result(s)
     class(method_choice_t), intent(in) :: self
     character(len=:), allocatable :: s
     integer :: i
-    s = 'auto: ' // trim(self%label(self%first)) // ", error_norm '" // trim(self%asked%error_norm) // "' (" // &
-      & self%reason
+    s = 'auto: ' // trim(self%label(self%first)) // ' (' // self%reason
     if (self%t_probe > 0.0_dp) then
       s = s // '; probes from 0 to ' // fmt(self%t_probe) // ' s:'
       do i = 1, self%n
