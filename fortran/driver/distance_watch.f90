@@ -16,6 +16,7 @@ module pymr_driver_distance_watch
   use pymr_model, only : model_t
   use pymr_model_types, only : prim_revolute
   use pymr_model_spatial, only : cross
+  use pymr_model_flexbody, only : central_inertia
   implicit none
   private
   public :: resolved, subtree_roundoff
@@ -123,17 +124,10 @@ contains
     type(model_t), intent(in) :: model
     integer, intent(in) :: b
     type(composite) :: c
-    real(dp) :: com(3), jc(3, 3), tr
-    integer :: i
+    real(dp) :: com(3), jc(3, 3)
     if (model%d%nm(b) > 0) then
-      associate (fd => model%d%flex(b))
-        c%m = fd%mass; com = fd%first(:, 0)/fd%mass
-        jc = -(fd%w(:, :, 0, 0) - fd%mass*spread(com, 2, 3)*spread(com, 1, 3))
-      end associate
-      tr = -(jc(1, 1) + jc(2, 2) + jc(3, 3))
-      do i = 1, 3
-        jc(i, i) = jc(i, i) + tr
-      end do
+      c%m = model%d%flex(b)%mass; com = model%d%flex(b)%first(:, 0)/c%m
+      jc = central_inertia(model%d%flex(b))
     else
       c%m = model%d%mass(b); com = model%d%com(:, b); jc = model%d%inertia(:, :, b)
     end if

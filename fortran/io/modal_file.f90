@@ -25,7 +25,8 @@ module pymr_io_modal_file
   use, intrinsic :: ieee_arithmetic, only : ieee_is_finite
   use pymr_env_kinds, only : dp, pi
   use pymr_env_error, only : error_type, fatal_error
-  use pymr_model_flexbody, only : flex_data, flex_invariants, flex_from_moments, modal_nodes
+  use pymr_model_flexbody, only : flex_data, flex_invariants, flex_from_moments, modal_nodes, central_inertia
+  use pymr_model_spatial, only : skew
   use pymr_model_beam_modes, only : beam_shape, beam_point_shapes
   use pymr_model_scene, only : big_length, big_mass, small_mass
   use pymr_model_inertia, only : eig3
@@ -50,8 +51,8 @@ module pymr_io_modal_file
     character(len=:), allocatable :: path, text, ln
     integer, allocatable :: wa(:), wb(:)
     integer :: pos = 1, line = 0, nw = 0
-    !> Format version, number of modes, the lines of 'modes', 'points', 'invariants' and 'mass'.
-    integer :: version = 0, m = 0, modes_line = 0, points_line = 0, invariants_line = 0, mass_line = 0
+    !> Format version, number of modes, the lines of 'modes', 'points' and 'invariants'.
+    integer :: version = 0, m = 0, modes_line = 0, points_line = 0, invariants_line = 0
     !> Whether an invariants block is given, and the line of each pair of its second moments.
     logical :: given = .false.
     integer, allocatable :: wline(:, :)
@@ -169,7 +170,6 @@ contains
       call r%fail('invariants: nothing may follow it on its line, got ' // r%rest()); return
     end if
     call r%key_line('mass'); if (allocated(r%error)) return
-    r%mass_line = r%line
     if (r%nw /= 2) then
       call r%fail('mass: expected a positive mass, got ' // r%rest()); return
     end if
@@ -375,16 +375,10 @@ contains
     type(modal_reader), intent(inout) :: r
     type(flex_data), intent(in) :: fd
     real(dp), allocatable :: mb(:, :)
-    real(dp) :: s(3), jc(3, 3), e(3)
-    integer :: i
+    real(dp) :: e(3)
     mb = mass_matrix(fd)
     if (.not. semi_definite(mb(1:6, 1:6))) then
-      s = fd%first(:, 0)
-      jc = mb(4:6, 4:6) + spread(s, 2, 3)*spread(s, 1, 3)/fd%mass
-      do i = 1, 3
-        jc(i, i) = jc(i, i) - dot_product(s, s)/fd%mass
-      end do
-      call eig3(jc, e)
+      call eig3(central_inertia(fd), e)
       call r%fail('second_moments: W(1:3, 1:3, 0, 0), with F(1:3, 0) and the mass, gives an inertia about the ' // &
         & 'centre of mass with a negative principal moment (' // fmt(minval(e)) // ' kg m^2): no mass ' // &
         & 'distribution has it', r%wline(0, 0)); return
@@ -406,8 +400,8 @@ contains
     do i = 1, 3
       mb(i, i) = fd%mass
     end do
-    mb(1:3, 4:6) = reshape([0.0_dp, -s(3), s(2), s(3), 0.0_dp, -s(1), -s(2), s(1), 0.0_dp], [3, 3])
-    mb(4:6, 1:3) = transpose(mb(1:3, 4:6))
+    mb(1:3, 4:6) = -skew(s)
+    mb(4:6, 1:3) = skew(s)
     wk = fd%w(:, :, 0, 0)
     mb(4:6, 4:6) = -wk
     do i = 1, 3

@@ -14,7 +14,7 @@ module pymr_model_flexbody
   implicit none
   private
   public :: flex_data, flex_invariants, flex_from_moments, flex_body_terms, flex_work, small_rotation, point_shapes, modal_nodes
-  public :: deformed_modal_moments, undeformed_modal_moments, point_deflection
+  public :: deformed_modal_moments, undeformed_modal_moments, point_deflection, central_inertia
 
   !> Invariants and modal properties of one flexible body.
   type :: flex_data
@@ -132,6 +132,20 @@ contains
       end do
     end do
   end subroutine flex_from_moments
+
+  !> The undeformed body's inertia about its centre of mass (body axes, kg m^2): tr(C) I - C
+  !> with C = W(:,:,0,0) - m c c^T its second moment there, c = F(:,0)/m.
+  pure function central_inertia(fd) result(jc)
+    type(flex_data), intent(in) :: fd
+    real(dp) :: jc(3, 3), c(3), tr
+    integer :: i
+    c = fd%first(:, 0)/fd%mass
+    jc = -(fd%w(:, :, 0, 0) - fd%mass*spread(c, 2, 3)*spread(c, 1, 3))
+    tr = -(jc(1, 1) + jc(2, 2) + jc(3, 3))
+    do i = 1, 3
+      jc(i, i) = jc(i, i) + tr
+    end do
+  end function central_inertia
 
   !> Mode shapes of a point at `x` of the body frame: translation psi = psi0 + phi0 x r
   !> for a point offset r from a node with shapes psi0, phi0 (small rotation of the section).
