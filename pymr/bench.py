@@ -752,22 +752,26 @@ def shipped_scenes() -> list[Path]:
 
 def bench_auto(repeats: int = 5) -> list[dict]:
     """Each shipped scene run adaptive at its own tolerances by method 'auto' and by each
-    candidate directly (a method the scene refuses is None): the median of each one's CPU
-    (its run's own clock, the probes included for 'auto') over `repeats` runs interleaved
-    over the scene's methods in a seeded random order, what 'auto' chose, and 'auto' over the
-    fastest candidate."""
+    candidate directly (a method the scene refuses is None), the candidates with the error
+    norm 'auto' ran with (its JSON's integrator, from a first run not timed): the median of
+    each one's CPU (its run's own clock, the probes included for 'auto') over `repeats`
+    runs interleaved over the scene's methods in a seeded random order, what 'auto' chose,
+    and 'auto' over the fastest candidate."""
     from .api import PymrError, run
     rows = []
     with tempfile.TemporaryDirectory(prefix="pymr-auto-") as tmp:
         for scene in shipped_scenes():
             cpu: dict[str, list | None] = {name: [] for name in AUTO_METHODS}
             chosen = ""
+            first = run(scene, Path(tmp) / "run.csv", overrides={**AUTO_METHODS["auto"], "integrator.adaptive": True})
+            norm = {"integrator.error_norm": first.stats["integrator"]["error_norm"]}
             for r in range(repeats):
                 for name, over in shuffled(list(AUTO_METHODS.items()), r):
                     if cpu[name] is None:
                         continue
                     try:
-                        res = run(scene, Path(tmp) / "run.csv", overrides={**over, "integrator.adaptive": True})
+                        res = run(scene, Path(tmp) / "run.csv",
+                                  overrides={**over, **norm, "integrator.adaptive": True})
                     except PymrError:
                         cpu[name] = None          # refused (no modal coordinates, a flexible loop) or failed
                         continue
