@@ -473,6 +473,36 @@ def test_collect_takes_no_results_of_another_emission(tmp_path, mrsim):
         tmp_path / "p.nml", overrides={"joint[pivot].q0": 0.7, "scene.t_end": 0.1})["pivot.q"][-1], rel=1e-12)
 
 
+@pytest.mark.parametrize("swapped", [(".csv",), (".csv", ".json")])
+def test_collect_takes_no_results_swapped_between_cases(tmp_path, mrsim, swapped):
+    """Two cases run, then their CSVs swapped (a copy by hand, a job script's typo), alone or
+    with their JSON side-cars: each case is listed failed, naming its file, not 'ok' with the
+    other case's metric (the metric differs: q0 0.5 against 0.6). CSVs alone are another
+    run's than their JSON (its byte count and last row); the pairs are of the other case's
+    namelist (its scene fingerprint). Run again, the case is 'ok' with its own metric."""
+    (tmp_path / "p.nml").write_text(PENDULUM)
+    (tmp_path / "a.toml").write_text('scene = "p.nml"\nmetric = "final:pivot.q"\n[grid]\n'
+                                     '"joint[pivot].q0" = [0.5, 0.6]\n[fixed]\n"scene.t_end" = 0.1\n')
+    folder = tmp_path / "runs"
+    emit_slurm(load_sweep(tmp_path / "a.toml"), folder)
+    for i in range(2):
+        r = subprocess.run([mrsim, f"case{i:04d}.nml", "-o", f"case{i:04d}.csv", "--quiet"], cwd=folder,
+                           capture_output=True, text=True)
+        assert r.returncode == 0, r.stderr
+    ok = collect(load_sweep(tmp_path / "a.toml"), folder)
+    assert [row["status"] for row in ok] == ["ok", "ok"] and ok[0]["metric"] != ok[1]["metric"]
+    for ext in swapped:
+        a, b = folder / f"case0000{ext}", folder / f"case0001{ext}"
+        a.rename(folder / "swap"); b.rename(a); (folder / "swap").rename(b)
+    rows = collect(load_sweep(tmp_path / "a.toml"), folder)
+    for i, row in enumerate(rows):
+        assert row["status"].startswith("failed: ") and f"case000{i}" in row["status"], row["status"]
+        assert row["metric"] in (None, "") or np.isnan(float(row["metric"])), row
+    r = subprocess.run([mrsim, "case0000.nml", "-o", "case0000.csv", "--quiet"], cwd=folder, capture_output=True)
+    row = collect(load_sweep(tmp_path / "a.toml"), folder)[0]
+    assert row["status"] == "ok" and row["metric"] == pytest.approx(ok[0]["metric"], rel=1e-15)
+
+
 def test_each_case_s_reference_shares_its_physics(tmp_path, monkeypatch):
     """Issue 30: the shipped sweep put modal damping on a grid axis against one undamped
     reference, so its deviation showed the damping's physics (mm) as integration error. A
