@@ -371,7 +371,9 @@ contains
     call t%add('error_norm', g%error_norm, "how adaptive steps weigh the local error of a modal coordinate: " // &
       & "'state' its position and rate apart (each against rtol |x| + atol), 'amplitude' both as the mode's " // &
       & "amplitude A = sqrt(a^2 + (ad/omega)^2) (the position against rtol A + atol, the rate against omega " // &
-      & "times that; omega the flexible body's own, from its mass-normalised modes)", choices='state amplitude')
+      & "times that; omega the flexible body's own, from its mass-normalised modes); method 'auto' runs its " // &
+      & "candidates with 'amplitude' when none is given, unless a loop closes through a flexible body", &
+      & choices='state amplitude')
     call t%add('stability_check', g%stability_check, 'refuse fixed steps that the pre-flight check finds unstable')
     call t%add('max_steps', g%max_steps, '-', 'most (fast) steps a run may take: a fixed-step run needing more is ' // &
       & 'refused, an adaptive one stops', ge=1, le=2000000000)
