@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 import pymr
+from pymr import _testhooks
 
 ROOT = Path(__file__).resolve().parent.parent
 SPACECRAFT = ROOT / "input" / "spacecraft.nml"
@@ -33,6 +34,7 @@ METHOD_OF = {
                              "integrator.adaptive": True, "integrator.formula": "abm4",
                              "integrator.error_norm": "amplitude"},
 }
+HUGE = np.finfo(float).max
 COUNTS = ("steps_slow", "steps_fast", "rhs_full", "rhs_fast", "rejected_steps", "rows")
 
 
@@ -216,6 +218,24 @@ def test_the_review_measures_growth_from_the_cheapest_window(tmp_path):
         if choice["chosen"] == "multirate 'exponential'":
             assert choice["reviews"][0]["t"] < 1.0
             assert any(r["took_over"] and r["t"] < 1.0 for r in choice["reviews"])
+
+
+@pytest.mark.parametrize("rates, run, stopped, lead", [
+    ([0.02, 0.03, 0.05], 1, [0, 0, 0], 1.5),          # the next cheapest finished probe's rate over the runner's
+    ([0.02, 0.10, 0.08], 1, [0, 1, 1], 1.5),          # stopped probes: means with their starts, capped at 1.5
+    ([0.02, 0.025, 0.08], 1, [0, 1, 0], 1.25),        # a stopped probe below the cap counts as measured
+    ([0.05, 0.02, HUGE], 1, [0, 0, 0], 0.4),          # another cheaper: lead below 1; a failed probe left out
+    ([0.05, HUGE, HUGE], 1, [0, 0, 0], HUGE)])        # every other failed
+def test_the_review_rules_lead_and_baseline(rates, run, stopped, lead):
+    """The two rules a review's timing rests on, apart from any timing: the lead (how much
+    dearer the next cheapest candidate probed; a review is called at 1.2 times it) counts a
+    stopped probe as at most 1.5 dearer, the race margin that stopped it (its mean holds its
+    start's small steps: on the flexible chain two stopped probes' means put the lead past
+    any growth, and no review came); and a review that keeps the running method makes the
+    window's rate the baseline only when the running method still probed the cheapest."""
+    got, baseline = _testhooks.pymr_review_rule(rates, run, stopped, 0.01, 0.03)
+    assert got == pytest.approx(lead, rel=1e-15)
+    assert baseline == (0.03 if lead >= 1.0 else 0.01)
 
 
 def test_a_method_that_gets_dearer_is_reviewed_and_handed_over(tmp_path):

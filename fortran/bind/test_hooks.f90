@@ -108,6 +108,22 @@ subroutine pymr_error_weights(m, x, omega, rtol, atol, amplitude, w)
   call error_weights(ctl, x, w)
 end subroutine pymr_error_weights
 
+!> Method 'auto''s review rules: the running method's lead over the n candidates' CPU rates
+!> (rates, huge for a failed probe; stopped(i) /= 0 for a stopped one; run the running
+!> method, 1-based), and the baseline after a review that kept it (base_rate, the
+!> window's rate).
+subroutine pymr_review_rule(n, rates, run, stopped, base_rate, rate, lead, baseline)
+  use pymr_driver_method_choice, only : lead_of, baseline_after_review
+  implicit none
+  integer, intent(in) :: n, run
+  double precision, intent(in) :: rates(n), base_rate, rate
+  integer, intent(in) :: stopped(n)
+  double precision, intent(out) :: lead, baseline
+  !f2py integer intent(hide), depend(rates) :: n = len(rates)
+  lead = lead_of(rates, run, stopped /= 0)
+  baseline = baseline_after_review(base_rate, rate, lead)
+end subroutine pymr_review_rule
+
 !> LAPACK called with an illegal argument: info and the routine pymr's XERBLA recorded
 !> (the process goes on; the reference XERBLA would have stopped it).
 subroutine pymr_xerbla_probe(info, routine, argument)

@@ -56,6 +56,7 @@ module pymr_driver_method_choice
   implicit none
   private
   public :: choose_method, method_of_checkpoint, method_choice_t, probe_run
+  public :: lead_of, baseline_after_review
 
   !> Share of the run (from its start) each candidate is probed over; CPU beyond the fastest
   !> finished probe's at which a probe stops.
@@ -349,6 +350,15 @@ contains
     end do
   end function lead_of
 
+  !> The baseline after a review that kept the running method (window rate `rate`, the
+  !> running method's lead over the others as the review probed them): the window's rate
+  !> when it still probed the cheapest (a growth every method shares), else the baseline
+  !> as it was, so that the next dear windows call the next review.
+  pure real(dp) function baseline_after_review(base_rate, rate, lead) result(base)
+    real(dp), intent(in) :: base_rate, rate, lead
+    base = merge(rate, base_rate, lead >= 1.0_dp)
+  end function baseline_after_review
+
   !> Whether each candidate's probe was stopped (slower than the fastest).
   pure function stopped_probes(failure) result(stopped)
     character(len=*), intent(in) :: failure(:)
@@ -550,9 +560,7 @@ contains
     end if
     self%lead = lead_of(bound(1:self%n), self%chosen, stopped_probes(failures(1:self%n)))
     if (.not. switched) then
-      ! the running method still the cheapest: its growth is shared, and is the new baseline
-      if (self%lead >= 1.0_dp) self%base_rate = rate
-      return
+      self%base_rate = baseline_after_review(self%base_rate, rate, self%lead); return
     end if
     call set_method(sc, self%asked, self%method(best))
   end subroutine probe_again
