@@ -56,14 +56,16 @@ contains
     if (.not. ok) then
       call put_real_exact(abs(x), nd, buf, pos); return
     end if
-    if (nd < 17) dgt = dgt*ipow10(17 - nd)
-    dstr = digit_text(dgt)
-    buf(pos:pos) = dstr(1:1); buf(pos+1:pos+1) = '.'
-    if (nd == 17) then                    ! a copy of known length, inline
-      buf(pos+2:pos+17) = dstr(2:17)
+    if (nd == 17) then
+      ! straight into buf, then the first digit before the point: a copy through a
+      ! 17-character temporary read 16 bytes over its four-byte stores, which stalled
+      call write_digits(dgt, buf(pos+1:pos+17))
+      buf(pos:pos) = buf(pos+1:pos+1)
     else
-      buf(pos+2:pos+nd) = dstr(2:nd)
+      dstr = digit_text(dgt*ipow10(17 - nd))
+      buf(pos:pos) = dstr(1:1); buf(pos+2:pos+nd) = dstr(2:nd)
     end if
+    buf(pos+1:pos+1) = '.'
     pos = pos + nd + 1
     buf(pos:pos+1) = merge('e-', 'e+', e < 0); buf(pos+2:pos+2) = '0'
     buf(pos+3:pos+4) = pairs(abs(e))                      ! |e| <= 23 here
@@ -84,13 +86,20 @@ contains
   pure function digit_text(dgt) result(d)
     integer(int64), intent(in) :: dgt
     character(len=17) :: d
+    call write_digits(dgt, d)
+  end function digit_text
+
+  !> digit_text's work, written into d (put_real's buffer itself).
+  pure subroutine write_digits(dgt, d)
+    integer(int64), intent(in) :: dgt
+    character(len=17), intent(out) :: d
     integer :: hi, lo
     hi = int(dgt/100000000_int64)
     lo = int(dgt - 100000000_int64*hi)
     d(14:17) = quads(mod(lo, 10000)); d(10:13) = quads(lo/10000)
     d(6:9) = quads(mod(hi, 10000)); hi = hi/10000
     d(2:5) = quads(mod(hi, 10000)); d(1:1) = achar(iachar('0') + hi/10000)
-  end function digit_text
+  end subroutine write_digits
 
   !> Append the text of x > 0 by a formatted WRITE, correctly rounded to `digits` digits: the path
   !> for magnitudes beyond 1e+-21, where a power of ten is not exact in double precision
