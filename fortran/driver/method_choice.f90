@@ -39,7 +39,8 @@
 !> running method still probed the cheapest (a growth every method shares); when another
 !> probed cheaper by less than `switch_gain` the baseline stays, and the next dear windows
 !> call the next review (one review's short probes are noisy: on the flexible chain at
-!> 0.70 s 'adams' probed 1.42-1.63x below 'exponential', against the gain of 1.2). At
+!> 0.70 s, with error_norm 'state', 'adams' probed 1.42-1.63x below 'exponential',
+!> against the gain of 1.2). At
 !> most `max_reviews` reviews, none when less than `review_rest` probes' length of the run
 !> is left.
 module pymr_driver_method_choice
