@@ -445,21 +445,31 @@ metric = "final:elevation.q"
     assert status[5].startswith("not finished: case0005.csv.partial")
 
 
-def test_collect_takes_no_results_of_another_emission(tmp_path, mrsim):
-    """A second sweep emitted into a folder holding the first one's results was collected
-    from them: both cases 'ok' with the second sweep's parameters and the first one's
-    metrics. A case's results must be of its namelist (their scene fingerprints), and the
-    folder's cases those of the sweep file collecting them."""
+#: A sweep of the pendulum over q0 (the values), whose metric is the pivot's final angle.
+PENDULUM_SWEEP = 'scene = "p.nml"\nmetric = "final:pivot.q"\n[grid]\n"joint[pivot].q0" = [{}]\n[fixed]\n"scene.t_end" = 0.1\n'
+
+
+def _two_pendulum_cases_run(tmp_path: Path, mrsim: str) -> Path:
+    """The pendulum's sweep a.toml (q0 0.5 and 0.6) emitted for SLURM into tmp_path/runs, and
+    both its cases run there by mrsim as the job array would: the folder."""
     (tmp_path / "p.nml").write_text(PENDULUM)
-    text = 'scene = "p.nml"\nmetric = "final:pivot.q"\n[grid]\n"joint[pivot].q0" = [{}]\n[fixed]\n"scene.t_end" = 0.1\n'
-    (tmp_path / "a.toml").write_text(text.format("0.5, 0.6"))
-    (tmp_path / "b.toml").write_text(text.format("0.7, 0.8"))
+    (tmp_path / "a.toml").write_text(PENDULUM_SWEEP.format("0.5, 0.6"))
     folder = tmp_path / "runs"
     emit_slurm(load_sweep(tmp_path / "a.toml"), folder)
     for i in range(2):
         r = subprocess.run([mrsim, f"case{i:04d}.nml", "-o", f"case{i:04d}.csv", "--quiet"], cwd=folder,
                            capture_output=True, text=True)
         assert r.returncode == 0, r.stderr
+    return folder
+
+
+def test_collect_takes_no_results_of_another_emission(tmp_path, mrsim):
+    """A second sweep emitted into a folder holding the first one's results was collected
+    from them: both cases 'ok' with the second sweep's parameters and the first one's
+    metrics. A case's results must be of its namelist (their scene fingerprints), and the
+    folder's cases those of the sweep file collecting them."""
+    folder = _two_pendulum_cases_run(tmp_path, mrsim)
+    (tmp_path / "b.toml").write_text(PENDULUM_SWEEP.format("0.7, 0.8"))
     emit_slurm(load_sweep(tmp_path / "b.toml"), folder)
     rows = collect(load_sweep(tmp_path / "b.toml"), folder)
     assert all(re.fullmatch(rf"failed: .*case000{i}\.csv: the results are of another scene than case000{i}\.nml "
@@ -480,15 +490,7 @@ def test_collect_takes_no_results_swapped_between_cases(tmp_path, mrsim, swapped
     other case's metric (the metric differs: q0 0.5 against 0.6). CSVs alone are another
     run's than their JSON (its byte count and last row); the pairs are of the other case's
     namelist (its scene fingerprint). Run again, the case is 'ok' with its own metric."""
-    (tmp_path / "p.nml").write_text(PENDULUM)
-    (tmp_path / "a.toml").write_text('scene = "p.nml"\nmetric = "final:pivot.q"\n[grid]\n'
-                                     '"joint[pivot].q0" = [0.5, 0.6]\n[fixed]\n"scene.t_end" = 0.1\n')
-    folder = tmp_path / "runs"
-    emit_slurm(load_sweep(tmp_path / "a.toml"), folder)
-    for i in range(2):
-        r = subprocess.run([mrsim, f"case{i:04d}.nml", "-o", f"case{i:04d}.csv", "--quiet"], cwd=folder,
-                           capture_output=True, text=True)
-        assert r.returncode == 0, r.stderr
+    folder = _two_pendulum_cases_run(tmp_path, mrsim)
     ok = collect(load_sweep(tmp_path / "a.toml"), folder)
     assert [row["status"] for row in ok] == ["ok", "ok"] and ok[0]["metric"] != ok[1]["metric"]
     for ext in swapped:
