@@ -191,7 +191,7 @@ contains
       end if
     end if
     choice%first = choice%chosen
-    choice%lead = lead_of(choice%mean(1:choice%n), choice%chosen, stopped_probes(choice%failure(1:choice%n)))
+    choice%lead = lead_of(choice%mean(1:choice%n), choice%chosen, was_stopped(choice%failure(1:choice%n)))
     call set_method(sc, choice%asked, choice%method(choice%chosen))
   end subroutine choose_method
 
@@ -360,15 +360,12 @@ contains
     base = merge(rate, base_rate, lead >= 1.0_dp)
   end function baseline_after_review
 
-  !> Whether each candidate's probe was stopped (slower than the fastest).
-  pure function stopped_probes(failure) result(stopped)
-    character(len=*), intent(in) :: failure(:)
-    logical :: stopped(size(failure))
-    integer :: i
-    do i = 1, size(failure)
-      stopped(i) = failure(i)(1:min(7, len(failure(i)))) == 'stopped'
-    end do
-  end function stopped_probes
+  !> Whether a probe's failure says it was stopped (slower than the fastest; race writes it).
+  elemental logical function was_stopped(failure)
+    character(len=*), intent(in) :: failure
+    was_stopped = len(failure) >= 7
+    if (was_stopped) was_stopped = failure(1:7) == 'stopped'
+  end function was_stopped
 
   !> A probe's mean CPU rate over what it ran, finished or stopped (its stepper's making
   !> included); huge when it failed.
@@ -376,7 +373,7 @@ contains
     type(probe_run), intent(in) :: run
     character(len=*), intent(in) :: failure
     r = huge(1.0_dp)
-    if ((len_trim(failure) == 0 .or. failure(1:7) == 'stopped') .and. run%t_run > 0.0_dp) r = run%cpu/run%t_run
+    if ((len_trim(failure) == 0 .or. was_stopped(failure)) .and. run%t_run > 0.0_dp) r = run%cpu/run%t_run
   end function mean_rate
 
   !> The pace entry at or after the time t into a probe of length t_len.
@@ -559,7 +556,7 @@ contains
     if (switched) then
       self%chosen = best; self%base_rate = -1.0_dp; self%t_open = st%time() + self%t_probe
     end if
-    self%lead = lead_of(bound(1:self%n), self%chosen, stopped_probes(failures(1:self%n)))
+    self%lead = lead_of(bound(1:self%n), self%chosen, was_stopped(failures(1:self%n)))
     if (.not. switched) then
       self%base_rate = baseline_after_review(self%base_rate, rate, self%lead); return
     end if
@@ -713,7 +710,7 @@ contains
     integer, intent(in) :: i
     character(len=:), allocatable :: s
     if (len_trim(self%failure(i)) > 0) then
-      s = merge('stopped', 'failed ', self%failure(i)(1:7) == 'stopped')
+      s = merge('stopped', 'failed ', was_stopped(self%failure(i)))
       s = trim(s)
     else
       s = milliseconds(self%cpu(i)) // ', run ' // milliseconds(self%predicted(i))
