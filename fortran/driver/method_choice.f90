@@ -442,10 +442,17 @@ contains
     due = t >= self%t_window + review_share*t_end
   end function review_due
 
-  !> A window starts: the thread's CPU noted, its output calls and their CPU back to none.
-  subroutine restart_window(self)
+  !> A window starts: the thread's CPU noted (`cpu` when the caller has just read it: the
+  !> clock is a system call, 0.5 us), its output calls and their CPU back to none.
+  subroutine restart_window(self, cpu)
     class(method_choice_t), intent(inout) :: self
-    self%cpu_window = thread_cpu_time(); self%output = 0.0_dp
+    real(dp), intent(in), optional :: cpu
+    if (present(cpu)) then
+      self%cpu_window = cpu
+    else
+      self%cpu_window = thread_cpu_time()
+    end if
+    self%output = 0.0_dp
     self%n_out = 0; self%n_timed = 0
   end subroutine restart_window
 
@@ -472,26 +479,29 @@ contains
     type(model_t), intent(in) :: model
     class(stepper_t), intent(in) :: st
     logical, intent(out) :: switched
-    real(dp) :: rate
-    switched = .false.
-    rate = thread_cpu_time() - self%cpu_window
+    real(dp) :: rate, cpu
+    logical :: probed
+    switched = .false.; probed = .false.
+    cpu = thread_cpu_time()
+    rate = cpu - self%cpu_window
     if (self%n_timed > 0) rate = rate - self%output*self%n_out/self%n_timed
     rate = rate/(st%time() - self%t_window)
     if (rate <= 0.0_dp) then     ! the sampled output's estimate beyond the window's CPU
-      call self%restart_window(); self%t_window = st%time(); return
+      call self%restart_window(cpu); self%t_window = st%time(); return
     end if
     if (self%base_rate < 0.0_dp) then
       self%base_rate = rate
     else
       self%dear = merge(self%dear + 1, 0, rate > max(review_margin, switch_gain*self%lead)*self%base_rate)
       self%base_rate = min(self%base_rate, rate)
-      if (self%dear >= dear_windows .and. pays(self, rate, sc%scene%t_end - st%time())) &
-        & call probe_again(self, sc, model, st, rate, switched)
+      probed = self%dear >= dear_windows .and. pays(self, rate, sc%scene%t_end - st%time())
+      if (probed) call probe_again(self, sc, model, st, rate, switched)
     end if
     ! the next window starts after the review's probes, after the start's steps when another
     ! method took over
     self%t_window = merge(-1.0_dp, st%time(), switched)
-    call self%restart_window()
+    if (probed) cpu = thread_cpu_time()
+    call self%restart_window(cpu)
   end subroutine review
 
   !> Whether a review can pay at the window's CPU rate with `rest` of the run left: what a
