@@ -12,7 +12,7 @@
 !> choose the next step and order.
 module pymr_integrator_adams
   use pymr_env_kinds, only : dp
-  use pymr_env_error, only : error_type, fatal_error, stat_solver
+  use pymr_env_error, only : error_type, fatal_error, stat_solver, prefix_error
   use pymr_integrator_ode, only : ode_system
   use pymr_integrator_control, only : step_control, error_weights, wrms_norm
   use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps, state_record, project_step, projection_eta, &
@@ -397,7 +397,7 @@ contains
     ! the time goes into the message only on a failure (formatting it for every factorisation
     ! took 3 % of the steps of a probe of 'adams' on the tank)
     call lu_factor(self%nt%lu, self%nt%piv, 'I - gamma J of the corrector', error)
-    if (allocated(error)) error%message = 'at t = ' // fmt(tn) // ' s: ' // error%message
+    if (allocated(error)) call prefix_error(error, 'at t = ' // fmt(tn) // ' s')
     self%nt%gamma_lu = gamma; self%rate = 1.0_dp; self%gamma_rate = gamma
   end subroutine newton_setup
 
