@@ -437,22 +437,17 @@ contains
     if (self%t_window < 0.0_dp) then
       if (t < self%t_open) return
       self%t_window = t
-      call self%restart_window(); return
+      call self%restart_window(thread_cpu_time()); return
     end if
     due = t >= self%t_window + review_share*t_end
   end function review_due
 
-  !> A window starts: the thread's CPU noted (`cpu` when the caller has just read it: the
-  !> clock is a system call, 0.5 us), its output calls and their CPU back to none.
+  !> A window starts at the thread's CPU `cpu` (a window's end reading starts the next one:
+  !> the clock is a system call, 0.5 us), its output calls and their CPU back to none.
   subroutine restart_window(self, cpu)
     class(method_choice_t), intent(inout) :: self
-    real(dp), intent(in), optional :: cpu
-    if (present(cpu)) then
-      self%cpu_window = cpu
-    else
-      self%cpu_window = thread_cpu_time()
-    end if
-    self%output = 0.0_dp
+    real(dp), intent(in) :: cpu
+    self%cpu_window = cpu; self%output = 0.0_dp
     self%n_out = 0; self%n_timed = 0
   end subroutine restart_window
 
