@@ -38,12 +38,14 @@ module pymr_driver_preflight
 
   !> Steppers whose whole state has at most this many components get the spectral radius
   !> of their macro-step map from its matrix (LAPACK dgeev); larger ones by power iteration
-  !> (at most max_iterations macro steps). dgeev's work grows as the cube of the state: on
-  !> the spacecraft's 'full' coupling (400 components, k = 10) it took 0.11-0.15 s of CPU
-  !> with reference LAPACK, 10-14 % of the run, where 3000 macro steps of power iteration
-  !> took 0.08 s. A Krylov (Arnoldi) estimate was tried and dropped: on the stiff barrel
-  !> its Ritz values lay outside the spectrum (non-normal map).
-  integer, parameter :: max_exact_state = 256, max_iterations = 3000
+  !> (at most max_iterations macro steps). A Krylov (Arnoldi) estimate was tried and
+  !> dropped: on the stiff barrel its Ritz values lay outside the spectrum (non-normal map).
+  !> Power iteration from 257 components was tried too, for dgeev's cost (0.11-0.15 s on
+  !> the spacecraft's 'full' map of 400 components, 10-14 % of the run, against 0.08 s for
+  !> 3000 macro steps), and dropped: it underestimated the growth. On that map at
+  !> k = 11-24 dgeev gives growths over the run of e^0.8 to e^5.1, power iteration e^-1.9 to
+  !> e^1.9, and the largest stable ratio was 24 instead of 13.
+  integer, parameter :: max_exact_state = 400, max_iterations = 3000
 
   !> Relative resolution of the linearisation's central differences (increments 1e-6 of
   !> each coordinate: rounding of about 2e-16/1e-6 of the forces): a residual stiffness or
