@@ -11,7 +11,7 @@ module pymr_env_lapack
   use pymr_env_text, only : itoa, fmt
   implicit none
   private
-  public :: potrf, potrs, sygvd, ptsv, geev_complex, geev_real, factor_inverse, band_solve
+  public :: potrf, potrs, sygvd, syevd, ptsv, geev_complex, geev_real, factor_inverse, band_solve
   public :: lu_factor, lu_solve, general_solve, complex_inverse
   public :: illegal_argument_probe
 
@@ -67,6 +67,14 @@ module pymr_env_lapack
       real(dp), intent(out) :: w(*), work(*)
       integer, intent(out) :: iwork(*), info
     end subroutine dsygvd
+    subroutine dsyevd(jobz, uplo, n, a, lda, w, work, lwork, iwork, liwork, info)
+      import :: dp
+      integer, intent(in) :: n, lda, lwork, liwork
+      character(len=1), intent(in) :: jobz, uplo
+      real(dp), intent(inout) :: a(lda, *)
+      real(dp), intent(out) :: w(*), work(*)
+      integer, intent(out) :: iwork(*), info
+    end subroutine dsyevd
     subroutine zgeev(jobvl, jobvr, n, a, lda, w, vl, ldvl, vr, ldvr, work, lwork, rwork, info)
       import :: dp
       character(len=1), intent(in) :: jobvl, jobvr
@@ -322,6 +330,28 @@ contains
         & stat_solver)
     end if
   end subroutine sygvd
+
+  !> Symmetric eigenproblem A v = lambda v (all eigenpairs, ascending), LAPACK dsyevd. On
+  !> return `a` holds the orthonormal eigenvectors in its columns. `what` names A in
+  !> messages.
+  subroutine syevd(a, lambda, what, error)
+    real(dp), intent(inout) :: a(:, :)
+    real(dp), intent(out) :: lambda(:)
+    character(len=*), intent(in) :: what
+    type(error_type), allocatable, intent(out) :: error
+    integer :: n, info, iwq(1)
+    real(dp) :: wq(1)
+    real(dp), allocatable :: work(:)
+    integer, allocatable :: iwork(:)
+    n = size(a, 1)
+    if (n == 0) return
+    call check_matrix(a, 'dsyevd', what, error); if (allocated(error)) return
+    call dsyevd('V', 'L', n, a, n, lambda, wq, -1, iwq, -1, info)
+    allocate(work(int(wq(1))), iwork(iwq(1)))
+    call dsyevd('V', 'L', n, a, n, lambda, work, size(work), iwork, size(iwork), info)
+    if (info /= 0) call fatal_error(error, 'eigenvalue solver dsyevd failed for ' // what // ' (info ' // &
+      & itoa(info) // ')', stat_solver)
+  end subroutine syevd
 
   !> Eigenvalues w of the complex square matrix a (overwritten), LAPACK zgeev.
   subroutine geev_complex(a, w, what, error)

@@ -12,7 +12,8 @@
 !>   a = Phi u with Phi = L Psi turns the undamped part into u'' = -Omega^2 u;
 !> - the damping Psi^T L^T D L Psi couples the u; in the scaled coordinates [Omega u; u'] the
 !>   first-order matrix is skew-symmetric plus the damping, nearly normal, and LAPACK dgeev
-!>   gives its eigenvalues lambda and well-conditioned eigenvectors;
+!>   gives its eigenvalues lambda and well-conditioned eigenvectors (an undamped group's
+!>   are known in closed form: lambda = +-i omega, no eigenproblem);
 !> - eta = W z (W = V^-1) are then independent: eta' = lambda eta + W [0; rho_f], solved in
 !>   closed form with the phi functions phi_k(lambda tau), and the slow coordinates by
 !>   integrating the same closed form once and twice.
@@ -20,7 +21,7 @@
 module pymr_integrator_modal_flow
   use pymr_env_kinds, only : dp
   use pymr_env_error, only : error_type, fatal_error, stat_solver
-  use pymr_env_lapack, only : potrf, sygvd, geev_real, complex_inverse
+  use pymr_env_lapack, only : potrf, syevd, geev_real, complex_inverse
   implicit none
   private
   public :: modal_flow_t, flow_rows_t, taylor_weights, n_coef, n_phi
@@ -184,11 +185,9 @@ contains
     real(dp), intent(in) :: gf(:, :), kf(:), df(:)
     integer, intent(inout) :: m
     type(error_type), allocatable, intent(out) :: error
-    real(dp), allocatable :: l(:, :), b(:, :), eye(:, :), om2(:), om(:), phi(:, :), cu(:, :), a(:, :), wr(:), wi(:), &
-      & vr(:, :), pinv(:, :)
-    complex(dp), allocatable :: vy(:, :), wy(:, :), tmp(:, :)
-    integer :: nf, ng, i, j
-    nf = self%nf; ng = size(idx)
+    real(dp), allocatable :: l(:, :), b(:, :), om2(:), om(:), phi(:, :), pinv(:, :)
+    integer :: ng, j
+    ng = size(idx)
     ! G = L L^T; L^T K L = Psi Omega^2 Psi^T
     l = gf
     call potrf(l, "the fast coordinates' response G", error); if (allocated(error)) return
@@ -196,19 +195,60 @@ contains
       l(1:j-1, j) = 0.0_dp
     end do
     b = matmul(transpose(l), spread(kf, 2, ng)*l)
-    allocate(eye(ng, ng), om2(ng)); eye = 0.0_dp
-    do i = 1, ng
-      eye(i, i) = 1.0_dp
-    end do
-    call sygvd(b, eye, om2, "the fast coordinates' stiffness", error); if (allocated(error)) return
+    allocate(om2(ng))
+    call syevd(b, om2, "the fast coordinates' stiffness", error); if (allocated(error)) return
     if (any(.not. om2 > 0.0_dp)) then
       call fatal_error(error, "coupling 'exponential': a fast (modal) coordinate has no stiffness, so its flow " // &
         & "cannot be diagonalised: use coupling = 'response'", stat_solver); return
     end if
     om = sqrt(om2)
     phi = matmul(l, b)                                     ! a = Phi u
-    cu = matmul(transpose(phi), spread(df, 2, ng)*phi)     ! damping in u
-    ! scaled first-order matrix in [Omega u; u']
+    pinv = phi_inverse(l, b)
+    if (all(df == 0.0_dp)) then
+      call keep_undamped(self, idx, om, phi, pinv, v, m)
+    else
+      call keep_damped(self, idx, om, phi, pinv, matmul(transpose(phi), spread(df, 2, ng)*phi), v, m, error)
+    end if
+  end subroutine build_group
+
+  !> An undamped group's modes: in [Omega u; u'] the first-order matrix [0 Omega; -Omega 0]
+  !> has the eigenvalues +-i omega_k and the unitary eigenvectors [e_k; +-i e_k]/sqrt(2)
+  !> (W = V^H), so no general eigenproblem is solved: on the stiff barrel (16 modes) that
+  !> is most of a renewal's CPU.
+  pure subroutine keep_undamped(self, idx, om, phi, pinv, v, m)
+    class(modal_flow_t), intent(inout) :: self
+    integer, intent(in) :: idx(:)
+    real(dp), intent(in) :: om(:), phi(:, :), pinv(:, :)
+    complex(dp), intent(inout) :: v(:, :)
+    integer, intent(inout) :: m
+    real(dp), parameter :: r2 = sqrt(0.5_dp)
+    complex(dp), parameter :: i1 = (0.0_dp, 1.0_dp)
+    integer :: k, nf
+    nf = self%nf
+    do k = 1, size(om)
+      m = m + 1
+      self%lam(m) = cmplx(0.0_dp, om(k), dp); self%wgt(m) = 2.0_dp
+      v(idx, m) = cmplx(phi(:, k)*(r2/om(k)), 0.0_dp, dp)
+      v(nf+idx, m) = i1*(r2*phi(:, k))
+      self%w(m, idx) = cmplx(r2*om(k)*pinv(k, :), 0.0_dp, dp)
+      self%w(m, nf+idx) = -i1*(r2*pinv(k, :))
+    end do
+  end subroutine keep_undamped
+
+  !> A damped group's modes (damping cu in u): in the scaled coordinates [Omega u; u'] the
+  !> first-order matrix is skew-symmetric plus the damping, nearly normal, and LAPACK dgeev
+  !> gives its eigenvalues and well-conditioned eigenvectors.
+  subroutine keep_damped(self, idx, om, phi, pinv, cu, v, m, error)
+    class(modal_flow_t), intent(inout) :: self
+    integer, intent(in) :: idx(:)
+    real(dp), intent(in) :: om(:), phi(:, :), pinv(:, :), cu(:, :)
+    complex(dp), intent(inout) :: v(:, :)
+    integer, intent(inout) :: m
+    type(error_type), allocatable, intent(out) :: error
+    real(dp), allocatable :: a(:, :), wr(:), wi(:), vr(:, :)
+    complex(dp), allocatable :: vy(:, :), wy(:, :), tmp(:, :)
+    integer :: nf, ng, i, j
+    nf = self%nf; ng = size(idx)
     allocate(a(2*ng, 2*ng)); a = 0.0_dp
     do i = 1, ng
       a(i, ng+i) = om(i); a(ng+i, i) = -om(i)
@@ -229,7 +269,6 @@ contains
     allocate(wy(2*ng, 2*ng))
     tmp = vy
     call complex_inverse(tmp, wy, "the fast coordinates' eigenvectors", error); if (allocated(error)) return
-    pinv = phi_inverse(l, b)
     ! the kept eigenvalues: one of each pair (positive imaginary part), every real one
     do j = 1, 2*ng
       if (wi(j) < 0.0_dp) cycle
@@ -243,7 +282,7 @@ contains
       self%w(m, idx) = matmul(wy(j, 1:ng)*om, pinv)
       self%w(m, nf+idx) = matmul(wy(j, ng+1:), pinv)
     end do
-  end subroutine build_group
+  end subroutine keep_damped
 
   !> Phi^-1 = Psi^T L^-1 (L lower triangular, Psi orthogonal).
   pure function phi_inverse(l, psi) result(p)
