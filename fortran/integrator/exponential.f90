@@ -417,7 +417,7 @@ contains
   pure function ex_counts(self) result(c)
     class(exponential_integrator), intent(in) :: self
     type(step_counts) :: c
-    c%steps_slow = self%steps; c%steps_fast = self%steps
+    c%steps_slow = self%steps; c%steps_fast = self%steps; c%renewals = self%renewals
     c%rejected = self%rejected; c%h_last = self%last%h; c%ratio = 1
   end function ex_counts
 

@@ -34,6 +34,8 @@ module pymr_integrator_stepper
     !> Fast right-hand sides the stepper computed itself, without the model (the
     !> 'response' coupling's surrogate evaluations).
     integer :: evals_fast = 0
+    !> Times the stepper froze its linear response anew (the 'exponential' coupling).
+    integer :: renewals = 0
   end type step_counts
 
   !> The fixed steps a stepper's PECE formula takes on vibrations carried mostly by joint
