@@ -8,8 +8,9 @@
 !> first `probe_share` of the run, at the scene's tolerances, with the dense output of the
 !> run's rows (its cost differs between the methods: the exponential flow's closed form
 !> against a polynomial); 'response' is left out when 'exponential' finished its probe
-!> without freezing its response anew (response_left_out). Its CPU over the probe's second half (past the start's small
-!> steps), scaled to the rest of the run, plus its CPU up to there, predicts its run; the
+!> without freezing its response anew (response_left_out). Its CPU over the probe's second
+!> half (past the start's small steps), scaled to the rest of the run, plus its CPU up to
+!> there, predicts its run; the
 !> least prediction runs the scene. A probe that has taken `race_margin` times the CPU of
 !> the fastest finished probe is stopped: its candidate is slower; so is one whose steps
 !> have taken `far_margin` times the CPU the fastest finished probe's steps took to reach
@@ -66,6 +67,8 @@ module pymr_driver_method_choice
   integer, parameter :: far_steps = 10
   real(dp), parameter :: far_run = 10.0_dp
   integer, parameter :: max_candidates = 3
+  !> A candidate's failure when response_left_out leaves it out of the start's probes.
+  character(len=*), parameter :: left_out_note = "left out: 'exponential' kept its frozen response over its probe"
   !> Rows of dense output a probe keeps at most (beyond, its run starts again from 0).
   integer, parameter :: max_probe_rows = 20000
   !> Times in a probe at which its CPU so far is noted (its pace, for the far_margin rule).
@@ -213,7 +216,7 @@ contains
     if (choice%method(i) /= 3 .or. choice%method(1) /= 2 .or. .not. allocated(choice%runs(1)%st)) return
     done = choice%runs(1)%st%counts()
     out = done%renewals == 0
-    if (out) choice%failure(i) = "left out: 'exponential' kept its frozen response over its probe"
+    if (out) choice%failure(i) = left_out_note
   end function response_left_out
 
   !> The integrator settings the candidates run with: the scene's, with error_norm
@@ -735,7 +738,7 @@ contains
     class(method_choice_t), intent(in) :: self
     integer, intent(in) :: i
     character(len=:), allocatable :: s
-    if (self%failure(i)(1:8) == 'left out') then
+    if (self%failure(i) == left_out_note) then
       s = 'left out'
     else if (len_trim(self%failure(i)) > 0) then
       s = merge('stopped', 'failed ', was_stopped(self%failure(i)))
