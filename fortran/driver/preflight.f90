@@ -12,6 +12,7 @@ module pymr_driver_preflight
   use pymr_env_kinds, only : dp, pi
   use pymr_env_error, only : error_type, fatal_error, stat_input, set_fault
   use pymr_env_lapack, only : potrf, potrs, geev_real, factor_inverse
+  use pymr_env_graph, only : connected_parts
   use pymr_model, only : model_t, model_counters
   use pymr_model_loops, only : independent_rows, loop_jacobian, constrain_inverse
   use pymr_integrator_stability, only : pece_growth, pece_limit, imaginary_axis_limit
@@ -584,9 +585,7 @@ contains
       call st%get_state(g(:, j))
     end do
     if (.not. with_vector) then
-      call geev_real(g, wr, wi, 'the linearised macro step', error); if (allocated(error)) return
-      rho = maxval(hypot(wr, wi))
-      return
+      rho = block_radius(g, error); return
     end if
     allocate(vr(nz, nz))
     call geev_real(g, wr, wi, 'the linearised macro step', error, vr); if (allocated(error)) return
@@ -595,6 +594,29 @@ contains
     if (wi(top) < 0.0_dp .and. top > 1) top = top - 1
     v = vr(:, top)
   end subroutine map_radius
+
+  !> Spectral radius of g from the eigenvalues of its diagonal blocks: the state components
+  !> that do not act on each other (connected_parts) are taken apart, so that each dgeev is
+  !> of one block. The spacecraft's 'full' map of 400 components has blocks of 200, 96, 96
+  !> and 8 (the booms' bending out of the slew's plane apart): a sixth of the work.
+  function block_radius(g, error) result(rho)
+    real(dp), intent(in) :: g(:, :)
+    type(error_type), allocatable, intent(out) :: error
+    real(dp) :: rho
+    integer, allocatable :: part(:), idx(:)
+    real(dp), allocatable :: b(:, :), wr(:), wi(:)
+    integer :: c, i
+    part = connected_parts(g)
+    rho = 0.0_dp
+    do c = 1, maxval(part)
+      idx = pack([(i, i = 1, size(part))], part == c)
+      b = g(idx, idx)
+      allocate(wr(size(idx)), wi(size(idx)))
+      call geev_real(b, wr, wi, 'the linearised macro step', error); if (allocated(error)) return
+      rho = max(rho, maxval(hypot(wr, wi)))
+      deallocate(wr, wi)
+    end do
+  end function block_radius
 
   !> Growth per macro step by power iteration from a fixed start with every component
   !> present (the geometric mean over the second half of `iters` steps). The norm leaves

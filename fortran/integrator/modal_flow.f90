@@ -22,6 +22,7 @@ module pymr_integrator_modal_flow
   use pymr_env_kinds, only : dp
   use pymr_env_error, only : error_type, fatal_error, stat_solver
   use pymr_env_lapack, only : potrf, syevd, geev_real, complex_inverse
+  use pymr_env_graph, only : connected_parts
   implicit none
   private
   public :: modal_flow_t, flow_rows_t, taylor_weights, n_coef, n_phi
@@ -100,7 +101,7 @@ contains
     nf = size(kf)
     self%ns = ns; self%nf = nf
     self%g0 = g; self%kf0 = kf; self%df0 = df
-    group = coupled_groups(g(ns+1:, :))
+    group = connected_parts(g(ns+1:, :))        ! fast coordinates that act on each other
     ng = maxval([0, group])
     if (allocated(self%lam)) deallocate(self%lam, self%w, self%wgt, self%mode_start, self%row_start, self%rows)
     allocate(self%lam(2*nf), v(2*nf, 2*nf), self%w(2*nf, 2*nf), self%wgt(2*nf))
@@ -149,30 +150,6 @@ contains
     integer :: i
     modes = [(i, i = self%mode_start(c), self%mode_start(c+1) - 1)]
   end function group_modes
-
-  !> Group number of each fast coordinate: the connected parts of the graph G_ij /= 0.
-  pure function coupled_groups(gf) result(group)
-    real(dp), intent(in) :: gf(:, :)
-    integer :: group(size(gf, 1))
-    integer :: i, j, n, ng
-    logical :: grew
-    n = size(gf, 1)
-    group = 0; ng = 0
-    do i = 1, n
-      if (group(i) /= 0) cycle
-      ng = ng + 1; group(i) = ng
-      grew = .true.
-      do while (grew)
-        grew = .false.
-        do j = 1, n
-          if (group(j) /= 0) cycle
-          if (any(group == ng .and. (gf(:, j) /= 0.0_dp .or. gf(j, :) /= 0.0_dp))) then
-            group(j) = ng; grew = .true.
-          end if
-        end do
-      end do
-    end do
-  end function coupled_groups
 
   !> The flow of one group of fast coordinates idx (its G, kf, df): its eigenvalues kept
   !> from position m + 1 on (m advanced past them), their vectors in V's rows and W's
