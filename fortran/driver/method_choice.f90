@@ -10,17 +10,16 @@
 !> against a polynomial); 'response' is left out when 'exponential' finished its probe
 !> without freezing its response anew (response_left_out). Its CPU over the probe's second
 !> half (past the start's small steps), scaled to the rest of the run, plus its CPU up to
-!> there, predicts its run; the
-!> least prediction runs the scene. A probe that has taken `race_margin` times the CPU of
-!> the fastest finished probe is stopped: its candidate is slower; so is one whose steps
-!> have taken `far_margin` times the CPU the fastest finished probe's steps took to reach
-!> the same time (after `far_steps` steps; the steppers' making and start left out, which
-!> for the exponential flow is most of a short probe; the start's small steps are
-!> compared with the other start's), and one whose CPU so far, past a quarter of its
-!> probe, scaled to the whole run, is `far_run` times the least prediction (a method
-!> several times slower over the run is seen early). A scene without both kinds of
-!> coordinates runs single-rate with no probe. A run continued from a checkpoint keeps the
-!> method that wrote it.
+!> there, predicts its run; the least prediction runs the scene. A probe that has taken
+!> `race_margin` times the CPU of the fastest finished probe is stopped: its candidate is
+!> slower; so is one whose steps have taken `far_margin` times the CPU the fastest finished
+!> probe's steps took to reach the same time (after `far_steps` steps; the steppers'
+!> making and start left out, which for the exponential flow is most of a short probe; the
+!> start's small steps are compared with the other start's), and one whose CPU so far,
+!> past a quarter of its probe, scaled to the whole run, is `far_run` times the least
+!> prediction (a method several times slower over the run is seen early). A scene without
+!> both kinds of coordinates runs single-rate with no probe. A run continued from a
+!> checkpoint keeps the method that wrote it.
 !>
 !> The review: a method's cost can change as the motion does (the flexible chain's links
 !> spin up, and the 'exponential' coupling renews its frozen response more often). Every
