@@ -223,21 +223,6 @@ def test_a_force_that_turns_on_is_crossed_and_the_steps_recover(rtol):
     assert abs(x[0] - forced_response(3.0)) <= 2 * rtol
 
 
-@pytest.fixture(scope="module")
-def stiff_barrel_reference():
-    """DOP853 at rtol 1e-13 on pymr's own right-hand side over 0.2 s (muzzle every 1 ms)."""
-    from scipy.integrate import solve_ivp
-    scene = ROOT / "input" / "hard" / "stiff_barrel.nml"
-    probe = pymr.run(scene, overrides={"output.dt": 0.0, "scene.t_end": 1e-6})
-    q, qd = probe.coordinates()
-    x0 = np.concatenate([q[0], qd[0]])
-    grid = np.linspace(0.0, 0.2, 201)
-    with pymr.Model(scene) as model:
-        sol = solve_ivp(model.rhs, (0.0, 0.2), x0, method="DOP853", t_eval=grid, rtol=1e-13, atol=1e-15)
-        n = q.shape[1]
-        return scene, model.marker("muzzle", sol.t, sol.y[:n].T, sol.y[n:].T)
-
-
 @pytest.mark.parametrize("rtol, bound", [(1e-8, 1e-10), (1e-10, 1e-11)])
 def test_start_from_rest_leaves_no_error_in_the_stiff_modes(tmp_path, stiff_barrel_reference, rtol, bound):
     """Stiff barrel (1015 Hz top mode) from rest: the first step comes from the tolerances

@@ -183,19 +183,22 @@ def test_more_joint_than_modal_coordinates_converge_at_fourth_order(tmp_path):
     assert err[1] < 1e-9 and np.log2(err[0] / err[1]) > 3.5
 
 
-@pytest.mark.parametrize("coupling", ["exponential", "response"])
-def test_amplitude_error_norm_keeps_the_tolerance_with_fewer_evaluations(tank_reference, coupling):
+@pytest.mark.parametrize("coupling, share", [("exponential", 0.6), ("response", 2 / 3)])
+def test_amplitude_error_norm_keeps_the_tolerance_with_fewer_evaluations(tank_reference, coupling, share):
     """error_norm = 'amplitude' weighs a mode's rate error by the amplitude it moves (1/omega
     of it). On the tank over 0.5 s (atol = rtol/100) the steps are no longer held by the
     barrel's modal rates (the fourth mode's rate held 'exponential''s steps at 2-6 ms), and
     the muzzle still ends within the tolerance. Measured err/rtol at rtol 1e-4, 1e-5 and
-    1e-6: 0.36, 0.37, 0.085 ('exponential'), 0.28, 0.083, 0.16 ('response'), with 0.20-0.55
-    of the full evaluations that 'state' takes at the same rtol (0.12-0.64 and 0.05-0.09
-    rtol with 'state')."""
+    1e-6: 0.068, 0.012, 0.060 ('exponential'; 0.004-0.036 with 'state'), 0.010, 0.014,
+    0.015 ('response'; 0.006-0.007 with 'state'), with 0.33-0.55 ('exponential') and
+    0.49-0.61 ('response') of the full evaluations that 'state' takes at the same rtol.
+    'response''s share was 0.20-0.55 while its fast steps were held to the tolerance one
+    by one; summed over the macro step (test_response.py) they are held tighter under
+    either norm (rtol 1e-6: 8,506 fast steps with 'amplitude', 10,104 with 'state')."""
     for rtol in (1e-4, 1e-5, 1e-6):
         runs = {norm: pymr.run(TANK, overrides={
             "scene.t_end": 0.5, "output.dt": 4e-3, "integrator.method": "multirate", "integrator.coupling": coupling,
             "integrator.adaptive": True, "integrator.rtol": rtol, "integrator.atol": rtol * 1e-2,
             "integrator.error_norm": norm}) for norm in ("state", "amplitude")}
         assert muzzle_error(runs["amplitude"], tank_reference) < 2 * rtol
-        assert runs["amplitude"].stats["rhs_full"] < 0.6 * runs["state"].stats["rhs_full"]
+        assert runs["amplitude"].stats["rhs_full"] < share * runs["state"].stats["rhs_full"]
