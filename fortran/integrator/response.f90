@@ -264,8 +264,9 @@ contains
   !> end (every step is a full one until the history is complete). err_f: the fast steps'
   !> weighted corrector estimates summed over the macro step (each step's error is in the
   !> state at its end, as the surrogate's is: the largest alone let the k steps' errors
-  !> grow k times the tolerance, and on the stiff barrel the muzzle error per unit rtol
-  !> grew from 0.25 m at rtol 1e-5 to 5.7 m at 1e-8, where the sum holds it at 0.11-0.15 m);
+  !> grow k times the tolerance, and on the stiff barrel over 0.2 s the muzzle error per
+  !> unit rtol grew from 0.078 m at rtol 1e-5 to 0.93 m at 1e-8, where the sum holds it at
+  !> 0.022-0.026 m: tests/test_response.py);
   !> err_s: weighted state error of the surrogate over the macro step (adaptive runs only).
   subroutine try_macro_step(self, sys, err_f, err_s, error)
     class(response_integrator), intent(inout) :: self
