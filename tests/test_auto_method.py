@@ -213,13 +213,28 @@ def test_when_every_probe_fails_the_single_rate_run_reports_why(tmp_path, mrsim)
 CHAIN_AUTO = {**AUTO, "output.quantities": ["coordinates", "markers", "energy"]}
 
 
-def _balance(res) -> float:
-    """The energy balance's largest residual over the energy scale (the largest kinetic
+def _residual(res) -> np.ndarray:
+    """The energy balance's residual at each row over the energy scale (the largest kinetic
     energy): what the energy gained less the drives', loads' and motions' work and the
     damping's loss."""
     work = res["energy.drive_work"] + res["energy.load_work"] + res["energy.motion_work"] - res["energy.damping_loss"]
-    residual = res["energy.total"] - res["energy.total"][0] - work
-    return np.abs(residual).max() / np.abs(res["energy.kinetic"]).max()
+    return (res["energy.total"] - res["energy.total"][0] - work) / np.abs(res["energy.kinetic"]).max()
+
+
+def _balance_carries_across(res, t_cut: float) -> None:
+    """The energy balance carries across a change of stepper at t_cut (a hand-over, or a
+    restart from a checkpoint): its residual moves from the last row at or before t_cut to
+    the next by no more than twice its largest move between any other two rows. A state or
+    a work lost there would jump: the drives' work by 1.0 s is about 5e5 rtol of the energy
+    scale. How far the residual drifts over the run depends on the method, not on the
+    change: on the flexible chain at rtol 1e-6 with error_norm 'amplitude', 'response' alone
+    ends within 0.04 rtol and moves by at most 0.007 rtol a row; 'adams' alone ends 4.4 rtol
+    away and moves by up to 1.3 rtol a row (its strain energy's error swings with the
+    modes), and 'exponential' 8.2 and 0.5."""
+    moves = np.abs(np.diff(_residual(res)))
+    i = np.searchsorted(res.t, t_cut + 1e-9, side="right") - 1
+    assert 0 <= i < len(moves)
+    assert moves[i] <= 2.0 * np.delete(moves, i).max(), (t_cut, moves[i])
 
 
 def test_the_review_measures_growth_from_the_cheapest_window(tmp_path):
@@ -265,8 +280,9 @@ def test_a_method_that_gets_dearer_is_reviewed_and_handed_over(tmp_path):
     (docs/integrators.md). Whatever the start's probes chose, the run does not end on it.
     Each review follows the rule (windows 1.5x the baseline; the method that takes over probed
     1.2x cheaper than the running one), the JSON's integrator settings
-    are the method the run ended with, and the energy balances within rtol of the kinetic
-    energy across the hand-over (each candidate alone: 0.3-0.8e-7 at rtol 1e-6)."""
+    are the method the run ended with, and the energy balance carries across each hand-over
+    (_balance_carries_across: at 0.38 s from 'exponential' to 'response' it moved by 0.0007
+    rtol of the energy scale, against at most 0.007 in the other rows)."""
     auto = pymr.run(CHAIN, tmp_path / "auto.csv", overrides=CHAIN_AUTO)
     choice = auto.stats["method_choice"]
     assert choice["ended_with"] != "multirate 'exponential'"
@@ -278,13 +294,13 @@ def test_a_method_that_gets_dearer_is_reviewed_and_handed_over(tmp_path):
         rates = dict(zip(labels, review["cpu_s_per_s"]))
         if review["took_over"]:
             assert 1.2 * rates[review["took_over"]] < rates[running]
+            _balance_carries_across(auto, review["t"])
             running = review["took_over"]
     assert running == choice["ended_with"]
     settings = auto.stats["integrator"]
     assert settings["method"] == METHOD_OF[running]["integrator.method"]
     if settings["method"] == "multirate":
         assert settings["coupling"] == METHOD_OF[running]["integrator.coupling"]
-    assert _balance(auto) <= settings["rtol"]
     line = next(s for s in auto.summary.splitlines() if s.startswith("auto: "))
     assert ("took over" in line) == _switched(auto)
 
@@ -294,8 +310,11 @@ def test_a_run_handed_over_continues_from_its_checkpoint(tmp_path):
     checkpoint at 1.0 s was written by the method running then (after a hand-over from
     'exponential' to 'adams' the model is no longer partitioned, as a fresh single-rate
     model is not: the restart reads it). The rows up to the checkpoint are the cut run's,
-    the rows count as an uninterrupted run's, and the energy balances within rtol of the
-    kinetic energy over the whole run (the works go on from the checkpoint's)."""
+    the rows count as an uninterrupted run's, and the energy balance carries across the
+    restart (the works go on from the checkpoint's; _balance_carries_across: it moved by
+    0.0001 rtol of the energy scale there, against at most 0.007 in the other rows; with the
+    checkpoint's works read 1e-7 too large it moved by 0.03, while the whole run's balance
+    stayed within 0.07 rtol)."""
     over = {**CHAIN_AUTO, "output.checkpoint_dt": 0.5}
     out = tmp_path / "job.csv"
     cut = pymr.run(CHAIN, out, overrides={**over, "scene.t_end": 1.2})
@@ -304,4 +323,4 @@ def test_a_run_handed_over_continues_from_its_checkpoint(tmp_path):
     kept = cut.t <= 1.0 + 1e-9
     assert np.array_equal(res.data[: kept.sum()], cut.data[kept])
     assert res.stats["rows"] == len(res.t) == 2001 and np.allclose(res.t, np.linspace(0.0, 2.0, 2001))
-    assert _balance(res) <= res.stats["integrator"]["rtol"]
+    _balance_carries_across(res, 1.0)
