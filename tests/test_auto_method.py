@@ -15,6 +15,7 @@ import pytest
 
 import pymr
 from pymr import _testhooks
+from energy_balance import balance
 
 ROOT = Path(__file__).resolve().parent.parent
 SPACECRAFT = ROOT / "input" / "spacecraft.nml"
@@ -213,14 +214,6 @@ def test_when_every_probe_fails_the_single_rate_run_reports_why(tmp_path, mrsim)
 CHAIN_AUTO = {**AUTO, "output.quantities": ["coordinates", "markers", "energy"]}
 
 
-def _residual(res) -> np.ndarray:
-    """The energy balance's residual at each row over the energy scale (the largest kinetic
-    energy): what the energy gained less the drives', loads' and motions' work and the
-    damping's loss."""
-    work = res["energy.drive_work"] + res["energy.load_work"] + res["energy.motion_work"] - res["energy.damping_loss"]
-    return (res["energy.total"] - res["energy.total"][0] - work) / np.abs(res["energy.kinetic"]).max()
-
-
 def _balance_carries_across(res, t_cut: float) -> None:
     """The energy balance carries across a change of stepper at t_cut (a hand-over, or a
     restart from a checkpoint): its residual moves from the last row at or before t_cut to
@@ -231,7 +224,7 @@ def _balance_carries_across(res, t_cut: float) -> None:
     ends within 0.04 rtol and moves by at most 0.007 rtol a row; 'adams' alone ends 4.4 rtol
     away and moves by up to 1.3 rtol a row (its strain energy's error swings with the
     modes), and 'exponential' 8.2 and 0.5."""
-    moves = np.abs(np.diff(_residual(res)))
+    moves = np.abs(np.diff(balance(res) / np.abs(res["energy.kinetic"]).max()))
     i = np.searchsorted(res.t, t_cut + 1e-9, side="right") - 1
     assert 0 <= i < len(moves)
     assert moves[i] <= 2.0 * np.delete(moves, i).max(), (t_cut, moves[i])

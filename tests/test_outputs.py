@@ -21,6 +21,7 @@ import numpy as np
 import pytest
 
 import pymr
+from energy_balance import balance
 
 ROOT = Path(__file__).resolve().parents[1]
 INPUT = ROOT / "input"
@@ -29,13 +30,6 @@ ALL = ["coordinates", "markers", "marker_accelerations", "marker_orientations", 
 
 # pendulum.nml: 1 kg bob 1 m below the pivot, inertia 4e-5 kg m^2 about its centre
 M, L, G, I_C = 1.0, 1.0, 9.81, 4.0e-5
-
-
-def balance(res) -> np.ndarray:
-    """E(t) - E(0) - (W_drive + W_load + W_motion - D_damping)."""
-    e = res["energy.total"]
-    w = res["energy.drive_work"] + res["energy.load_work"] + res["energy.motion_work"] - res["energy.damping_loss"]
-    return e - e[0] - w
 
 
 def pendulum(tmp_path, **over):
