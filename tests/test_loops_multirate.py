@@ -68,8 +68,8 @@ def test_adaptive_full_coupling_meets_its_tolerance_on_a_loop(coupler, rtol):
 @pytest.mark.parametrize("rtol", [1e-4, 1e-6, 1e-8])
 def test_adaptive_response_meets_its_tolerance_on_a_flexible_loop(coupler, rtol):
     """Adaptive 'response' with its defaults (k_max 50, as on every scene): the crank angle
-    ends within 2 rtol of the reference (measured 0.03-0.60 rtol at 17 tolerances from 1e-4
-    to 1e-8, 0.02-0.66 without glibc's FMA and AVX2 paths). Its macro step is sized by the
+    ends within 2 rtol of the reference (measured 0.02-0.42 rtol at 17 tolerances from 1e-4
+    to 1e-8, 0.01-0.42 without glibc's FMA and AVX2 paths). Its macro step is sized by the
     error its correction leaves, over the last eight accepted steps, and the crank keeps
     every phase error, so an estimate that promised too much shows here: with the last
     step's alone the same runs ended up to 1.42 rtol away, and 2.22 without those paths,
