@@ -63,8 +63,8 @@ module pymr_integrator_response
   !> up to the controller's 4x, adaptive runs ended 1.5x further from the converged motion
   !> than with 10 % at the same evaluations (81 tolerances, rtol 3e-5 to 3e-7), and their
   !> errors scattered 1.37x about the fit against 1.25x. No change on the stiff barrel
-  !> (docs/method.md section 4.2).
-  real(dp), parameter :: ratio_growth = 0.1_dp
+  !> (docs/method.md section 4.2). In whole per cent, so that the bound is exact.
+  integer, parameter :: ratio_growth_percent = 10
 
   !> History of full evaluations, oldest first: nh times, accelerations (n, nh), fast
   !> states [a; ad] (2nf, nh); g of the newest, and the fast force coefficients; the full
@@ -470,12 +470,11 @@ contains
   !> step from the correctors' summed estimate (k h^5 = H h^4: the exponent 1/4 of
   !> ctl%ratio at a given macro step), the macro step from the surrogate's (after an
   !> accepted step, the envelope of its and the last one's: error_envelope), k = H/h
-  !> within [1, k_max] and at most ratio_growth above the last macro step's; after an
-  !> accepted step that followed a refusal for err_s (`refused`) the macro step does not
-  !> grow. A macro step taken while the history was
-  !> `filling` (no surrogate, no estimate of its error) keeps its ratio: grown on no
-  !> estimate, the tank's start took k = 35 and the rate error of its first steps stayed in
-  !> the turret's motion. The array is rescaled to the new fast step.
+  !> within [1, k_max] and at most ratio_growth_percent above the last macro step's (rounded
+  !> up); after an accepted step that followed a refusal for err_s (`refused`) the macro
+  !> step does not grow. A macro step taken while the history was `filling` (no surrogate,
+  !> no estimate of its error) keeps its ratio: grown on no estimate, the tank's start took
+  !> k = 35 and the rate error of its first steps stayed in the turret's motion. The array is rescaled to the new fast step.
   subroutine resize_steps(self, err_f, err_s, filling, accepted, refused, error)
     class(response_integrator), intent(inout) :: self
     real(dp), intent(in) :: err_f, err_s
@@ -492,7 +491,7 @@ contains
     if (h_new < self%ctl%h_min) then
       call step_underflow(error, self%t, 'fast step', h_new); return
     end if
-    self%k = min(max(1, floor(hm_new/h_new)), ceiling((1.0_dp + ratio_growth)*self%kn), self%k_max)
+    self%k = min(max(1, floor(hm_new/h_new)), self%kn + (ratio_growth_percent*self%kn + 99)/100, self%k_max)
     if (filling) self%k = min(self%kn, self%k_max)
     self%kn = self%k
     if (h_new /= self%h) then
