@@ -58,7 +58,7 @@ module pymr_integrator_response
   !> (docs/method.md section 4.2).
   real(dp), parameter :: credited_correction = 0.3_dp
   !> The most the step ratio k grows from one macro step to the next (at least by one).
-  !> The surrogate is a multistep extrapolation, and a macro step several times the
+  !> The surrogate is a multistep extrapolation, and a macro step longer than the
   !> history's spacing reaches where its error model holds least: on the tank, with growth
   !> up to the controller's 4x, adaptive runs ended 1.5x further from the converged motion
   !> than with 10 % at the same evaluations (81 tolerances, rtol 3e-5 to 3e-7), and their
