@@ -191,3 +191,20 @@ def test_adaptive_ratio_recovers_after_the_recoil(tmp_path):
     assert marker_dev(res, ref, "muzzle") < 10 * 1e-6
     assert res.stats["rejected_steps"] < 0.25 * res.stats["steps_slow"]
     assert res.stats["rhs_fast"] > 3 * res.stats["rhs_full"]
+
+
+def test_adaptive_ratio_grows_by_at_most_a_tenth_per_macro_step(tmp_path):
+    """Adaptive 'response' on the tank from k = 1 (h_slow = h_fast): after n macro steps the
+    step ratio is at most the rule's bound, k + ceil(k / 10) per step from 1 (the history's
+    first macro steps keep k, so the bound is not reached), and it has grown. Free to grow
+    4x per macro step, k reached 39 in 6 macro steps and 2 of them were refused; bounded,
+    7 in 9, 11 in 13 and 21 in 18, none refused (rtol 1e-6)."""
+    for t_end in (0.002, 0.005, 0.01):
+        res = pymr.run(TANK, tmp_path / "a.csv", overrides={
+            "scene.t_end": t_end, "output.dt": t_end / 4, "integrator.method": "multirate",
+            "integrator.coupling": "response", "integrator.adaptive": True, "integrator.h_slow": 1e-4,
+            "integrator.h_fast": 1e-4, "integrator.rtol": 1e-6, "integrator.atol": 1e-8})
+        bound = 1
+        for _ in range(res.stats["steps_slow"]):
+            bound += -(-bound // 10)
+        assert 1 < res.stats["step_ratio_last"] <= bound
