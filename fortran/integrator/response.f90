@@ -474,7 +474,8 @@ contains
   !> up); after an accepted step that followed a refusal for err_s (`refused`) the macro
   !> step does not grow. A macro step taken while the history was `filling` (no surrogate,
   !> no estimate of its error) keeps its ratio: grown on no estimate, the tank's start took
-  !> k = 35 and the rate error of its first steps stayed in the turret's motion. The array is rescaled to the new fast step.
+  !> k = 35 and the rate error of its first steps stayed in the turret's motion. The array
+  !> is rescaled to the new fast step.
   subroutine resize_steps(self, err_f, err_s, filling, accepted, refused, error)
     class(response_integrator), intent(inout) :: self
     real(dp), intent(in) :: err_f, err_s
