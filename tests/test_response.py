@@ -159,10 +159,10 @@ def test_adaptive_error_is_proportional_to_the_tolerance_on_the_stiff_barrel(sti
     """Adaptive 'response' ('amplitude') on the stiff barrel over 0.2 s, rtol 1e-5 to 1e-8
     (atol = rtol / 100), against DOP853 at rtol 1e-13: the muzzle error falls as rtol does
     (tolerance proportionality, slope 1 in log-log; measured 1.04, 0.025-0.035 m per unit
-    rtol; 0.98 and 0.022-0.026 before the step ratio's growth was bounded, b548008). Each macro step's fast steps are held to the tolerance together, their
-    corrector estimates summed: with the largest alone their k errors outgrew the
-    surrogate's as rtol tightened, and the error fell as rtol^0.66 (0.078 to 0.93 m per unit
-    rtol)."""
+    rtol; 0.98 and 0.022-0.026 before the step ratio's growth was bounded, b548008). Each
+    macro step's fast steps are held to the tolerance together, their corrector estimates
+    summed: with the largest alone their k errors outgrew the surrogate's as rtol
+    tightened, and the error fell as rtol^0.66 (0.078 to 0.93 m per unit rtol)."""
     scene, ref = stiff_barrel_reference
     rtols = np.array([1e-5, 1e-6, 1e-7, 1e-8])
     errs = []
