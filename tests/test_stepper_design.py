@@ -58,12 +58,13 @@ def test_step_history_retraces_the_run_on_a_closed_loop(tmp_path, stepper):
 
 
 def test_a_checkpoint_of_the_older_layout_is_refused_in_one_line(tmp_path):
-    """Checkpoint version 13 (6 wrote the stepper as its state vector and its record; 7 named
+    """Checkpoint version 14 (6 wrote the stepper as its state vector and its record; 7 named
     the 'response' and 'exponential' steppers apart; 8 keeps the 'response' macro step's
     surrogate correction for its dense output; 9 the results' last row and the run's
     warnings; 10 the step counts of the methods 'auto' handed over from; 11 the adaptive
     multirate steppers' last error estimate and step; 12 the last 'response' macro step's
-    error model; 13 the adaptive multirate steppers' last eight); a version 5 file (the same bytes
+    error model; 13 the adaptive multirate steppers' last eight; 14 the 'exponential'
+    stepper's watch of its response's drift); a version 5 file (the same bytes
     with the older version number and a valid checksum) is refused, naming both versions."""
     scene = tmp_path / "f.nml"
     scene.write_text(fourbar_scene(1.0, 2.0, t_end=0.3))
@@ -71,14 +72,14 @@ def test_a_checkpoint_of_the_older_layout_is_refused_in_one_line(tmp_path):
     over = {"output.checkpoint_dt": 0.2}
     pymr.run(scene, out, overrides=over)
     data = bytearray((tmp_path / "f.ckpt").read_bytes())
-    assert data[:8] == b"PYMRCKPT" and struct.unpack("<i", data[8:12])[0] == 13
+    assert data[:8] == b"PYMRCKPT" and struct.unpack("<i", data[8:12])[0] == 14
     data[8:12] = struct.pack("<i", 5)
     body = bytes(data[:-64])
     (tmp_path / "old.ckpt").write_bytes(body + hashlib.sha256(body).hexdigest().encode())
     with pytest.raises(pymr.SceneError) as exc:
         pymr.run(scene, out, overrides={**over, "scene.t_end": 0.5}, restart=tmp_path / "old.ckpt")
     assert "\n" not in str(exc.value)
-    assert "old.ckpt: checkpoint version 5, this pymr reads 13" in str(exc.value)
+    assert "old.ckpt: checkpoint version 5, this pymr reads 14" in str(exc.value)
 
 
 def _oscillator_on_circle(t_end, h, adaptive, order=-1):

@@ -15,7 +15,8 @@
 !> difference of the two states gives the local error estimate of adaptive runs. The first
 !> steps take H/8, H/8, H/4, H/2 with the evaluations there are. The frozen response is
 !> renewed when the evaluations' own has moved from it by what the explicit extrapolation
-!> of the difference could no longer carry stably (drift_limit).
+!> of the difference could no longer carry stably (drift_limit), and in adaptive runs also
+!> when the vibration that difference carries would cost accuracy (vibration_drift).
 module pymr_integrator_exponential
   use pymr_env_kinds, only : dp
   use pymr_env_error, only : error_type, fatal_error
@@ -40,6 +41,14 @@ module pymr_integrator_exponential
   real(dp), parameter :: drift_limit = 0.5_dp
   !> Adaptive runs: steps in a row that may break down and be retried smaller.
   integer, parameter :: max_breakdowns = 10
+  !> Adaptive runs: the response is also frozen anew when its drift's vibration
+  !> (vibration_drift) has exceeded the tolerance at this many accepted steps in a row, the
+  !> evaluations the cubic spans; and such renewals stop for the run when the drift is back
+  !> within as many steps (it then follows the motion's own pace, which a freeze cannot).
+  !> On the tank with its elevation driven by a cylinder (a closed loop moving the joints'
+  !> response), the stability bound alone left the response frozen all run while the step
+  !> fell from 1.1 to 0.5 ms (docs/method.md section 4.3).
+  integer, parameter :: drift_steps = n_hist
 
   !> History of full evaluations, oldest first: times, accelerations (n, nh), fast states
   !> [a; ad] (2nf, nh), remainders rho (n, nh) and their modal forcing (nm, nh).
@@ -78,8 +87,14 @@ module pymr_integrator_exponential
     type(flow_step_t) :: last
     !> The last accepted step's error estimate and step (adaptive).
     type(error_envelope) :: last_error
-    !> Accepted and rejected steps, renewals of the frozen response.
-    integer :: steps = 0, rejected = 0, renewals = 0
+    !> Accepted and rejected steps, renewals of the frozen response (those for accuracy
+    !> among them).
+    integer :: steps = 0, rejected = 0, renewals = 0, accuracy_renewals = 0
+    !> Accepted steps in a row whose drift's vibration exceeded the tolerance; accepted
+    !> steps since the last renewal for accuracy (-1: none since the start); whether such
+    !> renewals are still made.
+    integer :: drifted = 0, since_accuracy = -1
+    logical :: renew_for_accuracy = .true.
     !> The flow's coefficients for a step of tau_phi (kept while steps and flow stay).
     complex(dp), allocatable :: tp(:, :)
     real(dp) :: tau_phi = -1.0_dp
@@ -140,6 +155,7 @@ contains
       self%wk%rnew = self%flow%remainder(f(self%n+1:), self%wk%y); self%wk%pnew = self%flow%project(self%wk%rnew)
       call push_evaluation(self, t0, f(self%n+1:), self%wk%y, self%wk%rnew, self%wk%pnew)
       self%t = t0; self%t0 = t0; self%x = x0
+      self%drifted = 0; self%since_accuracy = -1; self%renew_for_accuracy = .true.
       call self%last_error%forget()
       self%last%t = t0; self%last%h = 0.0_dp; self%last%x = x0
       self%last%eta = self%flow%modal_state(x0)
@@ -249,7 +265,8 @@ contains
           cycle
         end if
         wk%y = fast_state(self, wk%xp)
-        if (self%flow%drift(wk%g, wk%kf, wk%df, hs) > drift_limit) then
+        if (self%flow%drift(wk%g, wk%kf, wk%df, hs) > drift_limit .or. self%drifted >= drift_steps) then
+          if (self%drifted >= drift_steps) call note_accuracy_renewal(self)
           call renew_flow(self, wk%g, wk%kf, wk%df, error); if (allocated(error)) return
           wk%eta0 = self%flow%modal_state(self%x)
           call step_phis(self, hs)
@@ -279,6 +296,8 @@ contains
       self%last%beta = wk%beta; self%last%cs = wk%cs
       call self%flow%rows_form(wk%eta0, wk%beta, hs, self%last%rows)
       self%x = wk%xc; self%t = tn; self%steps = self%steps + 1
+      if (self%adaptive .and. self%renew_for_accuracy) &
+        & call watch_drift(self, vibration_drift(self, wk%g, wk%kf, wk%df, wk%y, hs))
       full = self%hist%nh == n_hist
       call push_evaluation(self, tn, wk%f(n+1:), wk%y, wk%rnew, wk%pnew)
       ! an accepted step's successor no less than the least step (its error test fails there)
@@ -301,6 +320,51 @@ contains
     call refresh_history(self)
     self%renewals = self%renewals + 1
   end subroutine renew_flow
+
+  !> A renewal for accuracy is made: counted, and its drift watched afresh.
+  pure subroutine note_accuracy_renewal(self)
+    class(exponential_integrator), intent(inout) :: self
+    self%accuracy_renewals = self%accuracy_renewals + 1
+    self%drifted = 0; self%since_accuracy = 0
+  end subroutine note_accuracy_renewal
+
+  !> After an accepted step whose drift's vibration was e (in tolerances): the steps in a
+  !> row over the tolerance, and renewals for accuracy stopped when the drift came back
+  !> within drift_steps steps of the last one.
+  pure subroutine watch_drift(self, e)
+    class(exponential_integrator), intent(inout) :: self
+    real(dp), intent(in) :: e
+    if (self%since_accuracy >= 0) self%since_accuracy = self%since_accuracy + 1
+    if (e <= 1.0_dp) then
+      self%drifted = 0; return
+    end if
+    if (self%since_accuracy >= 0 .and. self%since_accuracy <= drift_steps) self%renew_for_accuracy = .false.
+    self%drifted = merge(self%drifted + 1, 0, self%renew_for_accuracy)
+  end subroutine watch_drift
+
+  !> What the drift of the response from the frozen one moves the state by over a step of
+  !> h, in tolerances (the error weights' norm), through the vibration it carries: the
+  !> remainder holds (g0 K0 - g K) a + (g0 D0 - g D) ad, and the cubic through its last four
+  !> values misses a vibration of amplitude A and frequency omega by about A (omega h)^4/4
+  !> over the step (at most A). The amplitude of fast coordinate i is taken from its rate,
+  !> ad_i/omega_i (omega_i^2 = g0_ii K0_i, frozen): a static deflection moves as the motion
+  !> does, which the cubic follows. y = [a; ad] at the evaluation of (g, kf, df).
+  pure real(dp) function vibration_drift(self, g, kf, df, y, h) result(e)
+    class(exponential_integrator), intent(in) :: self
+    real(dp), intent(in) :: g(:, :), kf(:), df(:), y(:), h
+    real(dp) :: d(self%n), omega, v
+    integer :: i, n
+    n = self%n
+    d = 0.0_dp
+    associate(nf => self%nf, f => self%flow)
+      do i = 1, nf
+        omega = sqrt(max(f%g0(self%ns + i, i)*f%kf0(i), tiny(1.0_dp)))
+        v = min(1.0_dp, (omega*h)**4/4.0_dp)*y(nf + i)
+        d = d + g(:, i)*((kf(i)/omega + df(i))*v) - f%g0(:, i)*((f%kf0(i)/omega + f%df0(i))*v)
+      end do
+    end associate
+    e = sqrt(sum((h**2*d*self%wk%w(1:n))**2 + (h*d*self%wk%w(n+1:))**2)/(2*n))
+  end function vibration_drift
 
   !> The arrays sized by the number of kept eigenvalues (which a renewal may change: a
   !> vibration becoming two real decays), and the flow's coefficients to compute again.
@@ -412,12 +476,15 @@ contains
     end if
     call rec%item(self%steps); call rec%item(self%rejected); call rec%item(self%renewals)
     call rec%item(self%last_error%err); call rec%item(self%last_error%h); call rec%item(self%last_error%n)
+    call rec%item(self%accuracy_renewals); call rec%item(self%drifted); call rec%item(self%since_accuracy)
+    call rec%item(self%renew_for_accuracy)
   end subroutine ex_record
 
   pure function ex_counts(self) result(c)
     class(exponential_integrator), intent(in) :: self
     type(step_counts) :: c
     c%steps_slow = self%steps; c%steps_fast = self%steps; c%renewals = self%renewals
+    c%accuracy_renewals = self%accuracy_renewals
     c%rejected = self%rejected; c%h_last = self%last%h; c%ratio = 1
   end function ex_counts
 

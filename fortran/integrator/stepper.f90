@@ -34,8 +34,9 @@ module pymr_integrator_stepper
     !> Fast right-hand sides the stepper computed itself, without the model (the
     !> 'response' coupling's surrogate evaluations).
     integer :: evals_fast = 0
-    !> Times the stepper froze its linear response anew (the 'exponential' coupling).
-    integer :: renewals = 0
+    !> Times the stepper froze its linear response anew (the 'exponential' coupling), and
+    !> of those, the times it did so for accuracy rather than stability.
+    integer :: renewals = 0, accuracy_renewals = 0
   end type step_counts
 
   !> The fixed steps a stepper's PECE formula takes on vibrations carried mostly by joint

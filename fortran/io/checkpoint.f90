@@ -31,8 +31,9 @@ module pymr_io_checkpoint
   !> that ran before the stepper written (method 'auto' reviewed); 11: the last accepted
   !> step's error estimate and length of adaptive 'response' and 'exponential' (their
   !> error envelope); 12: the error model of the last accepted 'response' macro step; 13: the
-  !> error envelope of the last eight accepted steps.
-  integer, parameter :: version = 13
+  !> error envelope of the last eight accepted steps; 14: the 'exponential' stepper's watch
+  !> of its response's drift (its renewals for accuracy).
+  integer, parameter :: version = 14
 
   !> What a checkpoint's header says: pymr's version, the model's size, the stepper's name,
   !> the time, the integrator settings and the model's fingerprint.
