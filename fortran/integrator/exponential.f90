@@ -235,7 +235,7 @@ contains
     type(error_type), allocatable, intent(out) :: error
     real(dp) :: t0, tn, hs, err
     integer :: breakdowns, fails
-    logical :: retry, full
+    logical :: retry, full, unstable
     select type (sys)
     class is (partitioned_system)
     associate(wk => self%wk, n => self%n)
@@ -265,8 +265,9 @@ contains
           cycle
         end if
         wk%y = fast_state(self, wk%xp)
-        if (self%flow%drift(wk%g, wk%kf, wk%df, hs) > drift_limit .or. self%drifted >= drift_steps) then
-          if (self%drifted >= drift_steps) call note_accuracy_renewal(self)
+        unstable = self%flow%drift(wk%g, wk%kf, wk%df, hs) > drift_limit
+        if (unstable .or. self%drifted >= drift_steps) then
+          if (.not. unstable) call note_accuracy_renewal(self)
           call renew_flow(self, wk%g, wk%kf, wk%df, error); if (allocated(error)) return
           wk%eta0 = self%flow%modal_state(self%x)
           call step_phis(self, hs)
