@@ -354,8 +354,7 @@ contains
     class(exponential_integrator), intent(in) :: self
     real(dp), intent(in) :: g(:, :), kf(:), df(:), y(:), h
     real(dp) :: d(self%n), omega, v
-    integer :: i, n
-    n = self%n
+    integer :: i
     d = 0.0_dp
     associate(nf => self%nf, f => self%flow)
       do i = 1, nf
@@ -364,7 +363,7 @@ contains
         d = d + g(:, i)*((kf(i)/omega + df(i))*v) - f%g0(:, i)*((f%kf0(i)/omega + f%df0(i))*v)
       end do
     end associate
-    e = sqrt(sum((h**2*d*self%wk%w(1:n))**2 + (h*d*self%wk%w(n+1:))**2)/(2*n))
+    e = wrms_norm([h**2*d, h*d], self%wk%w)
   end function vibration_drift
 
   !> The arrays sized by the number of kept eigenvalues (which a renewal may change: a
