@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import pymr
-from test_outputs import balance
+from energy_balance import balance
 
 ROOT = Path(__file__).resolve().parent.parent
 SPACECRAFT = ROOT / "input" / "spacecraft.nml"

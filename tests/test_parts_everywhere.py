@@ -14,7 +14,7 @@ import pytest
 
 import pymr
 from test_loops import L0, flexible_coupler_scene
-from test_outputs import balance
+from energy_balance import balance
 
 ROOT = Path(__file__).resolve().parent.parent
 TANK_ON_THE_MOVE = ROOT / "input" / "tank_on_the_move.nml"

@@ -11,7 +11,7 @@ from scipy.interpolate import CubicSpline
 
 import pymr
 from pymr import scenes
-from test_outputs import balance
+from energy_balance import balance
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENE = ROOT / "input" / "tank_on_the_move.nml"
