@@ -228,6 +228,38 @@ def test_generalised_forces_are_minus_the_gradient_of_the_potential(tmp_path):
     assert np.all(np.abs(p_el + grad_el) < 1e-6 * np.abs(p_el)), np.abs(p_el + grad_el) / np.abs(p_el)
 
 
+# a rotor on a revolute joint about z held to the ground by a bushing, turned about its axis
+ROTOR = """
+&scene title = 'rotor on a bushing', t_end = 1.0e-3, gravity = 0.0, 0.0, 0.0 /
+&integrator method = 'single', h_slow = 1.0e-4 /
+&effects force_elements = .true. /
+&body name = 'ground', kind = 'ground' /
+&body name = 'rotor', kind = 'rigid', mass = 2.0, inertia = 1.0, 1.0, 1.0, 0.0, 0.0, 0.0 /
+&joint name = 'shaft', kind = 'revolute', parent = 'ground', child = 'rotor', axis = 0.0, 0.0, 1.0 /
+&marker name = 'a', body = 'ground' /
+&marker name = 'b', body = 'rotor' /
+&force name = 'bush', kind = 'bushing', marker_i = 'a', marker_j = 'b', stiffness = 1, 1, 1, 10, 10, 10 /
+"""
+
+
+@pytest.mark.parametrize("turn", [3.0, np.pi - 1e-6, np.pi - 1e-9, np.pi - 1e-12, np.pi, np.pi + 1e-9, 3.3, -3.1,
+                                  1e-9, 0.0])
+def test_bushing_turned_up_to_half_a_turn_keeps_its_moment(tmp_path, turn):
+    """The bushing's rotation is the shortest one between its markers: turned by q about its
+    axis, its energy is k (q wrapped into [-pi, pi])^2 / 2 and its moment -k q wrapped, up to
+    pi exactly (the rotation vector's axis there comes from the rotation's symmetric part:
+    from its skew part, which vanishes with sin q, the moment fell to 1e-12 at pi - 1e-9)."""
+    scene = write(tmp_path, "rotor.nml", ROTOR)
+    k, wrapped = 10.0, turn - 2 * np.pi * round(turn / (2 * np.pi))     # pi stays pi
+    q, qd = np.array([turn]), np.zeros(1)
+    p = {on: pymr.model_terms(scene, q, qd, overrides={"effects.force_elements": on})[1][0] for on in (True, False)}
+    energy = pymr.model_energy(scene, q[None, :], qd[None, :])[1][0]
+    assert energy == pytest.approx(0.5 * k * wrapped**2, rel=1e-12, abs=1e-300)
+    assert abs(p[True] - p[False]) == pytest.approx(k * abs(wrapped), rel=1e-9, abs=1e-300)
+    if turn != np.pi:
+        assert p[True] - p[False] == pytest.approx(-k * wrapped, rel=1e-9, abs=1e-300)
+
+
 @pytest.fixture(scope="module")
 def flexible_reference(tmp_path_factory) -> np.ndarray:
     """The beam and block's coordinates from a tight adaptive single-rate run (M path)."""

@@ -16,6 +16,7 @@ module pymr_model_effect_force_elements
   use pymr_model_types, only : model_data, model_work
   use pymr_model_kinematics, only : forward_kinematics, marker_motion, marker_rotation
   use pymr_model_flexbody, only : small_rotation
+  use pymr_model_spatial, only : rotation_vector
   use pymr_model_effect, only : effect_t, stage_load, energy_springs, power_damping
   use pymr_model_time_table, only : time_table, table_extended, table_extended_integral
   implicit none
@@ -92,21 +93,6 @@ contains
       s%w = s%w + matmul(wk%rot(:, :, b), matmul(s%jl, matmul(phi, ad)))
     end associate
   end function marker_state_of
-
-  !> Rotation vector theta of rotation matrix r (r = exp(theta~)), for angles below pi.
-  pure function rotation_vector(r) result(th)
-    real(dp), intent(in) :: r(3, 3)
-    real(dp) :: th(3), v(3), s, c, angle
-    v = 0.5_dp*[r(3, 2) - r(2, 3), r(1, 3) - r(3, 1), r(2, 1) - r(1, 2)]
-    s = norm2(v)
-    c = 0.5_dp*(r(1, 1) + r(2, 2) + r(3, 3) - 1.0_dp)
-    angle = atan2(s, c)
-    if (s < 1.0e-8_dp) then
-      th = v*(1.0_dp + angle**2/6.0_dp)
-    else
-      th = v*(angle/s)
-    end if
-  end function rotation_vector
 
   !> Jl(theta)^-T y: the moment whose work on a rotation of the frame balances y . dtheta
   !> (Jl^-T = I + theta~/2 + beta theta~^2, beta = 1/t^2 - (1 + cos t)/(2 t sin t)).
