@@ -186,8 +186,16 @@ def factor(kii: sp.spmatrix, p: Plan, what: str, show: bool):
 def fixed_interface_modes(kii, mii, solve, nf: int, with_mass: int, show: bool) -> tuple[np.ndarray, np.ndarray]:
     """The lowest `nf` eigenpairs of K_ii v = lambda M_ii v (ARPACK, shift-invert at 0, to
     machine precision): lambda ascending and v mass-normalised. Its basis holds at most
-    `with_mass` vectors (the DOFs with mass span the Krylov space)."""
+    `with_mass` vectors (the DOFs with mass span the Krylov space).
+
+    ARPACK solves for theta = 1/lambda and takes a Ritz value as converged when its residual
+    is below machine precision times max(theta, eps^(2/3)): an absolute floor, which
+    matrices in units where lambda is beyond about 3e10 reach (K in 2^60 and M in 2^-100
+    gave frequencies 8e-10 off). The mass matrix is therefore taken times r, the power of
+    2 nearest max|K| / max|M| (an exact scaling, so theta = r/lambda is at least about 1
+    below the highest mode), and lambda is r times ARPACK's."""
     n = kii.shape[0]
+    r = 2.0 ** np.frexp(abs(kii).max() / abs(mii).max())[1]
     ncv = min(n - 1, with_mass, max(2 * nf + 1, 20))
     with Ticker(f"eigensolve ({nf} modes)", show, unit=" solves") as tick:
         def apply(b):
@@ -197,13 +205,13 @@ def fixed_interface_modes(kii, mii, solve, nf: int, with_mass: int, show: bool) 
         try:
             # a fixed start vector: the same model gives the same body, run after run
             start = np.random.default_rng(35).standard_normal(n)
-            lam, v = sla.eigsh(sp.csc_matrix(kii), k=nf, M=sp.csc_matrix(mii), sigma=0.0, OPinv=op, which="LM",
+            lam, v = sla.eigsh(sp.csc_matrix(kii), k=nf, M=sp.csc_matrix(mii) * r, sigma=0.0, OPinv=op, which="LM",
                                ncv=ncv, tol=0.0, v0=start)
         except (sla.ArpackNoConvergence, sla.ArpackError) as exc:
             raise SolverError(f"the fixed-interface eigensolve (ARPACK, {nf} modes of {n} DOFs) failed: "
                               f"{str(exc).splitlines()[0]}") from None
     order = np.argsort(lam)
-    lam, v = lam[order], v[:, order]
+    lam, v = lam[order] * r, v[:, order]
     modal_mass = np.einsum("ij,ij->j", v, mii @ v)
     return lam, v / np.sqrt(modal_mass)
 
