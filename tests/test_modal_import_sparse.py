@@ -136,15 +136,16 @@ def test_frequencies_to_1e9_against_an_independent_shift_invert_solve(beam3006):
 
 @pytest.mark.skipif(not HAVE_CHOLMOD, reason="scikit-sparse (CHOLMOD) not installed")
 def test_cholmod_and_superlu_give_the_same_body(beam3006):
-    """Two factorisations of the same interior, two orderings: the frequencies agree to 1e-10
-    and the modes span the same spaces: their overlap a^T M b is orthogonal to 1e-8, and
-    couples no two modes whose frequencies differ (a round section's pairs may turn within
-    their plane)."""
+    """Two factorisations of the same interior, two orderings: the frequencies agree to 1e-9
+    (each is held to 1e-9 of an independent solve above) and the modes span the same spaces:
+    their overlap a^T M b is orthogonal to 1e-8, and couples no two modes whose frequencies
+    differ (a round section's pairs may turn within their plane). The lowest pair differs
+    most: 6.6e-11 with reference LAPACK, 1.6e-10 with OpenBLAS's."""
     model, _ = beam3006
     args = (model.k, model.m, np.arange(6), np.array([6 * 500 + d for d in range(6)]), 12, None, "k", "node 1")
     a = cb.reduce(*args, backend="cholmod")
     b = cb.reduce(*args, backend="superlu")
-    np.testing.assert_allclose(b.frequencies_hz, a.frequencies_hz, rtol=1e-10)
+    np.testing.assert_allclose(b.frequencies_hz, a.frequencies_hz, rtol=1e-9)
     overlap = a.modes.T @ (model.m @ b.modes)
     np.testing.assert_allclose(overlap.T @ overlap, np.eye(overlap.shape[0]), atol=1e-8)
     f = a.frequencies_hz
