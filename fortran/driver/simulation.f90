@@ -39,7 +39,8 @@ module pymr_driver_simulation
   use pymr_driver_summary, only : summary_text
   use pymr_driver_method_choice, only : choose_by_probe => choose_method, method_of_checkpoint, method_choice_t, &
     & probe_run
-  use pymr_driver_moving_load_exits, only : note_exits, next_exit, exits_json
+  use pymr_driver_moving_load_exits, only : note_exits, exits_json
+  use pymr_driver_step_stops, only : next_stop
   implicit none
   private
   public :: simulation_t
@@ -94,7 +95,7 @@ module pymr_driver_simulation
     procedure :: close => simulation_close
     procedure, private :: choose_format, choose_method, review_method
     procedure, private :: begin_new, resume, continues_probe, continue_probe
-    procedure, private :: put_row, put_rows_reached, put_last_row, checkpoint_if_due, start_again
+    procedure, private :: put_row, put_rows_reached, put_last_row, checkpoint_if_due, start_again, start_stepper
     procedure :: name_file
     procedure, private :: write_results
   end type simulation_t
@@ -200,7 +201,7 @@ contains
     call self%st%value_at(t, self%x)
     deallocate(self%st)
     call make_stepper(self%sc, self%model, self%x, self%st, self%h0, error); if (allocated(error)) return
-    call self%st%start(self%model, t, self%x, self%h0, error)
+    call self%start_stepper(t, self%h0, error)
   end subroutine review_method
 
   !> The results file of &output format, what it writes (the plan of &output quantities)
@@ -279,7 +280,7 @@ contains
     else
       ! the probe's copy of the model and its stepper go before this run's stepper starts
       if (allocated(self%probed)) deallocate(self%probed)
-      call self%st%start(self%model, 0.0_dp, self%x, self%h0, error)
+      call self%start_stepper(0.0_dp, self%h0, error)
     end if
     if (allocated(error)) then
       call self%name_file(error)
@@ -293,14 +294,14 @@ contains
 
   !> Whether the run goes on from the probe of the method 'auto' chose: the probe's rows are
   !> the run's (every &output dt, no energy columns, whose works integrate over the steps),
-  !> and nothing the run does between steps falls inside it (a moving load's exit, a
-  !> checkpoint).
+  !> and nothing the run does between steps falls inside it (a stop of its steps, such as a
+  !> moving load's exit, or a checkpoint).
   logical function continues_probe(self)
     class(simulation_t), intent(in) :: self
     continues_probe = .false.
     if (.not. allocated(self%probed)) return
     if (self%probed%nr < 0 .or. self%dt_out <= 0.0_dp .or. self%out%plan%energy) return
-    if (next_exit(self%model, 0.0_dp) < huge(1.0_dp)) return
+    if (next_stop(self%model, 0.0_dp) < huge(1.0_dp)) return
     if (self%sc%output%checkpoint_dt > 0.0_dp .and. self%sc%output%checkpoint_dt <= self%probed%st%time()) return
     continues_probe = self%probed%st%time() < self%sc%scene%t_end - self%eps
   end function continues_probe
@@ -350,14 +351,14 @@ contains
   end subroutine resume
 
   !> One step: advance (the stepper closes the loops again inside it), and the step count
-  !> checked. A moving load's exit is a discontinuity: a stepper that lands() ends a step
-  !> on it and is started again there, past it.
+  !> checked. A stepper that lands() ends a step on each of the run's stops (step_stops.f90:
+  !> a moving load's exit, a pulse's start, peak and end) and is started again there.
   subroutine simulation_step(self, error)
     class(simulation_t), intent(inout) :: self
     type(error_type), allocatable, intent(out) :: error
     type(step_counts) :: done
     real(dp) :: t_stop
-    t_stop = next_exit(self%model, self%st%time())
+    t_stop = next_stop(self%model, self%st%time())
     call self%st%stop_at(t_stop)
     call self%st%advance(self%model, error); if (allocated(error)) return
     call check_interrupt(self%st%time(), error); if (allocated(error)) return
@@ -373,17 +374,34 @@ contains
   end subroutine simulation_step
 
   !> Start the stepper again where it stands (after the rows up to there are written from
-  !> its steps so far): its history is of the motion before a discontinuity.
+  !> its steps so far): its history is of the motion before a discontinuity. Its start's
+  !> (fast) step is at most the one it was taking: a start's first steps take no error
+  !> estimate, and the step from the scene's h_slow can be far too long for a vibration
+  !> that a pulse has set going.
   subroutine start_again(self, error)
     class(simulation_t), intent(inout) :: self
     type(error_type), allocatable, intent(out) :: error
-    real(dp) :: t
+    real(dp) :: t, h
+    type(step_counts) :: last
     call self%put_rows_reached(error); if (allocated(error)) return
     self%reached_written = .true.
     t = self%st%time()
     call self%st%value_at(t, self%x)
-    call self%st%start(self%model, t, self%x, self%h0, error)
+    last = self%st%counts()
+    h = self%h0
+    if (last%h_last > 0.0_dp) h = min(h, last%h_last/max(1, last%ratio))
+    call self%start_stepper(t, h, error)
   end subroutine start_again
+
+  !> Start the stepper at (t, x) with the (first) step h, told the run's next stop first (its start's steps take no
+  !> error estimate to land on one, and stay short of it).
+  subroutine start_stepper(self, t, h, error)
+    class(simulation_t), intent(inout) :: self
+    real(dp), intent(in) :: t, h
+    type(error_type), allocatable, intent(out) :: error
+    call self%st%stop_at(next_stop(self%model, t))
+    call self%st%start(self%model, t, self%x, h, error)
+  end subroutine start_stepper
 
   !> Integrate until the stepper has reached t: the rows of every output time passed, the
   !> checkpoints due, and the steps.

@@ -74,7 +74,8 @@ contains
 
   !> Start at (t0, x0): two classical Runge-Kutta steps of size h (local error O(h^5),
   !> so the global order 4 is kept), then the Nordsieck array from f at the three points.
-  !> An adaptive run first bounds h by a starting-step estimate from the tolerances.
+  !> An adaptive run first bounds h by a starting-step estimate from the tolerances, and
+  !> by a quarter of the way to t_stop (its steps take no error estimate to land on it).
   subroutine abm_start(self, sys, t0, x0, h, error)
     class(abm_integrator), intent(inout) :: self
     class(ode_system), intent(inout) :: sys
@@ -82,6 +83,7 @@ contains
     type(error_type), allocatable, intent(out) :: error
     real(dp), allocatable :: f0(:), f1(:), f2(:), x(:)
     real(dp) :: hs
+    logical :: accepted
     allocate(f0(self%n), f1(self%n), f2(self%n), x(self%n))
     x = x0
     call sys%eval(t0, x, f0, error); self%evals = self%evals + 1
@@ -91,11 +93,18 @@ contains
     if (self%adaptive) then
       call hinit(self, sys, t0, x0, f0, hs, error); if (allocated(error)) return
       hs = min(h, hs)
+      if (t0 < self%t_stop) hs = min(hs, 0.25_dp*(self%t_stop - t0))   ! the start's steps end before a stop
     end if
-    call rk4_step(sys, t0, hs, x, f0, self%evals, error); if (allocated(error)) return
-    call sys%eval(t0 + hs, x, f1, error); self%evals = self%evals + 1
-    if (allocated(error)) return
-    call rk4_step(sys, t0 + hs, hs, x, f1, self%evals, error); if (allocated(error)) return
+    do
+      x = x0
+      call rk4_step(sys, t0, hs, x, f0, self%evals, error); if (allocated(error)) return
+      call sys%eval(t0 + hs, x, f1, error); self%evals = self%evals + 1
+      if (allocated(error)) return
+      call rk4_step(sys, t0 + hs, hs, x, f1, self%evals, error); if (allocated(error)) return
+      if (.not. self%adaptive) exit
+      call check_start_steps(self, sys, t0, x0, f0, x, hs, accepted, error); if (allocated(error)) return
+      if (accepted) exit
+    end do
     call sys%eval(t0 + 2*hs, x, f2, error); self%evals = self%evals + 1
     if (allocated(error)) return
     call check_finite(sys, t0 + 2*hs, x, 'state', error); if (allocated(error)) return
@@ -107,6 +116,31 @@ contains
     ! a discontinuity) keeps counting
     self%steps = merge(self%steps + 2, 2, self%adaptive)
   end subroutine abm_start
+
+  !> An adaptive start's two Runge-Kutta steps of hs from (t0, x0) that ended at x, checked
+  !> against one step of 2 hs: x's error is (x - x_2hs)/15 (Richardson, order 4). Accepted
+  !> within the tolerance, else hs is made smaller to be tried again: the starting-step
+  !> estimate knows nothing of a load that a pulse adds past its first evaluations, nor
+  !> of a vibration already going when the run starts again past a stop.
+  subroutine check_start_steps(self, sys, t0, x0, f0, x, hs, accepted, error)
+    class(abm_integrator), intent(inout) :: self
+    class(ode_system), intent(inout) :: sys
+    real(dp), intent(in) :: t0, x0(:), f0(:), x(:)
+    real(dp), intent(inout) :: hs
+    logical, intent(out) :: accepted
+    type(error_type), allocatable, intent(out) :: error
+    real(dp), allocatable :: x2(:)
+    real(dp) :: err
+    x2 = x0
+    call rk4_step(sys, t0, 2*hs, x2, f0, self%evals, error); if (allocated(error)) return
+    call error_weights(self%ctl, x, self%w)
+    err = wrms_norm((x - x2)/15.0_dp, self%w)
+    accepted = err <= 1.0_dp
+    if (accepted) return
+    self%rejected = self%rejected + 1
+    hs = hs*self%ctl%ratio(err, .false., 5)
+    if (hs < self%ctl%h_min) call step_underflow(error, t0, 'step', hs)
+  end subroutine check_start_steps
 
   !> Starting step from the tolerances (Hairer, Norsett and Wanner, order 4), capped by h_max.
   subroutine hinit(self, sys, t0, x0, f0, h, error)

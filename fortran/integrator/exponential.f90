@@ -112,6 +112,7 @@ module pymr_integrator_exponential
     procedure :: state_size => ex_state_size
     procedure :: get_state => ex_get_state
     procedure :: set_state => ex_set_state
+    procedure :: lands => ex_lands
   end type exponential_integrator
 
 contains
@@ -247,6 +248,9 @@ contains
           hs = self%h
           if (self%hist%nh < n_hist) hs = min(hs, 2.0_dp*max(self%last%h, self%h/2.0_dp**(n_hist - 1)))
           tn = t0 + hs
+          if (t0 < self%t_stop .and. tn > self%t_stop) then       ! land on the stop
+            hs = self%t_stop - t0; tn = self%t_stop
+          end if
         else
           tn = fixed_end(self, self%steps + 1); hs = fixed_length(self, self%steps + 1)
         end if
@@ -427,6 +431,12 @@ contains
       end do
     end associate
   end subroutine forcing
+
+  !> An adaptive run's steps land on t_stop.
+  pure logical function ex_lands(self)
+    class(exponential_integrator), intent(in) :: self
+    ex_lands = self%adaptive
+  end function ex_lands
 
   pure real(dp) function ex_time(self)
     class(exponential_integrator), intent(in) :: self

@@ -31,7 +31,8 @@ module pymr_integrator_response
   use pymr_env_kinds, only : dp
   use pymr_env_error, only : error_type, fatal_error
   use pymr_integrator_ode, only : ode_system, partitioned_system
-  use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps, state_record, project_step, projection_eta, step_underflow
+  use pymr_integrator_stepper, only : stepper_t, step_counts, pece_steps, state_record, project_step, projection_eta, step_underflow, &
+    & landing_ratio
   use pymr_integrator_nordsieck, only : nq, corrector_l, nordsieck_predict, nordsieck_correct, nordsieck_rescale, &
     & nordsieck_value
   use pymr_integrator_abm, only : abm_integrator, check_finite
@@ -127,6 +128,8 @@ module pymr_integrator_response
     !> Adaptive control of both steps (ctl%h_max bounds the fast step).
     logical :: adaptive = .false.
     type(step_control) :: ctl
+    !> The macro step being tried ends on t_stop (land_macro_step).
+    logical :: landing = .false.
     !> The last accepted macro step's surrogate error and length.
     type(error_envelope) :: last_macro
     !> Counters.
@@ -147,6 +150,7 @@ module pymr_integrator_response
     procedure :: get_state => rs_get_state
     procedure :: set_state => rs_set_state
     procedure :: set_ratio => rs_set_ratio
+    procedure :: lands => rs_lands
   end type response_integrator
 
 contains
@@ -190,9 +194,11 @@ contains
     class is (partitioned_system)
       call sys%eval(t0, x0, self%wk%f, error); if (allocated(error)) return
       call check_finite(sys, t0, self%wk%f, 'derivative', error); if (allocated(error)) return
+      self%hist%nh = 0                   ! a start again (past a stop) keeps no evaluation before it
       call record_evaluation(self, sys, t0, x0, self%wk%f, error); if (allocated(error)) return
       call commit_evaluation(self)
       call boot%init(2*self%n, self%adaptive, self%ctl, 1)
+      call boot%stop_at(self%t_stop)
       call boot%start(sys, t0, x0, h, error); if (allocated(error)) return
       booted = boot%counts()
       self%z = boot%z; self%t = boot%t; self%h = booted%h_last; self%t0 = t0
@@ -230,6 +236,7 @@ contains
       breakdowns = 0; projection_fails = 0; refused = .false.
       do
         filling = self%hist%nh < n_hist
+        if (self%adaptive) call land_macro_step(self)
         call try_macro_step(self, sys, err_f, err_s, error)
         if (allocated(error)) then
           if (.not. self%adaptive .or. breakdowns == max_breakdowns) return
@@ -290,6 +297,7 @@ contains
     do j = 1, self%kn
       tn = self%t + self%h
       if (.not. self%adaptive) tn = self%t0 + (self%cnt%steps_fast + j)*self%h
+      if (self%landing .and. j == self%kn) tn = self%t_stop
       call nordsieck_predict(self%z, self%wk%zp)
       self%wk%x = self%wk%zp(:, 0)
       if (j == self%kn .or. self%hist%nh < n_hist) then
@@ -602,6 +610,24 @@ contains
     self%hist%hq = reshape(v(a+1:b), shape(self%hist%hq))
     self%hist%hy = reshape(v(b+1:), shape(self%hist%hy))
   end subroutine rs_set_state
+
+  !> An adaptive macro step of kn fast steps that would pass t_stop: its fast step
+  !> shortened (the array rescaled) so that it ends there.
+  pure subroutine land_macro_step(self)
+    class(response_integrator), intent(inout) :: self
+    real(dp) :: eta
+    eta = landing_ratio(self%t, self%kn*self%h, self%t_stop)
+    self%landing = eta < 1.0_dp
+    if (.not. self%landing) return
+    call nordsieck_rescale(self%z, eta)
+    self%h = eta*self%h
+  end subroutine land_macro_step
+
+  !> An adaptive run's steps land on t_stop.
+  pure logical function rs_lands(self)
+    class(response_integrator), intent(in) :: self
+    rs_lands = self%adaptive
+  end function rs_lands
 
   !> Step ratio k.
   pure subroutine rs_set_ratio(self, k)

@@ -37,6 +37,7 @@ module pymr_model_effect_firing_load
   contains
     procedure :: load => firing_load
     procedure :: add_power => firing_power
+    procedure :: next_edge => firing_next_edge
   end type firing_load_effect
 
 contains
@@ -50,6 +51,26 @@ contains
     e%acts(stage_load) = .true.
     e%loads = loads
   end function firing_load_effect_of
+
+  !> The first time after t at which a pulse starts, peaks or ends (huge: none): an
+  !> adaptive run's steps end there, so that a pulse shorter than a step is not stepped
+  !> over unseen (the load is 0 at both ends), and its slope's jumps are not stepped across.
+  pure real(dp) function firing_next_edge(self, t) result(te)
+    class(firing_load_effect), intent(in) :: self
+    real(dp), intent(in) :: t
+    real(dp) :: edges(3)
+    integer :: k, j
+    te = huge(1.0_dp)
+    do k = 1, size(self%loads)
+      if (self%loads(k)%form /= load_pulse) cycle
+      associate(ld => self%loads(k))
+        edges = [ld%start, ld%start + 0.5_dp*ld%duration, ld%start + ld%duration]
+      end associate
+      do j = 1, 3
+        if (edges(j) > t) te = min(te, edges(j))
+      end do
+    end do
+  end function firing_next_edge
 
   !> Magnitude (N or N m) of a load at time t.
   pure real(dp) function magnitude(ld, t)

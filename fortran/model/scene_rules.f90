@@ -942,10 +942,32 @@ contains
             & 'frame)'); cycle
         end if
         if (.not. load_form_items(errs, ld)) cycle
+        if (.not. pulse_within_steps(errs, sc, ld)) cycle
         call say_forgotten(errs, sc, sc%effects%firing_load, 'firing_load', ld%origin, 'the scene gives loads', said)
       end associate
     end do
   end subroutine check_loads
+
+  !> A fixed-step run's pulse lasts at least one step (h_slow, the full evaluations' step
+  !> of a multirate run): a shorter one can pass between two evaluations, and the run would
+  !> never feel it (else the error is added). Adaptive runs end steps on its start, peak
+  !> and end (driver/step_stops.f90).
+  logical function pulse_within_steps(errs, sc, ld) result(ok)
+    type(error_list), intent(inout) :: errs
+    type(scene_t), intent(in) :: sc
+    type(load_spec), intent(in) :: ld
+    real(dp) :: h
+    ok = .true.
+    if (ld%form /= 'pulse' .or. sc%integrator%adaptive) return
+    h = sc%integrator%h_slow
+    if (h == unset) h = sc%integrator%h_fast
+    if (h == unset .or. ld%duration >= h) return
+    if (ld%start + ld%duration <= 0.0_dp .or. (sc%scene%t_end /= unset .and. ld%start >= sc%scene%t_end)) return
+    ok = .false.
+    call errs%add(ld%origin%where('duration') // ': a pulse of ' // fmt(ld%duration) // ' s is shorter than ' // &
+      & 'the fixed step h_slow = ' // fmt(h) // ' s, which can pass it between two evaluations unfelt: take ' // &
+      & "h_slow <= duration, or adaptive = .true. (its steps end on the pulse's start, peak and end)")
+  end function pulse_within_steps
 
   !> A load's form and its items agree: a pulse needs its duration and takes no offset,
   !> sine or file; the other forms take no pulse items; 'constant' no sine items; 'sine'
