@@ -109,6 +109,7 @@ def load_sweep(path: str | os.PathLike) -> Sweep:
     metric = spec.get("metric", "")
     if metric and not re.fullmatch(r"(deviation|final|max_abs):[\w.\[\]]+", metric):
         raise SweepError(f"{path}: metric: {metric!r} is not 'deviation:MARKER', 'final:COLUMN' or 'max_abs:COLUMN'")
+    check_reference_used(path, spec, metric)
     scene = (path.parent / spec["scene"]).resolve()
     try:
         found = scene.exists()
@@ -121,9 +122,20 @@ def load_sweep(path: str | os.PathLike) -> Sweep:
     # outputs are relative to the working folder, as every pymr output is (not to the TOML file)
     output = Path(spec.get("output", path.stem)).resolve()
     sw = Sweep(path, scene, output, metric, grid, fixed, reference)
-    check_cases(sw)
-    check_metric(sw)
+    tasks = check_cases(sw)
+    check_task_outputs(sw, tasks)
+    check_metric(sw, tasks)
+    check_reference_times(sw, tasks)
     return sw
+
+
+def check_reference_used(path: Path, spec: dict, metric: str) -> None:
+    """A [reference] table only where the metric runs references (deviation): beside
+    another metric, or none, it was ignored, its unknown items and bad values unread."""
+    if "reference" in spec and not metric.startswith("deviation:"):
+        used = f"the metric is {metric!r}" if metric else "there is no metric"
+        raise SweepError(f"{path}: [reference]: only the metric 'deviation:MARKER' runs reference runs, and {used}: "
+                         "remove [reference]")
 
 
 def named_once(path: Path, spec: dict) -> tuple[dict, dict, dict]:
@@ -194,18 +206,130 @@ def check_types(path: Path, spec: dict) -> None:
         raise SweepError(f"{path}: scene: an empty file name (the base scene's namelist file)")
 
 
-def check_cases(sw: Sweep) -> None:
+@dataclass
+class Task:
+    """One run of a sweep, a case or (the deviation metric) a reference run: its name in
+    messages, its overrides, the kernel's scene of them, and the cases it is (or serves)."""
+    name: str
+    overrides: dict
+    scene: Scene
+    cases: list[int]
+    reference: bool = False
+
+
+def check_cases(sw: Sweep) -> list[Task]:
     """Every case's scene (and its reference's) read and checked by the kernel before any
-    case runs: a bad key or value is one error naming the case."""
-    named = [(case_name(i), {**sw.fixed, **c}) for i, c in enumerate(sw.cases)]
+    case runs: a bad key or value is one error naming the case. Returns the runs, the
+    cases' first, for the checks that follow."""
+    named = [(case_name(i), {**sw.fixed, **c}, [i], False) for i, c in enumerate(sw.cases)]
     if sw.metric.startswith("deviation:"):
-        named += [(f"the reference of {', '.join(case_name(i) for i in cases)}", over)
+        named += [(f"the reference of {', '.join(case_name(i) for i in cases)}", over, cases, True)
                   for over, cases in references(sw)]
-    for name, overrides in named:
+    tasks = []
+    for name, overrides, cases, reference in named:
         try:
-            Scene(sw.scene, overrides)
+            tasks.append(Task(name, overrides, Scene(sw.scene, overrides), cases, reference))
         except SceneError as exc:
             raise SweepError(f"{sw.path}: {name} {overrides}: {exc}") from None
+    return tasks
+
+
+def item_place(sw: Sweep, address: str, reference: bool = False) -> str:
+    """Where a run's value of the item `address` (canonical, 'output.dt') is set: the sweep
+    table and key that set it ('[fixed] output.dt'; [reference] first for a reference run),
+    else the base scene's group and item ('scene p.nml, &output dt')."""
+    tables = [("reference", sw.reference)] if reference else []
+    for name, table in tables + [("grid", sw.grid), ("fixed", sw.fixed)]:
+        for key in table:
+            if canonical_address(key) == address:
+                return f"[{name}] {key}"
+    group, item = address.split(".", 1)
+    return f"scene {sw.scene.name}, &{group} {item}"
+
+
+def check_task_outputs(sw: Sweep, tasks: list[Task]) -> None:
+    """The files each run writes besides its results, checked before any case runs (each
+    case refused them as it ran, and the sweep failed case by case, exit 2): results in
+    the format the sweep reads, and a checkpoint_file of its own that is no input."""
+    for task in tasks:
+        check_results_format(sw, task)
+        check_checkpoint_file(sw, task)
+    check_checkpoints_unshared(sw, tasks)
+
+
+def check_results_format(sw: Sweep, task: Task) -> None:
+    """A sweep's runs write CSV (caseNNNN.csv, referenceNNNN.csv), which its summary and
+    --collect read: &output format 'hdf5' failed every case (the kernel writes HDF5 only to
+    a .h5 file)."""
+    kind = task.scene["output.format"]
+    if kind != "csv":
+        raise SweepError(f"{sw.path}: {item_place(sw, 'output.format', task.reference)}: {kind!r} in {task.name}: a "
+                         "sweep writes each run's results as CSV (caseNNNN.csv), which its summary and --collect read: "
+                         "leave output.format out")
+
+
+def checkpoint_file(task: Task) -> str:
+    """The checkpoint_file a run writes ('' for none, or for the default beside its results)."""
+    return task.scene["output.checkpoint_file"] if task.scene["output.checkpoint_dt"] > 0 else ""
+
+
+def check_checkpoint_file(sw: Sweep, task: Task) -> None:
+    """A run's checkpoint_file checked as every pymr output is (check_output, with the
+    kernel's rule on the scene's inputs), before any case runs: one over the base scene
+    failed every case."""
+    file = checkpoint_file(task)
+    if file:
+        check_output(file, "checkpoint file", option=f"{sw.path}: {task.name}: "
+                     f"{item_place(sw, 'output.checkpoint_file', task.reference)} =", inputs=[sw.path],
+                     scene=sw.scene, overrides=task.overrides)
+
+
+def check_checkpoints_unshared(sw: Sweep, tasks: list[Task]) -> None:
+    """No two runs write one checkpoint_file: the cases run at once and each replaced the
+    others' file (a [fixed] checkpoint_file failed cases with a misleading 'the disk took
+    -1 bytes', and --emit-slurm wrote it into every namelist). Each case's default
+    checkpoint, beside its results (caseNNNN.ckpt), is its own."""
+    users: dict[str, list[Task]] = {}
+    for task in tasks:
+        if checkpoint_file(task):
+            users.setdefault(os.path.abspath(checkpoint_file(task)), []).append(task)
+    for file, shared in users.items():
+        if len(shared) > 1:
+            raise SweepError(f"{sw.path}: {item_place(sw, 'output.checkpoint_file', shared[-1].reference)}: "
+                             f"{checkpoint_file(shared[0])!r} is the checkpoint file of {_listed(shared)}: runs of a "
+                             "sweep must not share a file (each would overwrite the others'): leave checkpoint_file "
+                             "out, and each case writes its checkpoint beside its results (caseNNNN.ckpt)")
+
+
+def _listed(tasks: list[Task]) -> str:
+    """The runs' names as a list in a sentence ('case0000, case0001 and case0002')."""
+    names = [task.name for task in tasks]
+    return names[0] if len(names) == 1 else f"{', '.join(names[:-1])} and {names[-1]}"
+
+
+#: The items that set a run's output times: the deviation metric compares a case's marker
+#: with its reference's at the same rows.
+OUTPUT_TIMES = ("scene.t_end", "output.dt")
+
+
+def check_reference_times(sw: Sweep, tasks: list[Task]) -> None:
+    """Each reference run writes its rows at its cases' output times, found before any case
+    runs: a [reference] with another t_end or output.dt failed every case after its run
+    ('output times differ'), and so did output.dt = 0 (a row every step) when the
+    [reference] settings change the reference's steps from its cases'."""
+    cases = [task for task in tasks if not task.reference]
+    for ref in (task for task in tasks if task.reference):
+        case = cases[ref.cases[0]]
+        for address in OUTPUT_TIMES:
+            mine, theirs = case.scene[address], ref.scene[address]
+            if mine != theirs:
+                raise SweepError(f"{sw.path}: {item_place(sw, address, True)}: {theirs:g} in {ref.name}, {mine:g} in "
+                                 f"{case.name}: the deviation compares the marker at the case's output times, which "
+                                 f"its reference must share: leave {address} out of [reference]")
+        if ref.scene["output.dt"] == 0 and ref.overrides != case.overrides:
+            raise SweepError(f"{sw.path}: {item_place(sw, 'output.dt', True)}: 0 (a row every step) in {case.name} "
+                             "and its reference, which steps by the [reference] settings: the deviation compares the "
+                             "marker at output times the two share: give output.dt > 0")
 
 
 def references(sw: Sweep) -> list[tuple[dict, list[int]]]:
@@ -235,18 +359,18 @@ def reference_file(k: int) -> str:
 COLUMN_GROUPS = ("body", "joint", "marker", "output")
 
 
-def check_metric(sw: Sweep) -> None:
-    """The metric's marker or column is one the cases' results will have, found before any
+def check_metric(sw: Sweep, tasks: list[Task]) -> None:
+    """The metric's marker or column is one the cases' (and references') results will have, found before any
     case runs (it was found only after every case had run, or at --collect as a traceback):
-    a probe run of the case's scene to t = 1e-9 s (from rest, without the pre-flight check:
+    a probe run of the case's (or reference's) scene to t = 1e-9 s (from rest, without the pre-flight check:
     only its columns are wanted), one for each distinct set of the overrides that can change
     the columns. A probe the kernel cannot run leaves that case to report its own error."""
     if not sw.metric:
         return
     kind, what = sw.metric.split(":", 1)
     probed: dict[str, list[str] | None] = {}
-    for i, case in enumerate(sw.cases):
-        over = {**sw.fixed, **case}
+    for task in tasks:
+        over = task.overrides
         key = repr(sorted((k, v) for k, v in over.items() if k.split(".")[0].split("[")[0] in COLUMN_GROUPS))
         if key not in probed:
             probe = {**over, "scene.t_end": 1e-9, "scene.start": "rest", "output.dt": 0.0,
@@ -258,7 +382,7 @@ def check_metric(sw: Sweep) -> None:
                 probed[key] = None
             names = probed[key]
             if names is not None and what not in names:
-                raise SweepError(f"{sw.path}: metric {sw.metric!r}: " + _missing(kind, what, names, case_name(i)))
+                raise SweepError(f"{sw.path}: metric {sw.metric!r}: " + _missing(kind, what, names, task.name))
 
 
 def _missing(kind: str, what: str, names: list[str], case: str) -> str:
@@ -762,3 +886,4 @@ def main(toml: str, scheduler: str | None = None, workers: int = 2, emit: str | 
         print(f"pymr: error: of {len(rows)} cases, {' and '.join(parts)}: see {where}", file=sys.stderr)
         return 2
     return 0
+

@@ -7,6 +7,7 @@ import csv
 import os
 import re
 import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -214,9 +215,10 @@ def test_a_reference_key_replaces_the_case_s_value_however_spelled(tmp_path):
     case's step and every deviation was 0)."""
     (tmp_path / "p.nml").write_text(PENDULUM)
     (tmp_path / "s.toml").write_text('scene = "p.nml"\nmetric = "deviation:tip"\n[grid]\n"Integrator.H_SLOW" = [1e-2, 2e-2]\n'
-                                     '[reference]\n"integrator.h_slow" = 1e-4\n')
+                                     '[fixed]\n"output.dt" = 0.02\n[reference]\n"integrator.h_slow" = 1e-4\n')
     from pymr.sweep import references
-    assert [over for over, _ in references(load_sweep(tmp_path / "s.toml"))] == [{"Integrator.H_SLOW": 1e-4}]
+    assert [over for over, _ in references(load_sweep(tmp_path / "s.toml"))] == [{"output.dt": 0.02,
+                                                                                  "Integrator.H_SLOW": 1e-4}]
 
 
 def test_no_sweep_output_overwrites_an_input(tmp_path, monkeypatch):
@@ -616,3 +618,86 @@ def test_a_killed_emission_over_an_earlier_sweep_is_not_collected(tmp_path, monk
     monkeypatch.setattr(sweep_module, "case_namelist", written)
     emit_slurm(a, folder)
     assert [row["status"] for row in collect(a, folder)] == ["ok", "ok"]
+
+
+# ------------------------------------------------- faults found before any case runs (audit V5-V7)
+
+#: A pendulum sweep of two (or three) cases, 0.05 s long (a row every step unless output.dt
+#: is set): the metric, the grid's values and the lines after the [fixed] table's first item.
+SHORT_SWEEP = ('scene = "p.nml"\noutput = "out"\nmetric = "{metric}"\n[grid]\n"joint[pivot].q0" = [{values}]\n'
+               '[fixed]\n"scene.t_end" = 0.05\n{extra}\n')
+
+
+def _sweep_command(cwd: Path, *args: str) -> subprocess.CompletedProcess:
+    """pymr sweep ARGS in `cwd`, by the pymr this test imports (not the one first on PATH)."""
+    return subprocess.run([sys.executable, "-m", "pymr", "sweep", *args], cwd=cwd, capture_output=True, text=True,
+                          timeout=120)
+
+
+@pytest.mark.parametrize("metric, extra, message", [
+    # V5: a checkpoint over the base scene failed every case, exit 2
+    ("final:pivot.q", '"output.checkpoint_dt" = 0.01\n"output.checkpoint_file" = "p.nml"',
+     r"s.toml: case0000: \[fixed\] output.checkpoint_file = p.nml: would overwrite the scene \(.*p.nml\); choose "
+     r"another checkpoint file"),
+    # V5: HDF5 results, which no caseNNNN.csv can hold
+    ("final:pivot.q", '"output.format" = "hdf5"',
+     r"s.toml: \[fixed\] output.format: 'hdf5' in case0000: a sweep writes each run's results as CSV"),
+    # V5: a reference whose results lack the marker, or whose output times are not its case's
+    ("deviation:tip", '"output.dt" = 0.01\n[reference]\n"output.quantities" = "energy"',
+     r"s.toml: metric 'deviation:tip': the results of the reference of case0000 have no marker 'tip'"),
+    ("deviation:tip", '"output.dt" = 0.01\n[reference]\n"output.dt" = 0.0',
+     r"s.toml: \[reference\] output.dt: 0 in the reference of case0000, 0.01 in case0000: the deviation compares "
+     r"the marker at the case's output times, which its reference must share: leave output.dt out of \[reference\]"),
+    ("deviation:tip", '"output.dt" = 0.01\n[reference]\n"scene.t_end" = 0.02',
+     r"s.toml: \[reference\] scene.t_end: 0.02 in the reference of case0000, 0.05 in case0000: .* leave "
+     r"scene.t_end out of \[reference\]"),
+    # the base scene writes a row every step, and the reference steps otherwise
+    ("deviation:tip", '[reference]\n"integrator.h_slow" = 2.5e-4',
+     r"s.toml: scene p.nml, &output dt: 0 \(a row every step\) in case0000 and its reference, which steps by the "
+     r"\[reference\] settings: .* give output.dt > 0"),
+    # V6: one checkpoint file for every case (they raced on it)
+    ("final:pivot.q", '"output.checkpoint_dt" = 0.01\n"output.checkpoint_file" = "same.ckpt"',
+     r"s.toml: \[fixed\] output.checkpoint_file: 'same.ckpt' is the checkpoint file of case0000, case0001 and "
+     r"case0002: runs of a sweep must not share a file .*: leave checkpoint_file out, and each case writes its "
+     r"checkpoint beside its results \(caseNNNN.ckpt\)"),
+    # V7: a [reference] the metric does not use was ignored, its faults unseen (exit 0)
+    ("final:pivot.q", '[reference]\n"integrator.hslow" = 1e-4',
+     r"s.toml: \[reference\]: only the metric 'deviation:MARKER' runs reference runs, and the metric is "
+     r"'final:pivot.q': remove \[reference\]"),
+    ("", '[reference]\n"integrator.h_slow" = -1',
+     r"s.toml: \[reference\]: only the metric 'deviation:MARKER' runs reference runs, and there is no metric: "
+     r"remove \[reference\]"),
+], ids=["checkpoint_over_scene", "hdf5", "reference_without_marker", "reference_dt", "reference_t_end",
+        "every_step", "shared_checkpoint", "unused_reference", "reference_without_metric"])
+@pytest.mark.parametrize("mode", [[], ["--emit-slurm", "runs"]], ids=["run", "emit"])
+def test_a_fault_every_case_would_meet_stops_the_sweep_before_any_case_runs(tmp_path, metric, extra, message, mode):
+    """Audit V5-V7: outputs and [reference] settings that failed every case after it ran
+    (exit 2), raced the cases on one file, or were ignored (exit 0) are one line naming the
+    sweep file, its table and item, and exit 1, before any case or reference runs: no
+    folder is made, no checkpoint written, no namelist emitted."""
+    (tmp_path / "p.nml").write_text(PENDULUM)
+    values = "0.5, 0.6, 0.7" if "same.ckpt" in extra else "0.5, 0.6"
+    (tmp_path / "s.toml").write_text(SHORT_SWEEP.format(metric=metric, values=values, extra=extra))
+    r = _sweep_command(tmp_path, "s.toml", *mode)
+    assert r.returncode == 1 and r.stdout == "" and r.stderr.count("\n") == 1, (r.returncode, r.stderr)
+    assert r.stderr.startswith("pymr: error: s.toml: ") and re.search(message, r.stderr), r.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["p.nml", "s.toml"]
+    assert (tmp_path / "p.nml").read_text() == PENDULUM
+
+
+def test_each_case_s_checkpoint_goes_beside_its_results(tmp_path, monkeypatch):
+    """The checkpoints of a sweep without a checkpoint_file (V6's way out): each case and
+    reference writes its own beside its results, and every case is ok. Distinct
+    checkpoint_files on the grid are no shared file, and are taken."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "p.nml").write_text(PENDULUM)
+    (tmp_path / "s.toml").write_text(SHORT_SWEEP.format(metric="deviation:tip", values="0.5, 0.6", extra=(
+        '"output.dt" = 0.01\n"output.checkpoint_dt" = 0.02\n[reference]\n"integrator.h_slow" = 2.5e-4')))
+    rows = run_sweep(load_sweep(tmp_path / "s.toml"), workers=1)
+    assert [r["status"] for r in rows] == ["ok", "ok"]
+    assert sorted(p.name for p in (tmp_path / "out").glob("*.ckpt")) == [
+        "case0000.ckpt", "case0001.ckpt", "reference0000.ckpt", "reference0001.ckpt"]
+    (tmp_path / "g.toml").write_text('scene = "p.nml"\n[grid]\n"output.checkpoint_file" = ["a.ckpt", "b.ckpt"]\n'
+                                     '[fixed]\n"scene.t_end" = 0.05\n"output.checkpoint_dt" = 0.02\n')
+    assert len(load_sweep(tmp_path / "g.toml").cases) == 2
+
