@@ -883,7 +883,18 @@ def main(toml: str, scheduler: str | None = None, workers: int = 2, emit: str | 
         parts = [f"{len(failed)} failed ({', '.join(failed)})"] if failed else []
         if not_run:
             parts.append(f"{len(not_run)} not run or not finished ({', '.join(not_run)})")
-        print(f"pymr: error: of {len(rows)} cases, {' and '.join(parts)}: see {where}", file=sys.stderr)
+        print(f"pymr: error: of {len(rows)} cases, {' and '.join(parts)}: see {where}{first_failure(rows, failed)}",
+              file=sys.stderr)
         return 2
     return 0
 
+
+def first_failure(rows: list[dict], failed: list[str]) -> str:
+    """'; case0000: CAUSE', the first failed case's error for the one line that ends a failed
+    sweep ('' when none failed): the case listing cuts each status at 90 characters, before
+    the cause of a long kernel message (a max_bytes refusal named the scene and the --set)."""
+    row = next((r for r in rows if r["case"] in failed), None)
+    if row is None:
+        return ""
+    cause = " ".join(row["status"].split()).removeprefix("error: ").removeprefix("failed: ")
+    return f"; {row['case']}: {cause}"

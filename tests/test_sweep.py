@@ -701,3 +701,18 @@ def test_each_case_s_checkpoint_goes_beside_its_results(tmp_path, monkeypatch):
                                      '[fixed]\n"scene.t_end" = 0.05\n"output.checkpoint_dt" = 0.02\n')
     assert len(load_sweep(tmp_path / "g.toml").cases) == 2
 
+
+def test_a_failed_sweep_s_line_names_the_first_failure_s_cause(tmp_path):
+    """V5: max_bytes too small for every case is known only as a case runs (the kernel's
+    size check needs the run's built model and columns, and no entry point of the binding
+    makes it alone; a row every step here): every case fails, exit 2,
+    and the one error line names the first failed case and its cause, which the case
+    listing cut at 90 characters before the kernel's reason."""
+    (tmp_path / "p.nml").write_text(PENDULUM)
+    (tmp_path / "s.toml").write_text(SHORT_SWEEP.format(metric="final:pivot.q", values="0.5, 0.6",
+                                                        extra='"output.max_bytes" = 1000'))
+    r = _sweep_command(tmp_path, "s.toml", "--workers", "1")
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr, r.stderr
+    assert re.fullmatch(r"pymr: error: of 2 cases, 2 failed \(case0000, case0001\): see .*summary.csv; case0000: "
+                        r".*p.nml: .*&output: dt: the results would take about \d+ bytes \(\d+ rows\), more than "
+                        r"max_bytes = 1000 \(a larger dt, or raise max_bytes in &output\)\n", r.stderr), r.stderr
