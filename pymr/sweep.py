@@ -33,8 +33,12 @@ share its run (``referenceNNNN.csv`` in the output folder; the summary names eac
 The output folder, like every output of pymr, is relative to the working folder (not to
 the TOML file, which may sit in a checkout or in the installed package). Before any case
 runs, every case's scene (and its reference's) is read by the kernel, and the metric's
-marker or column is looked up in the columns the case's results will have: a bad key, value
-or metric is one line naming the sweep file, with exit 1.
+marker or column is looked up in the columns the case's (and reference's) results will
+have: a bad key, value or metric is one line naming the sweep file, with exit 1. So is
+what every case would fail on after its run: results other than CSV, a checkpoint_file
+over an input or shared by two runs (each case's default checkpoint, beside its results,
+is its own), a reference whose output times are not its case's; and a [reference] table
+beside a metric that runs no references.
 """
 from __future__ import annotations
 
