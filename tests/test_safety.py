@@ -381,6 +381,46 @@ def test_an_output_that_is_no_regular_file_is_refused_before_the_run(tmp_path, m
         assert sorted(p.name for p in tmp_path.iterdir()) == before
 
 
+def test_a_checkpoint_where_no_file_can_be_made_is_refused_before_the_run(tmp_path, mrsim, monkeypatch):
+    """A checkpoint_file in /sys (as root, access() lets one write there, but sysfs takes no new
+    file) ran to its first checkpoint: exit 2 with gfortran's "Cannot open file ...:
+    Permission denied", no &output item named, and OUT.csv.partial left. Refused as the
+    results' folder is, exit 1 before anything is written, naming &output checkpoint_file (on
+    its line, from the scene or --set); -o in /sys in the same words. A staging file
+    CKPT.tmp that is a directory failed at the first checkpoint too."""
+    if not os.path.isdir("/sys"):
+        pytest.skip("no /sys")
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "p.nml").write_text(PENDULUM)
+    (tmp_path / "s.nml").write_text(PENDULUM.replace("&output dt = 0.01 /", "&output dt = 0.01,\n"
+                                                      "  checkpoint_dt = 0.01, checkpoint_file = '/sys/c.ckpt' /"))
+    line = PENDULUM.splitlines().index("&output dt = 0.01 /") + 2
+    (tmp_path / "c.ckpt.tmp").mkdir()
+    (tmp_path / "out.ckpt.tmp").mkdir()
+    before = sorted(p.name for p in tmp_path.iterdir())
+    folder = "cannot make files in its folder '/sys' (Permission denied); choose another "
+    for scene, args, message in (
+            ("p.nml", ["-o", "out.csv", "--set", "output.checkpoint_dt=0.01", "--set",
+                       "output.checkpoint_file='/sys/c.ckpt'"],
+             "p.nml: --set output.checkpoint_file='/sys/c.ckpt': &output: checkpoint_file: " + folder +
+             "checkpoint_file or a folder it can write"),
+            ("s.nml", ["-o", "out.csv"],
+             f"s.nml:{line}: &output: checkpoint_file: " + folder + "checkpoint_file or a folder it can write"),
+            ("p.nml", ["-o", "/sys/c.csv"], "p.nml: output /sys/c.csv: " + folder + "output or a folder it can write"),
+            ("p.nml", ["-o", "out.csv", "--set", "output.checkpoint_dt=0.01", "--set", "output.checkpoint_file=c.ckpt"],
+             "p.nml: --set output.checkpoint_file=c.ckpt: &output: checkpoint_file: the run's file c.ckpt.tmp: it is "
+             "a directory; choose another checkpoint file"),
+            ("p.nml", ["-o", "out.csv", "--set", "output.checkpoint_dt=0.01"],
+             "p.nml: output out.csv: the run's file out.ckpt.tmp: it is a directory; choose another results file, "
+             "or a checkpoint_file in &output")):
+        r = run_mrsim(mrsim, [scene, *args], tmp_path)
+        assert r.returncode == 1 and r.stderr == "mrsim: error: " + message + "\n", r.stderr
+        with pytest.raises(pymr.SceneError, match="^" + re.escape(message) + "$"):
+            pymr.run(scene, args[1], overrides=args[3::2] or None)
+        assert sorted(p.name for p in tmp_path.iterdir()) == before
+        assert not os.path.exists("/sys/c.ckpt") and not os.path.exists("/sys/c.ckpt.tmp")
+
+
 def test_results_of_the_other_format_keep_their_statistics(tmp_path, mrsim, monkeypatch):
     """OUT.csv and OUT.h5 share the statistics file OUT.json: a run to out.h5 replaced the
     statistics of a complete out.csv, which then no longer loaded ('1001 rows of the 501

@@ -116,6 +116,8 @@ contains
     if (len_trim(sc%output%checkpoint_file) == 0) then
       if (replaces(sc, checkpoint_default(path), 'output ' // path // ': its checkpoint ' // checkpoint_default(path), &
         & 'another results file, or a checkpoint_file in &output', error)) return
+      if (replaces(sc, checkpoint_default(path) // '.tmp', 'output ' // path // ': the run''s file ' // &
+        & checkpoint_default(path) // '.tmp', 'another results file, or a checkpoint_file in &output', error)) return
       ! -o run.ckpt: the checkpoint beside the results is the results file itself
       if (collides(path, checkpoint_default(path), sc%file // ': output ' // path // ': its checkpoint ' // &
         & checkpoint_default(path), inputs, error, 'another results file, or a checkpoint_file in &output')) return
@@ -123,6 +125,9 @@ contains
     end if
     file = trim(sc%output%checkpoint_file); label = sc%output%origin%where('checkpoint_file')
     if (replaces(sc, file, label, 'another checkpoint file', error)) return
+    ! a directory where it is staged failed at the first checkpoint (exit 2)
+    if (replaces(sc, file // '.tmp', label // ': the run''s file ' // file // '.tmp', 'another checkpoint file', &
+      & error)) return
     if (no_folder(file, label, 'a checkpoint_file', error)) return
     staged(1) = file; staged(2) = file // '.tmp'
     if (cannot_make(staged, label, 'another checkpoint_file', error)) return

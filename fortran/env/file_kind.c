@@ -1,6 +1,8 @@
 /* What Fortran cannot ask about files, or do with them: for pymr_env_text_file's not_regular,
    not_replaceable, same_file, unwritable_folder, longest_name and write_standard_output. */
 #include <errno.h>
+#include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -59,11 +61,24 @@ int pymr_write_stdout(const char *buf, size_t n, char *why, size_t whylen)
 }
 
 /* 0 when the process may make files in the folder `dir` (write and search permission, a
-   file system mounted for writing); else -1 with the system's reason in why (at most
-   whylen - 1 bytes, NUL-ended). */
+   file system mounted for writing and one that takes new files); else -1 with the system's
+   reason in why (at most whylen - 1 bytes, NUL-ended). Root passes access() where the file
+   system still refuses a new file (/sys): a file of a unique name is made there and removed,
+   as the results' lock file is made before the run (a checkpoint_file in /sys failed only
+   at the first checkpoint, exit 2). */
 int pymr_unwritable_folder(const char *dir, char *why, size_t whylen)
 {
-    if (access(dir, W_OK | X_OK) == 0) return 0;
+    char probe[4352];
+    int fd;
+    if (access(dir, W_OK | X_OK) == 0) {
+        if (snprintf(probe, sizeof probe, "%s/.pymr-probe-XXXXXX", dir) >= (int)sizeof probe) return 0;
+        fd = mkstemp(probe);
+        if (fd >= 0) {
+            close(fd);
+            unlink(probe);
+            return 0;
+        }
+    }
     strncpy(why, strerror(errno), whylen - 1);
     why[whylen - 1] = '\0';
     return -1;
