@@ -421,6 +421,31 @@ def test_a_checkpoint_where_no_file_can_be_made_is_refused_before_the_run(tmp_pa
         assert not os.path.exists("/sys/c.ckpt") and not os.path.exists("/sys/c.ckpt.tmp")
 
 
+def test_a_checkpoint_that_cannot_be_written_mid_run_is_said_in_pymrs_words(tmp_path, mrsim):
+    """The checkpoint's folder removed while the run goes on (stopped after its start, before
+    its first checkpoint): exit 2, one line naming the time and the system's reason, not the
+    run-time library's message ("Cannot open file 'ck/p.ckpt.tmp': No such file or
+    directory")."""
+    (tmp_path / "p.nml").write_text(PENDULUM)
+    (tmp_path / "ck").mkdir()
+    args = [mrsim, "p.nml", "-o", "p.csv", "--quiet", "--set", "scene.t_end=2000", "--set", "output.dt=100",
+            "--set", "output.checkpoint_dt=1000", "--set", "output.checkpoint_file='ck/p.ckpt'"]
+    proc = subprocess.Popen(args, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 60
+        while not (tmp_path / "p.csv.partial").exists() and proc.poll() is None and time.monotonic() < deadline:
+            time.sleep(1e-4)
+        os.kill(proc.pid, signal.SIGSTOP)
+        assert not any((tmp_path / "ck").iterdir()), "the first checkpoint came before the stop"
+        shutil.rmtree(tmp_path / "ck")
+    finally:
+        os.kill(proc.pid, signal.SIGCONT)
+        out, err = proc.communicate(timeout=120)
+    assert proc.returncode == 2, err
+    assert err == "mrsim: error: p.nml: at t = 1000 s: ck/p.ckpt: cannot write the checkpoint (No such file or " \
+                  "directory)\n", err
+
+
 def test_results_of_the_other_format_keep_their_statistics(tmp_path, mrsim, monkeypatch):
     """OUT.csv and OUT.h5 share the statistics file OUT.json: a run to out.h5 replaced the
     statistics of a complete out.csv, which then no longer loaded ('1001 rows of the 501

@@ -11,7 +11,8 @@ module pymr_env_text_file
   private
   public :: write_text_file, stage_text_file, commit_staged, rename_file, sync_file, check_size, file_size, &
     & scene_relative, absolute_path, acquire_lock, release_lock, not_regular, not_replaceable, missing_folder, remove_file, &
-    & read_text_file, check_header_count, same_file, write_standard_output, unwritable_folder, name_too_long
+    & read_text_file, check_header_count, same_file, write_standard_output, unwritable_folder, name_too_long, &
+    & system_reason
 
   interface
     function c_rename(old, new) bind(c, name='rename') result(r)

@@ -10,7 +10,7 @@
 !> checked, flushed and renamed, so a run killed while writing keeps the previous checkpoint.
 module pymr_io_checkpoint
   use, intrinsic :: iso_fortran_env, only : int64
-  use pymr_env_text_file, only : rename_file, sync_file, check_size, not_regular, check_header_count
+  use pymr_env_text_file, only : rename_file, sync_file, check_size, not_regular, check_header_count, system_reason
   use pymr_env_kinds, only : dp
   use pymr_env_error, only : error_type, fatal_error, stat_solver
   use pymr_integrator_stepper, only : stepper_t, step_counts
@@ -80,7 +80,7 @@ contains
     open(newunit=u, file=path // '.tmp', access='stream', form='unformatted', status='replace', action='write', &
       & iostat=ios, iomsg=msg)
     if (ios /= 0) then
-      call fatal_error(error, path // ': cannot write the checkpoint: ' // trim(msg), stat_solver); return
+      call fatal_error(error, path // ': cannot write the checkpoint (' // system_reason(msg) // ')', stat_solver); return
     end if
     name = st%name(); ver = pymr_version
     write(u, iostat=ios) tag, version, ver, model%d%n, model%d%nj, name, st%time(), len(settings), settings, &
@@ -109,7 +109,7 @@ contains
       if (ios == 0) close(u, iostat=ios, iomsg=msg)
     end if
     if (ios /= 0) then
-      call fatal_error(error, path // ': cannot write the checkpoint: ' // trim(msg), stat_solver); return
+      call fatal_error(error, path // ': cannot write the checkpoint (' // system_reason(msg) // ')', stat_solver); return
     end if
     call check_size(path // '.tmp', int(len(body) + 64, int64), error)
     if (allocated(error)) then
