@@ -240,33 +240,44 @@ TRAVEL_T = np.arange(5, 31) * 1.0e-3
 TRAVEL_S = 0.2 + 6.0e6 * (TRAVEL_T - 5.0e-3)**4
 
 
-def spline_exit() -> float:
-    """Where the natural cubic spline through the travel table passes L (scipy)."""
-    spline = CubicSpline(TRAVEL_T, TRAVEL_S, bc_type="natural")
-    i = int(np.argmax(TRAVEL_S > LENGTH))
-    return brentq(lambda t: spline(t) - LENGTH, TRAVEL_T[i - 1], TRAVEL_T[i], xtol=1e-16, rtol=1e-15)
+# the same travel backwards, towards the root: s = 1.8 - 6e6 (t - 5 ms)^4 m
+BACK_S = LENGTH - TRAVEL_S
 
 
-def write_travel(path: Path) -> None:
-    path.write_text("".join(f"{t!r} {s!r}\n" for t, s in zip(TRAVEL_T.tolist(), TRAVEL_S.tolist())))
+def spline_exit(positions=TRAVEL_S, end=LENGTH) -> float:
+    """Where the natural cubic spline through the travel table passes the end s = `end` of
+    the beam (scipy)."""
+    spline = CubicSpline(TRAVEL_T, positions, bc_type="natural")
+    i = int(np.argmax((positions > LENGTH) | (positions < 0)))
+    return brentq(lambda t: spline(t) - end, TRAVEL_T[i - 1], TRAVEL_T[i], xtol=1e-16, rtol=1e-15)
 
 
-@pytest.mark.parametrize("load, t_exit", [
-    ("mass = 20.0, s0 = 0.5, speed = 50.0, start = 0.01", 0.04),
-    ("mass = 20.0, form = 'table', file = 'travel.txt'", spline_exit()),
+def write_travel(path: Path, positions=TRAVEL_S) -> None:
+    path.write_text("".join(f"{t!r} {s!r}\n" for t, s in zip(TRAVEL_T.tolist(), positions.tolist())))
+
+
+@pytest.mark.parametrize("load, t_exit, end", [
+    ("mass = 20.0, s0 = 0.5, speed = 50.0, start = 0.01", 0.04, "tip"),
+    ("mass = 20.0, form = 'table', file = 'travel.txt'", spline_exit(), "tip"),
+    # through the root, s0 + speed (t - start) = 0: 0.01 + 1.5/50 s (neither acted on nor
+    # reported: "did not leave its body", found by an audit)
+    ("mass = 20.0, s0 = 1.5, speed = -50.0, start = 0.01", 0.01 + 1.5 / 50.0, "root"),
+    ("mass = 20.0, form = 'table', file = 'back.txt'", spline_exit(BACK_S, 0.0), "root"),
 ])
-def test_shot_exit_is_at_the_travel_laws_time_with_the_markers_state_there(tmp_path, load, t_exit):
-    """The exit time is the travel law's (start + (L - s0)/speed; for a table where scipy's
-    natural cubic spline through it passes L = 2 m), and the reported state of the tip
+def test_shot_exit_is_at_the_travel_laws_time_with_the_markers_state_there(tmp_path, load, t_exit, end):
+    """The exit time is the travel law's (start + (L - s0)/speed, or start - s0/speed through
+    the root; for a table where scipy's natural cubic spline through it passes L = 2 m, or
+    0), the end it leaves through is named, and the reported state of the tip
     marker equals the output row there (both from the stepper's dense
     output): position, velocity, angle (from the row's quaternion) and angular rate (from
     the rows' angles about z before it, a second-order one-sided difference: to 1e-3 of the
     largest rate with rows every 7 to 10 us, the third mode at 362 Hz)."""
     write_travel(tmp_path / "travel.txt")
+    write_travel(tmp_path / "back.txt", BACK_S)
     # rows every t_exit/4000 (7 to 10 us), so that one lands on the exit
     res = cantilever(tmp_path, "exit.nml", load, t_end=0.05, gravity=".true.", dt=t_exit / 4000, integrator=EXIT_TOL)
     [shot] = res.stats["moving_loads"]
-    assert shot["name"] == "shot" and shot["exited"] is True
+    assert shot["name"] == "shot" and shot["exited"] is True and shot["exit_end"] == end
     assert shot["t_exit"] == pytest.approx(t_exit, rel=1e-14)
     k = int(np.argmin(np.abs(res.t - t_exit)))
     assert abs(res.t[k] - t_exit) < 1e-12
@@ -279,7 +290,21 @@ def test_shot_exit_is_at_the_travel_laws_time_with_the_markers_state_there(tmp_p
     # one-sided (the angular acceleration jumps at the exit), second order
     rate = (3 * angle[k, 2] - 4 * angle[k - 1, 2] + angle[k - 2, 2]) / (res.t[k] - res.t[k - 2])
     assert abs(tip["angular_rate"][2] - rate) < 1e-3 * np.abs(np.diff(angle[:, 2]) / np.diff(res.t)).max()
-    assert "shot exit at t = " in res.summary
+    said = {"tip": "moving load 'shot': shot exit at t = ",
+            "root": "moving load 'shot': left its body through its root (s = 0) at t = "}
+    assert said[end] in res.summary and "did not leave" not in res.summary
+
+
+def test_an_adaptive_run_ends_a_step_on_a_root_exit(tmp_path):
+    """Adaptive steps end exactly on the exit through the root, as on the shot exit (the
+    load's terms stop there at once): with a row at every step (output dt = 0), one is at
+    t_exit = start + s0/|speed| to rounding."""
+    t_exit = 0.01 + 1.5 / 50.0
+    res = cantilever(tmp_path, "root.nml", "mass = 20.0, s0 = 1.5, speed = -50.0, start = 0.01", t_end=0.05,
+                     gravity=".true.", dt=0.0, integrator=EXIT_TOL)
+    [shot] = res.stats["moving_loads"]
+    assert shot["exit_end"] == "root" and shot["t_exit"] == pytest.approx(t_exit, rel=1e-14)
+    assert res.t[-1] == pytest.approx(0.05) and np.min(np.abs(res.t - t_exit)) < 1e-15
 
 
 def test_the_exit_state_of_any_size_is_valid_json(tmp_path):
@@ -298,7 +323,7 @@ def test_the_exit_state_of_any_size_is_valid_json(tmp_path):
 def test_a_load_that_has_not_reached_the_end_has_no_exit(tmp_path):
     res = cantilever(tmp_path, "short.nml", "mass = 20.0, s0 = 0.5, speed = 50.0", t_end=0.02)
     [shot] = res.stats["moving_loads"]
-    assert shot["exited"] is False and shot["t_exit"] is None
+    assert shot["exited"] is False and shot["t_exit"] is None and shot["exit_end"] is None
     assert "did not leave its body by t = 0.02 s" in res.summary
 
 
@@ -373,11 +398,26 @@ def test_a_restart_equals_the_uninterrupted_run(tmp_path, t_cut):
                                              r"\(its end at 2 m\) at t = -0.0841667 s, not after the run starts"),
     (("s0 = 0.1, speed = 120.0", "form = 'table', file = 'early.txt'"),
      r":\d+: &moving_load 'shot': file: the load leaves the beam 'beam' \(its end at 2 m\) at t = -0.0\d+ s, not after"),
+    # the same through the root (s < 0), which ran with exit 0 and "did not leave its body":
+    # at the root when the run starts, before it at -1 + 0/300 s, a table that has passed it
+    # (its rate at its last time, 0 m, continues it) and one that crosses it before t = 0
+    (("s0 = 0.1, speed = 120.0", "s0 = 0.0, speed = -300.0"),
+     r":\d+: &moving_load 'shot': start: the load leaves the beam 'beam' \(its root at 0 m\) at t = 0 s, not after the "
+     r"run starts \(t = 0\): it would never act$"),
+    (("s0 = 0.1, speed = 120.0", "s0 = 0.0, speed = -300.0, start = -1.0"),
+     r":\d+: &moving_load 'shot': start: the load leaves the beam 'beam' \(its root at 0 m\) at t = -1 s, not after"),
+    (("s0 = 0.1, speed = 120.0", "form = 'table', file = 'gone.txt'"),
+     r":\d+: &moving_load 'shot': file: the load leaves the beam 'beam' \(its root at 0 m\) at t = -0.5 s, not after"),
+    (("s0 = 0.1, speed = 120.0", "form = 'table', file = 'back.txt'"),
+     r":\d+: &moving_load 'shot': file: the load leaves the beam 'beam' \(its root at 0 m\) at t = -0.00\d+ s, not "
+     r"after the run starts \(t = 0\): it would never act$"),
 ])
 def test_bad_moving_loads_are_refused_in_one_line(tmp_path, mrsim, replace, expect):
     (tmp_path / "bad.txt").write_text("0.0 0.1\n0.02 0.5\n0.01 0.9\n")
     (tmp_path / "off.txt").write_text("0.0 3.0\n0.02 4.0\n")
     (tmp_path / "early.txt").write_text("-0.02 1.8\n-0.01 2.1\n0.0 2.4\n")
+    (tmp_path / "gone.txt").write_text("-2 1\n-1 0.5\n-0.5 0\n")
+    (tmp_path / "back.txt").write_text("-0.02 0.3\n-0.01 0.1\n0.0 -0.2\n")
     text = HUB.format(integrator="method = 'single', h_slow = 1.0e-4", t_end=0.01, output="")
     text = text.replace("&marker", "&body name = 'block', kind = 'rigid', mass = 1.0, inertia = 1, 1, 1, 0, 0, 0 /\n"
                         "&joint name = 'pin', kind = 'revolute', parent = 'ground', child = 'block' /\n&marker")

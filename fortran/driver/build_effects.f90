@@ -5,7 +5,7 @@
 module pymr_driver_build_effects
   use pymr_env_kinds, only : dp
   use pymr_env_error, only : error_type, fatal_error
-  use pymr_model_scene, only : scene_t, unset, control_count, big_time, big_length, big_force
+  use pymr_model_scene, only : scene_t, moving_load_spec, unset, control_count, big_time, big_length, big_force
   use pymr_model_scene_rules, only : body_index
   use pymr_model_types, only : model_data, model_work
   use pymr_model_time_table, only : spline_setup
@@ -25,7 +25,7 @@ module pymr_driver_build_effects
   use pymr_model_effect_deformation_inertia, only : deformation_effect_of
   use pymr_model_effect_force_elements, only : force_element, force_elements_effect_of, spring_damper, bushing
   use pymr_model_effect_controls, only : controller, controls_effect_of
-  use pymr_model_effect_moving_load, only : moving_load, moving_load_effect_of, exit_time
+  use pymr_model_effect_moving_load, only : moving_load, moving_load_effect_of, travel_exit
   use pymr_env_text, only : fmt
   implicit none
   private
@@ -272,16 +272,29 @@ contains
               & " m, is off the beam '" // trim(ml%body) // "' (0 to its length, " // fmt(ld%length) // ' m)'); return
           end if
         end if
-        ! a load that has left by the run's start never acts, and no step could note its exit
-        ! (it was reported as not having left its body)
-        if (exit_time(ld) <= 0.0_dp) then
-          call fatal_error(error, ml%origin%where(trim(merge('file ', 'start', ld%tabulated))) // &
-            & ": the load leaves the beam '" // trim(ml%body) // "' (its end at " // fmt(ld%length) // &
-            & ' m) at t = ' // fmt(exit_time(ld)) // ' s, not after the run starts (t = 0): it would never act'); return
-        end if
+        call check_exit_after_start(ml, ld, error); if (allocated(error)) return
       end associate
     end do
   end function moving_loads_of
+
+  !> A load that leaves its beam (through either end) by the run's start never acts, and no
+  !> step could note its exit (it was reported as not having left its body): refused,
+  !> naming the item of its travel (start, or the table's file) and the end.
+  subroutine check_exit_after_start(ml, ld, error)
+    type(moving_load_spec), intent(in) :: ml
+    type(moving_load), intent(in) :: ld
+    type(error_type), allocatable, intent(out) :: error
+    character(len=:), allocatable :: through
+    real(dp) :: te
+    logical :: root
+    call travel_exit(ld, te, root)
+    if (te > 0.0_dp) return
+    through = 'its end at ' // fmt(ld%length) // ' m'
+    if (root) through = 'its root at 0 m'
+    call fatal_error(error, ml%origin%where(trim(merge('file ', 'start', ld%tabulated))) // &
+      & ": the load leaves the beam '" // trim(ml%body) // "' (" // through // ') at t = ' // fmt(te) // &
+      & ' s, not after the run starts (t = 0): it would never act')
+  end subroutine check_exit_after_start
 
   !> Index of the marker called `name` (0 if none).
   pure integer function marker_index(d, name)

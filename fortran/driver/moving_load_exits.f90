@@ -1,5 +1,5 @@
-!> Shot exit of moving loads: after each step, a load whose travel passes its beam's end
-!> within the step has the state there taken from the stepper's dense output (value_at at
+!> Exits of moving loads: after each step, a load whose travel passes either end of its beam
+!> (the tip s = L, a shot exit, or the root s = 0) within the step has the state there taken from the stepper's dense output (value_at at
 !> the exit time the travel law gives), and its body's markers' states noted (model/
 !> effect_moving_load.f90 record_exit). The summary and the JSON report them.
 module pymr_driver_moving_load_exits
@@ -56,8 +56,8 @@ contains
     end do
   end function next_exit
 
-  !> Summary lines: per moving load its exit time and its body's markers' states there, or
-  !> that it did not leave the body by t_end.
+  !> Summary lines: per moving load its exit time (through the tip, a shot exit, or the
+  !> root) and its body's markers' states there, or that it did not leave the body by t_end.
   function exits_text(model, t_end) result(s)
     type(model_t), intent(in) :: model
     real(dp), intent(in) :: t_end
@@ -73,8 +73,13 @@ contains
               s = s // "moving load '" // trim(e%loads(k)%name) // "': did not leave its body by t = " // &
                 & fmt(t_end) // ' s' // new_line('a'); cycle
             end if
-            s = s // "moving load '" // trim(e%loads(k)%name) // "': shot exit at t = " // fmt(x%t) // ' s' // &
-              & new_line('a')
+            if (e%loads(k)%exit_at_root) then
+              s = s // "moving load '" // trim(e%loads(k)%name) // "': left its body through its root (s = 0) " // &
+                & 'at t = ' // fmt(x%t) // ' s' // new_line('a')
+            else
+              s = s // "moving load '" // trim(e%loads(k)%name) // "': shot exit at t = " // fmt(x%t) // ' s' // &
+                & new_line('a')
+            end if
             do j = 1, size(x%markers)
               s = s // "  marker '" // trim(model%d%markers%name(x%markers(j))) // "' at exit: position " // &
                 & vec(x%r(:, j)) // ' m, velocity ' // vec(x%v(:, j)) // ' m/s, angle ' // vec(x%angle(:, j)) // &
@@ -87,7 +92,8 @@ contains
   end function exits_text
 
   !> The JSON member "moving_loads" (with its comma; empty without moving loads): per load
-  !> its name, "exited", "t_exit" (null when it did not leave) and "markers_at_exit".
+  !> its name, "exited", "t_exit" and "exit_end" ('tip' or 'root'; null when it did not
+  !> leave) and "markers_at_exit".
   function exits_json(model) result(s)
     type(model_t), intent(in) :: model
     character(len=:), allocatable :: s, items
@@ -102,9 +108,10 @@ contains
             items = items // '{"name": "' // json_escape(trim(e%loads(k)%name)) // '", "exited": ' // &
               & merge('true ', 'false', x%exited)
             if (.not. x%exited) then
-              items = items // ', "t_exit": null, "markers_at_exit": {}}'; cycle
+              items = items // ', "t_exit": null, "exit_end": null, "markers_at_exit": {}}'; cycle
             end if
-            items = trim(items) // ', "t_exit": ' // num(x%t) // ', "markers_at_exit": {'
+            items = trim(items) // ', "t_exit": ' // num(x%t) // ', "exit_end": "' // &
+              & trim(merge('root', 'tip ', e%loads(k)%exit_at_root)) // '", "markers_at_exit": {'
             do j = 1, size(x%markers)
               if (j > 1) items = items // ', '
               items = items // '"' // json_escape(trim(model%d%markers%name(x%markers(j)))) // '": {"position": ' // &

@@ -4,7 +4,8 @@
 !> positions, so that its acceleration, which the mass's inertia along the path needs, is
 !> continuous; at its first position before its first time, continued at its last rate
 !> after its last). The load acts while
-!> 0 <= s <= L (L the beam's length); it leaves the body when s passes L (shot exit).
+!> 0 <= s <= L (L the beam's length); it leaves the body when s passes either end: L (shot
+!> exit) or 0 (its root).
 !>
 !> The point in the body frame is c = s e_x + Psi(s) a (Psi the 3 x m translational shapes
 !> of the axis at x = s, by Hermite interpolation). With the tangent tg = e_x + Psi' a its
@@ -27,7 +28,7 @@ module pymr_model_effect_moving_load
   use pymr_model_effect, only : effect_t, stage_load, energy_kinetic, energy_gravity, power_loads, power_motion
   implicit none
   private
-  public :: moving_load, moving_load_effect, moving_load_effect_of, load_exit, exit_time, record_exit
+  public :: moving_load, moving_load_effect, moving_load_effect_of, load_exit, exit_time, travel_exit, record_exit
 
   !> One moving load: its name, body (model index) and the body's length (m), mass (kg),
   !> force (N, body axes), and its travel: start (s), s0 (m) and speed (m/s), or a table of
@@ -39,8 +40,10 @@ module pymr_model_effect_moving_load
     real(dp) :: start = 0.0_dp, s0 = 0.0_dp, speed = 0.0_dp
     logical :: tabulated = .false.
     type(time_table) :: table
-    !> Its exit time (exit_time): it acts up to it, and leaves when the run passes it.
+    !> Its exit time (exit_time): it acts up to it, and leaves when the run passes it; and
+    !> whether it leaves through the root (s = 0) rather than the end s = L.
     real(dp) :: t_exit = huge(1.0_dp)
+    logical :: exit_at_root = .false.
   end type moving_load
 
   !> A load's exit: whether it has left the body in the run, when (s), and the states then
@@ -84,7 +87,7 @@ contains
     e%loads = loads
     e%g = g
     do i = 1, size(loads)
-      e%loads(i)%t_exit = exit_time(loads(i))
+      call travel_exit(loads(i), e%loads(i)%t_exit, e%loads(i)%exit_at_root)
     end do
     allocate(e%exits(size(loads)))
     do i = 1, size(loads)
@@ -116,17 +119,28 @@ contains
     end if
   end subroutine travel
 
-  !> The time (s) a load passes the body's end s = L (huge when it never does): for a
-  !> constant speed start + (L - s0)/speed; for a table, in the first interval whose end
-  !> position passes L, where its spline does (bisection to rounding), else on the line
-  !> that continues it.
+  !> The time (s) a load leaves its body (huge when it never does).
   pure real(dp) function exit_time(ld) result(te)
     type(moving_load), intent(in) :: ld
+    logical :: root
+    call travel_exit(ld, te, root)
+  end function exit_time
+
+  !> When a load leaves its body (te, huge when it never does) and whether through its root
+  !> (s = 0; else through its end s = L): for a constant speed at start + (L - s0)/speed
+  !> (speed > 0) or start - s0/speed (speed < 0); for a table, in the first interval whose
+  !> end position is off the beam, where its spline leaves it (bisection to rounding), else
+  !> on the line that continues it.
+  pure subroutine travel_exit(ld, te, root)
+    type(moving_load), intent(in) :: ld
+    real(dp), intent(out) :: te
+    logical, intent(out) :: root
     integer :: i, n
     real(dp) :: sd, sdd, s_end
-    te = huge(1.0_dp)
+    te = huge(1.0_dp); root = .false.
     if (.not. ld%tabulated) then
-      if (ld%speed > 0.0_dp) te = ld%start + (ld%length - ld%s0)/ld%speed
+      root = ld%speed < 0.0_dp
+      if (ld%speed /= 0.0_dp) te = ld%start + (merge(0.0_dp, ld%length, root) - ld%s0)/ld%speed
       return
     end if
     if (.not. allocated(ld%table%t)) return
@@ -134,16 +148,25 @@ contains
     if (n < 2) return
     associate(t => ld%table%t, y => ld%table%y)
       do i = 1, n - 1
-        if (y(i) <= ld%length .and. y(i + 1) > ld%length) then
+        if (off_beam(ld, y(i + 1))) then
+          root = y(i + 1) < 0.0_dp
           te = spline_crossing(ld, t(i), t(i + 1)); return
         end if
       end do
       call table_spline(ld%table, t(n), s_end, sd, sdd)
-      if (y(n) <= ld%length .and. sd > 0.0_dp) te = t(n) + (ld%length - y(n))/sd
+      root = sd < 0.0_dp
+      if (sd /= 0.0_dp) te = t(n) + (merge(0.0_dp, ld%length, root) - y(n))/sd
     end associate
-  end function exit_time
+  end subroutine travel_exit
 
-  !> The time in [ta, tb] where a table's spline, at most L at ta and above it at tb, is L.
+  !> Is the place s off the load's beam (s < 0 or s > L)?
+  pure logical function off_beam(ld, s)
+    type(moving_load), intent(in) :: ld
+    real(dp), intent(in) :: s
+    off_beam = s < 0.0_dp .or. s > ld%length
+  end function off_beam
+
+  !> The time in [ta, tb] where a table's spline, on the beam at ta and off it at tb, leaves it.
   pure real(dp) function spline_crossing(ld, ta, tb) result(tc)
     type(moving_load), intent(in) :: ld
     real(dp), intent(in) :: ta, tb
@@ -154,7 +177,7 @@ contains
       tc = 0.5_dp*(lo + hi)
       if (tc <= lo .or. tc >= hi) exit
       call table_spline(ld%table, tc, s, sd, sdd)
-      if (s > ld%length) then
+      if (off_beam(ld, s)) then
         hi = tc
       else
         lo = tc
