@@ -307,6 +307,26 @@ def test_an_adaptive_run_ends_a_step_on_a_root_exit(tmp_path):
     assert res.t[-1] == pytest.approx(0.05) and np.min(np.abs(res.t - t_exit)) < 1e-15
 
 
+def test_the_exit_angle_near_a_half_turn_is_the_rotation_vector(tmp_path):
+    """The beam held still (no force, no mass, no gravity) on a hub whose spherical joint is
+    turned by pi - 1e-9 rad about (1, 1, 1)/sqrt(3): the tip's angle at exit is that rotation vector. It was
+    taken from the skew part of the rotation matrix, which vanishes at pi (0 there) and near
+    it gives the axis to rounding over sin(angle) (3e-7 rad off here)."""
+    from scipy.spatial.transform import Rotation
+    turn = (np.pi - 1e-9) * np.ones(3) / np.sqrt(3.0)
+    q0 = ", ".join(repr(float(a)) for a in Rotation.from_rotvec(turn).as_euler("XYZ"))
+    scene = CANTILEVER.format(load="s0 = 0.5, speed = 50.0", t_end=0.05, integrator=TIGHT, gravity=".false.", dt=1e-3)
+    scene = scene.replace("&joint name = 'clamp', kind = 'fixed', parent = 'ground',",
+                          "&body name = 'hub', kind = 'rigid', mass = 1.0, inertia = 1, 1, 1, 0, 0, 0 /\n"
+                          f"&joint name = 'ball', kind = 'spherical', parent = 'ground', child = 'hub', q0 = {q0} /\n"
+                          "&joint name = 'clamp', kind = 'fixed', parent = 'hub',")
+    res = pymr.run(write(tmp_path, "turned.nml", scene))
+    [shot] = res.stats["moving_loads"]
+    assert shot["t_exit"] == pytest.approx(0.03, rel=1e-14)
+    assert np.allclose(shot["markers_at_exit"]["tip"]["angle"], turn, rtol=0, atol=1e-12), \
+        np.subtract(shot["markers_at_exit"]["tip"]["angle"], turn)
+
+
 def test_the_exit_state_of_any_size_is_valid_json(tmp_path):
     """A 1e-200 N force leaves velocities of 1e-204 at the exit: the statistics wrote them
     as 6.76546752407431037-204 (es25.17 drops the E of a three-digit exponent), which no

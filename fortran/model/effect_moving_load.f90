@@ -19,7 +19,7 @@
 module pymr_model_effect_moving_load
   use pymr_env_kinds, only : dp, name_len
   use pymr_model_types, only : model_data, model_work
-  use pymr_model_spatial, only : rigid_inertia
+  use pymr_model_spatial, only : rigid_inertia, quaternion
   use pymr_model_flexbody, only : small_rotation
   use pymr_model_beam_modes, only : axis_shapes
   use pymr_model_kinematics, only : forward_kinematics, marker_motion, marker_rotation
@@ -359,15 +359,16 @@ contains
     end associate
   end subroutine record_exit
 
-  !> Rotation vector (axis times angle, rad; angle below pi) of rotation matrix rm.
+  !> Rotation vector (axis times angle, rad; angle up to pi) of rotation matrix rm, from its
+  !> quaternion [w, u] (w >= 0): 2 atan2(|u|, w) u/|u|. Right at and near pi, where the
+  !> skew part of rm vanishes (it gave 0 at pi) and its direction is lost to rounding.
   pure function rotation_vector(rm) result(th)
     real(dp), intent(in) :: rm(3, 3)
-    real(dp) :: th(3), v(3), sn, cs, ang
-    v = 0.5_dp*[rm(3, 2) - rm(2, 3), rm(1, 3) - rm(3, 1), rm(2, 1) - rm(1, 2)]
-    sn = norm2(v); cs = 0.5_dp*(rm(1, 1) + rm(2, 2) + rm(3, 3) - 1.0_dp)
-    ang = atan2(sn, cs)
-    th = v
-    if (sn > 1.0e-300_dp) th = v*(ang/sn)
+    real(dp) :: th(3), qt(4), sn
+    qt = quaternion(rm)
+    sn = norm2(qt(2:4))
+    th = 2.0_dp*qt(2:4)
+    if (sn > 0.0_dp) th = qt(2:4)*(2.0_dp*atan2(sn, qt(1))/sn)
   end function rotation_vector
 
   !> The exits so far, for a checkpoint.
