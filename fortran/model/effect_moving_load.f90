@@ -19,7 +19,7 @@
 module pymr_model_effect_moving_load
   use pymr_env_kinds, only : dp, name_len
   use pymr_model_types, only : model_data, model_work
-  use pymr_model_spatial, only : rigid_inertia, quaternion
+  use pymr_model_spatial, only : rigid_inertia, rotation_vector
   use pymr_model_flexbody, only : small_rotation
   use pymr_model_beam_modes, only : axis_shapes
   use pymr_model_kinematics, only : forward_kinematics, marker_motion, marker_rotation
@@ -358,18 +358,6 @@ contains
       end do
     end associate
   end subroutine record_exit
-
-  !> Rotation vector (axis times angle, rad; angle up to pi) of rotation matrix rm, from its
-  !> quaternion [w, u] (w >= 0): 2 atan2(|u|, w) u/|u|. Right at and near pi, where the
-  !> skew part of rm vanishes (it gave 0 at pi) and its direction is lost to rounding.
-  pure function rotation_vector(rm) result(th)
-    real(dp), intent(in) :: rm(3, 3)
-    real(dp) :: th(3), qt(4), sn
-    qt = quaternion(rm)
-    sn = norm2(qt(2:4))
-    th = 2.0_dp*qt(2:4)
-    if (sn > 0.0_dp) th = qt(2:4)*(2.0_dp*atan2(sn, qt(1))/sn)
-  end function rotation_vector
 
   !> The exits so far, for a checkpoint.
   subroutine save_exits(self, unit, ios)

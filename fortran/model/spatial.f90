@@ -28,31 +28,16 @@ contains
   end function skew
 
   !> Rotation vector theta (axis times angle, angle in [0, pi]) of rotation matrix r
-  !> (r = exp(theta~)). The axis comes from the skew part v = sin(angle) n up to a right
-  !> angle, and beyond it from the symmetric part (r + r^T)/2 - cos(angle) I =
-  !> (1 - cos(angle)) n n^T, with its sign from v: near pi, v vanishes with sin(angle) and
-  !> no longer gives the axis. At pi exactly both signs are the same rotation.
+  !> (r = exp(theta~)), from its quaternion [w, u] (w >= 0): 2 atan2(|u|, w) u/|u|. Right
+  !> up to pi, where the skew part of r, sin(angle) times the axis, vanishes and gives the
+  !> axis no longer (at pi both signs are the same rotation).
   pure function rotation_vector(r) result(th)
     real(dp), intent(in) :: r(3, 3)
-    real(dp) :: th(3), v(3), b(3, 3), s, c, angle
-    integer :: k
-    v = 0.5_dp*[r(3, 2) - r(2, 3), r(1, 3) - r(3, 1), r(2, 1) - r(1, 2)]
-    s = norm2(v)
-    c = 0.5_dp*(r(1, 1) + r(2, 2) + r(3, 3) - 1.0_dp)
-    angle = atan2(s, c)
-    if (c >= 0.0_dp) then
-      th = v*(1.0_dp + angle**2/6.0_dp)               ! angle/sin(angle), to O(angle^4)
-      if (s >= 1.0e-4_dp) th = v*(angle/s)
-      return
-    end if
-    b = 0.5_dp*(r + transpose(r))
-    do k = 1, 3
-      b(k, k) = b(k, k) - c
-    end do
-    k = maxloc([b(1, 1), b(2, 2), b(3, 3)], 1)
-    th = b(:, k)/sqrt(b(k, k)*(1.0_dp - c))           ! the unit axis n
-    if (dot_product(th, v) < 0.0_dp) th = -th
-    th = angle*th
+    real(dp) :: th(3), qt(4), s
+    qt = quaternion(r)
+    s = norm2(qt(2:4))
+    th = 2.0_dp*qt(2:4)
+    if (s > 0.0_dp) th = qt(2:4)*(2.0_dp*atan2(s, qt(1))/s)
   end function rotation_vector
 
   !> Spatial inertia (6x6) about the inertial origin of a rigid body of mass m with
