@@ -500,3 +500,21 @@ def test_off_or_at_zero_mass_and_force_the_load_changes_nothing(tmp_path):
                **{"moving_load[shot].mass": 0.0, "moving_load[shot].force": [0.0, 0.0, 0.0]})
     assert zero.stats["effects"]["moving_loads"]["evaluations"] == zero.stats["rhs_full"]
     assert np.abs(zero.data - bare.data).max() <= 1e-12 * np.abs(bare.data).max()
+
+
+def test_a_travel_starting_mid_run_is_stepped_onto(tmp_path):
+    """A 6 kg load resting at s0 = 1.5 m from the root until 0.01 s, then travelling back at
+    50 m/s under gravity: its speed jumps at its start, where adaptive steps now end (as at
+    its exit). At rtol 1e-11 the run used to stop at 0.01 s with a step-size underflow; now
+    the tip's velocity at the exit (0.04 s, through the root) agrees with rtol 1e-9's to
+    1e-6 (measured 1.2e-8)."""
+    tips = []
+    for rtol in (1e-9, 1e-11):
+        res = cantilever(tmp_path, f"back{rtol}.nml", "mass = 6.0, s0 = 1.5, speed = -50.0, start = 0.01",
+                         t_end=0.05, gravity=".true.",
+                         integrator=f"h_slow = 1.0e-3, adaptive = .true., rtol = {rtol}, atol = {rtol * 1e-2}")
+        (shot,) = res.stats["moving_loads"]
+        assert shot["exit_end"] == "root" and shot["t_exit"] == pytest.approx(0.04, rel=1e-12)
+        tips.append(shot["markers_at_exit"]["tip"]["velocity"][1])
+    assert abs(tips[0]) > 0.1
+    assert tips[0] == pytest.approx(tips[1], rel=1e-6)
