@@ -228,6 +228,24 @@ contains
     if (m <= n_hist) h = self%h/2.0_dp**(n_hist - max(m, 2) + 1)
   end function fixed_length
 
+  !> The next step from t0 to try, its length hs and end tn: adaptive, the controller's (at
+  !> most twice the last while the history fills), shortened to land on t_stop; fixed, the
+  !> start's fractions of H, then H.
+  pure subroutine step_to_try(self, t0, hs, tn)
+    class(exponential_integrator), intent(in) :: self
+    real(dp), intent(in) :: t0
+    real(dp), intent(out) :: hs, tn
+    if (.not. self%adaptive) then
+      tn = fixed_end(self, self%steps + 1); hs = fixed_length(self, self%steps + 1); return
+    end if
+    hs = self%h
+    if (self%hist%nh < n_hist) hs = min(hs, 2.0_dp*max(self%last%h, self%h/2.0_dp**(n_hist - 1)))
+    tn = t0 + hs
+    if (t0 < self%t_stop .and. tn > self%t_stop) then
+      hs = self%t_stop - t0; tn = self%t_stop
+    end if
+  end subroutine step_to_try
+
   !> One accepted step: predict, evaluate, correct; adaptive steps retried smaller when the
   !> estimate exceeds the tolerance or the evaluation broke down.
   subroutine ex_advance(self, sys, error)
@@ -244,16 +262,7 @@ contains
       if (self%adaptive) call error_weights(self%ctl, self%x, wk%w)
       breakdowns = 0; fails = 0
       do
-        if (self%adaptive) then
-          hs = self%h
-          if (self%hist%nh < n_hist) hs = min(hs, 2.0_dp*max(self%last%h, self%h/2.0_dp**(n_hist - 1)))
-          tn = t0 + hs
-          if (t0 < self%t_stop .and. tn > self%t_stop) then       ! land on the stop
-            hs = self%t_stop - t0; tn = self%t_stop
-          end if
-        else
-          tn = fixed_end(self, self%steps + 1); hs = fixed_length(self, self%steps + 1)
-        end if
+        call step_to_try(self, t0, hs, tn)
         wk%eta0 = self%flow%modal_state(self%x)
         ! predict: the polynomial through the history
         call forcing(self, t0, self%hist%nh, .false., tn)
