@@ -12,7 +12,7 @@ module pymr_driver_simulation
   use pymr_env_error, only : error_type, fatal_error, stat_solver
   use pymr_env_text, only : itoa, fmt
   use pymr_env_clock, only : thread_cpu_time
-  use pymr_env_text_file, only : acquire_lock, release_lock, commit_staged, remove_file
+  use pymr_env_text_file, only : acquire_lock, release_lock, commit_staged, remove_file, system_reason
   use pymr_model_scene, only : scene_t
   use pymr_model, only : model_t
   use pymr_model_sensors, only : sensors_of
@@ -429,7 +429,7 @@ contains
       call self%checkpoint_if_due(error); if (allocated(error)) return
       if (self%out%ios /= 0) then
         call fatal_error(error, 'at t = ' // fmt(self%st%time()) // ' s: ' // self%out%partial // ': cannot ' // &
-          & 'write the results: ' // trim(self%out%io_message), stat_solver); return
+          & 'write the results: ' // system_reason(self%out%io_message), stat_solver); return
       end if
       call self%step(error); if (allocated(error)) return
       call self%clock%reached(self%st%time())

@@ -139,7 +139,7 @@ contains
       end if
     end if
     if (ios /= 0) then
-      call fatal_error(error, path // ': cannot write: ' // trim(msg)); return
+      call fatal_error(error, path // ': cannot write: ' // system_reason(msg)); return
     end if
     call check_size(path // '.tmp', int(len(text), int64), error); if (allocated(error)) return
     call sync_file(path // '.tmp', error)
@@ -210,7 +210,7 @@ contains
     open(newunit=u, file=file, access='stream', form='unformatted', status='old', action='read', &
       & iostat=ios, iomsg=msg)
     if (ios /= 0) then
-      call fatal_error(error, file // ': cannot read: ' // trim(msg)); return
+      call fatal_error(error, file // ': cannot read: ' // system_reason(msg)); return
     end if
     inquire(unit=u, size=sz)
     if (sz < 0) then
@@ -228,7 +228,7 @@ contains
     if (sz > 0) read(u, iostat=ios, iomsg=msg) text
     close(u)
     if (ios /= 0) then
-      call fatal_error(error, file // ': cannot read: ' // trim(msg)); return
+      call fatal_error(error, file // ': cannot read: ' // system_reason(msg)); return
     end if
     if (sz >= 3) then
       if (text(1:3) == achar(239) // achar(187) // achar(191)) text(1:3) = ' '

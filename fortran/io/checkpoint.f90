@@ -137,7 +137,7 @@ contains
     open(newunit=u, file=path, access='stream', form='unformatted', status='old', action='read', iostat=ios, &
       & iomsg=msg)
     if (ios /= 0) then
-      call fatal_error(error, path // ': cannot read the checkpoint: ' // trim(msg)); return
+      call fatal_error(error, path // ': cannot read the checkpoint: ' // system_reason(msg)); return
     end if
     call read_header(u, path, hd, error)
     if (.not. allocated(error)) call compare_identity(path, hd, st, model, settings, fingerprint, t_end, error)

@@ -7,7 +7,7 @@ module pymr_io_results_csv
   use pymr_model_types, only : model_data
   use pymr_env_real_text, only : put_real
   use pymr_env_text, only : itoa
-  use pymr_env_text_file, only : sync_file, rename_file, file_size, check_size
+  use pymr_env_text_file, only : sync_file, rename_file, file_size, check_size, system_reason
   use pymr_io_results_output, only : pymr_version, header_line, row_width, row_values
   use pymr_io_results_file, only : results_file, check_kept_values, check_kept_times, check_kept_last
   implicit none
@@ -66,7 +66,7 @@ contains
     self%partial = path // '.partial'
     open(newunit=self%unit, file=self%partial, status='replace', action='write', iostat=ios, iomsg=msg)
     if (ios /= 0) then
-      call fatal_error(error, self%partial // ': cannot write the results: ' // trim(msg)); return
+      call fatal_error(error, self%partial // ': cannot write the results: ' // system_reason(msg)); return
     end if
     self%opened = .true.
     call put('# pymr ' // pymr_version // ' results')
@@ -74,7 +74,7 @@ contains
     call put('# method: ' // self%method)
     call put(header_line(self%plan, d))
     if (self%ios /= 0) then
-      call fatal_error(error, self%partial // ': cannot write the results: ' // trim(self%io_message)); return
+      call fatal_error(error, self%partial // ': cannot write the results: ' // system_reason(self%io_message)); return
     end if
     call allocate_row(self, d)
   contains
@@ -121,7 +121,7 @@ contains
     allocate(lines(keep))
     open(newunit=u, file=source, status='old', action='read', iostat=ios, iomsg=msg)
     if (ios /= 0) then
-      call fatal_error(error, source // ': cannot read the results: ' // trim(msg)); return
+      call fatal_error(error, source // ': cannot read the results: ' // system_reason(msg)); return
     end if
     do k = 1, keep
       read(u, '(a)', iostat=ios) buf
@@ -151,7 +151,7 @@ contains
     end do
     if (ios == 0) close(u, iostat=ios, iomsg=msg)
     if (ios /= 0) then
-      call fatal_error(error, self%partial // ': cannot write the results: ' // trim(msg)); return
+      call fatal_error(error, self%partial // ': cannot write the results: ' // system_reason(msg)); return
     end if
     call check_size(self%partial // '.tmp', sum([(int(len(lines(k)%s) + 1, int64), k = 1, keep)]), error)
     if (allocated(error)) return
@@ -160,7 +160,7 @@ contains
     open(newunit=self%unit, file=self%partial, status='old', action='write', position='append', iostat=ios, &
       & iomsg=msg)
     if (ios /= 0) then
-      call fatal_error(error, self%partial // ': cannot write the results: ' // trim(msg)); return
+      call fatal_error(error, self%partial // ': cannot write the results: ' // system_reason(msg)); return
     end if
     self%opened = .true.
     self%written = file_size(self%partial)
@@ -298,13 +298,13 @@ contains
     character(len=256) :: msg
     call self%flush_rows()
     if (self%ios /= 0) then
-      call fatal_error(error, self%partial // ': cannot write the results: ' // trim(self%io_message), stat_solver)
+      call fatal_error(error, self%partial // ': cannot write the results: ' // system_reason(self%io_message), stat_solver)
       return
     end if
     close(self%unit, iostat=ios, iomsg=msg)
     self%opened = .false.
     if (ios /= 0) then
-      call fatal_error(error, self%partial // ': cannot write the results: ' // trim(msg), stat_solver); return
+      call fatal_error(error, self%partial // ': cannot write the results: ' // system_reason(msg), stat_solver); return
     end if
     call sync_file(self%partial, error); if (allocated(error)) return
     call rename_file(self%partial, self%path, error)
