@@ -202,6 +202,11 @@ CASES = [
          sets=("body[bob].mass=abc",)),
     Case("set_invalid_value", BASE, ("&body", "'bob'", "mass", "must be in [1e-12, 1e+12], got -1"),
          sets=("body[bob].mass=-1",)),
+    # items a run does not use, which it ignored
+    Case("corrector_of_fixed_steps", BASE, ("&integrator", "corrector", "formula 'adams'", "leave it out"),
+         sets=("integrator.corrector='fixed-point'",)),
+    Case("articulated_multirate", BASE, ("&integrator", "dynamics", "'articulated'", "multirate", "method = 'single'"),
+         sets=("integrator.method='multirate'", "integrator.dynamics='articulated'")),
     # 14. drives given, &effects joint_drives off
     Case("drive_without_joint_drives", BASE + "&drive joint = 'pivot', offset = 1.0 /\n",
          ("&drive", "joint_drives")),

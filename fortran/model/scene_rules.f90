@@ -173,6 +173,31 @@ contains
     end associate
   end subroutine check_method_steps
 
+  !> Items of the solver that only some runs use, refused where this run would ignore them:
+  !> an order other than 4 with 'abm4', the 'adams' corrector's fixed-point iteration with
+  !> another formula, fixed steps or multirate, and the articulated-body algorithm with
+  !> multirate (its couplings partition M itself). Their defaults pass (a resolved scene
+  !> writes every item).
+  subroutine check_solver_items(sc, errs)
+    type(scene_t), intent(in) :: sc
+    type(error_list), intent(inout) :: errs
+    associate(s => sc%integrator, o => sc%integrator%origin)
+      if (s%formula == 'abm4' .and. o%given('order') .and. s%order /= 4) then
+        call errs%add(o%where('order') // ": formula 'abm4' (the paper's) is of order 4; orders 0 (variable) " // &
+          & "to 12 need formula = 'adams' with adaptive steps at one rate"); return
+      end if
+      if (s%corrector /= 'newton' .and. (s%formula == 'abm4' .or. .not. s%adaptive .or. trim(s%method) == 'multirate')) &
+        & then
+        call errs%add(o%where('corrector') // ": iterates the corrector of formula 'adams' (adaptive, " // &
+          & "single-rate); this run takes n_corrector corrections a step: leave it out"); return
+      end if
+      if (trim(s%dynamics) == 'articulated' .and. trim(s%method) == 'multirate') then
+        call errs%add(o%where('dynamics') // ": 'articulated' is how single-rate evaluations solve M qdd = P; " // &
+          & "the multirate couplings partition M itself: leave it out, or method = 'single'"); return
+      end if
+    end associate
+  end subroutine check_solver_items
+
   subroutine check_settings(sc, errs)
     type(scene_t), intent(in) :: sc
     type(error_list), intent(inout) :: errs
@@ -226,10 +251,7 @@ contains
         call errs%add(w('formula') // ": 'adams' takes adaptive steps at one rate: set adaptive = .true. " // &
           & "and method = 'single', or formula = 'abm4'"); return
       end if
-      if (s%formula == 'abm4' .and. sc%integrator%origin%given('order') .and. s%order /= 4) then
-        call errs%add(w('order') // ": formula 'abm4' (the paper's) is of order 4; orders 0 (variable) to 12 " // &
-          & "need formula = 'adams' with adaptive steps at one rate"); return
-      end if
+      call check_solver_items(sc, errs); if (errs%n > n0) return
       if (s%h_max > 0.0_dp .and. s%h_min > s%h_max) then
         call errs%add(w('h_min') // ': larger than h_max = ' // fmt(s%h_max) // ' s (got ' // fmt(s%h_min) // &
           & ' s): no step would be allowed'); return
