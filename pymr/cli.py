@@ -178,16 +178,27 @@ def _cmd_export(args: argparse.Namespace) -> int:
                        exaggerate=args.exaggerate)
 
 
+def _option_names(option: str, names: list[str] | None) -> list[str] | None:
+    """The names given to `option` (--column, --marker, --joint), each checked by the rule
+    for a name the functions apply (pymr._args._name), so that a fault names the option
+    typed, not the function's argument ('--column: an empty name', not 'columns[0]: ...')."""
+    from ._args import _name
+    for name in names or ():
+        _name(option, name)
+    return names
+
+
 def _cmd_view(args: argparse.Namespace) -> int:
     from . import view
-    return view.main(args.csv, output=args.output, scene=args.scene, columns=args.column, every=args.every,
-                     frames=args.frames, exaggerate=args.exaggerate)
+    return view.main(args.csv, output=args.output, scene=args.scene, columns=_option_names("--column", args.column),
+                     every=args.every, frames=args.frames, exaggerate=args.exaggerate)
 
 
 def _cmd_plot(args: argparse.Namespace) -> int:
     from . import plot
-    return plot.main(args.csv, output=args.output, markers=args.marker, joints=args.joint,
-                     labels=args.labels, title=args.title, quiet=args.quiet, columns=args.column)
+    return plot.main(args.csv, output=args.output, markers=_option_names("--marker", args.marker),
+                     joints=_option_names("--joint", args.joint), labels=args.labels, title=args.title,
+                     quiet=args.quiet, columns=_option_names("--column", args.column))
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:

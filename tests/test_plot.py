@@ -196,6 +196,20 @@ def test_cli_bad_names_one_line(tank, tmp_path, capsys, extra, words):
     assert not out.exists()
 
 
+@pytest.mark.parametrize("option", ["--column", "--marker", "--joint"])
+@pytest.mark.parametrize("name", ["", " "], ids=["empty", "blank"])
+def test_cli_an_empty_name_is_named_by_its_option(double_pendulum, tmp_path, capsys, option, name):
+    """`--column ''` (an unset shell variable) said 'columns[0]: an empty name', the plotting
+    function's argument, not the option typed; the function keeps its argument's name."""
+    csv, res = double_pendulum
+    out = tmp_path / "never.png"
+    assert pymr.cli.main(["plot", str(csv), option, name, "-o", str(out)]) == 1
+    assert capsys.readouterr().err == f"pymr: error: {option}: an empty name\n"
+    assert not out.exists()
+    with pytest.raises(pymr.SceneError, match=r"^columns\[1\]: an empty name$"):
+        plot_results([res], columns=["tip.x", name])
+
+
 def test_cli_missing_or_bad_csv(tmp_path, capsys):
     missing = tmp_path / "missing.csv"
     assert pymr.cli.main(["plot", str(missing)]) == 1

@@ -181,6 +181,7 @@ def test_bad_options_are_one_line_exit_1(tank, tmp_path, capsys):
     there: one line naming it, exit 1, no traceback, and no page written."""
     from pymr.cli import main
     cases = [(["--column", "nothing.*"], "no column matches 'nothing.*'"),
+             (["--column", "muzzle.y", ""], "pymr: error: --column: an empty name\n"),   # was 'columns[1]: ...'
              (["--exaggerate", "-2"], "exaggerate: a scale of the deflections, a finite number from 0"),
              (["--exaggerate", "nan"], "(0 draws the bodies undeformed), got nan"),
              (["--frames", "0"], "--frames: '0': a whole number of frames"),
