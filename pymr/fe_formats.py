@@ -34,24 +34,39 @@ NASTRAN_BULK = (".bdf", ".dat", ".pch", ".nas", ".blk", ".bulk")
 OP4 = (".op4",)
 #: the matrices of an Ansys full file, by the role the caller reads it for
 ANSYS_FULL = {"mass": "MASS", "stiffness": "STIFF"}
+#: what the text formats are called where a file is none of them (a binary file)
+TEXT_MATRIX = "a text matrix file (Matrix Market, or Abaqus matrix output)"
+NODES_TEXT = "a nodes file (lines 'node id, x, y, z')"
+DOF_MAP_TEXT = "a DOF map (lines 'row node dof')"
 
 
 # ----------------------------------------------------------------------------- text files
 
-def _text(path: Path) -> str:
+def _unreadable(path: Path, exc: OSError) -> ImportInputError:
+    """The error of a file that cannot be read, in pymr's words (not Python's '[Errno 21] ...')."""
+    if isinstance(exc, FileNotFoundError):
+        return ImportInputError(f"{path}: no such file")
+    if isinstance(exc, IsADirectoryError):
+        return ImportInputError(f"{path}: a directory, not a file")
+    return ImportInputError(f"{path}: cannot read: {exc.strerror or exc}")
+
+
+def _text(path: Path, what: str) -> str:
+    """The text of `path`, which should be `what` (a binary file is named as none, with the
+    line that is not UTF-8 text, not by the codec's message)."""
     try:
-        return path.read_text()
-    except FileNotFoundError:
-        raise ImportInputError(f"{path}: no such file") from None
-    except IsADirectoryError:
-        raise ImportInputError(f"{path}: a directory, not a file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ImportInputError(f"{path}: cannot read: {exc}") from None
+        return path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise _unreadable(path, exc) from None
+    except UnicodeDecodeError as exc:
+        line = exc.object[:exc.start].count(b"\n") + 1
+        raise ImportInputError(f"{path}: not {what}: line {line} is not UTF-8 text") from None
 
 
-def _lines(path: Path, comment: str):
-    """(line number, stripped text) of the file's lines that are not blank or comments."""
-    for k, line in enumerate(_text(path).splitlines(), 1):
+def _lines(path: Path, comment: str, what: str):
+    """(line number, stripped text) of the file's lines that are not blank or comments; the
+    file should be `what` (for the message when it is not text)."""
+    for k, line in enumerate(_text(path, what).splitlines(), 1):
         s = line.strip()
         if s and not s.startswith(comment):
             yield k, s
@@ -89,10 +104,8 @@ def read_matrix(path: str | os.PathLike, rows: tuple[int, str] | None = None, na
     try:
         with open(path, "rb") as fh:
             start = fh.read(14).lower()
-    except FileNotFoundError:
-        raise ImportInputError(f"{path}: no such file") from None
     except OSError as exc:
-        raise ImportInputError(f"{path}: cannot read: {exc}") from None
+        raise _unreadable(path, exc) from None
     if start.startswith(b"%%matrixmarket") or not start.strip():
         return read_matrix_market(path, rows), None
     return read_abaqus(path)
@@ -104,7 +117,7 @@ def read_matrix_market(path: str | os.PathLike, rows: tuple[int, str] | None = N
     from what, for the message). The size line is checked against it, and against the
     entries the file holds, before anything is allocated."""
     path = Path(path)
-    text = _text(path)
+    text = _text(path, TEXT_MATRIX)
     header = text.split("\n", 1)[0].split()
     if len(header) != 5 or header[0].lower() != "%%matrixmarket" or header[1].lower() != "matrix":
         raise ImportInputError(f"{path}: line 1: not a Matrix Market matrix (expected '%%MatrixMarket matrix ...')")
@@ -187,7 +200,7 @@ def _memory_bound() -> int:
 
 
 def _array_matrix(path: Path, body: str, nr: int, sym: str) -> sp.csc_matrix:
-    values = [_number(path, k, s) for k, s in _lines(path, "%")][1:]
+    values = [_number(path, k, s) for k, s in _lines(path, "%", TEXT_MATRIX)][1:]
     a = np.zeros((nr, nr))
     if sym == "general":
         a[:, :] = np.asarray(values).reshape(nr, nr).T
@@ -203,7 +216,7 @@ def _entries_slowly(path: Path, nr: int, sym: str = "general") -> np.ndarray:
     """The coordinate entries line by line, raising at the first bad one (the fast reading
     found a fault and this names its line)."""
     out = []
-    for k, s in list(_lines(path, "%"))[1:]:
+    for k, s in list(_lines(path, "%", TEXT_MATRIX))[1:]:
         parts = s.split()
         try:
             i, j, v = int(parts[0]), int(parts[1]), float(parts[2])
@@ -278,7 +291,7 @@ def read_abaqus(path: Path):
     """Abaqus matrix output: lines 'node, dof, node, dof, value' (commas or blanks; '*'
     lines are headings or comments)."""
     rows = []
-    for k, s in _lines(path, "*"):
+    for k, s in _lines(path, "*", TEXT_MATRIX):
         parts = s.replace(",", " ").split()
         try:
             if len(parts) != 5:
@@ -318,7 +331,7 @@ def pynastran():
 def read_bulk(path: Path):
     """A Nastran bulk data or punch file through pyNastran (cards not needed are skipped)."""
     new_model, _ = pynastran()
-    text = _text(path)
+    text = _text(path, "Nastran bulk data")
     model = new_model()
     try:
         model.read_bdf(str(path), xref=False, punch="BEGIN BULK" not in text.upper(), validate=False)
@@ -415,7 +428,7 @@ def _nastran_nodes(path: Path):
 
 def _csv_nodes(path: Path):
     ids, xyz = [], []
-    for n, (k, s) in enumerate(_lines(path, "#")):
+    for n, (k, s) in enumerate(_lines(path, "#", NODES_TEXT)):
         parts = s.replace(",", " ").split()
         try:
             if len(parts) != 4:
@@ -455,7 +468,7 @@ def _ansys_nodes(path: Path):
 def _abaqus_nodes(path: Path):
     """The *NODE blocks of an Abaqus input deck: lines 'id, x, y[, z]' (z 0 when left out)."""
     ids, xyz, inside = [], [], False
-    for k, s in _lines(path, "**"):
+    for k, s in _lines(path, "**", "an Abaqus input deck"):
         if s.startswith("*"):
             inside = s.split(",")[0].strip().upper() == "*NODE"
             continue
@@ -481,7 +494,7 @@ def layout_rows(ids: list[int], nodes_path: Path, dofs_per_node: int | None, dof
     if dof_map is None:
         n = dofs_per_node * len(ids)
         return n, f"{nodes_path} has {len(ids)} nodes x {dofs_per_node} DOFs = {n}"
-    n = sum(1 for _ in _lines(dof_map, "#"))
+    n = sum(1 for _ in _lines(dof_map, "#", DOF_MAP_TEXT))
     return n, f"{dof_map} maps {n} rows (one a line)"
 
 
@@ -509,7 +522,7 @@ def dof_layout(ids: list[int], ndof: int, matrix_path: Path, nodes_path: Path, d
         return dof
     path = Path(dof_map)
     seen = np.zeros(ndof, dtype=bool)
-    for k, s in _lines(path, "#"):
+    for k, s in _lines(path, "#", DOF_MAP_TEXT):
         try:
             row, nid, c = (int(v) for v in s.replace(",", " ").split())
         except ValueError:

@@ -494,6 +494,35 @@ def test_bad_inputs_name_the_file_and_the_fault(small, capsys):
         assert len(lines) == 1 and re.match(r"pymr: error: .*" + fault, lines[0]), (fault, err)
 
 
+NOT_TEXT = b"\x80\xfe\x00\x01binary\xff" * 20
+
+
+@pytest.mark.parametrize("option, content, fault", [
+    ("--mass", NOT_TEXT, r"bin: not a text matrix file \(Matrix Market, or Abaqus matrix output\): line 1 is not "
+                         r"UTF-8 text"),
+    ("--stiffness", b"%%MatrixMarket matrix coordinate real general\n30 30 1\n" + NOT_TEXT,
+     r"bin: not a text matrix file \(Matrix Market, or Abaqus matrix output\): line 3 is not UTF-8 text"),
+    ("--nodes", NOT_TEXT, r"bin: not a nodes file \(lines 'node id, x, y, z'\): line 1 is not UTF-8 text"),
+    ("--dof-map", NOT_TEXT, r"bin: not a DOF map \(lines 'row node dof'\): line 1 is not UTF-8 text"),
+    ("--mass", None, r"bin: a directory, not a file"),
+], ids=["mass", "stiffness_after_its_header", "nodes", "dof_map", "mass_a_folder"])
+def test_a_file_that_is_not_text_is_named_in_one_line(small, capsys, option, content, fault):
+    """A binary file given for a text format printed Python's codec message ("cannot read:
+    'utf-8' codec can't decode byte 0x80 ..."), and a folder as a matrix "[Errno 21] Is a
+    directory"; each is one line naming the file and what it should have been."""
+    tmp, k, m, nodes = small
+    mp, kp, npath = write_fe(tmp, k, m, nodes)
+    args = {"--mass": str(mp), "--stiffness": str(kp), "--nodes": str(npath)}
+    if content is None:
+        (tmp / "bin").mkdir()
+    else:
+        (tmp / "bin").write_bytes(content)
+    args[option] = str(tmp / "bin")
+    rc, err = _cli(capsys, *[a for pair in args.items() for a in pair], "--interface", "1", "-o", str(tmp / "x.modal"))
+    assert rc == 1 and re.fullmatch(r"pymr: error: \S*/" + fault + "\n", err), err
+    assert not (tmp / "x.modal").exists()
+
+
 def test_a_count_of_modes_beyond_the_massive_dofs_basis_is_solved_dense(small):
     """The small beam has 24 interior DOFs, 20 of them with mass (no torsion mass). The
     default 10 modes asked ARPACK for a basis of 21 vectors, more than the 20 its
