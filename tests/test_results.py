@@ -205,3 +205,30 @@ def test_every_finite_double_reads_back_from_its_csv_text():
     assert np.array_equal(back.view(np.int64), x.view(np.int64))
     eight = texts(fast, 8)
     assert all(float(s) == float("%.7e" % v) for s, v in zip(eight, fast))
+
+
+@pytest.fixture(scope="module")
+def swapped(tmp_path_factory):
+    """A pendulum run (pend.csv, pend.json) with its data rows 5 and 6 swapped: the row
+    count and the byte count the statistics give still fit."""
+    d = tmp_path_factory.mktemp("swapped")
+    pymr.run(ROOT / "input" / "pendulum.nml", d / "pend.csv", overrides={"scene.t_end": 0.2})
+    lines = (d / "pend.csv").read_text().splitlines(keepends=True)
+    head = next(i for i, t in enumerate(lines) if t.startswith("t,"))
+    lines[head + 5], lines[head + 6] = lines[head + 6], lines[head + 5]
+    (d / "pend.csv").write_text("".join(lines))
+    return d / "pend.csv"
+
+
+@pytest.mark.parametrize("command", [["plot", "-o", "p.png"], ["view", "-o", "v.html"], ["animate", "-o", "a.png"],
+                                     ["export", "--vtk", "vtk"]], ids=["plot", "view", "animate", "export"])
+def test_every_command_refuses_results_whose_times_go_back(swapped, tmp_path, monkeypatch, capsys, command):
+    """Rows out of time order are refused by the results reader for each command that reads
+    results (one line naming the file and the row, exit 1, nothing written); two rows of one
+    time are not refused there: a run at a low &output precision writes them."""
+    from pymr.cli import main
+    monkeypatch.chdir(tmp_path)
+    assert main([command[0], str(swapped), *command[1:]]) == 1
+    assert capsys.readouterr().err == (f"pymr: error: {swapped}: row 6, column t: 0.04 is before the row before it "
+                                       "(0.05; a run writes its rows in time: the file was changed)\n")
+    assert not list(tmp_path.iterdir())
