@@ -272,6 +272,10 @@ FORMAT2_CORRUPTIONS = [
     # 1e-300 Hz passed as positive, and its (2 pi f)^2 was 0: a free mode (the barrel's muzzle ended 9 m away)
     ("frequency_underflows", FORMAT2.replace("frequencies_hz 5.0", "frequencies_hz 1e-300"),
      "line 3: frequencies_hz: frequency 1: 1e-300 Hz is too small (its (2 pi f)^2 underflows)"),
+    # 1e150 Hz was read, and a run from rest failed at t = 0 (exit 2) where LAPACK overflows
+    ("frequency_beyond_lapack", FORMAT2.replace("frequencies_hz 5.0", "frequencies_hz 1e150"),
+     "line 3: frequencies_hz: frequency 1: 1e150 Hz is too large (its stiffness (2 pi f)^2 is beyond 1e+150, "
+     "where LAPACK overflows)"),
     # moments no mass distribution has ran with exit 0 (the joint saw a positive inertia), or
     # failed at t = 0 with exit 2; a mass of 1e-300 kg failed at t = 0 with a NaN mass matrix
     ("mass_below_a_body_s", FORMAT2.replace("mass 2.0", "mass 1e-300"),

@@ -20,7 +20,7 @@ module pymr_env_lapack
   integer, public :: xerbla_argument = 0
 
   !> Largest entry (in size) handed to LAPACK.
-  real(dp), parameter :: max_entry = 1.0e150_dp
+  real(dp), parameter, public :: max_entry = 1.0e150_dp
   !> Cholesky factors and solves of matrices up to this order are computed here, not by
   !> LAPACK: for the few coordinates of most scenes the call costs more than the arithmetic
   !> (the tank's 6 x 6 mass matrix: 0.5 us of a 2.7 us evaluation through dpotrf/dpotrs).

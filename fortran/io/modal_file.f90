@@ -30,7 +30,7 @@ module pymr_io_modal_file
   use pymr_model_beam_modes, only : beam_shape, beam_point_shapes
   use pymr_model_scene, only : big_length, big_mass, small_mass
   use pymr_model_inertia, only : eig3
-  use pymr_env_lapack, only : potrf
+  use pymr_env_lapack, only : potrf, max_entry
   use pymr_env_text, only : itoa, fmt, number_text, count_text, split_words, next_text_line, excerpt, max_shown, &
     & below_normal
   use pymr_env_text_file, only : not_regular, write_text_file, read_text_file, check_header_count
@@ -143,9 +143,11 @@ contains
         call r%fail('frequencies_hz: frequency ' // itoa(p) // ': expected a positive frequency (Hz), got ' // &
           & r%word(p + 1)); return
       end if
-      if (.not. ieee_is_finite((2.0_dp*pi*f(p))**2)) then
+      ! its stiffness (2 pi f)^2 enters the mass matrix's factorisations: 1e150 Hz was read,
+      ! and the run failed at t = 0 (exit 2) where LAPACK overflows
+      if (.not. (2.0_dp*pi*f(p))**2 <= max_entry) then
         call r%fail('frequencies_hz: frequency ' // itoa(p) // ': ' // r%word(p + 1) // ' Hz is too large (its ' // &
-          & '(2 pi f)^2 overflows)'); return
+          & 'stiffness (2 pi f)^2 is beyond ' // fmt(max_entry) // ', where LAPACK overflows)'); return
       end if
       ! 1e-300 Hz passed as positive, and its stiffness (2 pi f)^2 was 0: a free mode
       if ((2.0_dp*pi*f(p))**2 < tiny(1.0_dp)) then
