@@ -527,6 +527,10 @@ def test_tabulated_motion_is_the_natural_cubic_spline_of_its_table(tmp_path):
      r":8: &drive #1: file: '.*t.csv' line 4: times must increase, but t = 0.5 follows t = 0.5"),
     ("&drive joint = 'rail', form = 'table', file = 't.csv' /", "0 1\n",
      r":8: &drive #1: file: '.*t.csv' has 1 rows; a table needs at least 2"),
+    # rows 1e-300 s apart: a setpoint rate of 1e300 failed at t = 0 with a step-size underflow
+    ("&drive joint = 'rail', form = 'table', file = 't.csv' /", "0 0\n1e-300 1\n2 1\n",
+     r":8: &drive #1: file: '.*t.csv' line 2: the table rises by 1 over 1e-300 from the row before: a slope beyond "
+     r"1e\+150, where LAPACK overflows; give rows farther apart"),
     ("&drive joint = 'rail', form = 'table' /", None,
      r":8: &drive #1: file: missing \(form 'table' reads the history"),
     ("&drive joint = 'rail', form = 'table', file = 't.csv', amplitude = 2.0 /", "0 1\n1 2\n",
@@ -552,11 +556,16 @@ def test_bad_motion_table_names_the_motion_group(tmp_path):
                                                r"must increase, but t = 0.5 follows t = 1"):
         pymr.run(scene)
     # rows 1e-200 apart (times that increase, values finite) make the spline's slopes
-    # overflow: a failed run "at t = 0 s: dptsv: ..." (exit 2) before; bad input now
+    # overflow: a failed run "at t = 0 s: dptsv: ..." (exit 2) before; bad input now, at the
+    # row whose slope is beyond LAPACK's bound
     (tmp_path / "m.txt").write_text("0 0\n1e-200 1\n1 1\n")
+    with pytest.raises(pymr.SceneError, match=r"rail.nml:8: &motion #1: file: '.*m.txt' line 2: the table rises by 1 "
+                                               r"over 1e-200 from the row before: a slope beyond 1e\+150"):
+        pymr.run(scene)
+    # slopes within the bound whose change is not: the spline's own check
+    (tmp_path / "m.txt").write_text("0 0\n2e-150 1\n4e-150 0\n1 0\n")
     with pytest.raises(pymr.SceneError, match=r"rail.nml:8: &motion #1: file: the spline through the table cannot "
-                                               r"be formed: its slope changes by -1e\+200 at the time 1e-200 \(the "
-                                               r"rows there are 1e-200 and 1 apart\): give rows farther apart in time$"):
+                                               r"be formed: its slope changes by -1e\+150 at the time 2e-150"):
         pymr.run(scene)
 
 

@@ -1,6 +1,7 @@
 !> Time-history files for tabulated drives and motions: two numbers per line, the time (s)
 !> and the value, separated by blanks or a comma; lines starting with '#' and blank lines
-!> are skipped. Times must increase strictly. A line of any other count of numbers (a
+!> are skipped. Times must increase strictly, and the values rise by at most 1e150 per
+!> unit of time (rates beyond overflow LAPACK). A line of any other count of numbers (a
 !> third column: a file written for something else) is refused, not cut to two. A spring's
 !> force-deflection table is read the same way, its first column the deflection.
 module pymr_io_table_file
@@ -8,6 +9,7 @@ module pymr_io_table_file
   use pymr_env_error, only : error_type, fatal_error
   use pymr_env_text, only : itoa, fmt, number_text, split_words, next_text_line, below_normal, excerpt, max_shown
   use pymr_env_text_file, only : not_regular, read_text_file
+  use pymr_env_lapack, only : max_entry
   implicit none
   private
   public :: read_time_table
@@ -75,6 +77,12 @@ contains
         if (.not. (row(1) > tt(n))) then
           call fail(first // 's must increase, but ' // first_symbol // ' = ' // fmt(row(1)) // ' follows ' // &
             & first_symbol // ' = ' // fmt(tt(n))); return
+        end if
+        ! rows 1e-300 s apart gave a setpoint rate of 1e300, and a step-size underflow at t = 0
+        if (.not. abs(row(2) - yy(n)) <= max_entry*(row(1) - tt(n))) then
+          call fail('the table rises by ' // fmt(row(2) - yy(n)) // ' over ' // fmt(row(1) - tt(n)) // &
+            & ' from the row before: a slope beyond ' // fmt(max_entry) // ', where LAPACK overflows; give ' // &
+            & 'rows farther apart'); return
         end if
       end if
       if (n == size(tt)) then
