@@ -74,15 +74,9 @@ contains
         end if
       end do
       if (n > 0) then
-        if (.not. (row(1) > tt(n))) then
-          call fail(first // 's must increase, but ' // first_symbol // ' = ' // fmt(row(1)) // ' follows ' // &
-            & first_symbol // ' = ' // fmt(tt(n))); return
-        end if
-        ! rows 1e-300 s apart gave a setpoint rate of 1e300, and a step-size underflow at t = 0
-        if (.not. abs(row(2) - yy(n)) <= max_entry*(row(1) - tt(n))) then
-          call fail('the table rises by ' // fmt(row(2) - yy(n)) // ' over ' // fmt(row(1) - tt(n)) // &
-            & ' from the row before: a slope beyond ' // fmt(max_entry) // ', where LAPACK overflows; give ' // &
-            & 'rows farther apart'); return
+        why = step_fault(row, [tt(n), yy(n)], first, first_symbol)
+        if (len(why) > 0) then
+          call fail(why); return
         end if
       end if
       if (n == size(tt)) then
@@ -106,6 +100,24 @@ contains
 
   !> Is a comma of line `ln` (words wa(k):wb(k), k = 1..nw) not between two values: before
   !> the first, after the last, or a second one between two?
+  !> What is wrong with a row after the row `before` (''): its first column must increase
+  !> (named `first`, `symbol` in the message), and the value rise by at most max_entry per
+  !> unit of it (rows 1e-300 s apart gave a setpoint rate of 1e300, and a step-size
+  !> underflow at t = 0).
+  function step_fault(row, before, first, symbol) result(why)
+    real(dp), intent(in) :: row(2), before(2)
+    character(len=*), intent(in) :: first, symbol
+    character(len=:), allocatable :: why
+    why = ''
+    if (.not. (row(1) > before(1))) then
+      why = first // 's must increase, but ' // symbol // ' = ' // fmt(row(1)) // ' follows ' // symbol // ' = ' // &
+        & fmt(before(1))
+    else if (.not. abs(row(2) - before(2)) <= max_entry*(row(1) - before(1))) then
+      why = 'the table rises by ' // fmt(row(2) - before(2)) // ' over ' // fmt(row(1) - before(1)) // ' from ' // &
+        & 'the row before: a slope beyond ' // fmt(max_entry) // ', where LAPACK overflows; give rows farther apart'
+    end if
+  end function step_fault
+
   pure logical function empty_value(ln, wa, wb, nw)
     character(len=*), intent(in) :: ln
     integer, intent(in) :: wa(:), wb(:), nw
