@@ -1,7 +1,8 @@
 !> Exits of moving loads: after each step, a load whose travel passes either end of its beam
-!> (the tip s = L, a shot exit, or the root s = 0) within the step has the state there taken from the stepper's dense output (value_at at
-!> the exit time the travel law gives), and its body's markers' states noted (model/
-!> effect_moving_load.f90 record_exit). The summary and the JSON report them.
+!> (the tip s = L, a shot exit, or the root s = 0) within the step has the state there taken
+!> from the stepper's dense output (value_at at the exit time the travel law gives), and its
+!> body's markers' states noted (model/effect_moving_load.f90 record_exit). The summary and
+!> the JSON report them.
 module pymr_driver_moving_load_exits
   use pymr_env_kinds, only : dp
   use pymr_env_text, only : fmt, json_escape, exact_text

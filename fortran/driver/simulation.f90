@@ -393,8 +393,8 @@ contains
     call self%start_stepper(t, h, error)
   end subroutine start_again
 
-  !> Start the stepper at (t, x) with the (first) step h, told the run's next stop first (its start's steps take no
-  !> error estimate to land on one, and stay short of it).
+  !> Start the stepper at (t, x) with the (first) step h, told the run's next stop first
+  !> (its start's steps take no error estimate to land on one, and stay short of it).
   subroutine start_stepper(self, t, h, error)
     class(simulation_t), intent(inout) :: self
     real(dp), intent(in) :: t, h

@@ -98,8 +98,6 @@ contains
     end subroutine fail
   end subroutine read_time_table
 
-  !> Is a comma of line `ln` (words wa(k):wb(k), k = 1..nw) not between two values: before
-  !> the first, after the last, or a second one between two?
   !> What is wrong with a row after the row `before` (''): its first column must increase
   !> (named `first`, `symbol` in the message), and the value rise by at most max_entry per
   !> unit of it (rows 1e-300 s apart gave a setpoint rate of 1e300, and a step-size
@@ -118,6 +116,8 @@ contains
     end if
   end function step_fault
 
+  !> Is a comma of line `ln` (words wa(k):wb(k), k = 1..nw) not between two values: before
+  !> the first, after the last, or a second one between two?
   pure logical function empty_value(ln, wa, wb, nw)
     character(len=*), intent(in) :: ln
     integer, intent(in) :: wa(:), wb(:), nw

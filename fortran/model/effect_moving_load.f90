@@ -28,7 +28,7 @@ module pymr_model_effect_moving_load
   use pymr_model_effect, only : effect_t, stage_load, energy_kinetic, energy_gravity, power_loads, power_motion
   implicit none
   private
-  public :: moving_load, moving_load_effect, moving_load_effect_of, load_exit, exit_time, travel_exit, record_exit
+  public :: moving_load, moving_load_effect, moving_load_effect_of, load_exit, travel_exit, record_exit
 
   !> One moving load: its name, body (model index) and the body's length (m), mass (kg),
   !> force (N, body axes), and its travel: start (s), s0 (m) and speed (m/s), or a table of
@@ -40,7 +40,7 @@ module pymr_model_effect_moving_load
     real(dp) :: start = 0.0_dp, s0 = 0.0_dp, speed = 0.0_dp
     logical :: tabulated = .false.
     type(time_table) :: table
-    !> Its exit time (exit_time): it acts up to it, and leaves when the run passes it; and
+    !> Its exit time (travel_exit): it acts up to it, and leaves when the run passes it; and
     !> whether it leaves through the root (s = 0) rather than the end s = L.
     real(dp) :: t_exit = huge(1.0_dp)
     logical :: exit_at_root = .false.
@@ -118,13 +118,6 @@ contains
       s = ld%s0 + ld%speed*(t - ld%start); sd = ld%speed
     end if
   end subroutine travel
-
-  !> The time (s) a load leaves its body (huge when it never does).
-  pure real(dp) function exit_time(ld) result(te)
-    type(moving_load), intent(in) :: ld
-    logical :: root
-    call travel_exit(ld, te, root)
-  end function exit_time
 
   !> When a load leaves its body (te, huge when it never does) and whether through its root
   !> (s = 0; else through its end s = L): for a constant speed at start + (L - s0)/speed
